@@ -1,0 +1,59 @@
+//! The geometry crate's error type.
+
+use std::path::PathBuf;
+
+/// Errors of mesh reading, validation, topology and preparation.
+///
+/// `Display` follows `path:line: problem` where a file and line are known.
+#[derive(Debug, thiserror::Error)]
+pub enum GeometryError {
+    /// An I/O failure while reading or writing `path`.
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, #[source] source: std::io::Error },
+    /// A parse error at a line (1-based) of a text file, or at an element of a binary one.
+    #[error("{path}:{line}: {message}")]
+    Parse { path: PathBuf, line: usize, message: String },
+    /// A file format that is not recognised (by extension or content).
+    #[error("{path}: unsupported mesh format ({message})")]
+    UnsupportedFormat { path: PathBuf, message: String },
+    /// A face references a vertex that does not exist.
+    #[error("face {face} references vertex {index}, but the mesh has {num_vertices} vertices")]
+    IndexOutOfRange { face: usize, index: i64, num_vertices: usize },
+    /// A vertex coordinate is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFiniteCoordinate { vertex: usize },
+    /// An edge shared by more than two faces.
+    #[error("non-manifold edge ({v0}, {v1}) shared by {num_faces} faces")]
+    NonManifoldEdge { v0: u32, v1: u32, num_faces: usize },
+    /// A vertex whose incident faces form more than one fan.
+    #[error("non-manifold vertex {vertex} ({num_fans} separate fans of faces)")]
+    NonManifoldVertex { vertex: u32, num_fans: usize },
+    /// The mesh has the wrong topology for the operation (e.g. not a disk).
+    #[error("wrong topology: {0}")]
+    Topology(String),
+    /// A degenerate face (repeated index or zero area) where a proper triangle is needed.
+    #[error("degenerate face {face}: {reason}")]
+    DegenerateFace { face: usize, reason: String },
+    /// Any other invalid input, with an explanation.
+    #[error("{0}")]
+    Invalid(String),
+    /// An error in a numerical factorization or solve.
+    #[error("linear algebra: {0}")]
+    LinearAlgebra(String),
+    /// Wraps another error with the file it came from.
+    #[error("{path}: {source}")]
+    WithPath { path: PathBuf, #[source] source: Box<GeometryError> },
+}
+
+impl GeometryError {
+    /// Attaches a path to an error that has none.
+    pub fn with_path(self, path: impl Into<PathBuf>) -> Self {
+        match self {
+            e @ (GeometryError::Io { .. }
+            | GeometryError::Parse { .. }
+            | GeometryError::UnsupportedFormat { .. }
+            | GeometryError::WithPath { .. }) => e,
+            e => GeometryError::WithPath { path: path.into(), source: Box::new(e) },
+        }
+    }
+}

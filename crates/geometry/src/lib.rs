@@ -1,0 +1,16 @@
+//! # shapespace-geometry
+//!
+//! Triangle meshes over flat arrays (`Vec<[f64; 3]>` positions, `Vec<[u32; 3]>` faces, indices
+//! kept as in the file), their I/O, topology, preparation operations and discrete differential
+//! operators. See `ARCHITECTURE.md`.
+
+pub mod connectivity;
+pub mod error;
+pub mod laplacian;
+pub mod mesh;
+pub mod quantities;
+pub mod vec3;
+
+pub use connectivity::Connectivity;
+pub use error::GeometryError;
+pub use mesh::TriMesh;
