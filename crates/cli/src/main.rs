@@ -1,1 +1,36 @@
-fn main() {}
+//! `shapespace`: the command-line front end. Parsing and dispatch only; the work lives in the
+//! library crates. Exit codes: 0 ok, 1 some input failed or did not converge, 2 usage or input
+//! error. Errors print as `shapespace: {err:#}` on stderr.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+
+#[derive(Parser)]
+#[command(name = "shapespace", version, about = "Shape analysis with conformal geometry and optimal mass transport")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print mesh statistics (V, F, components, boundary loops, χ, genus, manifoldness, class).
+    Info(cmd::info::InfoArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Info(args) => cmd::info::run(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("shapespace: {err:#}");
+            ExitCode::from(2)
+        }
+    }
+}

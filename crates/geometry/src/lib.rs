@@ -5,10 +5,15 @@
 //! operators. See `ARCHITECTURE.md`.
 
 pub mod connectivity;
+pub mod curvature;
 pub mod error;
+pub mod io;
 pub mod laplacian;
 pub mod mesh;
+pub mod prepare;
+pub mod primitives;
 pub mod quantities;
+pub mod topology;
 pub mod vec3;
 
 pub use connectivity::Connectivity;

@@ -1,1 +1,11 @@
-//! placeholder, see ARCHITECTURE.md
+//! # shapespace-omt
+//!
+//! Semi-discrete optimal mass transport on convex planar domains: power diagrams restricted to a
+//! triangulated density, exact cell integrals, and a damped Newton solver on the heights
+//! [Gu, Luo, Sun, Yau 2013; Kitagawa, Mérigot, Thibert 2019]. See `ARCHITECTURE.md`.
+
+pub mod error;
+pub mod measure;
+
+pub use error::OmtError;
+pub use measure::SourceMeasure;

@@ -1,0 +1,3 @@
+//! One module per subcommand: its clap `Args` struct and a `run` that calls one library function.
+
+pub mod info;
