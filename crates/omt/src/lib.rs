@@ -4,8 +4,10 @@
 //! triangulated density, exact cell integrals, and a damped Newton solver on the heights
 //! [Gu, Luo, Sun, Yau 2013; Kitagawa, Mérigot, Thibert 2019]. See `ARCHITECTURE.md`.
 
+pub mod cells;
 pub mod error;
 pub mod measure;
 
+pub use cells::CellIntegrals;
 pub use error::OmtError;
 pub use measure::SourceMeasure;
