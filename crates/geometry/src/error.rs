@@ -13,6 +13,10 @@ pub enum GeometryError {
     /// A parse error at a line (1-based) of a text file, or at an element of a binary one.
     #[error("{path}:{line}: {message}")]
     Parse { path: PathBuf, line: usize, message: String },
+    /// A parse error at a byte offset of a binary file (binary PLY); `message` names the element
+    /// and its index, e.g. `face 17: vertex index 9000 out of range`.
+    #[error("{path}: byte {offset}: {message}")]
+    BinaryParse { path: PathBuf, offset: u64, message: String },
     /// A file format that is not recognised (by extension or content).
     #[error("{path}: unsupported mesh format ({message})")]
     UnsupportedFormat { path: PathBuf, message: String },
@@ -51,6 +55,7 @@ impl GeometryError {
         match self {
             e @ (GeometryError::Io { .. }
             | GeometryError::Parse { .. }
+            | GeometryError::BinaryParse { .. }
             | GeometryError::UnsupportedFormat { .. }
             | GeometryError::WithPath { .. }) => e,
             e => GeometryError::WithPath { path: path.into(), source: Box::new(e) },
