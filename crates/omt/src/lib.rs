@@ -7,6 +7,7 @@
 pub mod cells;
 pub mod error;
 pub mod measure;
+pub mod reference;
 
 pub use cells::CellIntegrals;
 pub use error::OmtError;
