@@ -1,0 +1,105 @@
+//! The error type of the analysis crate.
+//!
+//! Every variant carries what a caller needs to point at the problem: a path and a 1-based line
+//! for file contents (`Display` as `path:line: problem`), shape names for matrix entries.
+
+use std::path::PathBuf;
+
+/// Errors of the analysis crate (matrix and label I/O, MDS, statistics, plots).
+#[derive(Debug, thiserror::Error)]
+pub enum AnalysisError {
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A CSV file is malformed at a given 1-based line.
+    #[error("{}:{line}: {message}", path.display())]
+    Parse {
+        path: PathBuf,
+        line: u64,
+        message: String,
+    },
+    /// The distance matrix has `rows` rows but a row or the name list has `cols` entries.
+    #[error("distance matrix is not square: {rows} rows but {cols} columns")]
+    NotSquare { rows: usize, cols: usize },
+    /// The same shape name occurs twice in a distance matrix.
+    #[error("duplicate shape name {name:?} in the distance matrix")]
+    DuplicateName { name: String },
+    /// A distance is negative or infinite (missing distances are NaN and reported as
+    /// [`AnalysisError::MissingDistance`] where they are not allowed).
+    #[error("invalid distance {value} between {a:?} and {b:?} (must be finite and >= 0)")]
+    InvalidDistance { a: String, b: String, value: f64 },
+    /// A distance needed by the computation is missing (empty cell or NaN: a failed pair).
+    #[error("missing distance between {a:?} and {b:?} (empty or NaN cell); MDS needs a complete matrix")]
+    MissingDistance { a: String, b: String },
+    /// `|d_ab − d_ba|` exceeds the tolerance allowed by the caller.
+    #[error("distance matrix is not symmetric: d({a:?},{b:?}) = {d_ab} but d({b:?},{a:?}) = {d_ba}")]
+    Asymmetric {
+        a: String,
+        b: String,
+        d_ab: f64,
+        d_ba: f64,
+    },
+    /// Shapes of the distance matrix that have no row in the labels file.
+    #[error("{}: no label row for {} shape(s): {}", path.display(), names.len(), names.join(", "))]
+    MissingLabels { path: PathBuf, names: Vec<String> },
+    /// A shape name matches more than one row of the labels file.
+    #[error("{}:{line}: label row {key:?} matches shape {name:?}, which already matched line {first_line}", path.display())]
+    AmbiguousLabel {
+        path: PathBuf,
+        line: u64,
+        key: String,
+        name: String,
+        first_line: u64,
+    },
+    /// The labels do not have one row per shape.
+    #[error("labels have {labels} rows but the distance matrix has {shapes} shapes")]
+    LabelCountMismatch { labels: usize, shapes: usize },
+    /// A label column asked for does not exist.
+    #[error("label column {column:?} not found (available: {})", available.join(", "))]
+    UnknownLabelColumn {
+        column: String,
+        available: Vec<String>,
+    },
+    /// Too few shapes for the computation.
+    #[error("{what} needs at least {needed} shapes, got {got}")]
+    TooFewShapes {
+        what: &'static str,
+        needed: usize,
+        got: usize,
+    },
+    /// The number of MDS dimensions is out of range.
+    #[error("MDS dimension {dims} must be between 1 and the number of shapes ({n})")]
+    InvalidDims { dims: usize, n: usize },
+    /// The dense symmetric eigensolver did not converge.
+    #[error("eigendecomposition of the {n}x{n} double-centred matrix did not converge")]
+    EigenNoConvergence { n: usize },
+    /// A plot could not be drawn or written.
+    #[error("{}: plotting failed: {message}", path.display())]
+    Plot { path: PathBuf, message: String },
+    /// Invalid plot input (empty data, mismatched lengths, bad range).
+    #[error("invalid plot input: {message}")]
+    PlotInput { message: String },
+}
+
+impl AnalysisError {
+    /// Wraps an I/O error with the path it concerns.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        AnalysisError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// A parse error at `path:line`.
+    pub fn parse(path: impl Into<PathBuf>, line: u64, message: impl Into<String>) -> Self {
+        AnalysisError::Parse {
+            path: path.into(),
+            line,
+            message: message.into(),
+        }
+    }
+}

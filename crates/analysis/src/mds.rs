@@ -1,0 +1,222 @@
+//! Classical (Torgerson) multidimensional scaling.
+//!
+//! Torgerson (1952), "Multidimensional scaling: I. Theory and method", Psychometrika 17; Gower
+//! (1966), Biometrika 53. Given distances $d_{ij}$ between $n$ shapes, double-centre the squared
+//! distances
+//!
+//! $$B = -\tfrac12 J D^{(2)} J, \qquad J = I - \tfrac1n \mathbf{1}\mathbf{1}^\top,$$
+//!
+//! i.e. $B_{ij} = -\tfrac12 (d_{ij}^2 - \bar d^2_{i\cdot} - \bar d^2_{\cdot j} + \bar d^2_{\cdot\cdot})$,
+//! take the eigenpairs $B v_k = \lambda_k v_k$ with $\lambda_1 \ge \lambda_2 \ge \dots$, and
+//! place shape $i$ at $x_{ik} = v_{ik} \sqrt{\max(\lambda_k, 0)}$, $k = 1..K$. If the distances
+//! are Euclidean in $\mathbb{R}^K$ this recovers the configuration up to a rigid motion; otherwise
+//! $B$ has negative eigenvalues (reported, and clamped to 0 in the coordinates).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::AnalysisError;
+use crate::matrix_io::DistanceMatrix;
+
+/// The result of [`classical_mds`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Mds {
+    /// `#shapes` rows of `dims` coordinates: `coordinates[i][k] = v_ik √max(λ_k, 0)`.
+    pub coordinates: Vec<Vec<f64>>,
+    /// All `#shapes` eigenvalues of `B`, in non-increasing order (the centring always
+    /// contributes one eigenvalue ≈ 0, eigenvector ∝ 1).
+    pub eigenvalues: Vec<f64>,
+    /// Share of variance per embedding dimension, `max(λ_k, 0) / Σ_{λ>0} λ` (`dims` entries;
+    /// all 0 when every distance is 0).
+    pub variance_shares: Vec<f64>,
+    /// `Σ_{λ>0} λ`, the total variance of the Euclidean part.
+    pub positive_sum: f64,
+    /// `Σ_{λ<0} |λ|`: how far the distances are from Euclidean (0 for Euclidean input, up to
+    /// round-off). `negative_sum / positive_sum` is a common summary.
+    pub negative_sum: f64,
+    /// Number of eigenvalues below `−1e-12 · max|λ|` (significantly negative).
+    pub negative_count: usize,
+    /// Number of the `dims` embedding dimensions whose eigenvalue was ≤ 0 and clamped to 0 (their
+    /// coordinates are all 0).
+    pub clamped_dims: usize,
+}
+
+impl Mds {
+    /// Number of embedding dimensions.
+    pub fn dims(&self) -> usize {
+        self.variance_shares.len()
+    }
+
+    /// Share `λ_k / Σ_{λ>0} λ` of every eigenvalue, in the order of `eigenvalues` (negative
+    /// eigenvalues give negative shares; all 0 when `positive_sum` is 0).
+    pub fn eigenvalue_shares(&self) -> Vec<f64> {
+        self.eigenvalues
+            .iter()
+            .map(|&l| if self.positive_sum > 0.0 { l / self.positive_sum } else { 0.0 })
+            .collect()
+    }
+}
+
+/// The double-centred matrix `B = −½ J D² J` (row-major `n²`) of the symmetric distances
+/// [`DistanceMatrix::symmetric`] (`(d_ij + d_ji)/2`, diagonal 0).
+///
+/// Errors: [`AnalysisError::MissingDistance`] naming the first pair with neither direction.
+pub fn double_centred(d: &DistanceMatrix) -> Result<Vec<f64>, AnalysisError> {
+    let n = d.len();
+    let mut sq = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            let v = d.symmetric(i, j);
+            if v.is_nan() {
+                return Err(AnalysisError::MissingDistance {
+                    a: d.names[i].clone(),
+                    b: d.names[j].clone(),
+                });
+            }
+            sq[i * n + j] = v * v;
+        }
+    }
+    let row_means: Vec<f64> = (0..n)
+        .map(|i| sq[i * n..(i + 1) * n].iter().sum::<f64>() / n as f64)
+        .collect();
+    let grand_mean = row_means.iter().sum::<f64>() / n as f64;
+    let mut b = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            b[i * n + j] = -0.5 * (sq[i * n + j] - row_means[i] - row_means[j] + grand_mean);
+        }
+    }
+    Ok(b)
+}
+
+/// Classical MDS of `d` into `dims` dimensions (module docs; Torgerson 1952, Gower 1966).
+///
+/// Uses the symmetric distances `(d_ij + d_ji)/2` (diagonal ignored) and faer's dense
+/// self-adjoint eigensolver on the `n × n` matrix `B` (O(n³); n = 500 takes tens of ms).
+/// Sign convention: each eigenvector is flipped so that its component of largest magnitude is
+/// positive (the first such index on exact ties), which makes the embedding deterministic up to
+/// rotations inside repeated eigenvalues.
+///
+/// Errors: [`AnalysisError::TooFewShapes`] for an empty matrix, [`AnalysisError::InvalidDims`]
+/// unless `1 <= dims <= n`, [`AnalysisError::MissingDistance`] naming a missing pair,
+/// [`AnalysisError::EigenNoConvergence`].
+pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisError> {
+    let n = d.len();
+    if n == 0 {
+        return Err(AnalysisError::TooFewShapes {
+            what: "MDS",
+            needed: 1,
+            got: 0,
+        });
+    }
+    if dims == 0 || dims > n {
+        return Err(AnalysisError::InvalidDims { dims, n });
+    }
+    let b = double_centred(d)?;
+    let b_mat = faer::Mat::<f64>::from_fn(n, n, |i, j| b[i * n + j]);
+    let evd = b_mat
+        .self_adjoint_eigen(faer::Side::Lower)
+        .map_err(|_| AnalysisError::EigenNoConvergence { n })?;
+    let s = evd.S().column_vector();
+    let u = evd.U();
+    // faer sorts eigenvalues in non-decreasing order; we want non-increasing.
+    let order: Vec<usize> = (0..n).rev().collect();
+    let eigenvalues: Vec<f64> = order.iter().map(|&k| s[k]).collect();
+
+    let positive_sum: f64 = eigenvalues.iter().filter(|&&l| l > 0.0).sum();
+    let negative_sum: f64 = eigenvalues.iter().filter(|&&l| l < 0.0).map(|l| -l).sum();
+    let max_abs = eigenvalues.iter().fold(0.0f64, |m, l| m.max(l.abs()));
+    let negative_count = eigenvalues.iter().filter(|&&l| l < -1e-12 * max_abs).count();
+
+    let mut coordinates = vec![vec![0.0; dims]; n];
+    let mut variance_shares = Vec::with_capacity(dims);
+    let mut clamped_dims = 0;
+    for (k, &col) in order.iter().take(dims).enumerate() {
+        let lambda = eigenvalues[k];
+        let scale = if lambda > 0.0 {
+            lambda.sqrt()
+        } else {
+            clamped_dims += 1;
+            0.0
+        };
+        variance_shares.push(if positive_sum > 0.0 { lambda.max(0.0) / positive_sum } else { 0.0 });
+        // Sign convention: the component of largest |v_ik| is positive.
+        let mut arg = 0;
+        for i in 1..n {
+            if u[(i, col)].abs() > u[(arg, col)].abs() {
+                arg = i;
+            }
+        }
+        let sign = if u[(arg, col)] < 0.0 { -1.0 } else { 1.0 };
+        for (i, row) in coordinates.iter_mut().enumerate() {
+            row[k] = sign * u[(i, col)] * scale;
+        }
+    }
+    Ok(Mds {
+        coordinates,
+        eigenvalues,
+        variance_shares,
+        positive_sum,
+        negative_sum,
+        negative_count,
+        clamped_dims,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn euclidean_matrix(points: &[Vec<f64>]) -> DistanceMatrix {
+        let n = points.len();
+        let names = (0..n).map(|i| format!("p{i}")).collect();
+        let mut values = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                values[i * n + j] = points[i]
+                    .iter()
+                    .zip(&points[j])
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    .sqrt();
+            }
+        }
+        DistanceMatrix::new(names, values).unwrap()
+    }
+
+    #[test]
+    fn collinear_points_embed_on_a_line_with_known_eigenvalue() {
+        // Points 0, 1, 3 on a line: centred coordinates −4/3, −1/3, 5/3, so
+        // λ₁ = Σ x² = 16/9 + 1/9 + 25/9 = 42/9 and all other eigenvalues vanish.
+        let d = euclidean_matrix(&[vec![0.0], vec![1.0], vec![3.0]]);
+        let mds = classical_mds(&d, 2).unwrap();
+        assert!((mds.eigenvalues[0] - 42.0 / 9.0).abs() < 1e-12);
+        assert!(mds.eigenvalues[1].abs() < 1e-12);
+        assert!(mds.eigenvalues[2].abs() < 1e-12);
+        // Largest |x| is the third point (5/3), made positive by the sign convention.
+        let x: Vec<f64> = mds.coordinates.iter().map(|r| r[0]).collect();
+        for (got, want) in x.iter().zip([-4.0 / 3.0, -1.0 / 3.0, 5.0 / 3.0]) {
+            assert!((got - want).abs() < 1e-12, "{x:?}");
+        }
+        assert!((mds.variance_shares[0] - 1.0).abs() < 1e-12);
+        assert!(mds.variance_shares[1].abs() < 1e-12);
+    }
+
+    #[test]
+    fn missing_entry_names_the_pair() {
+        let mut d = euclidean_matrix(&[vec![0.0], vec![1.0], vec![3.0]]);
+        d.values[1 * 3 + 2] = f64::NAN;
+        // One direction present: the symmetric value uses it, MDS still works.
+        assert!(classical_mds(&d, 1).is_ok());
+        d.values[2 * 3 + 1] = f64::NAN;
+        let err = classical_mds(&d, 1).unwrap_err();
+        assert!(matches!(&err, AnalysisError::MissingDistance { a, b } if a == "p1" && b == "p2"), "{err}");
+        assert!(err.to_string().contains("\"p1\"") && err.to_string().contains("\"p2\""));
+    }
+
+    #[test]
+    fn invalid_dims_rejected() {
+        let d = euclidean_matrix(&[vec![0.0], vec![1.0]]);
+        assert!(matches!(classical_mds(&d, 0), Err(AnalysisError::InvalidDims { .. })));
+        assert!(matches!(classical_mds(&d, 3), Err(AnalysisError::InvalidDims { .. })));
+    }
+}
