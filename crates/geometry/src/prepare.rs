@@ -1,1 +1,438 @@
-//! (being written)
+//! Explicit mesh preparation operations, each called by the user (nothing here runs
+//! implicitly): drop unreferenced vertices, keep the largest component, make the orientation
+//! consistent, fill holes, cut a disk out of a closed surface, scale to a given area.
+//!
+//! Every operation returns a new mesh. Vertex order is preserved except where documented; when
+//! vertices are removed, an old→new index map (`Vec<Option<u32>>`, #V of the input) is returned
+//! so that per-vertex data and correspondences can follow. Added vertices are appended at the end.
+//! Texture coordinates (`uvs`) are carried along when vertices are only removed or reordered and
+//! dropped when vertices are added or moved.
+
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap};
+
+use crate::connectivity::Connectivity;
+use crate::error::GeometryError;
+use crate::mesh::TriMesh;
+use crate::quantities::{face_areas, triangle_area};
+use crate::topology::{self, face_components, orientation_flips, MeshClass};
+use crate::vec3::{add, cross, dot, norm, scale, sub};
+
+/// Old→new vertex index map, #V of the input: `None` for a removed vertex.
+pub type VertexMap = Vec<Option<u32>>;
+
+/// Keeps the vertices with `keep[v]`, preserving their relative order, and renumbers the faces
+/// (every face must reference kept vertices only).
+fn compact_vertices(mesh: &TriMesh, faces: Vec<[u32; 3]>, keep: &[bool]) -> (TriMesh, VertexMap) {
+    let mut map = vec![None; mesh.num_vertices()];
+    let mut positions = Vec::new();
+    let mut uvs = mesh.uvs.as_ref().map(|_| Vec::new());
+    for (v, &k) in keep.iter().enumerate() {
+        if k {
+            map[v] = Some(positions.len() as u32);
+            positions.push(mesh.positions[v]);
+            if let (Some(out), Some(src)) = (uvs.as_mut(), mesh.uvs.as_ref()) {
+                out.push(src[v]);
+            }
+        }
+    }
+    let faces = faces
+        .into_iter()
+        .map(|f| f.map(|v| map[v as usize].expect("face references a removed vertex")))
+        .collect();
+    (TriMesh { positions, faces, uvs }, map)
+}
+
+/// Removes the vertices referenced by no face. The remaining vertices keep their relative order;
+/// returns the new mesh and the old→new map (#V of the input).
+pub fn drop_unreferenced_vertices(mesh: &TriMesh) -> Result<(TriMesh, VertexMap), GeometryError> {
+    mesh.validate()?;
+    let keep = topology::referenced_vertices(mesh);
+    Ok(compact_vertices(mesh, mesh.faces.clone(), &keep))
+}
+
+/// Keeps the connected component (faces through edges) with the most faces (ties: the one
+/// containing the smallest face index) and drops every vertex not referenced by it. Face order
+/// and the relative vertex order are preserved; returns the old→new vertex map.
+pub fn keep_largest_component(mesh: &TriMesh) -> Result<(TriMesh, VertexMap), GeometryError> {
+    mesh.validate()?;
+    if mesh.faces.is_empty() {
+        return Err(GeometryError::Topology("the mesh has no faces".into()));
+    }
+    let conn = Connectivity::of(mesh);
+    let (labels, n) = face_components(&conn, mesh.num_faces());
+    let mut counts = vec![0usize; n];
+    for &l in &labels {
+        counts[l as usize] += 1;
+    }
+    // labels are numbered by smallest face, so the first maximum is the tie-break we document
+    let best = (0..n).fold(0, |b, c| if counts[c] > counts[b] { c } else { b }) as u32;
+    let faces: Vec<[u32; 3]> =
+        mesh.faces.iter().zip(&labels).filter(|(_, &l)| l == best).map(|(f, _)| *f).collect();
+    let mut keep = vec![false; mesh.num_vertices()];
+    for f in &faces {
+        for &v in f {
+            keep[v as usize] = true;
+        }
+    }
+    Ok(compact_vertices(mesh, faces, &keep))
+}
+
+/// Signed volume (1/6) Σ_f det(a − c, b − c, c' − c) of a set of faces about a reference point
+/// `c`: positive for a closed surface whose faces are counter-clockwise seen from outside.
+fn signed_volume(mesh: &TriMesh, faces: &[usize], center: [f64; 3]) -> f64 {
+    faces
+        .iter()
+        .map(|&f| {
+            let [a, b, c] = mesh.face_positions(f);
+            let (a, b, c) = (sub(a, center), sub(b, center), sub(c, center));
+            dot(a, cross(b, c)) / 6.0
+        })
+        .sum()
+}
+
+/// What [`reorient`] changed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReorientInfo {
+    /// Faces flipped to make the orientation consistent.
+    pub faces_flipped_for_consistency: usize,
+    /// Closed components whose faces were all flipped to point outward.
+    pub closed_components_turned_outward: usize,
+}
+
+/// Makes the face orientation consistent and, on closed components, outward.
+///
+/// Breadth-first search over faces through edges with exactly two faces flips every face that
+/// traverses a shared edge in the same direction as its already-visited neighbour (the first face
+/// of each piece keeps its orientation; flipping `[a, b, c]` gives `[a, c, b]`). Then each closed
+/// component (every edge has exactly two faces) with negative signed volume is flipped entirely,
+/// so its normals point outward. Vertices are unchanged. Errors for a non-orientable surface,
+/// naming the edge where the contradiction appears.
+pub fn reorient(mesh: &TriMesh) -> Result<(TriMesh, ReorientInfo), GeometryError> {
+    mesh.validate()?;
+    let conn = Connectivity::of(mesh);
+    let flips = orientation_flips(&mesh.faces, &conn).map_err(|e| {
+        GeometryError::Topology(format!(
+            "non-orientable surface (like a Möbius strip): orientation contradiction at edge ({}, {}); \
+             no consistent orientation exists",
+            e[0], e[1]
+        ))
+    })?;
+    let mut out = mesh.clone();
+    let mut flipped = 0;
+    for (face, &fl) in out.faces.iter_mut().zip(&flips) {
+        if fl {
+            face.swap(1, 2);
+            flipped += 1;
+        }
+    }
+    let (labels, n) = face_components(&conn, mesh.num_faces());
+    let mut comp_faces = vec![Vec::new(); n];
+    for (f, &l) in labels.iter().enumerate() {
+        comp_faces[l as usize].push(f);
+    }
+    let mut comp_closed = vec![true; n];
+    for ef in &conn.edge_faces {
+        if ef.len() != 2 {
+            comp_closed[labels[ef[0] as usize] as usize] = false;
+        }
+    }
+    let mut turned = 0;
+    for c in 0..n {
+        if !comp_closed[c] {
+            continue;
+        }
+        // reference point: mean of the face centroids, so the volume is translation-exact-ish
+        let mut center = [0.0; 3];
+        for &f in &comp_faces[c] {
+            let [a, b, cc] = out.face_positions(f);
+            center = add(center, scale(add(add(a, b), cc), 1.0 / 3.0));
+        }
+        center = scale(center, 1.0 / comp_faces[c].len() as f64);
+        if signed_volume(&out, &comp_faces[c], center) < 0.0 {
+            for &f in &comp_faces[c] {
+                out.faces[f].swap(1, 2);
+            }
+            turned += 1;
+        }
+    }
+    Ok((out, ReorientInfo { faces_flipped_for_consistency: flipped, closed_components_turned_outward: turned }))
+}
+
+/// Fills one hole by a fan: appends a vertex at the mean of the loop's vertex positions (index
+/// #V of the input) and one triangle per loop edge. Each new triangle traverses its loop edge
+/// opposite to the existing face on that edge, so the orientation stays consistent.
+///
+/// `hole` is a cycle of vertices (either direction) whose consecutive pairs, including
+/// last→first, are boundary edges (one face), as returned by [`Connectivity::boundary_loops`].
+/// Texture coordinates are dropped.
+pub fn fill_hole(mesh: &TriMesh, hole: &[u32]) -> Result<TriMesh, GeometryError> {
+    mesh.validate()?;
+    let conn = Connectivity::of(mesh);
+    let mut out = mesh.clone();
+    out.uvs = None;
+    append_fan(&mut out, &conn, hole)?;
+    Ok(out)
+}
+
+fn append_fan(out: &mut TriMesh, conn: &Connectivity, hole: &[u32]) -> Result<(), GeometryError> {
+    if hole.len() < 3 {
+        return Err(GeometryError::Invalid(format!("a hole needs at least 3 vertices, got {}", hole.len())));
+    }
+    let mut edge_index: HashMap<[u32; 2], usize> = HashMap::with_capacity(hole.len());
+    let wanted: Vec<[u32; 2]> = (0..hole.len())
+        .map(|i| {
+            let (a, b) = (hole[i], hole[(i + 1) % hole.len()]);
+            [a.min(b), a.max(b)]
+        })
+        .collect();
+    for w in &wanted {
+        edge_index.insert(*w, usize::MAX);
+    }
+    for (e, key) in conn.edges.iter().enumerate() {
+        if let Some(slot) = edge_index.get_mut(key) {
+            *slot = e;
+        }
+    }
+    let c = out.positions.len() as u32;
+    let mut centroid = [0.0; 3];
+    for &v in hole {
+        let p = *out.positions.get(v as usize).ok_or_else(|| {
+            GeometryError::Invalid(format!("hole vertex {v} is out of range ({} vertices)", out.positions.len()))
+        })?;
+        centroid = add(centroid, p);
+    }
+    centroid = scale(centroid, 1.0 / hole.len() as f64);
+    let mut new_faces = Vec::with_capacity(hole.len());
+    for (i, w) in wanted.iter().enumerate() {
+        let e = edge_index[w];
+        if e == usize::MAX || conn.edge_faces[e].len() != 1 {
+            let (a, b) = (hole[i], hole[(i + 1) % hole.len()]);
+            return Err(GeometryError::Invalid(format!(
+                "({a}, {b}) is not a boundary edge (one face), so the hole loop is invalid"
+            )));
+        }
+        let f = conn.edge_faces[e][0] as usize;
+        let k = conn.face_edges[f].iter().position(|&x| x as usize == e).unwrap_or(0);
+        let face = out.faces[f];
+        let (x, y) = (face[(k + 1) % 3], face[(k + 2) % 3]);
+        new_faces.push([y, x, c]);
+    }
+    out.positions.push(centroid);
+    out.faces.extend(new_faces);
+    Ok(())
+}
+
+/// What [`fill_holes_except_longest`] did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FillInfo {
+    /// Number of holes filled (= number of vertices appended, one per hole, at the end).
+    pub holes_filled: usize,
+    /// Geometric length of the loop that was kept open.
+    pub kept_loop_length: f64,
+}
+
+/// Fills every boundary loop but the geometrically longest one (the outer boundary of a face or
+/// a scan) with a fan to its centroid ([`fill_hole`]); a manifold mesh with `b` loops and
+/// genus 0 becomes a disk. One new vertex per hole is appended (vertex order otherwise kept);
+/// texture coordinates are dropped. A mesh with no boundary is an error (see [`cut_disk`]).
+pub fn fill_holes_except_longest(mesh: &TriMesh) -> Result<(TriMesh, FillInfo), GeometryError> {
+    mesh.validate()?;
+    let conn = Connectivity::of(mesh);
+    let loops = conn.boundary_loops(&mesh.faces);
+    if loops.is_empty() {
+        return Err(GeometryError::Topology(
+            "no boundary loop: the surface is closed; cut a disk with `prepare::cut_disk`".into(),
+        ));
+    }
+    let length = |l: &[u32]| -> f64 {
+        (0..l.len())
+            .map(|i| norm(sub(mesh.positions[l[(i + 1) % l.len()] as usize], mesh.positions[l[i] as usize])))
+            .sum()
+    };
+    let lengths: Vec<f64> = loops.iter().map(|l| length(l)).collect();
+    let longest = (0..loops.len()).fold(0, |b, i| if lengths[i] > lengths[b] { i } else { b });
+    let mut out = mesh.clone();
+    out.uvs = None;
+    for (i, l) in loops.iter().enumerate() {
+        if i != longest {
+            append_fan(&mut out, &conn, l)?;
+        }
+    }
+    Ok((out, FillInfo { holes_filled: loops.len() - 1, kept_loop_length: lengths[longest] }))
+}
+
+/// Size of the region removed by [`cut_disk`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Radius {
+    /// Geodesic radius, approximated by shortest paths along edges (Dijkstra on edge lengths),
+    /// in the mesh's length unit.
+    Geodesic(f64),
+    /// Graph distance in edges: `Rings(1)` is the one-ring of the centre.
+    Rings(usize),
+}
+
+#[derive(PartialEq)]
+struct Item(f64, u32);
+impl Eq for Item {}
+impl PartialOrd for Item {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Item {
+    fn cmp(&self, other: &Self) -> Ordering {
+        // min-heap on distance, ties by vertex index
+        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
+    }
+}
+
+/// Shortest-path distances along edges from `source` (Dijkstra on Euclidean edge lengths), #V;
+/// unreachable vertices get +∞.
+pub fn edge_path_distances(mesh: &TriMesh, conn: &Connectivity, source: u32) -> Vec<f64> {
+    let adj = conn.vertex_neighbors(mesh.num_vertices());
+    let mut dist = vec![f64::INFINITY; mesh.num_vertices()];
+    let mut heap = BinaryHeap::new();
+    dist[source as usize] = 0.0;
+    heap.push(Item(0.0, source));
+    while let Some(Item(d, v)) = heap.pop() {
+        if d > dist[v as usize] {
+            continue;
+        }
+        for &w in &adj[v as usize] {
+            let nd = d + norm(sub(mesh.positions[w as usize], mesh.positions[v as usize]));
+            if nd < dist[w as usize] {
+                dist[w as usize] = nd;
+                heap.push(Item(nd, w));
+            }
+        }
+    }
+    dist
+}
+
+/// Cuts a disk out of a closed surface: removes the faces whose three vertices all lie in the
+/// ball around `center` (edge-path distance ≤ r for [`Radius::Geodesic`], graph distance ≤ k for
+/// [`Radius::Rings`]), drops the vertices left unreferenced and checks that the rest is a
+/// topological disk. Face order and the relative vertex order are kept; returns the old→new
+/// vertex map. `center` itself is always removed with its one-ring of faces.
+///
+/// Errors when the input has a boundary, when the ball removes no face or every face, and when
+/// the remaining mesh is not a disk (e.g. the ball wraps around a handle or pinches the surface);
+/// the error gives the classification's reasons.
+pub fn cut_disk(mesh: &TriMesh, center: u32, radius: Radius) -> Result<(TriMesh, VertexMap), GeometryError> {
+    mesh.validate()?;
+    if center as usize >= mesh.num_vertices() {
+        return Err(GeometryError::Invalid(format!(
+            "cut centre {center} is out of range ({} vertices)",
+            mesh.num_vertices()
+        )));
+    }
+    let conn = Connectivity::of(mesh);
+    if conn.edge_faces.iter().any(|ef| ef.len() == 1) {
+        return Err(GeometryError::Topology(
+            "cut_disk needs a closed surface, but this mesh has a boundary".into(),
+        ));
+    }
+    let inside: Vec<bool> = match radius {
+        Radius::Geodesic(r) => {
+            if !(r >= 0.0) {
+                return Err(GeometryError::Invalid(format!("cut radius must be ≥ 0, got {r}")));
+            }
+            edge_path_distances(mesh, &conn, center).iter().map(|&d| d <= r).collect()
+        }
+        Radius::Rings(k) => {
+            let adj = conn.vertex_neighbors(mesh.num_vertices());
+            let mut depth = vec![usize::MAX; mesh.num_vertices()];
+            depth[center as usize] = 0;
+            let mut frontier = vec![center];
+            for d in 1..=k {
+                let mut next = Vec::new();
+                for &v in &frontier {
+                    for &w in &adj[v as usize] {
+                        if depth[w as usize] == usize::MAX {
+                            depth[w as usize] = d;
+                            next.push(w);
+                        }
+                    }
+                }
+                frontier = next;
+            }
+            depth.iter().map(|&d| d <= k).collect()
+        }
+    };
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .filter(|f| {
+            let all_in = f.iter().all(|&v| inside[v as usize]);
+            let touches_center = f.contains(&center);
+            !(all_in || touches_center)
+        })
+        .copied()
+        .collect();
+    if faces.is_empty() {
+        return Err(GeometryError::Topology("the cut removes every face; choose a smaller radius".into()));
+    }
+    let mut keep = vec![false; mesh.num_vertices()];
+    for f in &faces {
+        for &v in f {
+            keep[v as usize] = true;
+        }
+    }
+    let (out, map) = compact_vertices(mesh, faces, &keep);
+    let class = topology::classify(&out);
+    if class.class != MeshClass::Disk {
+        return Err(GeometryError::Topology(format!(
+            "removing the ball around vertex {center} leaves a non-disk ({}); try another radius or centre",
+            class.reasons.join("; ")
+        )));
+    }
+    Ok((out, map))
+}
+
+/// Scales the mesh uniformly about its area-weighted centroid c = Σ_f A_f g_f / Σ_f A_f (g_f the
+/// face centroid) so that its total area becomes `target_area`: p ↦ c + s (p − c),
+/// s = √(target / area). Faces, vertex order and texture coordinates are unchanged. Errors on a
+/// zero or non-finite area and on a non-positive target.
+pub fn scale_to_area(mesh: &TriMesh, target_area: f64) -> Result<TriMesh, GeometryError> {
+    mesh.validate()?;
+    if !(target_area > 0.0 && target_area.is_finite()) {
+        return Err(GeometryError::Invalid(format!("target area must be positive and finite, got {target_area}")));
+    }
+    let areas = face_areas(mesh);
+    let area: f64 = areas.iter().sum();
+    if !(area > 0.0 && area.is_finite()) {
+        return Err(GeometryError::Invalid(format!("cannot scale a mesh of area {area} to area {target_area}")));
+    }
+    let mut c = [0.0; 3];
+    for (f, &a) in areas.iter().enumerate() {
+        let [p, q, r] = mesh.face_positions(f);
+        c = add(c, scale(add(add(p, q), r), a / 3.0));
+    }
+    c = scale(c, 1.0 / area);
+    let s = (target_area / area).sqrt();
+    let mut out = mesh.clone();
+    for p in &mut out.positions {
+        *p = add(c, scale(sub(*p, c), s));
+    }
+    // one correction pass: rounding in the scaled coordinates leaves a relative error of a few ulps
+    let new_area: f64 = (0..out.num_faces())
+        .map(|f| {
+            let [a, b, cc] = out.face_positions(f);
+            triangle_area(a, b, cc)
+        })
+        .sum();
+    if new_area > 0.0 {
+        let t = (target_area / new_area).sqrt();
+        for p in &mut out.positions {
+            *p = add(c, scale(sub(*p, c), t));
+        }
+    }
+    Ok(out)
+}
+
+/// Scales the mesh to total area π, the area of the unit disk (DESIGN.md, "Normalization of a
+/// surface"; Su et al. 2015 §4.2), about its area-weighted centroid ([`scale_to_area`]).
+pub fn normalize_for_shape_space(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
+    scale_to_area(mesh, std::f64::consts::PI)
+}
