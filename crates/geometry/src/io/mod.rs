@@ -1,1 +1,222 @@
-//! (being written)
+//! Mesh readers and writers: Wavefront OBJ, OFF and PLY (ASCII, binary little- and big-endian).
+//!
+//! All readers return a [`TriMesh`] whose vertex `i` is the `i`-th vertex of the file: indices
+//! are never renumbered and unreferenced vertices are kept, so files sharing a connectivity
+//! (pose sets, morphable-model samples) correspond by index. Polygons are fan-triangulated,
+//! $(v_0, v_{k}, v_{k+1})$ for $k = 1, \dots, n-2$, which keeps the polygon's orientation.
+//!
+//! Readers only reject syntactic and numeric problems: truncated files, counts that disagree
+//! with the data, non-numeric tokens, NaN or infinite coordinates, vertex indices out of range,
+//! faces with fewer than three vertices, empty files, binary data where text is expected and
+//! unknown formats. Topological defects (non-manifold edges or vertices, inconsistent
+//! orientation, repeated indices in a face) read fine and are left to
+//! [`crate::topology`]. Every error names the file and the line (text) or byte offset and
+//! element index (binary PLY): `path:line: problem` or `path: byte N: element i: problem`.
+//! No reader panics on any input, and pre-allocation is capped by the file size, so a header
+//! declaring $10^{12}$ vertices costs nothing before the truncation is reported.
+//!
+//! Writers print coordinates with Rust's shortest round-trip formatting (`{:?}`) in text formats
+//! and as raw `f64` in binary PLY, so every `f64` reads back bit for bit.
+//!
+//! | format | read | write |
+//! |---|---|---|
+//! | OBJ ([`obj`]) | `v`, `vt`, `f` with `a`, `a/b`, `a//c`, `a/b/c`, negative indices | `v`, optional `vt`, `f` |
+//! | OFF ([`off`]) | `OFF`/`COFF`/`NOFF`/... header or none, `#` comments, polygon faces | `OFF` |
+//! | PLY ([`ply`]) | ascii, binary LE/BE, any scalar types, `face` and `tristrips` lists | ascii, binary LE (`f64`) |
+
+pub mod obj;
+pub mod off;
+pub mod ply;
+
+use std::path::{Path, PathBuf};
+
+use crate::error::GeometryError;
+use crate::mesh::TriMesh;
+
+pub use obj::{parse_obj, read_obj, write_obj, write_obj_to};
+pub use off::{parse_off, read_off, write_off, write_off_to};
+pub use ply::{parse_ply, read_ply, write_ply, write_ply_to, PlyFormat};
+
+/// A mesh file format, chosen from a file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ (`.obj`).
+    Obj,
+    /// Object File Format (`.off`).
+    Off,
+    /// Polygon File Format / Stanford PLY (`.ply`).
+    Ply,
+}
+
+impl MeshFormat {
+    /// The format named by the extension of `path` (`.obj`, `.off`, `.ply`, case-insensitive),
+    /// or [`GeometryError::UnsupportedFormat`] for any other or no extension.
+    pub fn from_path(path: &Path) -> Result<Self, GeometryError> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("obj") => Ok(MeshFormat::Obj),
+            Some("off") => Ok(MeshFormat::Off),
+            Some("ply") => Ok(MeshFormat::Ply),
+            Some(other) => Err(GeometryError::UnsupportedFormat {
+                path: path.to_path_buf(),
+                message: format!("unknown extension '.{other}'; expected .obj, .off or .ply"),
+            }),
+            None => Err(GeometryError::UnsupportedFormat {
+                path: path.to_path_buf(),
+                message: "no file extension; expected .obj, .off or .ply".to_string(),
+            }),
+        }
+    }
+}
+
+/// Reads a triangle mesh from `path`, choosing the reader by extension (`.obj`, `.off`, `.ply`,
+/// case-insensitive). Returns #V positions in file order and #F triangles (polygons
+/// fan-triangulated); see the module documentation for what is an error.
+pub fn read_mesh(path: &Path) -> Result<TriMesh, GeometryError> {
+    match MeshFormat::from_path(path)? {
+        MeshFormat::Obj => read_obj(path),
+        MeshFormat::Off => read_off(path),
+        MeshFormat::Ply => read_ply(path),
+    }
+}
+
+/// Writes `mesh` to `path` in the format named by its extension. PLY files are written as
+/// binary little-endian (use [`write_ply`] for ASCII). The mesh is validated first
+/// ([`TriMesh::validate`]): indices in range, finite coordinates.
+pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
+    match MeshFormat::from_path(path)? {
+        MeshFormat::Obj => write_obj(path, mesh),
+        MeshFormat::Off => write_off(path, mesh),
+        MeshFormat::Ply => write_ply(path, mesh, PlyFormat::BinaryLittleEndian),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Helpers shared by the readers and writers.
+
+/// Reads a whole file, mapping failures to [`GeometryError::Io`].
+pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, GeometryError> {
+    std::fs::read(path).map_err(|source| GeometryError::Io { path: path.to_path_buf(), source })
+}
+
+/// Validates `mesh`, creates `path` and runs `write` on a buffered writer, mapping I/O
+/// failures to [`GeometryError::Io`].
+pub(crate) fn write_file(
+    path: &Path,
+    mesh: &TriMesh,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), GeometryError> {
+    mesh.validate().map_err(|e| e.with_path(path))?;
+    let io_err = |source| GeometryError::Io { path: path.to_path_buf(), source };
+    let file = std::fs::File::create(path).map_err(io_err)?;
+    let mut writer = std::io::BufWriter::new(file);
+    write(&mut writer).map_err(io_err)?;
+    use std::io::Write;
+    writer.flush().map_err(io_err)?;
+    writer.into_inner().map_err(|e| io_err(e.into_error()))?.sync_all().map_err(io_err)
+}
+
+/// A [`GeometryError::Parse`] at `line` (1-based) of `path`.
+pub(crate) fn parse_error(path: &Path, line: usize, message: impl Into<String>) -> GeometryError {
+    GeometryError::Parse { path: PathBuf::from(path), line, message: message.into() }
+}
+
+/// Lines of a text file as `(1-based line number, bytes)`, split at `\n` with a trailing `\r`
+/// removed (CRLF files).
+pub(crate) fn lines(data: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
+    // A final newline does not start another (empty) line.
+    let data = data.strip_suffix(b"\n").unwrap_or(data);
+    data.split(|&b| b == b'\n')
+        .enumerate()
+        .map(|(i, line)| (i + 1, line.strip_suffix(b"\r").unwrap_or(line)))
+        .filter(move |_| !data.is_empty())
+}
+
+/// Whitespace-separated tokens of a line.
+pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(|b| b.is_ascii_whitespace()).filter(|t| !t.is_empty())
+}
+
+/// Rejects a line holding control characters (other than tab, vertical tab, form feed and
+/// carriage return): binary data in a file read as text.
+pub(crate) fn check_text_line(path: &Path, line_no: usize, line: &[u8]) -> Result<(), GeometryError> {
+    if let Some(&b) = line.iter().find(|&&b| (b < 0x20 && !matches!(b, b'\t' | b'\r' | 0x0b | 0x0c)) || b == 0x7f) {
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("binary data (byte 0x{b:02x}) in a text file; not a text mesh file or corrupted"),
+        ));
+    }
+    Ok(())
+}
+
+/// A token for an error message: lossy UTF-8, cut to 40 characters.
+pub(crate) fn show(token: &[u8]) -> String {
+    let s = String::from_utf8_lossy(token);
+    if s.chars().count() > 40 {
+        format!("{}...", s.chars().take(40).collect::<String>())
+    } else {
+        s.into_owned()
+    }
+}
+
+/// Parses a decimal float token (Rust syntax: `1`, `-2.5e-3`, also `inf` and `nan`, which the
+/// callers reject as non-finite).
+pub(crate) fn parse_f64(token: &[u8]) -> Option<f64> {
+    std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+/// Parses a decimal integer token with optional sign.
+pub(crate) fn parse_i64(token: &[u8]) -> Option<i64> {
+    std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+/// Whether the bytes are empty or only whitespace.
+pub(crate) fn is_blank(data: &[u8]) -> bool {
+    data.iter().all(|b| b.is_ascii_whitespace())
+}
+
+/// A safe `Vec::with_capacity` length for `declared` items when at most `remaining_bytes`
+/// are left and each item takes at least `min_bytes` (guards against headers that lie).
+pub(crate) fn capped_capacity(declared: usize, remaining_bytes: usize, min_bytes: usize) -> usize {
+    declared.min(remaining_bytes / min_bytes.max(1) + 1)
+}
+
+/// Appends the fan triangulation $(v_0, v_k, v_{k+1})$ of `polygon` (at least 3 indices) to
+/// `faces`.
+pub(crate) fn fan_triangulate(polygon: &[u32], faces: &mut Vec<[u32; 3]>) {
+    for k in 1..polygon.len().saturating_sub(1) {
+        faces.push([polygon[0], polygon[k], polygon[k + 1]]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_strip_crlf_and_number_from_one() {
+        let got: Vec<(usize, &[u8])> = lines(b"a\r\nb\n\nc").collect();
+        assert_eq!(got, vec![(1, &b"a"[..]), (2, &b"b"[..]), (3, &b""[..]), (4, &b"c"[..])]);
+        let got: Vec<(usize, &[u8])> = lines(b"a\n").collect();
+        assert_eq!(got, vec![(1, &b"a"[..])]);
+        assert_eq!(lines(b"").count(), 0);
+    }
+
+    #[test]
+    fn extension_dispatch_is_case_insensitive() {
+        assert_eq!(MeshFormat::from_path(Path::new("a/B.OBJ")).unwrap(), MeshFormat::Obj);
+        assert_eq!(MeshFormat::from_path(Path::new("x.Off")).unwrap(), MeshFormat::Off);
+        assert_eq!(MeshFormat::from_path(Path::new("x.ply")).unwrap(), MeshFormat::Ply);
+        let err = MeshFormat::from_path(Path::new("x.stl")).unwrap_err().to_string();
+        assert!(err.contains("x.stl") && err.contains(".stl"), "{err}");
+        assert!(MeshFormat::from_path(Path::new("noext")).is_err());
+    }
+
+    #[test]
+    fn fan_triangulation_of_a_pentagon() {
+        let mut faces = Vec::new();
+        fan_triangulate(&[4, 5, 6, 7, 8], &mut faces);
+        assert_eq!(faces, vec![[4, 5, 6], [4, 6, 7], [4, 7, 8]]);
+    }
+}
