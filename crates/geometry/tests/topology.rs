@@ -1,0 +1,408 @@
+//! Topology reports, classification and the preparation operations on analytic meshes:
+//! icospheres, a torus, a Möbius strip, a bowtie, a fin of three triangles on one edge, a flipped
+//! face, a square annulus, cuts of a sphere, area normalization.
+
+use std::f64::consts::PI;
+
+use shapespace_geometry::connectivity::Connectivity;
+use shapespace_geometry::prepare::{self, Radius};
+use shapespace_geometry::primitives::{grid, icosphere, unit_disk};
+use shapespace_geometry::quantities::{face_areas, face_normals, total_area};
+use shapespace_geometry::topology::{
+    classify, inconsistent_edges, mesh_report, require_disk, MeshClass,
+};
+use shapespace_geometry::TriMesh;
+
+/// Torus with radii `big` > `small`, `n` segments around the big circle and `m` around the tube,
+/// outward normals. #V = n·m, #F = 2·n·m.
+fn torus(big: f64, small: f64, n: usize, m: usize) -> TriMesh {
+    let mut positions = Vec::new();
+    for i in 0..n {
+        let u = 2.0 * PI * i as f64 / n as f64;
+        for j in 0..m {
+            let v = 2.0 * PI * j as f64 / m as f64;
+            let r = big + small * v.cos();
+            positions.push([r * u.cos(), r * u.sin(), small * v.sin()]);
+        }
+    }
+    let id = |i: usize, j: usize| ((i % n) * m + (j % m)) as u32;
+    let mut faces = Vec::new();
+    for i in 0..n {
+        for j in 0..m {
+            // (u, v) increasing: ∂u × ∂v points outward
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh::new(positions, faces).unwrap()
+}
+
+/// Möbius strip with `n` quads along the centre circle (two vertex rows, glued with a twist).
+fn mobius(n: usize) -> TriMesh {
+    let mut positions = Vec::new();
+    for i in 0..n {
+        let u = 2.0 * PI * i as f64 / n as f64;
+        for s in [-0.3, 0.3] {
+            let r = 1.0 + s * (u / 2.0).cos();
+            positions.push([r * u.cos(), r * u.sin(), s * (u / 2.0).sin()]);
+        }
+    }
+    let mut faces = Vec::new();
+    for i in 0..n {
+        let (a, b) = (2 * i as u32, 2 * i as u32 + 1);
+        // the last quad glues row 0 to row 1 (the twist)
+        let (c, d) = if i + 1 < n { (2 * (i as u32 + 1), 2 * (i as u32 + 1) + 1) } else { (1, 0) };
+        faces.push([a, c, d]);
+        faces.push([a, d, b]);
+    }
+    TriMesh::new(positions, faces).unwrap()
+}
+
+/// The grid [0, 1]² with `n` × `n` cells minus the faces of the central `k` × `k` cells:
+/// a square annulus (2 boundary loops, χ = 0).
+fn square_annulus(n: usize, k: usize) -> TriMesh {
+    let g = grid(n, n);
+    let lo = (n - k) / 2;
+    let hi = lo + k;
+    let faces = g
+        .faces
+        .iter()
+        .enumerate()
+        .filter(|(f, _)| {
+            let cell = f / 2;
+            let (i, j) = (cell % n, cell / n);
+            !(lo <= i && i < hi && lo <= j && j < hi)
+        })
+        .map(|(_, f)| *f)
+        .collect();
+    // the vertices strictly inside the removed square are unreferenced now: drop them
+    let (m, _) = prepare::drop_unreferenced_vertices(&TriMesh::new(g.positions.clone(), faces).unwrap()).unwrap();
+    m
+}
+
+#[test]
+fn icospheres_are_spheres() {
+    for s in 2..=5 {
+        let m = icosphere(s);
+        let r = mesh_report(&m);
+        let p = 4usize.pow(s as u32);
+        assert_eq!((r.num_vertices, r.num_edges, r.num_faces), (10 * p + 2, 30 * p, 20 * p));
+        assert_eq!(r.euler_characteristic, 2);
+        assert_eq!(r.num_components, 1);
+        assert_eq!(r.num_boundary_loops, 0);
+        assert_eq!(r.genus, 0.0);
+        assert!(r.closed && r.manifold && r.consistently_oriented && r.orientable);
+        assert_eq!(r.num_degenerate_faces + r.num_duplicate_vertices + r.num_unreferenced_vertices, 0);
+        assert_eq!(r.classification.class, MeshClass::Sphere);
+        assert!(r.classification.reasons.is_empty());
+        assert!((r.area - 4.0 * PI).abs() < 0.05 * 4.0 * PI);
+    }
+}
+
+#[test]
+fn torus_has_genus_one() {
+    let m = torus(2.0, 0.7, 24, 12);
+    let r = mesh_report(&m);
+    assert_eq!(r.euler_characteristic, 0);
+    assert_eq!(r.genus, 1.0);
+    assert_eq!(r.components[0].genus, 1.0);
+    assert!(r.closed && r.manifold && r.consistently_oriented);
+    assert_eq!(r.classification.class, MeshClass::Other);
+    assert!(r.classification.reasons.iter().any(|s| s.contains("χ = 0")), "{:?}", r.classification);
+    let err = require_disk(&m).unwrap_err().to_string();
+    assert!(err.contains("genus 1"), "{err}");
+}
+
+#[test]
+fn mobius_strip_is_not_orientable() {
+    let m = mobius(20);
+    let r = mesh_report(&m);
+    assert!(!r.orientable);
+    assert!(!r.consistently_oriented);
+    // V − E + F = 40 − 80 + 40. (Its single boundary curve is not a directed loop: the
+    // half-edge walk of `Connectivity::boundary_loops` breaks it at the twist, so the loop count
+    // is not asserted.)
+    assert_eq!(r.euler_characteristic, 0);
+    assert_eq!(r.classification.class, MeshClass::Other);
+    assert!(r.classification.reasons.iter().any(|s| s.contains("not orientable")));
+    let err = prepare::reorient(&m).unwrap_err().to_string();
+    assert!(err.contains("non-orientable"), "{err}");
+}
+
+#[test]
+fn bowtie_has_a_non_manifold_vertex() {
+    // two triangles sharing only vertex 2
+    let m = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+        vec![[0, 1, 2], [2, 4, 3]],
+    )
+    .unwrap();
+    let r = mesh_report(&m);
+    assert_eq!(r.num_non_manifold_vertices, 1);
+    assert_eq!(r.first_non_manifold_vertices, vec![2]);
+    assert_eq!(r.num_non_manifold_edges, 0);
+    assert!(!r.manifold);
+    assert_eq!(r.num_components, 2);
+    // V − E + F = 5 − 6 + 2
+    assert_eq!(r.euler_characteristic, 1);
+    assert_eq!(r.num_boundary_loops, 2);
+    assert_eq!(r.classification.class, MeshClass::Other);
+    assert!(r.classification.reasons.iter().any(|s| s == "1 non-manifold vertex, first 2"), "{:?}", r.classification);
+    // keeping the largest component repairs it: a single triangle (tie → the one with face 0)
+    let (one, map) = prepare::keep_largest_component(&m).unwrap();
+    assert_eq!(one.faces, vec![[0, 1, 2]]);
+    assert_eq!(map, vec![Some(0), Some(1), Some(2), None, None]);
+    assert_eq!(classify(&one).class, MeshClass::Disk);
+}
+
+#[test]
+fn three_faces_on_one_edge() {
+    let m = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, -1.0, 0.0], [0.5, 0.0, 1.0]],
+        vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+    )
+    .unwrap();
+    let r = mesh_report(&m);
+    assert_eq!(r.num_non_manifold_edges, 1);
+    assert_eq!(r.first_non_manifold_edges, vec![[0, 1]]);
+    // the edge's endpoints have three separate fans each
+    assert_eq!(r.first_non_manifold_vertices, vec![0, 1]);
+    assert_eq!(r.num_components, 1);
+    assert!(r.classification.reasons.iter().any(|s| s == "1 non-manifold edge, first (0, 1)"), "{:?}", r.classification);
+    let err = require_disk(&m).unwrap_err().to_string();
+    assert!(err.contains("non-manifold edge"), "{err}");
+}
+
+#[test]
+fn flipped_face_is_found_and_fixed() {
+    let sphere = icosphere(2);
+    let mut m = sphere.clone();
+    m.faces[17].swap(0, 1);
+    let conn = Connectivity::of(&m);
+    let bad = inconsistent_edges(&m.faces, &conn);
+    assert_eq!(bad.len(), 3);
+    let [a, b, c] = m.faces[17];
+    for e in [[a, b], [b, c], [c, a]] {
+        assert!(bad.contains(&[e[0].min(e[1]), e[0].max(e[1])]));
+    }
+    let r = mesh_report(&m);
+    assert!(!r.consistently_oriented && r.orientable);
+    assert_eq!(r.num_inconsistent_edges, 3);
+    assert_eq!(r.classification.class, MeshClass::Other);
+    assert!(r.classification.reasons[0].starts_with("inconsistent orientation at 3 edges"));
+
+    let (fixed, info) = prepare::reorient(&m).unwrap();
+    assert_eq!(fixed.positions, m.positions);
+    assert_eq!(classify(&fixed).class, MeshClass::Sphere);
+    // the BFS keeps face 0's orientation, which is outward: only face 17 flips, no global turn
+    assert_eq!(info.faces_flipped_for_consistency, 1);
+    assert_eq!(info.closed_components_turned_outward, 0);
+    let normals = face_normals(&fixed);
+    for (f, n) in normals.iter().enumerate() {
+        let [p, q, s] = fixed.face_positions(f);
+        let centroid = [(p[0] + q[0] + s[0]) / 3.0, (p[1] + q[1] + s[1]) / 3.0, (p[2] + q[2] + s[2]) / 3.0];
+        let outward = n[0] * centroid[0] + n[1] * centroid[1] + n[2] * centroid[2];
+        assert!(outward > 0.9, "face {f} points inward after reorient");
+    }
+
+    // a sphere with every face reversed is consistent but inward: reorient turns it outward
+    let mut inward = sphere.clone();
+    for f in &mut inward.faces {
+        f.swap(1, 2);
+    }
+    let (out, info) = prepare::reorient(&inward).unwrap();
+    assert_eq!(info, prepare::ReorientInfo { faces_flipped_for_consistency: 0, closed_components_turned_outward: 1 });
+    for (f, g) in out.faces.iter().zip(&sphere.faces) {
+        // same cyclic orientation as the original outward face
+        let rot = |x: [u32; 3]| {
+            let k = (0..3).min_by_key(|&k| x[k]).unwrap();
+            [x[k], x[(k + 1) % 3], x[(k + 2) % 3]]
+        };
+        assert_eq!(rot(*f), rot(*g));
+    }
+}
+
+#[test]
+fn filling_the_square_annulus_gives_a_disk() {
+    let m = square_annulus(8, 2);
+    assert_eq!(m.num_vertices(), 81 - 1);
+    let r = mesh_report(&m);
+    assert_eq!((r.num_boundary_loops, r.euler_characteristic), (2, 0));
+    // the outer loop has 32 vertices, the inner 8
+    assert_eq!(r.boundary_loop_lengths, vec![32, 8]);
+    assert_eq!(r.classification.class, MeshClass::Other);
+    assert!(r.classification.reasons.iter().any(|s| s == "2 boundary loops (a disk needs 1)"), "{:?}", r.classification);
+    let err = require_disk(&m).unwrap_err().to_string();
+    assert!(err.contains("fill_holes_except_longest"), "{err}");
+
+    let (filled, info) = prepare::fill_holes_except_longest(&m).unwrap();
+    assert_eq!(info.holes_filled, 1);
+    assert!((info.kept_loop_length - 4.0).abs() < 1e-12);
+    assert_eq!(filled.num_vertices(), m.num_vertices() + 1);
+    assert_eq!(&filled.positions[..m.num_vertices()], &m.positions[..]);
+    assert_eq!(&filled.faces[..m.num_faces()], &m.faces[..]);
+    // the fan centre is the centre of the square, the hole's 8 triangles cover its area 1/16
+    assert_eq!(filled.positions[m.num_vertices()], [0.5, 0.5, 0.0]);
+    assert_eq!(filled.num_faces(), m.num_faces() + 8);
+    assert!((total_area(&filled) - 1.0).abs() < 1e-14);
+    // oriented like the rest: all normals +z
+    assert!(face_normals(&filled).iter().all(|n| n[2] == 1.0));
+    let r = mesh_report(&filled);
+    assert_eq!(r.classification.class, MeshClass::Disk, "{:?}", r.classification);
+    require_disk(&filled).unwrap();
+
+    // a single named hole, and a wrong loop
+    let conn = Connectivity::of(&m);
+    let loops = conn.boundary_loops(&m.faces);
+    let one = prepare::fill_hole(&m, &loops[1]).unwrap();
+    assert_eq!(classify(&one).class, MeshClass::Disk);
+    let mut reversed = loops[1].clone();
+    reversed.reverse();
+    // the same triangles (in reverse order): orientation comes from the adjacent faces
+    let mut a = prepare::fill_hole(&m, &reversed).unwrap().faces;
+    let mut b = one.faces.clone();
+    a.sort_unstable();
+    b.sort_unstable();
+    assert_eq!(a, b);
+    assert!(prepare::fill_hole(&m, &[0, 1, 10]).is_err());
+}
+
+#[test]
+fn cut_disk_on_icosphere() {
+    let m = icosphere(3);
+    for radius in [Radius::Rings(1), Radius::Rings(3), Radius::Geodesic(0.2), Radius::Geodesic(1.0)] {
+        let (disk, map) = prepare::cut_disk(&m, 5, radius).unwrap();
+        let r = mesh_report(&disk);
+        assert_eq!(r.classification.class, MeshClass::Disk, "{radius:?}: {:?}", r.classification);
+        require_disk(&disk).unwrap();
+        assert!(map[5].is_none());
+        // kept vertices keep their positions and relative order
+        let mut last = None;
+        for (old, new) in map.iter().enumerate() {
+            if let Some(n) = *new {
+                assert_eq!(disk.positions[n as usize], m.positions[old]);
+                assert!(last.map_or(true, |l| n == l + 1));
+                last = Some(n);
+            }
+        }
+        assert!(disk.num_faces() < m.num_faces());
+    }
+    // Rings(1) removes exactly the 5 or 6 faces around the centre (vertex 5 is an icosahedron vertex)
+    let (disk, _) = prepare::cut_disk(&m, 5, Radius::Rings(1)).unwrap();
+    assert_eq!(m.num_faces() - disk.num_faces(), 5);
+    // a ball covering everything, an open mesh, an invalid centre
+    assert!(prepare::cut_disk(&m, 5, Radius::Geodesic(10.0)).is_err());
+    assert!(prepare::cut_disk(&unit_disk(3), 0, Radius::Rings(1)).is_err());
+    assert!(prepare::cut_disk(&m, 1_000_000, Radius::Rings(1)).is_err());
+}
+
+#[test]
+fn cut_that_leaves_an_annulus_is_reported() {
+    // a geodesic ball of radius ~ the full sphere minus a cap near the antipode leaves a disk;
+    // on the torus, cutting a small ball leaves genus 1 with one boundary: not a disk
+    let t = torus(2.0, 0.7, 24, 12);
+    let err = prepare::cut_disk(&t, 0, Radius::Rings(1)).unwrap_err().to_string();
+    assert!(err.contains("non-disk") && err.contains("χ = -1"), "{err}");
+}
+
+#[test]
+fn scale_to_area_and_normalize() {
+    let mut m = icosphere(3);
+    for p in &mut m.positions {
+        p[0] = 3.0 * p[0] + 100.0;
+        p[2] -= 7.0;
+    }
+    for target in [PI, 1e-6, 1e6] {
+        let s = prepare::scale_to_area(&m, target).unwrap();
+        assert!((total_area(&s) - target).abs() <= 1e-12 * target, "{target}");
+    }
+    let n = prepare::normalize_for_shape_space(&m).unwrap();
+    assert!((total_area(&n) - PI).abs() < 1e-12 * PI);
+    // the area-weighted centroid stays put
+    let centroid = |mesh: &TriMesh| {
+        let a = face_areas(mesh);
+        let mut c = [0.0; 3];
+        for (f, &af) in a.iter().enumerate() {
+            let [p, q, r] = mesh.face_positions(f);
+            for d in 0..3 {
+                c[d] += af * (p[d] + q[d] + r[d]) / 3.0;
+            }
+        }
+        let s: f64 = a.iter().sum();
+        c.map(|x| x / s)
+    };
+    let (c0, c1) = (centroid(&m), centroid(&n));
+    for d in 0..3 {
+        assert!((c0[d] - c1[d]).abs() < 1e-10 * (1.0 + c0[d].abs()));
+    }
+    // zero area and a bad target are errors
+    let flat = TriMesh::new(vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], vec![[0, 1, 2]]).unwrap();
+    assert!(prepare::scale_to_area(&flat, PI).is_err());
+    assert!(prepare::scale_to_area(&m, 0.0).is_err());
+    assert!(prepare::scale_to_area(&m, f64::NAN).is_err());
+}
+
+#[test]
+fn unreferenced_duplicate_and_degenerate_elements() {
+    let mut m = unit_disk(2);
+    let n = m.num_vertices() as u32;
+    m.positions.push([5.0, 5.0, 5.0]); // unreferenced, index n
+    m.positions.push(m.positions[3]); // duplicate of 3, unreferenced, index n + 1
+    m.faces.push([0, 0, 1]); // repeated index
+    let r = mesh_report(&m);
+    assert_eq!(r.num_unreferenced_vertices, 2);
+    assert_eq!(r.first_unreferenced_vertices, vec![n, n + 1]);
+    assert_eq!(r.first_duplicate_vertices, vec![[3, n + 1]]);
+    assert_eq!(r.first_degenerate_faces, vec![m.num_faces() as u32 - 1]);
+    let err = require_disk(&m).unwrap_err().to_string();
+    assert!(err.contains("drop_unreferenced_vertices") && err.contains("degenerate face"), "{err}");
+
+    m.faces.pop();
+    let (clean, map) = prepare::drop_unreferenced_vertices(&m).unwrap();
+    assert_eq!(clean, unit_disk(2));
+    assert_eq!(map.len(), n as usize + 2);
+    assert!(map[..n as usize].iter().enumerate().all(|(i, x)| *x == Some(i as u32)));
+    assert_eq!(&map[n as usize..], &[None, None]);
+    require_disk(&clean).unwrap();
+
+    // a zero-area face with distinct indices (three collinear points)
+    let collinear = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 3], [1, 2, 3], [0, 2, 1]],
+    )
+    .unwrap();
+    assert_eq!(mesh_report(&collinear).first_degenerate_faces, vec![2]);
+}
+
+#[test]
+fn several_components() {
+    // a sphere and a far-away disk: keep_largest_component keeps the sphere
+    let s = icosphere(2);
+    let d = unit_disk(3);
+    let mut m = d.clone();
+    let off = m.num_vertices() as u32;
+    m.positions.extend(s.positions.iter().map(|p| [p[0] + 10.0, p[1], p[2]]));
+    m.faces.extend(s.faces.iter().map(|f| f.map(|v| v + off)));
+    let r = mesh_report(&m);
+    assert_eq!(r.num_components, 2);
+    assert_eq!(r.euler_characteristic, 3);
+    assert_eq!(r.components[0].faces, s.num_faces());
+    assert_eq!((r.components[0].euler_characteristic, r.components[0].boundary_loops), (2, 0));
+    assert_eq!((r.components[1].euler_characteristic, r.components[1].boundary_loops), (1, 1));
+    assert_eq!(r.genus, 0.0);
+    assert!(r.classification.reasons[0].starts_with("2 components"));
+    assert!(require_disk(&m).unwrap_err().to_string().contains("keep_largest_component"));
+    let (largest, map) = prepare::keep_largest_component(&m).unwrap();
+    assert_eq!(largest.faces, s.faces);
+    assert!(map[..off as usize].iter().all(|x| x.is_none()));
+    assert_eq!(classify(&largest).class, MeshClass::Sphere);
+}
+
+#[test]
+fn report_serializes_to_json() {
+    let r = mesh_report(&unit_disk(2));
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(json["classification"]["class"], "disk");
+    assert_eq!(json["euler_characteristic"], 1);
+    assert_eq!(json["num_faces"], 24);
+}
