@@ -7,8 +7,13 @@
 pub mod cells;
 pub mod error;
 pub mod measure;
+pub mod linear;
+pub mod newton;
+pub mod power_diagram;
+pub mod predicates;
 pub mod reference;
 
 pub use cells::CellIntegrals;
 pub use error::OmtError;
 pub use measure::SourceMeasure;
+pub use newton::{solve_ot, NewtonParams, OtSolution, StopReason};

@@ -1,0 +1,490 @@
+//! Damped Newton solver of semi-discrete optimal transport on the heights
+//! [Kitagawa, Mérigot, Thibert 2019, Alg. 1; Gu, Luo, Sun, Yau 2013].
+//!
+//! Given a source measure μ on a convex Ω (piecewise-constant density on triangles), target
+//! points $y_i$ and masses $\nu_i > 0$ with $\sum_i \nu_i = \mu(\Omega)$, find heights $h$ such that the
+//! cells of $u_h(x) = \max_i \langle x, y_i\rangle + h_i$,
+//! $W_i = \{x : \langle x, y_i\rangle + h_i \ge \langle x, y_j\rangle + h_j\ \forall j\}$
+//! (the power cells with weights $w_i = 2h_i + |y_i|^2$), have masses $\mu(W_i \cap \Omega) = \nu_i$.
+//! They minimize the convex energy
+//! $$E(h) = \int_\Omega u_h\,d\mu - \sum_i \nu_i h_i, \qquad \nabla E = G = \big(\mu(W_i) - \nu_i\big)_i,$$
+//! whose Hessian is the graph Laplacian of `linear`. Each iteration solves $H\delta = -G$ and
+//! takes the damped step $h \leftarrow h + \tau\delta$ of KMT: $\tau = 1, \frac12, \frac14, \dots$ until
+//! $\min_i \mu(W_i(h + \tau\delta)) \ge \varepsilon_0$ and $\|G(h + \tau\delta)\|_2 \le (1 - \tau/2)\|G(h)\|_2$,
+//! with $\varepsilon_0 = \frac12\min(\min_i \nu_i, \min_i \mu(W_i(h_0)))$.
+//!
+//! ## Choices (documented here because they are not in the paper)
+//! - **Target masses** are always rescaled by `mass_scale = μ(Ω)/Σν` (recorded in the solution);
+//!   masses must be finite and > 0.
+//! - **Start.** Warm start if given, else the coarse-to-fine start if asked for (see
+//!   `multiscale`), else the Voronoi diagram $h_i = -|y_i|^2/2$. KMT need every cell non-empty
+//!   at $h_0$ (otherwise ε₀ = 0 and the damping protects nothing). If a start has an empty cell,
+//!   the solver replaces it by the Voronoi diagram of the points contracted toward the
+//!   barycenter $c$ of Ω, $z_i = c + s(y_i - c)$, which is a power diagram of the $y_i$ with
+//!   $h_i = -|z_i|^2/(2s)$ (the common term $(1-s)\langle x, c\rangle$ drops out); $s$ is halved from
+//!   1 until every cell has positive mass (for $s$ small all $z_i$ lie inside Ω, whose cells then
+//!   contain a disk around $z_i$). Thus ε₀ is always positive and the KMT guarantee applies.
+//! - **Pinning.** The unknown with the largest target mass (first one on ties) is pinned for the
+//!   whole solve (step 0), so the sparsity pattern only changes when neighbours change.
+//! - **Stops.** `Converged` when $\max_i |G_i|/\nu_i \le$ `tolerance`; `IterationCap`; `Stalled` when
+//!   the line search needs more than `max_halvings` halvings (typically the floating-point floor
+//!   of the mass error, far below the default tolerance), or when a non-finite value appears.
+
+mod line_search;
+mod multiscale;
+
+use std::time::Instant;
+
+use crate::cells::CellIntegrals;
+use crate::error::OmtError;
+use crate::linear::{LinearSolver, NewtonSystem};
+use crate::measure::SourceMeasure;
+
+pub use multiscale::nearest_points;
+
+/// Which cell integrator the solver calls.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CellIntegrator {
+    /// The restricted power diagram (`power_diagram` + `restricted`): exact predicates, O(N + M).
+    #[default]
+    Restricted,
+    /// The O(N² + N·M) oracle of `reference` (tests and N ≲ 2000 only).
+    BruteForce,
+}
+
+/// Parameters of [`solve_ot`].
+#[derive(Clone, Debug)]
+pub struct NewtonParams {
+    /// Stop when max_i |μ(W_i) − ν_i| / ν_i ≤ tolerance (default 1e-6).
+    pub tolerance: f64,
+    /// Maximum number of Newton steps (default 100).
+    pub max_iterations: usize,
+    /// Maximum number of step halvings in one line search before `Stalled` (default 40).
+    pub max_halvings: usize,
+    /// Linear solver of the Newton system (default sparse Cholesky).
+    pub linear_solver: LinearSolver,
+    /// Warm start (#N heights), e.g. the solution of a previous problem with the same target.
+    pub initial_heights: Option<Vec<f64>>,
+    /// Start from the solution on a subsample (ignored with `initial_heights`); see `multiscale`.
+    pub coarse_to_fine: bool,
+    /// Cell integrator (default `Restricted`).
+    pub integrator: CellIntegrator,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        NewtonParams {
+            tolerance: 1e-6,
+            max_iterations: 100,
+            max_halvings: 40,
+            linear_solver: LinearSolver::Cholesky,
+            initial_heights: None,
+            coarse_to_fine: false,
+            integrator: CellIntegrator::Restricted,
+        }
+    }
+}
+
+/// Why the iteration stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StopReason {
+    /// The tolerance was reached.
+    Converged,
+    /// `max_iterations` steps were taken.
+    IterationCap,
+    /// No acceptable step could be found, or a non-finite value appeared.
+    Stalled { reason: String },
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StopReason::Converged => write!(f, "converged"),
+            StopReason::IterationCap => write!(f, "iteration cap"),
+            StopReason::Stalled { reason } => write!(f, "stalled: {reason}"),
+        }
+    }
+}
+
+/// Where the initial heights came from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Start {
+    /// h_i = −|y_i|²/2.
+    Voronoi,
+    /// `NewtonParams::initial_heights`.
+    Warm,
+    /// The coarse-to-fine initialization from a subsample of `coarse_points` points.
+    CoarseToFine { coarse_points: usize, coarse_iterations: usize },
+    /// The Voronoi diagram of the points contracted by `scale` toward the barycenter of Ω (used
+    /// when the other start had an empty cell).
+    Contracted { scale: f64 },
+}
+
+/// One Newton step.
+#[derive(Clone, Debug, Default)]
+pub struct IterationRecord {
+    /// max_i |G_i|/ν_i after the step.
+    pub max_relative_error: f64,
+    /// ‖G‖₂ after the step.
+    pub gradient_norm: f64,
+    /// Accepted step length τ.
+    pub step: f64,
+    /// Number of halvings of τ.
+    pub halvings: usize,
+    /// min_i μ(W_i) after the step.
+    pub min_cell_mass: f64,
+    /// Seconds building power diagrams (all line-search trials).
+    pub t_diagram: f64,
+    /// Seconds integrating cells (all line-search trials).
+    pub t_integration: f64,
+    /// Seconds assembling and solving the Newton system.
+    pub t_solve: f64,
+}
+
+/// The result of [`solve_ot`], converged or not (see [`OtSolution::into_result`]).
+#[derive(Clone, Debug)]
+pub struct OtSolution {
+    /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i.
+    pub heights: Vec<f64>,
+    /// Power weights w_i = 2h_i + |y_i|² (#N).
+    pub weights: Vec<f64>,
+    /// Cell integrals at the final heights.
+    pub cells: CellIntegrals,
+    /// Transport cost Σ_i ∫_{W_i} |x − y_i|² dμ.
+    pub cost: f64,
+    /// Newton steps taken.
+    pub iterations: usize,
+    /// max_i |μ(W_i) − ν_i| / ν_i at the final heights (ν rescaled).
+    pub max_relative_error: f64,
+    /// The tolerance that was asked for.
+    pub tolerance: f64,
+    /// Why the iteration stopped.
+    pub stop: StopReason,
+    /// One record per Newton step.
+    pub log: Vec<IterationRecord>,
+    /// Factor applied to the target masses so that they sum to μ(Ω).
+    pub mass_scale: f64,
+    /// The rescaled target masses ν (#N).
+    pub target_masses: Vec<f64>,
+    /// The damping threshold ε₀.
+    pub epsilon0: f64,
+    /// Where the initial heights came from.
+    pub start: Start,
+    /// Seconds spent on the start (including a coarse solve) and in total.
+    pub t_start: f64,
+    pub t_total: f64,
+    /// Number of symbolic Cholesky factorizations (changes of the neighbour graph).
+    pub symbolic_factorizations: usize,
+}
+
+impl OtSolution {
+    /// True when the tolerance was reached.
+    pub fn converged(&self) -> bool {
+        self.stop == StopReason::Converged
+    }
+
+    /// `Ok(self)` if converged, else `OmtError::NoConvergence` with the stop reason.
+    pub fn into_result(self) -> Result<Self, OmtError> {
+        if self.converged() {
+            return Ok(self);
+        }
+        Err(OmtError::NoConvergence {
+            iterations: self.iterations,
+            residual: self.max_relative_error,
+            tolerance: self.tolerance,
+            reason: self.stop.to_string(),
+        })
+    }
+
+    /// μ-centroids of the cells (#N; `None` for an empty cell).
+    pub fn centroids(&self) -> Vec<Option<[f64; 2]>> {
+        self.cells.centroids()
+    }
+}
+
+/// Power weights w_i = 2h_i + |y_i|² of heights h (#N).
+pub fn weights_from_heights(points: &[[f64; 2]], heights: &[f64]) -> Vec<f64> {
+    points.iter().zip(heights).map(|(y, h)| 2.0 * h + y[0] * y[0] + y[1] * y[1]).collect()
+}
+
+/// Heights h_i = (w_i − |y_i|²)/2 of power weights w (#N).
+pub fn heights_from_weights(points: &[[f64; 2]], weights: &[f64]) -> Vec<f64> {
+    points.iter().zip(weights).map(|(y, w)| 0.5 * (w - y[0] * y[0] - y[1] * y[1])).collect()
+}
+
+/// The Kantorovich energy E(h) = ∫_Ω u_h dμ − Σ ν_i h_i, evaluated exactly from the cell
+/// integrals at h: on W_i, u_h(x) = ⟨x, y_i⟩ + h_i, so ∫ u_h dμ = Σ_i ⟨∫_{W_i} x dμ, y_i⟩ + h_i μ(W_i).
+pub fn kantorovich_energy(points: &[[f64; 2]], heights: &[f64], targets: &[f64], cells: &CellIntegrals) -> f64 {
+    (0..points.len())
+        .map(|i| {
+            let m1 = cells.first_moments[i];
+            m1[0] * points[i][0] + m1[1] * points[i][1] + heights[i] * (cells.masses[i] - targets[i])
+        })
+        .sum()
+}
+
+/// Cell integrals with timings (diagram, integration) in seconds.
+pub(crate) struct Evaluation {
+    pub cells: CellIntegrals,
+    pub t_diagram: f64,
+    pub t_integration: f64,
+}
+
+/// Integrates the cells of heights `heights` with the chosen integrator.
+pub fn integrate_at_heights(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    heights: &[f64],
+    integrator: CellIntegrator,
+) -> Result<CellIntegrals, OmtError> {
+    evaluate(measure, points, heights, integrator).map(|e| e.cells)
+}
+
+pub(crate) fn evaluate(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    heights: &[f64],
+    integrator: CellIntegrator,
+) -> Result<Evaluation, OmtError> {
+    let weights = weights_from_heights(points, heights);
+    if let Some(i) = weights.iter().position(|w| !w.is_finite()) {
+        return Err(OmtError::InvalidInput(format!("height {i} is not finite ({})", heights[i])));
+    }
+    match integrator {
+        CellIntegrator::BruteForce => {
+            let t0 = Instant::now();
+            let cells = crate::reference::integrate_cells_bruteforce(points, &weights, measure);
+            Ok(Evaluation { cells, t_diagram: 0.0, t_integration: t0.elapsed().as_secs_f64() })
+        }
+        CellIntegrator::Restricted => {
+            // TEMP until restricted.rs lands: brute force.
+            let t0 = Instant::now();
+            let cells = crate::reference::integrate_cells_bruteforce(points, &weights, measure);
+            Ok(Evaluation { cells, t_diagram: 0.0, t_integration: t0.elapsed().as_secs_f64() })
+        }
+    }
+}
+
+/// max_i |G_i| / ν_i and ‖G‖₂ for G = masses − targets.
+pub(crate) fn errors(cells: &CellIntegrals, targets: &[f64]) -> (f64, f64, Vec<f64>) {
+    let gradient: Vec<f64> = cells.masses.iter().zip(targets).map(|(m, t)| m - t).collect();
+    let max_rel = gradient.iter().zip(targets).map(|(g, t)| g.abs() / t).fold(0.0, f64::max);
+    let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+    (max_rel, norm, gradient)
+}
+
+fn validate(measure: &SourceMeasure, points: &[[f64; 2]], masses: &[f64], params: &NewtonParams) -> Result<(), OmtError> {
+    if points.is_empty() {
+        return Err(OmtError::InvalidInput("no target point".into()));
+    }
+    if points.len() != masses.len() {
+        return Err(OmtError::InvalidInput(format!("{} target points but {} masses", points.len(), masses.len())));
+    }
+    if points.len() > u32::MAX as usize - 1 {
+        return Err(OmtError::InvalidInput(format!("{} target points exceed the u32 index range", points.len())));
+    }
+    if let Some(i) = points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        return Err(OmtError::InvalidInput(format!("target point {i} is not finite")));
+    }
+    if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
+        return Err(OmtError::InvalidInput(format!("target mass {i} is {} (must be finite and > 0)", masses[i])));
+    }
+    let total = measure.total_mass();
+    if !(total.is_finite() && total > 0.0) {
+        return Err(OmtError::InvalidInput(format!("source mass is {total}")));
+    }
+    if !(params.tolerance.is_finite() && params.tolerance > 0.0) {
+        return Err(OmtError::InvalidInput(format!("tolerance {} must be finite and > 0", params.tolerance)));
+    }
+    if let Some(h) = &params.initial_heights {
+        if h.len() != points.len() {
+            return Err(OmtError::InvalidInput(format!("{} initial heights for {} points", h.len(), points.len())));
+        }
+        if let Some(i) = h.iter().position(|v| !v.is_finite()) {
+            return Err(OmtError::InvalidInput(format!("initial height {i} is not finite")));
+        }
+    }
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_unstable_by(|&a, &b| points[a][0].total_cmp(&points[b][0]).then(points[a][1].total_cmp(&points[b][1])));
+    for w in order.windows(2) {
+        if points[w[0]] == points[w[1]] {
+            return Err(OmtError::DuplicatePoints { i: w[0].min(w[1]), j: w[0].max(w[1]) });
+        }
+    }
+    Ok(())
+}
+
+/// Voronoi heights h_i = −|y_i|²/2 of the points contracted by `scale` toward `center`:
+/// z_i = c + s(y_i − c), h_i = −|z_i|²/(2s) (a power diagram of the y_i equal to the Voronoi
+/// diagram of the z_i).
+fn contracted_voronoi_heights(points: &[[f64; 2]], center: [f64; 2], scale: f64) -> Vec<f64> {
+    points
+        .iter()
+        .map(|y| {
+            let z = [center[0] + scale * (y[0] - center[0]), center[1] + scale * (y[1] - center[1])];
+            -(z[0] * z[0] + z[1] * z[1]) / (2.0 * scale)
+        })
+        .collect()
+}
+
+/// μ-barycenter of Ω.
+fn source_barycenter(measure: &SourceMeasure) -> [f64; 2] {
+    let (mut m, mut c) = (0.0, [0.0, 0.0]);
+    for (tri, d) in measure.triangles.iter().zip(&measure.densities) {
+        let [a, b, e] = tri.map(|v| measure.vertices[v as usize]);
+        let area = 0.5 * ((b[0] - a[0]) * (e[1] - a[1]) - (b[1] - a[1]) * (e[0] - a[0])) * d;
+        m += area;
+        c[0] += area * (a[0] + b[0] + e[0]) / 3.0;
+        c[1] += area * (a[1] + b[1] + e[1]) / 3.0;
+    }
+    [c[0] / m, c[1] / m]
+}
+
+/// Solves semi-discrete OT from `measure` to the points `points` (#N) with masses `masses` (#N,
+/// > 0, rescaled to sum to μ(Ω)) by the damped Newton method of Kitagawa–Mérigot–Thibert on the
+/// heights (module docs). Returns the solution whether or not it converged (check
+/// [`OtSolution::converged`] or call [`OtSolution::into_result`]); errors on invalid input
+/// (N = 0, non-finite values, masses ≤ 0, coincident points) and linear-algebra failures.
+pub fn solve_ot(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    params: &NewtonParams,
+) -> Result<OtSolution, OmtError> {
+    let t_begin = Instant::now();
+    validate(measure, points, masses, params)?;
+    let n = points.len();
+    let total = measure.total_mass();
+    let mass_scale = total / masses.iter().sum::<f64>();
+    let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
+
+    // Initial heights and their evaluation; every cell must be non-empty.
+    let mut start = Start::Voronoi;
+    let mut heights = None;
+    if let Some(h) = &params.initial_heights {
+        heights = Some(h.clone());
+        start = Start::Warm;
+    } else if params.coarse_to_fine {
+        if let Some((h, coarse_points, coarse_iterations)) = multiscale::coarse_to_fine_heights(measure, points, &targets, params)? {
+            heights = Some(h);
+            start = Start::CoarseToFine { coarse_points, coarse_iterations };
+        }
+    }
+    let mut heights = heights.unwrap_or_else(|| points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect());
+    let mut current = evaluate(measure, points, &heights, params.integrator)?;
+    if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
+        let center = source_barycenter(measure);
+        let mut scale = 1.0;
+        loop {
+            scale *= 0.5;
+            heights = contracted_voronoi_heights(points, center, scale);
+            current = evaluate(measure, points, &heights, params.integrator)?;
+            if current.cells.masses.iter().all(|&m| m > 0.0) {
+                break;
+            }
+            if scale < 1e-30 {
+                return Err(OmtError::InvalidInput(
+                    "no start with all cells non-empty was found (points far outside the domain?)".into(),
+                ));
+            }
+        }
+        start = Start::Contracted { scale };
+    }
+    let t_start = t_begin.elapsed().as_secs_f64();
+
+    let min_target = targets.iter().cloned().fold(f64::INFINITY, f64::min);
+    let min_mass0 = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
+    let epsilon0 = 0.5 * min_target.min(min_mass0);
+    let pinned = (0..n).fold(0, |best, i| if targets[i] > targets[best] { i } else { best });
+    let mut system = NewtonSystem::new(pinned, params.linear_solver.clone());
+
+    let (mut max_rel, mut norm, mut gradient) = errors(&current.cells, &targets);
+    let mut log = Vec::new();
+    let stop;
+    let mut iterations = 0;
+    loop {
+        if !(max_rel.is_finite() && norm.is_finite()) {
+            stop = StopReason::Stalled { reason: "non-finite cell masses".into() };
+            break;
+        }
+        if max_rel <= params.tolerance {
+            stop = StopReason::Converged;
+            break;
+        }
+        if iterations >= params.max_iterations {
+            stop = StopReason::IterationCap;
+            break;
+        }
+        let t_solve = Instant::now();
+        let delta = system.newton_direction(points, &current.cells, &gradient)?;
+        let t_solve = t_solve.elapsed().as_secs_f64();
+        if delta.iter().any(|d| !d.is_finite()) {
+            stop = StopReason::Stalled { reason: "the Newton direction is not finite".into() };
+            break;
+        }
+        let outcome = line_search::damped_step(
+            measure,
+            points,
+            &targets,
+            &heights,
+            &delta,
+            norm,
+            epsilon0,
+            params.max_halvings,
+            params.integrator,
+        )?;
+        iterations += 1;
+        let mut record = IterationRecord {
+            max_relative_error: max_rel,
+            gradient_norm: norm,
+            step: 0.0,
+            halvings: outcome.halvings,
+            min_cell_mass: current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min),
+            t_diagram: outcome.t_diagram,
+            t_integration: outcome.t_integration,
+            t_solve,
+        };
+        match outcome.accepted {
+            Some(step) => {
+                heights = step.heights;
+                current = step.evaluation;
+                (max_rel, norm, gradient) = errors(&current.cells, &targets);
+                record.step = step.tau;
+                record.max_relative_error = max_rel;
+                record.gradient_norm = norm;
+                record.min_cell_mass = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
+                log.push(record);
+            }
+            None => {
+                log.push(record);
+                stop = StopReason::Stalled {
+                    reason: format!(
+                        "no step satisfied the damping conditions after {} halvings (max relative mass error {max_rel:e})",
+                        outcome.halvings
+                    ),
+                };
+                break;
+            }
+        }
+    }
+    let weights = weights_from_heights(points, &heights);
+    let cost = current.cells.transport_cost();
+    Ok(OtSolution {
+        heights,
+        weights,
+        cells: current.cells,
+        cost,
+        iterations,
+        max_relative_error: max_rel,
+        tolerance: params.tolerance,
+        stop,
+        log,
+        mass_scale,
+        target_masses: targets,
+        epsilon0,
+        start,
+        t_start,
+        t_total: t_begin.elapsed().as_secs_f64(),
+        symbolic_factorizations: system.symbolic_factorizations,
+    })
+}
