@@ -4,6 +4,7 @@
 pub mod error;
 pub mod matrix_io;
 pub mod mds;
+pub mod plot;
 pub mod stats;
 
 pub use error::AnalysisError;

@@ -1,0 +1,572 @@
+//! Plots: MDS scatter plots and overlaid histograms, as PNG or SVG (chosen by the file
+//! extension), drawn with plotters.
+//!
+//! Text uses the bundled DejaVu Sans (`assets/DejaVuSans.ttf`, Bitstream Vera / DejaVu licence in
+//! `assets/DejaVuSans-LICENSE.txt`), registered once as the family `sans-serif`; no system fonts
+//! are needed. SVG files reference the family `sans-serif` in `<text>` elements.
+//!
+//! Layout: the legend sits in its own panel right of the plot, so it never covers data.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+
+use crate::error::AnalysisError;
+use crate::mds::Mds;
+
+const FONT: &str = "sans-serif";
+const WIDTH: u32 = 1100;
+const HEIGHT: u32 = 760;
+const LEGEND_WIDTH: u32 = 260;
+
+static FONT_REGISTERED: OnceLock<bool> = OnceLock::new();
+
+/// Registers the bundled DejaVu Sans as `sans-serif` (once per process).
+fn ensure_font() -> Result<(), AnalysisError> {
+    let ok = *FONT_REGISTERED.get_or_init(|| {
+        register_font(FONT, FontStyle::Normal, include_bytes!("../assets/DejaVuSans.ttf")).is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err(AnalysisError::PlotInput {
+            message: "the bundled DejaVu Sans font could not be loaded".into(),
+        })
+    }
+}
+
+/// Marker shapes, cycled in this order for the values of the marker column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Marker {
+    Circle,
+    Triangle,
+    Square,
+    Cross,
+    Diamond,
+    TriangleDown,
+    Plus,
+    Star,
+}
+
+/// The marker cycle: circle, triangle, square, cross, diamond, inverted triangle, plus, star.
+pub const MARKERS: [Marker; 8] = [
+    Marker::Circle,
+    Marker::Triangle,
+    Marker::Square,
+    Marker::Cross,
+    Marker::Diamond,
+    Marker::TriangleDown,
+    Marker::Plus,
+    Marker::Star,
+];
+
+/// Tableau 20 (tab10 colours first, then their light variants).
+const TAB20: [(u8, u8, u8); 20] = [
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+    (174, 199, 232),
+    (255, 187, 120),
+    (152, 223, 138),
+    (255, 152, 150),
+    (197, 176, 213),
+    (196, 156, 148),
+    (247, 182, 210),
+    (199, 199, 199),
+    (219, 219, 141),
+    (158, 218, 229),
+];
+
+/// Colour `k` of `count` categorical colours: Tableau 20 up to 20 values, evenly spaced hues
+/// beyond.
+pub fn category_color(k: usize, count: usize) -> RGBColor {
+    if count <= TAB20.len() {
+        let (r, g, b) = TAB20[k % TAB20.len()];
+        RGBColor(r, g, b)
+    } else {
+        let hue = k as f64 / count as f64;
+        let lightness = if k % 2 == 0 { 0.42 } else { 0.6 };
+        let (r, g, b) = HSLColor(hue, 0.7, lightness).rgb();
+        RGBColor(r, g, b)
+    }
+}
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> AnalysisError {
+    AnalysisError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Distinct values in first-appearance order, and the index of each entry's value.
+fn categories(values: &[&str]) -> (Vec<String>, Vec<usize>) {
+    let mut distinct: Vec<String> = Vec::new();
+    let index = values
+        .iter()
+        .map(|v| match distinct.iter().position(|d| d == v) {
+            Some(k) => k,
+            None => {
+                distinct.push(v.to_string());
+                distinct.len() - 1
+            }
+        })
+        .collect();
+    (distinct, index)
+}
+
+type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// Draws one marker centred at pixel `c` with half-size `r`.
+fn draw_marker<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    c: (i32, i32),
+    r: i32,
+    marker: Marker,
+    color: RGBColor,
+) -> DrawResult<DB> {
+    let fill = color.mix(0.85).filled();
+    let edge = BLACK.mix(0.7).stroke_width(1);
+    let stroke = color.stroke_width(3);
+    let (x, y) = c;
+    let polygon = |pts: Vec<(i32, i32)>| -> DrawResult<DB> {
+        area.draw(&Polygon::new(pts.clone(), fill))?;
+        let mut closed = pts;
+        closed.push(closed[0]);
+        area.draw(&PathElement::new(closed, edge))
+    };
+    match marker {
+        Marker::Circle => {
+            area.draw(&Circle::new(c, r, fill))?;
+            area.draw(&Circle::new(c, r, edge))
+        }
+        Marker::Square => {
+            let s = (r as f64 * 0.9) as i32;
+            polygon(vec![(x - s, y - s), (x + s, y - s), (x + s, y + s), (x - s, y + s)])
+        }
+        Marker::Triangle => {
+            let h = (r as f64 * 1.15) as i32;
+            polygon(vec![(x, y - h), (x + h, y + h * 3 / 4), (x - h, y + h * 3 / 4)])
+        }
+        Marker::TriangleDown => {
+            let h = (r as f64 * 1.15) as i32;
+            polygon(vec![(x, y + h), (x + h, y - h * 3 / 4), (x - h, y - h * 3 / 4)])
+        }
+        Marker::Diamond => {
+            let h = (r as f64 * 1.3) as i32;
+            polygon(vec![(x, y - h), (x + h, y), (x, y + h), (x - h, y)])
+        }
+        Marker::Star => {
+            let outer = r as f64 * 1.4;
+            let inner = outer * 0.45;
+            let pts = (0..10)
+                .map(|k| {
+                    let rad = if k % 2 == 0 { outer } else { inner };
+                    let a = std::f64::consts::PI * (k as f64 / 5.0 - 0.5);
+                    (x + (rad * a.cos()).round() as i32, y + (rad * a.sin()).round() as i32)
+                })
+                .collect();
+            polygon(pts)
+        }
+        Marker::Cross => {
+            let s = r;
+            area.draw(&PathElement::new(vec![(x - s, y - s), (x + s, y + s)], stroke))?;
+            area.draw(&PathElement::new(vec![(x - s, y + s), (x + s, y - s)], stroke))
+        }
+        Marker::Plus => {
+            let s = (r as f64 * 1.2) as i32;
+            area.draw(&PathElement::new(vec![(x - s, y), (x + s, y)], stroke))?;
+            area.draw(&PathElement::new(vec![(x, y - s), (x, y + s)], stroke))
+        }
+    }
+}
+
+/// One legend entry: a symbol and its text.
+enum LegendSymbol {
+    Marker(Marker, RGBColor),
+    Line(RGBColor),
+}
+
+/// Draws the legend panel: sections of (heading, entries), rows shrunk to fit the panel height.
+fn draw_legend<DB: DrawingBackend>(
+    panel: &DrawingArea<DB, Shift>,
+    sections: &[(String, Vec<(LegendSymbol, String)>)],
+) -> DrawResult<DB> {
+    let (_, h) = panel.dim_in_pixel();
+    let rows: usize = sections.iter().map(|(_, e)| e.len() + 2).sum();
+    if rows == 0 {
+        return Ok(());
+    }
+    let top = 70i32;
+    let row_h = ((h as i32 - top - 20) / rows as i32).clamp(10, 28);
+    let font_size = (row_h as f64 * 0.68).clamp(9.0, 18.0);
+    let heading = (FONT, font_size + 1.0).into_font().color(&BLACK);
+    let text = (FONT, font_size).into_font().color(&BLACK.mix(0.85));
+    let mut y = top;
+    for (title, entries) in sections {
+        panel.draw(&Text::new(title.clone(), (12, y - row_h / 2), heading.clone()))?;
+        y += row_h;
+        for (symbol, label) in entries {
+            let cy = y;
+            match symbol {
+                LegendSymbol::Marker(m, c) => draw_marker(panel, (30, cy), (row_h / 3).clamp(4, 7), *m, *c)?,
+                LegendSymbol::Line(c) => {
+                    panel.draw(&Rectangle::new([(16, cy - 6), (44, cy + 6)], c.mix(0.3).filled()))?;
+                    panel.draw(&PathElement::new(vec![(16, cy), (44, cy)], c.stroke_width(3)))?;
+                }
+            }
+            panel.draw(&Text::new(label.clone(), (54, cy - (font_size * 0.55) as i32), text.clone()))?;
+            y += row_h;
+        }
+        y += row_h;
+    }
+    Ok(())
+}
+
+/// Expands `lo..hi` by `pad` of its length (or by 1 if it is empty).
+fn padded(lo: f64, hi: f64, pad: f64) -> (f64, f64) {
+    let span = hi - lo;
+    if span > 0.0 {
+        (lo - pad * span, hi + pad * span)
+    } else {
+        let s = if lo.abs() > 0.0 { 0.1 * lo.abs() } else { 1.0 };
+        (lo - s, hi + s)
+    }
+}
+
+struct ScatterInput<'a> {
+    points: Vec<(f64, f64)>,
+    x_desc: String,
+    y_desc: String,
+    color: Option<(&'a str, Vec<String>, Vec<usize>)>,
+    marker: Option<(&'a str, Vec<String>, Vec<usize>)>,
+    title: &'a str,
+}
+
+fn draw_scatter<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &ScatterInput) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let has_legend = input.color.is_some() || input.marker.is_some();
+    let (w, _) = root.dim_in_pixel();
+    let (plot_area, legend_area) = root.split_horizontally(if has_legend { w - LEGEND_WIDTH } else { w });
+    let titled = plot_area.titled(input.title, (FONT, 26).into_font())?;
+    let (margin, x_label, y_label) = (20u32, 60u32, 80u32);
+    let (tw, th) = titled.dim_in_pixel();
+    let plot_w = tw.saturating_sub(2 * margin + y_label).max(1) as f64;
+    let plot_h = th.saturating_sub(2 * margin + x_label).max(1) as f64;
+
+    // Equal scale on both axes (MDS coordinates share one unit).
+    let (mut x0, mut x1) = input.points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let (mut y0, mut y1) = input.points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    (x0, x1) = padded(x0, x1, 0.06);
+    (y0, y1) = padded(y0, y1, 0.06);
+    let scale = ((x1 - x0) / plot_w).max((y1 - y0) / plot_h);
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let (x0, x1) = (cx - 0.5 * scale * plot_w, cx + 0.5 * scale * plot_w);
+    let (y0, y1) = (cy - 0.5 * scale * plot_h, cy + 0.5 * scale * plot_h);
+
+    let mut chart = ChartBuilder::on(&titled)
+        .margin(margin)
+        .x_label_area_size(x_label)
+        .y_label_area_size(y_label)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart
+        .configure_mesh()
+        .x_desc(input.x_desc.as_str())
+        .y_desc(input.y_desc.as_str())
+        .label_style((FONT, 16))
+        .axis_desc_style((FONT, 19))
+        .light_line_style(BLACK.mix(0.04))
+        .bold_line_style(BLACK.mix(0.12))
+        .x_labels(8)
+        .y_labels(8)
+        .draw()?;
+    let n_colors = input.color.as_ref().map_or(1, |c| c.1.len());
+    for (i, p) in input.points.iter().enumerate() {
+        let color = input.color.as_ref().map_or(category_color(0, 1), |c| category_color(c.2[i], n_colors));
+        let marker = input.marker.as_ref().map_or(Marker::Circle, |m| MARKERS[m.2[i] % MARKERS.len()]);
+        let pixel = chart.backend_coord(p);
+        draw_marker(&root, pixel, 7, marker, color)?;
+    }
+    if has_legend {
+        let mut sections = Vec::new();
+        if let Some((col, values, _)) = &input.color {
+            let entries = values
+                .iter()
+                .enumerate()
+                .map(|(k, v)| (LegendSymbol::Marker(Marker::Circle, category_color(k, values.len())), v.clone()))
+                .collect();
+            sections.push((format!("{col} (colour)"), entries));
+        }
+        if let Some((col, values, _)) = &input.marker {
+            let grey = RGBColor(90, 90, 90);
+            let entries = values
+                .iter()
+                .enumerate()
+                .map(|(k, v)| (LegendSymbol::Marker(MARKERS[k % MARKERS.len()], grey), v.clone()))
+                .collect();
+            sections.push((format!("{col} (marker)"), entries));
+        }
+        draw_legend(&legend_area, &sections)?;
+    }
+    root.present()
+}
+
+fn backend_kind(path: &Path) -> Result<&'static str, AnalysisError> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => Ok("png"),
+        Some("svg") => Ok("svg"),
+        _ => Err(AnalysisError::PlotInput {
+            message: format!("{}: plot file must end in .png or .svg", path.display()),
+        }),
+    }
+}
+
+/// Scatter plot of the first two MDS coordinates (one coordinate against 0 if `dims == 1`),
+/// written as PNG or SVG according to the extension of `path` (1100×760 px).
+///
+/// - `color_labels`: `(column name, one value per shape)`: one colour per distinct value
+///   (Tableau 20, evenly spaced hues beyond 20 values), in first-appearance order.
+/// - `marker_labels`: likewise, one marker shape per value, cycling through [`MARKERS`].
+/// - Axes read "MDS 1 (xx.x% var)" with the shares of [`Mds::variance_shares`]; both axes use the
+///   same scale. The legend is in a panel right of the plot.
+///
+/// Errors: label lengths differing from `#shapes`, an unknown extension, drawing or write
+/// failures ([`AnalysisError::Plot`] with the path).
+pub fn mds_scatter(
+    path: &Path,
+    mds: &Mds,
+    color_labels: Option<(&str, &[&str])>,
+    marker_labels: Option<(&str, &[&str])>,
+    title: &str,
+) -> Result<(), AnalysisError> {
+    let n = mds.coordinates.len();
+    if n == 0 {
+        return Err(AnalysisError::PlotInput {
+            message: "no points to plot".into(),
+        });
+    }
+    for (what, labels) in [("colour", color_labels), ("marker", marker_labels)] {
+        if let Some((col, values)) = labels {
+            if values.len() != n {
+                return Err(AnalysisError::PlotInput {
+                    message: format!("{what} column {col:?} has {} values for {n} points", values.len()),
+                });
+            }
+        }
+    }
+    let kind = backend_kind(path)?;
+    ensure_font()?;
+    let points: Vec<(f64, f64)> = mds
+        .coordinates
+        .iter()
+        .map(|c| (c[0], c.get(1).copied().unwrap_or(0.0)))
+        .collect();
+    let share = |k: usize| mds.variance_shares.get(k).map_or(String::new(), |s| format!(" ({:.1}% var)", 100.0 * s));
+    let input = ScatterInput {
+        points,
+        x_desc: format!("MDS 1{}", share(0)),
+        y_desc: if mds.dims() > 1 { format!("MDS 2{}", share(1)) } else { String::from("(1-D embedding)") },
+        color: color_labels.map(|(col, v)| {
+            let (d, i) = categories(v);
+            (col, d, i)
+        }),
+        marker: marker_labels.map(|(col, v)| {
+            let (d, i) = categories(v);
+            (col, d, i)
+        }),
+        title,
+    };
+    let result = match kind {
+        "png" => draw_scatter(BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
+        _ => draw_scatter(SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
+    };
+    result
+}
+
+/// Per-series bin counts of a histogram.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HistogramCounts {
+    /// Bin range `lo..hi` (bins are `[lo + k·w, lo + (k+1)·w)`, the last one closed).
+    pub range: (f64, f64),
+    /// `counts[s][k]`: values of series `s` in bin `k`.
+    pub counts: Vec<Vec<usize>>,
+    /// Values of each series outside the range or not finite (not drawn).
+    pub outside: Vec<usize>,
+}
+
+/// Bins every series into `bins` equal bins over `range`, or over the min..max of all finite
+/// values when `range` is `None`.
+pub fn histogram_counts(series: &[(&str, &[f64])], bins: usize, range: Option<(f64, f64)>) -> Result<HistogramCounts, AnalysisError> {
+    if bins == 0 {
+        return Err(AnalysisError::PlotInput {
+            message: "histogram needs at least one bin".into(),
+        });
+    }
+    let (lo, hi) = match range {
+        Some((lo, hi)) if lo.is_finite() && hi.is_finite() && lo < hi => (lo, hi),
+        Some((lo, hi)) => {
+            return Err(AnalysisError::PlotInput {
+                message: format!("histogram range {lo}..{hi} must be finite and increasing"),
+            })
+        }
+        None => {
+            let finite = series.iter().flat_map(|(_, v)| v.iter().copied()).filter(|v| v.is_finite());
+            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+            if !lo.is_finite() {
+                return Err(AnalysisError::PlotInput {
+                    message: "histogram series contain no finite values".into(),
+                });
+            }
+            if lo < hi {
+                (lo, hi)
+            } else {
+                padded(lo, hi, 0.0)
+            }
+        }
+    };
+    let width = (hi - lo) / bins as f64;
+    let mut counts = vec![vec![0usize; bins]; series.len()];
+    let mut outside = vec![0usize; series.len()];
+    for (s, (_, values)) in series.iter().enumerate() {
+        for &v in values.iter() {
+            if !(v >= lo && v <= hi) {
+                outside[s] += 1;
+                continue;
+            }
+            let k = (((v - lo) / width) as usize).min(bins - 1);
+            counts[s][k] += 1;
+        }
+    }
+    Ok(HistogramCounts {
+        range: (lo, hi),
+        counts,
+        outside,
+    })
+}
+
+struct HistogramInput<'a> {
+    names: Vec<&'a str>,
+    hist: HistogramCounts,
+    fractions: Vec<Vec<f64>>,
+    title: &'a str,
+    x_label: &'a str,
+}
+
+fn draw_histograms<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &HistogramInput) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let (w, _) = root.dim_in_pixel();
+    let (plot_area, legend_area) = root.split_horizontally(w - LEGEND_WIDTH);
+    let titled = plot_area.titled(input.title, (FONT, 26).into_font())?;
+    let (lo, hi) = input.hist.range;
+    let bins = input.fractions.first().map_or(1, Vec::len);
+    let width = (hi - lo) / bins as f64;
+    let y_max = input.fractions.iter().flatten().copied().fold(0.0f64, f64::max);
+    let y_top = if y_max > 0.0 { 1.08 * y_max } else { 1.0 };
+    let mut chart = ChartBuilder::on(&titled)
+        .margin(20)
+        .x_label_area_size(60)
+        .y_label_area_size(90)
+        .build_cartesian_2d(lo..hi, 0.0..y_top)?;
+    chart
+        .configure_mesh()
+        .x_desc(input.x_label)
+        .y_desc("fraction of values per bin")
+        .label_style((FONT, 16))
+        .axis_desc_style((FONT, 19))
+        .light_line_style(BLACK.mix(0.04))
+        .bold_line_style(BLACK.mix(0.12))
+        .x_labels(10)
+        .y_labels(8)
+        .draw()?;
+    let count = input.fractions.len();
+    for (s, fr) in input.fractions.iter().enumerate() {
+        let color = category_color(s, count.max(10));
+        chart.draw_series(fr.iter().enumerate().map(|(k, &f)| {
+            let x = lo + k as f64 * width;
+            Rectangle::new([(x, 0.0), (x + width, f)], color.mix(0.22).filled())
+        }))?;
+    }
+    for (s, fr) in input.fractions.iter().enumerate() {
+        let color = category_color(s, count.max(10));
+        let mut steps = Vec::with_capacity(2 * bins + 2);
+        steps.push((lo, 0.0));
+        for (k, &f) in fr.iter().enumerate() {
+            let x = lo + k as f64 * width;
+            steps.push((x, f));
+            steps.push((x + width, f));
+        }
+        steps.push((hi, 0.0));
+        chart.draw_series(std::iter::once(PathElement::new(steps, color.stroke_width(3))))?;
+    }
+    let entries = input
+        .names
+        .iter()
+        .enumerate()
+        .map(|(s, name)| {
+            let total: usize = input.hist.counts[s].iter().sum();
+            (LegendSymbol::Line(category_color(s, count.max(10))), format!("{name} (n={total})"))
+        })
+        .collect();
+    draw_legend(&legend_area, &[(String::from("series"), entries)])?;
+    root.present()
+}
+
+/// Overlaid histograms of several distributions, written as PNG or SVG by the extension of
+/// `path` (1100×760 px): per series, semi-transparent bars and a step outline of the fraction
+/// of its binned values per bin (so series of different sizes compare), with a legend panel
+/// giving each series' name and count. `bins` equal bins over `range` (or the min..max of all
+/// finite values). Used for distortion histograms (Su et al. 2015, Figs. 2 and 7).
+///
+/// Values outside the range and non-finite values are not drawn; their number per series is
+/// returned in [`HistogramCounts::outside`].
+pub fn histograms(
+    path: &Path,
+    series: &[(&str, &[f64])],
+    bins: usize,
+    range: Option<(f64, f64)>,
+    title: &str,
+    x_label: &str,
+) -> Result<HistogramCounts, AnalysisError> {
+    if series.is_empty() {
+        return Err(AnalysisError::PlotInput {
+            message: "no histogram series".into(),
+        });
+    }
+    let kind = backend_kind(path)?;
+    ensure_font()?;
+    let hist = histogram_counts(series, bins, range)?;
+    let fractions = hist
+        .counts
+        .iter()
+        .map(|c| {
+            let total: usize = c.iter().sum();
+            c.iter().map(|&k| if total > 0 { k as f64 / total as f64 } else { 0.0 }).collect()
+        })
+        .collect();
+    let input = HistogramInput {
+        names: series.iter().map(|(n, _)| *n).collect(),
+        hist,
+        fractions,
+        title,
+        x_label,
+    };
+    let result = match kind {
+        "png" => draw_histograms(BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
+        _ => draw_histograms(SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
+    };
+    result?;
+    Ok(input.hist)
+}
