@@ -1,0 +1,246 @@
+//! Mesh I/O on real files and round trips.
+//!
+//! Counts come from the `SOURCE.md` tables and `mesh_stats.json` of `/work/shared/datasets`
+//! (computed there by an independent Python script). Small copies in `tests/data/` always run;
+//! the tests on the big shared files print a note and return when `../shared` is absent.
+
+use std::path::{Path, PathBuf};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use shapespace_geometry::io::{
+    parse_obj, read_mesh, read_obj, read_off, read_ply, write_mesh, write_obj, write_off, write_ply, PlyFormat,
+};
+use shapespace_geometry::TriMesh;
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn data(name: &str) -> PathBuf {
+    repo_root().join("tests/data").join(name)
+}
+
+/// The shared datasets folder, or `None` (with a note) when it is not there (CI).
+fn shared() -> Option<PathBuf> {
+    let dir = repo_root().join("../shared/datasets");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("note: {} not found; skipping the test on the shared datasets", dir.display());
+        None
+    }
+}
+
+/// A fresh temporary directory for this test process.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("shapespace-io-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn assert_counts(mesh: &TriMesh, v: usize, f: usize, what: &str) {
+    assert_eq!((mesh.num_vertices(), mesh.num_faces()), (v, f), "{what}: (V, F)");
+    mesh.validate().unwrap();
+}
+
+#[test]
+fn small_copies_read_with_the_published_counts() {
+    let cat = read_mesh(&data("cat_head.obj")).unwrap();
+    assert_counts(&cat, 131, 248, "cat_head.obj");
+    // First and last vertex lines, and the first face line "f 1 2 3", of the file.
+    assert_eq!(cat.positions[0], [-0.008298, 0.583053, 0.070454]);
+    assert_eq!(cat.faces[0], [0, 1, 2]);
+    assert_eq!(cat.uvs, None);
+
+    let plate = read_mesh(&data("plate121.ply")).unwrap();
+    assert_counts(&plate, 121, 200, "plate121.ply");
+    // A flat plate: every z is 0.
+    assert!(plate.positions.iter().all(|p| p[2] == 0.0));
+
+    let wolf = read_mesh(&data("wolf0.off")).unwrap();
+    assert_counts(&wolf, 4344, 8684, "wolf0.off");
+    assert_eq!(wolf.positions[0], [3.106520, 50.349998, 52.238998]);
+
+    let woody = read_mesh(&data("woody.obj")).unwrap();
+    assert_counts(&woody, 694, 1267, "woody.obj");
+}
+
+#[test]
+fn every_format_round_trips_a_real_mesh() {
+    let dir = temp_dir("real");
+    let wolf = read_off(&data("wolf0.off")).unwrap();
+    for name in ["w.obj", "w.OFF", "w.ply"] {
+        let path = dir.join(name);
+        write_mesh(&path, &wolf).unwrap();
+        assert_eq!(read_mesh(&path).unwrap(), wolf, "{name}");
+    }
+    let path = dir.join("w_ascii.ply");
+    write_ply(&path, &wolf, PlyFormat::Ascii).unwrap();
+    assert_eq!(read_ply(&path).unwrap(), wolf);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A random mesh whose coordinates are random bit patterns (all finite: tiny, huge,
+/// subnormal, negative zero), the hard case for decimal round trips.
+fn random_mesh(seed: u64, num_vertices: usize, num_faces: usize, with_uvs: bool) -> TriMesh {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let value = |rng: &mut ChaCha8Rng| loop {
+        let x = match rng.random_range(0..4) {
+            0 => f64::from_bits(rng.random::<u64>()),
+            1 => rng.random_range(-1.0..1.0),
+            2 => f64::from_bits(rng.random_range(0..1u64 << 52)), // subnormal
+            _ => rng.random_range(-1e6..1e6) / 3.0,
+        };
+        if x.is_finite() {
+            return x;
+        }
+    };
+    let positions = (0..num_vertices).map(|_| [value(&mut rng), value(&mut rng), value(&mut rng)]).collect();
+    let faces = (0..num_faces)
+        .map(|_| {
+            let n = num_vertices as u32;
+            [rng.random_range(0..n), rng.random_range(0..n), rng.random_range(0..n)]
+        })
+        .collect();
+    let uvs = with_uvs.then(|| (0..num_vertices).map(|_| [value(&mut rng), value(&mut rng)]).collect());
+    TriMesh { positions, faces, uvs }
+}
+
+#[test]
+fn round_trips_are_bit_exact() {
+    let dir = temp_dir("random");
+    for seed in 0..4 {
+        let with_uvs = random_mesh(seed, 300, 500, true);
+        let no_uvs = TriMesh { uvs: None, ..with_uvs.clone() };
+
+        let path = dir.join("m.obj");
+        write_obj(&path, &with_uvs).unwrap();
+        let back = read_obj(&path).unwrap();
+        let bits = |m: &TriMesh| m.positions.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&back), bits(&with_uvs), "OBJ positions, seed {seed}");
+        assert_eq!(back, with_uvs, "OBJ with uvs, seed {seed}");
+        write_obj(&path, &no_uvs).unwrap();
+        assert_eq!(read_obj(&path).unwrap(), no_uvs, "OBJ, seed {seed}");
+
+        let path = dir.join("m.off");
+        write_off(&path, &no_uvs).unwrap();
+        let back = read_off(&path).unwrap();
+        assert_eq!(bits(&back), bits(&no_uvs), "OFF positions, seed {seed}");
+        assert_eq!(back, no_uvs, "OFF, seed {seed}");
+
+        let path = dir.join("m.ply");
+        for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+            for mesh in [&with_uvs, &no_uvs] {
+                write_ply(&path, mesh, format).unwrap();
+                let back = read_ply(&path).unwrap();
+                assert_eq!(bits(&back), bits(mesh), "PLY {format:?} positions, seed {seed}");
+                assert_eq!(&back, mesh, "PLY {format:?}, seed {seed}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn writers_refuse_invalid_meshes_and_name_the_file() {
+    let dir = temp_dir("invalid");
+    let bad_index = TriMesh { positions: vec![[0.0; 3]; 3], faces: vec![[0, 1, 3]], uvs: None };
+    let nan = TriMesh { positions: vec![[0.0, f64::NAN, 0.0]; 3], faces: vec![[0, 1, 2]], uvs: None };
+    for (mesh, problem) in [(&bad_index, "references vertex 3"), (&nan, "non-finite")] {
+        for name in ["x.obj", "x.off", "x.ply"] {
+            let path = dir.join(name);
+            let e = write_mesh(&path, mesh).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains(problem), "{e}");
+            assert!(!path.exists(), "{name} written despite the error");
+        }
+    }
+    let e = write_mesh(&dir.join("x.stl"), &bad_index).unwrap_err().to_string();
+    assert!(e.contains("x.stl") && e.contains("unsupported"), "{e}");
+    let e = read_mesh(&dir.join("missing.obj")).unwrap_err().to_string();
+    assert!(e.contains("missing.obj"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn obj_uvs_per_vertex_when_consistent() {
+    // camel_b.obj style: vt per vertex and faces "f a/a b/b c/c"; the quad is split.
+    let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0.5 0.5\nvt 1.5 0.5\nvt 1.5 1.5\nvt 0.5 1.5\n\
+                f 1/1 2/2 3/3 4/4\n";
+    let m = parse_obj(text, Path::new("uv.obj")).unwrap();
+    assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3]]);
+    assert_eq!(m.uvs.unwrap(), vec![[0.5, 0.5], [1.5, 0.5], [1.5, 1.5], [0.5, 1.5]]);
+}
+
+#[test]
+fn shared_real_format_variants() {
+    let Some(root) = shared() else { return };
+    let cases: [(&str, usize, usize); 11] = [
+        ("libigl_tutorial_data/camelhead.off", 11381, 22704), // CRLF, trailing spaces
+        ("tosca/cat0.off", 27894, 55712),
+        ("sumner_deformation_transfer/cat-poses/0001.obj", 7207, 14410),
+        ("sumner_deformation_transfer/horse-poses/reference.obj", 8431, 16843), // CRLF
+        ("ict_facekit/template_face_full_neutral.obj", 9409, 18460),
+        ("ict_facekit/original/generic_neutral_mesh.obj", 26719, 52220), // quads, v/vt, mtllib
+        ("goast/faces/neutral.ply", 7118, 14037),                        // ascii, vertex_index
+        ("geometry_central_assets/cat_head.obj", 131, 248),
+        ("libigl_tutorial_data/face.obj", 25905, 51712),
+        ("libigl_tutorial_data/camel_b.obj", 2032, 3576), // v/vt faces
+        ("common_3d_test_models/igea_trilist.ply", 134345, 268686),
+    ];
+    for (file, v, f) in cases {
+        let mesh = read_mesh(&root.join(file)).unwrap();
+        assert_counts(&mesh, v, f, file);
+    }
+    // ICT head: 28,911 vt for 26,719 v (UV seams), so no per-vertex UVs.
+    assert_eq!(read_mesh(&root.join("ict_facekit/original/generic_neutral_mesh.obj")).unwrap().uvs, None);
+    // camel_b: one vt per vertex; its first line "vt 68.389594 -2.440819" belongs to vertex 1.
+    let camel = read_mesh(&root.join("libigl_tutorial_data/camel_b.obj")).unwrap();
+    let uvs = camel.uvs.expect("camel_b.obj has one vt per vertex");
+    assert_eq!(uvs.len(), 2032);
+    assert_eq!(uvs[0], [68.389594, -2.440819]);
+}
+
+#[test]
+fn igea_tristrips_match_the_triangle_list() {
+    let Some(root) = shared() else { return };
+    let strips = read_ply(&root.join("common_3d_test_models/igea.ply")).unwrap();
+    let list = read_ply(&root.join("common_3d_test_models/igea_trilist.ply")).unwrap();
+    assert_eq!(strips.num_vertices(), 134345);
+    assert_eq!(strips.positions, list.positions);
+    assert_eq!(strips.num_faces(), 268686);
+    // Same triangles with the same orientation (compared up to rotation of the corners).
+    let canonical = |f: &[u32; 3]| {
+        let k = (0..3).min_by_key(|&k| f[k]).unwrap();
+        [f[k], f[(k + 1) % 3], f[(k + 2) % 3]]
+    };
+    let mut a: Vec<[u32; 3]> = strips.faces.iter().map(canonical).collect();
+    let mut b: Vec<[u32; 3]> = list.faces.iter().map(canonical).collect();
+    a.sort_unstable();
+    b.sort_unstable();
+    assert_eq!(a, b);
+}
+
+/// Every mesh of the shared datasets against `mesh_stats.json` (file vertex count, triangle
+/// count after fan triangulation).
+#[test]
+fn shared_corpus_matches_mesh_stats() {
+    let Some(root) = shared() else { return };
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("mesh_stats.json")).unwrap()).unwrap();
+    let entries = stats.as_array().unwrap();
+    assert!(entries.len() >= 90, "{} entries", entries.len());
+    use rayon::prelude::*;
+    let checked: usize = entries
+        .par_iter()
+        .map(|e| {
+            let file = e["file"].as_str().unwrap();
+            let v = e["V_file"].as_u64().unwrap() as usize;
+            let f = e["F_tri"].as_u64().unwrap() as usize;
+            let mesh = read_mesh(&root.join(file)).unwrap_or_else(|err| panic!("{err}"));
+            assert_counts(&mesh, v, f, file);
+            1
+        })
+        .sum();
+    assert_eq!(checked, entries.len());
+}
