@@ -251,8 +251,10 @@ trait Body {
     fn end(&mut self) -> Result<(), GeometryError>;
     /// Checks that nothing follows the last element.
     fn finish(&mut self) -> Result<(), GeometryError>;
-    /// An error about the current element instance.
+    /// An error about the current element instance (prefixed with its name and index).
     fn error(&self, message: String) -> GeometryError;
+    /// An error at the current element instance whose message names the instance itself.
+    fn error_bare(&self, message: String) -> GeometryError;
     /// Bytes not yet read (bounds pre-allocation).
     fn remaining(&self) -> usize;
     /// Checks, before reading them, that `count` instances of `element` can fit.
@@ -344,6 +346,10 @@ impl Body for AsciiBody<'_> {
         parse_error(self.path, self.line_no, format!("{}: {message}", self.current))
     }
 
+    fn error_bare(&self, message: String) -> GeometryError {
+        parse_error(self.path, self.line_no, message)
+    }
+
     fn remaining(&self) -> usize {
         self.data.len().saturating_sub(self.pos)
     }
@@ -418,11 +424,11 @@ impl Body for BinaryBody<'_> {
     }
 
     fn error(&self, message: String) -> GeometryError {
-        GeometryError::BinaryParse {
-            path: PathBuf::from(self.path),
-            offset: self.start as u64,
-            message: format!("{}: {message}", self.current),
-        }
+        self.error_bare(format!("{}: {message}", self.current))
+    }
+
+    fn error_bare(&self, message: String) -> GeometryError {
+        GeometryError::BinaryParse { path: PathBuf::from(self.path), offset: self.start as u64, message }
     }
 
     fn remaining(&self) -> usize {
@@ -578,10 +584,10 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
                     }
                     body.end()?;
                     if !p.iter().all(|c| c.is_finite()) {
-                        return Err(body.error(format!("vertex {i} has a non-finite coordinate")));
+                        return Err(body.error_bare(format!("vertex {i} has a non-finite coordinate")));
                     }
                     if !t.iter().all(|c| c.is_finite()) {
-                        return Err(body.error(format!("vertex {i} has a non-finite texture coordinate")));
+                        return Err(body.error_bare(format!("vertex {i} has a non-finite texture coordinate")));
                     }
                     positions.push(p);
                     if uv.is_some() {
@@ -615,7 +621,7 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
                                     continue;
                                 }
                                 if items.len() < 3 {
-                                    return Err(body.error(format!("face has {} vertices (need at least 3)", items.len())));
+                                    return Err(body.error_bare(format!("face {i} has {} vertices (need at least 3)", items.len())));
                                 }
                                 polygon.clear();
                                 for &v in &items {
@@ -765,7 +771,7 @@ mod tests {
         let e = parse(format!("{ASCII_HEADER}0 0 0 1 5\n").as_bytes()).unwrap_err().to_string();
         assert!(e.starts_with("t.ply:13: vertex 0:") && e.contains("more values"), "{e}");
         let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n2 0 1 7\n").as_bytes()).unwrap_err();
-        assert!(e.to_string().contains("face has 2 vertices"), "{e}");
+        assert!(e.to_string().contains("t.ply:17: face 0 has 2 vertices"), "{e}");
         let header = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nelement face 0\n\
                       property list uchar int vertex_indices\nend_header\n";
         let e = parse(header.as_bytes()).unwrap_err().to_string();
