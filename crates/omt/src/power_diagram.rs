@@ -1,0 +1,830 @@
+//! Power diagrams through their dual, the regular (weighted Delaunay) triangulation.
+//!
+//! For sites $y_i \in \mathbb{R}^2$ with power weights $w_i$, the power cell of $i$ is
+//! $$W_i = \{x : |x - y_i|^2 - w_i \le |x - y_j|^2 - w_j \ \forall j\}.$$
+//! Two cells share an edge exactly when the sites are joined by an edge of the regular
+//! triangulation, the projection of the lower convex hull of the lifted points
+//! $\hat y_i = (y_i, |y_i|^2 - w_i)$ (Aurenhammer 1987; Edelsbrunner & Shah 1996). Sites whose
+//! lifted point is not on the lower hull own no cell: they are *hidden* (redundant).
+//!
+//! # Construction
+//! Incremental Bowyer–Watson insertion (beneath–beyond in the lifted space): the triangles in
+//! conflict with the new point (lifted point below their lifted plane, [`crate::predicates`]) form
+//! a topological disk, which is replaced by the star of the new point; vertices interior to the
+//! disk become hidden. A point inside a triangle it is not in conflict with is hidden. The
+//! convex hull is closed by an *infinite vertex* as in CGAL (Boissonnat, Devillers, Pion,
+//! Teillaud, Yvinec 2002), so no bounding construction can hide true hull points. Insertion
+//! follows a biased randomized insertion order (Amenta, Choi, Rote 2003) whose rounds are sorted
+//! along a Hilbert curve; point location is a visibility walk from the last created triangle
+//! (it terminates on regular triangulations, Edelsbrunner 1990).
+//!
+//! All combinatorial decisions use exact predicates with symbolic perturbation, so the result is
+//! the regular triangulation of the input (for ties: of the consistently perturbed input).
+//! When all sites are collinear the diagram is one-dimensional (cells are parallel strips); it is
+//! computed by a lower-hull scan along the line with the same predicates. One site owns the
+//! whole plane.
+//!
+//! Input range: coordinates with |x| ≤ 1e30 and weights with |w| ≤ 1e60 (so that no exact
+//! product overflows); coincident sites are rejected with [`OmtError::DuplicatePoints`].
+
+use crate::error::OmtError;
+use crate::predicates::{orient, power_compare, power_side_1d, power_side_sos};
+
+/// Sentinel for "no triangle / dead triangle".
+const NONE: u32 = u32::MAX;
+
+/// The power diagram of weighted sites, stored as its dual regular triangulation.
+#[derive(Clone, Debug)]
+pub struct PowerDiagram {
+    sites: Vec<[f64; 2]>,
+    weights: Vec<f64>,
+    hidden: Vec<bool>,
+    /// CSR offsets into `neighbor_list`, #N + 1.
+    neighbor_offsets: Vec<u32>,
+    /// Neighbours of every site, counter-clockwise around it (2-D case).
+    neighbor_list: Vec<u32>,
+    /// 0 (one site), 1 (all sites collinear) or 2.
+    dimension: usize,
+    /// Triangles of the triangulation including the infinite ones (vertex index N is the
+    /// infinite vertex), counter-clockwise; dead slots hold `[NONE; 3]`. Empty unless dim 2.
+    triangle_vertices: Vec<[u32; 3]>,
+    /// `triangle_neighbors[t][k]`: the triangle across the edge opposite vertex k of t.
+    triangle_neighbors: Vec<[u32; 3]>,
+    /// A visible (non-hidden) site, start of point location without hint.
+    start_site: u32,
+}
+
+/// The triangulation under construction (2-D case).
+struct Builder<'a> {
+    sites: &'a [[f64; 2]],
+    weights: &'a [f64],
+    infinite: u32,
+    tv: Vec<[u32; 3]>,
+    tn: Vec<[u32; 3]>,
+    free: Vec<u32>,
+    /// Per triangle: 2·stamp when in conflict with the current point, 2·stamp+1 when tested and
+    /// not in conflict.
+    mark: Vec<u32>,
+    vertex_mark: Vec<u32>,
+    /// New triangle starting at a boundary vertex (scratch for linking the star).
+    star_link: Vec<u32>,
+    hidden: Vec<bool>,
+    vertex_triangle: Vec<u32>,
+    last: u32,
+    stamp: u32,
+    rng: u64,
+    cavity: Vec<u32>,
+    boundary: Vec<(u32, u8)>,
+    stack: Vec<u32>,
+    cavity_vertices: Vec<u32>,
+    edges: Vec<(u32, u32, u32)>,
+    created: Vec<u32>,
+}
+
+impl<'a> Builder<'a> {
+    #[inline]
+    fn p(&self, v: u32) -> [f64; 2] {
+        self.sites[v as usize]
+    }
+
+    /// Conflict test of site `q` with triangle `t` (finite or infinite).
+    fn conflict(&self, t: u32, q: u32) -> bool {
+        let [a, b, c] = self.tv[t as usize];
+        let inf = self.infinite;
+        let (a, b) = if c == inf {
+            (a, b)
+        } else if a == inf {
+            (b, c)
+        } else if b == inf {
+            (c, a)
+        } else {
+            let s = self.sites;
+            let w = self.weights;
+            let (ai, bi, ci, qi) = (a as usize, b as usize, c as usize, q as usize);
+            return power_side_sos(s[ai], w[ai], a, s[bi], w[bi], b, s[ci], w[ci], c, s[qi], w[qi], q);
+        };
+        // Infinite triangle (a, b, ∞): the exterior of the hull edge a→b lies to its left.
+        let o = orient(self.p(a), self.p(b), self.p(q));
+        if o != 0 {
+            return o > 0;
+        }
+        let w = self.weights;
+        power_side_1d(self.p(a), w[a as usize], a, self.p(b), w[b as usize], b, self.p(q), w[q as usize], q)
+    }
+
+    fn next_random(&mut self) -> u64 {
+        self.rng ^= self.rng << 13;
+        self.rng ^= self.rng >> 7;
+        self.rng ^= self.rng << 17;
+        self.rng
+    }
+
+    /// Visibility walk from `start` to a triangle containing site q, or to an infinite triangle
+    /// whose hull edge sees q (which is then in conflict with q).
+    fn locate(&mut self, q: u32, start: u32) -> u32 {
+        let x = self.p(q);
+        let inf = self.infinite;
+        let mut t = start;
+        if self.tv[t as usize].contains(&inf) {
+            let k = self.tv[t as usize].iter().position(|&v| v == inf).unwrap_or(0);
+            t = self.tn[t as usize][k];
+        }
+        let mut previous = NONE;
+        let mut steps = 0usize;
+        'walk: loop {
+            steps += 1;
+            if steps > 4 * self.tv.len() + 16 {
+                // Cannot happen on a regular triangulation; safe exhaustive fallback.
+                return self.locate_exhaustive(q);
+            }
+            let tri = self.tv[t as usize];
+            if tri.contains(&inf) {
+                return t;
+            }
+            let r = (self.next_random() % 3) as usize;
+            for i in 0..3 {
+                let k = (r + i) % 3;
+                let nb = self.tn[t as usize][k];
+                if nb == previous {
+                    continue;
+                }
+                let (u, v) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                if orient(self.p(u), self.p(v), x) < 0 {
+                    previous = t;
+                    t = nb;
+                    continue 'walk;
+                }
+            }
+            return t;
+        }
+    }
+
+    fn locate_exhaustive(&self, q: u32) -> u32 {
+        let x = self.p(q);
+        let inf = self.infinite;
+        for (t, tri) in self.tv.iter().enumerate() {
+            if tri[0] == NONE || tri.contains(&inf) {
+                continue;
+            }
+            if (0..3).all(|k| orient(self.p(tri[(k + 1) % 3]), self.p(tri[(k + 2) % 3]), x) >= 0) {
+                return t as u32;
+            }
+        }
+        for (t, tri) in self.tv.iter().enumerate() {
+            if tri[0] != NONE && tri.contains(&inf) && self.conflict(t as u32, q) {
+                return t as u32;
+            }
+        }
+        0
+    }
+
+    fn new_triangle(&mut self) -> u32 {
+        if let Some(t) = self.free.pop() {
+            t
+        } else {
+            self.tv.push([NONE; 3]);
+            self.tn.push([NONE; 3]);
+            self.mark.push(0);
+            (self.tv.len() - 1) as u32
+        }
+    }
+
+    /// Inserts site q (Bowyer–Watson on the lifted points).
+    fn insert(&mut self, q: u32) {
+        let t0 = self.locate(q, self.last);
+        if !self.conflict(t0, q) {
+            self.hidden[q as usize] = true;
+            return;
+        }
+        self.stamp += 1;
+        let (yes, no) = (2 * self.stamp, 2 * self.stamp + 1);
+        self.cavity.clear();
+        self.boundary.clear();
+        self.stack.clear();
+        self.mark[t0 as usize] = yes;
+        self.stack.push(t0);
+        while let Some(s) = self.stack.pop() {
+            self.cavity.push(s);
+            for k in 0..3u8 {
+                let nb = self.tn[s as usize][k as usize];
+                let m = self.mark[nb as usize];
+                if m == yes {
+                    continue;
+                }
+                if m != no && self.conflict(nb, q) {
+                    self.mark[nb as usize] = yes;
+                    self.stack.push(nb);
+                } else {
+                    self.mark[nb as usize] = no;
+                    self.boundary.push((s, k));
+                }
+            }
+        }
+        // Vertices of the cavity, recorded before its slots are reused.
+        self.cavity_vertices.clear();
+        for i in 0..self.cavity.len() {
+            let s = self.cavity[i] as usize;
+            let tri = self.tv[s];
+            self.cavity_vertices.extend_from_slice(&tri);
+        }
+        // Star of q over the cavity boundary.
+        self.edges.clear();
+        for i in 0..self.boundary.len() {
+            let (s, k) = self.boundary[i];
+            let tri = self.tv[s as usize];
+            let k = k as usize;
+            self.edges.push((tri[(k + 1) % 3], tri[(k + 2) % 3], self.tn[s as usize][k]));
+        }
+        for i in 0..self.cavity.len() {
+            let s = self.cavity[i];
+            self.tv[s as usize] = [NONE; 3];
+            self.free.push(s);
+        }
+        self.created.clear();
+        for i in 0..self.edges.len() {
+            let (u, v, outside) = self.edges[i];
+            let t = self.new_triangle();
+            self.tv[t as usize] = [u, v, q];
+            self.tn[t as usize] = [NONE, NONE, outside];
+            self.mark[t as usize] = 0;
+            // The outside triangle pointed to a cavity triangle across edge (v, u).
+            let on = self.tv[outside as usize];
+            let slot = (0..3).find(|&j| on[j] != u && on[j] != v).unwrap_or(0);
+            self.tn[outside as usize][slot] = t;
+            self.star_link[u as usize] = t;
+            self.vertex_mark[u as usize] = self.stamp;
+            if u != self.infinite {
+                self.vertex_triangle[u as usize] = t;
+            }
+            self.created.push(t);
+        }
+        for i in 0..self.created.len() {
+            let t = self.created[i];
+            let v = self.tv[t as usize][1];
+            let s = self.star_link[v as usize];
+            self.tn[t as usize][0] = s;
+            self.tn[s as usize][1] = t;
+        }
+        // Vertices of the cavity that are not on its boundary disappear: hidden.
+        for i in 0..self.cavity_vertices.len() {
+            let v = self.cavity_vertices[i];
+            if v != self.infinite && self.vertex_mark[v as usize] != self.stamp {
+                self.hidden[v as usize] = true;
+            }
+        }
+        self.vertex_triangle[q as usize] = self.created[0];
+        self.vertex_mark[q as usize] = self.stamp;
+        self.last = self.created[self.created.len() - 1];
+    }
+}
+
+/// Index of (x, y) ∈ [0, 2¹⁶)² along the Hilbert curve of order 16.
+fn hilbert_index(mut x: u32, mut y: u32) -> u64 {
+    let n: u32 = 1 << 16;
+    let mut d = 0u64;
+    let mut s = n / 2;
+    while s > 0 {
+        let rx = u32::from(x & s > 0);
+        let ry = u32::from(y & s > 0);
+        d += (s as u64) * (s as u64) * u64::from((3 * rx) ^ ry);
+        if ry == 0 {
+            if rx == 1 {
+                x = n - 1 - x;
+                y = n - 1 - y;
+            }
+            std::mem::swap(&mut x, &mut y);
+        }
+        s /= 2;
+    }
+    d
+}
+
+/// SplitMix64 finalizer: a fixed pseudo-random hash of an index.
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Validates the input; returns the sites sorted along a Hilbert curve (ties by coordinates),
+/// or the first pair of coincident sites.
+fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<Vec<u32>, OmtError> {
+    if sites.len() != weights.len() {
+        return Err(OmtError::InvalidInput(format!("{} sites but {} weights", sites.len(), weights.len())));
+    }
+    if sites.is_empty() {
+        return Err(OmtError::InvalidInput("a power diagram needs at least one site".into()));
+    }
+    if sites.len() >= (u32::MAX / 8) as usize {
+        return Err(OmtError::InvalidInput(format!("too many sites ({})", sites.len())));
+    }
+    for (i, (p, &w)) in sites.iter().zip(weights).enumerate() {
+        if !(p[0].is_finite() && p[1].is_finite()) || p[0].abs() > 1e30 || p[1].abs() > 1e30 {
+            return Err(OmtError::InvalidInput(format!(
+                "site {i} = ({}, {}) is not finite or exceeds 1e30 in magnitude",
+                p[0], p[1]
+            )));
+        }
+        if !w.is_finite() || w.abs() > 1e60 {
+            return Err(OmtError::InvalidInput(format!("weight {i} = {w} is not finite or exceeds 1e60 in magnitude")));
+        }
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in sites {
+        for c in 0..2 {
+            lo[c] = lo[c].min(p[c]);
+            hi[c] = hi[c].max(p[c]);
+        }
+    }
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
+    let quantize = |v: f64, c: usize| (((v - lo[c]) * scale).clamp(0.0, 65535.0)) as u32;
+    let mut keyed: Vec<(u64, f64, f64, u32)> = sites
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (hilbert_index(quantize(p[0], 0), quantize(p[1], 1)), p[0] + 0.0, p[1] + 0.0, i as u32))
+        .collect();
+    keyed.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.total_cmp(&b.2)).then(a.3.cmp(&b.3)));
+    for pair in keyed.windows(2) {
+        if pair[0].1 == pair[1].1 && pair[0].2 == pair[1].2 {
+            let (i, j) = (pair[0].3.min(pair[1].3) as usize, pair[0].3.max(pair[1].3) as usize);
+            return Err(OmtError::DuplicatePoints { i, j });
+        }
+    }
+    Ok(keyed.into_iter().map(|k| k.3).collect())
+}
+
+/// Biased randomized insertion order (Amenta, Choi, Rote 2003): site k goes to round
+/// min(trailing_zeros(hash(k)), R); rounds are inserted from the smallest (sparsest) on, each in
+/// Hilbert order. Deterministic.
+fn brio_order(hilbert_sorted: &[u32]) -> Vec<u32> {
+    let n = hilbert_sorted.len();
+    let rounds = ((n as f64).log2() as u32).saturating_sub(6).min(20);
+    let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); rounds as usize + 1];
+    for &i in hilbert_sorted {
+        let r = (mix(u64::from(i) ^ 0x5EED).trailing_zeros()).min(rounds);
+        buckets[(rounds - r) as usize].push(i);
+    }
+    buckets.into_iter().flatten().collect()
+}
+
+impl PowerDiagram {
+    /// The regular (weighted Delaunay) triangulation of `sites` (#N) with power weights
+    /// `weights` (#N), i.e. the power diagram with cells
+    /// W_i = {x : |x − y_i|² − w_i ≤ |x − y_j|² − w_j ∀j}. Equal weights give the Voronoi
+    /// diagram. Expected O(N log N) time.
+    ///
+    /// Errors: [`OmtError::InvalidInput`] for mismatched lengths, no site, a non-finite
+    /// coordinate or weight, or one out of range (|x| > 1e30, |w| > 1e60), naming the index;
+    /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
+    pub fn new(sites: &[[f64; 2]], weights: &[f64]) -> Result<Self, OmtError> {
+        let sorted = validate_and_sort(sites, weights)?;
+        let n = sites.len();
+        let mut diagram = PowerDiagram {
+            sites: sites.to_vec(),
+            weights: weights.to_vec(),
+            hidden: vec![false; n],
+            neighbor_offsets: vec![0; n + 1],
+            neighbor_list: Vec::new(),
+            dimension: 0,
+            triangle_vertices: Vec::new(),
+            triangle_neighbors: Vec::new(),
+            start_site: sorted[0],
+        };
+        if n == 1 {
+            return Ok(diagram);
+        }
+        let mut order = brio_order(&sorted);
+        let (a, b) = (order[0], order[1]);
+        let third = (2..n).find(|&k| orient(sites[a as usize], sites[b as usize], sites[order[k] as usize]) != 0);
+        match third {
+            None => diagram.build_collinear(),
+            Some(k) => {
+                let c = order.remove(k);
+                order.insert(2, c);
+                diagram.build_2d(&order);
+            }
+        }
+        Ok(diagram)
+    }
+
+    /// One-dimensional case: all sites on a line. Lower hull of the lifted points along the line.
+    fn build_collinear(&mut self) {
+        let n = self.sites.len();
+        self.dimension = 1;
+        let s = &self.sites;
+        let w = &self.weights;
+        let mut along: Vec<u32> = (0..n as u32).collect();
+        along.sort_unstable_by(|&i, &j| {
+            let (p, q) = (s[i as usize], s[j as usize]);
+            p[0].total_cmp(&q[0]).then(p[1].total_cmp(&q[1]))
+        });
+        let mut chain: Vec<u32> = Vec::with_capacity(n);
+        for &q in &along {
+            while chain.len() >= 2 {
+                let b = chain[chain.len() - 1];
+                let a = chain[chain.len() - 2];
+                let (ai, bi, qi) = (a as usize, b as usize, q as usize);
+                if power_side_1d(s[ai], w[ai], a, s[qi], w[qi], q, s[bi], w[bi], b) {
+                    break;
+                }
+                self.hidden[bi] = true;
+                chain.pop();
+            }
+            chain.push(q);
+        }
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for k in 0..chain.len() {
+            let i = chain[k] as usize;
+            if k > 0 {
+                lists[i].push(chain[k - 1]);
+            }
+            if k + 1 < chain.len() {
+                lists[i].push(chain[k + 1]);
+            }
+        }
+        self.set_neighbors(lists);
+        self.start_site = chain[chain.len() / 2];
+    }
+
+    fn set_neighbors(&mut self, lists: Vec<Vec<u32>>) {
+        let mut offsets = Vec::with_capacity(lists.len() + 1);
+        offsets.push(0u32);
+        let total: usize = lists.iter().map(Vec::len).sum();
+        let mut flat = Vec::with_capacity(total);
+        for l in lists {
+            flat.extend_from_slice(&l);
+            offsets.push(flat.len() as u32);
+        }
+        self.neighbor_offsets = offsets;
+        self.neighbor_list = flat;
+    }
+
+    /// Two-dimensional case; `order[0..3]` is a non-degenerate triangle.
+    fn build_2d(&mut self, order: &[u32]) {
+        let n = self.sites.len();
+        self.dimension = 2;
+        let inf = n as u32;
+        let (mut a, mut b, c) = (order[0], order[1], order[2]);
+        if orient(self.sites[a as usize], self.sites[b as usize], self.sites[c as usize]) < 0 {
+            std::mem::swap(&mut a, &mut b);
+        }
+        // Triangle 0 = (a, b, c); infinite triangles 1 = (b, a, ∞), 2 = (c, b, ∞), 3 = (a, c, ∞).
+        let tv = vec![[a, b, c], [b, a, inf], [c, b, inf], [a, c, inf]];
+        let tn = vec![[2, 3, 1], [3, 2, 0], [1, 3, 0], [2, 1, 0]];
+        let mut builder = Builder {
+            sites: &self.sites,
+            weights: &self.weights,
+            infinite: inf,
+            tv,
+            tn,
+            free: Vec::new(),
+            mark: vec![0; 4],
+            vertex_mark: vec![0; n + 1],
+            star_link: vec![NONE; n + 1],
+            hidden: vec![false; n],
+            vertex_triangle: vec![NONE; n],
+            last: 0,
+            stamp: 0,
+            rng: 0x2545_F491_4F6C_DD1D,
+            cavity: Vec::new(),
+            boundary: Vec::new(),
+            stack: Vec::new(),
+            cavity_vertices: Vec::new(),
+            edges: Vec::new(),
+            created: Vec::new(),
+        };
+        for v in [a, b, c] {
+            builder.vertex_triangle[v as usize] = 0;
+        }
+        builder.tv.reserve(2 * n);
+        builder.tn.reserve(2 * n);
+        builder.mark.reserve(2 * n);
+        for &q in &order[3..] {
+            builder.insert(q);
+        }
+        let Builder { tv, tn, hidden, vertex_triangle, .. } = builder;
+        // Neighbours: rotate counter-clockwise around every visible vertex.
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for v in 0..n {
+            if hidden[v] {
+                continue;
+            }
+            let start = vertex_triangle[v];
+            let mut t = start;
+            let ring = &mut lists[v];
+            loop {
+                let tri = tv[t as usize];
+                let k = tri.iter().position(|&u| u == v as u32).unwrap_or(0);
+                ring.push(tri[(k + 1) % 3]);
+                t = tn[t as usize][(k + 1) % 3];
+                if t == start || ring.len() > n + 1 {
+                    break;
+                }
+            }
+            if let Some(pos) = ring.iter().position(|&u| u == inf) {
+                ring.rotate_left(pos + 1);
+                ring.pop();
+            }
+        }
+        self.hidden = hidden;
+        self.set_neighbors(lists);
+        self.start_site = (0..n as u32).find(|&v| !self.hidden[v as usize]).unwrap_or(0);
+        self.triangle_vertices = tv;
+        self.triangle_neighbors = tn;
+    }
+
+    /// Number of sites N (hidden ones included).
+    pub fn num_sites(&self) -> usize {
+        self.sites.len()
+    }
+
+    /// The sites the diagram was built from, #N.
+    pub fn sites(&self) -> &[[f64; 2]] {
+        &self.sites
+    }
+
+    /// The power weights the diagram was built from, #N.
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// 0 (a single site), 1 (all sites on one line: the cells are parallel strips) or 2.
+    pub fn dimension(&self) -> usize {
+        self.dimension
+    }
+
+    /// True when site i owns no cell at all: its lifted point is not on the lower convex hull
+    /// (it is redundant in the regular triangulation). Out-of-range i: false.
+    pub fn is_hidden(&self, i: usize) -> bool {
+        self.hidden.get(i).copied().unwrap_or(false)
+    }
+
+    /// Sites whose cells share an edge with cell i: its neighbours in the regular triangulation,
+    /// counter-clockwise around y_i (2-D case; for collinear sites: the previous and next visible
+    /// site along the line). Empty for hidden sites, for N = 1 and for out-of-range i. Under
+    /// exact ties (co-circular sites) the perturbed triangulation may list a neighbour whose
+    /// common edge has zero length.
+    pub fn neighbors(&self, i: usize) -> &[u32] {
+        if i >= self.sites.len() {
+            return &[];
+        }
+        &self.neighbor_list[self.neighbor_offsets[i] as usize..self.neighbor_offsets[i + 1] as usize]
+    }
+
+    /// CSR offsets of the neighbour lists (#N + 1): the neighbours of i are
+    /// `neighbor_list()[offsets[i]..offsets[i + 1]]`.
+    pub fn neighbor_offsets(&self) -> &[u32] {
+        &self.neighbor_offsets
+    }
+
+    /// All neighbour lists concatenated (see [`Self::neighbor_offsets`]).
+    pub fn neighbor_list(&self) -> &[u32] {
+        &self.neighbor_list
+    }
+
+    /// The finite triangles of the regular triangulation, counter-clockwise (#T). Empty when the
+    /// sites are collinear or N = 1. Their power centres are the vertices of the power diagram.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let inf = self.sites.len() as u32;
+        self.triangle_vertices.iter().filter(|t| t[0] != NONE && !t.contains(&inf)).copied().collect()
+    }
+
+    /// Index of a site whose (closed) power cell contains x: greedy descent of the power
+    /// distance π_j(x) = |x − y_j|² − w_j over the neighbour graph, starting at `hint` (or a
+    /// fixed site). Every comparison is exact ([`power_compare`]); it stops at the first site no
+    /// neighbour of which is strictly closer, which is a global minimiser because a power cell
+    /// is the intersection of the half-planes of its neighbours. Ties between cells are thus
+    /// broken deterministically by the walk. Cost O(distance in cells from the hint).
+    /// Non-finite x returns the start site.
+    pub fn locate(&self, x: [f64; 2], hint: Option<usize>) -> usize {
+        let mut v = match hint {
+            Some(h) if h < self.sites.len() && !self.hidden[h] => h,
+            _ => self.start_site as usize,
+        };
+        if !(x[0].is_finite() && x[1].is_finite()) {
+            return v;
+        }
+        loop {
+            let mut best = v;
+            for &j in self.neighbors(v) {
+                let j = j as usize;
+                if power_compare(x, self.sites[j], self.weights[j], self.sites[best], self.weights[best]) < 0 {
+                    best = j;
+                }
+            }
+            if best == v {
+                return v;
+            }
+            v = best;
+        }
+    }
+
+    /// Checks every structural invariant with exact predicates: triangles counter-clockwise and
+    /// adjacency symmetric, every edge locally regular (the opposite vertex is not in conflict,
+    /// hull convex), the triangle count 2V − 2 of a sphere (with the infinite vertex), hidden
+    /// sites exactly those in no triangle and truly redundant, neighbour lists symmetric and equal
+    /// to the triangulation's edges. Local regularity everywhere implies the triangulation is
+    /// the regular one. Err(description) on the first violation.
+    pub fn sanity_check(&self) -> Result<(), String> {
+        let n = self.sites.len();
+        for i in 0..n {
+            if self.hidden[i] && !self.neighbors(i).is_empty() {
+                return Err(format!("hidden site {i} has neighbours"));
+            }
+            for &j in self.neighbors(i) {
+                if j as usize >= n || j as usize == i {
+                    return Err(format!("site {i} has invalid neighbour {j}"));
+                }
+                if !self.neighbors(j as usize).contains(&(i as u32)) {
+                    return Err(format!("neighbour lists not symmetric: {j} ∈ N({i}) but {i} ∉ N({j})"));
+                }
+            }
+        }
+        match self.dimension {
+            0 => {
+                if n != 1 || self.hidden[0] {
+                    return Err("dimension 0 needs exactly one visible site".into());
+                }
+                Ok(())
+            }
+            1 => self.sanity_check_collinear(),
+            _ => self.sanity_check_2d(),
+        }
+    }
+
+    fn sanity_check_collinear(&self) -> Result<(), String> {
+        let (s, w) = (&self.sites, &self.weights);
+        let n = s.len();
+        for k in 2..n {
+            if orient(s[0], s[1], s[k]) != 0 {
+                return Err(format!("dimension 1 but site {k} is off the line of sites 0, 1"));
+            }
+        }
+        let mut along: Vec<usize> = (0..n).collect();
+        along.sort_unstable_by(|&i, &j| s[i][0].total_cmp(&s[j][0]).then(s[i][1].total_cmp(&s[j][1])));
+        let chain: Vec<usize> = along.iter().copied().filter(|&i| !self.hidden[i]).collect();
+        if chain.len() < 2 || chain[0] != along[0] || chain[chain.len() - 1] != along[n - 1] {
+            return Err("the extreme sites of a line must be visible".into());
+        }
+        for k in 0..chain.len() {
+            let mut expected = Vec::new();
+            if k > 0 {
+                expected.push(chain[k - 1] as u32);
+            }
+            if k + 1 < chain.len() {
+                expected.push(chain[k + 1] as u32);
+            }
+            if self.neighbors(chain[k]) != expected.as_slice() {
+                return Err(format!("site {} should have neighbours {expected:?}", chain[k]));
+            }
+        }
+        for win in chain.windows(3) {
+            let (a, b, c) = (win[0], win[1], win[2]);
+            if !power_side_1d(s[a], w[a], a as u32, s[c], w[c], c as u32, s[b], w[b], b as u32) {
+                return Err(format!("site {b} is visible but redundant between {a} and {c}"));
+            }
+        }
+        let mut k = 0;
+        for &h in &along {
+            if !self.hidden[h] {
+                k += 1;
+                continue;
+            }
+            let (a, c) = (chain[k - 1], chain[k]);
+            if power_side_1d(s[a], w[a], a as u32, s[c], w[c], c as u32, s[h], w[h], h as u32) {
+                return Err(format!("site {h} is hidden but in conflict with its segment ({a}, {c})"));
+            }
+        }
+        Ok(())
+    }
+
+    fn sanity_check_2d(&self) -> Result<(), String> {
+        let n = self.sites.len();
+        let inf = n as u32;
+        let tv = &self.triangle_vertices;
+        let tn = &self.triangle_neighbors;
+        let builder = Builder {
+            sites: &self.sites,
+            weights: &self.weights,
+            infinite: inf,
+            tv: tv.clone(),
+            tn: tn.clone(),
+            free: Vec::new(),
+            mark: Vec::new(),
+            vertex_mark: Vec::new(),
+            star_link: Vec::new(),
+            hidden: Vec::new(),
+            vertex_triangle: Vec::new(),
+            last: 0,
+            stamp: 0,
+            rng: 0x9E37_79B9,
+            cavity: Vec::new(),
+            boundary: Vec::new(),
+            stack: Vec::new(),
+            cavity_vertices: Vec::new(),
+            edges: Vec::new(),
+            created: Vec::new(),
+        };
+        let mut builder = builder;
+        let mut in_triangle = vec![false; n];
+        let mut alive = 0usize;
+        let mut any_alive = NONE;
+        let mut edge_count = 0usize;
+        for (t, tri) in tv.iter().enumerate() {
+            if tri[0] == NONE {
+                continue;
+            }
+            alive += 1;
+            any_alive = t as u32;
+            if tri.iter().any(|&v| v > inf) || tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+                return Err(format!("triangle {t} has invalid vertices {tri:?}"));
+            }
+            for &v in tri {
+                if v != inf {
+                    if self.hidden[v as usize] {
+                        return Err(format!("hidden site {v} is a vertex of triangle {t}"));
+                    }
+                    in_triangle[v as usize] = true;
+                }
+            }
+            if !tri.contains(&inf) {
+                let [a, b, c] = tri.map(|v| self.sites[v as usize]);
+                if orient(a, b, c) <= 0 {
+                    return Err(format!("triangle {t} {tri:?} is not counter-clockwise"));
+                }
+            }
+            for k in 0..3 {
+                let s = tn[t][k];
+                if s as usize >= tv.len() || tv[s as usize][0] == NONE {
+                    return Err(format!("triangle {t} has a dead or invalid neighbour {s}"));
+                }
+                let (u, v) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                let other = tv[s as usize];
+                let Some(j) = (0..3).find(|&j| tn[s as usize][j] == t as u32) else {
+                    return Err(format!("adjacency not symmetric between triangles {t} and {s}"));
+                };
+                if other[(j + 1) % 3] != v || other[(j + 2) % 3] != u {
+                    return Err(format!("triangles {t} and {s} do not share edge ({u}, {v}) in opposite orientation"));
+                }
+                let d = other[j];
+                if !tri.contains(&inf) || d != inf {
+                    if d != inf && builder.conflict(t as u32, d) {
+                        return Err(format!("edge ({u}, {v}) is not regular: site {d} is in conflict with triangle {tri:?}"));
+                    }
+                }
+                if u != inf && v != inf && !self.neighbors(u as usize).contains(&v) {
+                    return Err(format!("edge ({u}, {v}) missing from the neighbour lists"));
+                }
+                if u != inf && v != inf {
+                    edge_count += 1;
+                }
+                // Collinear consecutive hull edges: the middle vertex must not be redundant.
+                if tri.contains(&inf) && other.contains(&inf) && (u == inf || v == inf) {
+                    let rot = |tr: [u32; 3]| {
+                        let p = tr.iter().position(|&x| x == inf).unwrap_or(0);
+                        (tr[(p + 1) % 3], tr[(p + 2) % 3])
+                    };
+                    let (a, b) = rot(*tri);
+                    let (b2, c) = rot(other);
+                    let (a, b, c) = if b == b2 { (a, b, c) } else { (b2, c, b) };
+                    let (pa, pb, pc) = (self.sites[a as usize], self.sites[b as usize], self.sites[c as usize]);
+                    let o = orient(pa, pb, pc);
+                    if b == b2 && o > 0 {
+                        return Err(format!("hull not convex at site {b}"));
+                    }
+                    if b == b2 && o == 0 {
+                        let w = &self.weights;
+                        let ok = power_side_1d(pa, w[a as usize], a, pc, w[c as usize], c, pb, w[b as usize], b);
+                        if !ok {
+                            return Err(format!("collinear hull site {b} is visible but redundant"));
+                        }
+                    }
+                }
+            }
+        }
+        let visible = (0..n).filter(|&i| !self.hidden[i]).count();
+        if alive != 2 * visible - 2 {
+            return Err(format!("{alive} triangles for {visible} visible sites (expected {})", 2 * visible - 2));
+        }
+        if edge_count != self.neighbor_list.len() {
+            return Err(format!(
+                "{} directed neighbour entries but {edge_count} directed finite edges",
+                self.neighbor_list.len()
+            ));
+        }
+        for i in 0..n {
+            if !self.hidden[i] && !in_triangle[i] {
+                return Err(format!("visible site {i} is in no triangle"));
+            }
+            if self.hidden[i] {
+                let t = builder.locate(i as u32, any_alive);
+                if builder.conflict(t, i as u32) {
+                    return Err(format!("hidden site {i} is in conflict with triangle {:?}", tv[t as usize]));
+                }
+            }
+        }
+        Ok(())
+    }
+}

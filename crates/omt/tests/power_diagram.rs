@@ -1,0 +1,299 @@
+//! Power-diagram construction against an O(N²) brute force (half-plane intersection of all
+//! N − 1 power constraints), degenerate inputs, and a fuzz loop calling `sanity_check`.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use shapespace_omt::power_diagram::PowerDiagram;
+use shapespace_omt::OmtError;
+
+/// Brute-force neighbours of site i: j is a neighbour when the part of the bisector line
+/// {π_i = π_j} where π_i ≤ π_k for all k is a segment of positive length (a 1-D linear program
+/// over all N − 2 other constraints; no bounding box, so unbounded edges of hull cells far away
+/// are found too). In coordinates z = x − y_i the constraint from k reads z·d_k ≤ c_k with
+/// d_k = y_k − y_i, c_k = (|d_k|² + w_i − w_k)/2. A site with no neighbour (N ≥ 2) is hidden.
+fn brute_force_neighbors(sites: &[[f64; 2]], weights: &[f64], i: usize) -> Vec<usize> {
+    let n = sites.len();
+    let d: Vec<[f64; 2]> = sites.iter().map(|s| [s[0] - sites[i][0], s[1] - sites[i][1]]).collect();
+    let c: Vec<f64> = (0..n).map(|k| 0.5 * (d[k][0] * d[k][0] + d[k][1] * d[k][1] + weights[i] - weights[k])).collect();
+    let mut out = Vec::new();
+    for j in 0..n {
+        if j == i {
+            continue;
+        }
+        let dj = d[j];
+        let norm2 = dj[0] * dj[0] + dj[1] * dj[1];
+        let z0 = [dj[0] * c[j] / norm2, dj[1] * c[j] / norm2];
+        let e = [-dj[1], dj[0]];
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let mut empty = false;
+        for k in 0..n {
+            if k == i || k == j {
+                continue;
+            }
+            let alpha = e[0] * d[k][0] + e[1] * d[k][1];
+            let beta = c[k] - (z0[0] * d[k][0] + z0[1] * d[k][1]);
+            if alpha > 0.0 {
+                hi = hi.min(beta / alpha);
+            } else if alpha < 0.0 {
+                lo = lo.max(beta / alpha);
+            } else if beta < 0.0 {
+                empty = true;
+            }
+            if empty || lo >= hi {
+                empty = true;
+                break;
+            }
+        }
+        if !empty {
+            out.push(j);
+        }
+    }
+    out
+}
+
+fn check_against_brute_force(sites: &[[f64; 2]], weights: &[f64]) {
+    let diagram = PowerDiagram::new(sites, weights).expect("valid input");
+    diagram.sanity_check().expect("sanity");
+    for i in 0..sites.len() {
+        let labels = brute_force_neighbors(sites, weights, i);
+        assert_eq!(diagram.is_hidden(i), labels.is_empty() && sites.len() > 1, "hidden flag of site {i}");
+        let mut ours: Vec<usize> = diagram.neighbors(i).iter().map(|&j| j as usize).collect();
+        ours.sort_unstable();
+        assert_eq!(ours, labels, "neighbours of site {i}\nsites {sites:?}\nweights {weights:?}");
+    }
+}
+
+fn random_input(rng: &mut ChaCha8Rng, n: usize, weight_scale: f64) -> (Vec<[f64; 2]>, Vec<f64>) {
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [rng.random::<f64>(), rng.random::<f64>()]).collect();
+    let weights: Vec<f64> = (0..n).map(|_| weight_scale * rng.random::<f64>()).collect();
+    (sites, weights)
+}
+
+#[test]
+fn random_weighted_sites_match_brute_force() {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut total_hidden = 0;
+    for &(n, scale) in &[(3, 0.1), (5, 0.1), (10, 0.05), (50, 0.01), (200, 0.003), (1000, 0.0005), (2000, 0.0002)] {
+        let (sites, weights) = random_input(&mut rng, n, scale);
+        check_against_brute_force(&sites, &weights);
+        let d = PowerDiagram::new(&sites, &weights).unwrap();
+        total_hidden += (0..n).filter(|&i| d.is_hidden(i)).count();
+    }
+    // The weight scales are chosen so that some sites are hidden: the test exercises removal.
+    assert!(total_hidden > 10, "only {total_hidden} hidden sites");
+}
+
+#[test]
+fn voronoi_random_sites_match_brute_force() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    for &n in &[4, 30, 500] {
+        let (sites, _) = random_input(&mut rng, n, 0.0);
+        check_against_brute_force(&sites, &vec![0.0; n]);
+    }
+}
+
+#[test]
+fn grid_with_equal_weights_has_the_grid_adjacency() {
+    // 6×6 integer grid: every 4 neighbours are co-circular; SoS must produce a valid diagram
+    // whose cells are the grid squares: axis neighbours always present (edges of length 1),
+    // any diagonal neighbour is a zero-length edge.
+    let k = 6;
+    let sites: Vec<[f64; 2]> = (0..k * k).map(|i| [(i % k) as f64, (i / k) as f64]).collect();
+    let d = PowerDiagram::new(&sites, &vec![0.0; k * k]).unwrap();
+    d.sanity_check().unwrap();
+    for i in 0..k * k {
+        assert!(!d.is_hidden(i));
+        let (x, y) = (i % k, i / k);
+        for (dx, dy) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)] {
+            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+            if nx >= 0 && ny >= 0 && nx < k as i64 && ny < k as i64 {
+                let j = (ny as usize * k + nx as usize) as u32;
+                assert!(d.neighbors(i).contains(&j), "{i} and {j} must be neighbours");
+            }
+        }
+        for &j in d.neighbors(i) {
+            let (jx, jy) = ((j as usize % k) as i64, (j as usize / k) as i64);
+            assert!((jx - x as i64).abs() <= 1 && (jy - y as i64).abs() <= 1);
+        }
+    }
+}
+
+#[test]
+fn weights_hide_a_site() {
+    // A light site in the middle of three heavy ones is hidden; lowering the others' weights
+    // brings it back.
+    let sites = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.3, 0.3]];
+    let d = PowerDiagram::new(&sites, &[1.0, 1.0, 1.0, 0.0]).unwrap();
+    d.sanity_check().unwrap();
+    assert!(d.is_hidden(3));
+    assert_eq!(d.neighbors(0).len(), 2);
+    let d = PowerDiagram::new(&sites, &[0.0, 0.0, 0.0, 0.0]).unwrap();
+    d.sanity_check().unwrap();
+    assert!(!d.is_hidden(3));
+    assert_eq!(d.neighbors(3).len(), 3);
+    // Exactly on the threshold: the hidden/visible answer comes from the perturbation but the
+    // diagram stays valid either way. Point (0.25, 0.25) against w = 0.125 at the corners.
+    let sites = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.25, 0.25]];
+    let w_threshold = {
+        // Lifted plane through the three corners with weight w: z = x² + y² − w is matched at the
+        // corners by the plane z = x + y − w; at (0.25, 0.25) the site is on it when
+        // 0.125 − w3 = 0.5 − w, i.e. w3 = w − 0.375.
+        0.5 - 0.375
+    };
+    let d = PowerDiagram::new(&sites, &[0.5, 0.5, 0.5, w_threshold]).unwrap();
+    d.sanity_check().unwrap();
+}
+
+#[test]
+fn collinear_sites_make_strips() {
+    let sites: Vec<[f64; 2]> = (0..7).map(|i| [0.5 * i as f64, 0.25 * i as f64]).collect();
+    let mut weights = vec![0.0; 7];
+    weights[3] = -10.0; // hidden: far too light
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    d.sanity_check().unwrap();
+    assert_eq!(d.dimension(), 1);
+    assert!(d.is_hidden(3));
+    assert_eq!(d.neighbors(2), &[1, 4]);
+    assert_eq!(d.neighbors(0), &[1]);
+    // Vertical line, reversed input order.
+    let sites: Vec<[f64; 2]> = (0..5).map(|i| [2.0, -(i as f64)]).collect();
+    let d = PowerDiagram::new(&sites, &[0.0; 5]).unwrap();
+    d.sanity_check().unwrap();
+    assert_eq!(d.neighbors(2), &[3, 1]);
+    assert_eq!(d.locate([7.0, -2.6], None), 3);
+}
+
+#[test]
+fn one_and_two_sites() {
+    let d = PowerDiagram::new(&[[0.3, 0.4]], &[0.7]).unwrap();
+    d.sanity_check().unwrap();
+    assert_eq!(d.dimension(), 0);
+    assert_eq!(d.locate([100.0, -5.0], None), 0);
+    let d = PowerDiagram::new(&[[0.0, 0.0], [1.0, 0.0]], &[0.0, 0.0]).unwrap();
+    d.sanity_check().unwrap();
+    assert_eq!(d.neighbors(0), &[1]);
+    assert_eq!(d.locate([0.49, 3.0], Some(1)), 0);
+    assert_eq!(d.locate([0.51, -3.0], Some(0)), 1);
+    // A weight of 0.4 moves the bisector to x = (1 + 0.4) / 2 = 0.7.
+    let d = PowerDiagram::new(&[[0.0, 0.0], [1.0, 0.0]], &[0.4, 0.0]).unwrap();
+    assert_eq!(d.locate([0.69, 0.0], Some(1)), 0);
+    assert_eq!(d.locate([0.71, 0.0], Some(0)), 1);
+}
+
+#[test]
+fn clustered_and_far_sites() {
+    // 30 sites within 1e-12 of (0.5, 0.5), plus far sites: the cluster's diagram must still be
+    // the exact one (lifted heights are never rounded).
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut sites: Vec<[f64; 2]> = (0..30)
+        .map(|_| [0.5 + 1e-12 * rng.random::<f64>(), 0.5 + 1e-12 * rng.random::<f64>()])
+        .collect();
+    sites.extend([[-1e3, 0.0], [1e3, 1.0], [0.0, 1e3], [3.0, -2e3], [0.1, 0.9]]);
+    let n = sites.len();
+    let d = PowerDiagram::new(&sites, &vec![0.0; n]).unwrap();
+    d.sanity_check().unwrap();
+    // Brute force for the cluster alone (the far sites do not change adjacency inside it).
+    let cluster = &sites[..30];
+    let dc = PowerDiagram::new(cluster, &[0.0; 30]).unwrap();
+    dc.sanity_check().unwrap();
+    for i in 0..30 {
+        let labels = brute_force_neighbors(cluster, &[0.0; 30], i);
+        let mut ours: Vec<usize> = dc.neighbors(i).iter().map(|&j| j as usize).collect();
+        ours.sort_unstable();
+        assert_eq!(ours, labels, "cluster site {i}");
+        // In the full diagram, cluster-cluster adjacency on the interior is unchanged.
+        for &j in dc.neighbors(i) {
+            let interior = dc.neighbors(i).len() == d.neighbors(i).iter().filter(|&&k| k < 30).count();
+            if interior {
+                assert!(d.neighbors(i).contains(&j));
+            }
+        }
+    }
+    // Weighted far scales.
+    let sites = [[0.0, 0.0], [1e-9, 0.0], [0.0, 1e-9], [1e6, 1e6], [-1e6, 3e5]];
+    let d = PowerDiagram::new(&sites, &[0.0, 1e-19, -1e-19, 1e11, 0.0]).unwrap();
+    d.sanity_check().unwrap();
+}
+
+#[test]
+fn duplicate_and_invalid_input_errors() {
+    let sites = [[0.0, 0.0], [1.0, 0.0], [0.5, 0.5], [1.0, 0.0]];
+    match PowerDiagram::new(&sites, &[0.0; 4]) {
+        Err(OmtError::DuplicatePoints { i, j }) => assert_eq!((i, j), (1, 3)),
+        other => panic!("expected DuplicatePoints, got {other:?}"),
+    }
+    // -0.0 and 0.0 are the same point.
+    match PowerDiagram::new(&[[0.0, 1.0], [-0.0, 1.0], [3.0, 2.0]], &[0.0; 3]) {
+        Err(OmtError::DuplicatePoints { i, j }) => assert_eq!((i, j), (0, 1)),
+        other => panic!("expected DuplicatePoints, got {other:?}"),
+    }
+    match PowerDiagram::new(&[[0.0, 0.0], [f64::NAN, 1.0]], &[0.0; 2]) {
+        Err(OmtError::InvalidInput(msg)) => assert!(msg.contains("site 1"), "{msg}"),
+        other => panic!("expected InvalidInput, got {other:?}"),
+    }
+    match PowerDiagram::new(&[[0.0, 0.0], [2.0, 1.0]], &[0.0, f64::INFINITY]) {
+        Err(OmtError::InvalidInput(msg)) => assert!(msg.contains("weight 1"), "{msg}"),
+        other => panic!("expected InvalidInput, got {other:?}"),
+    }
+    assert!(matches!(PowerDiagram::new(&[], &[]), Err(OmtError::InvalidInput(_))));
+    assert!(matches!(PowerDiagram::new(&[[0.0, 0.0]], &[]), Err(OmtError::InvalidInput(_))));
+}
+
+#[test]
+fn locate_agrees_with_brute_force_minimum() {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let (sites, weights) = random_input(&mut rng, 300, 0.002);
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    let mut hint = None;
+    for _ in 0..2000 {
+        let x = [rng.random::<f64>() * 1.4 - 0.2, rng.random::<f64>() * 1.4 - 0.2];
+        let i = d.locate(x, hint);
+        let pi = |k: usize| (x[0] - sites[k][0]).powi(2) + (x[1] - sites[k][1]).powi(2) - weights[k];
+        let best = (0..sites.len()).map(pi).fold(f64::INFINITY, f64::min);
+        assert!(pi(i) <= best + 1e-15, "located {i} with power {} > min {best}", pi(i));
+        assert!(!d.is_hidden(i));
+        hint = Some(i);
+    }
+}
+
+/// Random small configurations on an integer grid (many exact ties: collinear, co-circular,
+/// on-the-threshold weights) and in general position.
+#[test]
+fn fuzz_small_configurations() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for round in 0..4000 {
+        let n = rng.random_range(1..14);
+        let grid = round % 2 == 0;
+        let mut sites: Vec<[f64; 2]> = Vec::new();
+        while sites.len() < n {
+            let p = if grid {
+                [rng.random_range(0..4) as f64, rng.random_range(0..4) as f64]
+            } else {
+                [rng.random::<f64>(), rng.random::<f64>()]
+            };
+            if !sites.contains(&p) {
+                sites.push(p);
+            }
+            if grid && sites.len() == 16 {
+                break;
+            }
+        }
+        let weights: Vec<f64> = (0..sites.len())
+            .map(|_| match round % 4 {
+                0 | 1 => 0.0,
+                2 => rng.random_range(-2..3) as f64 * 0.5,
+                _ => rng.random::<f64>() * 0.3,
+            })
+            .collect();
+        let d = PowerDiagram::new(&sites, &weights).unwrap_or_else(|e| panic!("round {round}: {e}"));
+        if let Err(e) = d.sanity_check() {
+            panic!("round {round}: {e}\nsites {sites:?}\nweights {weights:?}");
+        }
+        if !grid || round % 4 != 2 {
+            // Without exact ties the neighbour sets equal the brute force.
+            if !grid {
+                check_against_brute_force(&sites, &weights);
+            }
+        }
+    }
+}
