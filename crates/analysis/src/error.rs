@@ -64,6 +64,9 @@ pub enum AnalysisError {
         column: String,
         available: Vec<String>,
     },
+    /// An option that refers to label columns was given without a labels file.
+    #[error("{what} needs a labels file")]
+    LabelsRequired { what: String },
     /// Too few shapes for the computation.
     #[error("{what} needs at least {needed} shapes, got {got}")]
     TooFewShapes {
@@ -77,6 +80,24 @@ pub enum AnalysisError {
     /// The dense symmetric eigensolver did not converge.
     #[error("eigendecomposition of the {n}x{n} double-centred matrix did not converge")]
     EigenNoConvergence { n: usize },
+    /// Results could not be serialized to JSON.
+    #[error("{}: cannot serialize results: {message}", path.display())]
+    Serialize { path: PathBuf, message: String },
+    /// The conformal disk map (or its distortion evaluation) failed.
+    #[error("conformal disk map")]
+    DiskMap(#[source] shapespace_conformal::ConformalError),
+    /// The optimal transport step of an area-preserving map failed or did not converge.
+    #[error("optimal transport")]
+    Transport(#[source] shapespace_omt::OmtError),
+    /// A shape could not be prepared for distance computations (not a disk, bad markers, ...).
+    #[error("{name}: {message}")]
+    Shape { name: String, message: String },
+    /// A pair of shapes failed (the OT solver returned an error).
+    #[error("{a} -> {b}: {message}")]
+    Pair { a: String, b: String, message: String },
+    /// Invalid input to a computation (weights, parameters), with the reason.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
     /// A plot could not be drawn or written.
     #[error("{}: plotting failed: {message}", path.display())]
     Plot { path: PathBuf, message: String },

@@ -1,12 +1,17 @@
 //! Shape-space analysis: distance matrices and labels, classical MDS, nearest-neighbour and
 //! silhouette statistics, metric checks, and plots.
 
+pub mod area_preserving;
+pub mod distance;
+pub mod distortion;
 pub mod error;
 pub mod matrix_io;
 pub mod mds;
 pub mod plot;
+pub mod shape_space;
 pub mod stats;
 
 pub use error::AnalysisError;
 pub use matrix_io::{read_distance_matrix, read_labels, write_distance_matrix, DistanceMatrix, Labels};
 pub use mds::{classical_mds, Mds};
+pub use shape_space::{run_mds, MdsParams, MdsResult};

@@ -196,26 +196,65 @@ enum LegendSymbol {
     Line(RGBColor),
 }
 
-/// Draws the legend panel: sections of (heading, entries), rows shrunk to fit the panel height.
+/// Greedy word wrap of `text` into lines no wider than `max_width` pixels (a single long word
+/// stays on its own line).
+fn wrap_text<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    text: &str,
+    style: &TextStyle,
+    max_width: u32,
+) -> Result<Vec<String>, DrawingAreaErrorKind<DB::ErrorType>> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut current = String::new();
+    for word in text.split_whitespace() {
+        let candidate = if current.is_empty() { word.to_string() } else { format!("{current} {word}") };
+        if current.is_empty() || area.estimate_text_size(&candidate, style)?.0 <= max_width {
+            current = candidate;
+        } else {
+            lines.push(std::mem::replace(&mut current, word.to_string()));
+        }
+    }
+    if !current.is_empty() || lines.is_empty() {
+        lines.push(current);
+    }
+    Ok(lines)
+}
+
+/// Draws the legend panel: sections of (heading, entries); long labels wrap, and rows shrink to
+/// fit the panel height.
 fn draw_legend<DB: DrawingBackend>(
     panel: &DrawingArea<DB, Shift>,
     sections: &[(String, Vec<(LegendSymbol, String)>)],
 ) -> DrawResult<DB> {
-    let (_, h) = panel.dim_in_pixel();
-    let rows: usize = sections.iter().map(|(_, e)| e.len() + 2).sum();
+    let (w, h) = panel.dim_in_pixel();
+    let text_x = 54i32;
+    let max_font = 17.0;
+    let wrap_style = TextStyle::from((FONT, max_font).into_font());
+    let mut wrapped = Vec::with_capacity(sections.len());
+    let mut rows = 0usize;
+    for (title, entries) in sections {
+        let mut lines = Vec::with_capacity(entries.len());
+        for (_, label) in entries {
+            let l = wrap_text(panel, label, &wrap_style, w.saturating_sub(text_x as u32 + 10))?;
+            rows += l.len();
+            lines.push(l);
+        }
+        rows += 2;
+        wrapped.push((title, lines));
+    }
     if rows == 0 {
         return Ok(());
     }
-    let top = 70i32;
+    let top = 80i32;
     let row_h = ((h as i32 - top - 20) / rows as i32).clamp(10, 28);
-    let font_size = (row_h as f64 * 0.68).clamp(9.0, 18.0);
+    let font_size = (row_h as f64 * 0.68).clamp(9.0, max_font);
     let heading = (FONT, font_size + 1.0).into_font().color(&BLACK);
     let text = (FONT, font_size).into_font().color(&BLACK.mix(0.85));
     let mut y = top;
-    for (title, entries) in sections {
-        panel.draw(&Text::new(title.clone(), (12, y - row_h / 2), heading.clone()))?;
+    for ((title, lines), (_, entries)) in wrapped.iter().zip(sections) {
+        panel.draw(&Text::new(title.to_string(), (12, y - row_h / 2), heading.clone()))?;
         y += row_h;
-        for (symbol, label) in entries {
+        for (label_lines, (symbol, _)) in lines.iter().zip(entries) {
             let cy = y;
             match symbol {
                 LegendSymbol::Marker(m, c) => draw_marker(panel, (30, cy), (row_h / 3).clamp(4, 7), *m, *c)?,
@@ -224,8 +263,10 @@ fn draw_legend<DB: DrawingBackend>(
                     panel.draw(&PathElement::new(vec![(16, cy), (44, cy)], c.stroke_width(3)))?;
                 }
             }
-            panel.draw(&Text::new(label.clone(), (54, cy - (font_size * 0.55) as i32), text.clone()))?;
-            y += row_h;
+            for line in label_lines {
+                panel.draw(&Text::new(line.clone(), (text_x, y - (font_size * 0.55) as i32), text.clone()))?;
+                y += row_h;
+            }
         }
         y += row_h;
     }
@@ -257,7 +298,7 @@ fn draw_scatter<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &Scatte
     let has_legend = input.color.is_some() || input.marker.is_some();
     let (w, _) = root.dim_in_pixel();
     let (plot_area, legend_area) = root.split_horizontally(if has_legend { w - LEGEND_WIDTH } else { w });
-    let titled = plot_area.titled(input.title, (FONT, 26).into_font())?;
+    let titled = plot_area.margin(14, 0, 0, 0).titled(input.title, (FONT, 26).into_font())?;
     let (margin, x_label, y_label) = (20u32, 60u32, 80u32);
     let (tw, th) = titled.dim_in_pixel();
     let plot_w = tw.saturating_sub(2 * margin + y_label).max(1) as f64;
@@ -467,7 +508,7 @@ fn draw_histograms<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &His
     root.fill(&WHITE)?;
     let (w, _) = root.dim_in_pixel();
     let (plot_area, legend_area) = root.split_horizontally(w - LEGEND_WIDTH);
-    let titled = plot_area.titled(input.title, (FONT, 26).into_font())?;
+    let titled = plot_area.margin(14, 0, 0, 0).titled(input.title, (FONT, 26).into_font())?;
     let (lo, hi) = input.hist.range;
     let bins = input.fractions.first().map_or(1, Vec::len);
     let width = (hi - lo) / bins as f64;

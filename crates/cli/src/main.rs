@@ -19,12 +19,15 @@ struct Cli {
 enum Command {
     /// Print mesh statistics (V, F, components, boundary loops, χ, genus, manifoldness, class).
     Info(cmd::info::InfoArgs),
+    /// Classical MDS of a distance matrix: coordinates, eigenvalues, plots, 1-NN and silhouette statistics.
+    Mds(cmd::mds::MdsArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Info(args) => cmd::info::run(args),
+        Command::Mds(args) => cmd::mds::run(args),
     };
     match result {
         Ok(code) => code,

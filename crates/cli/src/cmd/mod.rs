@@ -1,3 +1,4 @@
 //! One module per subcommand: its clap `Args` struct and a `run` that calls one library function.
 
 pub mod info;
+pub mod mds;

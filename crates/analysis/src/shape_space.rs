@@ -1,0 +1,293 @@
+//! The `shapespace mds` pipeline in one call: read a distance matrix (and labels), embed it with
+//! classical MDS ([`crate::mds`]), compute the statistics of [`crate::stats`], and write the
+//! tables, plots and `stats.json` to an output directory.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::AnalysisError;
+use crate::matrix_io::{read_distance_matrix, read_labels, DistanceMatrix, Labels};
+use crate::mds::{classical_mds, Mds};
+use crate::plot::mds_scatter;
+use crate::stats::{
+    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, symmetry_gap, triangle_violations,
+    ClassDistances, NnAccuracy, SymmetryGap, TriangleViolations,
+};
+
+/// Options of [`run_mds`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MdsParams {
+    /// Embedding dimension `k` (`1 <= k <= #shapes`); the plot shows the first two.
+    pub dims: usize,
+    /// Label column giving the point colours; default: the first label column.
+    pub color_by: Option<String>,
+    /// Label column giving the marker shapes; default: the second label column, if any.
+    pub marker_by: Option<String>,
+    /// Triangle-inequality tolerance relative to the mean distance: a triple violates when
+    /// `d_ik > d_ij + d_jk + triangle_rel_eps · mean(d)`.
+    pub triangle_rel_eps: f64,
+}
+
+impl Default for MdsParams {
+    fn default() -> Self {
+        MdsParams {
+            dims: 2,
+            color_by: None,
+            marker_by: None,
+            triangle_rel_eps: 1e-9,
+        }
+    }
+}
+
+/// Statistics of one label column.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LabelColumnStats {
+    /// Number of distinct values.
+    pub classes: usize,
+    /// Leave-one-out 1-NN accuracy ([`loo_1nn_accuracy`]).
+    pub loo_1nn: NnAccuracy,
+    /// Mean silhouette ([`mean_silhouette`]); `None` for a single class.
+    pub silhouette: Option<f64>,
+    /// Within/between-class distance summaries.
+    pub distances: ClassDistances,
+}
+
+/// 1-NN accuracy of `target` when the neighbour must differ in `exclude_same`
+/// ([`loo_1nn_accuracy_across`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CrossAccuracy {
+    pub target: String,
+    pub exclude_same: String,
+    pub loo_1nn: NnAccuracy,
+}
+
+/// Summary of the embedding, for `stats.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MdsSummary {
+    pub dims: usize,
+    /// Share of variance of each embedding dimension.
+    pub variance_shares: Vec<f64>,
+    /// Σ of positive eigenvalues.
+    pub positive_sum: f64,
+    /// Σ |negative eigenvalues| / Σ positive eigenvalues (0 for Euclidean distances).
+    pub negative_ratio: f64,
+    /// Number of significantly negative eigenvalues.
+    pub negative_count: usize,
+    /// Embedding dimensions clamped to 0 (non-positive eigenvalue).
+    pub clamped_dims: usize,
+}
+
+/// Everything written to `stats.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeSpaceStats {
+    /// Number of shapes.
+    pub n: usize,
+    /// Unordered pairs with neither direction present.
+    pub missing_pairs: usize,
+    pub symmetry: SymmetryGap,
+    pub triangle: TriangleViolations,
+    pub mds: MdsSummary,
+    /// Per label column (sorted by name).
+    pub labels: BTreeMap<String, LabelColumnStats>,
+    /// For every ordered pair of distinct label columns.
+    pub cross: Vec<CrossAccuracy>,
+}
+
+/// The result of [`run_mds`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MdsResult {
+    /// Shape names, in matrix order.
+    pub names: Vec<String>,
+    pub mds: Mds,
+    pub stats: ShapeSpaceStats,
+    /// Label columns used for colours and markers.
+    pub color_by: Option<String>,
+    pub marker_by: Option<String>,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Computes the statistics of `d` (and of `labels`, aligned with it, if given) for `stats.json`.
+pub fn shape_space_stats(
+    d: &DistanceMatrix,
+    labels: Option<&Labels>,
+    mds: &Mds,
+    triangle_rel_eps: f64,
+) -> Result<ShapeSpaceStats, AnalysisError> {
+    let symmetry = symmetry_gap(d);
+    let eps = triangle_rel_eps * symmetry.mean_distance.unwrap_or(0.0);
+    let triangle = triangle_violations(d, eps);
+    let mut label_stats = BTreeMap::new();
+    let mut cross = Vec::new();
+    if let Some(labels) = labels {
+        for col in &labels.columns {
+            let mut classes = labels.column(col)?;
+            classes.sort_unstable();
+            classes.dedup();
+            label_stats.insert(
+                col.clone(),
+                LabelColumnStats {
+                    classes: classes.len(),
+                    loo_1nn: loo_1nn_accuracy(d, labels, col)?,
+                    silhouette: mean_silhouette(d, labels, col)?,
+                    distances: class_distances(d, labels, col)?,
+                },
+            );
+        }
+        for target in &labels.columns {
+            for exclude in &labels.columns {
+                if target != exclude {
+                    cross.push(CrossAccuracy {
+                        target: target.clone(),
+                        exclude_same: exclude.clone(),
+                        loo_1nn: loo_1nn_accuracy_across(d, labels, target, exclude)?,
+                    });
+                }
+            }
+        }
+    }
+    Ok(ShapeSpaceStats {
+        n: d.len(),
+        missing_pairs: d.missing_pairs().len(),
+        symmetry,
+        triangle,
+        mds: MdsSummary {
+            dims: mds.dims(),
+            variance_shares: mds.variance_shares.clone(),
+            positive_sum: mds.positive_sum,
+            negative_ratio: if mds.positive_sum > 0.0 { mds.negative_sum / mds.positive_sum } else { 0.0 },
+            negative_count: mds.negative_count,
+            clamped_dims: mds.clamped_dims,
+        },
+        labels: label_stats,
+        cross,
+    })
+}
+
+fn write_csv(path: &Path, rows: impl IntoIterator<Item = Vec<String>>) -> Result<(), AnalysisError> {
+    let to_err = |e: csv::Error| match e.into_kind() {
+        csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
+        kind => AnalysisError::parse(path, 0, format!("{kind:?}")),
+    };
+    let mut w = csv::Writer::from_path(path).map_err(to_err)?;
+    for row in rows {
+        w.write_record(&row).map_err(to_err)?;
+    }
+    w.flush().map_err(|e| AnalysisError::io(path, e))
+}
+
+/// Writes `mds.csv`: header `name,<label columns>,x1..xk`, one row per shape.
+pub fn write_mds_csv(path: &Path, names: &[String], labels: Option<&Labels>, mds: &Mds) -> Result<(), AnalysisError> {
+    let mut header = vec!["name".to_string()];
+    if let Some(l) = labels {
+        header.extend(l.columns.iter().cloned());
+    }
+    header.extend((1..=mds.dims()).map(|k| format!("x{k}")));
+    let rows = names.iter().enumerate().map(|(i, name)| {
+        let mut row = vec![name.clone()];
+        if let Some(l) = labels {
+            row.extend(l.values[i].iter().cloned());
+        }
+        row.extend(mds.coordinates[i].iter().map(|x| format!("{x}")));
+        row
+    });
+    write_csv(path, std::iter::once(header).chain(rows))
+}
+
+/// Writes `eigenvalues.csv`: header `k,eigenvalue,share`, all eigenvalues in non-increasing
+/// order, `share = λ_k / Σ_{λ>0} λ` (negative for negative eigenvalues).
+pub fn write_eigenvalues_csv(path: &Path, mds: &Mds) -> Result<(), AnalysisError> {
+    let header = vec!["k".to_string(), "eigenvalue".to_string(), "share".to_string()];
+    let rows = mds
+        .eigenvalues
+        .iter()
+        .zip(mds.eigenvalue_shares())
+        .enumerate()
+        .map(|(k, (l, s))| vec![(k + 1).to_string(), format!("{l}"), format!("{s}")]);
+    write_csv(path, std::iter::once(header).chain(rows))
+}
+
+/// `shapespace mds`: reads the distance matrix CSV `distances` (and the labels CSV `labels`,
+/// matched to the shapes by name or file stem), embeds it with classical MDS in `params.dims`
+/// dimensions, and writes to `out_dir` (created if needed):
+///
+/// - `mds.csv` (name, label columns, x1..xk), `eigenvalues.csv` (k, eigenvalue, share);
+/// - `mds.png` and `mds.svg`: the first two coordinates, coloured by `color_by` and shaped by
+///   `marker_by` (defaults: first and second label columns);
+/// - `stats.json` ([`ShapeSpaceStats`]): symmetry gap, triangle-inequality violations, the MDS
+///   variance summary, and with labels per column 1-NN LOO accuracy, silhouette, within/between
+///   distances, and the cross-column accuracies for every ordered pair of columns.
+///
+/// Errors before anything is written: unreadable or malformed CSVs, unknown label columns, a
+/// missing distance (MDS needs a complete matrix; the error names the pair), invalid `dims`.
+pub fn run_mds(
+    distances: &Path,
+    labels: Option<&Path>,
+    out_dir: &Path,
+    params: &MdsParams,
+) -> Result<MdsResult, AnalysisError> {
+    let d = read_distance_matrix(distances)?;
+    let labels = labels.map(|p| read_labels(p, &d.names)).transpose()?;
+    let pick = |given: &Option<String>, default_index: usize, what: &str| -> Result<Option<String>, AnalysisError> {
+        match (given, &labels) {
+            (Some(col), Some(l)) => l.column_index(col).map(|_| Some(col.clone())),
+            (Some(_), None) => Err(AnalysisError::LabelsRequired { what: what.to_string() }),
+            (None, Some(l)) => Ok(l.columns.get(default_index).cloned()),
+            (None, None) => Ok(None),
+        }
+    };
+    let color_by = pick(&params.color_by, 0, "colouring by a label column")?;
+    let marker_by = pick(&params.marker_by, 1, "choosing markers by a label column")?;
+
+    let mds = classical_mds(&d, params.dims)?;
+    let stats = shape_space_stats(&d, labels.as_ref(), &mds, params.triangle_rel_eps)?;
+
+    std::fs::create_dir_all(out_dir).map_err(|e| AnalysisError::io(out_dir, e))?;
+    let mut files = Vec::new();
+    let mds_csv = out_dir.join("mds.csv");
+    write_mds_csv(&mds_csv, &d.names, labels.as_ref(), &mds)?;
+    files.push(mds_csv);
+    let eig_csv = out_dir.join("eigenvalues.csv");
+    write_eigenvalues_csv(&eig_csv, &mds)?;
+    files.push(eig_csv);
+
+    let column = |c: &Option<String>| -> Result<Option<(String, Vec<&str>)>, AnalysisError> {
+        match (c, &labels) {
+            (Some(c), Some(l)) => Ok(Some((c.clone(), l.column(c)?))),
+            _ => Ok(None),
+        }
+    };
+    let colors = column(&color_by)?;
+    let markers = column(&marker_by)?;
+    let source = distances.file_name().map_or_else(|| distances.display().to_string(), |f| f.to_string_lossy().into_owned());
+    let title = format!("Classical MDS of {source} (n = {})", d.len());
+    for ext in ["png", "svg"] {
+        let path = out_dir.join(format!("mds.{ext}"));
+        mds_scatter(
+            &path,
+            &mds,
+            colors.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),
+            markers.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),
+            &title,
+        )?;
+        files.push(path);
+    }
+    let json_path = out_dir.join("stats.json");
+    let json = serde_json::to_string_pretty(&stats).map_err(|e| AnalysisError::Serialize {
+        path: json_path.clone(),
+        message: e.to_string(),
+    })?;
+    std::fs::write(&json_path, json + "\n").map_err(|e| AnalysisError::io(&json_path, e))?;
+    files.push(json_path);
+
+    Ok(MdsResult {
+        names: d.names,
+        mds,
+        stats,
+        color_by,
+        marker_by,
+        files,
+    })
+}
