@@ -202,6 +202,7 @@ def main():
 
     out = args.out
     os.makedirs(out, exist_ok=True)
+    shutil.copyfile(os.path.join(MODEL, "LICENSE"), os.path.join(out, "LICENSE_ICT-FaceKit_MIT.txt"))
     T, loops = model["triangles"], model["loops"]
     labels = ["file,identity,expression"]
     coeffs = {}
