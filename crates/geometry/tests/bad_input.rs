@@ -148,7 +148,12 @@ fn topology_problems_read_with_the_faces_as_written() {
 #[test]
 fn truncations_and_corruptions_never_panic() {
     let dir = corpus_dir();
-    for name in ["ok_extra_elements_big_endian.ply", "ok_mixed_tri_quad.obj", "ok_non_manifold_vertex.off", "ok_mixed_tri_quad.ply"] {
+    for name in [
+        "ok_extra_elements_big_endian.ply",
+        "ok_mixed_tri_quad.obj",
+        "ok_non_manifold_vertex.off",
+        "ok_mixed_tri_quad.ply",
+    ] {
         let data = std::fs::read(dir.join(name)).unwrap();
         let path = Path::new(name);
         let ext = path.extension().unwrap().to_str().unwrap();

@@ -143,7 +143,8 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                     polygon.push(v);
                     match vt_tok {
                         Some(t) if !t.is_empty() => {
-                            let vt = resolve_index(path, line_no, t, texcoords.len(), "texture coordinate", &mut max_vt)?;
+                            let vt =
+                                resolve_index(path, line_no, t, texcoords.len(), "texture coordinate", &mut max_vt)?;
                             polygon_vt.push(vt);
                         }
                         _ => all_corners_have_vt = false,
@@ -176,18 +177,16 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             }
             _ if key[0] == b'#' => {}
             _ if key[0].is_ascii_alphabetic() && key.iter().all(|b| b.is_ascii_alphanumeric() || *b == b'_') => {}
-            _ => {
-                return Err(parse_error(
-                    path,
-                    line_no,
-                    format!("unrecognised OBJ statement '{}'", show(key)),
-                ))
-            }
+            _ => return Err(parse_error(path, line_no, format!("unrecognised OBJ statement '{}'", show(key)))),
         }
     }
 
     if positions.is_empty() {
-        let message = if faces.is_empty() && texcoords.is_empty() { "empty file: no vertices and no faces" } else { "no vertices ('v' lines)" };
+        let message = if faces.is_empty() && texcoords.is_empty() {
+            "empty file: no vertices and no faces"
+        } else {
+            "no vertices ('v' lines)"
+        };
         return Err(parse_error(path, last_line.max(1), message));
     }
     if max_v.index > positions.len() {

@@ -21,8 +21,8 @@ use std::io::Write;
 use std::path::Path;
 
 use super::{
-    capped_capacity, check_text_line, fan_triangulate, is_blank, lines, parse_error, parse_f64, parse_i64,
-    read_bytes, show, tokens,
+    capped_capacity, check_text_line, fan_triangulate, is_blank, lines, parse_error, parse_f64, parse_i64, read_bytes,
+    show, tokens,
 };
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
@@ -99,7 +99,11 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         toks.remove(0);
         if toks.is_empty() {
             let Some((l, counts)) = src.next_line()? else {
-                return Err(parse_error(path, eof_line(&src), "unexpected end of file: missing the vertex and face counts"));
+                return Err(parse_error(
+                    path,
+                    eof_line(&src),
+                    "unexpected end of file: missing the vertex and face counts",
+                ));
             };
             line_no = l;
             toks = tokens(counts).collect();

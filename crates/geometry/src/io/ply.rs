@@ -31,7 +31,10 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use super::{capped_capacity, check_text_line, fan_triangulate, is_blank, parse_error, parse_f64, parse_i64, read_bytes, show, tokens};
+use super::{
+    capped_capacity, check_text_line, fan_triangulate, is_blank, parse_error, parse_f64, parse_i64, read_bytes, show,
+    tokens,
+};
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
 
@@ -166,7 +169,11 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header, GeometryError> {
     let mut elements: Vec<Element> = Vec::new();
     loop {
         if pos >= data.len() {
-            return Err(parse_error(path, line_no.max(1), "the header has no 'end_header' line (truncated or not a PLY file)"));
+            return Err(parse_error(
+                path,
+                line_no.max(1),
+                "the header has no 'end_header' line (truncated or not a PLY file)",
+            ));
         }
         let end = data[pos..].iter().position(|&b| b == b'\n').map_or(data.len(), |k| pos + k);
         let raw = &data[pos..end];
@@ -208,7 +215,8 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header, GeometryError> {
             }
             b"property" => {
                 let element = elements.last_mut().ok_or_else(|| bad("property before any element".to_string()))?;
-                let type_of = |t: &[u8]| Scalar::from_name(t).ok_or_else(|| bad(format!("unknown property type '{}'", show(t))));
+                let type_of =
+                    |t: &[u8]| Scalar::from_name(t).ok_or_else(|| bad(format!("unknown property type '{}'", show(t))));
                 let (kind, name) = match toks.get(1).copied() {
                     Some(b"list") => {
                         let (Some(ct), Some(it), Some(name)) = (toks.get(2), toks.get(3), toks.get(4)) else {
@@ -392,7 +400,11 @@ impl Body for BinaryBody<'_> {
         macro_rules! get {
             ($ty:ty, $n:literal) => {{
                 let a: [u8; $n] = b.try_into().expect("slice of the type's size");
-                if be { <$ty>::from_be_bytes(a) } else { <$ty>::from_le_bytes(a) }
+                if be {
+                    <$ty>::from_be_bytes(a)
+                } else {
+                    <$ty>::from_le_bytes(a)
+                }
             }};
         }
         Ok(match t {
@@ -547,12 +559,18 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
     let mut polygon: Vec<u32> = Vec::new();
 
     for element in &header.elements {
+        if element.properties.is_empty() {
+            // Nothing is stored for such an element, however large its count.
+            continue;
+        }
         body.check_fits(element)?;
         let name = element.name.as_str();
         match name {
             "vertex" => {
                 let coordinate = |c: &str| {
-                    let k = element.property(c).ok_or_else(|| at_header(format!("the vertex element has no '{c}' property")))?;
+                    let k = element
+                        .property(c)
+                        .ok_or_else(|| at_header(format!("the vertex element has no '{c}' property")))?;
                     match element.properties[k].kind {
                         Kind::Scalar(_) => Ok(k),
                         Kind::List { .. } => Err(at_header(format!("vertex property '{c}' is a list"))),
@@ -621,7 +639,10 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
                                     continue;
                                 }
                                 if items.len() < 3 {
-                                    return Err(body.error_bare(format!("face {i} has {} vertices (need at least 3)", items.len())));
+                                    return Err(body.error_bare(format!(
+                                        "face {i} has {} vertices (need at least 3)",
+                                        items.len()
+                                    )));
                                 }
                                 polygon.clear();
                                 for &v in &items {
@@ -668,7 +689,9 @@ fn strips_to_triangles(indices: &[i64], num_vertices: usize, faces: &mut Vec<[u3
     for strip in indices.split(|&v| v == -1) {
         for &v in strip {
             if v < 0 || v as u64 >= num_vertices as u64 {
-                return Err(format!("strip vertex index {v} out of range (the header declares {num_vertices} vertices)"));
+                return Err(format!(
+                    "strip vertex index {v} out of range (the header declares {num_vertices} vertices)"
+                ));
             }
         }
         for (j, w) in strip.windows(3).enumerate() {
@@ -761,7 +784,8 @@ mod tests {
 
     #[test]
     fn ascii_errors_name_line_and_element() {
-        let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n4 0 1 2 9 7\n").as_bytes()).unwrap_err();
+        let e =
+            parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n4 0 1 2 9 7\n").as_bytes()).unwrap_err();
         let e = e.to_string();
         assert!(e.starts_with("t.ply:17: face 0:") && e.contains("index 9 out of range"), "{e}");
         let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n").as_bytes()).unwrap_err().to_string();
