@@ -55,6 +55,7 @@ impl MaxIndex {
 /// Same result as [`read_obj`].
 pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, GeometryError> {
     let data = data.as_ref();
+    let data = data.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(data); // UTF-8 byte-order mark
     let mut positions: Vec<[f64; 3]> = Vec::new();
     let mut texcoords: Vec<[f64; 2]> = Vec::new();
     let mut num_normals = 0usize;
@@ -336,6 +337,15 @@ mod tests {
         assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [0, 1, 3], [0, 1, 2]]);
         // Some corners have no vt: UVs are ignored.
         assert_eq!(m.uvs, None);
+    }
+
+    #[test]
+    fn ignored_statements_and_byte_order_mark() {
+        let text =
+            "\u{feff}# c\nmtllib m.mtl\no obj\ng grp\ns off\nusemtl mat\n\tv 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\np 3\n\
+                    vp 0.5\nf 1 2 3\n";
+        let m = parse(text).unwrap();
+        assert_eq!((m.positions.len(), m.faces.len()), (3, 1));
     }
 
     #[test]

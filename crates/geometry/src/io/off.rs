@@ -63,6 +63,7 @@ impl<'a, I: Iterator<Item = (usize, &'a [u8])>> ContentLines<'a, I> {
 /// Same result as [`read_off`].
 pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, GeometryError> {
     let data = data.as_ref();
+    let data = data.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(data); // UTF-8 byte-order mark
     let mut src = ContentLines { inner: lines(data), path, last_line: 0 };
     let eof_line = |src: &ContentLines<'_, _>| src.last_line + 1;
 

@@ -269,16 +269,47 @@ trait Body {
     fn check_fits(&self, element: &Element) -> Result<(), GeometryError>;
 }
 
+/// The element instance being read, for error messages (formatted only on error).
+#[derive(Default)]
+struct Current {
+    name: String,
+    index: usize,
+}
+
+impl Current {
+    fn set(&mut self, name: &str, index: usize) {
+        if self.name != name {
+            self.name = name.to_string();
+        }
+        self.index = index;
+    }
+
+    fn show(&self) -> String {
+        format!("{} {}", self.name, self.index)
+    }
+}
+
 struct AsciiBody<'a> {
     path: &'a Path,
     data: &'a [u8],
     pos: usize,
     line_no: usize,
-    tokens: std::vec::IntoIter<&'a [u8]>,
-    current: String,
+    /// The current line and the position of its next token.
+    line: &'a [u8],
+    cursor: usize,
+    current: Current,
 }
 
 impl<'a> AsciiBody<'a> {
+    /// The next whitespace-separated token of the current line.
+    fn next_token(&mut self) -> Option<&'a [u8]> {
+        let line = self.line;
+        let start = self.cursor + line[self.cursor..].iter().position(|b| !b.is_ascii_whitespace())?;
+        let end = line[start..].iter().position(|b| b.is_ascii_whitespace()).map_or(line.len(), |k| start + k);
+        self.cursor = end;
+        Some(&line[start..end])
+    }
+
     /// The next line that is not blank, with its number.
     fn next_line(&mut self) -> Result<Option<&'a [u8]>, GeometryError> {
         while self.pos < self.data.len() {
@@ -298,10 +329,11 @@ impl<'a> AsciiBody<'a> {
 
 impl Body for AsciiBody<'_> {
     fn begin(&mut self, name: &str, index: usize, count: usize) -> Result<(), GeometryError> {
-        self.current = format!("{name} {index}");
+        self.current.set(name, index);
         match self.next_line()? {
             Some(line) => {
-                self.tokens = tokens(line).collect::<Vec<_>>().into_iter();
+                self.line = line;
+                self.cursor = 0;
                 Ok(())
             }
             None => Err(parse_error(
@@ -313,7 +345,7 @@ impl Body for AsciiBody<'_> {
     }
 
     fn value(&mut self, t: Scalar) -> Result<f64, GeometryError> {
-        let Some(tok) = self.tokens.next() else {
+        let Some(tok) = self.next_token() else {
             return Err(self.error("too few values on the line for the properties the header declares".to_string()));
         };
         if t.is_integer() {
@@ -329,7 +361,7 @@ impl Body for AsciiBody<'_> {
     }
 
     fn end(&mut self) -> Result<(), GeometryError> {
-        match self.tokens.next() {
+        match self.next_token() {
             None => Ok(()),
             Some(tok) => Err(self.error(format!(
                 "more values on the line than the header declares (next: '{}'); wrong header?",
@@ -339,7 +371,7 @@ impl Body for AsciiBody<'_> {
     }
 
     fn finish(&mut self) -> Result<(), GeometryError> {
-        self.current.clear();
+        self.current.set("", 0);
         match self.next_line()? {
             None => Ok(()),
             Some(line) => Err(parse_error(
@@ -351,7 +383,7 @@ impl Body for AsciiBody<'_> {
     }
 
     fn error(&self, message: String) -> GeometryError {
-        parse_error(self.path, self.line_no, format!("{}: {message}", self.current))
+        parse_error(self.path, self.line_no, format!("{}: {message}", self.current.show()))
     }
 
     fn error_bare(&self, message: String) -> GeometryError {
@@ -373,7 +405,7 @@ struct BinaryBody<'a> {
     pos: usize,
     big_endian: bool,
     start: usize,
-    current: String,
+    current: Current,
     count: usize,
 }
 
@@ -381,7 +413,7 @@ impl Body for BinaryBody<'_> {
     fn begin(&mut self, name: &str, index: usize, count: usize) -> Result<(), GeometryError> {
         self.start = self.pos;
         self.count = count;
-        self.current = format!("{name} {index}");
+        self.current.set(name, index);
         Ok(())
     }
 
@@ -436,7 +468,7 @@ impl Body for BinaryBody<'_> {
     }
 
     fn error(&self, message: String) -> GeometryError {
-        self.error_bare(format!("{}: {message}", self.current))
+        self.error_bare(format!("{}: {message}", self.current.show()))
     }
 
     fn error_bare(&self, message: String) -> GeometryError {
@@ -484,8 +516,9 @@ pub fn parse_ply(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                 data,
                 pos: header.body_start,
                 line_no: header.end_line,
-                tokens: Vec::new().into_iter(),
-                current: String::new(),
+                line: &[],
+                cursor: 0,
+                current: Current::default(),
             };
             read_body(&header, &mut body, path)
         }
@@ -496,7 +529,7 @@ pub fn parse_ply(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                 pos: header.body_start,
                 big_endian: header.format == PlyFormat::BinaryBigEndian,
                 start: header.body_start,
-                current: String::new(),
+                current: Current::default(),
                 count: 0,
             };
             read_body(&header, &mut body, path)
@@ -805,6 +838,30 @@ mod tests {
         let e = parse(b"ply\nformat ascii 1.0\nelement vertex 3\n").unwrap_err().to_string();
         assert!(e.contains("end_header"), "{e}");
         assert!(parse(b"").unwrap_err().to_string().contains("empty file"));
+    }
+
+    #[test]
+    fn integer_coordinate_types_in_binary_little_endian() {
+        let mut data = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty char x\nproperty ushort y\n\
+                         property int z\nproperty float32 nx\nelement face 1\nproperty list uint16 uint8 vertex_index\n\
+                         end_header\n"
+            .to_vec();
+        for (x, y, z) in [(-1i8, 65535u16, -7i32), (2, 0, 1 << 30), (127, 3, 0)] {
+            data.push(x as u8);
+            data.extend_from_slice(&y.to_le_bytes());
+            data.extend_from_slice(&z.to_le_bytes());
+            data.extend_from_slice(&0.5f32.to_le_bytes());
+        }
+        data.extend_from_slice(&3u16.to_le_bytes());
+        data.extend_from_slice(&[2, 1, 0]);
+        let m = parse(&data).unwrap();
+        assert_eq!(m.positions, vec![[-1.0, 65535.0, -7.0], [2.0, 0.0, (1 << 30) as f64], [127.0, 3.0, 0.0]]);
+        assert_eq!(m.faces, vec![[2, 1, 0]]);
+        // ASCII values outside their declared type are errors.
+        let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty uchar x\nproperty float y\nproperty float z\n\
+                    element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n256 0 0\n0 1 0\n3 0 1 2\n";
+        let e = parse(text.as_bytes()).unwrap_err().to_string();
+        assert!(e.starts_with("t.ply:11: vertex 1:") && e.contains("256 out of range"), "{e}");
     }
 
     #[test]
