@@ -12,6 +12,7 @@ pub mod newton;
 pub mod power_diagram;
 pub mod predicates;
 pub mod reference;
+pub mod restricted;
 
 pub use cells::CellIntegrals;
 pub use error::OmtError;

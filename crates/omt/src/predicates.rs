@@ -246,16 +246,18 @@ pub fn power_compare(x: [f64; 2], yi: [f64; 2], wi: f64, yj: [f64; 2], wj: f64) 
 #[derive(Clone, Debug)]
 pub(crate) struct Expansion(Vec<f64>);
 
+/// Error-free sum: (x, y) with x = fl(a + b) and a + b = x + y exactly (Knuth).
 #[inline]
-fn two_sum(a: f64, b: f64) -> (f64, f64) {
+pub(crate) fn two_sum(a: f64, b: f64) -> (f64, f64) {
     let x = a + b;
     let bv = x - a;
     let av = x - bv;
     (x, (a - av) + (b - bv))
 }
 
+/// Error-free product: (x, y) with x = fl(a·b) and a·b = x + y exactly (fused multiply-add).
 #[inline]
-fn two_product(a: f64, b: f64) -> (f64, f64) {
+pub(crate) fn two_product(a: f64, b: f64) -> (f64, f64) {
     let x = a * b;
     (x, a.mul_add(b, -x))
 }

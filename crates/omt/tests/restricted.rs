@@ -1,0 +1,271 @@
+//! Restricted cell integration: brute-force agreement, analytic cases, conservation, tiny cells.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use shapespace_omt::power_diagram::PowerDiagram;
+use shapespace_omt::reference::integrate_cells_bruteforce;
+use shapespace_omt::restricted::{cell_polygons, integrate_cells, RestrictedIntegrator};
+use shapespace_omt::{CellIntegrals, SourceMeasure};
+
+fn integrate(sites: &[[f64; 2]], weights: &[f64], measure: &SourceMeasure) -> CellIntegrals {
+    let d = PowerDiagram::new(sites, weights).expect("valid input");
+    d.sanity_check().expect("sanity");
+    integrate_cells(&d, sites, weights, measure)
+}
+
+/// ∫ x dμ over the whole measure.
+fn measure_first_moment(m: &SourceMeasure) -> [f64; 2] {
+    let mut s = [0.0; 2];
+    for (t, &rho) in m.triangles.iter().zip(&m.densities) {
+        let [a, b, c] = t.map(|v| m.vertices[v as usize]);
+        let area = 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]));
+        s[0] += rho * area * (a[0] + b[0] + c[0]) / 3.0;
+        s[1] += rho * area * (a[1] + b[1] + c[1]) / 3.0;
+    }
+    s
+}
+
+/// A convex 12-gon with a fan of triangles of strongly varying densities.
+fn varied_measure() -> SourceMeasure {
+    let k = 12;
+    let mut vertices: Vec<[f64; 2]> = (0..k)
+        .map(|i| {
+            let t = 2.0 * std::f64::consts::PI * i as f64 / k as f64;
+            [0.5 + 0.6 * t.cos(), 0.5 + 0.45 * t.sin()]
+        })
+        .collect();
+    vertices.push([0.55, 0.48]);
+    let triangles: Vec<[u32; 3]> = (0..k as u32).map(|i| [k as u32, i, (i + 1) % k as u32]).collect();
+    let densities: Vec<f64> = (0..k).map(|i| 0.05 + (i * i % 7) as f64 * 3.0).collect();
+    SourceMeasure::new(vertices, triangles, densities).unwrap()
+}
+
+fn compare(ours: &CellIntegrals, reference: &CellIntegrals, total: f64, label: &str) -> (f64, f64) {
+    let n = ours.masses.len();
+    let mut worst_mass: f64 = 0.0;
+    let mut worst_edge: f64 = 0.0;
+    let floor = total / n as f64;
+    for i in 0..n {
+        let dm = (ours.masses[i] - reference.masses[i]).abs() / (reference.masses[i] + floor);
+        worst_mass = worst_mass.max(dm);
+        for c in 0..2 {
+            let d = (ours.first_moments[i][c] - reference.first_moments[i][c]).abs() / (reference.masses[i] + floor);
+            worst_mass = worst_mass.max(d);
+        }
+        let d2 = (ours.second_moments[i] - reference.second_moments[i]).abs()
+            / (reference.second_moments[i] + floor * floor);
+        worst_mass = worst_mass.max(d2);
+    }
+    // Edges: same set up to edges of negligible μ-length, same values.
+    let edge_floor = total.sqrt() / (n as f64).sqrt();
+    let find = |list: &[(u32, u32, f64)], i: u32, j: u32| {
+        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j))).ok().map(|k| list[k].2).unwrap_or(0.0)
+    };
+    for &(i, j, v) in &reference.edge_masses {
+        let w = find(&ours.edge_masses, i, j);
+        worst_edge = worst_edge.max((v - w).abs() / (v + edge_floor));
+    }
+    for &(i, j, v) in &ours.edge_masses {
+        assert!(i < j, "{label}: edge ({i}, {j}) not ordered");
+        let r = find(&reference.edge_masses, i, j);
+        worst_edge = worst_edge.max((v - r).abs() / (v + edge_floor));
+    }
+    assert!(worst_mass < 1e-11, "{label}: mass/moment relative difference {worst_mass:e}");
+    assert!(worst_edge < 1e-11, "{label}: edge mass relative difference {worst_edge:e}");
+    (worst_mass, worst_edge)
+}
+
+#[test]
+fn random_inputs_match_brute_force() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let measures = [
+        ("unit square", SourceMeasure::unit_square().unwrap()),
+        ("disk(64)", SourceMeasure::unit_disk(64).unwrap()),
+        ("varied 12-gon", varied_measure()),
+    ];
+    for (name, measure) in &measures {
+        let total = measure.total_mass();
+        for &(n, spread, weight_scale) in &[(1, 1.0, 0.0), (2, 1.0, 0.1), (7, 1.5, 0.2), (60, 2.0, 0.02), (400, 1.2, 0.002), (2000, 1.0, 0.0005)] {
+            let sites: Vec<[f64; 2]> = (0..n)
+                .map(|_| [spread * (rng.random::<f64>() - 0.5) + 0.5, spread * (rng.random::<f64>() - 0.5) + 0.5])
+                .collect();
+            let weights: Vec<f64> = (0..n).map(|_| weight_scale * rng.random::<f64>()).collect();
+            let ours = integrate(&sites, &weights, measure);
+            let reference = integrate_cells_bruteforce(&sites, &weights, measure);
+            let (dm, de) = compare(&ours, &reference, total, &format!("{name}, N = {n}"));
+            eprintln!("{name:>14} N = {n:5}: max rel diff masses/moments {dm:.1e}, edges {de:.1e}");
+            let sum: f64 = ours.masses.iter().sum();
+            assert!((sum - total).abs() <= 1e-12 * total, "{name}: Σ masses {sum} vs μ(Ω) {total}");
+            let m1 = measure_first_moment(measure);
+            let s1 = ours.first_moments.iter().fold([0.0, 0.0], |a, m| [a[0] + m[0], a[1] + m[1]]);
+            for c in 0..2 {
+                assert!((s1[c] - m1[c]).abs() <= 1e-12 * total, "{name}: Σ first moments {s1:?} vs {m1:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn grid_cells_are_exact_squares() {
+    // k×k sites at the centres of the squares of side h = 1/k; equal weights: co-circular
+    // everywhere, and the cells are exactly the squares.
+    for k in [1usize, 2, 3, 8] {
+        let h = 1.0 / k as f64;
+        let sites: Vec<[f64; 2]> = (0..k * k).map(|i| [((i % k) as f64 + 0.5) * h, ((i / k) as f64 + 0.5) * h]).collect();
+        let measure = SourceMeasure::unit_square().unwrap();
+        let c = integrate(&sites, &vec![0.0; k * k], &measure);
+        for i in 0..k * k {
+            assert!((c.masses[i] - h * h).abs() < 1e-15, "k = {k}, cell {i}: mass {}", c.masses[i]);
+            assert!((c.second_moments[i] - h.powi(4) / 6.0).abs() < 1e-16, "second moment {}", c.second_moments[i]);
+            for d in 0..2 {
+                assert!((c.first_moments[i][d] - h * h * sites[i][d]).abs() < 1e-15);
+            }
+        }
+        // Axis neighbours share an edge of length h; diagonal neighbours (zero-length edges of
+        // the perturbed triangulation) carry no measurable mass.
+        for &(i, j, v) in &c.edge_masses {
+            let (i, j) = (i as usize, j as usize);
+            let axis = (i % k == j % k) || (i / k == j / k);
+            if axis {
+                assert!((v - h).abs() < 1e-14, "edge ({i}, {j}) = {v}");
+            } else {
+                assert!(v < 1e-14, "diagonal edge ({i}, {j}) = {v}");
+            }
+        }
+        let axis_edges = c.edge_masses.iter().filter(|e| e.2 > 1e-14).count();
+        assert_eq!(axis_edges, 2 * k * (k - 1));
+    }
+}
+
+#[test]
+fn two_sites_bisector() {
+    let measure = SourceMeasure::unit_square().unwrap();
+    let sites = [[0.25, 0.5], [0.75, 0.5]];
+    let c = integrate(&sites, &[0.0, 0.0], &measure);
+    assert!((c.masses[0] - 0.5).abs() < 1e-15 && (c.masses[1] - 0.5).abs() < 1e-15);
+    assert_eq!(c.edge_masses.len(), 1);
+    let (i, j, v) = c.edge_masses[0];
+    assert_eq!((i, j), (0, 1));
+    assert!((v - 1.0).abs() < 1e-15, "bisector length {v}");
+    // ∫ over [0, 1/2]×[0, 1] of |x − (1/4, 1/2)|²: 2·(1/4)³/3 + (1/2)·(1/12) = 1/96 + 1/24.
+    assert!((c.second_moments[0] - (1.0 / 96.0 + 1.0 / 24.0)).abs() < 1e-15);
+    // w_0 = 0.1 moves the bisector to x = 0.6 (solve (x−¼)² − 0.1 = (x−¾)²).
+    let c = integrate(&sites, &[0.1, 0.0], &measure);
+    assert!((c.masses[0] - 0.6).abs() < 1e-14, "mass {}", c.masses[0]);
+    assert!((c.first_moments[1][0] - 0.4 * 0.8).abs() < 1e-14);
+    assert!((c.edge_masses[0].2 - 1.0).abs() < 1e-14);
+    // Density 3 doubles nothing but scales everything: uniform_polygon with density 3.
+    let dense = SourceMeasure::uniform_polygon(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], 3.0).unwrap();
+    let c = integrate(&sites, &[0.0, 0.0], &dense);
+    assert!((c.edge_masses[0].2 - 3.0).abs() < 1e-14);
+}
+
+#[test]
+fn one_site_owns_everything_even_outside() {
+    let measure = SourceMeasure::unit_square().unwrap();
+    for y in [[0.3, 0.2], [5.0, -3.0]] {
+        let c = integrate(&[y], &[0.7], &measure);
+        assert!((c.masses[0] - 1.0).abs() < 1e-15);
+        let expected = ((1.0 - y[0]).powi(3) + y[0].powi(3)) / 3.0 + ((1.0 - y[1]).powi(3) + y[1].powi(3)) / 3.0;
+        assert!((c.second_moments[0] - expected).abs() < 1e-13 * expected, "{} vs {expected}", c.second_moments[0]);
+        assert!((c.first_moments[0][0] - 0.5).abs() < 1e-14 && (c.first_moments[0][1] - 0.5).abs() < 1e-14);
+        assert!(c.edge_masses.is_empty());
+    }
+}
+
+#[test]
+fn collinear_sites_give_strips() {
+    let measure = SourceMeasure::unit_square().unwrap();
+    let sites: Vec<[f64; 2]> = (0..5).map(|i| [0.1 + 0.2 * i as f64, 0.5]).collect();
+    let c = integrate(&sites, &[0.0; 5], &measure);
+    for i in 0..5 {
+        assert!((c.masses[i] - 0.2).abs() < 1e-15, "strip {i}: {}", c.masses[i]);
+        // Strip of width 0.2 centred on x_i: ∫(x−x_i)² = 0.2³/12, ∫(y−½)² = 0.2/12.
+        let expected = 0.2f64.powi(3) / 12.0 + 0.2 / 12.0;
+        assert!((c.second_moments[i] - expected).abs() < 1e-15);
+    }
+    assert_eq!(c.edge_masses.len(), 4);
+    for &(i, j, v) in &c.edge_masses {
+        assert_eq!(j, i + 1);
+        assert!((v - 1.0).abs() < 1e-15);
+    }
+    // Sites on a line outside Ω, with a hidden one.
+    let sites: Vec<[f64; 2]> = (0..4).map(|i| [-1.0 + i as f64, -2.0 + 0.5 * i as f64]).collect();
+    let weights = [0.0, -50.0, 0.0, 0.0];
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    assert!(d.is_hidden(1));
+    let c = integrate_cells(&d, &sites, &weights, &measure);
+    assert_eq!(c.masses[1], 0.0);
+    assert!((c.masses.iter().sum::<f64>() - 1.0).abs() < 1e-14);
+}
+
+#[test]
+fn tiny_cells_keep_relative_accuracy() {
+    // 3×3 grid with spacing h = 2⁻⁴⁰ ≈ 9e-13 around (½, ½), plus four far sites. The centre
+    // cell is exactly the square of side h: mass h², second moment h⁴/6.
+    let h = 2f64.powi(-40);
+    let mut sites: Vec<[f64; 2]> = (0..9).map(|i| [0.5 + h * ((i % 3) as f64 - 1.0), 0.5 + h * ((i / 3) as f64 - 1.0)]).collect();
+    sites.extend([[0.1, 0.1], [0.9, 0.15], [0.85, 0.9], [0.1, 0.8]]);
+    let weights = vec![0.0; sites.len()];
+    for measure in [SourceMeasure::unit_square().unwrap(), SourceMeasure::unit_disk(256).unwrap()] {
+        let c = integrate(&sites, &weights, &measure);
+        assert!((c.masses[4] - h * h).abs() < 1e-12 * h * h, "mass {:e} vs {:e}", c.masses[4], h * h);
+        let m2 = h.powi(4) / 6.0;
+        assert!((c.second_moments[4] - m2).abs() < 1e-11 * m2, "second moment {:e} vs {m2:e}", c.second_moments[4]);
+        for d in 0..2 {
+            assert!((c.first_moments[4][d] / c.masses[4] - 0.5).abs() < 1e-15);
+        }
+        // Its four edges have length h.
+        for &(i, j, v) in &c.edge_masses {
+            if i == 4 || j == 4 {
+                assert!((v - h).abs() < 1e-11 * h || v < 1e-3 * h, "edge ({i}, {j}) = {v:e}");
+            }
+        }
+        let total = measure.total_mass();
+        assert!((c.masses.iter().sum::<f64>() - total).abs() < 1e-12 * total);
+    }
+}
+
+#[test]
+fn cell_polygons_match_masses() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let n = 300;
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [1.4 * rng.random::<f64>() - 0.7, 1.4 * rng.random::<f64>() - 0.7]).collect();
+    let weights: Vec<f64> = (0..n).map(|_| 0.003 * rng.random::<f64>()).collect();
+    let measure = SourceMeasure::unit_disk(64).unwrap();
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    let c = integrate_cells(&d, &sites, &weights, &measure);
+    let polygons = cell_polygons(&d, &sites, &weights, &measure);
+    for i in 0..n {
+        let p = &polygons[i];
+        let area: f64 = (0..p.len())
+            .map(|k| {
+                let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                0.5 * (a[0] * b[1] - a[1] * b[0])
+            })
+            .sum();
+        assert!((area - c.masses[i]).abs() < 1e-14, "cell {i}: polygon area {area} vs mass {}", c.masses[i]);
+        if d.is_hidden(i) {
+            assert!(p.is_empty());
+        }
+    }
+}
+
+#[test]
+fn result_is_independent_of_thread_count() {
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let n = 5000;
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [2.0 * rng.random::<f64>() - 1.0, 2.0 * rng.random::<f64>() - 1.0]).collect();
+    let weights: Vec<f64> = (0..n).map(|_| 1e-4 * rng.random::<f64>()).collect();
+    let measure = SourceMeasure::unit_disk(256).unwrap();
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    let integrator = RestrictedIntegrator::new(&measure);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| integrator.integrate(&d))
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.masses, b.masses);
+    assert_eq!(a.second_moments, b.second_moments);
+    assert_eq!(a.first_moments, b.first_moments);
+    assert_eq!(a.edge_masses, b.edge_masses);
+}
