@@ -113,7 +113,8 @@ pub(crate) fn write_file(
     write(&mut writer).map_err(io_err)?;
     use std::io::Write;
     writer.flush().map_err(io_err)?;
-    writer.into_inner().map_err(|e| io_err(e.into_error()))?.sync_all().map_err(io_err)
+    writer.into_inner().map_err(|e| io_err(e.into_error()))?;
+    Ok(())
 }
 
 /// A [`GeometryError::Parse`] at `line` (1-based) of `path`.

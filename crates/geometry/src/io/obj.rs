@@ -70,6 +70,8 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
     let mut polygon_vt: Vec<u32> = Vec::new();
     let mut tri_vt: Vec<[u32; 3]> = Vec::new();
     let mut last_line = 0usize;
+    // Number of `f` statements so far (polygons, before triangulation).
+    let mut num_polygons = 0usize;
 
     for (line_no, line) in lines(data) {
         last_line = line_no;
@@ -164,10 +166,11 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                     return Err(parse_error(
                         path,
                         line_no,
-                        format!("face {} has {corner_count} vertices (need at least 3)", faces.len()),
+                        format!("face {num_polygons} has {corner_count} vertices (need at least 3)"),
                     ));
                 }
                 fan_triangulate(&polygon, &mut faces);
+                num_polygons += 1;
                 if all_corners_have_vt {
                     tri_vt.clear();
                     fan_triangulate(&polygon_vt, &mut tri_vt);
@@ -373,8 +376,8 @@ mod tests {
         assert!(e.starts_with("t.obj:2:") && e.contains("vertex 1 has a non-finite coordinate"), "{e}");
         let e = parse("v 0 0 0\nv 1 0x 0\n").unwrap_err().to_string();
         assert!(e.starts_with("t.obj:2:") && e.contains("non-numeric"), "{e}");
-        let e = parse("v 0 0 0\nv 1 0 0\nf 1 2\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.obj:3:") && e.contains("2 vertices"), "{e}");
+        let e = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 2\n").unwrap_err().to_string();
+        assert!(e.starts_with("t.obj:6:") && e.contains("face 1 has 2 vertices"), "{e}");
         let e = parse("v 0 0 0\nf 0 1 1\n").unwrap_err().to_string();
         assert!(e.contains("index 0"), "{e}");
         assert!(parse("").unwrap_err().to_string().contains("empty file"));
