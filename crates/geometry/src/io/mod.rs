@@ -22,7 +22,7 @@
 //! |---|---|---|
 //! | OBJ ([`obj`]) | `v`, `vt`, `f` with `a`, `a/b`, `a//c`, `a/b/c`, negative indices | `v`, optional `vt`, `f` |
 //! | OFF ([`off`]) | `OFF`/`COFF`/`NOFF`/... header or none, `#` comments, polygon faces | `OFF` |
-//! | PLY ([`ply`]) | ascii, binary LE/BE, any scalar types, `face` and `tristrips` lists | ascii, binary LE (`f64`) |
+//! | PLY ([`ply`]) | ascii, binary LE/BE, any scalar types, `face` and `tristrips` lists | ascii, binary LE/BE (`f64`) |
 
 pub mod obj;
 pub mod off;
