@@ -1,1 +1,30 @@
-//! placeholder, see ARCHITECTURE.md
+//! # shapespace-conformal
+//!
+//! Conformal maps of disk-type surfaces onto the unit disk (the discrete Riemann map with an
+//! interior marker p ↦ 0 and a boundary marker q ↦ 1), Möbius normalization, map quality
+//! measures and constrained harmonic maps. See `ARCHITECTURE.md` for the choice of method and
+//! the measured accuracy.
+//!
+//! * [`disk_map`]: the Riemann map (Green's function + harmonic conjugate on the intrinsic
+//!   Delaunay triangulation), with densities and conformal factors;
+//! * [`mobius`]: disk automorphisms z ↦ e^{iθ}(z − a)/(1 − āz);
+//! * [`markers`]: interior/boundary markers, parsing and automatic choices;
+//! * [`quality`]: area, quasi-conformal and angle distortion, flips;
+//! * [`harmonic`]: harmonic maps with boundary and landmark constraints;
+//! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips.
+
+pub mod disk_map;
+pub mod error;
+pub mod green;
+pub mod harmonic;
+pub mod intrinsic;
+mod linsolve;
+pub mod markers;
+pub mod mobius;
+pub mod quality;
+
+pub use disk_map::{disk_map, DiskMap, DiskMapInfo, DiskMapParams};
+pub use error::ConformalError;
+pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};
+pub use markers::{BoundaryMarker, CenterMarker, MarkerFile, Markers};
+pub use mobius::Mobius;

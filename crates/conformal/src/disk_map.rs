@@ -1,0 +1,367 @@
+//! The discrete Riemann map of a disk-type surface onto the unit disk.
+//!
+//! Given a disk-type triangle mesh M, an interior marker p and a boundary marker q, compute
+//! the conformal map φ: M → D with φ(p) = 0 and φ(q) = 1 (unique by the Riemann mapping
+//! theorem; Su et al. 2015, "Shape classification using Wasserstein distance for brain
+//! morphometry analysis", Thm. 5):
+//! 1. the intrinsic Delaunay triangulation of M (edge flips on lengths, [`crate::intrinsic`]),
+//!    so every interior cotangent weight is ≥ 0;
+//! 2. the Green's function construction φ = exp(−2π(G + iG*)) ([`crate::green`]):
+//!    |φ| from the Dirichlet problem L u = δ_p, arg φ from a least-squares harmonic conjugate
+//!    on the annulus M minus the star of p, with a 2π cut;
+//! 3. the Möbius normalization z ↦ e^{iθ}(z − a)/(1 − āz) ([`crate::mobius`]) with a = φ(p)
+//!    and θ such that q ↦ 1. When p is a vertex a = 0 exactly (p is the pole); when p lies
+//!    inside a face the pole is the face corner with the largest barycentric weight (an
+//!    interior one) and a is the barycentric interpolation of the corner images;
+//! 4. the pushed-forward densities μ_f = area₃(f)/area₂(φ(f)) (surface scaled to area π) and
+//!    per-vertex conformal factors e^{2λ_i} = Σ_{f∋i} area₃ / Σ_{f∋i} area₂, evaluated on the
+//!    ORIGINAL faces (the intrinsic triangulation shares the vertex set).
+//!
+//! Why this construction (measured, see ARCHITECTURE.md): two sparse Cholesky solves, no
+//! iteration, the boundary lies exactly on |z| = 1 (u = 0 there), and the radius error on
+//! the hemisphere is first order in the edge length (DESIGN.md's reference accuracy).
+//!
+//! Range: |φ| = e^{−2πu} shrinks exponentially along protrusions. Image coordinates are
+//! kept in relative precision (rotation-only normalization when p is a vertex; areas from
+//! power-of-two-rescaled edge vectors), so densities up to ~1e300 are exact to roundoff.
+//! Past that (|φ| below ~1e-150 for a face, a protrusion of height ≳ 55 radii) a density or
+//! coordinate would not be representable in f64 and [`ConformalError::OutOfRange`] is
+//! returned, never garbage.
+
+use std::time::Instant;
+
+use serde::Serialize;
+use shapespace_geometry::TriMesh;
+
+use crate::error::ConformalError;
+use crate::green::{conjugate_angle, green_function};
+use crate::intrinsic::IntrinsicTriangulation;
+use crate::markers::{resolve_markers, Markers, ResolvedCenter, ResolvedMarkers};
+use crate::mobius::Mobius;
+use crate::quality::{face_distortions, summarize, QualitySummary};
+
+/// Parameters of [`disk_map`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiskMapParams {
+    /// Build the Laplacian on the intrinsic Delaunay triangulation (default true). Turning it
+    /// off gives the plain cotangent Laplacian of the input triangles (for comparisons only:
+    /// it folds images of badly shaped meshes).
+    pub intrinsic_delaunay: bool,
+}
+
+impl Default for DiskMapParams {
+    fn default() -> Self {
+        DiskMapParams { intrinsic_delaunay: true }
+    }
+}
+
+/// Timings of the stages of [`disk_map`], seconds.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct DiskMapTimings {
+    pub setup: f64,
+    pub delaunay: f64,
+    pub green: f64,
+    pub conjugate: f64,
+    pub finish: f64,
+    pub total: f64,
+}
+
+/// What [`disk_map`] did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiskMapInfo {
+    /// Name of the construction.
+    pub method: String,
+    /// Markers after resolution.
+    pub markers: ResolvedMarkers,
+    /// The vertex used as the pole of the Green's function.
+    pub pole: u32,
+    /// The Möbius normalization applied to the Green's-function map.
+    pub mobius: Mobius,
+    /// Intrinsic edge flips performed (0 without intrinsic Delaunay).
+    pub intrinsic_flips: usize,
+    /// Interior edges with a negative cotangent weight in the input triangulation.
+    pub negative_weights_before: usize,
+    /// Same after the intrinsic Delaunay flips (0 unless the flips were disabled).
+    pub negative_weights_after: usize,
+    /// Number of sparse linear solves (2).
+    pub linear_solves: usize,
+    /// Stage timings.
+    pub timings: DiskMapTimings,
+}
+
+/// A conformal map onto the unit disk with its densities.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiskMap {
+    /// Image of each vertex, #V; boundary vertices on |z| = 1, p ↦ 0, q ↦ (1, 0).
+    pub uv: Vec<[f64; 2]>,
+    /// λ per vertex, #V: e^{2λ_i} = (3D one-ring area, surface scaled to area π) / (2D image
+    /// one-ring area).
+    pub conformal_factor: Vec<f64>,
+    /// μ per face, #F: 3D area (scaled to π) / image area; positive and finite.
+    pub face_densities: Vec<f64>,
+    /// The factor s applied to 3D lengths to reach total area π (s² = π / area).
+    pub scale: f64,
+    /// Method, markers, timings.
+    pub info: DiskMapInfo,
+    /// Distortion statistics of the map.
+    pub quality: QualitySummary,
+}
+
+fn count_negative(tri: &IntrinsicTriangulation) -> usize {
+    (0..tri.tail.len() as u32)
+        .filter(|&h| {
+            let t = tri.twin[h as usize];
+            t != crate::intrinsic::NONE && h < t && tri.edge_cotan_weight(h) < 0.0
+        })
+        .count()
+}
+
+/// Checks that the intrinsic triangulation is a single disk: one boundary loop, Euler
+/// characteristic 1, one component, every vertex used.
+fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), ConformalError> {
+    let n = mesh.num_vertices();
+    let nf = mesh.num_faces();
+    if nf == 0 {
+        return Err(ConformalError::NotDisk { reason: "the mesh has no faces".into() });
+    }
+    let mut used = vec![false; n];
+    for f in &mesh.faces {
+        for &v in f {
+            used[v as usize] = true;
+        }
+    }
+    if let Some(v) = used.iter().position(|u| !u) {
+        return Err(ConformalError::NotDisk { reason: format!("vertex {v} is not used by any face") });
+    }
+    let nh = tri.tail.len();
+    let nb = tri.twin.iter().filter(|&&t| t == crate::intrinsic::NONE).count();
+    let ne = (nh + nb) / 2;
+    let chi = n as i64 - ne as i64 + nf as i64;
+    // components via union-find over vertices
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    for h in 0..nh as u32 {
+        let (a, b) = (find(&mut parent, tri.tail[h as usize]), find(&mut parent, tri.head(h)));
+        if a != b {
+            parent[a as usize] = b;
+        }
+    }
+    let comps = (0..n as u32).filter(|&v| find(&mut parent, v) == v).count();
+    // boundary loops: a boundary vertex with two boundary half-edges out of it would be
+    // non-manifold; count loops by walking
+    let mut out_b = vec![crate::intrinsic::NONE; n];
+    for h in 0..nh {
+        if tri.twin[h] == crate::intrinsic::NONE {
+            let t = tri.tail[h] as usize;
+            if out_b[t] != crate::intrinsic::NONE {
+                return Err(ConformalError::NotDisk { reason: format!("non-manifold boundary vertex {t}") });
+            }
+            out_b[t] = h as u32;
+        }
+    }
+    let mut seen = vec![false; n];
+    let mut loops = 0;
+    for v in 0..n {
+        if out_b[v] != crate::intrinsic::NONE && !seen[v] {
+            loops += 1;
+            let mut x = v;
+            while !seen[x] {
+                seen[x] = true;
+                x = tri.head(out_b[x]) as usize;
+                if out_b[x] == crate::intrinsic::NONE {
+                    break;
+                }
+            }
+        }
+    }
+    if comps != 1 || loops != 1 || chi != 1 {
+        return Err(ConformalError::NotDisk {
+            reason: format!("{comps} component(s), {loops} boundary loop(s), Euler characteristic {chi} (a disk has 1, 1, 1)"),
+        });
+    }
+    Ok(())
+}
+
+/// Vertex adjacency from the (unflipped) triangulation.
+fn neighbors(tri: &IntrinsicTriangulation) -> Vec<Vec<u32>> {
+    let mut adj = vec![Vec::new(); tri.num_vertices];
+    for h in 0..tri.tail.len() as u32 {
+        let (a, b) = (tri.tail[h as usize], tri.head(h));
+        adj[a as usize].push(b);
+        adj[b as usize].push(a);
+    }
+    for l in &mut adj {
+        l.sort_unstable();
+        l.dedup();
+    }
+    adj
+}
+
+/// The discrete Riemann map of `mesh` onto the unit disk with p ↦ 0 and q ↦ 1 (module docs).
+///
+/// Input: a consistently oriented disk-type mesh (#V positions, #F faces). Output: see
+/// [`DiskMap`]. Errors: not a disk, invalid markers, degenerate faces, a folded image (any
+/// original face with non-positive image orientation), values beyond the f64 range.
+pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Result<DiskMap, ConformalError> {
+    let t0 = Instant::now();
+    mesh.validate()?;
+    let mut tri = IntrinsicTriangulation::from_mesh(mesh)?;
+    check_disk(mesh, &tri)?;
+    let adj = neighbors(&tri);
+    let resolved = resolve_markers(mesh, &tri.is_boundary, &adj, markers)?;
+    let negative_weights_before = count_negative(&tri);
+    let t1 = Instant::now();
+    if params.intrinsic_delaunay {
+        tri.make_delaunay()?;
+    }
+    let negative_weights_after = count_negative(&tri);
+    let t2 = Instant::now();
+    let pole = match resolved.center {
+        ResolvedCenter::Vertex(v) => v,
+        ResolvedCenter::Face { face, bary } => {
+            let corners = mesh.faces[face as usize];
+            let k = (0..3)
+                .filter(|&k| !tri.is_boundary[corners[k] as usize])
+                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
+                .ok_or_else(|| ConformalError::InvalidMarker(format!("face {face} has no interior corner")))?;
+            corners[k]
+        }
+    };
+    let u = green_function(&tri, pole)?;
+    let a: Vec<f64> = u.iter().map(|x| -std::f64::consts::TAU * x).collect();
+    let t3 = Instant::now();
+    let theta = conjugate_angle(&tri, pole, &a, resolved.boundary_vertex)?;
+    let t4 = Instant::now();
+
+    // range check: e^{a} must be a normal f64 with room for areas (|z|² of a face)
+    for (v, &x) in a.iter().enumerate() {
+        if v as u32 != pole && x < -690.0 {
+            return Err(ConformalError::OutOfRange {
+                what: "image radius",
+                element: format!("vertex {v}"),
+                log10_value: x / std::f64::consts::LN_10,
+            });
+        }
+    }
+    let mut z: Vec<[f64; 2]> = a.iter().zip(&theta).map(|(&r, &t)| {
+        let m = r.exp();
+        [m * t.cos(), m * t.sin()]
+    })
+    .collect();
+    z[pole as usize] = [0.0, 0.0];
+    let a_img = match resolved.center {
+        ResolvedCenter::Vertex(_) => [0.0, 0.0],
+        ResolvedCenter::Face { face, bary } => {
+            let c = mesh.faces[face as usize];
+            let mut s = [0.0, 0.0];
+            for k in 0..3 {
+                s[0] += bary[k] * z[c[k] as usize][0];
+                s[1] += bary[k] * z[c[k] as usize][1];
+            }
+            s
+        }
+    };
+    if a_img[0].hypot(a_img[1]) >= 1.0 - 1e-12 {
+        return Err(ConformalError::InvalidMarker("the center maps onto the boundary circle".into()));
+    }
+    let mobius = Mobius::normalizing(a_img, z[resolved.boundary_vertex as usize]);
+    let mut uv: Vec<[f64; 2]> = z.iter().map(|&p| mobius.apply(p)).collect();
+    for (v, p) in uv.iter_mut().enumerate() {
+        if tri.is_boundary[v] {
+            let r = p[0].hypot(p[1]);
+            *p = [p[0] / r, p[1] / r];
+        }
+    }
+    uv[resolved.boundary_vertex as usize] = [1.0, 0.0];
+    if let ResolvedCenter::Vertex(v) = resolved.center {
+        uv[v as usize] = [0.0, 0.0];
+    }
+
+    // densities and factors on the original faces
+    let dist = face_distortions(mesh, &uv)?;
+    let areas = shapespace_geometry::quantities::face_areas(mesh);
+    let total: f64 = areas.iter().sum();
+    let scale = (std::f64::consts::PI / total).sqrt();
+    let summary = summarize(&dist, &areas);
+    if summary.num_flipped + summary.num_degenerate > 0 {
+        let first = dist.orientation.iter().position(|&o| o <= 0).unwrap_or(0);
+        return Err(ConformalError::FoldedImage {
+            num_flipped: summary.num_flipped + summary.num_degenerate,
+            first_face: first,
+            flipped_area_fraction: summary.flipped_area_fraction,
+        });
+    }
+    let mut face_densities = Vec::with_capacity(mesh.num_faces());
+    for (f, &ups) in dist.area_distortion.iter().enumerate() {
+        let mu = (-ups).exp();
+        if !(mu.is_finite() && mu > 0.0) {
+            return Err(ConformalError::OutOfRange {
+                what: "face density",
+                element: format!("face {f}"),
+                log10_value: -ups / std::f64::consts::LN_10,
+            });
+        }
+        face_densities.push(mu);
+    }
+    // e^{2λ} = Σ A3 / Σ A2 over the one ring, with A2 = A3·e^{Υ} summed by log-sum-exp
+    let n = mesh.num_vertices();
+    let mut ring3 = vec![0.0; n];
+    let mut ring_max = vec![f64::NEG_INFINITY; n];
+    let ln_a3: Vec<f64> = areas.iter().map(|x| (x * scale * scale).ln()).collect();
+    for (f, face) in mesh.faces.iter().enumerate() {
+        let l2 = ln_a3[f] + dist.area_distortion[f];
+        for &v in face {
+            ring3[v as usize] += areas[f] * scale * scale;
+            ring_max[v as usize] = ring_max[v as usize].max(l2);
+        }
+    }
+    let mut ring2 = vec![0.0; n];
+    for (f, face) in mesh.faces.iter().enumerate() {
+        let l2 = ln_a3[f] + dist.area_distortion[f];
+        for &v in face {
+            ring2[v as usize] += (l2 - ring_max[v as usize]).exp();
+        }
+    }
+    let conformal_factor: Vec<f64> =
+        (0..n).map(|v| 0.5 * (ring3[v].ln() - (ring_max[v] + ring2[v].ln()))).collect();
+    if let Some(v) = conformal_factor.iter().position(|x| !x.is_finite()) {
+        return Err(ConformalError::NonFinite { stage: "conformal factor", vertex: v });
+    }
+    let t5 = Instant::now();
+    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
+    Ok(DiskMap {
+        uv,
+        conformal_factor,
+        face_densities,
+        scale,
+        info: DiskMapInfo {
+            method: if params.intrinsic_delaunay {
+                "green-function (intrinsic Delaunay cotan Laplacian, least-squares conjugate)".into()
+            } else {
+                "green-function (plain cotan Laplacian, least-squares conjugate)".into()
+            },
+            markers: resolved,
+            pole,
+            mobius,
+            intrinsic_flips: tri.num_flips,
+            negative_weights_before,
+            negative_weights_after,
+            linear_solves: 2,
+            timings: DiskMapTimings {
+                setup: secs(t0, t1),
+                delaunay: secs(t1, t2),
+                green: secs(t2, t3),
+                conjugate: secs(t3, t4),
+                finish: secs(t4, t5),
+                total: secs(t0, t5),
+            },
+        },
+        quality: summary,
+    })
+}

@@ -1,0 +1,59 @@
+//! The conformal crate's error type.
+
+use std::path::PathBuf;
+
+use shapespace_geometry::GeometryError;
+
+/// Errors of disk maps, markers, harmonic maps and their inputs.
+///
+/// `Display` follows `path:line: problem` where a file is known; otherwise it names the
+/// offending element (vertex, face, edge) so the caller can locate it.
+#[derive(Debug, thiserror::Error)]
+pub enum ConformalError {
+    /// An error from the geometry crate (reading, validation, topology).
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+    /// The mesh is not a topological disk (one boundary loop, χ = 1, manifold, oriented).
+    #[error("not a disk: {reason} (hint: fill holes and keep the largest component, e.g. with `shapespace prepare`)")]
+    NotDisk { reason: String },
+    /// Two faces traverse edge (v0, v1) in the same direction: the orientation is inconsistent.
+    #[error("inconsistent face orientation at edge ({v0}, {v1}) (hint: orient the faces consistently)")]
+    InconsistentOrientation { v0: u32, v1: u32 },
+    /// An edge shared by more than two faces.
+    #[error("non-manifold edge ({v0}, {v1})")]
+    NonManifoldEdge { v0: u32, v1: u32 },
+    /// A face with zero area or coincident corners: no conformal structure there.
+    #[error("degenerate face {face}: {reason}")]
+    DegenerateFace { face: usize, reason: String },
+    /// A marker that does not fit the mesh (out of range, on the wrong part of the mesh).
+    #[error("invalid marker: {0}")]
+    InvalidMarker(String),
+    /// A marker specification that cannot be parsed (CLI string or JSON).
+    #[error("{source_name}: cannot parse marker: {message}")]
+    MarkerParse { source_name: String, message: String },
+    /// Reading a marker file failed.
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, #[source] source: std::io::Error },
+    /// A constraint of the harmonic map that is inconsistent (e.g. a pinned boundary vertex, a
+    /// vertex constrained twice, fewer than three anchors).
+    #[error("invalid constraint: {0}")]
+    InvalidConstraint(String),
+    /// Sparse Cholesky factorization failed (matrix not positive definite: e.g. a disconnected
+    /// mesh or a component without any Dirichlet vertex).
+    #[error("linear algebra: {0}")]
+    LinearAlgebra(String),
+    /// The intrinsic Delaunay flip loop did not finish within its flip budget.
+    #[error("intrinsic Delaunay flips did not terminate after {flips} flips")]
+    FlipBudgetExceeded { flips: usize },
+    /// The image of some original faces is folded (orientation reversed or zero area).
+    #[error("{num_flipped} image triangles are flipped or degenerate (first: face {first_face}; flipped area fraction {flipped_area_fraction:.3e})")]
+    FoldedImage { num_flipped: usize, first_face: usize, flipped_area_fraction: f64 },
+    /// A value of the map is not representable in f64: the conformal factor range of the surface
+    /// (e.g. a long protrusion, which shrinks like e^{−H/ρ}) exceeds what f64 coordinates or
+    /// densities can hold. `log10_value` is the decimal exponent that was needed.
+    #[error("{what} out of the f64 range at {element} (log10 = {log10_value:.1}); the surface has a protrusion too long for a disk map in double precision")]
+    OutOfRange { what: &'static str, element: String, log10_value: f64 },
+    /// A non-finite intermediate value (a bug or a broken input), named by stage.
+    #[error("non-finite value in {stage} at vertex {vertex}")]
+    NonFinite { stage: &'static str, vertex: usize },
+}

@@ -1,0 +1,260 @@
+//! Distortion of a piecewise-linear map from a surface to the plane.
+//!
+//! Per face, the affine map J from the 3D triangle (after scaling the whole surface to area π)
+//! to its image triangle has singular values γ_max ≥ γ_min. Following Zhao et al. 2013
+//! ("Area-preservation mapping using optimal mass transport", §6):
+//! $$ \Upsilon = \ln(\gamma_{max}\gamma_{min}) = \ln\frac{A_{2D}}{A_{3D}}, \qquad
+//!    \Lambda = \ln\frac{\gamma_{max}}{\gamma_{min}} \;(\ge 0, = 0 \text{ iff conformal}). $$
+//! The angle distortion of a face is the mean over its corners of |θ_3D − θ_2D| (radians).
+//! Orientation uses the exact `orient_2d` predicate (geogram_predicates) on the image
+//! coordinates; image edge vectors are rescaled by a power of two before any product, so
+//! triangles of size 1e-150 keep full relative precision.
+
+use geogram_predicates::{orient_2d, Sign};
+use serde::Serialize;
+use shapespace_geometry::TriMesh;
+
+use crate::error::ConformalError;
+
+/// Per-face distortion values, each #F.
+#[derive(Clone, Debug, Serialize)]
+pub struct FaceDistortions {
+    /// Υ = ln(A_2D/A_3D) with the surface scaled to area π (0 = area preserving).
+    pub area_distortion: Vec<f64>,
+    /// Λ = ln(γ_max/γ_min) (0 = conformal).
+    pub quasi_conformal_distortion: Vec<f64>,
+    /// Mean |θ_3D − θ_2D| over the three corners, radians.
+    pub angle_distortion: Vec<f64>,
+    /// Orientation of the image: +1 counter-clockwise, −1 flipped, 0 degenerate (exact).
+    pub orientation: Vec<i8>,
+}
+
+/// Summary statistics of a per-face quantity.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Stats {
+    pub mean: f64,
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+    pub min: f64,
+}
+
+impl Stats {
+    /// Statistics of the finite entries of `values` (all zero when there are none).
+    /// Percentiles use the nearest rank on the sorted values.
+    pub fn of(values: &[f64]) -> Stats {
+        let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+        if v.is_empty() {
+            return Stats::default();
+        }
+        v.sort_by(f64::total_cmp);
+        let rank = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+        Stats {
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            median: rank(0.5),
+            p95: rank(0.95),
+            max: v[v.len() - 1],
+            min: v[0],
+        }
+    }
+}
+
+/// Summary of the distortion of a map.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct QualitySummary {
+    /// Statistics of Υ (signed).
+    pub area_distortion: Stats,
+    /// Statistics of Λ.
+    pub quasi_conformal_distortion: Stats,
+    /// Statistics of the angle distortion, in degrees.
+    pub angle_distortion_deg: Stats,
+    /// Number of faces whose image is clockwise.
+    pub num_flipped: usize,
+    /// Number of faces whose image has zero signed area (exactly).
+    pub num_degenerate: usize,
+    /// 3D area fraction of the flipped and degenerate faces.
+    pub flipped_area_fraction: f64,
+}
+
+/// ln of the signed doubled area of the image triangle and the scaled edge vectors: returns
+/// (ln |d1 × d2|, normalized d1, d2, ln of the scale factor removed).
+fn scaled_edges(p: [[f64; 2]; 3]) -> ([f64; 2], [f64; 2], f64) {
+    let d1 = [p[1][0] - p[0][0], p[1][1] - p[0][1]];
+    let d2 = [p[2][0] - p[0][0], p[2][1] - p[0][1]];
+    let m = d1.iter().chain(d2.iter()).fold(0.0f64, |a, x| a.max(x.abs()));
+    if !(m > 0.0) || !m.is_finite() {
+        return (d1, d2, 0.0);
+    }
+    // exact power-of-two scaling
+    let e = m.log2().floor() as i32;
+    let s = 2f64.powi(-e);
+    ([d1[0] * s, d1[1] * s], [d2[0] * s, d2[1] * s], e as f64 * std::f64::consts::LN_2)
+}
+
+/// Per-face distortion of the map given by `uv` (#V) on `mesh` (the 3D surface is scaled to
+/// total area π first, so Υ = 0 means the density of an area-π normalization).
+///
+/// Errors: `uv` of the wrong length, a zero-area 3D face.
+pub fn face_distortions(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<FaceDistortions, ConformalError> {
+    if uv.len() != mesh.num_vertices() {
+        return Err(ConformalError::InvalidConstraint(format!(
+            "{} image points for {} vertices",
+            uv.len(),
+            mesh.num_vertices()
+        )));
+    }
+    let areas = shapespace_geometry::quantities::face_areas(mesh);
+    let total: f64 = areas.iter().sum();
+    let ln_scale2 = (std::f64::consts::PI / total).ln(); // ln s²
+    let nf = mesh.num_faces();
+    let mut out = FaceDistortions {
+        area_distortion: vec![0.0; nf],
+        quasi_conformal_distortion: vec![0.0; nf],
+        angle_distortion: vec![0.0; nf],
+        orientation: vec![0; nf],
+    };
+    for f in 0..nf {
+        let [a, b, c] = mesh.face_positions(f);
+        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let l1 = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).sqrt();
+        let cr = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let twice_area = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+        if !(twice_area > 0.0) || !(l1 > 0.0) {
+            return Err(ConformalError::DegenerateFace { face: f, reason: "zero 3D area".into() });
+        }
+        // local frame of the 3D triangle: E1 = (l1, 0), E2 = (x, y)
+        let x = (e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]) / l1;
+        let y = twice_area / l1;
+        let face = mesh.faces[f];
+        let p = face.map(|v| uv[v as usize]);
+        out.orientation[f] = match orient_2d(&p[0], &p[1], &p[2]) {
+            Sign::Positive => 1,
+            Sign::Negative => -1,
+            Sign::Zero => 0,
+        };
+        let (d1, d2, ln_s) = scaled_edges(p);
+        // J = [d1 d2] E⁻¹, E⁻¹ = 1/(l1 y) [[y, −x], [0, l1]]
+        let inv = 1.0 / (l1 * y);
+        let j = [
+            [d1[0] * y * inv, (d2[0] * l1 - d1[0] * x) * inv],
+            [d1[1] * y * inv, (d2[1] * l1 - d1[1] * x) * inv],
+        ];
+        let (ja, jb, jc, jd) = (j[0][0], j[0][1], j[1][0], j[1][1]);
+        let sp = ((ja + jd).powi(2) + (jc - jb).powi(2)).sqrt();
+        let sm = ((ja - jd).powi(2) + (jb + jc).powi(2)).sqrt();
+        let (gmax, gmin) = (0.5 * (sp + sm), 0.5 * (sp - sm).abs());
+        let det = (ja * jd - jb * jc).abs();
+        // Υ = ln det(J_true) − ln s², J_true = J·2^e
+        out.area_distortion[f] = det.ln() + 2.0 * ln_s - ln_scale2;
+        out.quasi_conformal_distortion[f] = if gmin > 0.0 { (gmax / gmin).ln() } else { f64::INFINITY };
+        // corner angles
+        let p3 = [a, b, c];
+        let q2 = [[0.0, 0.0], d1, d2];
+        let mut sum = 0.0;
+        for k in 0..3 {
+            let (u3, v3) = (sub3(p3[(k + 1) % 3], p3[k]), sub3(p3[(k + 2) % 3], p3[k]));
+            let t3 = norm3(cross3(u3, v3)).atan2(dot3(u3, v3));
+            let (u2, v2) = (sub2(q2[(k + 1) % 3], q2[k]), sub2(q2[(k + 2) % 3], q2[k]));
+            let t2 = (u2[0] * v2[1] - u2[1] * v2[0]).abs().atan2(u2[0] * v2[0] + u2[1] * v2[1]);
+            sum += (t3 - t2).abs();
+        }
+        out.angle_distortion[f] = sum / 3.0;
+    }
+    Ok(out)
+}
+
+fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn sub2(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+fn norm3(a: [f64; 3]) -> f64 {
+    dot3(a, a).sqrt()
+}
+
+/// Summary statistics of per-face distortions; `face_areas` (#F, 3D) weigh the flipped area.
+pub fn summarize(d: &FaceDistortions, face_areas: &[f64]) -> QualitySummary {
+    let total: f64 = face_areas.iter().sum();
+    let bad: f64 = d.orientation.iter().zip(face_areas).filter(|(o, _)| **o <= 0).map(|(_, a)| a).sum();
+    let deg: Vec<f64> = d.angle_distortion.iter().map(|x| x.to_degrees()).collect();
+    QualitySummary {
+        area_distortion: Stats::of(&d.area_distortion),
+        quasi_conformal_distortion: Stats::of(&d.quasi_conformal_distortion),
+        angle_distortion_deg: Stats::of(&deg),
+        num_flipped: d.orientation.iter().filter(|&&o| o < 0).count(),
+        num_degenerate: d.orientation.iter().filter(|&&o| o == 0).count(),
+        flipped_area_fraction: if total > 0.0 { bad / total } else { 0.0 },
+    }
+}
+
+/// Per-face distortions and their summary for the map `uv` of `mesh`.
+pub fn evaluate(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<(FaceDistortions, QualitySummary), ConformalError> {
+    let d = face_distortions(mesh, uv)?;
+    let s = summarize(&d, &shapespace_geometry::quantities::face_areas(mesh));
+    Ok((d, s))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(p: [[f64; 3]; 3]) -> TriMesh {
+        TriMesh::new(p.to_vec(), vec![[0, 1, 2]]).unwrap()
+    }
+
+    #[test]
+    fn similarity_is_conformal_and_scaled_map_has_known_area_distortion() {
+        // right triangle of area 0.5, scaled to area π: s² = 2π
+        let m = tri([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]);
+        // image: rotated by 30° and scaled by 3 → area ratio 9/(2π)
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let uv = vec![[0.0, 0.0], [3.0 * c, 3.0 * s], [-3.0 * s, 3.0 * c]];
+        let d = face_distortions(&m, &uv).unwrap();
+        assert!(d.quasi_conformal_distortion[0].abs() < 1e-14);
+        assert!((d.area_distortion[0] - (9.0 / (2.0 * std::f64::consts::PI)).ln()).abs() < 1e-14);
+        assert!(d.angle_distortion[0] < 1e-14);
+        assert_eq!(d.orientation[0], 1);
+    }
+
+    #[test]
+    fn stretch_has_log_ratio_and_mirror_is_flipped() {
+        let m = tri([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let uv = vec![[0.0, 0.0], [4.0, 0.0], [0.0, 1.0]];
+        let d = face_distortions(&m, &uv).unwrap();
+        assert!((d.quasi_conformal_distortion[0] - 4f64.ln()).abs() < 1e-14);
+        let uv = vec![[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]];
+        let d = face_distortions(&m, &uv).unwrap();
+        assert_eq!(d.orientation[0], -1);
+        let s = summarize(&d, &[0.5]);
+        assert_eq!(s.num_flipped, 1);
+        assert_eq!(s.flipped_area_fraction, 1.0);
+    }
+
+    #[test]
+    fn tiny_image_keeps_relative_precision() {
+        let m = tri([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let t = 1e-160;
+        let off = [3e-158, 1e-158];
+        let uv = vec![off, [off[0] + t, off[1]], [off[0], off[1] + t]];
+        let d = face_distortions(&m, &uv).unwrap();
+        // Υ = ln(t²·0.5 / (0.5·2π)) = 2 ln t − ln 2π
+        let expect = 2.0 * t.ln() - (2.0 * std::f64::consts::PI).ln();
+        assert!((d.area_distortion[0] - expect).abs() < 1e-10, "{} vs {expect}", d.area_distortion[0]);
+        assert!(d.quasi_conformal_distortion[0].abs() < 1e-10);
+    }
+
+    #[test]
+    fn stats_nearest_rank() {
+        let v: Vec<f64> = (0..101).map(|i| i as f64).collect();
+        let s = Stats::of(&v);
+        assert_eq!((s.mean, s.median, s.p95, s.max, s.min), (50.0, 50.0, 95.0, 100.0, 0.0));
+    }
+}
