@@ -198,7 +198,7 @@ fn invalid_input_is_rejected() {
 fn iteration_cap_is_reported() {
     let measure = disk_measure(8, &|x| if x[0] > 0.0 { 100.0 } else { 1.0 });
     let points = sunflower(300, 1.0);
-    let params = NewtonParams { max_iterations: 1, ..Default::default() };
+    let params = NewtonParams { max_iterations: 1, density_continuation: None, ..Default::default() };
     let sol = solve_ot(&measure, &points, &vec![1.0; 300], &params).unwrap();
     assert_eq!(sol.stop, StopReason::IterationCap);
     assert_eq!(sol.iterations, 1);

@@ -24,6 +24,12 @@
 //!   $h_i = -|z_i|^2/(2s)$ (the common term $(1-s)\langle x, c\rangle$ drops out); $s$ is halved from
 //!   1 until every cell has positive mass (for $s$ small all $z_i$ lie inside Ω, whose cells then
 //!   contain a disk around $z_i$). Thus ε₀ is always positive and the KMT guarantee applies.
+//! - **Density continuation.** With a strong density contrast the Newton model of the Voronoi
+//!   start is far off (cells are pushed into regions 100× denser than their edges say) and KMT
+//!   accepts only τ ≈ 2^−10 for tens of steps. When max ρ / min ρ exceeds `density_continuation`
+//!   (default 10), the solver first solves for ρ^t, t = 1/K, …, (K−1)/K (tolerance max(tol, 1e-3)),
+//!   each stage warm-starting the next; the last stage is the real problem with the KMT rule and
+//!   its own ε₀. Iterations and logs of all stages are reported together.
 //! - **Pinning.** The unknown with the largest target mass (first one on ties) is pinned for the
 //!   whole solve (step 0), so the sparsity pattern only changes when neighbours change.
 //! - **Stops.** `Converged` when $\max_i |G_i|/\nu_i \le$ `tolerance`; `IterationCap`; `Stalled` when
@@ -39,6 +45,8 @@ use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 use crate::linear::{LinearSolver, NewtonSystem};
 use crate::measure::SourceMeasure;
+use crate::power_diagram::PowerDiagram;
+use crate::restricted::RestrictedIntegrator;
 
 pub use multiscale::nearest_points;
 
@@ -59,7 +67,7 @@ pub struct NewtonParams {
     pub tolerance: f64,
     /// Maximum number of Newton steps (default 100).
     pub max_iterations: usize,
-    /// Maximum number of step halvings in one line search before `Stalled` (default 40).
+    /// The line search gives up (`Stalled`) below τ = 2^−max_halvings (default 60).
     pub max_halvings: usize,
     /// Linear solver of the Newton system (default sparse Cholesky).
     pub linear_solver: LinearSolver,
@@ -69,6 +77,10 @@ pub struct NewtonParams {
     pub coarse_to_fine: bool,
     /// Cell integrator (default `Restricted`).
     pub integrator: CellIntegrator,
+    /// Density continuation: when the source's density ratio max/min exceeds this value r
+    /// (default 10) and no warm start is given, solve first for the densities ρ^t, t = 1/K, …,
+    /// (K−1)/K with K = ⌈ln(max/min)/ln r⌉, each warm-starting the next. `None` disables it.
+    pub density_continuation: Option<f64>,
 }
 
 impl Default for NewtonParams {
@@ -76,11 +88,12 @@ impl Default for NewtonParams {
         NewtonParams {
             tolerance: 1e-6,
             max_iterations: 100,
-            max_halvings: 40,
+            max_halvings: 60,
             linear_solver: LinearSolver::Cholesky,
             initial_heights: None,
             coarse_to_fine: false,
             integrator: CellIntegrator::Restricted,
+            density_continuation: Some(10.0),
         }
     }
 }
@@ -118,6 +131,9 @@ pub enum Start {
     /// The Voronoi diagram of the points contracted by `scale` toward the barycenter of Ω (used
     /// when the other start had an empty cell).
     Contracted { scale: f64 },
+    /// Warm start from a density continuation of `stages` stages (the last is the problem
+    /// itself) that took `iterations` Newton steps before the last stage.
+    DensityContinuation { stages: usize, iterations: usize },
 }
 
 /// One Newton step.
@@ -230,37 +246,49 @@ pub(crate) struct Evaluation {
     pub t_integration: f64,
 }
 
-/// Integrates the cells of heights `heights` with the chosen integrator.
+/// Integrates the cells of heights `heights` (#N) with the chosen integrator.
 pub fn integrate_at_heights(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
     heights: &[f64],
     integrator: CellIntegrator,
 ) -> Result<CellIntegrals, OmtError> {
-    evaluate(measure, points, heights, integrator).map(|e| e.cells)
+    evaluate(&Backend::new(measure, integrator), points, heights).map(|e| e.cells)
 }
 
-pub(crate) fn evaluate(
-    measure: &SourceMeasure,
-    points: &[[f64; 2]],
-    heights: &[f64],
-    integrator: CellIntegrator,
-) -> Result<Evaluation, OmtError> {
+/// The cell integrator with its per-measure precomputation.
+pub(crate) enum Backend<'a> {
+    Restricted(RestrictedIntegrator),
+    BruteForce(&'a SourceMeasure),
+}
+
+impl<'a> Backend<'a> {
+    pub(crate) fn new(measure: &'a SourceMeasure, integrator: CellIntegrator) -> Self {
+        match integrator {
+            CellIntegrator::Restricted => Backend::Restricted(RestrictedIntegrator::new(measure)),
+            CellIntegrator::BruteForce => Backend::BruteForce(measure),
+        }
+    }
+}
+
+pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f64]) -> Result<Evaluation, OmtError> {
     let weights = weights_from_heights(points, heights);
     if let Some(i) = weights.iter().position(|w| !w.is_finite()) {
         return Err(OmtError::InvalidInput(format!("height {i} is not finite ({})", heights[i])));
     }
-    match integrator {
-        CellIntegrator::BruteForce => {
+    match backend {
+        Backend::BruteForce(measure) => {
             let t0 = Instant::now();
             let cells = crate::reference::integrate_cells_bruteforce(points, &weights, measure);
             Ok(Evaluation { cells, t_diagram: 0.0, t_integration: t0.elapsed().as_secs_f64() })
         }
-        CellIntegrator::Restricted => {
-            // TEMP until restricted.rs lands: brute force.
+        Backend::Restricted(integrator) => {
             let t0 = Instant::now();
-            let cells = crate::reference::integrate_cells_bruteforce(points, &weights, measure);
-            Ok(Evaluation { cells, t_diagram: 0.0, t_integration: t0.elapsed().as_secs_f64() })
+            let diagram = PowerDiagram::new(points, &weights)?;
+            let t_diagram = t0.elapsed().as_secs_f64();
+            let t1 = Instant::now();
+            let cells = integrator.integrate(&diagram);
+            Ok(Evaluation { cells, t_diagram, t_integration: t1.elapsed().as_secs_f64() })
         }
     }
 }
@@ -353,6 +381,59 @@ pub fn solve_ot(
 ) -> Result<OtSolution, OmtError> {
     let t_begin = Instant::now();
     validate(measure, points, masses, params)?;
+    let (lo, hi) = measure.densities.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    let contrast = hi / lo;
+    let stages = match params.density_continuation {
+        Some(ratio) if ratio > 1.0 && contrast > ratio && params.initial_heights.is_none() => {
+            (contrast.ln() / ratio.ln()).ceil() as usize
+        }
+        _ => 1,
+    };
+    if stages == 1 {
+        return solve_single(measure, points, masses, params, t_begin);
+    }
+    // Density continuation: ρ_t = ρ^t for t = 1/K, 2/K, …, 1, each stage warm-started from the
+    // previous one; intermediate stages stop at max(tolerance, 1e-3).
+    let mut heights: Option<Vec<f64>> = None;
+    let mut log = Vec::new();
+    let mut iterations = 0;
+    for k in 1..stages {
+        let t = k as f64 / stages as f64;
+        let stage_measure = SourceMeasure {
+            vertices: measure.vertices.clone(),
+            triangles: measure.triangles.clone(),
+            densities: measure.densities.iter().map(|d| d.powf(t)).collect(),
+        };
+        let stage_params = NewtonParams {
+            tolerance: params.tolerance.max(1e-3),
+            initial_heights: heights.take(),
+            coarse_to_fine: params.coarse_to_fine && k == 1,
+            density_continuation: None,
+            ..params.clone()
+        };
+        let stage = solve_single(&stage_measure, points, masses, &stage_params, Instant::now())?;
+        iterations += stage.iterations;
+        log.extend(stage.log);
+        heights = Some(stage.heights);
+    }
+    let final_params = NewtonParams { initial_heights: heights, density_continuation: None, ..params.clone() };
+    let mut solution = solve_single(measure, points, masses, &final_params, Instant::now())?;
+    solution.start = Start::DensityContinuation { stages, iterations };
+    solution.iterations += iterations;
+    log.append(&mut solution.log);
+    solution.log = log;
+    solution.t_total = t_begin.elapsed().as_secs_f64();
+    Ok(solution)
+}
+
+/// One damped Newton solve (no density continuation).
+fn solve_single(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    params: &NewtonParams,
+    t_begin: Instant,
+) -> Result<OtSolution, OmtError> {
     let n = points.len();
     let total = measure.total_mass();
     let mass_scale = total / masses.iter().sum::<f64>();
@@ -371,14 +452,15 @@ pub fn solve_ot(
         }
     }
     let mut heights = heights.unwrap_or_else(|| points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect());
-    let mut current = evaluate(measure, points, &heights, params.integrator)?;
+    let backend = Backend::new(measure, params.integrator);
+    let mut current = evaluate(&backend, points, &heights)?;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = source_barycenter(measure);
         let mut scale = 1.0;
         loop {
             scale *= 0.5;
             heights = contracted_voronoi_heights(points, center, scale);
-            current = evaluate(measure, points, &heights, params.integrator)?;
+            current = evaluate(&backend, points, &heights)?;
             if current.cells.masses.iter().all(|&m| m > 0.0) {
                 break;
             }
@@ -402,6 +484,7 @@ pub fn solve_ot(
     let mut log = Vec::new();
     let stop;
     let mut iterations = 0;
+    let mut tau_start = 1.0;
     loop {
         if !(max_rel.is_finite() && norm.is_finite()) {
             stop = StopReason::Stalled { reason: "non-finite cell masses".into() };
@@ -423,7 +506,7 @@ pub fn solve_ot(
             break;
         }
         let outcome = line_search::damped_step(
-            measure,
+            &backend,
             points,
             &targets,
             &heights,
@@ -431,7 +514,7 @@ pub fn solve_ot(
             norm,
             epsilon0,
             params.max_halvings,
-            params.integrator,
+            tau_start,
         )?;
         iterations += 1;
         let mut record = IterationRecord {
@@ -450,6 +533,7 @@ pub fn solve_ot(
                 current = step.evaluation;
                 (max_rel, norm, gradient) = errors(&current.cells, &targets);
                 record.step = step.tau;
+                tau_start = (4.0 * step.tau).min(1.0);
                 record.max_relative_error = max_rel;
                 record.gradient_norm = norm;
                 record.min_cell_mass = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
@@ -459,8 +543,8 @@ pub fn solve_ot(
                 log.push(record);
                 stop = StopReason::Stalled {
                     reason: format!(
-                        "no step satisfied the damping conditions after {} halvings (max relative mass error {max_rel:e})",
-                        outcome.halvings
+                        "no step τ ≥ 2^-{} satisfied the damping conditions (max relative mass error {max_rel:e})",
+                        params.max_halvings
                     ),
                 };
                 break;
