@@ -26,7 +26,10 @@
 //! power-of-two-rescaled edge vectors), so densities up to ~1e300 are exact to roundoff.
 //! Past that (|φ| below ~1e-150 for a face, a protrusion of height ≳ 55 radii) a density or
 //! coordinate would not be representable in f64 and [`ConformalError::OutOfRange`] is
-//! returned, never garbage.
+//! returned, never garbage. Protrusions attached along the boundary (a flat alligator's tail)
+//! crowd instead towards the circle, 1 − |φ| ≈ 2πu → 0; since f64 resolves only ~1.1e-16 near
+//! |z| = 1, an interior vertex with 1 − |φ| < [`CROWDING_LIMIT`] = 1e-10 is an `OutOfRange`
+//! error too (its image triangles would keep at most 6 significant digits and fold).
 
 use std::time::Instant;
 
@@ -39,6 +42,9 @@ use crate::intrinsic::IntrinsicTriangulation;
 use crate::markers::{resolve_markers, Markers, ResolvedCenter, ResolvedMarkers};
 use crate::mobius::Mobius;
 use crate::quality::{face_distortions, summarize, QualitySummary};
+
+/// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit).
+pub const CROWDING_LIMIT: f64 = 1e-10;
 
 /// Parameters of [`disk_map`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -246,6 +252,22 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                 what: "image radius",
                 element: format!("vertex {v}"),
                 log10_value: x / std::f64::consts::LN_10,
+            });
+        }
+    }
+    // boundary crowding: an interior vertex within 1e-10 of the circle has a local image
+    // shape with at most ~6 significant digits (absolute spacing of f64 near 1 is 1.1e-16)
+    if let Some((v, &x)) = a
+        .iter()
+        .enumerate()
+        .filter(|(v, _)| !tri.is_boundary[*v] && *v as u32 != pole)
+        .max_by(|p, q| p.1.total_cmp(q.1))
+    {
+        if -x < CROWDING_LIMIT {
+            return Err(ConformalError::OutOfRange {
+                what: "distance of the image to the boundary circle (crowding of a protrusion along the boundary)",
+                element: format!("vertex {v}"),
+                log10_value: (-x).log10(),
             });
         }
     }
