@@ -380,7 +380,7 @@ pub fn cut_disk(mesh: &TriMesh, center: u32, radius: Radius) -> Result<(TriMesh,
         }
     }
     let (out, map) = compact_vertices(mesh, faces, &keep);
-    let class = topology::classify(&out);
+    let class = topology::classify(&out)?;
     if class.class != MeshClass::Disk {
         return Err(GeometryError::Topology(format!(
             "removing the ball around vertex {center} leaves a non-disk ({}); try another radius or centre",

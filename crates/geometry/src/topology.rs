@@ -20,6 +20,10 @@
 //!   direction (a consistently oriented surface uses every interior edge once in each direction).
 //! - **degenerate face**: a repeated vertex index, or zero area (exact zero of |(b−a)×(c−a)|).
 //! - **duplicate vertices**: vertices with bitwise equal positions (−0.0 = 0.0), found by hashing.
+//!
+//! The building blocks (`face_components`, `non_manifold_vertices`, ...) expect a valid mesh
+//! (indices in range, as from the readers or [`TriMesh::new`]) and the [`Connectivity`] of that
+//! mesh; [`mesh_report`], [`classify`] and [`require_disk`] validate first.
 
 use std::collections::HashMap;
 
@@ -372,9 +376,10 @@ fn first<T: Clone>(v: &[T]) -> Vec<T> {
     v.iter().take(MAX_LISTED).cloned().collect()
 }
 
-/// Computes the full [`MeshReport`] of a mesh: O(V + F log F). The mesh is assumed valid
-/// (indices in range, see [`TriMesh::validate`]).
-pub fn mesh_report(mesh: &TriMesh) -> MeshReport {
+/// Computes the full [`MeshReport`] of a mesh in O(V + F log F). Errors only on an invalid
+/// mesh (index out of range or non-finite coordinate, [`TriMesh::validate`]).
+pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
+    mesh.validate()?;
     let conn = Connectivity::of(mesh);
     let nf = mesh.num_faces();
     let referenced = referenced_vertices(mesh);
@@ -486,7 +491,7 @@ pub fn mesh_report(mesh: &TriMesh) -> MeshReport {
         classification: Classification { class: MeshClass::Other, reasons: Vec::new() },
     };
     report.classification = classify_report(&report);
-    report
+    Ok(report)
 }
 
 fn plural(n: usize, one: &str, many: &str) -> String {
@@ -565,16 +570,17 @@ pub fn classify_report(r: &MeshReport) -> Classification {
 /// loop, χ = 1. Sphere: 1 component, manifold, consistently oriented, closed, χ = 2.
 /// Unreferenced vertices, duplicate positions and degenerate faces do not change the class
 /// (they are in the [`MeshReport`]; [`require_disk`] rejects the first and last).
-pub fn classify(mesh: &TriMesh) -> Classification {
-    mesh_report(mesh).classification
+///
+/// Errors only on an invalid mesh ([`TriMesh::validate`]).
+pub fn classify(mesh: &TriMesh) -> Result<Classification, GeometryError> {
+    Ok(mesh_report(mesh)?.classification)
 }
 
 /// Checks that a mesh is ready for a disk conformal map: a topological disk ([`classify`])
 /// without unreferenced vertices and without degenerate faces. The error says what is wrong and
 /// which `prepare` operation fixes it.
 pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
-    mesh.validate()?;
-    let r = mesh_report(mesh);
+    let r = mesh_report(mesh)?;
     let mut problems: Vec<String> = Vec::new();
     if r.num_faces == 0 {
         return Err(GeometryError::Topology("the mesh has no faces".into()));
@@ -686,7 +692,7 @@ mod tests {
 
     #[test]
     fn tetrahedron_is_sphere() {
-        let r = mesh_report(&tetra());
+        let r = mesh_report(&tetra()).unwrap();
         assert_eq!((r.num_edges, r.euler_characteristic, r.num_boundary_loops), (6, 2, 0));
         assert_eq!(r.classification.class, MeshClass::Sphere);
         assert!(r.closed && r.manifold && r.consistently_oriented);
@@ -698,7 +704,7 @@ mod tests {
     fn tetrahedron_minus_face_is_disk() {
         let mut m = tetra();
         m.faces.pop();
-        let r = mesh_report(&m);
+        let r = mesh_report(&m).unwrap();
         assert_eq!(r.classification.class, MeshClass::Disk, "{:?}", r.classification);
         assert_eq!(r.boundary_loop_lengths, vec![3]);
         require_disk(&m).unwrap();
@@ -709,7 +715,7 @@ mod tests {
         let mut m = tetra();
         m.positions.push([1.0, 0.0, 0.0]);
         m.positions.push([-0.0, 0.0, 0.0]);
-        let r = mesh_report(&m);
+        let r = mesh_report(&m).unwrap();
         assert_eq!(r.first_duplicate_vertices, vec![[1, 4], [0, 5]]);
         assert_eq!(r.first_unreferenced_vertices, vec![4, 5]);
         assert_eq!(r.classification.class, MeshClass::Sphere);

@@ -81,7 +81,10 @@ fn datasets_agree_with_stats_json() {
                 Ok(m) => m,
                 Err(e) => return vec![format!("{file}: cannot be read: {e}")],
             };
-            let r = mesh_report(&mesh);
+            let r = match mesh_report(&mesh) {
+                Ok(r) => r,
+                Err(e) => return vec![format!("{file}: invalid mesh: {e}")],
+            };
             let mut check = |what: &str, got: String, expected: String| {
                 if got != expected {
                     p.push(format!("{file}: {what} = {got}, stats.json says {expected}"));

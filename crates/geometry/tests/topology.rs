@@ -84,7 +84,7 @@ fn square_annulus(n: usize, k: usize) -> TriMesh {
 fn icospheres_are_spheres() {
     for s in 2..=5 {
         let m = icosphere(s);
-        let r = mesh_report(&m);
+        let r = mesh_report(&m).unwrap();
         let p = 4usize.pow(s as u32);
         assert_eq!((r.num_vertices, r.num_edges, r.num_faces), (10 * p + 2, 30 * p, 20 * p));
         assert_eq!(r.euler_characteristic, 2);
@@ -102,7 +102,7 @@ fn icospheres_are_spheres() {
 #[test]
 fn torus_has_genus_one() {
     let m = torus(2.0, 0.7, 24, 12);
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert_eq!(r.euler_characteristic, 0);
     assert_eq!(r.genus, 1.0);
     assert_eq!(r.components[0].genus, 1.0);
@@ -116,7 +116,7 @@ fn torus_has_genus_one() {
 #[test]
 fn mobius_strip_is_not_orientable() {
     let m = mobius(20);
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert!(!r.orientable);
     assert!(!r.consistently_oriented);
     // V − E + F = 40 − 80 + 40. (Its single boundary curve is not a directed loop: the
@@ -137,7 +137,7 @@ fn bowtie_has_a_non_manifold_vertex() {
         vec![[0, 1, 2], [2, 4, 3]],
     )
     .unwrap();
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert_eq!(r.num_non_manifold_vertices, 1);
     assert_eq!(r.first_non_manifold_vertices, vec![2]);
     assert_eq!(r.num_non_manifold_edges, 0);
@@ -152,7 +152,7 @@ fn bowtie_has_a_non_manifold_vertex() {
     let (one, map) = prepare::keep_largest_component(&m).unwrap();
     assert_eq!(one.faces, vec![[0, 1, 2]]);
     assert_eq!(map, vec![Some(0), Some(1), Some(2), None, None]);
-    assert_eq!(classify(&one).class, MeshClass::Disk);
+    assert_eq!(classify(&one).unwrap().class, MeshClass::Disk);
 }
 
 #[test]
@@ -162,7 +162,7 @@ fn three_faces_on_one_edge() {
         vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
     )
     .unwrap();
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert_eq!(r.num_non_manifold_edges, 1);
     assert_eq!(r.first_non_manifold_edges, vec![[0, 1]]);
     // the edge's endpoints have three separate fans each
@@ -185,7 +185,7 @@ fn flipped_face_is_found_and_fixed() {
     for e in [[a, b], [b, c], [c, a]] {
         assert!(bad.contains(&[e[0].min(e[1]), e[0].max(e[1])]));
     }
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert!(!r.consistently_oriented && r.orientable);
     assert_eq!(r.num_inconsistent_edges, 3);
     assert_eq!(r.classification.class, MeshClass::Other);
@@ -193,7 +193,7 @@ fn flipped_face_is_found_and_fixed() {
 
     let (fixed, info) = prepare::reorient(&m).unwrap();
     assert_eq!(fixed.positions, m.positions);
-    assert_eq!(classify(&fixed).class, MeshClass::Sphere);
+    assert_eq!(classify(&fixed).unwrap().class, MeshClass::Sphere);
     // the BFS keeps face 0's orientation, which is outward: only face 17 flips, no global turn
     assert_eq!(info.faces_flipped_for_consistency, 1);
     assert_eq!(info.closed_components_turned_outward, 0);
@@ -226,7 +226,7 @@ fn flipped_face_is_found_and_fixed() {
 fn filling_the_square_annulus_gives_a_disk() {
     let m = square_annulus(8, 2);
     assert_eq!(m.num_vertices(), 81 - 1);
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert_eq!((r.num_boundary_loops, r.euler_characteristic), (2, 0));
     // the outer loop has 32 vertices, the inner 8
     assert_eq!(r.boundary_loop_lengths, vec![32, 8]);
@@ -247,7 +247,7 @@ fn filling_the_square_annulus_gives_a_disk() {
     assert!((total_area(&filled) - 1.0).abs() < 1e-14);
     // oriented like the rest: all normals +z
     assert!(face_normals(&filled).iter().all(|n| n[2] == 1.0));
-    let r = mesh_report(&filled);
+    let r = mesh_report(&filled).unwrap();
     assert_eq!(r.classification.class, MeshClass::Disk, "{:?}", r.classification);
     require_disk(&filled).unwrap();
 
@@ -255,7 +255,7 @@ fn filling_the_square_annulus_gives_a_disk() {
     let conn = Connectivity::of(&m);
     let loops = conn.boundary_loops(&m.faces);
     let one = prepare::fill_hole(&m, &loops[1]).unwrap();
-    assert_eq!(classify(&one).class, MeshClass::Disk);
+    assert_eq!(classify(&one).unwrap().class, MeshClass::Disk);
     let mut reversed = loops[1].clone();
     reversed.reverse();
     // the same triangles (in reverse order): orientation comes from the adjacent faces
@@ -272,7 +272,7 @@ fn cut_disk_on_icosphere() {
     let m = icosphere(3);
     for radius in [Radius::Rings(1), Radius::Rings(3), Radius::Geodesic(0.2), Radius::Geodesic(1.0)] {
         let (disk, map) = prepare::cut_disk(&m, 5, radius).unwrap();
-        let r = mesh_report(&disk);
+        let r = mesh_report(&disk).unwrap();
         assert_eq!(r.classification.class, MeshClass::Disk, "{radius:?}: {:?}", r.classification);
         require_disk(&disk).unwrap();
         assert!(map[5].is_none());
@@ -349,7 +349,7 @@ fn unreferenced_duplicate_and_degenerate_elements() {
     m.positions.push([5.0, 5.0, 5.0]); // unreferenced, index n
     m.positions.push(m.positions[3]); // duplicate of 3, unreferenced, index n + 1
     m.faces.push([0, 0, 1]); // repeated index
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert_eq!(r.num_unreferenced_vertices, 2);
     assert_eq!(r.first_unreferenced_vertices, vec![n, n + 1]);
     assert_eq!(r.first_duplicate_vertices, vec![[3, n + 1]]);
@@ -371,7 +371,7 @@ fn unreferenced_duplicate_and_degenerate_elements() {
         vec![[0, 1, 3], [1, 2, 3], [0, 2, 1]],
     )
     .unwrap();
-    assert_eq!(mesh_report(&collinear).first_degenerate_faces, vec![2]);
+    assert_eq!(mesh_report(&collinear).unwrap().first_degenerate_faces, vec![2]);
 }
 
 #[test]
@@ -383,7 +383,7 @@ fn several_components() {
     let off = m.num_vertices() as u32;
     m.positions.extend(s.positions.iter().map(|p| [p[0] + 10.0, p[1], p[2]]));
     m.faces.extend(s.faces.iter().map(|f| f.map(|v| v + off)));
-    let r = mesh_report(&m);
+    let r = mesh_report(&m).unwrap();
     assert_eq!(r.num_components, 2);
     assert_eq!(r.euler_characteristic, 3);
     assert_eq!(r.components[0].faces, s.num_faces());
@@ -395,14 +395,35 @@ fn several_components() {
     let (largest, map) = prepare::keep_largest_component(&m).unwrap();
     assert_eq!(largest.faces, s.faces);
     assert!(map[..off as usize].iter().all(|x| x.is_none()));
-    assert_eq!(classify(&largest).class, MeshClass::Sphere);
+    assert_eq!(classify(&largest).unwrap().class, MeshClass::Sphere);
 }
 
 #[test]
 fn report_serializes_to_json() {
-    let r = mesh_report(&unit_disk(2));
+    let r = mesh_report(&unit_disk(2)).unwrap();
     let json = serde_json::to_value(&r).unwrap();
     assert_eq!(json["classification"]["class"], "disk");
     assert_eq!(json["euler_characteristic"], 1);
     assert_eq!(json["num_faces"], 24);
+}
+
+#[test]
+fn invalid_meshes_are_errors_not_panics() {
+    let bad = TriMesh { positions: vec![[0.0; 3]; 3], faces: vec![[0, 1, 7]], uvs: None };
+    assert!(mesh_report(&bad).is_err());
+    assert!(classify(&bad).is_err());
+    assert!(require_disk(&bad).is_err());
+    assert!(prepare::reorient(&bad).is_err());
+    assert!(prepare::keep_largest_component(&bad).is_err());
+    assert!(prepare::drop_unreferenced_vertices(&bad).is_err());
+    assert!(prepare::fill_holes_except_longest(&bad).is_err());
+    assert!(prepare::scale_to_area(&bad, 1.0).is_err());
+    let nan = TriMesh { positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [f64::NAN, 1.0, 0.0]], faces: vec![[0, 1, 2]], uvs: None };
+    assert!(mesh_report(&nan).is_err());
+    // an empty mesh is a valid mesh with no class
+    let empty = TriMesh::default();
+    let r = mesh_report(&empty).unwrap();
+    assert_eq!((r.num_vertices, r.num_faces, r.euler_characteristic), (0, 0, 0));
+    assert_eq!(r.classification.class, MeshClass::Other);
+    assert!(require_disk(&empty).is_err());
 }

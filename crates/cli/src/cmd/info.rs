@@ -117,7 +117,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         .files
         .par_iter()
         .map(|path| {
-            let report = read_mesh(path).map(|mesh| mesh_report(&mesh)).map_err(|e| describe_error(path, &e));
+            let report = read_mesh(path).and_then(|mesh| mesh_report(&mesh)).map_err(|e| describe_error(path, &e));
             (path.clone(), report)
         })
         .collect();
