@@ -505,31 +505,43 @@ impl PowerDiagram {
             builder.insert(q);
         }
         let Builder { tv, tn, hidden, vertex_triangle, .. } = builder;
-        // Neighbours: rotate counter-clockwise around every visible vertex.
-        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for v in 0..n {
-            if hidden[v] {
+        // Neighbours: rotate counter-clockwise around every visible vertex, in insertion
+        // (spatially coherent) order for memory locality, then scatter into CSR by index.
+        let mut rings: Vec<u32> = Vec::with_capacity(6 * n);
+        let mut ring_range = vec![(0u32, 0u32); n];
+        for &v in order {
+            if hidden[v as usize] {
                 continue;
             }
-            let start = vertex_triangle[v];
+            let start = vertex_triangle[v as usize];
+            let first = rings.len();
             let mut t = start;
-            let ring = &mut lists[v];
             loop {
                 let tri = tv[t as usize];
-                let k = tri.iter().position(|&u| u == v as u32).unwrap_or(0);
-                ring.push(tri[(k + 1) % 3]);
+                let k = if tri[0] == v { 0 } else if tri[1] == v { 1 } else { 2 };
+                rings.push(tri[(k + 1) % 3]);
                 t = tn[t as usize][(k + 1) % 3];
-                if t == start || ring.len() > n + 1 {
+                if t == start || rings.len() - first > n + 1 {
                     break;
                 }
             }
+            let ring = &mut rings[first..];
             if let Some(pos) = ring.iter().position(|&u| u == inf) {
                 ring.rotate_left(pos + 1);
-                ring.pop();
+                rings.pop();
             }
+            ring_range[v as usize] = (first as u32, rings.len() as u32);
+        }
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut flat: Vec<u32> = Vec::with_capacity(rings.len());
+        offsets.push(0u32);
+        for &(a, b) in &ring_range {
+            flat.extend_from_slice(&rings[a as usize..b as usize]);
+            offsets.push(flat.len() as u32);
         }
         self.hidden = hidden;
-        self.set_neighbors(lists);
+        self.neighbor_offsets = offsets;
+        self.neighbor_list = flat;
         self.start_site = (0..n as u32).find(|&v| !self.hidden[v as usize]).unwrap_or(0);
         self.triangle_vertices = tv;
         self.triangle_neighbors = tn;

@@ -290,7 +290,7 @@ impl RestrictedIntegrator {
             let j = list[slot as usize];
             if (i as u32) < j {
                 let (p, q) = (s.a.vertices[k], s.a.vertices[(k + 1) % m]);
-                let length = (q[0] - p[0]).hypot(q[1] - p[1]);
+                let length = ((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1])).sqrt();
                 out.edges.push((slot, density * length));
             }
             if push && s.visited[j as usize] != s.stamp {
