@@ -13,7 +13,8 @@
 //!    and θ such that q ↦ 1. When p is a vertex a = 0 exactly (p is the pole); when p lies
 //!    inside a face the pole is the face corner with the largest barycentric weight (an
 //!    interior one) and a is the barycentric interpolation of the corner images;
-//! 4. the pushed-forward densities μ_f = area₃(f)/area₂(φ(f)) (surface scaled to area π) and
+//! 4. a local repair of the rare folded original faces (slivers; [`crate::repair`]);
+//! 5. the pushed-forward densities μ_f = area₃(f)/area₂(φ(f)) (surface scaled to area π) and
 //!    per-vertex conformal factors e^{2λ_i} = Σ_{f∋i} area₃ / Σ_{f∋i} area₂, evaluated on the
 //!    ORIGINAL faces (the intrinsic triangulation shares the vertex set).
 //!
@@ -42,6 +43,7 @@ use crate::intrinsic::IntrinsicTriangulation;
 use crate::markers::{resolve_markers, Markers, ResolvedCenter, ResolvedMarkers};
 use crate::mobius::Mobius;
 use crate::quality::{face_distortions, summarize, QualitySummary};
+use crate::repair::repair_folds;
 
 /// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit).
 pub const CROWDING_LIMIT: f64 = 1e-10;
@@ -53,11 +55,14 @@ pub struct DiskMapParams {
     /// off gives the plain cotangent Laplacian of the input triangles (for comparisons only:
     /// it folds images of badly shaped meshes).
     pub intrinsic_delaunay: bool,
+    /// Repair the few folded original faces by moving one free corner each into the kernel of
+    /// its image one-ring ([`crate::repair`]; default true). Without it a fold is an error.
+    pub repair_folds: bool,
 }
 
 impl Default for DiskMapParams {
     fn default() -> Self {
-        DiskMapParams { intrinsic_delaunay: true }
+        DiskMapParams { intrinsic_delaunay: true, repair_folds: true }
     }
 }
 
@@ -89,6 +94,8 @@ pub struct DiskMapInfo {
     pub negative_weights_before: usize,
     /// Same after the intrinsic Delaunay flips (0 unless the flips were disabled).
     pub negative_weights_after: usize,
+    /// Vertices moved by the fold repair (0 when the raw map has no fold).
+    pub fold_repairs: usize,
     /// Number of sparse linear solves (2).
     pub linear_solves: usize,
     /// Stage timings.
@@ -305,6 +312,27 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         uv[v as usize] = [0.0, 0.0];
     }
 
+    // fold repair on the original faces (crate::repair)
+    let mut fold_repairs = 0;
+    if params.repair_folds {
+        let mut vertex_faces = vec![Vec::new(); mesh.num_vertices()];
+        for (f, face) in mesh.faces.iter().enumerate() {
+            for &v in face {
+                vertex_faces[v as usize].push(f as u32);
+            }
+        }
+        let mut fixed = tri.is_boundary.clone();
+        fixed[pole as usize] = true;
+        if let ResolvedCenter::Face { face, .. } = resolved.center {
+            // the face containing p keeps its corners so that p still maps to 0
+            for &v in &mesh.faces[face as usize] {
+                fixed[v as usize] = true;
+            }
+        }
+        let angles = shapespace_geometry::quantities::corner_angles(mesh);
+        fold_repairs = repair_folds(&mesh.faces, &vertex_faces, &angles, &fixed, &mut uv);
+    }
+
     // densities and factors on the original faces
     let dist = face_distortions(mesh, &uv)?;
     let areas = shapespace_geometry::quantities::face_areas(mesh);
@@ -374,6 +402,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             intrinsic_flips: tri.num_flips,
             negative_weights_before,
             negative_weights_after,
+            fold_repairs,
             linear_solves: 2,
             timings: DiskMapTimings {
                 setup: secs(t0, t1),

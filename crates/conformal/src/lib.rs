@@ -22,6 +22,7 @@ mod linsolve;
 pub mod markers;
 pub mod mobius;
 pub mod quality;
+pub mod repair;
 
 pub use disk_map::{disk_map, DiskMap, DiskMapInfo, DiskMapParams};
 pub use error::ConformalError;

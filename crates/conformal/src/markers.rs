@@ -7,12 +7,13 @@
 //! Automatic rules (deterministic, invariant under rigid motions and uniform scaling up to
 //! floating-point ties):
 //! * interior: the vertex farthest from the boundary in graph-geodesic distance (Dijkstra on
-//!   3D edge lengths from all boundary vertices at once); ties → smallest index;
+//!   3D edge lengths from all boundary vertices at once); ties (relative 1e-9) → smallest index;
 //! * boundary: the boundary vertex farthest from the center in the same graph-geodesic
 //!   distance (from the center vertex, or from the corners of the center's face weighted by
-//!   their 3D distance to the point); ties → smallest index. On a perfectly symmetric surface
-//!   every boundary vertex ties and roundoff picks one: pass an explicit marker when the
-//!   rotation of the image matters.
+//!   their 3D distance to the point); ties (relative 1e-9) → smallest index. The tie tolerance
+//!   makes the choice immune to the roundoff of a rigid motion on symmetric surfaces; near-ties
+//!   just above it remain sensitive: pass an explicit marker when the rotation of the image
+//!   matters.
 
 use std::cmp::Ordering;
 use std::collections::{BTreeMap, BinaryHeap};
@@ -249,15 +250,24 @@ pub fn graph_distances(mesh: &TriMesh, neighbors: &[Vec<u32>], sources: &[(u32, 
     dist
 }
 
-/// Index of the largest finite value among the allowed entries; ties → smallest index.
+/// Relative tolerance under which two geodesic distances tie (so that roundoff from a rigid
+/// motion cannot change an automatic marker on a symmetric surface).
+pub const TIE_TOLERANCE: f64 = 1e-9;
+
+/// Smallest index whose finite value is within a relative [`TIE_TOLERANCE`] of the largest
+/// allowed value.
 fn argmax(values: &[f64], allowed: impl Fn(usize) -> bool) -> Option<usize> {
-    let mut best: Option<usize> = None;
-    for (i, &v) in values.iter().enumerate() {
-        if allowed(i) && v.is_finite() && best.is_none_or(|b| v > values[b]) {
-            best = Some(i);
-        }
+    let max = values
+        .iter()
+        .enumerate()
+        .filter(|(i, v)| allowed(*i) && v.is_finite())
+        .map(|(_, &v)| v)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !max.is_finite() {
+        return None;
     }
-    best
+    let threshold = max - TIE_TOLERANCE * max.abs();
+    values.iter().enumerate().position(|(i, &v)| allowed(i) && v.is_finite() && v >= threshold)
 }
 
 /// Closest point of triangle (a, b, c) to p, as barycentric coordinates

@@ -7,7 +7,7 @@
 //!    \Lambda = \ln\frac{\gamma_{max}}{\gamma_{min}} \;(\ge 0, = 0 \text{ iff conformal}). $$
 //! The angle distortion of a face is the mean over its corners of |θ_3D − θ_2D| (radians).
 //! Orientation uses the exact `orient_2d` predicate (geogram_predicates) on the image
-//! coordinates; image edge vectors are rescaled by a power of two before any product, so
+//! coordinates scaled by a power of two ([`orient_scaled`]); image edge vectors are rescaled by a power of two before any product, so
 //! triangles of size 1e-150 keep full relative precision.
 
 use geogram_predicates::{orient_2d, Sign};
@@ -15,6 +15,19 @@ use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
+
+/// Exact orientation of the image triangle (a, b, c): the points are first scaled by a common
+/// power of two (exact) so that the largest coordinate is about 1, because the adaptive exact
+/// predicate is only valid when its products do not underflow (coordinates ≲ 1e-150 would).
+pub fn orient_scaled(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Sign {
+    let m = [a, b, c].iter().flat_map(|p| p.iter()).fold(0.0f64, |acc, x| acc.max(x.abs()));
+    if !(m > 0.0) || !m.is_finite() {
+        return orient_2d(&a, &b, &c);
+    }
+    let s = 2f64.powi(-(m.log2().floor() as i32));
+    let sc = |p: [f64; 2]| [p[0] * s, p[1] * s];
+    orient_2d(&sc(a), &sc(b), &sc(c))
+}
 
 /// Per-face distortion values, each #F.
 #[derive(Clone, Debug, Serialize)]
@@ -128,7 +141,7 @@ pub fn face_distortions(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<FaceDistortio
         let y = twice_area / l1;
         let face = mesh.faces[f];
         let p = face.map(|v| uv[v as usize]);
-        out.orientation[f] = match orient_2d(&p[0], &p[1], &p[2]) {
+        out.orientation[f] = match orient_scaled(p[0], p[1], p[2]) {
             Sign::Positive => 1,
             Sign::Negative => -1,
             Sign::Zero => 0,
@@ -245,6 +258,7 @@ mod tests {
         let off = [3e-158, 1e-158];
         let uv = vec![off, [off[0] + t, off[1]], [off[0], off[1] + t]];
         let d = face_distortions(&m, &uv).unwrap();
+        assert_eq!(d.orientation[0], 1);
         // Υ = ln(t²·0.5 / (0.5·2π)) = 2 ln t − ln 2π
         let expect = 2.0 * t.ln() - (2.0 * std::f64::consts::PI).ln();
         assert!((d.area_distortion[0] - expect).abs() < 1e-10, "{} vs {expect}", d.area_distortion[0]);
