@@ -17,17 +17,23 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Conformal map of a disk-type mesh onto the unit disk (OBJ with vt, factors CSV, report JSON).
+    Conformal(cmd::conformal::ConformalArgs),
     /// Print mesh statistics (V, F, components, boundary loops, χ, genus, manifoldness, class).
     Info(cmd::info::InfoArgs),
     /// Classical MDS of a distance matrix: coordinates, eigenvalues, plots, 1-NN and silhouette statistics.
     Mds(cmd::mds::MdsArgs),
+    /// Semi-discrete optimal transport from a source density to weighted points (damped Newton).
+    Ot(cmd::ot::OtArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
+        Command::Conformal(args) => cmd::conformal::run(args),
         Command::Info(args) => cmd::info::run(args),
         Command::Mds(args) => cmd::mds::run(args),
+        Command::Ot(args) => cmd::ot::run(args),
     };
     match result {
         Ok(code) => code,

@@ -1,4 +1,6 @@
 //! One module per subcommand: its clap `Args` struct and a `run` that calls one library function.
 
+pub mod conformal;
 pub mod info;
 pub mod mds;
+pub mod ot;
