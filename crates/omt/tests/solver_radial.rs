@@ -30,6 +30,8 @@ fn check_convergence(name: &str, measured: &[(usize, f64, usize)], exact: f64) {
     for k in 1..errors.len() {
         assert!(errors[k] < errors[k - 1], "{name}: error does not decrease: {errors:?}");
     }
+    // Quantization error of N cells of area π/N: first order in 1/N.
+    assert!(rates.iter().all(|&r| r > 0.8), "{name}: rates {rates:?}");
     // The error of the finest level is below 1% of the cost.
     assert!(errors[errors.len() - 1] < 1e-2 * exact, "{name}: {errors:?}");
 }
