@@ -111,11 +111,26 @@ fn clip(src: &Polygon, dst: &mut Polygon, h: Line, values: &mut Vec<f64>) -> boo
     values.clear();
     let mut any_out = false;
     for v in &src.vertices {
-        let f = h.n[0] * v[0] + h.n[1] * v[1] - h.c;
+        let (a, b) = (h.n[0] * v[0], h.n[1] * v[1]);
+        let mut f = a + b - h.c;
+        // Vertices on the line up to rounding count as on it (and inside): an edge of the
+        // polygon lying on the clipping line then becomes that line's edge instead of
+        // producing a sliver of zero width.
+        if f.abs() <= 64.0 * f64::EPSILON * (a.abs() + b.abs() + h.c.abs()) {
+            f = 0.0;
+        }
         any_out |= f > 0.0;
         values.push(f);
     }
     if !any_out {
+        // Nothing cut; still relabel an edge lying on the line.
+        let m = values.len();
+        let on = (0..m).find(|&k| values[k] == 0.0 && values[(k + 1) % m] == 0.0);
+        if let Some(k) = on {
+            dst.clone_from(src);
+            dst.lines[k] = h;
+            return true;
+        }
         return false;
     }
     dst.clear();
@@ -124,7 +139,12 @@ fn clip(src: &Polygon, dst: &mut Polygon, h: Line, values: &mut Vec<f64>) -> boo
         let k1 = if k + 1 == m { 0 } else { k + 1 };
         let (p, q) = (src.vertices[k], src.vertices[k1]);
         let (fp, fq) = (values[k], values[k1]);
-        let l = src.lines[k];
+        let mut l = src.lines[k];
+        if fp == 0.0 && fq == 0.0 {
+            // The edge lies on the clipping line (a power edge along a source-triangle edge):
+            // it is the power edge.
+            l = h;
+        }
         if fp <= 0.0 {
             dst.push(p, l);
             if fq > 0.0 {
@@ -279,6 +299,20 @@ impl RestrictedIntegrator {
         }
         let density = self.densities[t];
         let (area, first_moment, second_moment) = polygon_integrals(&s.a.vertices);
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for v in &s.a.vertices {
+            for c in 0..2 {
+                lo[c] = lo[c].min(v[c]);
+                hi[c] = hi[c].max(v[c]);
+            }
+        }
+        let diameter2 = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
+        if !(area > 1e-14 * diameter2) {
+            // Degenerate piece: the cell touches t along a segment or at a point (a power edge
+            // on a source-triangle edge, up to rounding). Its edge is counted from the
+            // non-degenerate pieces on both sides.
+            return 0.0;
+        }
         out.pieces.push(Piece { cell: i as u32, density, area, first_moment, second_moment });
         let list = diagram.neighbor_list();
         let m = s.a.vertices.len();
@@ -288,11 +322,12 @@ impl RestrictedIntegrator {
                 continue;
             }
             let j = list[slot as usize];
-            if (i as u32) < j {
-                let (p, q) = (s.a.vertices[k], s.a.vertices[(k + 1) % m]);
-                let length = ((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1])).sqrt();
-                out.edges.push((slot, density * length));
-            }
+            // Each edge is seen from both cells: half from each side. A power edge lying on
+            // a source-triangle edge is seen from one cell in each of the two triangles, and
+            // gets the mean density of the two.
+            let (p, q) = (s.a.vertices[k], s.a.vertices[(k + 1) % m]);
+            let length = ((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1])).sqrt();
+            out.edges.push((slot, 0.5 * density * length));
             if push && s.visited[j as usize] != s.stamp {
                 s.visited[j as usize] = s.stamp;
                 s.queue.push(j);
@@ -388,8 +423,12 @@ impl RestrictedIntegrator {
             let start = edge_masses.len();
             for slot in offsets[i] as usize..offsets[i + 1] as usize {
                 let j = list[slot];
-                if (i as u32) < j && edge_values[slot] > 0.0 {
-                    edge_masses.push((i as u32, j, edge_values[slot]));
+                if (i as u32) < j {
+                    let back = (offsets[j as usize]..offsets[j as usize + 1]).find(|&b| list[b as usize] == i as u32);
+                    let value = edge_values[slot] + back.map_or(0.0, |b| edge_values[b as usize]);
+                    if value > 0.0 {
+                        edge_masses.push((i as u32, j, value));
+                    }
                 }
             }
             edge_masses[start..].sort_unstable_by_key(|e| e.1);

@@ -269,3 +269,159 @@ fn result_is_independent_of_thread_count() {
     assert_eq!(a.first_moments, b.first_moments);
     assert_eq!(a.edge_masses, b.edge_masses);
 }
+
+/// Tie-rich small configurations (integer-grid sites, half-integer weights: co-circular sites,
+/// cell vertices on source-triangle corners, zero-length edges, hidden sites) and random ones:
+/// mass conservation and agreement with the brute force.
+#[test]
+fn fuzz_integration_against_brute_force() {
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    // Uniform square, fanned from a generic interior point (so that no power edge of integer
+    // sites lies on a source-triangle edge, where conventions may differ).
+    let square = SourceMeasure::new(
+        vec![[-0.5, -0.5], [3.5, -0.5], [3.5, 3.5], [-0.5, 3.5], [1.5123, 1.4771]],
+        vec![[4, 0, 1], [4, 1, 2], [4, 2, 3], [4, 3, 0]],
+        vec![1.0; 4],
+    )
+    .unwrap();
+    let mut grid_vertices = Vec::new();
+    for i in 0..4 {
+        for j in 0..4 {
+            grid_vertices.push([i as f64, j as f64]);
+        }
+    }
+    // The [0, 3]² square triangulated on the integer grid (triangle corners coincide with sites).
+    let mut grid_triangles = Vec::new();
+    for i in 0..3u32 {
+        for j in 0..3u32 {
+            let v = |a: u32, b: u32| a * 4 + b;
+            grid_triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            grid_triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+        }
+    }
+    let densities: Vec<f64> = (0..grid_triangles.len()).map(|t| 1.0 + (t % 5) as f64).collect();
+    let grid_measure = SourceMeasure::new(grid_vertices, grid_triangles, densities).unwrap();
+    let mut oracle_failures = 0;
+    for round in 0..600 {
+        let measure = if round % 2 == 0 { &square } else { &grid_measure };
+        let n = rng.random_range(1..12);
+        let mut sites: Vec<[f64; 2]> = Vec::new();
+        while sites.len() < n {
+            let p = if round % 3 == 2 {
+                [rng.random::<f64>() * 4.0 - 0.5, rng.random::<f64>() * 4.0 - 0.5]
+            } else {
+                [rng.random_range(0..4) as f64, rng.random_range(0..4) as f64]
+            };
+            if !sites.contains(&p) {
+                sites.push(p);
+            }
+        }
+        let weights: Vec<f64> = (0..n).map(|_| if round % 4 < 2 { 0.0 } else { rng.random_range(-2..3) as f64 * 0.5 }).collect();
+        let ours = integrate(&sites, &weights, measure);
+        let reference = integrate_cells_bruteforce(&sites, &weights, measure);
+        let total = measure.total_mass();
+        let sum: f64 = ours.masses.iter().sum();
+        assert!((sum - total).abs() < 1e-12 * total, "round {round}: Σ masses {sum} vs {total}");
+        if round % 2 == 0 {
+            // Uniform density: the masses are the areas of the cell polygons (another code path:
+            // the domain's hull clipped by each cell).
+            let d = PowerDiagram::new(&sites, &weights).unwrap();
+            let polygons = cell_polygons(&d, &sites, &weights, measure);
+            for i in 0..n {
+                let p = &polygons[i];
+                let area: f64 = (0..p.len()).map(|k| 0.5 * (p[k][0] * p[(k + 1) % p.len()][1] - p[k][1] * p[(k + 1) % p.len()][0])).sum();
+                assert!((area - ours.masses[i]).abs() < 1e-12 * total, "round {round}, cell {i}: area {area} vs mass {}", ours.masses[i]);
+            }
+        }
+        let reference_sum: f64 = reference.masses.iter().sum();
+        if (reference_sum - total).abs() > 1e-12 * total {
+            // The floating-point oracle loses cells on some tie-rich inputs (a site on the
+            // domain's boundary with co-circular neighbours); it is not a reference there.
+            oracle_failures += 1;
+            continue;
+        }
+        for i in 0..n {
+            assert!(
+                (ours.masses[i] - reference.masses[i]).abs() < 1e-12 * total,
+                "round {round}, cell {i}: {} vs {}\nsites {sites:?}\nweights {weights:?}",
+                ours.masses[i],
+                reference.masses[i]
+            );
+            assert!((ours.second_moments[i] - reference.second_moments[i]).abs() < 1e-11 * total);
+        }
+        // Edge masses on the uniform measure: equal on every pair. (On the grid measure power
+        // edges can lie on density discontinuities, where this crate takes the mean density of
+        // the two sides and the oracle another convention; see `edge_on_a_density_jump`.)
+        if round % 2 == 1 {
+            continue;
+        }
+        // On tie-rich integer inputs the oracle (plain floating-point clipping) can drop the label
+        // of an edge whose end is a co-circular vertex; compare edges on generic inputs only.
+        if round % 3 != 2 {
+            continue;
+        }
+        let find = |list: &[(u32, u32, f64)], i: u32, j: u32| list.iter().find(|e| e.0 == i && e.1 == j).map_or(0.0, |e| e.2);
+        for &(i, j, v) in ours.edge_masses.iter().chain(&reference.edge_masses) {
+            let (a, b) = (find(&ours.edge_masses, i, j), find(&reference.edge_masses, i, j));
+            assert!((a - b).abs() < 1e-12 * (1.0 + v), "round {round}: edge ({i}, {j}) {a} vs {b}\nsites {sites:?}\nweights {weights:?}");
+        }
+    }
+    eprintln!("fuzz: the oracle lost mass on {oracle_failures} of 600 rounds (not compared)");
+    assert!(oracle_failures < 60, "{oracle_failures} oracle failures");
+}
+
+/// A power edge lying on a density discontinuity gets the mean of the two densities: the unit
+/// square split by its diagonal y = x into densities 1 (below) and 3 (above); sites (1, 0) and
+/// (0, 1) have the diagonal as bisector, so the edge mass is (1 + 3)/2 · √2.
+#[test]
+fn edge_on_a_density_jump() {
+    let measure = SourceMeasure::new(
+        vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        vec![[0, 1, 2], [0, 2, 3]],
+        vec![1.0, 3.0],
+    )
+    .unwrap();
+    let c = integrate(&[[1.0, 0.0], [0.0, 1.0]], &[0.0, 0.0], &measure);
+    assert!((c.masses[0] - 0.5).abs() < 1e-15 && (c.masses[1] - 1.5).abs() < 1e-15);
+    assert_eq!(c.edge_masses.len(), 1);
+    assert!((c.edge_masses[0].2 - 2.0 * 2f64.sqrt()).abs() < 1e-14, "edge mass {}", c.edge_masses[0].2);
+    // Moving the sites off the tie by 1e-9 moves the edge into one triangle: density 1 or 3.
+    let c = integrate(&[[1.0, 0.0], [0.0, 1.0 + 1e-9]], &[0.0, 0.0], &measure);
+    assert!((c.edge_masses[0].2 - 3.0 * 2f64.sqrt()).abs() < 1e-6, "edge mass {}", c.edge_masses[0].2);
+}
+
+/// Edge masses are the off-diagonal derivatives of the masses (DESIGN.md, Hessian):
+/// ∂μ(W_i)/∂w_j = μ(e_ij) / (2|y_i − y_j|) for neighbours i ≠ j, checked by central differences.
+#[test]
+fn edge_masses_are_mass_derivatives() {
+    let mut rng = ChaCha8Rng::seed_from_u64(15);
+    let n = 40;
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [rng.random::<f64>(), rng.random::<f64>()]).collect();
+    let weights: Vec<f64> = (0..n).map(|_| 0.01 * rng.random::<f64>()).collect();
+    let measure = varied_measure();
+    let base = integrate(&sites, &weights, &measure);
+    let delta = 1e-7;
+    let mut checked = 0;
+    for j in 0..n {
+        let mut plus = weights.clone();
+        plus[j] += delta;
+        let mut minus = weights.clone();
+        minus[j] -= delta;
+        let (cp, cm) = (integrate(&sites, &plus, &measure), integrate(&sites, &minus, &measure));
+        for i in 0..n {
+            if i == j {
+                continue;
+            }
+            let derivative = (cp.masses[i] - cm.masses[i]) / (2.0 * delta);
+            let (a, b) = (i.min(j) as u32, i.max(j) as u32);
+            let edge = base.edge_masses.iter().find(|e| e.0 == a && e.1 == b).map_or(0.0, |e| e.2);
+            let dist = ((sites[i][0] - sites[j][0]).powi(2) + (sites[i][1] - sites[j][1]).powi(2)).sqrt();
+            let predicted = -edge / (2.0 * dist);
+            assert!((derivative - predicted).abs() < 1e-6 * (1.0 + predicted.abs()), "∂m_{i}/∂w_{j}: {derivative} vs {predicted}");
+            if edge > 0.0 {
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 100, "only {checked} edges checked");
+}
