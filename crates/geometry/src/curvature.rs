@@ -74,8 +74,11 @@ pub struct GaussianCurvature {
 pub fn vertex_gaussian_curvatures(mesh: &TriMesh) -> GaussianCurvature {
     let integrated = vertex_angle_defects(mesh);
     let areas = vertex_mixed_areas(mesh);
-    let pointwise =
-        integrated.iter().zip(&areas).map(|(&t, &a)| if a > 0.0 { t / a } else { 0.0 }).collect();
+    let pointwise = integrated
+        .iter()
+        .zip(&areas)
+        .map(|(&t, &a)| if a > 0.0 { t / a } else { 0.0 })
+        .collect();
     GaussianCurvature { integrated, pointwise }
 }
 
@@ -95,7 +98,10 @@ pub fn vertex_mean_curvature_normals(mesh: &TriMesh) -> Vec<[f64; 3]> {
         }
     }
     let areas = vertex_mixed_areas(mesh);
-    lx.iter().zip(&areas).map(|(&v, &a)| if a > 0.0 { scale(v, 0.5 / a) } else { [0.0; 3] }).collect()
+    lx.iter()
+        .zip(&areas)
+        .map(|(&v, &a)| if a > 0.0 { scale(v, 0.5 / a) } else { [0.0; 3] })
+        .collect()
 }
 
 /// Signed mean curvature H = (κ₁ + κ₂)/2 per vertex (1/length), #V: the length of the
@@ -178,7 +184,16 @@ mod tests {
                 [0.0, 0.0, 1.0],
                 [0.0, 0.0, -1.0],
             ],
-            vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]],
+            vec![
+                [0, 2, 4],
+                [2, 1, 4],
+                [1, 3, 4],
+                [3, 0, 4],
+                [2, 0, 5],
+                [1, 2, 5],
+                [3, 1, 5],
+                [0, 3, 5],
+            ],
         )
         .unwrap();
         for d in vertex_angle_defects(&m) {

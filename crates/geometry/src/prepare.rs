@@ -67,8 +67,13 @@ pub fn keep_largest_component(mesh: &TriMesh) -> Result<(TriMesh, VertexMap), Ge
     }
     // labels are numbered by smallest face, so the first maximum is the tie-break we document
     let best = (0..n).fold(0, |b, c| if counts[c] > counts[b] { c } else { b }) as u32;
-    let faces: Vec<[u32; 3]> =
-        mesh.faces.iter().zip(&labels).filter(|(_, &l)| l == best).map(|(f, _)| *f).collect();
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .zip(&labels)
+        .filter(|(_, &l)| l == best)
+        .map(|(f, _)| *f)
+        .collect();
     let mut keep = vec![false; mesh.num_vertices()];
     for f in &faces {
         for &v in f {
@@ -156,7 +161,13 @@ pub fn reorient(mesh: &TriMesh) -> Result<(TriMesh, ReorientInfo), GeometryError
             turned += 1;
         }
     }
-    Ok((out, ReorientInfo { faces_flipped_for_consistency: flipped, closed_components_turned_outward: turned }))
+    Ok((
+        out,
+        ReorientInfo {
+            faces_flipped_for_consistency: flipped,
+            closed_components_turned_outward: turned,
+        },
+    ))
 }
 
 /// Fills one hole by a fan: appends a vertex at the mean of the loop's vertex positions (index
@@ -177,7 +188,10 @@ pub fn fill_hole(mesh: &TriMesh, hole: &[u32]) -> Result<TriMesh, GeometryError>
 
 fn append_fan(out: &mut TriMesh, conn: &Connectivity, hole: &[u32]) -> Result<(), GeometryError> {
     if hole.len() < 3 {
-        return Err(GeometryError::Invalid(format!("a hole needs at least 3 vertices, got {}", hole.len())));
+        return Err(GeometryError::Invalid(format!(
+            "a hole needs at least 3 vertices, got {}",
+            hole.len()
+        )));
     }
     let mut edge_index: HashMap<[u32; 2], usize> = HashMap::with_capacity(hole.len());
     let wanted: Vec<[u32; 2]> = (0..hole.len())
@@ -198,7 +212,10 @@ fn append_fan(out: &mut TriMesh, conn: &Connectivity, hole: &[u32]) -> Result<()
     let mut centroid = [0.0; 3];
     for &v in hole {
         let p = *out.positions.get(v as usize).ok_or_else(|| {
-            GeometryError::Invalid(format!("hole vertex {v} is out of range ({} vertices)", out.positions.len()))
+            GeometryError::Invalid(format!(
+                "hole vertex {v} is out of range ({} vertices)",
+                out.positions.len()
+            ))
         })?;
         centroid = add(centroid, p);
     }
@@ -247,7 +264,12 @@ pub fn fill_holes_except_longest(mesh: &TriMesh) -> Result<(TriMesh, FillInfo), 
     }
     let length = |l: &[u32]| -> f64 {
         (0..l.len())
-            .map(|i| norm(sub(mesh.positions[l[(i + 1) % l.len()] as usize], mesh.positions[l[i] as usize])))
+            .map(|i| {
+                norm(sub(
+                    mesh.positions[l[(i + 1) % l.len()] as usize],
+                    mesh.positions[l[i] as usize],
+                ))
+            })
             .sum()
     };
     let lengths: Vec<f64> = loops.iter().map(|l| length(l)).collect();
@@ -259,7 +281,13 @@ pub fn fill_holes_except_longest(mesh: &TriMesh) -> Result<(TriMesh, FillInfo), 
             append_fan(&mut out, &conn, l)?;
         }
     }
-    Ok((out, FillInfo { holes_filled: loops.len() - 1, kept_loop_length: lengths[longest] }))
+    Ok((
+        out,
+        FillInfo {
+            holes_filled: loops.len() - 1,
+            kept_loop_length: lengths[longest],
+        },
+    ))
 }
 
 /// Size of the region removed by [`cut_disk`].
@@ -335,10 +363,13 @@ pub fn cut_disk(mesh: &TriMesh, center: u32, radius: Radius) -> Result<(TriMesh,
     }
     let inside: Vec<bool> = match radius {
         Radius::Geodesic(r) => {
-            if !(r >= 0.0) {
+            if r.is_nan() || r < 0.0 {
                 return Err(GeometryError::Invalid(format!("cut radius must be ≥ 0, got {r}")));
             }
-            edge_path_distances(mesh, &conn, center).iter().map(|&d| d <= r).collect()
+            edge_path_distances(mesh, &conn, center)
+                .iter()
+                .map(|&d| d <= r)
+                .collect()
         }
         Radius::Rings(k) => {
             let adj = conn.vertex_neighbors(mesh.num_vertices());
@@ -371,7 +402,9 @@ pub fn cut_disk(mesh: &TriMesh, center: u32, radius: Radius) -> Result<(TriMesh,
         .copied()
         .collect();
     if faces.is_empty() {
-        return Err(GeometryError::Topology("the cut removes every face; choose a smaller radius".into()));
+        return Err(GeometryError::Topology(
+            "the cut removes every face; choose a smaller radius".into(),
+        ));
     }
     let mut keep = vec![false; mesh.num_vertices()];
     for f in &faces {
@@ -397,12 +430,16 @@ pub fn cut_disk(mesh: &TriMesh, center: u32, radius: Radius) -> Result<(TriMesh,
 pub fn scale_to_area(mesh: &TriMesh, target_area: f64) -> Result<TriMesh, GeometryError> {
     mesh.validate()?;
     if !(target_area > 0.0 && target_area.is_finite()) {
-        return Err(GeometryError::Invalid(format!("target area must be positive and finite, got {target_area}")));
+        return Err(GeometryError::Invalid(format!(
+            "target area must be positive and finite, got {target_area}"
+        )));
     }
     let areas = face_areas(mesh);
     let area: f64 = areas.iter().sum();
     if !(area > 0.0 && area.is_finite()) {
-        return Err(GeometryError::Invalid(format!("cannot scale a mesh of area {area} to area {target_area}")));
+        return Err(GeometryError::Invalid(format!(
+            "cannot scale a mesh of area {area} to area {target_area}"
+        )));
     }
     let mut c = [0.0; 3];
     for (f, &a) in areas.iter().enumerate() {

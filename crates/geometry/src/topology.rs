@@ -193,10 +193,10 @@ pub fn face_components(conn: &Connectivity, num_faces: usize) -> (Vec<u32>, usiz
     }
     let mut labels = vec![u32::MAX; num_faces];
     let mut root_label: HashMap<u32, u32> = HashMap::new();
-    for f in 0..num_faces {
+    for (f, label) in labels.iter_mut().enumerate() {
         let r = find(&mut parent, f as u32);
         let next = root_label.len() as u32;
-        labels[f] = *root_label.entry(r).or_insert(next);
+        *label = *root_label.entry(r).or_insert(next);
     }
     (labels, root_label.len())
 }
@@ -239,7 +239,9 @@ pub fn non_manifold_vertices(mesh: &TriMesh, conn: &Connectivity) -> Vec<(u32, u
                 let e = conn.face_edges[f as usize][k] as usize;
                 let ef = &conn.edge_faces[e];
                 if ef.len() == 2 {
-                    let (Some(i), Some(j)) = (pos(ef[0]), pos(ef[1])) else { continue };
+                    let (Some(i), Some(j)) = (pos(ef[0]), pos(ef[1])) else {
+                        continue;
+                    };
                     let ri = find(&mut local, i);
                     let rj = find(&mut local, j);
                     if ri != rj {
@@ -271,7 +273,10 @@ fn directed_edge(face: [u32; 3], k: usize) -> [u32; 2] {
 fn same_direction(faces: &[[u32; 3]], conn: &Connectivity, e: usize) -> bool {
     let ef = &conn.edge_faces[e];
     let dir = |f: u32| {
-        let k = conn.face_edges[f as usize].iter().position(|&x| x as usize == e).unwrap_or(0);
+        let k = conn.face_edges[f as usize]
+            .iter()
+            .position(|&x| x as usize == e)
+            .unwrap_or(0);
         directed_edge(faces[f as usize], k)
     };
     dir(ef[0]) == dir(ef[1])
@@ -282,9 +287,7 @@ fn same_direction(faces: &[[u32; 3]], conn: &Connectivity, e: usize) -> bool {
 pub fn inconsistent_edges(faces: &[[u32; 3]], conn: &Connectivity) -> Vec<[u32; 2]> {
     (0..conn.num_edges())
         .filter(|&e| {
-            conn.edge_faces[e].len() == 2
-                && conn.edges[e][0] != conn.edges[e][1]
-                && same_direction(faces, conn, e)
+            conn.edge_faces[e].len() == 2 && conn.edges[e][0] != conn.edges[e][1] && same_direction(faces, conn, e)
         })
         .map(|e| conn.edges[e])
         .collect()
@@ -383,8 +386,12 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
     let conn = Connectivity::of(mesh);
     let nf = mesh.num_faces();
     let referenced = referenced_vertices(mesh);
-    let unreferenced: Vec<u32> =
-        referenced.iter().enumerate().filter(|(_, &u)| !u).map(|(i, _)| i as u32).collect();
+    let unreferenced: Vec<u32> = referenced
+        .iter()
+        .enumerate()
+        .filter(|(_, &u)| !u)
+        .map(|(i, _)| i as u32)
+        .collect();
     let num_referenced = mesh.num_vertices() - unreferenced.len();
 
     let (labels, num_components) = face_components(&conn, nf);
@@ -436,7 +443,7 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
         })
         .collect();
     let genus = components.iter().map(|c| c.genus).sum();
-    components.sort_by(|a, b| b.faces.cmp(&a.faces));
+    components.sort_by_key(|c| std::cmp::Reverse(c.faces));
     components.truncate(MAX_LISTED);
 
     let nm_edges = non_manifold_edges(&conn);
@@ -488,7 +495,10 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
         closed,
         area,
         bounding_box: bbox,
-        classification: Classification { class: MeshClass::Other, reasons: Vec::new() },
+        classification: Classification {
+            class: MeshClass::Other,
+            reasons: Vec::new(),
+        },
     };
     report.classification = classify_report(&report);
     Ok(report)
@@ -502,10 +512,16 @@ fn plural(n: usize, one: &str, many: &str) -> String {
 pub fn classify_report(r: &MeshReport) -> Classification {
     let mut common = Vec::new();
     if r.num_faces == 0 {
-        return Classification { class: MeshClass::Other, reasons: vec!["no faces".into()] };
+        return Classification {
+            class: MeshClass::Other,
+            reasons: vec!["no faces".into()],
+        };
     }
     if r.num_components != 1 {
-        common.push(format!("{} components (faces connected through edges; a disk or sphere has 1)", r.num_components));
+        common.push(format!(
+            "{} components (faces connected through edges; a disk or sphere has 1)",
+            r.num_components
+        ));
     }
     if r.num_non_manifold_edges > 0 {
         let e = r.first_non_manifold_edges[0];
@@ -519,7 +535,11 @@ pub fn classify_report(r: &MeshReport) -> Classification {
     if r.num_non_manifold_vertices > 0 {
         common.push(format!(
             "{}, first {}",
-            plural(r.num_non_manifold_vertices, "non-manifold vertex", "non-manifold vertices"),
+            plural(
+                r.num_non_manifold_vertices,
+                "non-manifold vertex",
+                "non-manifold vertices"
+            ),
             r.first_non_manifold_vertices[0]
         ));
     }
@@ -538,20 +558,32 @@ pub fn classify_report(r: &MeshReport) -> Classification {
     let b = r.num_boundary_loops;
     if common.is_empty() {
         if b == 1 && chi == 1 {
-            return Classification { class: MeshClass::Disk, reasons: Vec::new() };
+            return Classification {
+                class: MeshClass::Disk,
+                reasons: Vec::new(),
+            };
         }
         if b == 0 && chi == 2 {
-            return Classification { class: MeshClass::Sphere, reasons: Vec::new() };
+            return Classification {
+                class: MeshClass::Sphere,
+                reasons: Vec::new(),
+            };
         }
     }
     let mut reasons = common;
     if b == 0 {
         if chi != 2 {
-            reasons.push(format!("closed with χ = {chi} (a sphere needs χ = 2; genus {})", r.genus));
+            reasons.push(format!(
+                "closed with χ = {chi} (a sphere needs χ = 2; genus {})",
+                r.genus
+            ));
         }
     } else {
         if b != 1 {
-            reasons.push(format!("{} (a disk needs 1)", plural(b, "boundary loop", "boundary loops")));
+            reasons.push(format!(
+                "{} (a disk needs 1)",
+                plural(b, "boundary loop", "boundary loops")
+            ));
         }
         if chi != 1 {
             reasons.push(format!("χ = {chi} (a disk needs χ = 1)"));
@@ -561,7 +593,10 @@ pub fn classify_report(r: &MeshReport) -> Classification {
         // cannot happen for consistent counts, but never return Other without a reason
         reasons.push(format!("χ = {chi} with {b} boundary loops"));
     }
-    Classification { class: MeshClass::Other, reasons }
+    Classification {
+        class: MeshClass::Other,
+        reasons,
+    }
 }
 
 /// Classifies a mesh as a topological disk, a sphere, or other (with human-readable reasons).
@@ -611,7 +646,11 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
             if let Some(v) = r.first_non_manifold_vertices.first() {
                 what.push(format!(
                     "{}, first {}",
-                    plural(r.num_non_manifold_vertices, "non-manifold vertex", "non-manifold vertices"),
+                    plural(
+                        r.num_non_manifold_vertices,
+                        "non-manifold vertex",
+                        "non-manifold vertices"
+                    ),
                     v
                 ));
             }
@@ -660,7 +699,11 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
     if r.num_unreferenced_vertices > 0 {
         problems.push(format!(
             "{}, first {}: remove them with `prepare::drop_unreferenced_vertices`",
-            plural(r.num_unreferenced_vertices, "unreferenced vertex", "unreferenced vertices"),
+            plural(
+                r.num_unreferenced_vertices,
+                "unreferenced vertex",
+                "unreferenced vertices"
+            ),
             r.first_unreferenced_vertices[0]
         ));
     }

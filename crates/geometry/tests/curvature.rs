@@ -57,8 +57,8 @@ fn sphere_curvature_errors() -> Vec<(usize, f64, f64, f64, f64)> {
             let h = vertex_mean_curvatures(&m);
             let max_err = h.iter().map(|x| (x - 1.0).abs()).fold(0.0, f64::max);
             let areas = vertex_mixed_areas(&m);
-            let mean_err = h.iter().zip(&areas).map(|(x, a)| (x - 1.0).abs() * a).sum::<f64>()
-                / areas.iter().sum::<f64>();
+            let mean_err =
+                h.iter().zip(&areas).map(|(x, a)| (x - 1.0).abs() * a).sum::<f64>() / areas.iter().sum::<f64>();
             let k = vertex_gaussian_curvatures(&m);
             let k_err = k.pointwise.iter().map(|x| (x - 1.0).abs()).fold(0.0, f64::max);
             let bary = vertex_dual_areas(&m);
@@ -78,7 +78,10 @@ fn curvatures_of_spheres_converge() {
     println!("unit icosphere, H and K vs 1:");
     println!("  s      #V   max|H-1|   mean|H-1|   max|K-1|   max|H-1| barycentric M");
     for &(s, h, hm, k, b) in &errors {
-        println!("  {s}  {:6}  {h:.3e}  {hm:.3e}  {k:.3e}  {b:.3e}", 10 * 4usize.pow(s as u32) + 2);
+        println!(
+            "  {s}  {:6}  {h:.3e}  {hm:.3e}  {k:.3e}  {b:.3e}",
+            10 * 4usize.pow(s as u32) + 2
+        );
     }
     for w in errors.windows(2) {
         // second order: each subdivision halves h, so errors drop by about 4
@@ -170,7 +173,10 @@ fn spherical_cap_gauss_bonnet_split() {
     // The discrete total is exactly 2πχ = 2π; interior defects converge to the area integral.
     let alpha = 1.0f64;
     let mut prev_err = f64::INFINITY;
-    println!("cap α = 1: interior Σ K vs 2π(1 − cos α) = {:.6}", 2.0 * PI * (1.0 - alpha.cos()));
+    println!(
+        "cap α = 1: interior Σ K vs 2π(1 − cos α) = {:.6}",
+        2.0 * PI * (1.0 - alpha.cos())
+    );
     for rings in [8, 16, 32, 64] {
         let m = spherical_cap(alpha, rings);
         let conn = Connectivity::of(&m);
@@ -228,4 +234,3 @@ fn cotan_laplacian_kills_linear_functions_on_planar_meshes() {
         }
     }
 }
-

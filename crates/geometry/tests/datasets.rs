@@ -96,7 +96,11 @@ fn datasets_agree_with_stats_json() {
                 check("E", r.num_edges.to_string(), e.to_string());
             }
             check("components", r.num_components.to_string(), want.components.to_string());
-            check("boundary loops", r.num_boundary_loops.to_string(), want.boundary_loops.to_string());
+            check(
+                "boundary loops",
+                r.num_boundary_loops.to_string(),
+                want.boundary_loops.to_string(),
+            );
             check("χ", r.euler_characteristic.to_string(), want.euler.to_string());
             if let Some(m) = want.manifold {
                 check("manifold", r.manifold.to_string(), m.to_string());
@@ -124,5 +128,10 @@ fn datasets_agree_with_stats_json() {
             p
         })
         .collect();
-    assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
+    assert!(
+        problems.is_empty(),
+        "{} problems:\n{}",
+        problems.len(),
+        problems.join("\n")
+    );
 }

@@ -8,9 +8,7 @@ use shapespace_geometry::connectivity::Connectivity;
 use shapespace_geometry::prepare::{self, Radius};
 use shapespace_geometry::primitives::{grid, icosphere, unit_disk};
 use shapespace_geometry::quantities::{face_areas, face_normals, total_area};
-use shapespace_geometry::topology::{
-    classify, inconsistent_edges, mesh_report, require_disk, MeshClass,
-};
+use shapespace_geometry::topology::{classify, inconsistent_edges, mesh_report, require_disk, MeshClass};
 use shapespace_geometry::TriMesh;
 
 /// Torus with radii `big` > `small`, `n` segments around the big circle and `m` around the tube,
@@ -51,7 +49,11 @@ fn mobius(n: usize) -> TriMesh {
     for i in 0..n {
         let (a, b) = (2 * i as u32, 2 * i as u32 + 1);
         // the last quad glues row 0 to row 1 (the twist)
-        let (c, d) = if i + 1 < n { (2 * (i as u32 + 1), 2 * (i as u32 + 1) + 1) } else { (1, 0) };
+        let (c, d) = if i + 1 < n {
+            (2 * (i as u32 + 1), 2 * (i as u32 + 1) + 1)
+        } else {
+            (1, 0)
+        };
         faces.push([a, c, d]);
         faces.push([a, d, b]);
     }
@@ -92,7 +94,10 @@ fn icospheres_are_spheres() {
         assert_eq!(r.num_boundary_loops, 0);
         assert_eq!(r.genus, 0.0);
         assert!(r.closed && r.manifold && r.consistently_oriented && r.orientable);
-        assert_eq!(r.num_degenerate_faces + r.num_duplicate_vertices + r.num_unreferenced_vertices, 0);
+        assert_eq!(
+            r.num_degenerate_faces + r.num_duplicate_vertices + r.num_unreferenced_vertices,
+            0
+        );
         assert_eq!(r.classification.class, MeshClass::Sphere);
         assert!(r.classification.reasons.is_empty());
         assert!((r.area - 4.0 * PI).abs() < 0.05 * 4.0 * PI);
@@ -108,7 +113,11 @@ fn torus_has_genus_one() {
     assert_eq!(r.components[0].genus, 1.0);
     assert!(r.closed && r.manifold && r.consistently_oriented);
     assert_eq!(r.classification.class, MeshClass::Other);
-    assert!(r.classification.reasons.iter().any(|s| s.contains("χ = 0")), "{:?}", r.classification);
+    assert!(
+        r.classification.reasons.iter().any(|s| s.contains("χ = 0")),
+        "{:?}",
+        r.classification
+    );
     let err = require_disk(&m).unwrap_err().to_string();
     assert!(err.contains("genus 1"), "{err}");
 }
@@ -133,7 +142,13 @@ fn mobius_strip_is_not_orientable() {
 fn bowtie_has_a_non_manifold_vertex() {
     // two triangles sharing only vertex 2
     let m = TriMesh::new(
-        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.5, 0.5, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ],
         vec![[0, 1, 2], [2, 4, 3]],
     )
     .unwrap();
@@ -147,7 +162,14 @@ fn bowtie_has_a_non_manifold_vertex() {
     assert_eq!(r.euler_characteristic, 1);
     assert_eq!(r.num_boundary_loops, 2);
     assert_eq!(r.classification.class, MeshClass::Other);
-    assert!(r.classification.reasons.iter().any(|s| s == "1 non-manifold vertex, first 2"), "{:?}", r.classification);
+    assert!(
+        r.classification
+            .reasons
+            .iter()
+            .any(|s| s == "1 non-manifold vertex, first 2"),
+        "{:?}",
+        r.classification
+    );
     // keeping the largest component repairs it: a single triangle (tie → the one with face 0)
     let (one, map) = prepare::keep_largest_component(&m).unwrap();
     assert_eq!(one.faces, vec![[0, 1, 2]]);
@@ -158,7 +180,13 @@ fn bowtie_has_a_non_manifold_vertex() {
 #[test]
 fn three_faces_on_one_edge() {
     let m = TriMesh::new(
-        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, -1.0, 0.0], [0.5, 0.0, 1.0]],
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.5, 1.0, 0.0],
+            [0.5, -1.0, 0.0],
+            [0.5, 0.0, 1.0],
+        ],
         vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
     )
     .unwrap();
@@ -168,7 +196,14 @@ fn three_faces_on_one_edge() {
     // the edge's endpoints have three separate fans each
     assert_eq!(r.first_non_manifold_vertices, vec![0, 1]);
     assert_eq!(r.num_components, 1);
-    assert!(r.classification.reasons.iter().any(|s| s == "1 non-manifold edge, first (0, 1)"), "{:?}", r.classification);
+    assert!(
+        r.classification
+            .reasons
+            .iter()
+            .any(|s| s == "1 non-manifold edge, first (0, 1)"),
+        "{:?}",
+        r.classification
+    );
     let err = require_disk(&m).unwrap_err().to_string();
     assert!(err.contains("non-manifold edge"), "{err}");
 }
@@ -200,7 +235,11 @@ fn flipped_face_is_found_and_fixed() {
     let normals = face_normals(&fixed);
     for (f, n) in normals.iter().enumerate() {
         let [p, q, s] = fixed.face_positions(f);
-        let centroid = [(p[0] + q[0] + s[0]) / 3.0, (p[1] + q[1] + s[1]) / 3.0, (p[2] + q[2] + s[2]) / 3.0];
+        let centroid = [
+            (p[0] + q[0] + s[0]) / 3.0,
+            (p[1] + q[1] + s[1]) / 3.0,
+            (p[2] + q[2] + s[2]) / 3.0,
+        ];
         let outward = n[0] * centroid[0] + n[1] * centroid[1] + n[2] * centroid[2];
         assert!(outward > 0.9, "face {f} points inward after reorient");
     }
@@ -211,7 +250,13 @@ fn flipped_face_is_found_and_fixed() {
         f.swap(1, 2);
     }
     let (out, info) = prepare::reorient(&inward).unwrap();
-    assert_eq!(info, prepare::ReorientInfo { faces_flipped_for_consistency: 0, closed_components_turned_outward: 1 });
+    assert_eq!(
+        info,
+        prepare::ReorientInfo {
+            faces_flipped_for_consistency: 0,
+            closed_components_turned_outward: 1
+        }
+    );
     for (f, g) in out.faces.iter().zip(&sphere.faces) {
         // same cyclic orientation as the original outward face
         let rot = |x: [u32; 3]| {
@@ -231,7 +276,14 @@ fn filling_the_square_annulus_gives_a_disk() {
     // the outer loop has 32 vertices, the inner 8
     assert_eq!(r.boundary_loop_lengths, vec![32, 8]);
     assert_eq!(r.classification.class, MeshClass::Other);
-    assert!(r.classification.reasons.iter().any(|s| s == "2 boundary loops (a disk needs 1)"), "{:?}", r.classification);
+    assert!(
+        r.classification
+            .reasons
+            .iter()
+            .any(|s| s == "2 boundary loops (a disk needs 1)"),
+        "{:?}",
+        r.classification
+    );
     let err = require_disk(&m).unwrap_err().to_string();
     assert!(err.contains("fill_holes_except_longest"), "{err}");
 
@@ -270,10 +322,20 @@ fn filling_the_square_annulus_gives_a_disk() {
 #[test]
 fn cut_disk_on_icosphere() {
     let m = icosphere(3);
-    for radius in [Radius::Rings(1), Radius::Rings(3), Radius::Geodesic(0.2), Radius::Geodesic(1.0)] {
+    for radius in [
+        Radius::Rings(1),
+        Radius::Rings(3),
+        Radius::Geodesic(0.2),
+        Radius::Geodesic(1.0),
+    ] {
         let (disk, map) = prepare::cut_disk(&m, 5, radius).unwrap();
         let r = mesh_report(&disk).unwrap();
-        assert_eq!(r.classification.class, MeshClass::Disk, "{radius:?}: {:?}", r.classification);
+        assert_eq!(
+            r.classification.class,
+            MeshClass::Disk,
+            "{radius:?}: {:?}",
+            r.classification
+        );
         require_disk(&disk).unwrap();
         assert!(map[5].is_none());
         // kept vertices keep their positions and relative order
@@ -281,7 +343,7 @@ fn cut_disk_on_icosphere() {
         for (old, new) in map.iter().enumerate() {
             if let Some(n) = *new {
                 assert_eq!(disk.positions[n as usize], m.positions[old]);
-                assert!(last.map_or(true, |l| n == l + 1));
+                assert!(last.is_none_or(|l| n == l + 1));
                 last = Some(n);
             }
         }
@@ -355,7 +417,10 @@ fn unreferenced_duplicate_and_degenerate_elements() {
     assert_eq!(r.first_duplicate_vertices, vec![[3, n + 1]]);
     assert_eq!(r.first_degenerate_faces, vec![m.num_faces() as u32 - 1]);
     let err = require_disk(&m).unwrap_err().to_string();
-    assert!(err.contains("drop_unreferenced_vertices") && err.contains("degenerate face"), "{err}");
+    assert!(
+        err.contains("drop_unreferenced_vertices") && err.contains("degenerate face"),
+        "{err}"
+    );
 
     m.faces.pop();
     let (clean, map) = prepare::drop_unreferenced_vertices(&m).unwrap();
@@ -381,17 +446,27 @@ fn several_components() {
     let d = unit_disk(3);
     let mut m = d.clone();
     let off = m.num_vertices() as u32;
-    m.positions.extend(s.positions.iter().map(|p| [p[0] + 10.0, p[1], p[2]]));
+    m.positions
+        .extend(s.positions.iter().map(|p| [p[0] + 10.0, p[1], p[2]]));
     m.faces.extend(s.faces.iter().map(|f| f.map(|v| v + off)));
     let r = mesh_report(&m).unwrap();
     assert_eq!(r.num_components, 2);
     assert_eq!(r.euler_characteristic, 3);
     assert_eq!(r.components[0].faces, s.num_faces());
-    assert_eq!((r.components[0].euler_characteristic, r.components[0].boundary_loops), (2, 0));
-    assert_eq!((r.components[1].euler_characteristic, r.components[1].boundary_loops), (1, 1));
+    assert_eq!(
+        (r.components[0].euler_characteristic, r.components[0].boundary_loops),
+        (2, 0)
+    );
+    assert_eq!(
+        (r.components[1].euler_characteristic, r.components[1].boundary_loops),
+        (1, 1)
+    );
     assert_eq!(r.genus, 0.0);
     assert!(r.classification.reasons[0].starts_with("2 components"));
-    assert!(require_disk(&m).unwrap_err().to_string().contains("keep_largest_component"));
+    assert!(require_disk(&m)
+        .unwrap_err()
+        .to_string()
+        .contains("keep_largest_component"));
     let (largest, map) = prepare::keep_largest_component(&m).unwrap();
     assert_eq!(largest.faces, s.faces);
     assert!(map[..off as usize].iter().all(|x| x.is_none()));
@@ -409,7 +484,11 @@ fn report_serializes_to_json() {
 
 #[test]
 fn invalid_meshes_are_errors_not_panics() {
-    let bad = TriMesh { positions: vec![[0.0; 3]; 3], faces: vec![[0, 1, 7]], uvs: None };
+    let bad = TriMesh {
+        positions: vec![[0.0; 3]; 3],
+        faces: vec![[0, 1, 7]],
+        uvs: None,
+    };
     assert!(mesh_report(&bad).is_err());
     assert!(classify(&bad).is_err());
     assert!(require_disk(&bad).is_err());
@@ -418,7 +497,11 @@ fn invalid_meshes_are_errors_not_panics() {
     assert!(prepare::drop_unreferenced_vertices(&bad).is_err());
     assert!(prepare::fill_holes_except_longest(&bad).is_err());
     assert!(prepare::scale_to_area(&bad, 1.0).is_err());
-    let nan = TriMesh { positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [f64::NAN, 1.0, 0.0]], faces: vec![[0, 1, 2]], uvs: None };
+    let nan = TriMesh {
+        positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [f64::NAN, 1.0, 0.0]],
+        faces: vec![[0, 1, 2]],
+        uvs: None,
+    };
     assert!(mesh_report(&nan).is_err());
     // an empty mesh is a valid mesh with no class
     let empty = TriMesh::default();

@@ -56,7 +56,19 @@ fn yes_no(b: bool) -> &'static str {
 }
 
 fn print_table(rows: &[(PathBuf, MeshReport)]) {
-    let header = ["file", "V", "F", "components", "loops", "χ", "genus", "manifold", "oriented", "area", "class"];
+    let header = [
+        "file",
+        "V",
+        "F",
+        "components",
+        "loops",
+        "χ",
+        "genus",
+        "manifold",
+        "oriented",
+        "area",
+        "class",
+    ];
     let cells: Vec<[String; 11]> = rows
         .iter()
         .map(|(path, r)| {
@@ -117,7 +129,9 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         .files
         .par_iter()
         .map(|path| {
-            let report = read_mesh(path).and_then(|mesh| mesh_report(&mesh)).map_err(|e| describe_error(path, &e));
+            let report = read_mesh(path)
+                .and_then(|mesh| mesh_report(&mesh))
+                .map_err(|e| describe_error(path, &e));
             (path.clone(), report)
         })
         .collect();
@@ -147,11 +161,17 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         }
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        let ok: Vec<(PathBuf, MeshReport)> =
-            results.into_iter().filter_map(|(p, r)| r.ok().map(|r| (p, r))).collect();
+        let ok: Vec<(PathBuf, MeshReport)> = results
+            .into_iter()
+            .filter_map(|(p, r)| r.ok().map(|r| (p, r)))
+            .collect();
         if !ok.is_empty() {
             print_table(&ok);
         }
     }
-    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
 }
