@@ -621,11 +621,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
         return Err(GeometryError::Topology("the mesh has no faces".into()));
     }
     if r.classification.class == MeshClass::Sphere {
-        problems.push(
-            "closed surface (sphere): cut a disk first with `prepare::cut_disk` \
-             (`shapespace` option --cut)"
-                .into(),
-        );
+        problems.push("closed surface (sphere): cut a disk first with `prepare::cut_disk`".into());
     } else if r.classification.class == MeshClass::Other {
         if r.num_components > 1 {
             problems.push(format!(

@@ -510,3 +510,44 @@ fn invalid_meshes_are_errors_not_panics() {
     assert_eq!(r.classification.class, MeshClass::Other);
     assert!(require_disk(&empty).is_err());
 }
+
+#[test]
+fn reorient_an_open_disk_and_fill_three_holes() {
+    // a 9 × 9 grid with three separate 1-cell holes: 4 boundary loops, χ = −2 (like a face with
+    // two eyes and a mouth)
+    let g = grid(9, 9);
+    let holes = [(2, 2), (6, 2), (4, 6)];
+    let faces: Vec<[u32; 3]> = g
+        .faces
+        .iter()
+        .enumerate()
+        .filter(|(f, _)| !holes.contains(&((f / 2) % 9, (f / 2) / 9)))
+        .map(|(_, f)| *f)
+        .collect();
+    let mut m = TriMesh::new(g.positions.clone(), faces).unwrap();
+    let r = mesh_report(&m).unwrap();
+    assert_eq!((r.num_boundary_loops, r.euler_characteristic), (4, -2));
+    assert_eq!(r.boundary_loop_lengths, vec![36, 4, 4, 4]);
+    let err = require_disk(&m).unwrap_err().to_string();
+    assert!(
+        err.contains("4 boundary loops: fill the inner holes with `prepare::fill_holes_except_longest`"),
+        "{err}"
+    );
+
+    // flip a third of the faces: reorient restores +z normals everywhere (face 0 is kept)
+    for f in (1..m.faces.len()).step_by(3) {
+        m.faces[f].swap(0, 2);
+    }
+    assert!(!mesh_report(&m).unwrap().consistently_oriented);
+    let (fixed, info) = prepare::reorient(&m).unwrap();
+    assert_eq!(info.faces_flipped_for_consistency, (m.faces.len() - 1).div_ceil(3));
+    assert_eq!(info.closed_components_turned_outward, 0);
+    assert!(face_normals(&fixed).iter().all(|n| n[2] == 1.0));
+
+    let (filled, info) = prepare::fill_holes_except_longest(&fixed).unwrap();
+    assert_eq!(info.holes_filled, 3);
+    assert_eq!(filled.num_vertices(), fixed.num_vertices() + 3);
+    assert!((total_area(&filled) - 1.0).abs() < 1e-14);
+    assert!(face_normals(&filled).iter().all(|n| n[2] == 1.0));
+    require_disk(&filled).unwrap();
+}
