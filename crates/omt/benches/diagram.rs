@@ -76,4 +76,14 @@ fn main() {
         let err = (total - measure.total_mass()).abs() / measure.total_mass();
         println!("| {n} | {t_build:.4} / {c_build:.3} | {t_one:.4} / {c_one:.3} | {t_par:.4} | {err:.1e} |");
     }
+    // Worst case for the exact arithmetic: a square grid (every 4 neighbours co-circular).
+    let k = 316;
+    let h = 1.4 / k as f64;
+    let sites: Vec<[f64; 2]> = (0..k * k).map(|i| [-0.7 + h * (i % k) as f64, -0.7 + h * (i / k) as f64]).collect();
+    let weights = vec![0.0; k * k];
+    let (t_build, c_build, diagram) = best_of(2, || PowerDiagram::new(&sites, &weights).expect("valid input"));
+    let (t_one, c_one, cells) = best_of(2, || one_thread.install(|| integrator.integrate(&diagram)));
+    let total: f64 = cells.masses.iter().sum();
+    let err = (total - measure.total_mass()).abs() / measure.total_mass();
+    println!("| {} (grid) | {t_build:.4} / {c_build:.3} | {t_one:.4} / {c_one:.3} | – | {err:.1e} |", k * k);
 }
