@@ -8,13 +8,10 @@ use std::path::PathBuf;
 /// Errors of the analysis crate (matrix and label I/O, MDS, statistics, plots).
 #[derive(Debug, thiserror::Error)]
 pub enum AnalysisError {
-    /// Reading or writing a file failed.
-    #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// Reading or writing a file failed. (The I/O error is part of the message, not a
+    /// `source()`, so that `{:#}` chains do not print it twice.)
+    #[error("{}: {error}", path.display())]
+    Io { path: PathBuf, error: std::io::Error },
     /// A CSV file is malformed at a given 1-based line.
     #[error("{}:{line}: {message}", path.display())]
     Parse {
@@ -101,6 +98,10 @@ pub enum AnalysisError {
     /// A plot could not be drawn or written.
     #[error("{}: plotting failed: {message}", path.display())]
     Plot { path: PathBuf, message: String },
+    /// A registration landmark that is malformed, out of range, repeated or on the boundary;
+    /// `source_name` is the file (or `pairs`) it came from, `landmark` its name or line.
+    #[error("{source_name}: landmark {landmark}: {message}")]
+    Landmark { source_name: String, landmark: String, message: String },
     /// Invalid plot input (empty data, mismatched lengths, bad range).
     #[error("invalid plot input: {message}")]
     PlotInput { message: String },
@@ -111,7 +112,7 @@ impl AnalysisError {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         AnalysisError::Io {
             path: path.into(),
-            source,
+            error: source,
         }
     }
 

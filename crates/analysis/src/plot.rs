@@ -87,15 +87,16 @@ const TAB20: [(u8, u8, u8); 20] = [
     (158, 218, 229),
 ];
 
-/// Colour `k` of `count` categorical colours: Tableau 20 up to 20 values, evenly spaced hues
-/// beyond.
+/// Colour `k` of `count` categorical colours: Tableau 20 up to 20 values, golden-ratio hue
+/// steps with three lightness levels beyond.
 pub fn category_color(k: usize, count: usize) -> RGBColor {
     if count <= TAB20.len() {
         let (r, g, b) = TAB20[k % TAB20.len()];
         RGBColor(r, g, b)
     } else {
-        let hue = k as f64 / count as f64;
-        let lightness = if k % 2 == 0 { 0.42 } else { 0.6 };
+        // Golden-ratio hue steps keep consecutive categories far apart on the colour wheel.
+        let hue = (k as f64 * 0.618_033_988_749_895).fract();
+        let lightness = [0.45, 0.62, 0.33][k % 3];
         let (r, g, b) = HSLColor(hue, 0.7, lightness).rgb();
         RGBColor(r, g, b)
     }
@@ -194,7 +195,11 @@ fn draw_marker<DB: DrawingBackend>(
 enum LegendSymbol {
     Marker(Marker, RGBColor),
     Line(RGBColor),
+    None,
 }
+
+/// Smallest legend row height before entries are cut off.
+const MIN_LEGEND_ROW: i32 = 12;
 
 /// Greedy word wrap of `text` into lines no wider than `max_width` pixels (a single long word
 /// stays on its own line).
@@ -230,6 +235,26 @@ fn draw_legend<DB: DrawingBackend>(
     let text_x = 54i32;
     let max_font = 17.0;
     let wrap_style = TextStyle::from((FONT, max_font).into_font());
+    // Too many entries for the panel even at the smallest row height: keep the first `cap` of
+    // every section and end it with "… and N more".
+    let top = 80i32;
+    let max_rows = ((h as i32 - top - 20) / MIN_LEGEND_ROW).max(1) as usize;
+    let full_rows = |cap: usize| -> usize { sections.iter().map(|(_, e)| e.len().min(cap + 1) + 2).sum() };
+    let mut cap = sections.iter().map(|(_, e)| e.len()).max().unwrap_or(0);
+    while cap > 1 && full_rows(cap) > max_rows {
+        cap -= 1;
+    }
+    let capped: Vec<(String, Vec<(&LegendSymbol, String)>)> = sections
+        .iter()
+        .map(|(title, entries)| {
+            let mut kept: Vec<(&LegendSymbol, String)> = entries.iter().take(cap).map(|(s, l)| (s, l.clone())).collect();
+            if entries.len() > cap {
+                kept.push((&LegendSymbol::None, format!("… and {} more", entries.len() - cap)));
+            }
+            (title.clone(), kept)
+        })
+        .collect();
+    let sections = &capped;
     let mut wrapped = Vec::with_capacity(sections.len());
     let mut rows = 0usize;
     for (title, entries) in sections {
@@ -245,8 +270,7 @@ fn draw_legend<DB: DrawingBackend>(
     if rows == 0 {
         return Ok(());
     }
-    let top = 80i32;
-    let row_h = ((h as i32 - top - 20) / rows as i32).clamp(10, 28);
+    let row_h = ((h as i32 - top - 20) / rows as i32).clamp(MIN_LEGEND_ROW, 28);
     let font_size = (row_h as f64 * 0.68).clamp(9.0, max_font);
     let heading = (FONT, font_size + 1.0).into_font().color(&BLACK);
     let text = (FONT, font_size).into_font().color(&BLACK.mix(0.85));
@@ -262,6 +286,7 @@ fn draw_legend<DB: DrawingBackend>(
                     panel.draw(&Rectangle::new([(16, cy - 6), (44, cy + 6)], c.mix(0.3).filled()))?;
                     panel.draw(&PathElement::new(vec![(16, cy), (44, cy)], c.stroke_width(3)))?;
                 }
+                LegendSymbol::None => {}
             }
             for line in label_lines {
                 panel.draw(&Text::new(line.clone(), (text_x, y - (font_size * 0.55) as i32), text.clone()))?;
@@ -331,11 +356,17 @@ fn draw_scatter<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &Scatte
         .y_labels(8)
         .draw()?;
     let n_colors = input.color.as_ref().map_or(1, |c| c.1.len());
+    // Smaller markers for crowded plots.
+    let radius = match input.points.len() {
+        0..=120 => 7,
+        121..=300 => 5,
+        _ => 4,
+    };
     for (i, p) in input.points.iter().enumerate() {
         let color = input.color.as_ref().map_or(category_color(0, 1), |c| category_color(c.2[i], n_colors));
         let marker = input.marker.as_ref().map_or(Marker::Circle, |m| MARKERS[m.2[i] % MARKERS.len()]);
         let pixel = chart.backend_coord(p);
-        draw_marker(&root, pixel, 7, marker, color)?;
+        draw_marker(&root, pixel, radius, marker, color)?;
     }
     if has_legend {
         let mut sections = Vec::new();
