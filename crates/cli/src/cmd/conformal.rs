@@ -1,0 +1,121 @@
+//! `shapespace conformal IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
+//! [--landmarks FILE.json] [--factors OUT.csv] [--report OUT.json]`: the discrete Riemann map
+//! of a disk-type mesh onto the unit disk ([`shapespace_conformal::disk_map`]).
+//!
+//! Markers: a marker file (`--landmarks`, else the sidecar `NAME.landmarks.json` or
+//! `landmarks.json` beside the mesh) gives the defaults; `--center` / `--boundary-marker`
+//! override it; anything unspecified is `auto`. Outputs: OUT.obj is the input mesh with one
+//! `vt u v` per vertex; `--factors` writes `vertex,u,v,lambda`; `--report` writes the quality
+//! statistics, the method, the resolved markers and the timings as JSON.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use shapespace_conformal::{disk_map, BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile};
+use shapespace_geometry::io::{read_mesh, write_obj};
+
+/// Arguments of `shapespace conformal`.
+#[derive(clap::Args)]
+pub struct ConformalArgs {
+    /// Input mesh (OBJ, OFF, PLY) with disk topology.
+    pub input: PathBuf,
+    /// Output OBJ: the input mesh with per-vertex texture coordinates (the disk map).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Interior marker p ↦ 0: a vertex index, a point `x,y,z` (projected to the surface) or
+    /// `auto` (the vertex farthest from the boundary).
+    #[arg(long)]
+    pub center: Option<String>,
+    /// Boundary marker q ↦ 1: a boundary vertex index or `auto` (the boundary vertex farthest
+    /// from the center).
+    #[arg(long = "boundary-marker")]
+    pub boundary_marker: Option<String>,
+    /// Marker file `{"center": .., "boundary": .., "landmarks": {..}}` (default: the sidecar
+    /// NAME.landmarks.json or landmarks.json beside the input, if present).
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Write per-vertex `vertex,u,v,lambda` (λ: log conformal factor) as CSV.
+    #[arg(long)]
+    pub factors: Option<PathBuf>,
+    /// Write quality statistics, method, markers and timings as JSON.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Use the plain cotangent Laplacian instead of the intrinsic Delaunay one (comparison only).
+    #[arg(long)]
+    pub no_intrinsic_delaunay: bool,
+}
+
+fn write_factors(path: &Path, map: &shapespace_conformal::DiskMap) -> Result<()> {
+    let file = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    writeln!(w, "vertex,u,v,lambda")?;
+    for (i, (z, l)) in map.uv.iter().zip(&map.conformal_factor).enumerate() {
+        writeln!(w, "{i},{:?},{:?},{:?}", z[0], z[1], l)?;
+    }
+    w.flush().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Runs the subcommand.
+pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
+    let t0 = Instant::now();
+    let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
+    shapespace_geometry::topology::require_disk(&mesh)
+        .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
+    let marker_path = args.landmarks.clone().or_else(|| MarkerFile::sidecar_path(&args.input));
+    let mut markers = match &marker_path {
+        Some(p) => MarkerFile::from_json_file(p)?.markers,
+        None => Default::default(),
+    };
+    if let Some(c) = &args.center {
+        markers.center = CenterMarker::parse(c)?;
+    }
+    if let Some(b) = &args.boundary_marker {
+        markers.boundary = BoundaryMarker::parse(b)?;
+    }
+    let params = DiskMapParams { intrinsic_delaunay: !args.no_intrinsic_delaunay, ..Default::default() };
+    let map = disk_map(&mesh, &markers, &params).with_context(|| format!("mapping {}", args.input.display()))?;
+    mesh.uvs = Some(map.uv.clone());
+    write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
+    if let Some(p) = &args.factors {
+        write_factors(p, &map)?;
+    }
+    let q = &map.quality;
+    eprintln!(
+        "{}: {} V, {} F, center {:?}, boundary {}; {} intrinsic flips, {} fold repairs; Λ mean {:.3e} p95 {:.3e} max {:.3e}; {} flipped; {:.3} s",
+        args.input.display(),
+        mesh.num_vertices(),
+        mesh.num_faces(),
+        map.info.markers.center,
+        map.info.markers.boundary_vertex,
+        map.info.intrinsic_flips,
+        map.info.fold_repairs,
+        q.quasi_conformal_distortion.mean,
+        q.quasi_conformal_distortion.p95,
+        q.quasi_conformal_distortion.max,
+        q.num_flipped,
+        map.info.timings.total
+    );
+    if let Some(p) = &args.report {
+        let report = serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.out.display().to_string(),
+            "marker_file": marker_path.map(|p| p.display().to_string()),
+            "num_vertices": mesh.num_vertices(),
+            "num_faces": mesh.num_faces(),
+            "scale": map.scale,
+            "method": map.info.method,
+            "info": map.info,
+            "quality": map.quality,
+            "face_density": shapespace_conformal::quality::Stats::of(&map.face_densities),
+            "conformal_factor": shapespace_conformal::quality::Stats::of(&map.conformal_factor),
+            "wall_seconds": t0.elapsed().as_secs_f64(),
+        });
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
