@@ -1,0 +1,339 @@
+//! Quality measures of a registration f: S₁ → S₂ [Su et al. 2015, §5.3.2], plus the geodesic
+//! error against a ground-truth correspondence.
+//!
+//! Both surfaces are normalized to the same total area (S₂ is scaled to the area of S₁ for
+//! areas; curvatures are taken on both surfaces scaled to area π).
+//!
+//! * **Flipped area ratio, disk** ([`RegistrationMetrics::flipped_area_ratio`]): the area of
+//!   the S₁ triangles t whose image (g(φ₁(a)), g(φ₁(b)), g(φ₁(c))) has the opposite orientation
+//!   to (φ₁(a), φ₁(b), φ₁(c)) (signed areas of strictly opposite signs), over the total area
+//!   of S₁. This is the fold of g relative to φ₁.
+//! * **Flipped area ratio, 3D** ([`RegistrationMetrics::flipped_area_ratio_3d`]): the area of
+//!   the S₁ triangles whose image triangle (f(a), f(b), f(c)) in space has a normal with a
+//!   negative dot product with the normal of S₂ there (the area-weighted vertex normals of S₂
+//!   interpolated at f(a), f(b), f(c) by their barycentric coordinates and summed), over the
+//!   total area. This sees folds of the whole composition, including those of φ₁ and φ₂.
+//! * **Curvature difference** per interior vertex v of S₁: max(|c₁|/|c₂|, |c₂|/|c₁|) with c the
+//!   signed mean curvature (`shapespace_geometry::curvature::vertex_mean_curvatures`), c₁ at v,
+//!   c₂ interpolated at f(v) from the corners of its face. Near-zero curvatures are clamped:
+//!   |c| ≥ `curvature_floor` × median |c| of that surface (counted in
+//!   [`RegistrationMetrics::curvature_clamped`]). Excluded: boundary vertices of S₁ and
+//!   vertices whose image face touches the boundary of S₂ (boundary curvature is not
+//!   meaningful).
+//! * **Local area distortion** per vertex v of S₁: max(J, 1/J) with J = (area of the image of
+//!   v's one-ring on S₂: the 3D triangles (f(a), f(b), f(c)), unsigned) / (one-ring area on S₁),
+//!   areas normalized to equal totals.
+//! * **Geodesic error** (when the meshes share their vertex order, as the TOSCA pose sets):
+//!   for a fixed random subset of vertices v (xorshift-based sampling with a fixed seed), the
+//!   geodesic distance on S₂ between f(v) and the true partner v, by the heat method
+//!   ([`crate::geodesic`], one heat solve per sampled source, evaluated at f(v) by barycentric
+//!   interpolation), divided by √(area of S₂). Reported with the fraction of samples under the
+//!   thresholds 0, 0.01, …, 0.25 (the correspondence-benchmark curve).
+
+use serde::Serialize;
+use shapespace_geometry::curvature::vertex_mean_curvatures;
+use shapespace_geometry::quantities::{face_areas, total_area, vertex_normals};
+use shapespace_geometry::{Connectivity, TriMesh};
+
+use crate::error::AnalysisError;
+use crate::geodesic::HeatGeodesics;
+use crate::registration::Registration;
+
+/// Parameters of [`registration_metrics`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MetricParams {
+    /// Curvature magnitudes are clamped below this fraction of the surface's median |c|
+    /// (default 0.05).
+    pub curvature_floor: f64,
+    /// Number of sampled vertices for the geodesic error (default 300; all when fewer).
+    pub geodesic_samples: usize,
+    /// Seed of the sample (default 7).
+    pub seed: u64,
+    /// Evaluate the geodesic error against the identity correspondence v ↔ v (needs equal
+    /// vertex counts; default true, skipped when the counts differ).
+    pub ground_truth: bool,
+}
+
+impl Default for MetricParams {
+    fn default() -> Self {
+        MetricParams { curvature_floor: 0.05, geodesic_samples: 300, seed: 7, ground_truth: true }
+    }
+}
+
+/// Mean, median, 95th percentile and maximum of a set of values (NaN when empty).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ValueSummary {
+    pub count: usize,
+    pub mean: f64,
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl ValueSummary {
+    /// Summary of `values` (non-finite values are ignored); percentiles by nearest rank on the
+    /// sorted values (median: mean of the two middle values for an even count).
+    pub fn of(values: &[f64]) -> Self {
+        let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+        if v.is_empty() {
+            return ValueSummary { count: 0, mean: f64::NAN, median: f64::NAN, p95: f64::NAN, max: f64::NAN };
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
+        ValueSummary { count: n, mean: v.iter().sum::<f64>() / n as f64, median, p95: v[rank], max: v[n - 1] }
+    }
+}
+
+/// Geodesic errors of sampled vertices against the ground truth.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GeodesicErrors {
+    /// The sampled vertices (indices on both surfaces).
+    pub samples: Vec<u32>,
+    /// d_{S₂}(f(v), v) / √area(S₂) per sample.
+    pub errors: Vec<f64>,
+    /// Summary of `errors`.
+    pub summary: ValueSummary,
+    /// Thresholds 0, 0.01, …, 0.25.
+    pub thresholds: Vec<f64>,
+    /// Fraction of samples with error ≤ each threshold.
+    pub fractions: Vec<f64>,
+}
+
+/// The measures of the module docs.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RegistrationMetrics {
+    /// Flipped area ratio in the disk (g against φ₁).
+    pub flipped_area_ratio: f64,
+    /// Number of such flipped faces.
+    pub flipped_faces: usize,
+    /// Flipped area ratio of the 3D image against the normals of S₂.
+    pub flipped_area_ratio_3d: f64,
+    /// Number of such flipped faces.
+    pub flipped_faces_3d: usize,
+    /// Curvature difference per evaluated vertex (see `curvature_vertices`).
+    #[serde(skip)]
+    pub curvature_difference: Vec<f64>,
+    /// The vertices of S₁ where the curvature difference was evaluated.
+    #[serde(skip)]
+    pub curvature_vertices: Vec<u32>,
+    /// Summary of the curvature difference.
+    pub curvature_summary: ValueSummary,
+    /// Evaluated vertices where c₁ or c₂ was clamped to the floor.
+    pub curvature_clamped: usize,
+    /// The floors used for |c₁| and |c₂| (surfaces scaled to area π).
+    pub curvature_floors: [f64; 2],
+    /// Area distortion max(J, 1/J) per vertex of S₁, #V₁.
+    #[serde(skip)]
+    pub area_distortion: Vec<f64>,
+    /// Summary of the area distortion.
+    pub area_distortion_summary: ValueSummary,
+    /// Geodesic errors (when a ground truth is available).
+    pub geodesic: Option<GeodesicErrors>,
+    /// Vertices snapped onto φ₂(S₂) during the composition.
+    pub num_snapped: usize,
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn signed_area2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// A fixed pseudo-random sample of `k` distinct indices of 0..n (partial Fisher–Yates with a
+/// splitmix64 stream seeded by `seed`), sorted. All indices when k ≥ n.
+pub fn sample_indices(n: usize, k: usize, seed: u64) -> Vec<u32> {
+    let mut idx: Vec<u32> = (0..n as u32).collect();
+    if k >= n {
+        return idx;
+    }
+    let mut state = seed;
+    let mut next = || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    for i in 0..k {
+        let j = i + (next() % (n - i) as u64) as usize;
+        idx.swap(i, j);
+    }
+    let mut out = idx[..k].to_vec();
+    out.sort_unstable();
+    out
+}
+
+/// Evaluates the measures of the module docs for a registration of `source` onto `target`.
+/// Errors: the registration does not match the meshes, or the heat method fails on S₂.
+pub fn registration_metrics(
+    source: &TriMesh,
+    target: &TriMesh,
+    reg: &Registration,
+    params: &MetricParams,
+) -> Result<RegistrationMetrics, AnalysisError> {
+    let n1 = source.num_vertices();
+    if reg.points.len() != n1 || reg.harmonic_uv.len() != n1 || reg.source_uv.len() != n1 {
+        return Err(AnalysisError::InvalidInput(format!("registration has {} points for {} source vertices", reg.points.len(), n1)));
+    }
+    let a1 = total_area(source);
+    let a2 = total_area(target);
+    if !(a1 > 0.0 && a2 > 0.0) {
+        return Err(AnalysisError::InvalidInput("a surface has zero area".into()));
+    }
+    let areas1 = face_areas(source);
+
+    // flips
+    let normals2 = vertex_normals(target);
+    let image_normal = |v: usize| {
+        let t = target.faces[reg.faces[v] as usize];
+        let b = reg.bary[v];
+        let mut nrm = [0.0; 3];
+        for k in 0..3 {
+            for d in 0..3 {
+                nrm[d] += b[k] * normals2[t[k] as usize][d];
+            }
+        }
+        nrm
+    };
+    let (mut flipped, mut flipped_area, mut flipped3, mut flipped_area3) = (0usize, 0.0, 0usize, 0.0);
+    let mut ring_image = vec![0.0; n1];
+    let mut ring_source = vec![0.0; n1];
+    for (fi, f) in source.faces.iter().enumerate() {
+        let [a, b, c] = [f[0] as usize, f[1] as usize, f[2] as usize];
+        let s0 = signed_area2(reg.source_uv[a], reg.source_uv[b], reg.source_uv[c]);
+        let s1 = signed_area2(reg.harmonic_uv[a], reg.harmonic_uv[b], reg.harmonic_uv[c]);
+        if (s0 > 0.0 && s1 < 0.0) || (s0 < 0.0 && s1 > 0.0) {
+            flipped += 1;
+            flipped_area += areas1[fi];
+        }
+        let (pa, pb, pc) = (reg.points[a], reg.points[b], reg.points[c]);
+        let nimg = cross(sub(pb, pa), sub(pc, pa));
+        let nref = {
+            let (x, y, z) = (image_normal(a), image_normal(b), image_normal(c));
+            [x[0] + y[0] + z[0], x[1] + y[1] + z[1], x[2] + y[2] + z[2]]
+        };
+        if dot(nimg, nref) < 0.0 {
+            flipped3 += 1;
+            flipped_area3 += areas1[fi];
+        }
+        let img_area = 0.5 * dot(nimg, nimg).sqrt() * (a1 / a2);
+        for &v in f {
+            ring_image[v as usize] += img_area;
+            ring_source[v as usize] += areas1[fi];
+        }
+    }
+
+    // local area distortion
+    let area_distortion: Vec<f64> = (0..n1)
+        .map(|v| {
+            let j = ring_image[v] / ring_source[v];
+            if j > 0.0 && j.is_finite() {
+                j.max(1.0 / j)
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+
+    // curvature difference (surfaces scaled to area π: c ↦ c·√(A/π))
+    let k1 = (a1 / std::f64::consts::PI).sqrt();
+    let k2 = (a2 / std::f64::consts::PI).sqrt();
+    let c1: Vec<f64> = vertex_mean_curvatures(source).iter().map(|c| c * k1).collect();
+    let c2: Vec<f64> = vertex_mean_curvatures(target).iter().map(|c| c * k2).collect();
+    let b1 = Connectivity::of(source).boundary_vertices(n1);
+    let b2 = Connectivity::of(target).boundary_vertices(target.num_vertices());
+    let median_abs = |c: &[f64], b: &[bool]| {
+        let v: Vec<f64> = c.iter().zip(b).filter(|(_, &bb)| !bb).map(|(x, _)| x.abs()).collect();
+        ValueSummary::of(&v).median
+    };
+    let floors = [params.curvature_floor * median_abs(&c1, &b1), params.curvature_floor * median_abs(&c2, &b2)];
+    let mut curvature_difference = Vec::new();
+    let mut curvature_vertices = Vec::new();
+    let mut curvature_clamped = 0usize;
+    for v in 0..n1 {
+        let t = target.faces[reg.faces[v] as usize];
+        if b1[v] || t.iter().any(|&w| b2[w as usize]) {
+            continue;
+        }
+        let cv2: f64 = (0..3).map(|k| reg.bary[v][k] * c2[t[k] as usize]).sum();
+        let (x, y) = (c1[v].abs(), cv2.abs());
+        if x < floors[0] || y < floors[1] {
+            curvature_clamped += 1;
+        }
+        let (x, y) = (x.max(floors[0]), y.max(floors[1]));
+        let r = (x / y).max(y / x);
+        if r.is_finite() {
+            curvature_difference.push(r);
+            curvature_vertices.push(v as u32);
+        }
+    }
+
+    // geodesic error against v ↔ v
+    let geodesic = if params.ground_truth && n1 == target.num_vertices() {
+        let heat = HeatGeodesics::new(target)?;
+        let samples = sample_indices(n1, params.geodesic_samples, params.seed);
+        let dist = heat.distances(&samples)?;
+        let norm = a2.sqrt();
+        let errors: Vec<f64> = samples
+            .iter()
+            .zip(&dist)
+            .map(|(&v, d)| {
+                let t = target.faces[reg.faces[v as usize] as usize];
+                let b = reg.bary[v as usize];
+                let e: f64 = (0..3).map(|k| b[k] * d[t[k] as usize]).sum();
+                e.max(0.0) / norm
+            })
+            .collect();
+        let thresholds: Vec<f64> = (0..=25).map(|k| k as f64 * 0.01).collect();
+        let fractions = thresholds
+            .iter()
+            .map(|&th| errors.iter().filter(|&&e| e <= th).count() as f64 / errors.len().max(1) as f64)
+            .collect();
+        Some(GeodesicErrors { summary: ValueSummary::of(&errors), samples, errors, thresholds, fractions })
+    } else {
+        None
+    };
+
+    Ok(RegistrationMetrics {
+        flipped_area_ratio: flipped_area / a1,
+        flipped_faces: flipped,
+        flipped_area_ratio_3d: flipped_area3 / a1,
+        flipped_faces_3d: flipped3,
+        curvature_summary: ValueSummary::of(&curvature_difference),
+        curvature_difference,
+        curvature_vertices,
+        curvature_clamped,
+        curvature_floors: floors,
+        area_distortion_summary: ValueSummary::of(&area_distortion),
+        area_distortion,
+        geodesic,
+        num_snapped: reg.num_snapped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_and_sampling() {
+        let s = ValueSummary::of(&[4.0, 1.0, 3.0, 2.0, f64::NAN]);
+        assert_eq!((s.count, s.mean, s.median, s.max), (4, 2.5, 2.5, 4.0));
+        assert_eq!(s.p95, 4.0);
+        let a = sample_indices(1000, 300, 7);
+        assert_eq!(a.len(), 300);
+        assert!(a.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(a, sample_indices(1000, 300, 7));
+        assert_ne!(a, sample_indices(1000, 300, 8));
+        assert_eq!(sample_indices(5, 10, 1), vec![0, 1, 2, 3, 4]);
+    }
+}

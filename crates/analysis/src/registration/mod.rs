@@ -1,0 +1,254 @@
+//! Surface registration through disk maps and a landmark-constrained harmonic map
+//! [Su et al. 2015, "Shape classification using Wasserstein distance for brain morphometry
+//! analysis", Algorithm 4, §5.3].
+//!
+//! Two disk-type surfaces S₁, S₂ with landmark pairs (l1_k, l2_k):
+//! 1. disk maps φ₁: S₁ → D, φ₂: S₂ → D: area-preserving by OMT ([`Method::Omt`],
+//!    [`crate::area_preserving::area_preserving_map`]) or conformal ([`Method::Conformal`],
+//!    the baseline: `shapespace_conformal::disk_map`), each with its own interior/boundary
+//!    markers (p ↦ 0, q ↦ 1);
+//! 2. the harmonic map g of the planar triangulation φ₁(S₁) into D
+//!    (`shapespace_conformal::harmonic_map`: cotangent weights of the intrinsic Delaunay
+//!    triangulation of the planar mesh φ₁(S₁), i.e. of its planar edge lengths) with
+//!    * **boundary**: every boundary vertex of S₁ keeps its position φ₁(v) on the circle
+//!      (a choice: both disk maps send their boundary marker to 1 and distribute the boundary by
+//!      their own rule, so the boundaries already correspond to the precision of those rules;
+//!      sliding by arc length would replace φ₁'s boundary distribution by a chord-length one);
+//!    * **landmarks** pinned: $g(\varphi_1(l1_k)) = \varphi_2(l2_k)$;
+//!
+//!    $$ (L g)_i = 0 \ \text{at free interior vertices}, \quad g = \varphi_1 \ \text{on } \partial S_1, \quad g(\varphi_1(l1_k)) = \varphi_2(l2_k); $$
+//! 3. composition f = φ₂⁻¹ ∘ g ∘ φ₁ by point location ([`crate::point_location`]): for each
+//!    vertex v of S₁ the point g(φ₁(v)) is located in the triangulation φ₂(S₂) (quadtree;
+//!    points a hair outside its boundary polygon snap to the nearest boundary triangle), and
+//!    f(v) is the barycentric point of the corresponding 3D triangle of S₂.
+//!
+//! Radó's theorem makes g bijective only without interior constraints; hard landmark pins can
+//! fold it (DESIGN.md), and the disk maps themselves may fold: [`metrics`] measures flips.
+
+pub mod bench;
+pub mod landmarks;
+pub mod metrics;
+
+use std::time::Instant;
+
+use serde::Serialize;
+use shapespace_conformal::{disk_map, harmonic_map, BoundaryConstraint, HarmonicConstraints, Markers};
+use shapespace_geometry::{Connectivity, TriMesh};
+
+use crate::area_preserving::{area_preserving_map, AreaPreservingParams};
+use crate::error::AnalysisError;
+use crate::point_location::PointLocator;
+
+pub use landmarks::Landmarks;
+pub use metrics::{registration_metrics, MetricParams, RegistrationMetrics};
+
+/// Which disk maps φ₁, φ₂ the registration uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Area-preserving maps by optimal mass transport (Su et al. 2015, Alg. 2).
+    #[default]
+    Omt,
+    /// Conformal maps (the baseline of Su et al. 2015, Fig. 7).
+    Conformal,
+}
+
+impl Method {
+    /// `omt` or `conformal`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Omt => "omt",
+            Method::Conformal => "conformal",
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = AnalysisError;
+    /// Parses `omt` (also `area-preserving`) or `conformal`, case-insensitive.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "omt" | "area-preserving" => Ok(Method::Omt),
+            "conformal" => Ok(Method::Conformal),
+            other => Err(AnalysisError::InvalidInput(format!("unknown registration method `{other}` (expected omt or conformal)"))),
+        }
+    }
+}
+
+/// Parameters of [`register`].
+#[derive(Clone, Debug, Default)]
+pub struct RegistrationParams {
+    /// Disk maps by OMT (default) or conformal.
+    pub method: Method,
+    /// Disk-map markers of S₁ (interior p ↦ 0, boundary q ↦ 1).
+    pub source_markers: Markers,
+    /// Disk-map markers of S₂.
+    pub target_markers: Markers,
+    /// Parameters of the area-preserving map; its `disk_map` field also parameterizes the
+    /// conformal maps of [`Method::Conformal`].
+    pub area_preserving: AreaPreservingParams,
+}
+
+/// A disk image φ(S) of a surface: #V planar positions in the unit disk and how long it took.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiskImage {
+    /// φ(v) per vertex, #V.
+    pub uv: Vec<[f64; 2]>,
+    /// The method that made it.
+    pub method: Method,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// The disk map of `mesh` by `method` (module docs, step 1). Errors from the conformal map or
+/// the OT solver.
+pub fn disk_image(mesh: &TriMesh, markers: &Markers, method: Method, params: &AreaPreservingParams) -> Result<DiskImage, AnalysisError> {
+    let t = Instant::now();
+    let uv = match method {
+        Method::Omt => area_preserving_map(mesh, markers, params)?.uv,
+        Method::Conformal => disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?.uv,
+    };
+    Ok(DiskImage { uv, method, seconds: t.elapsed().as_secs_f64() })
+}
+
+/// Wall-clock seconds of the stages of a registration.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RegistrationTimings {
+    /// Disk map of S₁.
+    pub source_map: f64,
+    /// Disk map of S₂.
+    pub target_map: f64,
+    /// Harmonic map g.
+    pub harmonic: f64,
+    /// Point location and barycentric images.
+    pub composition: f64,
+    /// Sum of the above (what one registration from scratch costs).
+    pub total: f64,
+}
+
+/// A registration f: S₁ → S₂ (module docs).
+#[derive(Clone, Debug)]
+pub struct Registration {
+    /// The disk maps used.
+    pub method: Method,
+    /// φ₁(v) per vertex of S₁, #V₁.
+    pub source_uv: Vec<[f64; 2]>,
+    /// φ₂(w) per vertex of S₂, #V₂.
+    pub target_uv: Vec<[f64; 2]>,
+    /// g(φ₁(v)) per vertex of S₁, #V₁.
+    pub harmonic_uv: Vec<[f64; 2]>,
+    /// Face of S₂ holding f(v), per vertex of S₁ (#V₁).
+    pub faces: Vec<u32>,
+    /// Barycentric coordinates of f(v) in that face (corners in the face's order), #V₁.
+    pub bary: Vec<[f64; 3]>,
+    /// f(v) in 3D on S₂, #V₁.
+    pub points: Vec<[f64; 3]>,
+    /// Vertices whose g-image lay outside φ₂(S₂) and was snapped onto it.
+    pub num_snapped: usize,
+    /// Largest snap distance in the disk.
+    pub max_snap_distance: f64,
+    /// Stage timings.
+    pub timings: RegistrationTimings,
+}
+
+/// Registers S₁ (`source`) onto S₂ (`target`) by f = φ₂⁻¹ ∘ g ∘ φ₁ (module docs): computes
+/// both disk maps by `params.method`, then [`register_with_maps`].
+///
+/// Errors: invalid landmarks (out of range, repeated, on the boundary: named), a disk map that
+/// fails, a harmonic map that cannot be solved.
+pub fn register(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks, params: &RegistrationParams) -> Result<Registration, AnalysisError> {
+    check_landmarks(source, target, landmarks)?;
+    let phi1 = disk_image(source, &params.source_markers, params.method, &params.area_preserving)?;
+    let phi2 = disk_image(target, &params.target_markers, params.method, &params.area_preserving)?;
+    register_with_maps(source, target, &phi1, &phi2, landmarks)
+}
+
+fn check_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
+    let b1 = Connectivity::of(source).boundary_vertices(source.num_vertices());
+    let b2 = Connectivity::of(target).boundary_vertices(target.num_vertices());
+    landmarks.validate(&b1, &b2)
+}
+
+/// Steps 2–3 of the module docs with given disk images φ₁ (#V₁) and φ₂ (#V₂): the harmonic map
+/// g with S₁'s boundary kept at φ₁ and the landmarks pinned to φ₂(l2_k), then the composition
+/// by point location in φ₂(S₂). Timings include the disk images' `seconds`.
+pub fn register_with_maps(
+    source: &TriMesh,
+    target: &TriMesh,
+    phi1: &DiskImage,
+    phi2: &DiskImage,
+    landmarks: &Landmarks,
+) -> Result<Registration, AnalysisError> {
+    check_landmarks(source, target, landmarks)?;
+    if phi1.uv.len() != source.num_vertices() || phi2.uv.len() != target.num_vertices() {
+        return Err(AnalysisError::InvalidInput(format!(
+            "disk images have {} and {} points for meshes of {} and {} vertices",
+            phi1.uv.len(),
+            phi2.uv.len(),
+            source.num_vertices(),
+            target.num_vertices()
+        )));
+    }
+    let t0 = Instant::now();
+    let conn1 = Connectivity::of(source);
+    let loops = conn1.boundary_loops(&source.faces);
+    let boundary: Vec<(u32, [f64; 2])> = loops.iter().flatten().map(|&v| (v, phi1.uv[v as usize])).collect();
+    let pins: Vec<(u32, [f64; 2])> = landmarks.pairs.iter().map(|&(a, b)| (a, phi2.uv[b as usize])).collect();
+    let constraints = HarmonicConstraints { boundary: BoundaryConstraint::Fixed(boundary), landmarks: pins };
+    let harmonic_uv = harmonic_map(&phi1.uv, &source.faces, &constraints).map_err(AnalysisError::DiskMap)?;
+    let t1 = Instant::now();
+
+    let locator = PointLocator::new(&phi2.uv, &target.faces)?;
+    let n = source.num_vertices();
+    let mut faces = Vec::with_capacity(n);
+    let mut bary = Vec::with_capacity(n);
+    let mut points = Vec::with_capacity(n);
+    let (mut num_snapped, mut max_snap_distance) = (0usize, 0.0f64);
+    for (v, &p) in harmonic_uv.iter().enumerate() {
+        let loc = locator.locate(p).ok_or_else(|| {
+            AnalysisError::InvalidInput(format!("the harmonic image {p:?} of source vertex {v} cannot be located (non-finite)"))
+        })?;
+        if loc.snap_distance > 0.0 {
+            num_snapped += 1;
+            max_snap_distance = max_snap_distance.max(loc.snap_distance);
+        }
+        let tri = target.faces[loc.face as usize];
+        let mut x = [0.0; 3];
+        for k in 0..3 {
+            let q = target.positions[tri[k] as usize];
+            for d in 0..3 {
+                x[d] += loc.bary[k] * q[d];
+            }
+        }
+        faces.push(loc.face);
+        bary.push(loc.bary);
+        points.push(x);
+    }
+    let t2 = Instant::now();
+    let harmonic = (t1 - t0).as_secs_f64();
+    let composition = (t2 - t1).as_secs_f64();
+    Ok(Registration {
+        method: phi1.method,
+        source_uv: phi1.uv.clone(),
+        target_uv: phi2.uv.clone(),
+        harmonic_uv,
+        faces,
+        bary,
+        points,
+        num_snapped,
+        max_snap_distance,
+        timings: RegistrationTimings {
+            source_map: phi1.seconds,
+            target_map: phi2.seconds,
+            harmonic,
+            composition,
+            total: phi1.seconds + phi2.seconds + harmonic + composition,
+        },
+    })
+}
