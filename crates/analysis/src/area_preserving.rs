@@ -1,0 +1,469 @@
+//! Area-preserving parameterization of a disk-type surface by optimal mass transport
+//! [Su et al. 2015, "Shape classification using Wasserstein distance for brain morphometry
+//! analysis", Algorithm 2; Zhao et al. 2013, "Area-preservation mapping using optimal mass
+//! transport", §4].
+//!
+//! Steps (surface scaled to total area π):
+//! 1. the conformal disk map φ: M → D (interior marker ↦ 0, boundary marker ↦ 1), from
+//!    `shapespace_conformal::disk_map`;
+//! 2. target points $y_i = \varphi(v_i)$ with masses $\nu_i = \tfrac13 \sum_{f \ni i} A_f$
+//!    (optionally multiplied by importance weights $w_i$ and renormalized to total π);
+//! 3. semi-discrete OT from the *uniform* (Lebesgue) measure on the domain Ω to $(y, \nu)$:
+//!    heights h with $|W_i(h) \cap \Omega| = \nu_i$ for every i (`shapespace_omt::solve_ot`);
+//! 4. every vertex is sent to the centroid $c_i = \frac{1}{|W_i|}\int_{W_i} x\,dx$ of its cell.
+//!    The OT map $T = \nabla u_h$ sends $W_i$ to $y_i$; the map $v_i \mapsto c_i$ is the discrete
+//!    inverse $T^{-1} \circ \varphi$, the area-preserving map closest to φ in the $L^2$ sense.
+//!
+//! # Domain and boundary (choices, not in the papers)
+//! - **Disk** ([`Domain::Disk`]): Ω is the regular polygon with K vertices (one at angle 0) and
+//!   circumradius $\rho_K = \sqrt{2\pi / (K \sin(2\pi/K))}$, so that $|\Omega| = \pi = \sum \nu_i$
+//!   exactly and no mass rescaling happens. Its boundary stays within
+//!   $\pi^2/(3K^2)$ of the unit circle (≈ 3.1e-6 for K = 1024). K defaults to
+//!   max(1024, 8·#boundary vertices), so every boundary cell's outer side is resolved by ≥ 8
+//!   chords: the boundary cells' areas are then those of the true disk up to a band of relative
+//!   width ~1e-5.
+//! - **Square** ([`Domain::Square`]): Ω = [−√π/2, √π/2]², area π (Su et al. 2015, Fig. 2).
+//!   The targets stay in the unit disk (which sticks out of the square: the OT solver handles
+//!   sites outside Ω).
+//! - **Boundary vertices.** Their cell centroids lie strictly inside Ω. Each one is projected
+//!   radially from the origin onto ∂D (the unit circle, for both `Disk`) or onto ∂Ω (`Square`):
+//!   $c \mapsto c / |c|$, resp. $c \mapsto c\,\frac{\sqrt\pi/2}{\max(|c_x|, |c_y|)}$. Radial
+//!   projection preserves the angular order of the centroids; the boundary cells meet ∂Ω in the
+//!   same cyclic order as the boundary vertices (the OT map is monotone), so the boundary order
+//!   is preserved; the result counts violations in
+//!   [`AreaPreservingMap::boundary_order_violations`] instead of assuming it.
+//!
+//! # Importance weights (Zhao et al. 2013, §4; Su et al. 2015, §5.2)
+//! Per-vertex weights $w_i > 0$ give $\nu_i \leftarrow \pi\, w_i \nu_i / \sum_j w_j \nu_j$: a region
+//! R then receives the share $\sum_{i \in R} w_i\nu_i / \sum_j w_j\nu_j$ of the domain.
+
+use std::path::Path;
+use std::time::Instant;
+
+use serde::Serialize;
+use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
+use shapespace_geometry::quantities::vertex_dual_areas;
+use shapespace_geometry::{Connectivity, TriMesh};
+use shapespace_omt::{solve_ot, NewtonParams, OtSolution, SourceMeasure};
+
+use crate::error::AnalysisError;
+
+/// The domain of the area-preserving map.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Domain {
+    /// The unit disk (as a K-gon of area π, module docs).
+    #[default]
+    Disk,
+    /// The square [−√π/2, √π/2]² of area π.
+    Square,
+}
+
+impl std::str::FromStr for Domain {
+    type Err = AnalysisError;
+    /// Parses `disk` or `square` (case-insensitive).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "disk" => Ok(Domain::Disk),
+            "square" => Ok(Domain::Square),
+            other => Err(AnalysisError::InvalidInput(format!("unknown domain `{other}` (expected disk or square)"))),
+        }
+    }
+}
+
+/// Parameters of [`area_preserving_map`].
+#[derive(Clone, Debug)]
+pub struct AreaPreservingParams {
+    /// The domain Ω (default the disk).
+    pub domain: Domain,
+    /// Number K of vertices of the polygon standing for the unit disk; `None`: max(1024,
+    /// 8·#boundary vertices). Ignored for the square.
+    pub disk_polygon_vertices: Option<usize>,
+    /// Parameters of the conformal map.
+    pub disk_map: DiskMapParams,
+    /// Parameters of the Newton OT solver (tolerance on max_i |μ(W_i) − ν_i|/ν_i, default 1e-6).
+    pub newton: NewtonParams,
+    /// Per-vertex importance weights w_i > 0 (#V) multiplying the masses ν_i; `None`: all 1.
+    pub weights: Option<Vec<f64>>,
+    /// Return [`AnalysisError::Transport`] when the OT solver does not reach its tolerance
+    /// (default true). When false, the map of the last iterate is returned and
+    /// [`OtSummary::converged`] tells.
+    pub require_convergence: bool,
+}
+
+impl Default for AreaPreservingParams {
+    fn default() -> Self {
+        AreaPreservingParams {
+            domain: Domain::Disk,
+            disk_polygon_vertices: None,
+            disk_map: DiskMapParams::default(),
+            newton: NewtonParams::default(),
+            weights: None,
+            require_convergence: true,
+        }
+    }
+}
+
+/// Summary of the OT solve.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OtSummary {
+    /// Newton steps taken.
+    pub iterations: usize,
+    /// max_i |μ(W_i) − ν_i| / ν_i at the end.
+    pub max_relative_error: f64,
+    /// The tolerance asked for.
+    pub tolerance: f64,
+    /// Whether the tolerance was reached.
+    pub converged: bool,
+    /// Why the iteration stopped (`converged`, `iteration cap`, `stalled: ...`).
+    pub stop: String,
+    /// Where the initial heights came from.
+    pub start: String,
+    /// Transport cost Σ_i ∫_{W_i} |x − y_i|² dx.
+    pub cost: f64,
+    /// Factor the solver applied to the masses (1 up to roundoff: Ω has area π).
+    pub mass_scale: f64,
+    /// Number of vertices of the domain polygon.
+    pub domain_vertices: usize,
+}
+
+/// Wall-clock seconds of the stages of [`area_preserving_map`].
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Conformal disk map.
+    pub conformal: f64,
+    /// Optimal transport (domain setup and Newton solve).
+    pub ot: f64,
+    /// Centroids, boundary projection and checks.
+    pub output: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// An area-preserving map of a disk-type surface onto the disk or the square.
+#[derive(Clone, Debug)]
+pub struct AreaPreservingMap {
+    /// Image of each vertex, #V: the centroid of its OT cell; boundary vertices on ∂Ω.
+    pub uv: Vec<[f64; 2]>,
+    /// The conformal map the OT started from (its `uv` are the targets y_i).
+    pub conformal: DiskMap,
+    /// Target masses ν_i after weights and normalization, #V (Σ = π).
+    pub target_masses: Vec<f64>,
+    /// Areas |W_i ∩ Ω| of the cells at the final heights, #V.
+    pub cell_areas: Vec<f64>,
+    /// OT heights h, #V (u_h(x) = max_i ⟨x, y_i⟩ + h_i).
+    pub heights: Vec<f64>,
+    /// The domain used.
+    pub domain: Domain,
+    /// The domain polygon Ω (counter-clockwise).
+    pub domain_polygon: Vec<[f64; 2]>,
+    /// Whether each vertex lies on the mesh boundary, #V.
+    pub is_boundary: Vec<bool>,
+    /// Largest distance a boundary centroid moved in the projection onto ∂Ω.
+    pub max_boundary_projection: f64,
+    /// Boundary edges whose image turns the wrong way around the origin (0 = the boundary
+    /// order is preserved).
+    pub boundary_order_violations: usize,
+    /// OT solver summary.
+    pub ot: OtSummary,
+    /// Stage timings.
+    pub timings: Timings,
+}
+
+/// The polygon standing for Ω: for the disk, the regular K-gon of area π (circumradius
+/// ρ_K = √(2π/(K sin(2π/K))), vertex 0 at angle 0); for the square, [−√π/2, √π/2]².
+/// Counter-clockwise. Errors when K < 3.
+pub fn domain_polygon(domain: Domain, k: usize) -> Result<Vec<[f64; 2]>, AnalysisError> {
+    match domain {
+        Domain::Disk => {
+            if k < 3 {
+                return Err(AnalysisError::InvalidInput(format!("the disk polygon needs at least 3 vertices, got {k}")));
+            }
+            let step = std::f64::consts::TAU / k as f64;
+            let rho = (std::f64::consts::TAU / (k as f64 * step.sin())).sqrt();
+            Ok((0..k).map(|j| [rho * (j as f64 * step).cos(), rho * (j as f64 * step).sin()]).collect())
+        }
+        Domain::Square => {
+            let a = 0.5 * std::f64::consts::PI.sqrt();
+            Ok(vec![[-a, -a], [a, -a], [a, a], [-a, a]])
+        }
+    }
+}
+
+/// Radial projection of `c` from the origin onto ∂Ω: the unit circle for the disk, the square's
+/// boundary for the square. The origin itself is returned unchanged (it cannot be a boundary
+/// centroid of a non-degenerate diagram; the caller reports it).
+fn project_to_boundary(domain: Domain, c: [f64; 2]) -> [f64; 2] {
+    match domain {
+        Domain::Disk => {
+            let r = c[0].hypot(c[1]);
+            if r > 0.0 {
+                [c[0] / r, c[1] / r]
+            } else {
+                c
+            }
+        }
+        Domain::Square => {
+            let m = c[0].abs().max(c[1].abs());
+            if m > 0.0 {
+                let s = 0.5 * std::f64::consts::PI.sqrt() / m;
+                [c[0] * s, c[1] * s]
+            } else {
+                c
+            }
+        }
+    }
+}
+
+/// Target masses ν_i = π·w_i a_i / Σ_j w_j a_j from one-ring thirds a_i (#V) and optional
+/// weights w (#V, finite and > 0). Errors on a vertex without incident area or a bad weight.
+pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> Result<Vec<f64>, AnalysisError> {
+    if let Some(w) = weights {
+        if w.len() != ring_thirds.len() {
+            return Err(AnalysisError::InvalidInput(format!("{} weights for {} vertices", w.len(), ring_thirds.len())));
+        }
+        if let Some(i) = w.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(AnalysisError::InvalidInput(format!("weight of vertex {i} is {} (must be finite and > 0)", w[i])));
+        }
+    }
+    if let Some(i) = ring_thirds.iter().position(|a| !(a.is_finite() && *a > 0.0)) {
+        return Err(AnalysisError::InvalidInput(format!(
+            "vertex {i} has no incident area ({}): remove unreferenced vertices and degenerate faces first",
+            ring_thirds[i]
+        )));
+    }
+    let raw: Vec<f64> = match weights {
+        Some(w) => ring_thirds.iter().zip(w).map(|(a, w)| a * w).collect(),
+        None => ring_thirds.to_vec(),
+    };
+    let total: f64 = raw.iter().sum();
+    Ok(raw.iter().map(|m| m * std::f64::consts::PI / total).collect())
+}
+
+/// The area-preserving map of a disk-type `mesh` (#V positions, #F faces) onto the unit disk or
+/// the square, by composing its conformal disk map with the inverse OT map (module docs;
+/// Su et al. 2015, Alg. 2).
+///
+/// Output: [`AreaPreservingMap`] with `uv` (#V) whose cells have areas `target_masses` to the
+/// solver tolerance. Errors: the conformal map fails (not a disk, bad markers, folded image),
+/// invalid weights, the OT solver fails or (with `require_convergence`) does not converge.
+pub fn area_preserving_map(
+    mesh: &TriMesh,
+    markers: &Markers,
+    params: &AreaPreservingParams,
+) -> Result<AreaPreservingMap, AnalysisError> {
+    let t0 = Instant::now();
+    let conformal = disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?;
+    let t1 = Instant::now();
+
+    let n = mesh.num_vertices();
+    let scale2 = conformal.scale * conformal.scale;
+    let thirds: Vec<f64> = vertex_dual_areas(mesh).iter().map(|a| a * scale2).collect();
+    let target_masses = weighted_target_masses(&thirds, params.weights.as_deref())?;
+    let is_boundary = Connectivity::of(mesh).boundary_vertices(n);
+    let num_boundary = is_boundary.iter().filter(|&&b| b).count();
+    let k = match params.domain {
+        Domain::Disk => params.disk_polygon_vertices.unwrap_or((8 * num_boundary).max(1024)),
+        Domain::Square => 4,
+    };
+    let polygon = domain_polygon(params.domain, k)?;
+    let measure = SourceMeasure::uniform_polygon(&polygon, 1.0).map_err(AnalysisError::Transport)?;
+    let solution = solve_ot(&measure, &conformal.uv, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
+    let solution = if params.require_convergence {
+        solution.into_result().map_err(AnalysisError::Transport)?
+    } else {
+        solution
+    };
+    let t2 = Instant::now();
+
+    let (uv, max_boundary_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
+    let boundary_order_violations = boundary_order_violations(mesh, &uv);
+    let ot = OtSummary {
+        iterations: solution.iterations,
+        max_relative_error: solution.max_relative_error,
+        tolerance: solution.tolerance,
+        converged: solution.converged(),
+        stop: solution.stop.to_string(),
+        start: format!("{:?}", solution.start),
+        cost: solution.cost,
+        mass_scale: solution.mass_scale,
+        domain_vertices: polygon.len(),
+    };
+    let t3 = Instant::now();
+    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
+    Ok(AreaPreservingMap {
+        uv,
+        conformal,
+        target_masses,
+        cell_areas: solution.cells.masses,
+        heights: solution.heights,
+        domain: params.domain,
+        domain_polygon: polygon,
+        is_boundary,
+        max_boundary_projection,
+        boundary_order_violations,
+        ot,
+        timings: Timings { conformal: secs(t0, t1), ot: secs(t1, t2), output: secs(t2, t3), total: secs(t0, t3) },
+    })
+}
+
+/// Cell centroids, boundary vertices projected onto ∂Ω; returns the map and the largest
+/// projection distance. Errors on an empty cell (only possible for an unconverged solution).
+fn centroid_map(domain: Domain, solution: &OtSolution, is_boundary: &[bool]) -> Result<(Vec<[f64; 2]>, f64), AnalysisError> {
+    let mut max_move = 0.0f64;
+    let mut uv = Vec::with_capacity(is_boundary.len());
+    for (i, c) in solution.centroids().into_iter().enumerate() {
+        let c = c.ok_or_else(|| {
+            AnalysisError::InvalidInput(format!(
+                "the OT cell of vertex {i} is empty (solver stopped: {}); no centroid",
+                solution.stop
+            ))
+        })?;
+        if is_boundary[i] {
+            let p = project_to_boundary(domain, c);
+            max_move = max_move.max((p[0] - c[0]).hypot(p[1] - c[1]));
+            uv.push(p);
+        } else {
+            uv.push(c);
+        }
+    }
+    Ok((uv, max_move))
+}
+
+/// Number of boundary edges (a → b along the oriented boundary loops of `mesh`) whose images
+/// turn clockwise around the origin, i.e. cross(uv_a, uv_b) ≤ 0. For a map that keeps the
+/// boundary on a star-shaped curve in counter-clockwise order this is 0.
+pub fn boundary_order_violations(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
+    let conn = Connectivity::of(mesh);
+    conn.boundary_halfedges(&mesh.faces)
+        .iter()
+        .filter(|[a, b]| {
+            let (p, q) = (uv[*a as usize], uv[*b as usize]);
+            p[0] * q[1] - p[1] * q[0] <= 0.0
+        })
+        .count()
+}
+
+/// Per-vertex importance weights from a CSV file with a header and rows `vertex,weight`
+/// (vertex: 0-based index < `num_vertices`, weight: finite > 0); vertices not listed get 1.
+/// Errors (as `path:line: problem`): unreadable file, malformed row, index out of range,
+/// repeated vertex, bad weight.
+pub fn read_vertex_weights(path: &Path, num_vertices: usize) -> Result<Vec<f64>, AnalysisError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_path(path)
+        .map_err(|e| csv_error(path, e))?;
+    let mut weights = vec![1.0; num_vertices];
+    let mut seen = vec![false; num_vertices];
+    for record in reader.records() {
+        let record = record.map_err(|e| csv_error(path, e))?;
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() != 2 {
+            return Err(AnalysisError::parse(path, line, format!("expected 2 fields `vertex,weight`, got {}", record.len())));
+        }
+        let v: usize = record[0]
+            .parse()
+            .map_err(|_| AnalysisError::parse(path, line, format!("`{}` is not a vertex index", &record[0])))?;
+        let w: f64 = record[1]
+            .parse()
+            .map_err(|_| AnalysisError::parse(path, line, format!("`{}` is not a number", &record[1])))?;
+        if v >= num_vertices {
+            return Err(AnalysisError::parse(path, line, format!("vertex {v} out of range (the mesh has {num_vertices} vertices)")));
+        }
+        if !(w.is_finite() && w > 0.0) {
+            return Err(AnalysisError::parse(path, line, format!("weight {w} of vertex {v} must be finite and > 0")));
+        }
+        if seen[v] {
+            return Err(AnalysisError::parse(path, line, format!("vertex {v} listed twice")));
+        }
+        seen[v] = true;
+        weights[v] = w;
+    }
+    Ok(weights)
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> AnalysisError {
+    let line = e.position().map_or(0, |p| p.line());
+    match e.into_kind() {
+        csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
+        other => AnalysisError::parse(path, line, format!("{other:?}")),
+    }
+}
+
+/// Per-vertex weights (#V): `factor` on the vertices of `region`, 1 elsewhere. Errors on an
+/// index out of range or a factor that is not finite and > 0.
+pub fn region_weights(num_vertices: usize, region: &[u32], factor: f64) -> Result<Vec<f64>, AnalysisError> {
+    if !(factor.is_finite() && factor > 0.0) {
+        return Err(AnalysisError::InvalidInput(format!("weight factor {factor} must be finite and > 0")));
+    }
+    let mut w = vec![1.0; num_vertices];
+    for &v in region {
+        let slot = w
+            .get_mut(v as usize)
+            .ok_or_else(|| AnalysisError::InvalidInput(format!("region vertex {v} out of range (#V = {num_vertices})")))?;
+        *slot = factor;
+    }
+    Ok(w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disk_polygon_has_area_pi_and_stays_near_the_circle() {
+        for k in [3usize, 16, 1024, 5000] {
+            let p = domain_polygon(Domain::Disk, k).unwrap();
+            let area: f64 = (0..k)
+                .map(|j| {
+                    let (a, b) = (p[j], p[(j + 1) % k]);
+                    0.5 * (a[0] * b[1] - a[1] * b[0])
+                })
+                .sum();
+            assert!((area - std::f64::consts::PI).abs() < 1e-13, "k={k}: {area}");
+            let rho = p[0][0];
+            let inner = rho * (std::f64::consts::PI / k as f64).cos();
+            let dev = (rho - 1.0).max(1.0 - inner);
+            let bound = std::f64::consts::PI.powi(2) / (3.0 * (k * k) as f64);
+            if k >= 16 {
+                assert!(dev <= bound * 1.01, "k={k}: deviation {dev} > {bound}");
+            }
+        }
+        let sq = domain_polygon(Domain::Square, 4).unwrap();
+        let side = sq[1][0] - sq[0][0];
+        assert!((side * side - std::f64::consts::PI).abs() < 1e-14);
+        assert!(domain_polygon(Domain::Disk, 2).is_err());
+    }
+
+    #[test]
+    fn projection_is_radial_onto_the_boundary() {
+        let p = project_to_boundary(Domain::Disk, [0.3, -0.4]);
+        assert!((p[0] - 0.6).abs() < 1e-15 && (p[1] + 0.8).abs() < 1e-15);
+        let a = 0.5 * std::f64::consts::PI.sqrt();
+        let q = project_to_boundary(Domain::Square, [0.2, 0.1]);
+        assert!((q[0] - a).abs() < 1e-15 && (q[1] - a / 2.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn weights_renormalize_to_pi() {
+        let thirds = [1.0, 2.0, 3.0];
+        let nu = weighted_target_masses(&thirds, Some(&[2.0, 1.0, 1.0])).unwrap();
+        // raw 2, 2, 3 → total 7
+        let pi = std::f64::consts::PI;
+        assert!((nu[0] - 2.0 * pi / 7.0).abs() < 1e-15 && (nu[2] - 3.0 * pi / 7.0).abs() < 1e-15);
+        assert!(weighted_target_masses(&thirds, Some(&[1.0, 0.0, 1.0])).is_err());
+        assert!(weighted_target_masses(&thirds, Some(&[1.0])).is_err());
+        assert!(weighted_target_masses(&[1.0, 0.0], None).is_err());
+        assert_eq!(region_weights(3, &[2], 5.0).unwrap(), vec![1.0, 1.0, 5.0]);
+        assert!(region_weights(3, &[3], 5.0).is_err());
+    }
+
+    #[test]
+    fn domain_parses() {
+        assert_eq!("Disk".parse::<Domain>().unwrap(), Domain::Disk);
+        assert_eq!("square".parse::<Domain>().unwrap(), Domain::Square);
+        assert!("circle".parse::<Domain>().is_err());
+    }
+}
