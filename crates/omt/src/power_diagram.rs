@@ -175,7 +175,7 @@ impl<'a> Builder<'a> {
                 return t as u32;
             }
         }
-        0
+        self.last
     }
 
     fn new_triangle(&mut self) -> u32 {

@@ -297,3 +297,39 @@ fn fuzz_small_configurations() {
         }
     }
 }
+
+/// Fuzz regression (round 10 of `fuzz_small_configurations`, first version): a new site on the
+/// line of a hull edge, beyond its end, whose lifted point is below the lifted line makes the end
+/// vertex redundant. The 1-D power test for infinite triangles must look at the whole lifted
+/// line, not only at points between the edge's ends (here (2, 3) is exactly on the lifted line
+/// through (1, 3) and (3, 3): the perturbation decides, consistently).
+#[test]
+fn regression_collinear_hull_vertex_hidden_by_outer_site() {
+    let sites = [
+        [1.0, 2.0],
+        [3.0, 2.0],
+        [2.0, 3.0],
+        [0.0, 1.0],
+        [2.0, 2.0],
+        [0.0, 0.0],
+        [2.0, 1.0],
+        [0.0, 3.0],
+        [3.0, 3.0],
+        [2.0, 0.0],
+        [1.0, 3.0],
+        [3.0, 1.0],
+    ];
+    let weights = [-1.0, 1.0, -0.5, -0.5, 0.0, 1.0, 0.0, -1.0, 0.5, -1.0, 0.5, 0.5];
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    d.sanity_check().unwrap();
+    // Site 2 = (2, 3) is exactly on the lifted segment of its hull neighbours (1, 3) and (3, 3)
+    // (heights 9.5, 13.5, 17.5 at x = 1, 2, 3); its key (2) is the smallest of the three, so the
+    // perturbation raises it: hidden.
+    assert!(d.is_hidden(2));
+    // Moving its weight up by 1e-9 makes it visible for real.
+    let mut w = weights;
+    w[2] += 1e-9;
+    let d = PowerDiagram::new(&sites, &w).unwrap();
+    d.sanity_check().unwrap();
+    assert!(!d.is_hidden(2));
+}

@@ -425,3 +425,23 @@ fn edge_masses_are_mass_derivatives() {
     }
     assert!(checked > 100, "only {checked} edges checked");
 }
+
+/// Sites at very different scales: some in Ω, some 1e3–1e6 away (one of them heavy enough that
+/// its cell still reaches into Ω).
+#[test]
+fn far_sites_and_large_weights() {
+    let measure = SourceMeasure::unit_square().unwrap();
+    let sites = [[0.2, 0.3], [0.7, 0.6], [1e6, 0.0], [-1e6, 5e5], [1e3, 0.5], [0.4, 0.9]];
+    // Site 4 at x = 1000 against site 1 at x = 0.7 (same y up to 0.1): bisector near x = 0.8 when
+    // w_4 = (1000 − 0.8)² − (0.8 − 0.7)² (ignoring the small y offsets).
+    let w4 = (1000.0f64 - 0.8).powi(2) - 0.01;
+    let weights = [0.0, 0.0, 0.0, 0.0, w4, 0.0];
+    let ours = integrate(&sites, &weights, &measure);
+    let reference = integrate_cells_bruteforce(&sites, &weights, &measure);
+    assert!(ours.masses[4] > 0.1, "the heavy far site owns a strip of Ω: {}", ours.masses[4]);
+    assert_eq!(ours.masses[2], 0.0);
+    assert!((ours.masses.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    for i in 0..sites.len() {
+        assert!((ours.masses[i] - reference.masses[i]).abs() < 1e-10, "cell {i}: {} vs {}", ours.masses[i], reference.masses[i]);
+    }
+}
