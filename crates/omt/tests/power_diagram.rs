@@ -333,3 +333,27 @@ fn regression_collinear_hull_vertex_hidden_by_outer_site() {
     d.sanity_check().unwrap();
     assert!(!d.is_hidden(2));
 }
+
+/// Weighted sites clustered within 1e-12 of (0.5, 0.5), weights at the matching 1e-25 scale:
+/// the diagram equals the brute force (which works in coordinates relative to each site).
+#[test]
+fn weighted_cluster_at_tiny_scale_matches_brute_force() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let n = 60;
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [0.5 + 1e-12 * rng.random::<f64>(), 0.5 + 1e-12 * rng.random::<f64>()]).collect();
+    let weights: Vec<f64> = (0..n).map(|_| 2e-26 * rng.random::<f64>()).collect();
+    check_against_brute_force(&sites, &weights);
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    assert!((0..n).any(|i| d.is_hidden(i)), "the weights should hide some sites");
+}
+
+/// A larger random weighted input: structural invariants only (the brute force is O(N²)).
+#[test]
+fn large_random_input_is_regular() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (sites, weights) = random_input(&mut rng, 30000, 2e-5);
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    d.sanity_check().unwrap();
+    let hidden = (0..sites.len()).filter(|&i| d.is_hidden(i)).count();
+    assert!(hidden > 100 && hidden < 15000, "{hidden} hidden");
+}
