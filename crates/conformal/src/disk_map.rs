@@ -312,9 +312,10 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         uv[v as usize] = [0.0, 0.0];
     }
 
-    // fold repair on the original faces (crate::repair)
+    // densities and factors on the original faces; fold repair first if needed (crate::repair)
+    let mut dist = face_distortions(mesh, &uv)?;
     let mut fold_repairs = 0;
-    if params.repair_folds {
+    if params.repair_folds && dist.orientation.iter().any(|&o| o <= 0) {
         let mut vertex_faces = vec![Vec::new(); mesh.num_vertices()];
         for (f, face) in mesh.faces.iter().enumerate() {
             for &v in face {
@@ -331,10 +332,8 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         }
         let angles = shapespace_geometry::quantities::corner_angles(mesh);
         fold_repairs = repair_folds(&mesh.faces, &vertex_faces, &angles, &fixed, &mut uv);
+        dist = face_distortions(mesh, &uv)?;
     }
-
-    // densities and factors on the original faces
-    let dist = face_distortions(mesh, &uv)?;
     let areas = shapespace_geometry::quantities::face_areas(mesh);
     let total: f64 = areas.iter().sum();
     let scale = (std::f64::consts::PI / total).sqrt();

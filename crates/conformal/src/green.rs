@@ -43,23 +43,26 @@ pub fn green_function(tri: &IntrinsicTriangulation, pole: u32) -> Result<Vec<f64
         }
     }
     let weights = tri.half_cotan_triplets();
-    let mut trip = Vec::with_capacity(3 * weights.len());
+    let mut diag = vec![0.0; m];
+    let mut trip = Vec::with_capacity(weights.len() + m);
     for &(i, j, w) in &weights {
         if i == j {
             continue;
         }
         let (ii, jj) = (index[i as usize], index[j as usize]);
         if ii != u32::MAX {
-            trip.push(Triplet::new(ii as usize, ii as usize, w));
+            diag[ii as usize] += w;
         }
         if jj != u32::MAX {
-            trip.push(Triplet::new(jj as usize, jj as usize, w));
+            diag[jj as usize] += w;
         }
         if ii != u32::MAX && jj != u32::MAX {
-            trip.push(Triplet::new(ii as usize, jj as usize, -w));
-            trip.push(Triplet::new(jj as usize, ii as usize, -w));
+            // lower triangle only (the Cholesky reads Side::Lower)
+            let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
+            trip.push(Triplet::new(r as usize, c as usize, -w));
         }
     }
+    trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
     let solver = SpdSolver::new(m, &trip, "the Dirichlet Laplacian (Green's function)")?;
     let mut rhs = vec![vec![0.0; m]];
     rhs[0][index[pole as usize] as usize] = 1.0;
@@ -185,7 +188,8 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             m += 1;
         }
     }
-    let mut trip = Vec::with_capacity(9 * nf);
+    let mut trip = Vec::with_capacity(3 * nf + m);
+    let mut diag = vec![0.0; m];
     let mut rhs = vec![0.0; m];
     for f in 0..nf {
         if !in_annulus[f] {
@@ -199,16 +203,16 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             let (ii, jj) = (index[i as usize], index[j as usize]);
             // −K o: row i gets −(w o_i − w o_j), row j gets −(w o_j − w o_i)
             if ii != u32::MAX {
-                trip.push(Triplet::new(ii as usize, ii as usize, w));
+                diag[ii as usize] += w;
                 rhs[ii as usize] -= w * (oi - oj);
             }
             if jj != u32::MAX {
-                trip.push(Triplet::new(jj as usize, jj as usize, w));
+                diag[jj as usize] += w;
                 rhs[jj as usize] -= w * (oj - oi);
             }
-            if ii != u32::MAX && jj != u32::MAX {
-                trip.push(Triplet::new(ii as usize, jj as usize, -w));
-                trip.push(Triplet::new(jj as usize, ii as usize, -w));
+            if ii != u32::MAX && jj != u32::MAX && ii != jj {
+                let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
+                trip.push(Triplet::new(r as usize, c as usize, -w));
             }
             // B a: corner i gets ½(a_prev − a_next), prev = tail(prev h), next = head(h) = j
             if ii != u32::MAX {
@@ -217,6 +221,7 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             }
         }
     }
+    trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
     let solver = SpdSolver::new(m, &trip, "the annulus Laplacian (harmonic conjugate)")?;
     let mut cols = vec![rhs];
     solver.solve(&mut cols);

@@ -14,7 +14,7 @@ pub struct SpdSolver {
 
 impl SpdSolver {
     /// Factorizes the n × n matrix given by (row, col, value) triplets (duplicates summed).
-    /// Both triangles may be given; only the lower one is read.
+    /// Only the lower triangle is read: give each off-diagonal entry once, with row > col.
     pub fn new(n: usize, triplets: &[Triplet<usize, usize, f64>], what: &str) -> Result<Self, ConformalError> {
         let a = SparseColMat::try_new_from_triplets(n, n, triplets)
             .map_err(|e| ConformalError::LinearAlgebra(format!("assembling {what}: {e:?}")))?;

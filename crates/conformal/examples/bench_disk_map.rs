@@ -1,0 +1,80 @@
+//! Timing table of `disk_map` (release: `cargo run --release -p shapespace-conformal --example
+//! bench_disk_map`). Prints size, intrinsic flips, linear solves and the best of 3 runs per
+//! stage. Meshes: hemispheres of ~1k/10k/100k faces, a jittered unit disk of ~100k faces, and
+//! the repository's face.obj / camelhead / an ICT face when `datasets/` is present.
+
+use std::path::PathBuf;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use shapespace_conformal::{disk_map, DiskMapParams, Markers};
+use shapespace_geometry::primitives::{spherical_cap, unit_disk};
+use shapespace_geometry::TriMesh;
+
+fn jittered_disk(rings: usize) -> TriMesh {
+    let mut m = unit_disk(rings);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let n = m.num_vertices();
+    let h = 1.0 / rings as f64;
+    for p in m.positions.iter_mut().take(n - 6 * rings).skip(1) {
+        p[0] += 0.3 * h * (rng.random::<f64>() - 0.5);
+        p[1] += 0.3 * h * (rng.random::<f64>() - 0.5);
+        p[2] = 0.1 * (3.0 * p[0]).sin() * (2.0 * p[1]).cos();
+    }
+    m
+}
+
+fn main() {
+    // SHAPESPACE_SEQ=1: single-threaded faer (the machine may be shared)
+    if std::env::var_os("SHAPESPACE_SEQ").is_some() {
+        faer::set_global_parallelism(faer::Par::Seq);
+    }
+    let mut cases: Vec<(String, TriMesh)> = vec![
+        ("hemisphere r13".into(), spherical_cap(std::f64::consts::FRAC_PI_2, 13)),
+        ("hemisphere r41".into(), spherical_cap(std::f64::consts::FRAC_PI_2, 41)),
+        ("hemisphere r129".into(), spherical_cap(std::f64::consts::FRAC_PI_2, 129)),
+        ("jittered disk r129".into(), jittered_disk(129)),
+    ];
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../datasets");
+    for name in ["disks/face.obj", "disks/camelhead.off", "faces/id00_neutral.obj"] {
+        if let Ok(m) = shapespace_geometry::io::read_mesh(&data.join(name)) {
+            cases.push((name.into(), m));
+        }
+    }
+    println!(
+        "| mesh | V | F | intrinsic flips | solves | setup s | delaunay s | green s | conjugate s | finish s | total s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for (name, mesh) in &cases {
+        let mut best: Option<shapespace_conformal::DiskMap> = None;
+        for _ in 0..3 {
+            match disk_map(mesh, &Markers::default(), &DiskMapParams::default()) {
+                Ok(dm) => {
+                    if best.as_ref().is_none_or(|b| dm.info.timings.total < b.info.timings.total) {
+                        best = Some(dm);
+                    }
+                }
+                Err(e) => {
+                    println!("| {name} | {} | {} | error: {e} |", mesh.num_vertices(), mesh.num_faces());
+                    break;
+                }
+            }
+        }
+        if let Some(dm) = best {
+            let t = &dm.info.timings;
+            println!(
+                "| {name} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |",
+                mesh.num_vertices(),
+                mesh.num_faces(),
+                dm.info.intrinsic_flips,
+                dm.info.linear_solves,
+                t.setup,
+                t.delaunay,
+                t.green,
+                t.conjugate,
+                t.finish,
+                t.total
+            );
+        }
+    }
+}
