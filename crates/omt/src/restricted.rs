@@ -19,8 +19,16 @@
 //!
 //! Precision: all clipping happens relative to the site y_i, and new polygon vertices are
 //! intersections of the two supporting lines (not interpolations along long edges), so cells
-//! of size 1e-12 keep their relative accuracy. The combinatorics (which cells are neighbours)
-//! come from the exact [`PowerDiagram`]; the geometry here is plain floating point.
+//! of size 1e-12 keep their relative accuracy; source-triangle edges passing through a tiny
+//! cell have their offset from y_i computed in compensated arithmetic. The combinatorics (which
+//! cells are neighbours) come from the exact [`PowerDiagram`]; the geometry here is floating
+//! point.
+//!
+//! Edge masses μ(e_ij) are summed from both sides (half from the pieces of i, half from those of
+//! j). A power edge lying exactly on a source-triangle edge (a density jump) thus gets the mean
+//! of the two densities — the mean of the one-sided derivatives of the masses. Pieces of zero
+//! width (area ≤ 1e-14 × squared diameter: a cell touching a triangle along a segment, up to
+//! rounding) are dropped, so such an edge is never counted twice.
 
 use rayon::prelude::*;
 
@@ -381,9 +389,10 @@ impl RestrictedIntegrator {
     /// Integrals over the restricted cells W_i ∩ Ω (see [`CellIntegrals`]): masses, first
     /// moments ∫x dμ, second moments ∫|x − y_i|² dμ (#N each) and, for neighbouring cells
     /// i < j, ∫_{e_ij ∩ Ω} μ ds (sum over source triangles of density × length of the power edge
-    /// inside the triangle), sorted by (i, j), only pairs with a positive value. Exact for the
-    /// piecewise-constant density up to floating point. Hidden cells and cells outside Ω get
-    /// zeros. Deterministic (independent of the thread count).
+    /// inside the triangle; mean density on a density jump), sorted by (i, j), only pairs with a
+    /// positive value. Exact for the piecewise-constant density up to floating point. Hidden
+    /// cells and cells outside Ω get zeros. Deterministic (independent of the thread count).
+    /// Cost O(N + M + #pieces), parallel over source triangles.
     pub fn integrate(&self, diagram: &PowerDiagram) -> CellIntegrals {
         let n = diagram.num_sites();
         let num_triangles = self.triangles.len();
