@@ -204,3 +204,23 @@ fn iteration_cap_is_reported() {
     assert_eq!(sol.iterations, 1);
     assert!(matches!(sol.into_result(), Err(OmtError::NoConvergence { iterations: 1, .. })));
 }
+
+/// The coarse-to-fine option reaches the same solution as the Voronoi start (it currently falls
+/// back to the Voronoi start on random points, see `multiscale`; either start is accepted).
+#[test]
+fn coarse_to_fine_start_reaches_the_same_solution() {
+    let measure = disk_measure(20, &|x| 1.0 + x[1] * x[1]);
+    let mut rng = Rng(21);
+    let points: Vec<[f64; 2]> = (0..3000).map(|_| rng.in_disk(1.0)).collect();
+    let masses = vec![1.0; 3000];
+    let plain = solve_ot(&measure, &points, &masses, &NewtonParams { tolerance: 1e-9, ..Default::default() }).unwrap();
+    let params = NewtonParams { tolerance: 1e-9, coarse_to_fine: true, ..Default::default() };
+    let multi = solve_ot(&measure, &points, &masses, &params).unwrap();
+    eprintln!("Voronoi start: {} steps; {:?}: {} steps", plain.iterations, multi.start, multi.iterations);
+    assert!(plain.converged() && multi.converged());
+    assert!(matches!(multi.start, Start::CoarseToFine { coarse_points: 375, .. } | Start::Voronoi), "{:?}", multi.start);
+    assert!((plain.cost - multi.cost).abs() < 1e-9 * plain.cost);
+    // Heights are unique up to a constant.
+    let shift = plain.heights[0] - multi.heights[0];
+    assert!(plain.heights.iter().zip(&multi.heights).all(|(a, b)| (a - b - shift).abs() < 1e-6));
+}

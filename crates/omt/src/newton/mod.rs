@@ -24,6 +24,12 @@
 //!   $h_i = -|z_i|^2/(2s)$ (the common term $(1-s)\langle x, c\rangle$ drops out); $s$ is halved from
 //!   1 until every cell has positive mass (for $s$ small all $z_i$ lie inside Ω, whose cells then
 //!   contain a disk around $z_i$). Thus ε₀ is always positive and the KMT guarantee applies.
+//! - **Coarse-to-fine** (`coarse_to_fine`, see `multiscale`): for N ≥ 1000 the points are
+//!   subsampled by 8 recursively; the coarsest level is solved from the Voronoi start (with the
+//!   density continuation below), every finer level from the level below it. This is what makes
+//!   large displacements cheap: from a Voronoi start the damped steps are limited to about one
+//!   cell width, so a displacement D costs ~D/cell width steps at the finest level, but only a
+//!   few at each level from the coarse solution.
 //! - **Density continuation.** With a strong density contrast the Newton model of the Voronoi
 //!   start is far off (cells are pushed into regions 100× denser than their edges say) and KMT
 //!   accepts only τ ≈ 2^−10 for tens of steps. When max ρ / min ρ exceeds `density_continuation`
@@ -383,6 +389,21 @@ pub fn solve_ot(
     validate(measure, points, masses, params)?;
     let (lo, hi) = measure.densities.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
     let contrast = hi / lo;
+    if params.coarse_to_fine && params.initial_heights.is_none() {
+        let total = measure.total_mass();
+        let mass_scale = total / masses.iter().sum::<f64>();
+        let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
+        if let Some((heights, coarse_points, coarse_iterations)) =
+            multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
+        {
+            let fine_params = NewtonParams { initial_heights: Some(heights), ..params.clone() };
+            let mut solution = solve_single(measure, points, masses, &fine_params, t_begin)?;
+            if solution.start == Start::Warm {
+                solution.start = Start::CoarseToFine { coarse_points, coarse_iterations };
+            }
+            return Ok(solution);
+        }
+    }
     let stages = match params.density_continuation {
         Some(ratio) if ratio > 1.0 && contrast > ratio && params.initial_heights.is_none() => {
             (contrast.ln() / ratio.ln()).ceil() as usize
@@ -407,7 +428,6 @@ pub fn solve_ot(
         let stage_params = NewtonParams {
             tolerance: params.tolerance.max(1e-3),
             initial_heights: heights.take(),
-            coarse_to_fine: params.coarse_to_fine && k == 1,
             density_continuation: None,
             ..params.clone()
         };
@@ -445,18 +465,14 @@ fn solve_single(
     if let Some(h) = &params.initial_heights {
         heights = Some(h.clone());
         start = Start::Warm;
-    } else if params.coarse_to_fine {
-        if let Some((h, coarse_points, coarse_iterations)) = multiscale::coarse_to_fine_heights(measure, points, &targets, params)? {
-            heights = Some(h);
-            start = Start::CoarseToFine { coarse_points, coarse_iterations };
-        }
     }
     let mut heights = heights.unwrap_or_else(|| points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect());
     let backend = Backend::new(measure, params.integrator);
     let mut current = evaluate(&backend, points, &heights)?;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = source_barycenter(measure);
-        let mut scale = 1.0;
+        // Plain Voronoi first (if that was not the start), then contracted ones.
+        let mut scale = if start == Start::Voronoi { 1.0 } else { 2.0 };
         loop {
             scale *= 0.5;
             heights = contracted_voronoi_heights(points, center, scale);
@@ -470,7 +486,7 @@ fn solve_single(
                 ));
             }
         }
-        start = Start::Contracted { scale };
+        start = if scale == 1.0 { Start::Voronoi } else { Start::Contracted { scale } };
     }
     let t_start = t_begin.elapsed().as_secs_f64();
 

@@ -1,23 +1,34 @@
 //! Coarse-to-fine start [in the spirit of Mérigot 2011, "A multiscale approach to optimal
 //! transport"].
 //!
-//! A deterministic pseudo-random subsample of ⌈N/8⌉ points (never fewer than 500) is solved first
+//! For N ≥ 1000, a deterministic pseudo-random subsample of ⌈N/8⌉ points is solved first
 //! (recursively coarse-to-fine, at tolerance max(tol, 1e-3)), with each coarse point carrying the
 //! target masses of the fine points nearest to it (its cluster). A fine point y_i in the cluster
 //! of the coarse point y_c then starts at
-//! $$h_i = h_c - \langle x_c, y_i - y_c\rangle - \tfrac12 |y_i - y_c|^2,$$
+//! $$h_i = h_c - \langle x_c, y_i - y_c\rangle - \tfrac{s_c}2 |y_i - y_c|^2,$$
 //! with $x_c$ the μ-centroid of the coarse cell: on $W_c$, $\langle x, y_i\rangle + h_i =
-//! \langle x, y_c\rangle + h_c + \langle x - x_c, y_i - y_c\rangle - \frac12|y_i - y_c|^2$, so inside the
-//! coarse cell the children compete like the Voronoi diagram of the offsets $x_c + (y_i - y_c)$: the
-//! coarse cell is split among its children around its centroid, and y_c keeps the piece at x_c.
-//! If this start still has an empty cell, `solve_ot` falls back to the (contracted) Voronoi start.
+//! \langle x, y_c\rangle + h_c + \langle x - x_c, y_i - y_c\rangle - \frac{s_c}2|y_i - y_c|^2$, so inside
+//! the coarse cell the children compete like the Voronoi diagram of the points
+//! $x_c + s_c(y_i - y_c)$ (divide by $s_c$): the coarse cell is split among its children around
+//! its centroid, y_c keeping the piece at x_c. The scale $s_c$ = (RMS radius of $W_c$ about
+//! $x_c$) / (RMS of $|y_i - y_c|$ over the family) maps the family's spread onto the cell's size
+//! (with $s_c = 1$ a family whose cell is much smaller than its spread, as on the dense side of a
+//! density contrast, would leave its children empty).
+//! Children left without a cell are raised to win near their anchor (four repair rounds). If
+//! the start still has an empty cell, `solve_ot` falls back to the Voronoi start.
+//!
+//! **Status: experimental.** On 3000 random points in the disk, 640 children are empty after the
+//! split and 506 after the repair rounds, so the solver falls back to the Voronoi start: the
+//! option currently costs a coarse solve and gains nothing. A better prolongation (e.g. the
+//! convex conjugate u* interpolated on the coarse regular triangulation, lowered so every fine
+//! point wins somewhere) is future work.
 
 use super::{solve_ot, NewtonParams};
 use crate::error::OmtError;
 use crate::measure::SourceMeasure;
 
 /// Points below which no coarse level is used.
-const MIN_FINE: usize = 4000;
+const MIN_FINE: usize = 1000;
 /// Fine-to-coarse ratio.
 const RATIO: usize = 8;
 
@@ -123,7 +134,7 @@ pub(crate) fn coarse_to_fine_heights(
     if n < MIN_FINE {
         return Ok(None);
     }
-    let coarse_n = n.div_ceil(RATIO).max(500);
+    let coarse_n = n.div_ceil(RATIO);
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_unstable_by_key(|&i| splitmix64(i as u64));
     let mut coarse: Vec<usize> = order[..coarse_n].to_vec();
@@ -142,15 +153,68 @@ pub(crate) fn coarse_to_fine_heights(
     };
     let solution = solve_ot(measure, &coarse_points, &coarse_masses, &coarse_params)?;
     let centroids = solution.centroids();
-    let heights = (0..n)
-        .map(|i| {
-            let c = parent[i];
+    // RMS radius of each family's offsets y_i − y_c and of each coarse cell about its centroid.
+    let mut spread = vec![0.0; coarse_n];
+    let mut count = vec![0usize; coarse_n];
+    for (i, &c) in parent.iter().enumerate() {
+        let yc = coarse_points[c];
+        spread[c] += (points[i][0] - yc[0]).powi(2) + (points[i][1] - yc[1]).powi(2);
+        count[c] += 1;
+    }
+    let mut cell_radii = vec![0.0; coarse_n];
+    let scales: Vec<f64> = (0..coarse_n)
+        .map(|c| {
+            let m = solution.cells.masses[c];
+            let r_children = (spread[c] / count[c].max(1) as f64).sqrt();
+            let Some(xc) = centroids[c] else { return 1.0 };
+            if !(m > 0.0 && r_children > 0.0) {
+                return 1.0;
+            }
             let yc = coarse_points[c];
-            let xc = centroids[c].unwrap_or(yc);
-            let d = [points[i][0] - yc[0], points[i][1] - yc[1]];
-            solution.heights[c] - (xc[0] * d[0] + xc[1] * d[1]) - 0.5 * (d[0] * d[0] + d[1] * d[1])
+            let about_centroid = solution.cells.second_moments[c] - m * ((xc[0] - yc[0]).powi(2) + (xc[1] - yc[1]).powi(2));
+            let r_cell = (about_centroid.max(0.0) / m).sqrt();
+            cell_radii[c] = r_cell;
+            if r_cell > 0.0 { r_cell / r_children } else { 1.0 }
         })
         .collect();
+    let anchor = |i: usize| {
+        let c = parent[i];
+        let yc = coarse_points[c];
+        let xc = centroids[c].unwrap_or(yc);
+        let d = [points[i][0] - yc[0], points[i][1] - yc[1]];
+        (c, xc, d, [xc[0] + scales[c] * d[0], xc[1] + scales[c] * d[1]])
+    };
+    let mut heights: Vec<f64> = (0..n)
+        .map(|i| {
+            let (c, xc, d, _) = anchor(i);
+            solution.heights[c] - (xc[0] * d[0] + xc[1] * d[1]) - 0.5 * scales[c] * (d[0] * d[0] + d[1] * d[1])
+        })
+        .collect();
+    // Repair: a child that lost its whole cell to a neighbouring family is raised so that it wins
+    // near its anchor z_i = x_c + s_c(y_i − y_c), by a margin of a tenth of the coarse cell's
+    // radius; a few rounds, since a raise can hide another cell.
+    if params.integrator == super::CellIntegrator::Restricted {
+        let integrator = crate::restricted::RestrictedIntegrator::new(measure);
+        for _round in 0..4 {
+            let weights = super::weights_from_heights(points, &heights);
+            let diagram = crate::power_diagram::PowerDiagram::new(points, &weights)?;
+            let masses = integrator.integrate(&diagram).masses;
+            let empty: Vec<usize> = (0..n).filter(|&i| !(masses[i] > 0.0)).collect();
+            if empty.is_empty() {
+                break;
+            }
+            for i in empty {
+                let (c, _, _, z) = anchor(i);
+                let j = diagram.locate(z, None);
+                if j == i {
+                    continue;
+                }
+                let gap = [points[i][0] - points[j][0], points[i][1] - points[j][1]];
+                let margin = 0.1 * cell_radii[c] * gap[0].hypot(gap[1]);
+                heights[i] = z[0] * points[j][0] + z[1] * points[j][1] + heights[j] - (z[0] * points[i][0] + z[1] * points[i][1]) + margin;
+            }
+        }
+    }
     Ok(Some((heights, coarse_n, solution.iterations)))
 }
 
