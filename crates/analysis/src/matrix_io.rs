@@ -53,7 +53,7 @@ impl DistanceMatrix {
         if values.len() != n * n {
             return Err(AnalysisError::NotSquare {
                 rows: n,
-                cols: if n == 0 { values.len() } else { values.len() / n },
+                cols: values.len().checked_div(n).unwrap_or(values.len()),
             });
         }
         let mut seen = HashMap::with_capacity(n);
@@ -216,20 +216,38 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
     let mut records = reader.records();
     let header = match records.next() {
         Some(r) => r.map_err(|e| csv_error(path, e))?,
-        None => return Err(AnalysisError::parse(path, 1, "empty file, expected a header row `name,<name1>,...`")),
+        None => {
+            return Err(AnalysisError::parse(
+                path,
+                1,
+                "empty file, expected a header row `name,<name1>,...`",
+            ))
+        }
     };
     let header_line = header.position().map(|p| p.line()).unwrap_or(1);
     let names: Vec<String> = header.iter().skip(1).map(str::to_string).collect();
     if names.is_empty() {
-        return Err(AnalysisError::parse(path, header_line, "header has no shape names"));
+        return Err(AnalysisError::parse(
+            path,
+            header_line,
+            "header has no shape names",
+        ));
     }
     let mut first_line = HashMap::new();
     for name in &names {
         if name.is_empty() {
-            return Err(AnalysisError::parse(path, header_line, "empty shape name in header"));
+            return Err(AnalysisError::parse(
+                path,
+                header_line,
+                "empty shape name in header",
+            ));
         }
         if first_line.insert(name.as_str(), ()).is_some() {
-            return Err(AnalysisError::parse(path, header_line, format!("duplicate shape name {name:?} in header")));
+            return Err(AnalysisError::parse(
+                path,
+                header_line,
+                format!("duplicate shape name {name:?} in header"),
+            ));
         }
     }
     let n = names.len();
@@ -242,13 +260,21 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
             continue;
         }
         if rows == n {
-            return Err(AnalysisError::parse(path, line, format!("more rows than the {n} shapes named in the header")));
+            return Err(AnalysisError::parse(
+                path,
+                line,
+                format!("more rows than the {n} shapes named in the header"),
+            ));
         }
         if record.len() != n + 1 {
             return Err(AnalysisError::parse(
                 path,
                 line,
-                format!("expected {} cells (name and {n} distances), found {}", n + 1, record.len()),
+                format!(
+                    "expected {} cells (name and {n} distances), found {}",
+                    n + 1,
+                    record.len()
+                ),
             ));
         }
         let row_name = &record[0];
@@ -261,13 +287,20 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
         }
         for (j, cell) in record.iter().skip(1).enumerate() {
             let v = parse_distance(cell).ok_or_else(|| {
-                AnalysisError::parse(path, line, format!("column {:?}: cannot parse {cell:?} as a number", names[j]))
+                AnalysisError::parse(
+                    path,
+                    line,
+                    format!("column {:?}: cannot parse {cell:?} as a number", names[j]),
+                )
             })?;
             if !v.is_nan() && (v < 0.0 || v.is_infinite()) {
                 return Err(AnalysisError::parse(
                     path,
                     line,
-                    format!("column {:?}: distance {v} must be finite and >= 0", names[j]),
+                    format!(
+                        "column {:?}: distance {v} must be finite and >= 0",
+                        names[j]
+                    ),
                 ));
             }
             values.push(v);
@@ -347,7 +380,13 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
     let mut records = reader.records();
     let header = match records.next() {
         Some(r) => r.map_err(|e| csv_error(path, e))?,
-        None => return Err(AnalysisError::parse(path, 1, "empty file, expected a header row `file,<label columns>`")),
+        None => {
+            return Err(AnalysisError::parse(
+                path,
+                1,
+                "empty file, expected a header row `file,<label columns>`",
+            ))
+        }
     };
     let header_line = header.position().map(|p| p.line()).unwrap_or(1);
     let key_col = header.get(0).unwrap_or("");
@@ -361,11 +400,19 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
     let columns: Vec<String> = header.iter().skip(1).map(str::to_string).collect();
     for (k, c) in columns.iter().enumerate() {
         if c.is_empty() || columns[..k].contains(c) {
-            return Err(AnalysisError::parse(path, header_line, format!("empty or duplicate label column name {c:?}")));
+            return Err(AnalysisError::parse(
+                path,
+                header_line,
+                format!("empty or duplicate label column name {c:?}"),
+            ));
         }
     }
 
-    let exact: HashMap<&str, usize> = names.iter().enumerate().map(|(i, n)| (n.as_str(), i)).collect();
+    let exact: HashMap<&str, usize> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.as_str(), i))
+        .collect();
     let mut by_stem: HashMap<&str, Vec<usize>> = HashMap::new();
     for (i, n) in names.iter().enumerate() {
         by_stem.entry(file_stem(n)).or_default().push(i);
@@ -381,7 +428,11 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
             return Err(AnalysisError::parse(
                 path,
                 line,
-                format!("expected {} cells, found {}", columns.len() + 1, record.len()),
+                format!(
+                    "expected {} cells, found {}",
+                    columns.len() + 1,
+                    record.len()
+                ),
             ));
         }
         let key = &record[0];
@@ -416,6 +467,9 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
     }
     Ok(Labels {
         columns,
-        values: rows.into_iter().map(|r| r.map(|(_, v)| v).unwrap_or_default()).collect(),
+        values: rows
+            .into_iter()
+            .map(|r| r.map(|(_, v)| v).unwrap_or_default())
+            .collect(),
     })
 }

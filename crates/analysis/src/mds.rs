@@ -51,7 +51,13 @@ impl Mds {
     pub fn eigenvalue_shares(&self) -> Vec<f64> {
         self.eigenvalues
             .iter()
-            .map(|&l| if self.positive_sum > 0.0 { l / self.positive_sum } else { 0.0 })
+            .map(|&l| {
+                if self.positive_sum > 0.0 {
+                    l / self.positive_sum
+                } else {
+                    0.0
+                }
+            })
             .collect()
     }
 }
@@ -125,7 +131,10 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     let positive_sum: f64 = eigenvalues.iter().filter(|&&l| l > 0.0).sum();
     let negative_sum: f64 = eigenvalues.iter().filter(|&&l| l < 0.0).map(|l| -l).sum();
     let max_abs = eigenvalues.iter().fold(0.0f64, |m, l| m.max(l.abs()));
-    let negative_count = eigenvalues.iter().filter(|&&l| l < -1e-12 * max_abs).count();
+    let negative_count = eigenvalues
+        .iter()
+        .filter(|&&l| l < -1e-12 * max_abs)
+        .count();
 
     let mut coordinates = vec![vec![0.0; dims]; n];
     let mut variance_shares = Vec::with_capacity(dims);
@@ -138,7 +147,11 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
             clamped_dims += 1;
             0.0
         };
-        variance_shares.push(if positive_sum > 0.0 { lambda.max(0.0) / positive_sum } else { 0.0 });
+        variance_shares.push(if positive_sum > 0.0 {
+            lambda.max(0.0) / positive_sum
+        } else {
+            0.0
+        });
         // Sign convention: the component of largest |v_ik| is positive.
         let mut arg = 0;
         for i in 1..n {
@@ -204,19 +217,28 @@ mod tests {
     #[test]
     fn missing_entry_names_the_pair() {
         let mut d = euclidean_matrix(&[vec![0.0], vec![1.0], vec![3.0]]);
-        d.values[1 * 3 + 2] = f64::NAN;
-        // One direction present: the symmetric value uses it, MDS still works.
+        d.values[3 + 2] = f64::NAN; // d(p1, p2)
+                                    // One direction present: the symmetric value uses it, MDS still works.
         assert!(classical_mds(&d, 1).is_ok());
         d.values[2 * 3 + 1] = f64::NAN;
         let err = classical_mds(&d, 1).unwrap_err();
-        assert!(matches!(&err, AnalysisError::MissingDistance { a, b } if a == "p1" && b == "p2"), "{err}");
+        assert!(
+            matches!(&err, AnalysisError::MissingDistance { a, b } if a == "p1" && b == "p2"),
+            "{err}"
+        );
         assert!(err.to_string().contains("\"p1\"") && err.to_string().contains("\"p2\""));
     }
 
     #[test]
     fn invalid_dims_rejected() {
         let d = euclidean_matrix(&[vec![0.0], vec![1.0]]);
-        assert!(matches!(classical_mds(&d, 0), Err(AnalysisError::InvalidDims { .. })));
-        assert!(matches!(classical_mds(&d, 3), Err(AnalysisError::InvalidDims { .. })));
+        assert!(matches!(
+            classical_mds(&d, 0),
+            Err(AnalysisError::InvalidDims { .. })
+        ));
+        assert!(matches!(
+            classical_mds(&d, 3),
+            Err(AnalysisError::InvalidDims { .. })
+        ));
     }
 }

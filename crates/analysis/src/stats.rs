@@ -34,7 +34,11 @@ pub struct NnAccuracy {
 
 /// Index of the nearest admissible neighbour of `i` (lowest index on ties), skipping missing
 /// distances.
-fn nearest_neighbour(d: &DistanceMatrix, i: usize, admissible: impl Fn(usize) -> bool) -> Option<usize> {
+fn nearest_neighbour(
+    d: &DistanceMatrix,
+    i: usize,
+    admissible: impl Fn(usize) -> bool,
+) -> Option<usize> {
     let mut best: Option<(usize, f64)> = None;
     for j in 0..d.len() {
         if j == i || !admissible(j) {
@@ -75,7 +79,11 @@ fn accuracy_of(correct: usize, total: usize, unscored: usize) -> NnAccuracy {
 ///
 /// Example: identity accuracy of a face matrix = fraction of faces whose nearest other face is
 /// of the same person.
-pub fn loo_1nn_accuracy(d: &DistanceMatrix, labels: &Labels, target_col: &str) -> Result<NnAccuracy, AnalysisError> {
+pub fn loo_1nn_accuracy(
+    d: &DistanceMatrix,
+    labels: &Labels,
+    target_col: &str,
+) -> Result<NnAccuracy, AnalysisError> {
     check_rows(d, labels)?;
     let target = labels.column(target_col)?;
     let (mut correct, mut total, mut unscored) = (0, 0, 0);
@@ -125,7 +133,11 @@ pub fn loo_1nn_accuracy_across(
 /// `s(i) = 0` for a member of a singleton class; `None` when `s(i)` is undefined: fewer than two
 /// classes, or all distances from `i` to its own class (or to every other class) missing.
 /// Means skip missing distances.
-pub fn silhouette_values(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<Vec<Option<f64>>, AnalysisError> {
+pub fn silhouette_values(
+    d: &DistanceMatrix,
+    labels: &Labels,
+    col: &str,
+) -> Result<Vec<Option<f64>>, AnalysisError> {
     check_rows(d, labels)?;
     let column = labels.column(col)?;
     let mut classes: Vec<&str> = column.clone();
@@ -183,8 +195,15 @@ pub fn silhouette_values(d: &DistanceMatrix, labels: &Labels, col: &str) -> Resu
 
 /// Mean silhouette of column `col` over the shapes where it is defined ([`silhouette_values`]);
 /// `None` if it is defined nowhere (e.g. a single class).
-pub fn mean_silhouette(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<Option<f64>, AnalysisError> {
-    let values: Vec<f64> = silhouette_values(d, labels, col)?.into_iter().flatten().collect();
+pub fn mean_silhouette(
+    d: &DistanceMatrix,
+    labels: &Labels,
+    col: &str,
+) -> Result<Option<f64>, AnalysisError> {
+    let values: Vec<f64> = silhouette_values(d, labels, col)?
+        .into_iter()
+        .flatten()
+        .collect();
     Ok((!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64))
 }
 
@@ -206,7 +225,11 @@ pub fn median(values: &[f64]) -> Option<f64> {
     let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
+    Some(if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    })
 }
 
 /// [`Summary`] of `values`.
@@ -230,7 +253,11 @@ pub struct ClassDistances {
 
 /// Summaries of the symmetric distances over unordered pairs `i < j` (missing pairs skipped),
 /// split by whether `col` has the same value for `i` and `j`.
-pub fn class_distances(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<ClassDistances, AnalysisError> {
+pub fn class_distances(
+    d: &DistanceMatrix,
+    labels: &Labels,
+    col: &str,
+) -> Result<ClassDistances, AnalysisError> {
     check_rows(d, labels)?;
     let column = labels.column(col)?;
     let (mut within, mut between) = (Vec::new(), Vec::new());
@@ -369,6 +396,7 @@ pub fn triangle_violations(d: &DistanceMatrix, eps: f64) -> TriangleViolations {
         violations,
         eps,
         worst_relative: worst.map_or(0.0, |w| w.0),
-        worst_triple: worst.map(|(_, i, j, k)| [d.names[i].clone(), d.names[j].clone(), d.names[k].clone()]),
+        worst_triple: worst
+            .map(|(_, i, j, k)| [d.names[i].clone(), d.names[j].clone(), d.names[k].clone()]),
     }
 }

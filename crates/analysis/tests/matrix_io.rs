@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use shapespace_analysis::{read_distance_matrix, read_labels, write_distance_matrix, AnalysisError, DistanceMatrix};
+use shapespace_analysis::{
+    read_distance_matrix, read_labels, write_distance_matrix, AnalysisError, DistanceMatrix,
+};
 
 fn tmp(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("matrix_io");
@@ -12,24 +14,39 @@ fn tmp(name: &str) -> PathBuf {
 
 #[test]
 fn matrix_round_trip_is_exact_and_keeps_missing_entries() {
-    let names: Vec<String> = ["face01", "face 02", "face,03"].iter().map(|s| s.to_string()).collect();
+    let names: Vec<String> = ["face01", "face 02", "face,03"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     let values = vec![
-        0.0, 0.1, 1.0 / 3.0, //
-        0.1 + 0.2, 0.0, f64::NAN, //
-        1e-20, 123456789.123456789, 2.5e17,
+        0.0,
+        0.1,
+        1.0 / 3.0, //
+        0.1 + 0.2,
+        0.0,
+        f64::NAN, //
+        1e-20,
+        123456789.12345679,
+        2.5e17,
     ];
     let d = DistanceMatrix::new(names, values).unwrap();
     let path = tmp("round_trip.csv");
     write_distance_matrix(&path, &d).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(text.starts_with("name,face01,face 02,\"face,03\"\n"), "{text}");
+    assert!(
+        text.starts_with("name,face01,face 02,\"face,03\"\n"),
+        "{text}"
+    );
     let back = read_distance_matrix(&path).unwrap();
     assert_eq!(back.names, d.names);
     for (a, b) in back.values.iter().zip(&d.values) {
-        assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{a} vs {b}");
+        assert!(
+            a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+            "{a} vs {b}"
+        );
     }
     assert_eq!(back.missing_pairs(), vec![]); // (1,2) missing one way only
-    assert!((back.symmetric(1, 2) - 123456789.123456789).abs() < 1e-6);
+    assert!((back.symmetric(1, 2) - 123456789.12345679).abs() < 1e-6);
 }
 
 #[test]
@@ -48,7 +65,10 @@ fn parse_error(contents: &str) -> (u64, String) {
     match read_distance_matrix(&path) {
         Err(e @ AnalysisError::Parse { line, .. }) => {
             let text = e.to_string();
-            assert!(text.starts_with(&format!("{}:{line}: ", path.display())), "{text}");
+            assert!(
+                text.starts_with(&format!("{}:{line}: ", path.display())),
+                "{text}"
+            );
             (line, text)
         }
         other => panic!("expected a parse error, got {other:?}"),
@@ -79,7 +99,10 @@ fn malformed_matrices_report_path_and_line() {
 
 #[test]
 fn labels_match_by_exact_name_or_file_stem() {
-    let names: Vec<String> = ["face01", "face02.obj", "face03"].iter().map(|s| s.to_string()).collect();
+    let names: Vec<String> = ["face01", "face02.obj", "face03"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     let path = tmp("labels.csv");
     std::fs::write(
         &path,
@@ -95,25 +118,54 @@ fn labels_match_by_exact_name_or_file_stem() {
     assert_eq!(l.values[0], vec!["p1", "neutral"]);
     assert_eq!(l.values[1], vec!["p1", "smile"]);
     assert_eq!(l.values[2], vec!["p2", "neutral"]);
-    assert_eq!(l.column("expression").unwrap(), vec!["neutral", "smile", "neutral"]);
+    assert_eq!(
+        l.column("expression").unwrap(),
+        vec!["neutral", "smile", "neutral"]
+    );
 
     // `name` header, a missing shape, an ambiguous match.
     std::fs::write(&path, "name,identity\nface01,p1\nface03,p2\n").unwrap();
     let err = read_labels(&path, &names).unwrap_err();
-    assert!(matches!(&err, AnalysisError::MissingLabels { names, .. } if names == &vec!["face02.obj".to_string()]), "{err}");
-    std::fs::write(&path, "name,identity\nface01,p1\nface02,p1\na/face03.obj,p2\nb/face03.off,p3\n").unwrap();
+    assert!(
+        matches!(&err, AnalysisError::MissingLabels { names, .. } if names == &vec!["face02.obj".to_string()]),
+        "{err}"
+    );
+    std::fs::write(
+        &path,
+        "name,identity\nface01,p1\nface02,p1\na/face03.obj,p2\nb/face03.off,p3\n",
+    )
+    .unwrap();
     let err = read_labels(&path, &names).unwrap_err();
-    assert!(matches!(&err, AnalysisError::AmbiguousLabel { line: 5, first_line: 4, .. }), "{err}");
+    assert!(
+        matches!(
+            &err,
+            AnalysisError::AmbiguousLabel {
+                line: 5,
+                first_line: 4,
+                ..
+            }
+        ),
+        "{err}"
+    );
     std::fs::write(&path, "shape,identity\nface01,p1\n").unwrap();
-    assert!(matches!(read_labels(&path, &names), Err(AnalysisError::Parse { line: 1, .. })));
+    assert!(matches!(
+        read_labels(&path, &names),
+        Err(AnalysisError::Parse { line: 1, .. })
+    ));
     std::fs::write(&path, "file,identity\nface01,p1,extra\n").unwrap();
-    assert!(matches!(read_labels(&path, &names), Err(AnalysisError::Parse { line: 2, .. })));
+    assert!(matches!(
+        read_labels(&path, &names),
+        Err(AnalysisError::Parse { line: 2, .. })
+    ));
 }
 
 #[test]
 fn matrix_constructor_validates() {
     let names = || vec!["a".to_string(), "b".to_string()];
-    assert!(matches!(DistanceMatrix::new(names(), vec![0.0; 3]), Err(AnalysisError::NotSquare { .. })));
+    assert!(matches!(
+        DistanceMatrix::new(names(), vec![0.0; 3]),
+        Err(AnalysisError::NotSquare { .. })
+    ));
     assert!(matches!(
         DistanceMatrix::new(vec!["a".into(), "a".into()], vec![0.0; 4]),
         Err(AnalysisError::DuplicateName { .. })

@@ -5,13 +5,19 @@ use rand_chacha::ChaCha8Rng;
 use shapespace_analysis::{classical_mds, DistanceMatrix};
 
 fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
 }
 
 fn euclidean_matrix(points: &[Vec<f64>]) -> DistanceMatrix {
     let n = points.len();
     let names = (0..n).map(|i| format!("p{i}")).collect();
-    let values = (0..n * n).map(|k| dist(&points[k / n], &points[k % n])).collect();
+    let values = (0..n * n)
+        .map(|k| dist(&points[k / n], &points[k % n]))
+        .collect();
     DistanceMatrix::new(names, values).unwrap()
 }
 
@@ -53,7 +59,11 @@ fn planar_configuration_is_recovered_up_to_rigid_motion() {
     // Rank 2: the third and later eigenvalues vanish relative to the first.
     let rel3 = mds.eigenvalues[2].abs() / mds.eigenvalues[0];
     assert!(rel3 < 1e-13, "λ3/λ1 = {rel3:e}");
-    assert!(mds.eigenvalues.iter().skip(2).all(|l| l.abs() < 1e-12 * mds.eigenvalues[0]));
+    assert!(mds
+        .eigenvalues
+        .iter()
+        .skip(2)
+        .all(|l| l.abs() < 1e-12 * mds.eigenvalues[0]));
     assert_eq!(mds.clamped_dims, 0);
     assert!((mds.variance_shares.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     // The embedding is centred.
@@ -63,7 +73,13 @@ fn planar_configuration_is_recovered_up_to_rigid_motion() {
     }
     // Sign convention: in every dimension the largest-magnitude coordinate is positive.
     for k in 0..2 {
-        let big = mds.coordinates.iter().map(|c| c[k]).fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m });
+        let big = mds.coordinates.iter().map(|c| c[k]).fold(0.0f64, |m, x| {
+            if x.abs() > m.abs() {
+                x
+            } else {
+                m
+            }
+        });
         assert!(big > 0.0);
     }
 }
@@ -87,11 +103,19 @@ fn box_in_3d_embedded_in_2d_reports_axis_variance_shares() {
     }
     let points: Vec<Vec<f64>> = corners
         .iter()
-        .map(|p| (0..3).map(|r| (0..3).map(|k| rot[r][k] * p[k]).sum::<f64>() + shift[r]).collect())
+        .map(|p| {
+            (0..3)
+                .map(|r| (0..3).map(|k| rot[r][k] * p[k]).sum::<f64>() + shift[r])
+                .collect()
+        })
         .collect();
     let d = euclidean_matrix(&points);
     let mds = classical_mds(&d, 2).unwrap();
-    for (got, want) in mds.eigenvalues.iter().zip([72.0, 32.0, 8.0, 0.0, 0.0, 0.0, 0.0, 0.0]) {
+    for (got, want) in mds
+        .eigenvalues
+        .iter()
+        .zip([72.0, 32.0, 8.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    {
         assert!((got - want).abs() < 1e-10, "{:?}", mds.eigenvalues);
     }
     assert!((mds.variance_shares[0] - 9.0 / 14.0).abs() < 1e-12);
@@ -141,13 +165,18 @@ fn bench_mds_timing() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     println!("{:>6} {:>12}", "n", "MDS time");
     for n in [40usize, 500, 1000] {
-        let points: Vec<Vec<f64>> = (0..n).map(|_| (0..5).map(|_| rng.random_range(0.0..1.0)).collect()).collect();
+        let points: Vec<Vec<f64>> = (0..n)
+            .map(|_| (0..5).map(|_| rng.random_range(0.0..1.0)).collect())
+            .collect();
         let d = euclidean_matrix(&points);
         let start = std::time::Instant::now();
         let reps = if n < 100 { 100 } else { 3 };
         for _ in 0..reps {
             std::hint::black_box(classical_mds(&d, 2).unwrap());
         }
-        println!("{n:>6} {:>10.3} ms", start.elapsed().as_secs_f64() * 1e3 / reps as f64);
+        println!(
+            "{n:>6} {:>10.3} ms",
+            start.elapsed().as_secs_f64() * 1e3 / reps as f64
+        );
     }
 }

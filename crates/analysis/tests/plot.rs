@@ -20,12 +20,20 @@ fn check_png(path: &PathBuf) {
     let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
     let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
     assert_eq!((w, h), (1100, 760));
-    assert!(bytes.len() > 10_000, "suspiciously small PNG: {} bytes", bytes.len());
+    assert!(
+        bytes.len() > 10_000,
+        "suspiciously small PNG: {} bytes",
+        bytes.len()
+    );
 }
 
 fn check_svg(path: &PathBuf, must_contain: &[&str]) {
     let text = std::fs::read_to_string(path).unwrap();
-    assert!(text.trim_start().starts_with("<svg"), "{}", &text[..80.min(text.len())]);
+    assert!(
+        text.trim_start().starts_with("<svg"),
+        "{}",
+        &text[..80.min(text.len())]
+    );
     assert!(text.trim_end().ends_with("</svg>"));
     for s in must_contain {
         assert!(text.contains(s), "SVG lacks {s:?}");
@@ -35,13 +43,19 @@ fn check_svg(path: &PathBuf, must_contain: &[&str]) {
 /// Five people × four expressions: identity offsets plus expression offsets plus noise.
 fn synthetic_faces() -> (DistanceMatrix, Vec<String>, Vec<String>) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let people: Vec<[f64; 3]> = (0..5).map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))).collect();
-    let expr: Vec<[f64; 3]> = (0..4).map(|_| std::array::from_fn(|_| rng.random_range(-0.4..0.4))).collect();
+    let people: Vec<[f64; 3]> = (0..5)
+        .map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let expr: Vec<[f64; 3]> = (0..4)
+        .map(|_| std::array::from_fn(|_| rng.random_range(-0.4..0.4)))
+        .collect();
     let expressions = ["neutral", "smile", "anger", "surprise"];
     let (mut pts, mut ids, mut exs, mut names) = (vec![], vec![], vec![], vec![]);
     for (p, pv) in people.iter().enumerate() {
         for (e, ev) in expr.iter().enumerate() {
-            pts.push(std::array::from_fn::<f64, 3, _>(|k| pv[k] + ev[k] + rng.random_range(-0.05..0.05)));
+            pts.push(std::array::from_fn::<f64, 3, _>(|k| {
+                pv[k] + ev[k] + rng.random_range(-0.05..0.05)
+            }));
             ids.push(format!("person{}", p + 1));
             exs.push(expressions[e].to_string());
             names.push(format!("p{p}_e{e}"));
@@ -65,7 +79,14 @@ fn mds_scatter_writes_png_and_svg() {
     let exs: Vec<&str> = exs.iter().map(String::as_str).collect();
     for ext in ["png", "svg"] {
         let path = out(&format!("scatter.{ext}"));
-        mds_scatter(&path, &mds, Some(("identity", &ids)), Some(("expression", &exs)), "Synthetic faces: classical MDS").unwrap();
+        mds_scatter(
+            &path,
+            &mds,
+            Some(("identity", &ids)),
+            Some(("expression", &exs)),
+            "Synthetic faces: classical MDS",
+        )
+        .unwrap();
         if ext == "png" {
             check_png(&path);
         } else {
@@ -82,19 +103,38 @@ fn mds_scatter_writes_png_and_svg() {
     check_svg(&path, &["MDS 1 ("]);
     // Bad input.
     assert!(mds_scatter(&out("x.jpg"), &mds, None, None, "t").is_err());
-    assert!(mds_scatter(&out("x.png"), &mds, Some(("identity", &ids[..3])), None, "t").is_err());
+    assert!(mds_scatter(
+        &out("x.png"),
+        &mds,
+        Some(("identity", &ids[..3])),
+        None,
+        "t"
+    )
+    .is_err());
 }
 
 #[test]
 fn histograms_write_png_and_svg_and_count_correctly() {
     let mut rng = ChaCha8Rng::seed_from_u64(2);
     // Log area distortion of a conformal map (wide) and an area-preserving map (narrow).
-    let conformal: Vec<f64> = (0..5000).map(|_| rng.random_range(-1.5..1.5) + rng.random_range(-1.5..1.5)).collect();
-    let omt: Vec<f64> = (0..3000).map(|_| 0.05 * (rng.random_range(-1.0..1.0) + rng.random_range(-1.0..1.0))).collect();
+    let conformal: Vec<f64> = (0..5000)
+        .map(|_| rng.random_range(-1.5..1.5) + rng.random_range(-1.5..1.5))
+        .collect();
+    let omt: Vec<f64> = (0..3000)
+        .map(|_| 0.05 * (rng.random_range(-1.0..1.0) + rng.random_range(-1.0..1.0)))
+        .collect();
     let series: [(&str, &[f64]); 2] = [("conformal", &conformal), ("area-preserving (OMT)", &omt)];
     for ext in ["png", "svg"] {
         let path = out(&format!("hist.{ext}"));
-        let h = histograms(&path, &series, 60, Some((-3.0, 3.0)), "Area distortion", "log(area ratio)").unwrap();
+        let h = histograms(
+            &path,
+            &series,
+            60,
+            Some((-3.0, 3.0)),
+            "Area distortion",
+            "log(area ratio)",
+        )
+        .unwrap();
         assert_eq!(h.outside, vec![0, 0]);
         assert_eq!(h.counts[0].iter().sum::<usize>(), 5000);
         if ext == "png" {

@@ -9,7 +9,9 @@ use shapespace_analysis::stats::loo_1nn_accuracy_across;
 use shapespace_analysis::{read_labels, write_distance_matrix, AnalysisError, DistanceMatrix};
 
 fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("shape_space").join(name);
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join("shape_space")
+        .join(name);
     let _ = std::fs::remove_dir_all(&d); // outputs of an earlier run
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -19,16 +21,25 @@ fn dir(name: &str) -> PathBuf {
 /// noise; distances made slightly asymmetric (±0.2%, like the two OT directions).
 fn faces(rng: &mut ChaCha8Rng) -> (DistanceMatrix, String) {
     let expressions = ["neutral", "smile", "anger", "surprise", "disgust"];
-    let people: Vec<[f64; 4]> = (0..8).map(|_| std::array::from_fn(|_| rng.random_range(-0.05..0.05))).collect();
-    let expr: Vec<[f64; 4]> = (0..5).map(|_| std::array::from_fn(|_| rng.random_range(-0.015..0.015))).collect();
+    let people: Vec<[f64; 4]> = (0..8)
+        .map(|_| std::array::from_fn(|_| rng.random_range(-0.05..0.05)))
+        .collect();
+    let expr: Vec<[f64; 4]> = (0..5)
+        .map(|_| std::array::from_fn(|_| rng.random_range(-0.015..0.015)))
+        .collect();
     let mut pts = Vec::new();
     let mut names = Vec::new();
     let mut labels = String::from("file,identity,expression\n");
     for (p, pv) in people.iter().enumerate() {
         for (e, ev) in expr.iter().enumerate() {
-            pts.push(std::array::from_fn::<f64, 4, _>(|k| pv[k] + ev[k] + rng.random_range(-0.002..0.002)));
+            pts.push(std::array::from_fn::<f64, 4, _>(|k| {
+                pv[k] + ev[k] + rng.random_range(-0.002..0.002)
+            }));
             names.push(format!("id{p:02}_{}", expressions[e]));
-            labels.push_str(&format!("faces/id{p:02}_{}.obj,person{p:02},{}\n", expressions[e], expressions[e]));
+            labels.push_str(&format!(
+                "faces/id{p:02}_{}.obj,person{p:02},{}\n",
+                expressions[e], expressions[e]
+            ));
         }
     }
     let n = pts.len();
@@ -36,7 +47,10 @@ fn faces(rng: &mut ChaCha8Rng) -> (DistanceMatrix, String) {
     for i in 0..n {
         for j in 0..n {
             if i != j {
-                let e: f64 = (0..4).map(|k| (pts[i][k] - pts[j][k]).powi(2)).sum::<f64>().sqrt();
+                let e: f64 = (0..4)
+                    .map(|k| (pts[i][k] - pts[j][k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
                 values[i * n + j] = e * (1.0 + rng.random_range(-0.002..0.002));
             }
         }
@@ -74,7 +88,11 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
 
     // eigenvalues.csv: all 40 eigenvalues; shares of the positive ones sum to 1.
     let text = std::fs::read_to_string(out.join("eigenvalues.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = text.lines().skip(1).map(|l| l.split(',').map(|c| c.parse().unwrap()).collect()).collect();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
     assert_eq!(rows.len(), 40);
     let positive_share: f64 = rows.iter().filter(|r| r[1] > 0.0).map(|r| r[2]).sum();
     assert!((positive_share - 1.0).abs() < 1e-12);
@@ -84,7 +102,10 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
 
     // stats.json is the serialized result and parses back; it agrees with direct calls.
     let json = std::fs::read_to_string(out.join("stats.json")).unwrap();
-    assert_eq!(json, serde_json::to_string_pretty(&result.stats).unwrap() + "\n");
+    assert_eq!(
+        json,
+        serde_json::to_string_pretty(&result.stats).unwrap() + "\n"
+    );
     let stats: ShapeSpaceStats = serde_json::from_str(&json).unwrap();
     assert_eq!(stats.n, 40);
     assert_eq!(stats.labels["identity"].classes, 8);
@@ -92,12 +113,19 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
     // People are far apart relative to expressions: identity is recovered perfectly.
     assert_eq!(stats.labels["identity"].loo_1nn.accuracy, Some(1.0));
     assert!(stats.labels["identity"].silhouette.unwrap() > 0.5);
-    assert!(stats.labels["identity"].distances.within.median < stats.labels["identity"].distances.between.median);
+    assert!(
+        stats.labels["identity"].distances.within.median
+            < stats.labels["identity"].distances.between.median
+    );
     // Two ordered pairs of columns.
     assert_eq!(stats.cross.len(), 2);
     let labels = read_labels(&labels_path, &d.names).unwrap();
     let direct = loo_1nn_accuracy_across(&d, &labels, "expression", "identity").unwrap();
-    let cross = stats.cross.iter().find(|c| c.target == "expression").unwrap();
+    let cross = stats
+        .cross
+        .iter()
+        .find(|c| c.target == "expression")
+        .unwrap();
     assert_eq!(cross.exclude_same, "identity");
     assert_eq!(cross.loo_1nn, direct);
     // Asymmetry ±0.2% of each entry: relative gap below 0.4% of a distance; the mean
@@ -106,7 +134,12 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
     assert!(stats.symmetry.median_relative.unwrap() > 0.0);
     assert_eq!(stats.missing_pairs, 0);
     for ext in ["png", "svg"] {
-        assert!(std::fs::metadata(out.join(format!("mds.{ext}"))).unwrap().len() > 5000);
+        assert!(
+            std::fs::metadata(out.join(format!("mds.{ext}")))
+                .unwrap()
+                .len()
+                > 5000
+        );
     }
 }
 
@@ -126,7 +159,10 @@ fn run_mds_errors_name_the_problem() {
         ..MdsParams::default()
     };
     let err = run_mds(&dist_path, Some(&labels_path), &out, &bad_col).unwrap_err();
-    assert!(matches!(err, AnalysisError::UnknownLabelColumn { .. }), "{err}");
+    assert!(
+        matches!(err, AnalysisError::UnknownLabelColumn { .. }),
+        "{err}"
+    );
     let err = run_mds(&dist_path, None, &out, &bad_col).unwrap_err();
     assert!(matches!(err, AnalysisError::LabelsRequired { .. }), "{err}");
 
@@ -137,7 +173,10 @@ fn run_mds_errors_name_the_problem() {
     write_distance_matrix(&dist_path, &d).unwrap();
     let err = run_mds(&dist_path, Some(&labels_path), &out, &MdsParams::default()).unwrap_err();
     let msg = err.to_string();
-    assert!(msg.contains(&d.names[3]) && msg.contains(&d.names[7]), "{msg}");
+    assert!(
+        msg.contains(&d.names[3]) && msg.contains(&d.names[7]),
+        "{msg}"
+    );
     assert!(!out.join("mds.csv").exists());
 
     // Without labels everything but the label statistics is written.

@@ -3,8 +3,8 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use shapespace_analysis::stats::{
-    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, silhouette_values, symmetry_gap,
-    triangle_violations,
+    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, silhouette_values,
+    symmetry_gap, triangle_violations,
 };
 use shapespace_analysis::{DistanceMatrix, Labels};
 
@@ -23,13 +23,23 @@ fn symmetric_matrix(n: usize, pairs: &[(usize, usize, f64)]) -> DistanceMatrix {
 fn labels(columns: &[&str], rows: &[&[&str]]) -> Labels {
     Labels {
         columns: columns.iter().map(|s| s.to_string()).collect(),
-        values: rows.iter().map(|r| r.iter().map(|s| s.to_string()).collect()).collect(),
+        values: rows
+            .iter()
+            .map(|r| r.iter().map(|s| s.to_string()).collect())
+            .collect(),
     }
 }
 
 /// Two people (p1: s0–s2, p2: s3–s5) with three expressions each; s2 and s3 planted close.
 fn faces() -> (DistanceMatrix, Labels) {
-    let mut pairs = vec![(0, 1, 0.1), (0, 2, 0.3), (1, 2, 0.2), (3, 4, 0.15), (3, 5, 0.25), (4, 5, 0.35)];
+    let mut pairs = vec![
+        (0, 1, 0.1),
+        (0, 2, 0.3),
+        (1, 2, 0.2),
+        (3, 4, 0.15),
+        (3, 5, 0.25),
+        (4, 5, 0.35),
+    ];
     for i in 0..3 {
         for j in 3..6 {
             let v = if (i, j) == (2, 3) {
@@ -44,7 +54,14 @@ fn faces() -> (DistanceMatrix, Labels) {
     }
     let l = labels(
         &["identity", "expression"],
-        &[&["p1", "e1"], &["p1", "e2"], &["p1", "e3"], &["p2", "e1"], &["p2", "e2"], &["p2", "e3"]],
+        &[
+            &["p1", "e1"],
+            &["p1", "e2"],
+            &["p1", "e3"],
+            &["p2", "e1"],
+            &["p2", "e2"],
+            &["p2", "e3"],
+        ],
     );
     (symmetric_matrix(6, &pairs), l)
 }
@@ -154,14 +171,20 @@ fn class_distance_summaries() {
     assert_eq!((s.within.min, s.within.max), (Some(0.1), Some(0.35)));
     // Between: 0.12, 0.5 ×3 (same expression), 0.9 ×5 → 9 values, median 0.9.
     assert_eq!(s.between.count, 9);
-    assert_eq!((s.between.min, s.between.median, s.between.max), (Some(0.12), Some(0.9), Some(0.9)));
+    assert_eq!(
+        (s.between.min, s.between.median, s.between.max),
+        (Some(0.12), Some(0.9), Some(0.9))
+    );
 }
 
 #[test]
 fn unknown_label_column_is_an_error() {
     let (d, l) = faces();
     let err = loo_1nn_accuracy(&d, &l, "age").unwrap_err();
-    assert!(err.to_string().contains("\"age\"") && err.to_string().contains("identity"), "{err}");
+    assert!(
+        err.to_string().contains("\"age\"") && err.to_string().contains("identity"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -181,11 +204,16 @@ fn triangle_counter_finds_planted_violations_and_none_in_euclidean() {
 
     // Random Euclidean points in 3-D: none (with round-off tolerance), C(30,3) triples.
     let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let pts: Vec<[f64; 3]> = (0..30).map(|_| std::array::from_fn(|_| rng.random_range(0.0..1.0))).collect();
+    let pts: Vec<[f64; 3]> = (0..30)
+        .map(|_| std::array::from_fn(|_| rng.random_range(0.0..1.0)))
+        .collect();
     let mut pairs = Vec::new();
     for i in 0..30 {
         for j in i + 1..30 {
-            let v = (0..3).map(|k| (pts[i][k] - pts[j][k]).powi(2)).sum::<f64>().sqrt();
+            let v = (0..3)
+                .map(|k| (pts[i][k] - pts[j][k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
             pairs.push((i, j, v));
         }
     }
@@ -203,7 +231,14 @@ fn triangle_counter_finds_planted_violations_and_none_in_euclidean() {
 fn symmetry_gap_of_known_matrix() {
     let n = 3;
     let mut values = vec![0.0; 9];
-    let entries = [(0, 1, 1.0), (1, 0, 1.2), (0, 2, 2.0), (2, 0, 2.0), (1, 2, 3.0), (2, 1, 3.3)];
+    let entries = [
+        (0, 1, 1.0),
+        (1, 0, 1.2),
+        (0, 2, 2.0),
+        (2, 0, 2.0),
+        (1, 2, 3.0),
+        (2, 1, 3.3),
+    ];
     for (i, j, v) in entries {
         values[i * n + j] = v;
     }

@@ -38,7 +38,12 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
     };
     let result = run_mds(&args.distances, args.labels.as_deref(), &args.out, &params)
         .with_context(|| format!("mds of {}", args.distances.display()))?;
-    let shares: Vec<String> = result.mds.variance_shares.iter().map(|s| format!("{:.1}%", 100.0 * s)).collect();
+    let shares: Vec<String> = result
+        .mds
+        .variance_shares
+        .iter()
+        .map(|s| format!("{:.1}%", 100.0 * s))
+        .collect();
     eprintln!(
         "mds: {} shapes, {} dims (variance {}), negative/positive eigenvalue mass {:.3}",
         result.names.len(),
@@ -49,7 +54,10 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
     for (col, s) in &result.stats.labels {
         eprintln!(
             "mds: {col}: 1-NN LOO accuracy {}, silhouette {}",
-            s.loo_1nn.accuracy.map_or("n/a".into(), |a| format!("{:.3} ({}/{})", a, s.loo_1nn.correct, s.loo_1nn.total)),
+            s.loo_1nn.accuracy.map_or("n/a".into(), |a| format!(
+                "{:.3} ({}/{})",
+                a, s.loo_1nn.correct, s.loo_1nn.total
+            )),
             s.silhouette.map_or("n/a".into(), |v| format!("{v:.3}"))
         );
     }
