@@ -279,7 +279,7 @@ impl<'a> Builder<'a> {
 }
 
 /// Index of (x, y) ∈ [0, 2¹⁶)² along the Hilbert curve of order 16.
-fn hilbert_index(mut x: u32, mut y: u32) -> u64 {
+pub(crate) fn hilbert_index(mut x: u32, mut y: u32) -> u64 {
     let n: u32 = 1 << 16;
     let mut d = 0u64;
     let mut s = n / 2;

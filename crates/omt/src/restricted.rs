@@ -15,7 +15,8 @@
 //! 3D*): start from the cells containing the triangle's corners and centroid, clip, and walk to
 //! the neighbours across clipped edges. Total cost O(N + M + #pieces) for N sites and M source
 //! triangles. Triangles are processed in parallel (rayon) and the pieces are summed afterwards
-//! in triangle order, so the result does not depend on the number of threads.
+//! in a fixed triangle order (along a Hilbert curve of the centroids, which also keeps point
+//! location walks short), so the result does not depend on the number of threads.
 //!
 //! Precision: all clipping happens relative to the site y_i, and new polygon vertices are
 //! intersections of the two supporting lines (not interpolations along long edges), so cells
@@ -34,7 +35,7 @@ use rayon::prelude::*;
 
 use crate::cells::CellIntegrals;
 use crate::measure::SourceMeasure;
-use crate::power_diagram::PowerDiagram;
+use crate::power_diagram::{hilbert_index, PowerDiagram};
 use crate::predicates::{orient, two_product, two_sum};
 
 /// Label of a polygon edge that is not a power-diagram edge (source triangle or domain edge).
@@ -240,7 +241,7 @@ impl Scratch {
 }
 
 /// Results of a chunk of source triangles: pieces and edge contributions (slot in the
-/// diagram's neighbour list, μ-weighted length), in triangle order.
+/// diagram's neighbour list, μ-weighted length), in processing order.
 #[derive(Default)]
 struct ChunkResult {
     pieces: Vec<Piece>,
@@ -258,6 +259,9 @@ pub struct RestrictedIntegrator {
     triangle_areas: Vec<f64>,
     /// Convex hull of the measure's vertices (= Ω for a convex domain), counter-clockwise.
     boundary: Vec<[f64; 2]>,
+    /// Processing order of the triangles: along a Hilbert curve of their centroids, so that
+    /// point location walks from one triangle to the next are short.
+    order: Vec<u32>,
 }
 
 impl RestrictedIntegrator {
@@ -272,7 +276,34 @@ impl RestrictedIntegrator {
                 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
             })
             .collect();
+        let centroids: Vec<[f64; 2]> = measure
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| measure.vertices[v as usize]);
+                [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
+            })
+            .collect();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &centroids {
+            for c in 0..2 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
+        }
+        let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
+        let mut keyed: Vec<(u64, u32)> = centroids
+            .iter()
+            .enumerate()
+            .map(|(t, p)| {
+                let q = |c: usize| ((p[c] - lo[c]) * scale).clamp(0.0, 65535.0) as u32;
+                (hilbert_index(q(0), q(1)), t as u32)
+            })
+            .collect();
+        keyed.sort_unstable();
         RestrictedIntegrator {
+            order: keyed.into_iter().map(|k| k.1).collect(),
             vertices: measure.vertices.clone(),
             triangles: measure.triangles.clone(),
             densities: measure.densities.clone(),
@@ -358,7 +389,7 @@ impl RestrictedIntegrator {
         s.queue.clear();
         let tri = self.triangles[t].map(|v| self.vertices[v as usize]);
         let centroid = [(tri[0][0] + tri[1][0] + tri[2][0]) / 3.0, (tri[0][1] + tri[1][1] + tri[2][1]) / 3.0];
-        for x in [tri[0], tri[1], tri[2], centroid] {
+        for x in [centroid, tri[0], tri[1], tri[2]] {
             let i = diagram.locate(x, s.hint);
             s.hint = Some(i);
             if s.visited[i] != s.stamp {
@@ -404,8 +435,8 @@ impl RestrictedIntegrator {
                 || Scratch::new(n),
                 |s, c| {
                     let mut out = ChunkResult::default();
-                    for t in c * chunk..((c + 1) * chunk).min(num_triangles) {
-                        self.integrate_triangle(diagram, t, s, &mut out);
+                    for &t in &self.order[c * chunk..((c + 1) * chunk).min(num_triangles)] {
+                        self.integrate_triangle(diagram, t as usize, s, &mut out);
                     }
                     out
                 },
