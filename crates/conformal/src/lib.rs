@@ -24,7 +24,7 @@ pub mod mobius;
 pub mod quality;
 pub mod repair;
 
-pub use disk_map::{disk_map, DiskMap, DiskMapInfo, DiskMapParams};
+pub use disk_map::{disk_map, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
 pub use error::ConformalError;
 pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};
 pub use markers::{BoundaryMarker, CenterMarker, MarkerFile, Markers};

@@ -311,6 +311,16 @@ pub fn closest_point_barycentric(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64;
     [1.0 - v - w, v, w]
 }
 
+/// The vertex farthest from the boundary in graph-geodesic distance (Dijkstra on 3D edge
+/// lengths from all boundary vertices; ties within a relative 1e-9 → smallest index): the
+/// automatic center, and the pole of the Green's function in [`crate::disk_map`].
+pub fn central_vertex(mesh: &TriMesh, is_boundary: &[bool], neighbors: &[Vec<u32>]) -> Option<u32> {
+    let sources: Vec<(u32, f64)> =
+        (0..mesh.num_vertices() as u32).filter(|&v| is_boundary[v as usize]).map(|v| (v, 0.0)).collect();
+    let dist = graph_distances(mesh, neighbors, &sources);
+    argmax(&dist, |i| !is_boundary[i] && !neighbors[i].is_empty()).map(|v| v as u32)
+}
+
 /// Checks the markers against the mesh and resolves the automatic choices (module docs).
 ///
 /// `is_boundary` (#V) flags boundary vertices, `neighbors` (#V) are vertex adjacency lists.
@@ -359,13 +369,10 @@ pub fn resolve_markers(
             }
             ResolvedCenter::Face { face: best.1 as u32, bary: best.2 }
         }
-        CenterMarker::Auto => {
-            let sources: Vec<(u32, f64)> = (0..n as u32).filter(|&v| is_boundary[v as usize]).map(|v| (v, 0.0)).collect();
-            let dist = graph_distances(mesh, neighbors, &sources);
-            let v = argmax(&dist, |i| !is_boundary[i] && !neighbors[i].is_empty())
-                .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?;
-            ResolvedCenter::Vertex(v as u32)
-        }
+        CenterMarker::Auto => ResolvedCenter::Vertex(
+            central_vertex(mesh, is_boundary, neighbors)
+                .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?,
+        ),
     };
     // snap a face point that sits on a corner to the vertex
     let center = match center {

@@ -72,9 +72,11 @@ fn cap_120_degrees_converges() {
 
 #[test]
 fn barycentric_center_matches_stereographic_then_mobius() {
-    // p inside a face off the pole: the exact map is M ∘ stereo with M(stereo(p)) = 0, q ↦ 1
+    // p inside a face off the pole: the exact map is M ∘ stereo with M(stereo(p)) = 0, q ↦ 1.
+    // Observed max error 2.9e-3 (rings 20), 1.9e-3 (rings 40): the pole is an irregular ring
+    // vertex (see disk_map's docs on PolePlacement); with PolePlacement::Central 1.3e-3, 3.7e-4.
     let alpha = FRAC_PI_2;
-    for (rings, tol) in [(20usize, 4e-3), (40, 2e-3)] {
+    for (rings, tol) in [(20usize, 3.5e-3), (40, 2.2e-3)] {
         let m = spherical_cap(alpha, rings);
         let face = m.faces.iter().position(|f| f.iter().all(|&v| v as usize > 1 + 3 * (rings / 3) * (rings / 3 + 1))).unwrap() as u32;
         let bary = [0.2, 0.3, 0.5];
@@ -93,9 +95,14 @@ fn barycentric_center_matches_stereographic_then_mobius() {
         let exact: Vec<[f64; 2]> = m.positions.iter().map(|&x| mob.apply(stereo(x))).collect();
         let err = max_dist(&exact, &dm.uv);
         assert!(err < tol, "rings {rings}: {err}");
-        // the pole is the face's corner of largest weight: a = φ(p) is one triangle away from 0
+        eprintln!("rings {rings}: barycentric center error {err:.2e}");
+        // the pole is the face corner of largest weight: a = φ(p) is within one triangle of 0
         assert!(dm.info.mobius.a[0].hypot(dm.info.mobius.a[1]) > 1e-3);
         assert_eq!(dm.info.pole, m.faces[face as usize][2]);
+        // the piecewise-linear image of p is exactly 0
+        let c = m.faces[face as usize];
+        let z = (0..3).fold([0.0, 0.0], |s, k| [s[0] + bary[k] * dm.uv[c[k] as usize][0], s[1] + bary[k] * dm.uv[c[k] as usize][1]]);
+        assert!(z[0].hypot(z[1]) < 1e-15, "{z:?}");
     }
 }
 

@@ -48,7 +48,7 @@ fn ict_face_has_no_flips_and_plain_cotan_folds() {
     let q = &dm.quality.quasi_conformal_distortion;
     eprintln!("ICT face Λ {q:?}, flips {}", dm.info.intrinsic_flips);
     assert!(q.mean < 0.1 && q.p95 < 0.3, "{q:?}");
-    match disk_map(&m, &markers, &DiskMapParams { intrinsic_delaunay: false, repair_folds: false }) {
+    match disk_map(&m, &markers, &DiskMapParams { intrinsic_delaunay: false, repair_folds: false, ..Default::default() }) {
         Err(ConformalError::FoldedImage { num_flipped, .. }) => assert!(num_flipped > 0),
         other => panic!("plain cotan Laplacian should fold this face, got {:?}", other.map(|d| d.quality)),
     }
@@ -66,7 +66,7 @@ fn face_expressions_map_without_flips_after_a_few_repairs() {
         assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0, "{name}");
         assert!(dm.info.fold_repairs <= 5, "{name}: {}", dm.info.fold_repairs);
         assert_eq!(dm.info.fold_repairs > 0, raw_folds, "{name}");
-        let raw = disk_map(&m, &markers, &DiskMapParams { intrinsic_delaunay: true, repair_folds: false });
+        let raw = disk_map(&m, &markers, &DiskMapParams { repair_folds: false, ..Default::default() });
         assert_eq!(matches!(raw, Err(ConformalError::FoldedImage { .. })), raw_folds, "{name}");
     }
 }
