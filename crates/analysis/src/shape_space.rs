@@ -58,8 +58,11 @@ pub struct LabelColumnStats {
 /// ([`loo_1nn_accuracy_across`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CrossAccuracy {
+    /// The label column predicted (e.g. `expression`).
     pub target: String,
+    /// The column whose value the neighbour must not share with the query (e.g. `identity`).
     pub exclude_same: String,
+    /// The accuracy.
     pub loo_1nn: NnAccuracy,
 }
 
