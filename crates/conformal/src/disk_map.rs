@@ -370,7 +370,6 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         z = exp_map(&u, &theta, pole, &tri.is_boundary)?;
         a_img = image_of_center(&z);
     }
-    let _ = (&u, &theta);
     let t4 = Instant::now();
     if a_img[0].hypot(a_img[1]) >= 1.0 - 1e-12 {
         return Err(ConformalError::InvalidMarker("the center maps onto the boundary circle".into()));

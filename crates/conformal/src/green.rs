@@ -22,7 +22,7 @@
 //! Both are sparse SPD solves (faer Cholesky with AMD ordering).
 
 use std::collections::VecDeque;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 use faer::sparse::Triplet;
 
@@ -144,8 +144,8 @@ fn cut_path(tri: &IntrinsicTriangulation, pole: u32, start: &[usize], list: &[u3
     Ok(path)
 }
 
-/// The harmonic conjugate angle θ (#V, left-sheet values; θ[pole] = 0) of a = −2πu, see the
-/// module docs. Also returns the number of cut half-edges.
+/// The harmonic conjugate angle θ (#V, left-sheet values; θ[pole] = 0) of a = −2πu (#V), see
+/// the module docs; `pin` is the vertex whose angle is set to 0 (any vertex of the annulus).
 pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: u32) -> Result<Vec<f64>, ConformalError> {
     let n = tri.num_vertices;
     let nf = tri.num_faces();
@@ -265,7 +265,6 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             return Err(ConformalError::NonFinite { stage: "harmonic conjugate", vertex: v });
         }
     }
-    let _ = PI;
     Ok(theta)
 }
 

@@ -80,3 +80,43 @@ fn crowded_flat_alligator_is_a_clear_range_error() {
         other => panic!("expected a crowding error, got {:?}", other.map(|d| d.quality)),
     }
 }
+
+/// The ICT template face (4 boundary loops) with the three inner loops filled by a centroid fan
+/// (triangles (L[j+1], L[j], c), as in datasets/README): a private helper of this test.
+fn fill_inner_loops(mesh: &shapespace_geometry::TriMesh) -> shapespace_geometry::TriMesh {
+    let conn = shapespace_geometry::Connectivity::of(mesh);
+    let loops = conn.boundary_loops(&mesh.faces);
+    let mut out = mesh.clone();
+    for l in loops.iter().skip(1) {
+        let c = out.positions.len() as u32;
+        let mut centroid = [0.0; 3];
+        for &v in l {
+            for d in 0..3 {
+                centroid[d] += mesh.positions[v as usize][d] / l.len() as f64;
+            }
+        }
+        out.positions.push(centroid);
+        for j in 0..l.len() {
+            out.faces.push([l[(j + 1) % l.len()], l[j], c]);
+        }
+    }
+    out
+}
+
+#[test]
+fn shared_ict_template_with_filled_holes_has_no_flips() {
+    let path = std::path::PathBuf::from("/work/shared/datasets/ict_facekit/template_face_full_neutral.obj");
+    if !path.is_file() {
+        return;
+    }
+    let raw = read_mesh(&path).unwrap();
+    assert!(matches!(
+        disk_map(&raw, &Markers::default(), &DiskMapParams::default()),
+        Err(ConformalError::NotDisk { .. })
+    ));
+    let m = fill_inner_loops(&raw);
+    let dm = map(&m, &Markers::default());
+    assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0);
+    eprintln!("ICT template: Λ {:?}, repairs {}", dm.quality.quasi_conformal_distortion, dm.info.fold_repairs);
+    assert!(dm.quality.quasi_conformal_distortion.p95 < 0.3);
+}

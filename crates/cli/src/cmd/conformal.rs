@@ -1,5 +1,6 @@
 //! `shapespace conformal IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
-//! [--landmarks FILE.json] [--factors OUT.csv] [--report OUT.json]`: the discrete Riemann map
+//! [--landmarks FILE.json] [--factors OUT.csv] [--report OUT.json] [--pole center|central]`:
+//! the discrete Riemann map
 //! of a disk-type mesh onto the unit disk ([`shapespace_conformal::disk_map`]).
 //!
 //! Markers: a marker file (`--landmarks`, else the sidecar `NAME.landmarks.json` or
@@ -14,7 +15,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use shapespace_conformal::{disk_map, BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile};
+use shapespace_conformal::{disk_map, BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, PolePlacement};
 use shapespace_geometry::io::{read_mesh, write_obj};
 
 /// Arguments of `shapespace conformal`.
@@ -43,6 +44,11 @@ pub struct ConformalArgs {
     /// Write quality statistics, method, markers and timings as JSON.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Pole of the Green's function: `center` (at the center marker, default) or `central`
+    /// (the vertex farthest from the boundary, then a Möbius map; better when the center is
+    /// close to the boundary).
+    #[arg(long, default_value = "center", value_parser = ["center", "central"])]
+    pub pole: String,
     /// Use the plain cotangent Laplacian instead of the intrinsic Delaunay one (comparison only).
     #[arg(long)]
     pub no_intrinsic_delaunay: bool,
@@ -76,7 +82,8 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     if let Some(b) = &args.boundary_marker {
         markers.boundary = BoundaryMarker::parse(b)?;
     }
-    let params = DiskMapParams { intrinsic_delaunay: !args.no_intrinsic_delaunay, ..Default::default() };
+    let pole = if args.pole == "central" { PolePlacement::Central } else { PolePlacement::AtCenter };
+    let params = DiskMapParams { intrinsic_delaunay: !args.no_intrinsic_delaunay, pole, ..Default::default() };
     let map = disk_map(&mesh, &markers, &params).with_context(|| format!("mapping {}", args.input.display()))?;
     mesh.uvs = Some(map.uv.clone());
     write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
