@@ -1,6 +1,7 @@
 //! Benchmark of the damped Newton OT solver: prints a table (no criterion: one solve per case).
 //!
-//! `cargo bench -p shapespace-omt --bench ot_bench [-- N1 N2 ...] [--coarse-to-fine] [--no-contrast]`
+//! `cargo bench -p shapespace-omt --bench ot_bench [-- N1 N2 ...] [--coarse-to-fine] [--no-contrast] [--split]`
+//! (`--split` solves again and prints the linear-solve time split: assembly/symbolic/numeric).
 //!
 //! Cases: N uniform random points in the unit disk (fixed seed, equal masses), uniform density
 //! on `SourceMeasure::unit_disk(512)` (default N = 1e3, 1e4, 1e5); and N = 1e4 with a 100×
@@ -95,6 +96,16 @@ fn run(name: &str, measure: &SourceMeasure, n: usize, params: &NewtonParams) {
     }
 }
 
+fn solve_split(n: usize, measure: &SourceMeasure, params: &NewtonParams) {
+    let points = disk_points(n, 2024);
+    if let Ok(sol) = solve_ot(measure, &points, &vec![1.0; n], params) {
+        println!(
+            "  N = {n}: solve split over the final stage: assembly {:.3} s, symbolic {:.3} s ({} factorizations), numeric+solve {:.3} s",
+            sol.t_assembly, sol.t_symbolic, sol.symbolic_factorizations, sol.t_numeric
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     let coarse_to_fine = args.iter().any(|a| a == "--coarse-to-fine");
@@ -110,6 +121,11 @@ fn main() {
     let uniform = SourceMeasure::unit_disk(512).expect("unit disk");
     for &n in &sizes {
         run("uniform disk", &uniform, n, &params);
+    }
+    if args.iter().any(|a| a == "--split") {
+        for &n in &sizes {
+            solve_split(n, &uniform, &params);
+        }
     }
     if contrast_case {
         let contrast = disk_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 });

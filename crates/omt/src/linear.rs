@@ -7,6 +7,8 @@
 //! $$H_{ij} = -\frac{\mu(e_{ij})}{|y_i - y_j|} \ (i \ne j \text{ neighbours}), \qquad H_{ii} = -\sum_{j \ne i} H_{ij},$$
 //! with $\mu(e_{ij}) = \int_{e_{ij} \cap \Omega} \mu\,ds$. (Raising $h_j$ by $t$ moves the edge
 //! $e_{ij}$ into $W_i$ by $t/|y_i - y_j|$, so $\partial \mu(W_i)/\partial h_j = -\mu(e_{ij})/|y_i-y_j|$.)
+//! Cholesky reuses its symbolic factorization across Newton steps by assembling on the union of
+//! all neighbour patterns seen since the last symbolic factorization (explicit zeros).
 //! The constant vector spans its kernel when the cells with positive mass form a connected graph;
 //! we remove it by pinning one unknown, `pinned`: its row and column are dropped and its step is 0.
 //! A row whose diagonal is below $10^{-13}$ times the mean diagonal (an isolated cell) gets the mean
@@ -54,12 +56,25 @@ pub struct NewtonSystem {
     symbolic: Option<SymbolicLlt<u32>>,
     /// Number of symbolic factorizations computed so far.
     pub symbolic_factorizations: usize,
+    /// Seconds spent in assembly, symbolic factorization and numeric factorization + solve.
+    pub t_assembly: f64,
+    pub t_symbolic: f64,
+    pub t_numeric: f64,
 }
 
 impl NewtonSystem {
     /// A solver for N unknowns with unknown `pinned` held fixed.
     pub fn new(pinned: usize, solver: LinearSolver) -> Self {
-        NewtonSystem { pinned, solver, pattern: Vec::new(), symbolic: None, symbolic_factorizations: 0 }
+        NewtonSystem {
+            pinned,
+            solver,
+            pattern: Vec::new(),
+            symbolic: None,
+            symbolic_factorizations: 0,
+            t_assembly: 0.0,
+            t_symbolic: 0.0,
+            t_numeric: 0.0,
+        }
     }
 
     /// Newton direction δ (#N, δ_pinned = 0) solving H δ = −G on the other unknowns, with
@@ -76,6 +91,7 @@ impl NewtonSystem {
         if n <= 1 {
             return Ok(vec![0.0; n]);
         }
+        let t0 = std::time::Instant::now();
         let mut edges: Vec<(u32, u32, f64)> = cells
             .edge_masses
             .iter()
@@ -95,10 +111,20 @@ impl NewtonSystem {
                 false
             }
         });
+        // For Cholesky, assemble on the union of this pattern and the one of the current symbolic
+        // factorization (explicit zeros for absent pairs): the symbolic factorization is reused
+        // whenever no new neighbour pair appears, and recomputed on the union otherwise.
+        let mut new_pairs = false;
+        if self.solver == LinearSolver::Cholesky {
+            let (merged, added) = merge_patterns(&self.pattern, &edges);
+            new_pairs = added || self.symbolic.is_none();
+            edges = merged;
+        }
         let hessian = self.assemble(n, &edges);
         let rhs: Vec<f64> = (0..n).filter(|&i| i != self.pinned).map(|i| -gradient[i]).collect();
+        self.t_assembly += t0.elapsed().as_secs_f64();
         let reduced = match self.solver.clone() {
-            LinearSolver::Cholesky => self.solve_cholesky(n - 1, &edges, &hessian, rhs)?,
+            LinearSolver::Cholesky => self.solve_cholesky(n - 1, &edges, new_pairs, &hessian, rhs)?,
             LinearSolver::ConjugateGradient { relative_tolerance, max_iterations } => {
                 conjugate_gradient(&hessian, &rhs, relative_tolerance, max_iterations)
             }
@@ -173,15 +199,14 @@ impl NewtonSystem {
         &mut self,
         m: usize,
         edges: &[(u32, u32, f64)],
+        new_pairs: bool,
         hessian: &ReducedHessian,
         mut rhs: Vec<f64>,
     ) -> Result<Vec<f64>, OmtError> {
         if m == 0 {
             return Ok(rhs);
         }
-        let same_pattern = self.symbolic.is_some()
-            && self.pattern.len() == edges.len()
-            && self.pattern.iter().zip(edges).all(|(p, e)| p.0 == e.0 && p.1 == e.1);
+        let same_pattern = self.symbolic.is_some() && !new_pairs;
         let structure = SymbolicSparseColMat::<u32>::new_checked(
             m,
             m,
@@ -190,19 +215,56 @@ impl NewtonSystem {
             hessian.row_idx.clone(),
         );
         if !same_pattern {
+            let t0 = std::time::Instant::now();
             let symbolic = SymbolicLlt::try_new(structure.as_ref(), Side::Lower)
                 .map_err(|e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}")))?;
             self.symbolic = Some(symbolic);
             self.pattern = edges.iter().map(|e| (e.0, e.1)).collect();
             self.symbolic_factorizations += 1;
+            self.t_symbolic += t0.elapsed().as_secs_f64();
         }
+        let t0 = std::time::Instant::now();
         let symbolic = self.symbolic.clone().expect("symbolic factorization was just computed");
         let matrix = SparseColMatRef::new(structure.as_ref(), &hessian.values);
         let llt = Llt::try_new_with_symbolic(symbolic, matrix, Side::Lower)
             .map_err(|e| OmtError::LinearAlgebra(format!("numeric Cholesky of the Newton Hessian: {e:?}")))?;
         llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut rhs, m, 1));
+        self.t_numeric += t0.elapsed().as_secs_f64();
         Ok(rhs)
     }
+}
+
+/// Union of the sorted pair list `pattern` with the sorted weighted `edges` (pairs of `pattern`
+/// absent from `edges` get weight 0), and whether `edges` had a pair not in `pattern`.
+fn merge_patterns(pattern: &[(u32, u32)], edges: &[(u32, u32, f64)]) -> (Vec<(u32, u32, f64)>, bool) {
+    let mut merged = Vec::with_capacity(pattern.len().max(edges.len()));
+    let (mut a, mut b) = (0, 0);
+    let mut added = false;
+    while a < pattern.len() || b < edges.len() {
+        let pa = pattern.get(a).copied();
+        let eb = edges.get(b).map(|e| (e.0, e.1));
+        match (pa, eb) {
+            (Some(p), Some(e)) if p == e => {
+                merged.push(edges[b]);
+                a += 1;
+                b += 1;
+            }
+            (Some(p), Some(e)) if p < e => {
+                merged.push((p.0, p.1, 0.0));
+                a += 1;
+            }
+            (Some(p), None) => {
+                merged.push((p.0, p.1, 0.0));
+                a += 1;
+            }
+            _ => {
+                merged.push(edges[b]);
+                added = true;
+                b += 1;
+            }
+        }
+    }
+    (merged, added)
 }
 
 /// y = A x for the symmetric matrix stored as its lower triangle.
@@ -308,6 +370,36 @@ mod tests {
             // The same pattern reuses the symbolic factorization.
             chol.newton_direction(&points, &cells, &gradient).unwrap();
             assert_eq!(chol.symbolic_factorizations, 1);
+        }
+    }
+
+    /// Dropping a pair reuses the symbolic factorization (explicit zero); a new pair recomputes
+    /// it on the union. The step solves the actual system either way.
+    #[test]
+    fn symbolic_factorization_is_reused_on_sub_patterns() {
+        let points = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let gradient = [0.5, -1.0, 0.25, 0.25];
+        let cells_with = |edges: Vec<(u32, u32, f64)>| CellIntegrals {
+            masses: vec![1.0; 4],
+            first_moments: vec![[0.0; 2]; 4],
+            second_moments: vec![0.0; 4],
+            edge_masses: edges,
+        };
+        let mut system = NewtonSystem::new(1, LinearSolver::Cholesky);
+        let patterns = [
+            (vec![(0, 1, 1.0), (1, 2, 2.0), (2, 3, 1.5), (0, 3, 0.5)], 1),
+            (vec![(0, 1, 1.0), (1, 2, 2.0), (2, 3, 1.5)], 1),
+            (vec![(0, 1, 1.0), (1, 2, 2.0), (2, 3, 1.5), (0, 2, 0.7)], 2),
+        ];
+        for (edges, factorizations) in patterns {
+            let cells = cells_with(edges);
+            let delta = system.newton_direction(&points, &cells, &gradient).unwrap();
+            let h = dense_hessian(&points, &cells);
+            for i in 0..4 {
+                let hd: f64 = (0..4).map(|j| h[i][j] * delta[j]).sum();
+                assert!((hd + gradient[i]).abs() < 1e-13);
+            }
+            assert_eq!(system.symbolic_factorizations, factorizations);
         }
     }
 }

@@ -197,6 +197,10 @@ pub struct OtSolution {
     pub t_total: f64,
     /// Number of symbolic Cholesky factorizations (changes of the neighbour graph).
     pub symbolic_factorizations: usize,
+    /// Seconds in Hessian assembly, symbolic factorization, numeric factorization + solve.
+    pub t_assembly: f64,
+    pub t_symbolic: f64,
+    pub t_numeric: f64,
 }
 
 impl OtSolution {
@@ -586,5 +590,8 @@ fn solve_single(
         t_start,
         t_total: t_begin.elapsed().as_secs_f64(),
         symbolic_factorizations: system.symbolic_factorizations,
+        t_assembly: system.t_assembly,
+        t_symbolic: system.t_symbolic,
+        t_numeric: system.t_numeric,
     })
 }
