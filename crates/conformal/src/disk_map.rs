@@ -93,11 +93,17 @@ impl Default for DiskMapParams {
 /// Timings of the stages of [`disk_map`], seconds.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct DiskMapTimings {
+    /// Validation, half-edges, disk check, marker resolution.
     pub setup: f64,
+    /// Intrinsic Delaunay flips.
     pub delaunay: f64,
+    /// Green's function solve(s).
     pub green: f64,
+    /// Harmonic conjugate solve(s).
     pub conjugate: f64,
+    /// Möbius normalization, fold repair, densities, factors, quality.
     pub finish: f64,
+    /// Everything.
     pub total: f64,
 }
 

@@ -45,10 +45,15 @@ pub struct FaceDistortions {
 /// Summary statistics of a per-face quantity.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Stats {
+    /// Arithmetic mean.
     pub mean: f64,
+    /// Median (nearest rank).
     pub median: f64,
+    /// 95th percentile (nearest rank).
     pub p95: f64,
+    /// Largest value.
     pub max: f64,
+    /// Smallest value.
     pub min: f64,
 }
 

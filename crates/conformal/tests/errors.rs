@@ -1,0 +1,42 @@
+//! Inputs that are not usable give typed errors, never panics or garbage.
+
+use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, Markers};
+use shapespace_geometry::primitives::{icosphere, unit_disk};
+use shapespace_geometry::TriMesh;
+
+fn run(m: &TriMesh) -> Result<shapespace_conformal::DiskMap, ConformalError> {
+    disk_map(m, &Markers::default(), &DiskMapParams::default())
+}
+
+#[test]
+fn closed_surface_is_not_a_disk() {
+    match run(&icosphere(1)) {
+        Err(ConformalError::NotDisk { reason }) => assert!(reason.contains("0 boundary loop"), "{reason}"),
+        other => panic!("{:?}", other.map(|d| d.quality)),
+    }
+}
+
+#[test]
+fn two_components_are_not_a_disk() {
+    let a = unit_disk(2);
+    let mut m = a.clone();
+    let n = a.num_vertices() as u32;
+    m.positions.extend(a.positions.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+    m.faces.extend(a.faces.iter().map(|f| [f[0] + n, f[1] + n, f[2] + n]));
+    assert!(matches!(run(&m), Err(ConformalError::NotDisk { .. })));
+}
+
+#[test]
+fn inconsistent_orientation_and_degenerate_faces_are_errors() {
+    let mut m = unit_disk(3);
+    let f = m.faces[5];
+    m.faces[5] = [f[0], f[2], f[1]];
+    assert!(matches!(run(&m), Err(ConformalError::InconsistentOrientation { .. })));
+    let mut m = unit_disk(3);
+    let [a, b, _] = m.faces[7];
+    m.positions[b as usize] = m.positions[a as usize];
+    assert!(matches!(run(&m), Err(ConformalError::DegenerateFace { .. })));
+    let mut m = unit_disk(3);
+    m.positions.push([9.0, 9.0, 9.0]); // unreferenced vertex
+    assert!(matches!(run(&m), Err(ConformalError::NotDisk { .. })));
+}
