@@ -190,6 +190,59 @@ pub fn domain_polygon(domain: Domain, k: usize) -> Result<Vec<[f64; 2]>, Analysi
     }
 }
 
+/// The uniform (density 1) source measure on the domain polygon `polygon` of [`domain_polygon`].
+///
+/// The square is split into two triangles. The disk K-gon is triangulated by *graded rings*
+/// instead of a fan (a fan of K slivers from the center makes every sliver cross a whole radius
+/// of OT cells, and restricted integration costs O(K·√N)): ring 0 is the K-gon, ring j + 1 has
+/// half the vertices of ring j (at the angles of its even vertices) at radius
+/// r_{j+1} = r_j (1 − 2π/K_j), so every triangle has comparable edge lengths, three triangles
+/// join a ring to the next (one per inner vertex and two per outer edge pair), and the last
+/// ring (≤ 16 vertices, or K not divisible by 2) is a fan from the center. About 3K triangles,
+/// all of aspect ratio O(1). Errors when K < 3.
+pub fn domain_measure(domain: Domain, polygon: &[[f64; 2]]) -> Result<SourceMeasure, AnalysisError> {
+    let k = polygon.len();
+    if k < 3 {
+        return Err(AnalysisError::InvalidInput(format!("the domain polygon needs at least 3 vertices, got {k}")));
+    }
+    if domain == Domain::Square || k <= 16 {
+        return SourceMeasure::uniform_polygon(polygon, 1.0).map_err(AnalysisError::Transport);
+    }
+    let mut vertices: Vec<[f64; 2]> = polygon.to_vec();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    let rho = polygon[0][0].hypot(polygon[0][1]);
+    let step0 = std::f64::consts::TAU / k as f64;
+    // the current (outer) ring: its first vertex index, count and radius
+    let (mut start, mut count, mut radius) = (0usize, k, rho);
+    while count > 16 && count % 2 == 0 {
+        let inner_count = count / 2;
+        let inner_radius = radius * (1.0 - std::f64::consts::TAU / count as f64);
+        let inner_start = vertices.len();
+        let stride = k / inner_count; // angle index step of the inner ring in units of step0
+        for m in 0..inner_count {
+            let t = (m * stride) as f64 * step0;
+            vertices.push([inner_radius * t.cos(), inner_radius * t.sin()]);
+        }
+        let o = |j: usize| (start + j % count) as u32;
+        let i = |m: usize| (inner_start + m % inner_count) as u32;
+        for m in 0..inner_count {
+            triangles.push([i(m), o(2 * m), o(2 * m + 1)]);
+            triangles.push([i(m), o(2 * m + 1), o(2 * m + 2)]);
+            triangles.push([i(m), o(2 * m + 2), i(m + 1)]);
+        }
+        start = inner_start;
+        count = inner_count;
+        radius = inner_radius;
+    }
+    let center = vertices.len() as u32;
+    vertices.push([0.0, 0.0]);
+    for j in 0..count {
+        triangles.push([center, (start + j) as u32, (start + (j + 1) % count) as u32]);
+    }
+    let densities = vec![1.0; triangles.len()];
+    SourceMeasure::new(vertices, triangles, densities).map_err(AnalysisError::Transport)
+}
+
 /// Radial projection of `c` from the origin onto ∂Ω: the unit circle for the disk, the square's
 /// boundary for the square. The origin itself is returned unchanged (it cannot be a boundary
 /// centroid of a non-degenerate diagram; the caller reports it).
@@ -267,7 +320,7 @@ pub fn area_preserving_map(
         Domain::Square => 4,
     };
     let polygon = domain_polygon(params.domain, k)?;
-    let measure = SourceMeasure::uniform_polygon(&polygon, 1.0).map_err(AnalysisError::Transport)?;
+    let measure = domain_measure(params.domain, &polygon)?;
     let solution = solve_ot(&measure, &conformal.uv, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
     let solution = if params.require_convergence {
         solution.into_result().map_err(AnalysisError::Transport)?
@@ -435,6 +488,28 @@ mod tests {
         let side = sq[1][0] - sq[0][0];
         assert!((side * side - std::f64::consts::PI).abs() < 1e-14);
         assert!(domain_polygon(Domain::Disk, 2).is_err());
+    }
+
+    #[test]
+    fn graded_disk_measure_covers_the_polygon_with_fat_triangles() {
+        for k in [17usize, 64, 1000, 1024, 4096] {
+            let p = domain_polygon(Domain::Disk, k).unwrap();
+            let m = domain_measure(Domain::Disk, &p).unwrap(); // checks counter-clockwise triangles
+            assert!((m.total_mass() - std::f64::consts::PI).abs() < 1e-12, "k={k}: {}", m.total_mass());
+            assert!(m.triangles.len() <= 3 * k + 16, "k={k}: {} triangles", m.triangles.len());
+            // the boundary edges of the triangulation are exactly the K-gon's edges: every
+            // directed polygon edge appears in exactly one triangle
+            let mut found = 0;
+            for t in &m.triangles {
+                for e in 0..3 {
+                    let (a, b) = (t[e] as usize, t[(e + 1) % 3] as usize);
+                    if a < k && b == (a + 1) % k {
+                        found += 1;
+                    }
+                }
+            }
+            assert_eq!(found, k);
+        }
     }
 
     #[test]

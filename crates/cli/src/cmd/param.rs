@@ -1,0 +1,179 @@
+//! `shapespace param IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
+//! [--landmarks FILE.json] [--domain disk|square] [--weights W.csv] [--report R.json]
+//! [--plots DIR]`: the area-preserving parameterization of a disk-type mesh by optimal mass
+//! transport ([`shapespace_analysis::area_preserving::area_preserving_map`]).
+//!
+//! Markers as in `shapespace conformal` (marker file, else sidecar, then `--center` /
+//! `--boundary-marker` overrides). OUT.obj is the input mesh with one `vt u v` per vertex.
+//! `--weights` reads `vertex,weight` rows (missing vertices weigh 1). `--report` writes the OT
+//! summary, timings and the side-by-side distortion of the conformal and the area-preserving
+//! map (per face Υ, Λ, angle; per vertex ε; statistics; flips) as JSON; `--plots` writes the
+//! distortion histograms (PNG and SVG). Exit code 1 when the OT solver did not reach its
+//! tolerance (the map of its last iterate is still written).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
+use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
+use shapespace_conformal::{BoundaryMarker, CenterMarker, MarkerFile};
+use shapespace_geometry::io::{read_mesh, write_obj};
+
+/// Arguments of `shapespace param`.
+#[derive(clap::Args)]
+pub struct ParamArgs {
+    /// Input mesh (OBJ, OFF, PLY) with disk topology.
+    pub input: PathBuf,
+    /// Output OBJ: the input mesh with per-vertex texture coordinates (the area-preserving map).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Interior marker p ↦ 0: a vertex index, a point `x,y,z` or `auto`.
+    #[arg(long)]
+    pub center: Option<String>,
+    /// Boundary marker q ↦ 1: a boundary vertex index or `auto`.
+    #[arg(long = "boundary-marker")]
+    pub boundary_marker: Option<String>,
+    /// Marker file `{"center": .., "boundary": ..}` (default: the sidecar NAME.landmarks.json or
+    /// landmarks.json beside the input, if present).
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Target domain: `disk` (unit disk) or `square` (side √π, centered at 0).
+    #[arg(long, default_value = "disk")]
+    pub domain: String,
+    /// Importance weights: CSV with header and rows `vertex,weight` (unlisted vertices: 1).
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// Write the OT summary, timings and distortion report as JSON.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write distortion histograms (PNG and SVG) into this directory.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// OT tolerance on max_i |cell area − target| / target.
+    #[arg(long, default_value_t = 1e-6)]
+    pub tolerance: f64,
+}
+
+/// Runs `f` on a worker thread; when it takes more than a second, shows a spinner with
+/// `message` on stderr until it finishes.
+fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
+    std::thread::scope(|scope| {
+        let (tx, rx) = mpsc::channel::<()>();
+        let worker = scope.spawn(move || {
+            let out = f();
+            let _ = tx.send(());
+            out
+        });
+        let mut spinner: Option<ProgressBar> = None;
+        loop {
+            match rx.recv_timeout(Duration::from_millis(if spinner.is_some() { 100 } else { 1000 })) {
+                Ok(()) | Err(mpsc::RecvTimeoutError::Disconnected) => break,
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    let bar = spinner.get_or_insert_with(|| {
+                        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
+                        bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").unwrap_or_else(|_| ProgressStyle::default_spinner()));
+                        bar.set_message(message.clone());
+                        bar
+                    });
+                    bar.tick();
+                }
+            }
+        }
+        if let Some(bar) = spinner {
+            bar.finish_and_clear();
+        }
+        match worker.join() {
+            Ok(out) => out,
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    })
+}
+
+/// Runs the subcommand.
+pub fn run(args: &ParamArgs) -> Result<ExitCode> {
+    let t0 = Instant::now();
+    let domain: Domain = args.domain.parse()?;
+    let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
+    shapespace_geometry::topology::require_disk(&mesh)
+        .with_context(|| format!("{} is not usable for a disk parameterization", args.input.display()))?;
+    let marker_path = args.landmarks.clone().or_else(|| MarkerFile::sidecar_path(&args.input));
+    let mut markers = match &marker_path {
+        Some(p) => MarkerFile::from_json_file(p)?.markers,
+        None => Default::default(),
+    };
+    if let Some(c) = &args.center {
+        markers.center = CenterMarker::parse(c)?;
+    }
+    if let Some(b) = &args.boundary_marker {
+        markers.boundary = BoundaryMarker::parse(b)?;
+    }
+    let weights = match &args.weights {
+        Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),
+        None => None,
+    };
+    let mut params = AreaPreservingParams { domain, weights, require_convergence: false, ..Default::default() };
+    params.newton.tolerance = args.tolerance;
+    let message = format!("area-preserving map of {} ({} vertices)", args.input.display(), mesh.num_vertices());
+    let map = with_spinner(message, || area_preserving_map(&mesh, &markers, &params))
+        .with_context(|| format!("parameterizing {}", args.input.display()))?;
+    mesh.uvs = Some(map.uv.clone());
+    write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
+
+    let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
+    let ap = &report.maps[1];
+    eprintln!(
+        "{}: {} V, {} F; OT {} after {} iterations (max rel. mass error {:.2e}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; conformal {:.2} s, OT {:.2} s, output {:.2} s",
+        args.input.display(),
+        mesh.num_vertices(),
+        mesh.num_faces(),
+        map.ot.stop,
+        map.ot.iterations,
+        map.ot.max_relative_error,
+        ap.abs_area_distortion.median,
+        ap.abs_area_distortion.p95,
+        report.maps[0].abs_area_distortion.median,
+        report.maps[0].abs_area_distortion.p95,
+        ap.quasi_conformal_distortion.median,
+        ap.num_flipped,
+        map.timings.conformal,
+        map.timings.ot,
+        map.timings.output,
+    );
+    if let Some(dir) = &args.plots {
+        write_distortion_histograms(&report, dir, 60).with_context(|| format!("writing plots into {}", dir.display()))?;
+    }
+    if let Some(p) = &args.report {
+        let json = serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.out.display().to_string(),
+            "marker_file": marker_path.map(|p| p.display().to_string()),
+            "markers": map.conformal.info.markers,
+            "domain": map.domain,
+            "weights": args.weights.as_ref().map(|p| p.display().to_string()),
+            "num_vertices": mesh.num_vertices(),
+            "num_faces": mesh.num_faces(),
+            "scale": map.conformal.scale,
+            "ot": map.ot,
+            "max_boundary_projection": map.max_boundary_projection,
+            "boundary_order_violations": map.boundary_order_violations,
+            "timings": map.timings,
+            "wall_seconds": t0.elapsed().as_secs_f64(),
+            "distortion": report,
+        });
+        let text = serde_json::to_string_pretty(&json)?;
+        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+    }
+    if !map.ot.converged {
+        eprintln!(
+            "shapespace: {}: OT did not converge ({}); the map of the last iterate was written",
+            args.input.display(),
+            map.ot.stop
+        );
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
+}
