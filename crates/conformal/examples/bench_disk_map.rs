@@ -32,7 +32,10 @@ fn main() {
     let mut cases: Vec<(String, TriMesh)> = vec![
         ("hemisphere r13".into(), spherical_cap(std::f64::consts::FRAC_PI_2, 13)),
         ("hemisphere r41".into(), spherical_cap(std::f64::consts::FRAC_PI_2, 41)),
-        ("hemisphere r129".into(), spherical_cap(std::f64::consts::FRAC_PI_2, 129)),
+        (
+            "hemisphere r129".into(),
+            spherical_cap(std::f64::consts::FRAC_PI_2, 129),
+        ),
         ("jittered disk r129".into(), jittered_disk(129)),
     ];
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../datasets");
@@ -50,12 +53,19 @@ fn main() {
         for _ in 0..3 {
             match disk_map(mesh, &Markers::default(), &DiskMapParams::default()) {
                 Ok(dm) => {
-                    if best.as_ref().is_none_or(|b| dm.info.timings.total < b.info.timings.total) {
+                    if best
+                        .as_ref()
+                        .is_none_or(|b| dm.info.timings.total < b.info.timings.total)
+                    {
                         best = Some(dm);
                     }
                 }
                 Err(e) => {
-                    println!("| {name} | {} | {} | error: {e} |", mesh.num_vertices(), mesh.num_faces());
+                    println!(
+                        "| {name} | {} | {} | error: {e} |",
+                        mesh.num_vertices(),
+                        mesh.num_faces()
+                    );
                     break;
                 }
             }

@@ -86,7 +86,11 @@ pub struct DiskMapParams {
 
 impl Default for DiskMapParams {
     fn default() -> Self {
-        DiskMapParams { intrinsic_delaunay: true, pole: PolePlacement::AtCenter, repair_folds: true }
+        DiskMapParams {
+            intrinsic_delaunay: true,
+            pole: PolePlacement::AtCenter,
+            repair_folds: true,
+        }
     }
 }
 
@@ -166,7 +170,9 @@ fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), Confor
     let n = mesh.num_vertices();
     let nf = mesh.num_faces();
     if nf == 0 {
-        return Err(ConformalError::NotDisk { reason: "the mesh has no faces".into() });
+        return Err(ConformalError::NotDisk {
+            reason: "the mesh has no faces".into(),
+        });
     }
     let mut used = vec![false; n];
     for f in &mesh.faces {
@@ -175,7 +181,9 @@ fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), Confor
         }
     }
     if let Some(v) = used.iter().position(|u| !u) {
-        return Err(ConformalError::NotDisk { reason: format!("vertex {v} is not used by any face") });
+        return Err(ConformalError::NotDisk {
+            reason: format!("vertex {v} is not used by any face"),
+        });
     }
     let nh = tri.tail.len();
     let nb = tri.twin.iter().filter(|&&t| t == crate::intrinsic::NONE).count();
@@ -204,7 +212,9 @@ fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), Confor
         if tri.twin[h] == crate::intrinsic::NONE {
             let t = tri.tail[h] as usize;
             if out_b[t] != crate::intrinsic::NONE {
-                return Err(ConformalError::NotDisk { reason: format!("non-manifold boundary vertex {t}") });
+                return Err(ConformalError::NotDisk {
+                    reason: format!("non-manifold boundary vertex {t}"),
+                });
             }
             out_b[t] = h as u32;
         }
@@ -226,7 +236,9 @@ fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), Confor
     }
     if comps != 1 || loops != 1 || chi != 1 {
         return Err(ConformalError::NotDisk {
-            reason: format!("{comps} component(s), {loops} boundary loop(s), Euler characteristic {chi} (a disk has 1, 1, 1)"),
+            reason: format!(
+                "{comps} component(s), {loops} boundary loop(s), Euler characteristic {chi} (a disk has 1, 1, 1)"
+            ),
         });
     }
     Ok(())
@@ -271,8 +283,11 @@ fn exp_map(a: &[f64], theta: &[f64], pole: u32, is_boundary: &[bool]) -> Result<
     }
     // boundary crowding: an interior vertex within 1e-10 of the circle has a local image
     // shape with at most ~6 significant digits (absolute spacing of f64 near 1 is 1.1e-16)
-    if let Some((v, &x)) =
-        a.iter().enumerate().filter(|(v, _)| !is_boundary[*v] && *v as u32 != pole).max_by(|p, q| p.1.total_cmp(q.1))
+    if let Some((v, &x)) = a
+        .iter()
+        .enumerate()
+        .filter(|(v, _)| !is_boundary[*v] && *v as u32 != pole)
+        .max_by(|p, q| p.1.total_cmp(q.1))
     {
         if -x < CROWDING_LIMIT {
             return Err(ConformalError::OutOfRange {
@@ -363,14 +378,22 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             ResolvedCenter::Vertex(v) => adj[v as usize].clone(),
             ResolvedCenter::Face { face, .. } => mesh.faces[face as usize].to_vec(),
         };
-        ring.iter().map(|&w| (z[w as usize][0] - a[0]).hypot(z[w as usize][1] - a[1])).fold(f64::INFINITY, f64::min)
+        ring.iter()
+            .map(|&w| (z[w as usize][0] - a[0]).hypot(z[w as usize][1] - a[1]))
+            .fold(f64::INFINITY, f64::min)
     };
-    let mut pole = if params.pole == PolePlacement::Central { central } else { own_pole };
+    let mut pole = if params.pole == PolePlacement::Central {
+        central
+    } else {
+        own_pole
+    };
     let mut stage_times = [0.0f64; 2];
     let (mut u, mut theta) = solve_green_map(&tri, pole, resolved.boundary_vertex, &mut stage_times)?;
     let mut z = exp_map(&u, &theta, pole, &tri.is_boundary)?;
     let mut a_img = image_of_center(&z);
-    if pole != own_pole && (local_scale(&z, a_img) < MOBIUS_MIN_SCALE || 1.0 - a_img[0].hypot(a_img[1]) < MOBIUS_MIN_GAP) {
+    if pole != own_pole
+        && (local_scale(&z, a_img) < MOBIUS_MIN_SCALE || 1.0 - a_img[0].hypot(a_img[1]) < MOBIUS_MIN_GAP)
+    {
         pole = own_pole;
         (u, theta) = solve_green_map(&tri, pole, resolved.boundary_vertex, &mut stage_times)?;
         z = exp_map(&u, &theta, pole, &tri.is_boundary)?;
@@ -378,7 +401,9 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     }
     let t4 = Instant::now();
     if a_img[0].hypot(a_img[1]) >= 1.0 - 1e-12 {
-        return Err(ConformalError::InvalidMarker("the center maps onto the boundary circle".into()));
+        return Err(ConformalError::InvalidMarker(
+            "the center maps onto the boundary circle".into(),
+        ));
     }
     let q_img = z[resolved.boundary_vertex as usize];
     let mut mobius = Mobius::normalizing(a_img, q_img);
@@ -477,10 +502,14 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             ring2[v as usize] += (l2 - ring_max[v as usize]).exp();
         }
     }
-    let conformal_factor: Vec<f64> =
-        (0..n).map(|v| 0.5 * (ring3[v].ln() - (ring_max[v] + ring2[v].ln()))).collect();
+    let conformal_factor: Vec<f64> = (0..n)
+        .map(|v| 0.5 * (ring3[v].ln() - (ring_max[v] + ring2[v].ln())))
+        .collect();
     if let Some(v) = conformal_factor.iter().position(|x| !x.is_finite()) {
-        return Err(ConformalError::NonFinite { stage: "conformal factor", vertex: v });
+        return Err(ConformalError::NonFinite {
+            stage: "conformal factor",
+            vertex: v,
+        });
     }
     let t5 = Instant::now();
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
@@ -492,8 +521,16 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         info: DiskMapInfo {
             method: format!(
                 "green-function ({} cotan Laplacian, least-squares conjugate; {})",
-                if params.intrinsic_delaunay { "intrinsic Delaunay" } else { "plain" },
-                if pole == central { "pole at the central vertex, Möbius to the center" } else { "pole at the center marker" }
+                if params.intrinsic_delaunay {
+                    "intrinsic Delaunay"
+                } else {
+                    "plain"
+                },
+                if pole == central {
+                    "pole at the central vertex, Möbius to the center"
+                } else {
+                    "pole at the center marker"
+                }
             ),
             markers: resolved,
             pole,

@@ -33,7 +33,11 @@ pub enum ConformalError {
     MarkerParse { source_name: String, message: String },
     /// Reading a marker file failed.
     #[error("{path}: {source}")]
-    Io { path: PathBuf, #[source] source: std::io::Error },
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     /// A constraint of the harmonic map that is inconsistent (e.g. a pinned boundary vertex, a
     /// vertex constrained twice, fewer than three anchors).
     #[error("invalid constraint: {0}")]
@@ -47,12 +51,20 @@ pub enum ConformalError {
     FlipBudgetExceeded { flips: usize },
     /// The image of some original faces is folded (orientation reversed or zero area).
     #[error("{num_flipped} image triangles are flipped or degenerate (first: face {first_face}; flipped area fraction {flipped_area_fraction:.3e})")]
-    FoldedImage { num_flipped: usize, first_face: usize, flipped_area_fraction: f64 },
+    FoldedImage {
+        num_flipped: usize,
+        first_face: usize,
+        flipped_area_fraction: f64,
+    },
     /// A value of the map is not representable in f64: the conformal factor range of the surface
     /// (e.g. a long protrusion, which shrinks like e^{−H/ρ}) exceeds what f64 coordinates or
     /// densities can hold. `log10_value` is the decimal exponent that was needed.
     #[error("{what} out of the f64 range at {element} (log10 = {log10_value:.1}); the surface has a protrusion too long for a disk map in double precision")]
-    OutOfRange { what: &'static str, element: String, log10_value: f64 },
+    OutOfRange {
+        what: &'static str,
+        element: String,
+        log10_value: f64,
+    },
     /// A non-finite intermediate value (a bug or a broken input), named by stage.
     #[error("non-finite value in {stage} at vertex {vertex}")]
     NonFinite { stage: &'static str, vertex: usize },

@@ -72,7 +72,10 @@ pub fn green_function(tri: &IntrinsicTriangulation, pole: u32) -> Result<Vec<f64
         if index[v] != u32::MAX {
             u[v] = rhs[0][index[v] as usize];
             if !u[v].is_finite() {
-                return Err(ConformalError::NonFinite { stage: "Green's function", vertex: v });
+                return Err(ConformalError::NonFinite {
+                    stage: "Green's function",
+                    vertex: v,
+                });
             }
         }
     }
@@ -101,7 +104,12 @@ fn outgoing(tri: &IntrinsicTriangulation) -> (Vec<usize>, Vec<u32>) {
 /// The cut: half-edges h_0 = p→c_0, h_1 = c_0→c_1, …, h_m = c_{m−1}→c_m from the pole to the
 /// first boundary vertex reached by a breadth-first search from the neighbours of p (never
 /// through p). Deterministic (half-edge order).
-fn cut_path(tri: &IntrinsicTriangulation, pole: u32, start: &[usize], list: &[u32]) -> Result<Vec<u32>, ConformalError> {
+fn cut_path(
+    tri: &IntrinsicTriangulation,
+    pole: u32,
+    start: &[usize],
+    list: &[u32],
+) -> Result<Vec<u32>, ConformalError> {
     let n = tri.num_vertices;
     let mut parent = vec![NONE; n];
     let mut queue = VecDeque::new();
@@ -126,7 +134,9 @@ fn cut_path(tri: &IntrinsicTriangulation, pole: u32, start: &[usize], list: &[u3
             }
         }
     }
-    let mut v = end.ok_or_else(|| ConformalError::NotDisk { reason: "no path from the center to the boundary".into() })?;
+    let mut v = end.ok_or_else(|| ConformalError::NotDisk {
+        reason: "no path from the center to the boundary".into(),
+    })?;
     let mut path = Vec::new();
     loop {
         let h = parent[v as usize];
@@ -137,7 +147,9 @@ fn cut_path(tri: &IntrinsicTriangulation, pole: u32, start: &[usize], list: &[u3
         }
         v = t;
         if path.len() > n {
-            return Err(ConformalError::NotDisk { reason: "cut path does not terminate".into() });
+            return Err(ConformalError::NotDisk {
+                reason: "cut path does not terminate".into(),
+            });
         }
     }
     path.reverse();
@@ -146,7 +158,12 @@ fn cut_path(tri: &IntrinsicTriangulation, pole: u32, start: &[usize], list: &[u3
 
 /// The harmonic conjugate angle θ (#V, left-sheet values; θ[pole] = 0) of a = −2πu (#V), see
 /// the module docs; `pin` is the vertex whose angle is set to 0 (any vertex of the annulus).
-pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: u32) -> Result<Vec<f64>, ConformalError> {
+pub fn conjugate_angle(
+    tri: &IntrinsicTriangulation,
+    pole: u32,
+    a: &[f64],
+    pin: u32,
+) -> Result<Vec<f64>, ConformalError> {
     let n = tri.num_vertices;
     let nf = tri.num_faces();
     let (start, list) = outgoing(tri);
@@ -166,7 +183,9 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             g = tri.rotate_ccw(g);
             guard += 1;
             if guard > tri.tail.len() {
-                return Err(ConformalError::NotDisk { reason: "cut vertex fan does not close".into() });
+                return Err(ConformalError::NotDisk {
+                    reason: "cut vertex fan does not close".into(),
+                });
             }
         }
     }
@@ -179,7 +198,11 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             }
         }
     }
-    let pin = if touched[pin as usize] { pin } else { (0..n as u32).find(|&v| touched[v as usize]).unwrap_or(pin) };
+    let pin = if touched[pin as usize] {
+        pin
+    } else {
+        (0..n as u32).find(|&v| touched[v as usize]).unwrap_or(pin)
+    };
     let mut index = vec![u32::MAX; n];
     let mut m = 0usize;
     for v in 0..n {
@@ -246,7 +269,11 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
             let k = (0..3).find(|&k| tri.tail[3 * f + k] == pole).unwrap_or(0);
             let hp = (3 * f + k) as u32; // p → x
             let (x, y) = (tri.head(hp), tri.head(next(hp))); // face (p, x, y) ccw
-            let l = [tri.length[hp as usize], tri.length[next(hp) as usize], tri.length[prev(hp) as usize]];
+            let l = [
+                tri.length[hp as usize],
+                tri.length[next(hp) as usize],
+                tri.length[prev(hp) as usize],
+            ];
             let angle_p = (l[0] * l[0] + l[2] * l[2] - l[1] * l[1]) / (2.0 * l[0] * l[2]);
             let angle_p = angle_p.clamp(-1.0, 1.0).acos();
             if known[x as usize] && !known[y as usize] {
@@ -262,7 +289,10 @@ pub fn conjugate_angle(tri: &IntrinsicTriangulation, pole: u32, a: &[f64], pin: 
     }
     for v in 0..n {
         if !theta[v].is_finite() {
-            return Err(ConformalError::NonFinite { stage: "harmonic conjugate", vertex: v });
+            return Err(ConformalError::NonFinite {
+                stage: "harmonic conjugate",
+                vertex: v,
+            });
         }
     }
     Ok(theta)
@@ -321,7 +351,12 @@ mod tests {
             }
         }
         for v in 0..nv {
-            assert!((ky[v] - ba[v]).abs() < 1e-13, "vertex {v}: K y = {} but B a = {}", ky[v], ba[v]);
+            assert!(
+                (ky[v] - ba[v]).abs() < 1e-13,
+                "vertex {v}: K y = {} but B a = {}",
+                ky[v],
+                ba[v]
+            );
         }
     }
 }

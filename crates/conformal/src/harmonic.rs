@@ -55,7 +55,9 @@ fn anchored_boundary(
     anchors: &[(u32, [f64; 2])],
 ) -> Result<Vec<(u32, [f64; 2])>, ConformalError> {
     if anchors.is_empty() {
-        return Err(ConformalError::InvalidConstraint("at least one boundary anchor is needed".into()));
+        return Err(ConformalError::InvalidConstraint(
+            "at least one boundary anchor is needed".into(),
+        ));
     }
     let nb = cycle.len();
     let mut pos_in_loop = std::collections::HashMap::new();
@@ -69,13 +71,17 @@ fn anchored_boundary(
             .ok_or_else(|| ConformalError::InvalidConstraint(format!("anchor {v} is not a boundary vertex")))?;
         let r = p[0].hypot(p[1]);
         if !(r > 0.0) || !r.is_finite() {
-            return Err(ConformalError::InvalidConstraint(format!("anchor {v} has no direction")));
+            return Err(ConformalError::InvalidConstraint(format!(
+                "anchor {v} has no direction"
+            )));
         }
         anchor_at.push((k, p[1].atan2(p[0])));
     }
     anchor_at.sort_by_key(|x| x.0);
     if anchor_at.windows(2).any(|w| w[0].0 == w[1].0) {
-        return Err(ConformalError::InvalidConstraint("a boundary vertex is anchored twice".into()));
+        return Err(ConformalError::InvalidConstraint(
+            "a boundary vertex is anchored twice".into(),
+        ));
     }
     let seg_len = |k: usize| {
         let (a, b) = (positions[cycle[k] as usize], positions[cycle[(k + 1) % nb] as usize]);
@@ -96,7 +102,13 @@ fn anchored_boundary(
         let total: f64 = (0..steps).map(|s| seg_len((k0 + s) % nb)).sum();
         let mut acc = 0.0;
         for s in 0..steps {
-            let t = t0 + span * if total > 0.0 { acc / total } else { s as f64 / steps as f64 };
+            let t = t0
+                + span
+                    * if total > 0.0 {
+                        acc / total
+                    } else {
+                        s as f64 / steps as f64
+                    };
             out.push((cycle[(k0 + s) % nb], [t.cos(), t.sin()]));
             acc += seg_len((k0 + s) % nb);
         }
@@ -123,7 +135,9 @@ pub fn harmonic_map(
 ) -> Result<Vec<[f64; 2]>, ConformalError> {
     let n = positions.len();
     if let Some(f) = faces.iter().position(|f| f.iter().any(|&v| v as usize >= n)) {
-        return Err(ConformalError::InvalidConstraint(format!("face {f} references a vertex out of range")));
+        return Err(ConformalError::InvalidConstraint(format!(
+            "face {f} references a vertex out of range"
+        )));
     }
     let lengths: Vec<f64> = faces
         .iter()
@@ -139,7 +153,9 @@ pub fn harmonic_map(
     let conn = Connectivity::new(n, faces);
     let loops = conn.boundary_loops(faces);
     if loops.len() != 1 {
-        return Err(ConformalError::NotDisk { reason: format!("{} boundary loops (a disk has 1)", loops.len()) });
+        return Err(ConformalError::NotDisk {
+            reason: format!("{} boundary loops (a disk has 1)", loops.len()),
+        });
     }
     let cycle = &loops[0];
     let mut target: Vec<Option<[f64; 2]>> = vec![None; n];
@@ -149,25 +165,35 @@ pub fn harmonic_map(
     };
     for &(v, p) in &boundary_targets {
         if v as usize >= n || !tri.is_boundary[v as usize] {
-            return Err(ConformalError::InvalidConstraint(format!("vertex {v} is not a boundary vertex")));
+            return Err(ConformalError::InvalidConstraint(format!(
+                "vertex {v} is not a boundary vertex"
+            )));
         }
         target[v as usize] = Some(p);
     }
     if let Some(&v) = cycle.iter().find(|&&v| target[v as usize].is_none()) {
-        return Err(ConformalError::InvalidConstraint(format!("boundary vertex {v} has no position")));
+        return Err(ConformalError::InvalidConstraint(format!(
+            "boundary vertex {v} has no position"
+        )));
     }
     for &(v, p) in &constraints.landmarks {
         if v as usize >= n {
             return Err(ConformalError::InvalidConstraint(format!("landmark {v} out of range")));
         }
         if tri.is_boundary[v as usize] {
-            return Err(ConformalError::InvalidConstraint(format!("landmark {v} lies on the boundary; constrain it through the boundary condition")));
+            return Err(ConformalError::InvalidConstraint(format!(
+                "landmark {v} lies on the boundary; constrain it through the boundary condition"
+            )));
         }
         if target[v as usize].is_some() {
-            return Err(ConformalError::InvalidConstraint(format!("landmark {v} is given twice")));
+            return Err(ConformalError::InvalidConstraint(format!(
+                "landmark {v} is given twice"
+            )));
         }
         if !(p[0].is_finite() && p[1].is_finite()) {
-            return Err(ConformalError::InvalidConstraint(format!("landmark {v} has a non-finite target")));
+            return Err(ConformalError::InvalidConstraint(format!(
+                "landmark {v} has a non-finite target"
+            )));
         }
         target[v as usize] = Some(p);
     }
@@ -231,7 +257,11 @@ mod tests {
         let p3 = get(3);
         assert!((p3[0]).abs() < 1e-15 && (p3[1] + 1.0).abs() < 1e-15, "{p3:?}");
         // clockwise anchors wind the wrong way around with three of them
-        let bad = anchored_boundary(&positions, &cycle, &[(0, [1.0, 0.0]), (1, [0.0, -1.0]), (2, [-1.0, 0.0])]);
+        let bad = anchored_boundary(
+            &positions,
+            &cycle,
+            &[(0, [1.0, 0.0]), (1, [0.0, -1.0]), (2, [-1.0, 0.0])],
+        );
         assert!(bad.is_err());
     }
 }

@@ -108,11 +108,7 @@ impl IntrinsicTriangulation {
 
     /// Builds an intrinsic triangulation from faces and per-half-edge lengths
     /// (`lengths[3f + k]` is the length of side (faces[f][k], faces[f][k+1])).
-    pub fn from_lengths(
-        num_vertices: usize,
-        faces: &[[u32; 3]],
-        lengths: Vec<f64>,
-    ) -> Result<Self, ConformalError> {
+    pub fn from_lengths(num_vertices: usize, faces: &[[u32; 3]], lengths: Vec<f64>) -> Result<Self, ConformalError> {
         let nh = 3 * faces.len();
         let mut tail = Vec::with_capacity(nh);
         for f in faces {
@@ -121,13 +117,22 @@ impl IntrinsicTriangulation {
         for (f, face) in faces.iter().enumerate() {
             let l = [lengths[3 * f], lengths[3 * f + 1], lengths[3 * f + 2]];
             if face[0] == face[1] || face[1] == face[2] || face[0] == face[2] {
-                return Err(ConformalError::DegenerateFace { face: f, reason: "repeated vertex".into() });
+                return Err(ConformalError::DegenerateFace {
+                    face: f,
+                    reason: "repeated vertex".into(),
+                });
             }
             if l.iter().any(|x| !(*x > 0.0) || !x.is_finite()) {
-                return Err(ConformalError::DegenerateFace { face: f, reason: "zero-length edge (coincident vertices)".into() });
+                return Err(ConformalError::DegenerateFace {
+                    face: f,
+                    reason: "zero-length edge (coincident vertices)".into(),
+                });
             }
             if !(triangle_area_from_lengths(l[0], l[1], l[2]) > 0.0) {
-                return Err(ConformalError::DegenerateFace { face: f, reason: "zero area (collinear corners)".into() });
+                return Err(ConformalError::DegenerateFace {
+                    face: f,
+                    reason: "zero area (collinear corners)".into(),
+                });
             }
         }
         // pair half-edges by their undirected key
@@ -179,7 +184,14 @@ impl IntrinsicTriangulation {
                 length[t as usize] = l;
             }
         }
-        Ok(IntrinsicTriangulation { num_vertices, tail, twin, length, is_boundary, num_flips: 0 })
+        Ok(IntrinsicTriangulation {
+            num_vertices,
+            tail,
+            twin,
+            length,
+            is_boundary,
+            num_flips: 0,
+        })
     }
 
     /// Number of faces.
@@ -234,7 +246,9 @@ impl IntrinsicTriangulation {
     fn touches_itself(&self, h: u32) -> bool {
         let t = self.twin[h as usize];
         let own = [h, next(h), prev(h), t, next(t), prev(t)];
-        [next(h), prev(h), next(t), prev(t)].iter().any(|&g| own.contains(&self.twin[g as usize]))
+        [next(h), prev(h), next(t), prev(t)]
+            .iter()
+            .any(|&g| own.contains(&self.twin[g as usize]))
     }
 
     /// Flips the interior edge of half-edge h (faces (a,b,c) and (b,a,d) become (c,d,b) and
@@ -258,7 +272,12 @@ impl IntrinsicTriangulation {
         let xd = (l_ab * l_ab + l_ad * l_ad - l_db * l_db) / (2.0 * l_ab);
         let yd = -2.0 * triangle_area_from_lengths(l_ab, l_ad, l_db) / l_ab;
         let l_cd = ((xc - xd).powi(2) + (yc - yd).powi(2)).sqrt();
-        let (x1, x2, x3, x4) = (self.twin[hn as usize], self.twin[hp as usize], self.twin[tn as usize], self.twin[tp as usize]);
+        let (x1, x2, x3, x4) = (
+            self.twin[hn as usize],
+            self.twin[hp as usize],
+            self.twin[tn as usize],
+            self.twin[tp as usize],
+        );
         // face of h: h = c→d, hn = d→b, hp = b→c
         self.tail[h as usize] = c;
         self.tail[hn as usize] = d;
@@ -312,7 +331,9 @@ impl IntrinsicTriangulation {
                 continue;
             }
             if self.num_flips - start > budget {
-                return Err(ConformalError::FlipBudgetExceeded { flips: self.num_flips - start });
+                return Err(ConformalError::FlipBudgetExceeded {
+                    flips: self.num_flips - start,
+                });
             }
             self.flip(h);
             let t = self.twin[h as usize];

@@ -18,9 +18,11 @@ impl SpdSolver {
     pub fn new(n: usize, triplets: &[Triplet<usize, usize, f64>], what: &str) -> Result<Self, ConformalError> {
         let a = SparseColMat::try_new_from_triplets(n, n, triplets)
             .map_err(|e| ConformalError::LinearAlgebra(format!("assembling {what}: {e:?}")))?;
-        let llt = a
-            .sp_cholesky(Side::Lower)
-            .map_err(|e| ConformalError::LinearAlgebra(format!("Cholesky of {what} ({n} unknowns): {e:?} (is every component anchored?)")))?;
+        let llt = a.sp_cholesky(Side::Lower).map_err(|e| {
+            ConformalError::LinearAlgebra(format!(
+                "Cholesky of {what} ({n} unknowns): {e:?} (is every component anchored?)"
+            ))
+        })?;
         Ok(SpdSolver { llt, n })
     }
 

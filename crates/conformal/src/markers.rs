@@ -57,7 +57,10 @@ pub struct Markers {
 
 impl Default for Markers {
     fn default() -> Self {
-        Markers { center: CenterMarker::Auto, boundary: BoundaryMarker::Auto }
+        Markers {
+            center: CenterMarker::Auto,
+            boundary: BoundaryMarker::Auto,
+        }
     }
 }
 
@@ -90,7 +93,10 @@ pub struct ResolvedMarkers {
 }
 
 fn parse_err(source_name: &str, message: impl Into<String>) -> ConformalError {
-    ConformalError::MarkerParse { source_name: source_name.to_string(), message: message.into() }
+    ConformalError::MarkerParse {
+        source_name: source_name.to_string(),
+        message: message.into(),
+    }
 }
 
 impl CenterMarker {
@@ -128,9 +134,12 @@ impl BoundaryMarker {
         if t.eq_ignore_ascii_case("auto") {
             return Ok(BoundaryMarker::Auto);
         }
-        t.parse::<u32>()
-            .map(BoundaryMarker::Vertex)
-            .map_err(|_| parse_err("--boundary-marker", format!("expected a vertex index or auto, got `{t}`")))
+        t.parse::<u32>().map(BoundaryMarker::Vertex).map_err(|_| {
+            parse_err(
+                "--boundary-marker",
+                format!("expected a vertex index or auto, got `{t}`"),
+            )
+        })
     }
 }
 
@@ -145,7 +154,9 @@ impl MarkerFile {
     pub fn from_json_str(text: &str, source_name: &str) -> Result<Self, ConformalError> {
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| parse_err(source_name, format!("line {}: {e}", e.line())))?;
-        let obj = value.as_object().ok_or_else(|| parse_err(source_name, "expected a JSON object"))?;
+        let obj = value
+            .as_object()
+            .ok_or_else(|| parse_err(source_name, "expected a JSON object"))?;
         let mut out = MarkerFile::default();
         if let Some(c) = obj.get("center") {
             out.markers.center = match c {
@@ -154,12 +165,18 @@ impl MarkerFile {
                 serde_json::Value::Array(a) if a.len() == 3 => {
                     let mut p = [0.0; 3];
                     for (k, x) in a.iter().enumerate() {
-                        p[k] = x.as_f64().ok_or_else(|| parse_err(source_name, "`center` point must hold 3 numbers"))?;
+                        p[k] = x
+                            .as_f64()
+                            .ok_or_else(|| parse_err(source_name, "`center` point must hold 3 numbers"))?;
                     }
                     CenterMarker::Point(p)
                 }
                 serde_json::Value::Object(o) => {
-                    let face = json_u32(o.get("face").unwrap_or(&serde_json::Value::Null), source_name, "center.face")?;
+                    let face = json_u32(
+                        o.get("face").unwrap_or(&serde_json::Value::Null),
+                        source_name,
+                        "center.face",
+                    )?;
                     let b = o
                         .get("bary")
                         .and_then(|b| b.as_array())
@@ -167,7 +184,9 @@ impl MarkerFile {
                         .ok_or_else(|| parse_err(source_name, "`center.bary` must be 3 numbers"))?;
                     let mut bary = [0.0; 3];
                     for (k, x) in b.iter().enumerate() {
-                        bary[k] = x.as_f64().ok_or_else(|| parse_err(source_name, "`center.bary` must be 3 numbers"))?;
+                        bary[k] = x
+                            .as_f64()
+                            .ok_or_else(|| parse_err(source_name, "`center.bary` must be 3 numbers"))?;
                     }
                     CenterMarker::Barycentric { face, bary }
                 }
@@ -181,9 +200,12 @@ impl MarkerFile {
             };
         }
         if let Some(l) = obj.get("landmarks") {
-            let lo = l.as_object().ok_or_else(|| parse_err(source_name, "`landmarks` must be an object name → vertex"))?;
+            let lo = l
+                .as_object()
+                .ok_or_else(|| parse_err(source_name, "`landmarks` must be an object name → vertex"))?;
             for (name, v) in lo {
-                out.landmarks.insert(name.clone(), json_u32(v, source_name, &format!("landmarks.{name}"))?);
+                out.landmarks
+                    .insert(name.clone(), json_u32(v, source_name, &format!("landmarks.{name}"))?);
             }
         }
         Ok(out)
@@ -191,7 +213,10 @@ impl MarkerFile {
 
     /// Reads and parses a marker file.
     pub fn from_json_file(path: &Path) -> Result<Self, ConformalError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConformalError::Io { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ConformalError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Self::from_json_str(&text, &path.display().to_string())
     }
 
@@ -201,7 +226,9 @@ impl MarkerFile {
     pub fn sidecar_path(mesh_path: &Path) -> Option<PathBuf> {
         let dir = mesh_path.parent().unwrap_or(Path::new("."));
         let stem = mesh_path.file_stem()?.to_string_lossy().to_string();
-        [dir.join(format!("{stem}.landmarks.json")), dir.join("landmarks.json")].into_iter().find(|p| p.is_file())
+        [dir.join(format!("{stem}.landmarks.json")), dir.join("landmarks.json")]
+            .into_iter()
+            .find(|p| p.is_file())
     }
 }
 
@@ -267,7 +294,10 @@ fn argmax(values: &[f64], allowed: impl Fn(usize) -> bool) -> Option<usize> {
         return None;
     }
     let threshold = max - TIE_TOLERANCE * max.abs();
-    values.iter().enumerate().position(|(i, &v)| allowed(i) && v.is_finite() && v >= threshold)
+    values
+        .iter()
+        .enumerate()
+        .position(|(i, &v)| allowed(i) && v.is_finite() && v >= threshold)
 }
 
 /// Closest point of triangle (a, b, c) to p, as barycentric coordinates
@@ -315,8 +345,10 @@ pub fn closest_point_barycentric(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64;
 /// lengths from all boundary vertices; ties within a relative 1e-9 → smallest index): the
 /// automatic center, and the pole of the Green's function in [`crate::disk_map`].
 pub fn central_vertex(mesh: &TriMesh, is_boundary: &[bool], neighbors: &[Vec<u32>]) -> Option<u32> {
-    let sources: Vec<(u32, f64)> =
-        (0..mesh.num_vertices() as u32).filter(|&v| is_boundary[v as usize]).map(|v| (v, 0.0)).collect();
+    let sources: Vec<(u32, f64)> = (0..mesh.num_vertices() as u32)
+        .filter(|&v| is_boundary[v as usize])
+        .map(|v| (v, 0.0))
+        .collect();
     let dist = graph_distances(mesh, neighbors, &sources);
     argmax(&dist, |i| !is_boundary[i] && !neighbors[i].is_empty()).map(|v| v as u32)
 }
@@ -338,20 +370,27 @@ pub fn resolve_markers(
     let center = match &markers.center {
         CenterMarker::Vertex(v) => {
             if *v as usize >= n {
-                return Err(ConformalError::InvalidMarker(format!("center vertex {v} out of range (the mesh has {n} vertices)")));
+                return Err(ConformalError::InvalidMarker(format!(
+                    "center vertex {v} out of range (the mesh has {n} vertices)"
+                )));
             }
             ResolvedCenter::Vertex(*v)
         }
         CenterMarker::Barycentric { face, bary } => {
             if *face as usize >= nf {
-                return Err(ConformalError::InvalidMarker(format!("center face {face} out of range (the mesh has {nf} faces)")));
+                return Err(ConformalError::InvalidMarker(format!(
+                    "center face {face} out of range (the mesh has {nf} faces)"
+                )));
             }
             if bary.iter().any(|b| !b.is_finite() || *b < -1e-12) || (bary.iter().sum::<f64>() - 1.0).abs() > 1e-9 {
                 return Err(ConformalError::InvalidMarker(format!(
                     "barycentric coordinates {bary:?} must be non-negative and sum to 1"
                 )));
             }
-            ResolvedCenter::Face { face: *face, bary: *bary }
+            ResolvedCenter::Face {
+                face: *face,
+                bary: *bary,
+            }
         }
         CenterMarker::Point(p) => {
             let mut best = (f64::INFINITY, 0usize, [1.0, 0.0, 0.0]);
@@ -365,9 +404,14 @@ pub fn resolve_markers(
                 }
             }
             if !best.0.is_finite() {
-                return Err(ConformalError::InvalidMarker("the mesh has no face to project the center onto".into()));
+                return Err(ConformalError::InvalidMarker(
+                    "the mesh has no face to project the center onto".into(),
+                ));
             }
-            ResolvedCenter::Face { face: best.1 as u32, bary: best.2 }
+            ResolvedCenter::Face {
+                face: best.1 as u32,
+                bary: best.2,
+            }
         }
         CenterMarker::Auto => ResolvedCenter::Vertex(
             central_vertex(mesh, is_boundary, neighbors)
@@ -377,7 +421,9 @@ pub fn resolve_markers(
     // snap a face point that sits on a corner to the vertex
     let center = match center {
         ResolvedCenter::Face { face, bary } => {
-            let k = (0..3).max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i))).unwrap_or(0);
+            let k = (0..3)
+                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
+                .unwrap_or(0);
             if bary[k] >= 1.0 - 1e-12 {
                 ResolvedCenter::Vertex(mesh.faces[face as usize][k])
             } else {
@@ -394,16 +440,22 @@ pub fn resolve_markers(
     };
     if let ResolvedCenter::Vertex(v) = center {
         if is_boundary[v as usize] {
-            return Err(ConformalError::InvalidMarker(format!("center vertex {v} lies on the boundary; it must be interior")));
+            return Err(ConformalError::InvalidMarker(format!(
+                "center vertex {v} lies on the boundary; it must be interior"
+            )));
         }
     }
     let boundary_vertex = match markers.boundary {
         BoundaryMarker::Vertex(q) => {
             if q as usize >= n {
-                return Err(ConformalError::InvalidMarker(format!("boundary marker {q} out of range (the mesh has {n} vertices)")));
+                return Err(ConformalError::InvalidMarker(format!(
+                    "boundary marker {q} out of range (the mesh has {n} vertices)"
+                )));
             }
             if !is_boundary[q as usize] {
-                return Err(ConformalError::InvalidMarker(format!("boundary marker {q} is not a boundary vertex")));
+                return Err(ConformalError::InvalidMarker(format!(
+                    "boundary marker {q} is not a boundary vertex"
+                )));
             }
             q
         }
@@ -417,17 +469,24 @@ pub fn resolve_markers(
                     (0..3)
                         .map(|k| {
                             let p = pts[k];
-                            (corners[k], ((p[0] - x[0]).powi(2) + (p[1] - x[1]).powi(2) + (p[2] - x[2]).powi(2)).sqrt())
+                            (
+                                corners[k],
+                                ((p[0] - x[0]).powi(2) + (p[1] - x[1]).powi(2) + (p[2] - x[2]).powi(2)).sqrt(),
+                            )
                         })
                         .collect()
                 }
             };
             let dist = graph_distances(mesh, neighbors, &sources);
-            argmax(&dist, |i| is_boundary[i])
-                .ok_or_else(|| ConformalError::InvalidMarker("no boundary vertex is reachable from the center".into()))? as u32
+            argmax(&dist, |i| is_boundary[i]).ok_or_else(|| {
+                ConformalError::InvalidMarker("no boundary vertex is reachable from the center".into())
+            })? as u32
         }
     };
-    Ok(ResolvedMarkers { center, boundary_vertex })
+    Ok(ResolvedMarkers {
+        center,
+        boundary_vertex,
+    })
 }
 
 #[cfg(test)]
@@ -438,7 +497,10 @@ mod tests {
     fn parse_cli_strings() {
         assert_eq!(CenterMarker::parse("auto").unwrap(), CenterMarker::Auto);
         assert_eq!(CenterMarker::parse(" 17 ").unwrap(), CenterMarker::Vertex(17));
-        assert_eq!(CenterMarker::parse("1,-2.5,3e-1").unwrap(), CenterMarker::Point([1.0, -2.5, 0.3]));
+        assert_eq!(
+            CenterMarker::parse("1,-2.5,3e-1").unwrap(),
+            CenterMarker::Point([1.0, -2.5, 0.3])
+        );
         assert!(CenterMarker::parse("1,2").is_err());
         assert!(CenterMarker::parse("-3").is_err());
         assert!(CenterMarker::parse("1,nan,2").is_err());
@@ -449,16 +511,28 @@ mod tests {
 
     #[test]
     fn parse_json_files() {
-        let f = MarkerFile::from_json_str(r#"{"center": 123, "boundary": 456, "landmarks": {"nose": 7, "chin": 9}}"#, "t.json").unwrap();
+        let f = MarkerFile::from_json_str(
+            r#"{"center": 123, "boundary": 456, "landmarks": {"nose": 7, "chin": 9}}"#,
+            "t.json",
+        )
+        .unwrap();
         assert_eq!(f.markers.center, CenterMarker::Vertex(123));
         assert_eq!(f.markers.boundary, BoundaryMarker::Vertex(456));
         assert_eq!(f.landmarks.get("chin"), Some(&9));
         let f = MarkerFile::from_json_str(r#"{"center": {"face": 3, "bary": [0.2, 0.3, 0.5]}}"#, "t.json").unwrap();
-        assert_eq!(f.markers.center, CenterMarker::Barycentric { face: 3, bary: [0.2, 0.3, 0.5] });
+        assert_eq!(
+            f.markers.center,
+            CenterMarker::Barycentric {
+                face: 3,
+                bary: [0.2, 0.3, 0.5]
+            }
+        );
         assert_eq!(f.markers.boundary, BoundaryMarker::Auto);
         let f = MarkerFile::from_json_str(r#"{"center": [1, 2, 3], "boundary": "auto"}"#, "t.json").unwrap();
         assert_eq!(f.markers.center, CenterMarker::Point([1.0, 2.0, 3.0]));
-        let e = MarkerFile::from_json_str(r#"{"center": -1}"#, "x.json").unwrap_err().to_string();
+        let e = MarkerFile::from_json_str(r#"{"center": -1}"#, "x.json")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("x.json: "), "{e}");
         assert!(MarkerFile::from_json_str("{", "x.json").is_err());
         assert!(MarkerFile::from_json_str(r#"{"landmarks": {"a": 1.5}}"#, "x.json").is_err());

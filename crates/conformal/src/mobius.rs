@@ -32,7 +32,10 @@ fn arr(z: c64) -> [f64; 2] {
 impl Mobius {
     /// The identity map (a = 0, θ = 0).
     pub fn identity() -> Self {
-        Mobius { a: [0.0, 0.0], theta: 0.0 }
+        Mobius {
+            a: [0.0, 0.0],
+            theta: 0.0,
+        }
     }
 
     /// The automorphism with a ↦ 0 and `q` ↦ 1, for |a| < 1 and |q| = 1 (q ≠ a).
@@ -63,7 +66,10 @@ impl Mobius {
     /// The inverse automorphism: a' = −a e^{iθ}, θ' = −θ.
     pub fn inverse(&self) -> Self {
         let rot = c64::new(self.theta.cos(), self.theta.sin());
-        Mobius { a: arr(-(c(self.a) * rot)), theta: -self.theta }
+        Mobius {
+            a: arr(-(c(self.a) * rot)),
+            theta: -self.theta,
+        }
     }
 
     /// The composition `self ∘ first` (apply `first`, then `self`), again of the same form:
@@ -77,7 +83,10 @@ impl Mobius {
         let gamma = c64::new(1.0, 0.0) + a2.conj() * r1 * a1;
         let a = beta / alpha;
         let rot = (alpha / gamma).arg() + self.theta;
-        Mobius { a: arr(a), theta: rot.rem_euclid(std::f64::consts::TAU) }
+        Mobius {
+            a: arr(a),
+            theta: rot.rem_euclid(std::f64::consts::TAU),
+        }
     }
 }
 
@@ -123,8 +132,14 @@ mod tests {
     fn inverse_and_composition() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         for _ in 0..200 {
-            let m1 = Mobius { a: random_in_disk(&mut rng, 0.9), theta: rng.random::<f64>() * 6.0 };
-            let m2 = Mobius { a: random_in_disk(&mut rng, 0.9), theta: rng.random::<f64>() * 6.0 };
+            let m1 = Mobius {
+                a: random_in_disk(&mut rng, 0.9),
+                theta: rng.random::<f64>() * 6.0,
+            };
+            let m2 = Mobius {
+                a: random_in_disk(&mut rng, 0.9),
+                theta: rng.random::<f64>() * 6.0,
+            };
             let inv = m1.inverse();
             let comp = m2.compose(&m1);
             for _ in 0..10 {
@@ -140,7 +155,10 @@ mod tests {
 
     #[test]
     fn derivative_matches_finite_difference() {
-        let m = Mobius { a: [0.3, -0.4], theta: 1.0 };
+        let m = Mobius {
+            a: [0.3, -0.4],
+            theta: 1.0,
+        };
         let z = [0.1, 0.2];
         let h = 1e-7;
         let w0 = m.apply(z);
@@ -151,7 +169,10 @@ mod tests {
 
     #[test]
     fn rotation_keeps_tiny_points_exactly_scaled() {
-        let m = Mobius { a: [0.0, 0.0], theta: 0.5 };
+        let m = Mobius {
+            a: [0.0, 0.0],
+            theta: 0.5,
+        };
         let w = m.apply([1e-200, 0.0]);
         assert!((w[0].hypot(w[1]) / 1e-200 - 1.0).abs() < 1e-15);
     }

@@ -20,7 +20,10 @@ use crate::error::ConformalError;
 /// power of two (exact) so that the largest coordinate is about 1, because the adaptive exact
 /// predicate is only valid when its products do not underflow (coordinates ≲ 1e-150 would).
 pub fn orient_scaled(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Sign {
-    let m = [a, b, c].iter().flat_map(|p| p.iter()).fold(0.0f64, |acc, x| acc.max(x.abs()));
+    let m = [a, b, c]
+        .iter()
+        .flat_map(|p| p.iter())
+        .fold(0.0f64, |acc, x| acc.max(x.abs()));
     if !(m > 0.0) || !m.is_finite() {
         return orient_2d(&a, &b, &c);
     }
@@ -106,7 +109,11 @@ fn scaled_edges(p: [[f64; 2]; 3]) -> ([f64; 2], [f64; 2], f64) {
     // exact power-of-two scaling
     let e = m.log2().floor() as i32;
     let s = 2f64.powi(-e);
-    ([d1[0] * s, d1[1] * s], [d2[0] * s, d2[1] * s], e as f64 * std::f64::consts::LN_2)
+    (
+        [d1[0] * s, d1[1] * s],
+        [d2[0] * s, d2[1] * s],
+        e as f64 * std::f64::consts::LN_2,
+    )
 }
 
 /// Per-face distortion of the map given by `uv` (#V) on `mesh` (the 3D surface is scaled to
@@ -136,10 +143,17 @@ pub fn face_distortions(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<FaceDistortio
         let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
         let l1 = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).sqrt();
-        let cr = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let cr = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
         let twice_area = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
         if !(twice_area > 0.0) || !(l1 > 0.0) {
-            return Err(ConformalError::DegenerateFace { face: f, reason: "zero 3D area".into() });
+            return Err(ConformalError::DegenerateFace {
+                face: f,
+                reason: "zero 3D area".into(),
+            });
         }
         // local frame of the 3D triangle: E1 = (l1, 0), E2 = (x, y)
         let x = (e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]) / l1;
@@ -174,7 +188,9 @@ pub fn face_distortions(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<FaceDistortio
             let (u3, v3) = (sub3(p3[(k + 1) % 3], p3[k]), sub3(p3[(k + 2) % 3], p3[k]));
             let t3 = norm3(cross3(u3, v3)).atan2(dot3(u3, v3));
             let (u2, v2) = (sub2(q2[(k + 1) % 3], q2[k]), sub2(q2[(k + 2) % 3], q2[k]));
-            let t2 = (u2[0] * v2[1] - u2[1] * v2[0]).abs().atan2(u2[0] * v2[0] + u2[1] * v2[1]);
+            let t2 = (u2[0] * v2[1] - u2[1] * v2[0])
+                .abs()
+                .atan2(u2[0] * v2[0] + u2[1] * v2[1]);
             sum += (t3 - t2).abs();
         }
         out.angle_distortion[f] = sum / 3.0;
@@ -192,7 +208,11 @@ fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 fn norm3(a: [f64; 3]) -> f64 {
     dot3(a, a).sqrt()
@@ -201,7 +221,13 @@ fn norm3(a: [f64; 3]) -> f64 {
 /// Summary statistics of per-face distortions; `face_areas` (#F, 3D) weigh the flipped area.
 pub fn summarize(d: &FaceDistortions, face_areas: &[f64]) -> QualitySummary {
     let total: f64 = face_areas.iter().sum();
-    let bad: f64 = d.orientation.iter().zip(face_areas).filter(|(o, _)| **o <= 0).map(|(_, a)| a).sum();
+    let bad: f64 = d
+        .orientation
+        .iter()
+        .zip(face_areas)
+        .filter(|(o, _)| **o <= 0)
+        .map(|(_, a)| a)
+        .sum();
     let deg: Vec<f64> = d.angle_distortion.iter().map(|x| x.to_degrees()).collect();
     QualitySummary {
         area_distortion: Stats::of(&d.area_distortion),
@@ -266,7 +292,11 @@ mod tests {
         assert_eq!(d.orientation[0], 1);
         // Υ = ln(t²·0.5 / (0.5·2π)) = 2 ln t − ln 2π
         let expect = 2.0 * t.ln() - (2.0 * std::f64::consts::PI).ln();
-        assert!((d.area_distortion[0] - expect).abs() < 1e-10, "{} vs {expect}", d.area_distortion[0]);
+        assert!(
+            (d.area_distortion[0] - expect).abs() < 1e-10,
+            "{} vs {expect}",
+            d.area_distortion[0]
+        );
         assert!(d.quasi_conformal_distortion[0].abs() < 1e-10);
     }
 

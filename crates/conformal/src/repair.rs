@@ -112,6 +112,10 @@ mod tests {
         let moves = repair_folds(&faces, &vf, &angles, &fixed, &mut uv);
         assert_eq!(moves, 1);
         // moved just inside: y = margin 1e-3 above edge 0-1, x unchanged
-        assert!((uv[4][1] - 1e-3).abs() < 1e-12 && (uv[4][0] - 0.5).abs() < 1e-12, "{:?}", uv[4]);
+        assert!(
+            (uv[4][1] - 1e-3).abs() < 1e-12 && (uv[4][0] - 0.5).abs() < 1e-12,
+            "{:?}",
+            uv[4]
+        );
     }
 }

@@ -30,13 +30,20 @@ fn errors(alpha: f64, rings: usize) -> (f64, f64, f64, f64) {
     let big_r = (alpha / 2.0).tan();
     let mut mean_dens = 0.0;
     for (f, face) in m.faces.iter().enumerate() {
-        let c: Vec<f64> = (0..3).map(|d| face.iter().map(|&v| m.positions[v as usize][d]).sum::<f64>() / 3.0).collect();
+        let c: Vec<f64> = (0..3)
+            .map(|d| face.iter().map(|&v| m.positions[v as usize][d]).sum::<f64>() / 3.0)
+            .collect();
         let n = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
         let r = ((c[2] / n).clamp(-1.0, 1.0).acos() / 2.0).tan() / big_r;
         let mu = (1.0 + big_r * big_r) / (1.0 + big_r * big_r * r * r).powi(2);
         mean_dens += (dm.face_densities[f] / mu - 1.0).abs();
     }
-    (rad, ang, mean_dens / m.num_faces() as f64, dm.face_densities.iter().sum::<f64>())
+    (
+        rad,
+        ang,
+        mean_dens / m.num_faces() as f64,
+        dm.face_densities.iter().sum::<f64>(),
+    )
 }
 
 #[test]
@@ -78,10 +85,17 @@ fn barycentric_center_matches_stereographic_then_mobius() {
     let alpha = FRAC_PI_2;
     for (rings, tol) in [(20usize, 3.5e-3), (40, 2.2e-3)] {
         let m = spherical_cap(alpha, rings);
-        let face = m.faces.iter().position(|f| f.iter().all(|&v| v as usize > 1 + 3 * (rings / 3) * (rings / 3 + 1))).unwrap() as u32;
+        let face = m
+            .faces
+            .iter()
+            .position(|f| f.iter().all(|&v| v as usize > 1 + 3 * (rings / 3) * (rings / 3 + 1)))
+            .unwrap() as u32;
         let bary = [0.2, 0.3, 0.5];
         let q = (m.num_vertices() - 1) as u32;
-        let markers = Markers { center: CenterMarker::Barycentric { face, bary }, boundary: shapespace_conformal::BoundaryMarker::Vertex(q) };
+        let markers = Markers {
+            center: CenterMarker::Barycentric { face, bary },
+            boundary: shapespace_conformal::BoundaryMarker::Vertex(q),
+        };
         let dm = disk_map(&m, &markers, &DiskMapParams::default()).unwrap();
         let stereo = |x: [f64; 3]| {
             let n = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
@@ -101,7 +115,12 @@ fn barycentric_center_matches_stereographic_then_mobius() {
         assert_eq!(dm.info.pole, m.faces[face as usize][2]);
         // the piecewise-linear image of p is exactly 0
         let c = m.faces[face as usize];
-        let z = (0..3).fold([0.0, 0.0], |s, k| [s[0] + bary[k] * dm.uv[c[k] as usize][0], s[1] + bary[k] * dm.uv[c[k] as usize][1]]);
+        let z = (0..3).fold([0.0, 0.0], |s, k| {
+            [
+                s[0] + bary[k] * dm.uv[c[k] as usize][0],
+                s[1] + bary[k] * dm.uv[c[k] as usize][1],
+            ]
+        });
         assert!(z[0].hypot(z[1]) < 1e-15, "{z:?}");
     }
 }
@@ -120,7 +139,8 @@ fn face_densities_integrate_to_pi() {
             m.positions[face[0] as usize],
             m.positions[face[1] as usize],
             m.positions[face[2] as usize],
-        ) * dm.scale * dm.scale;
+        ) * dm.scale
+            * dm.scale;
         assert!((dm.face_densities[f] * area / a3 - 1.0).abs() < 1e-12);
         a2 += area;
     }

@@ -22,7 +22,10 @@ fn disk(rings: usize, jitter: f64, seed: u64) -> (Vec<[f64; 2]>, Vec<[u32; 3]>, 
             if i >= n - nb {
                 [p[0], p[1]]
             } else {
-                [p[0] + jitter * h * (rng.random::<f64>() - 0.5), p[1] + jitter * h * (rng.random::<f64>() - 0.5)]
+                [
+                    p[0] + jitter * h * (rng.random::<f64>() - 0.5),
+                    p[1] + jitter * h * (rng.random::<f64>() - 0.5),
+                ]
             }
         })
         .collect();
@@ -31,7 +34,10 @@ fn disk(rings: usize, jitter: f64, seed: u64) -> (Vec<[f64; 2]>, Vec<[u32; 3]>, 
 }
 
 fn flips(uv: &[[f64; 2]], faces: &[[u32; 3]]) -> usize {
-    faces.iter().filter(|f| orient_2d(&uv[f[0] as usize], &uv[f[1] as usize], &uv[f[2] as usize]) != Sign::Positive).count()
+    faces
+        .iter()
+        .filter(|f| orient_2d(&uv[f[0] as usize], &uv[f[1] as usize], &uv[f[2] as usize]) != Sign::Positive)
+        .count()
 }
 
 #[test]
@@ -43,7 +49,11 @@ fn identity_boundary_reproduces_a_flat_mesh() {
         landmarks: vec![],
     };
     let uv = harmonic_map(&pos, &faces, &c).unwrap();
-    let err = uv.iter().zip(&pos).map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1])).fold(0.0, f64::max);
+    let err = uv
+        .iter()
+        .zip(&pos)
+        .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+        .fold(0.0, f64::max);
     assert!(err < 1e-12, "{err}");
 }
 
@@ -62,7 +72,10 @@ fn rotated_boundary_on_convex_disk_has_no_flips_rado() {
                 (v, [s.cos(), s.sin()])
             })
             .collect();
-        let c = HarmonicConstraints { boundary: BoundaryConstraint::Fixed(fixed.clone()), landmarks: vec![] };
+        let c = HarmonicConstraints {
+            boundary: BoundaryConstraint::Fixed(fixed.clone()),
+            landmarks: vec![],
+        };
         let uv = harmonic_map(&pos, &faces, &c).unwrap();
         assert_eq!(flips(&uv, &faces), 0, "seed {seed}");
         for (v, p) in fixed {
@@ -76,14 +89,19 @@ fn rotated_boundary_on_convex_disk_has_no_flips_rado() {
 fn landmarks_are_hit_exactly_and_anchors_slide_the_boundary() {
     let (pos, faces, boundary) = disk(16, 0.3, 5);
     let n = pos.len() as u32;
-    let anchors: Vec<(u32, [f64; 2])> =
-        [0usize, 24, 48, 72].iter().map(|&k| {
+    let anchors: Vec<(u32, [f64; 2])> = [0usize, 24, 48, 72]
+        .iter()
+        .map(|&k| {
             let t = 0.2 + std::f64::consts::FRAC_PI_2 * (k / 24) as f64;
             (boundary[k], [t.cos(), t.sin()])
-        }).collect();
+        })
+        .collect();
     // two interior landmarks moved by a small amount
     let landmarks = vec![(0u32, [0.05, -0.03]), (20u32, [pos[20][0] + 0.02, pos[20][1]])];
-    let c = HarmonicConstraints { boundary: BoundaryConstraint::Anchors(anchors.clone()), landmarks: landmarks.clone() };
+    let c = HarmonicConstraints {
+        boundary: BoundaryConstraint::Anchors(anchors.clone()),
+        landmarks: landmarks.clone(),
+    };
     let uv = harmonic_map(&pos, &faces, &c).unwrap();
     for (v, p) in landmarks {
         assert_eq!(uv[v as usize], p);
@@ -117,6 +135,9 @@ fn invalid_constraints_are_errors() {
         landmarks: vec![(boundary[3], [0.0, 0.0])],
     };
     assert!(harmonic_map(&pos, &faces, &on_boundary).is_err());
-    let interior_anchor = HarmonicConstraints { boundary: BoundaryConstraint::Anchors(vec![(0, [1.0, 0.0])]), landmarks: vec![] };
+    let interior_anchor = HarmonicConstraints {
+        boundary: BoundaryConstraint::Anchors(vec![(0, [1.0, 0.0])]),
+        landmarks: vec![],
+    };
     assert!(harmonic_map(&pos, &faces, &interior_anchor).is_err());
 }

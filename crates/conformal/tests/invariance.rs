@@ -24,7 +24,11 @@ fn rigid_motion_and_scaling_do_not_change_the_map() {
     let rot = |p: [f64; 3]| {
         let (c, s) = (t.cos(), t.sin());
         let kd = k[0] * p[0] + k[1] * p[1] + k[2] * p[2];
-        let kx = [k[1] * p[2] - k[2] * p[1], k[2] * p[0] - k[0] * p[2], k[0] * p[1] - k[1] * p[0]];
+        let kx = [
+            k[1] * p[2] - k[2] * p[1],
+            k[2] * p[0] - k[0] * p[2],
+            k[0] * p[1] - k[1] * p[0],
+        ];
         [0, 1, 2].map(|d| p[d] * c + kx[d] * s + k[d] * kd * (1.0 - c) + [5.0, -3.0, 11.0][d])
     };
     for (name, mesh) in [
@@ -36,7 +40,12 @@ fn rigid_motion_and_scaling_do_not_change_the_map() {
         let d = max_dist(&dm.uv, &base.uv);
         eprintln!("{name}: {d:.2e}");
         assert!(d < 1e-9, "{name}: {d}");
-        let dl = dm.conformal_factor.iter().zip(&base.conformal_factor).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let dl = dm
+            .conformal_factor
+            .iter()
+            .zip(&base.conformal_factor)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         assert!(dl < 1e-9, "{name}: λ {dl}");
     }
     // automatic markers are invariant too (they pick the same vertices)
@@ -69,7 +78,8 @@ fn retriangulated(m: &TriMesh) -> TriMesh {
         let k = fa.iter().position(|&v| v == a).unwrap();
         let (a, b) = if fa[(k + 1) % 3] == b { (a, b) } else { (b, a) };
         let p = |v: u32| m.positions[v as usize];
-        let orient = |x: [f64; 3], y: [f64; 3], z: [f64; 3]| (y[0] - x[0]) * (z[1] - x[1]) - (y[1] - x[1]) * (z[0] - x[0]);
+        let orient =
+            |x: [f64; 3], y: [f64; 3], z: [f64; 3]| (y[0] - x[0]) * (z[1] - x[1]) - (y[1] - x[1]) * (z[0] - x[0]);
         // new faces (c, d, b) and (d, c, a) must stay counter-clockwise in projection
         if orient(p(c), p(d), p(b)) <= 0.0 || orient(p(d), p(c), p(a)) <= 0.0 {
             continue;

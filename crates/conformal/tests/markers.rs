@@ -4,7 +4,9 @@
 mod common;
 
 use common::*;
-use shapespace_conformal::{disk_map, PolePlacement, BoundaryMarker, CenterMarker, ConformalError, DiskMapParams, MarkerFile, Markers, Mobius};
+use shapespace_conformal::{
+    disk_map, BoundaryMarker, CenterMarker, ConformalError, DiskMapParams, MarkerFile, Markers, Mobius, PolePlacement,
+};
 use shapespace_geometry::primitives::spherical_cap;
 
 fn err(m: &shapespace_geometry::TriMesh, markers: Markers) -> String {
@@ -23,7 +25,13 @@ fn invalid_markers_are_clear_errors() {
     assert!(err(&m, vertex_markers(last, last)).contains("on the boundary"));
     assert!(err(&m, vertex_markers(0, 1)).contains("not a boundary vertex"));
     assert!(err(&m, vertex_markers(0, n + 5)).contains("out of range"));
-    let bad_bary = Markers { center: CenterMarker::Barycentric { face: 0, bary: [0.5, 0.6, 0.1] }, boundary: BoundaryMarker::Auto };
+    let bad_bary = Markers {
+        center: CenterMarker::Barycentric {
+            face: 0,
+            bary: [0.5, 0.6, 0.1],
+        },
+        boundary: BoundaryMarker::Auto,
+    };
     assert!(err(&m, bad_bary).contains("sum to 1"));
 }
 
@@ -31,15 +39,35 @@ fn invalid_markers_are_clear_errors() {
 fn point_marker_projects_to_the_surface() {
     let m = spherical_cap(1.0, 8);
     // a point above the pole projects onto vertex 0
-    let dm = map(&m, &Markers { center: CenterMarker::Point([0.0, 0.0, 3.0]), boundary: BoundaryMarker::Auto });
-    assert_eq!(dm.info.markers.center, shapespace_conformal::markers::ResolvedCenter::Vertex(0));
+    let dm = map(
+        &m,
+        &Markers {
+            center: CenterMarker::Point([0.0, 0.0, 3.0]),
+            boundary: BoundaryMarker::Auto,
+        },
+    );
+    assert_eq!(
+        dm.info.markers.center,
+        shapespace_conformal::markers::ResolvedCenter::Vertex(0)
+    );
     // a point off the axis lands inside a face, which then maps to 0 up to roundoff
     let p = [0.2, 0.13, 1.5];
-    let dm = map(&m, &Markers { center: CenterMarker::Point(p), boundary: BoundaryMarker::Auto });
-    let shapespace_conformal::markers::ResolvedCenter::Face { face, bary } = dm.info.markers.center else { panic!() };
-    let z = m.faces[face as usize].iter().zip(bary).fold([0.0, 0.0], |acc, (&v, b)| {
-        [acc[0] + b * dm.uv[v as usize][0], acc[1] + b * dm.uv[v as usize][1]]
-    });
+    let dm = map(
+        &m,
+        &Markers {
+            center: CenterMarker::Point(p),
+            boundary: BoundaryMarker::Auto,
+        },
+    );
+    let shapespace_conformal::markers::ResolvedCenter::Face { face, bary } = dm.info.markers.center else {
+        panic!()
+    };
+    let z = m.faces[face as usize]
+        .iter()
+        .zip(bary)
+        .fold([0.0, 0.0], |acc, (&v, b)| {
+            [acc[0] + b * dm.uv[v as usize][0], acc[1] + b * dm.uv[v as usize][1]]
+        });
     assert!(z[0].hypot(z[1]) < 1e-12, "{z:?}");
 }
 
@@ -55,7 +83,10 @@ fn center_next_to_the_boundary_matches_the_exact_map() {
         let q = (n - 1) as u32;
         // with the pole at p (one edge from the boundary) the map is poor at this resolution
         // (max error 1.25 at rings 10); the central pole + Möbius route is used instead
-        let params = DiskMapParams { pole: PolePlacement::Central, ..Default::default() };
+        let params = DiskMapParams {
+            pole: PolePlacement::Central,
+            ..Default::default()
+        };
         let dm = disk_map(&m, &vertex_markers(p, q), &params).unwrap();
         assert_eq!(dm.info.pole, 0);
         let stereo = |x: [f64; 3]| {
@@ -83,6 +114,12 @@ fn sidecar_lookup_prefers_the_named_file() {
     let path = MarkerFile::sidecar_path(&mesh).unwrap();
     assert_eq!(path, dir.join("a.landmarks.json"));
     let f = MarkerFile::from_json_file(&path).unwrap();
-    assert_eq!(f.markers, Markers { center: CenterMarker::Vertex(2), boundary: BoundaryMarker::Vertex(3) });
+    assert_eq!(
+        f.markers,
+        Markers {
+            center: CenterMarker::Vertex(2),
+            boundary: BoundaryMarker::Vertex(3)
+        }
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

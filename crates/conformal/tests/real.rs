@@ -48,9 +48,20 @@ fn ict_face_has_no_flips_and_plain_cotan_folds() {
     let q = &dm.quality.quasi_conformal_distortion;
     eprintln!("ICT face Λ {q:?}, flips {}", dm.info.intrinsic_flips);
     assert!(q.mean < 0.1 && q.p95 < 0.3, "{q:?}");
-    match disk_map(&m, &markers, &DiskMapParams { intrinsic_delaunay: false, repair_folds: false, ..Default::default() }) {
+    match disk_map(
+        &m,
+        &markers,
+        &DiskMapParams {
+            intrinsic_delaunay: false,
+            repair_folds: false,
+            ..Default::default()
+        },
+    ) {
         Err(ConformalError::FoldedImage { num_flipped, .. }) => assert!(num_flipped > 0),
-        other => panic!("plain cotan Laplacian should fold this face, got {:?}", other.map(|d| d.quality)),
+        other => panic!(
+            "plain cotan Laplacian should fold this face, got {:?}",
+            other.map(|d| d.quality)
+        ),
     }
 }
 
@@ -59,15 +70,28 @@ fn face_expressions_map_without_flips_after_a_few_repairs() {
     // over all 40 faces (measured once): 33 have no fold at all; 7 (happy/sad expressions,
     // compressed lips) fold 1 sliver (angles 165°–175°) each, repaired by moving 1–5 vertices
     let Some(d) = datasets_dir() else { return };
-    let markers = MarkerFile::from_json_file(&d.join("faces/landmarks.json")).unwrap().markers;
+    let markers = MarkerFile::from_json_file(&d.join("faces/landmarks.json"))
+        .unwrap()
+        .markers;
     for (name, raw_folds) in [("id01_happy", true), ("id02_sad", true), ("id03_surprise", false)] {
         let m = read_mesh(&d.join(format!("faces/{name}.obj"))).unwrap();
         let dm = map(&m, &markers);
         assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0, "{name}");
         assert!(dm.info.fold_repairs <= 5, "{name}: {}", dm.info.fold_repairs);
         assert_eq!(dm.info.fold_repairs > 0, raw_folds, "{name}");
-        let raw = disk_map(&m, &markers, &DiskMapParams { repair_folds: false, ..Default::default() });
-        assert_eq!(matches!(raw, Err(ConformalError::FoldedImage { .. })), raw_folds, "{name}");
+        let raw = disk_map(
+            &m,
+            &markers,
+            &DiskMapParams {
+                repair_folds: false,
+                ..Default::default()
+            },
+        );
+        assert_eq!(
+            matches!(raw, Err(ConformalError::FoldedImage { .. })),
+            raw_folds,
+            "{name}"
+        );
     }
 }
 
@@ -117,6 +141,9 @@ fn shared_ict_template_with_filled_holes_has_no_flips() {
     let m = fill_inner_loops(&raw);
     let dm = map(&m, &Markers::default());
     assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0);
-    eprintln!("ICT template: Λ {:?}, repairs {}", dm.quality.quasi_conformal_distortion, dm.info.fold_repairs);
+    eprintln!(
+        "ICT template: Λ {:?}, repairs {}",
+        dm.quality.quasi_conformal_distortion, dm.info.fold_repairs
+    );
     assert!(dm.quality.quasi_conformal_distortion.p95 < 0.3);
 }

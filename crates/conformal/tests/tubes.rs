@@ -25,7 +25,10 @@ fn tubes_have_exponential_but_finite_factors() {
         assert_eq!(dm.quality.num_flipped, 0);
         let max = dm.face_densities.iter().cloned().fold(0.0, f64::max);
         // the cap is at scale e^{−H}: density ≈ e^{2H} up to O(1) factors
-        assert!(max.ln() > 2.0 * h - 6.0 && max.ln() < 2.0 * h + 6.0, "H {h}: max density {max:e}");
+        assert!(
+            max.ln() > 2.0 * h - 6.0 && max.ln() < 2.0 * h + 6.0,
+            "H {h}: max density {max:e}"
+        );
         lambdas.push(dm.conformal_factor[0]);
     }
     let slope = (lambdas[2] - lambdas[1]) / 40.0;
@@ -35,7 +38,11 @@ fn tubes_have_exponential_but_finite_factors() {
 #[test]
 fn tube_beyond_f64_range_is_a_clear_error() {
     let m = capped_tube(1.0, 400.0, 4, 800);
-    match disk_map(&m, &vertex_markers(0, (m.num_vertices() - 1) as u32), &DiskMapParams::default()) {
+    match disk_map(
+        &m,
+        &vertex_markers(0, (m.num_vertices() - 1) as u32),
+        &DiskMapParams::default(),
+    ) {
         Err(ConformalError::OutOfRange { log10_value, what, .. }) => {
             assert!(log10_value.abs() > 150.0, "{what}: {log10_value}");
         }

@@ -82,8 +82,16 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     if let Some(b) = &args.boundary_marker {
         markers.boundary = BoundaryMarker::parse(b)?;
     }
-    let pole = if args.pole == "central" { PolePlacement::Central } else { PolePlacement::AtCenter };
-    let params = DiskMapParams { intrinsic_delaunay: !args.no_intrinsic_delaunay, pole, ..Default::default() };
+    let pole = if args.pole == "central" {
+        PolePlacement::Central
+    } else {
+        PolePlacement::AtCenter
+    };
+    let params = DiskMapParams {
+        intrinsic_delaunay: !args.no_intrinsic_delaunay,
+        pole,
+        ..Default::default()
+    };
     let map = disk_map(&mesh, &markers, &params).with_context(|| format!("mapping {}", args.input.display()))?;
     mesh.uvs = Some(map.uv.clone());
     write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;

@@ -14,7 +14,10 @@ pub fn datasets_dir() -> Option<PathBuf> {
 
 /// Markers with a vertex center and a vertex boundary marker.
 pub fn vertex_markers(p: u32, q: u32) -> Markers {
-    Markers { center: CenterMarker::Vertex(p), boundary: BoundaryMarker::Vertex(q) }
+    Markers {
+        center: CenterMarker::Vertex(p),
+        boundary: BoundaryMarker::Vertex(q),
+    }
 }
 
 /// Maps with default parameters, panicking with the error (tests only).
@@ -46,7 +49,9 @@ pub fn cap_errors(mesh: &TriMesh, alpha: f64, dm: &DiskMap) -> (f64, f64, f64) {
     }
     let mut dens: f64 = 0.0;
     for (f, face) in mesh.faces.iter().enumerate() {
-        let c: Vec<f64> = (0..3).map(|d| face.iter().map(|&v| mesh.positions[v as usize][d]).sum::<f64>() / 3.0).collect();
+        let c: Vec<f64> = (0..3)
+            .map(|d| face.iter().map(|&v| mesh.positions[v as usize][d]).sum::<f64>() / 3.0)
+            .collect();
         let n = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
         let theta = (c[2] / n).clamp(-1.0, 1.0).acos();
         let r = (theta / 2.0).tan() / big_r;
@@ -58,5 +63,8 @@ pub fn cap_errors(mesh: &TriMesh, alpha: f64, dm: &DiskMap) -> (f64, f64, f64) {
 
 /// Max distance between two uv arrays.
 pub fn max_dist(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
-    a.iter().zip(b).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .fold(0.0, f64::max)
 }
