@@ -25,6 +25,8 @@ enum Command {
     Mds(cmd::mds::MdsArgs),
     /// Semi-discrete optimal transport from a source density to weighted points (damped Newton).
     Ot(cmd::ot::OtArgs),
+    /// Area-preserving parameterization onto the disk or square by optimal mass transport (OBJ with vt, report, plots).
+    Param(cmd::param::ParamArgs),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
         Command::Info(args) => cmd::info::run(args),
         Command::Mds(args) => cmd::mds::run(args),
         Command::Ot(args) => cmd::ot::run(args),
+        Command::Param(args) => cmd::param::run(args),
     };
     match result {
         Ok(code) => code,

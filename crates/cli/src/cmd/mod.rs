@@ -4,3 +4,4 @@ pub mod conformal;
 pub mod info;
 pub mod mds;
 pub mod ot;
+pub mod param;
