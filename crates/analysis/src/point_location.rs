@@ -4,12 +4,13 @@
 //! the barycentric point of the 3D triangle whose planar image holds p.
 //!
 //! # Index
-//! An adaptive quadtree over the bounding box of the planar vertices. Each leaf lists the
-//! triangles whose bounding box overlaps it; a leaf with more than [`LEAF_CAPACITY`] triangles
-//! is split into four, down to a depth of [`MAX_DEPTH`]. Conformal disk images squeeze long
-//! protrusions into regions of size ~e^{−H/ρ} (DESIGN.md): a uniform grid would pile thousands
-//! of tiny triangles into one cell, the quadtree refines there instead. Build O(F log F)
-//! (triangles of bounded overlap), query O(depth + leaf size).
+//! A bounding-volume hierarchy over the triangles' bounding boxes (binary, split at the median
+//! centroid along the longer side, leaves of at most [`LEAF_CAPACITY`] triangles): exactly
+//! 2⌈F/leaf⌉ − 1 nodes whatever the geometry. Conformal disk images squeeze long protrusions
+//! into regions of size ~e^{−H/ρ} (DESIGN.md) and area-preserving (centroid) maps may fold
+//! triangles over each other: a uniform grid would pile thousands of tiny triangles into one
+//! cell, and a subdividing quadtree never terminates inside a stack of overlapping triangles;
+//! the hierarchy adapts to both. Build O(F log F), query O(log F) plus the overlapping boxes.
 //!
 //! # Query
 //! Barycentric coordinates are computed from edge vectors relative to a corner of each
@@ -27,10 +28,8 @@ use shapespace_geometry::Connectivity;
 
 use crate::error::AnalysisError;
 
-/// A leaf holding more triangles than this is split (unless at [`MAX_DEPTH`]).
-pub const LEAF_CAPACITY: usize = 12;
-/// Maximum depth of the quadtree (cell side = bounding box / 2^depth).
-pub const MAX_DEPTH: u32 = 40;
+/// Largest number of triangles in a leaf of the hierarchy.
+pub const LEAF_CAPACITY: usize = 8;
 /// A point is inside a triangle when all its barycentric coordinates are ≥ −this.
 pub const INSIDE_TOLERANCE: f64 = 1e-12;
 
@@ -47,20 +46,23 @@ pub struct Location {
     pub snap_distance: f64,
 }
 
-#[derive(Clone, Debug)]
-enum Node {
-    Leaf(Vec<u32>),
-    Split(Box<[usize; 4]>),
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    /// Leaf: `items[start..end]`; inner: children `start` and `end` (node indices).
+    start: usize,
+    end: usize,
+    leaf: bool,
 }
 
-/// A quadtree point locator over a planar triangulation (module docs).
+/// A point locator over a planar triangulation (module docs).
 #[derive(Clone, Debug)]
 pub struct PointLocator {
     positions: Vec<[f64; 2]>,
     faces: Vec<[u32; 3]>,
     nodes: Vec<Node>,
-    lo: [f64; 2],
-    hi: [f64; 2],
+    items: Vec<u32>,
     boundary_faces: Vec<u32>,
 }
 
@@ -138,21 +140,6 @@ impl PointLocator {
         if let Some(v) = positions.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
             return Err(AnalysisError::InvalidInput(format!("point location: vertex {v} has a non-finite position")));
         }
-        let mut lo = [f64::INFINITY; 2];
-        let mut hi = [f64::NEG_INFINITY; 2];
-        for p in positions {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        if faces.is_empty() {
-            lo = [0.0; 2];
-            hi = [0.0; 2];
-        }
-        // square root box, slightly enlarged
-        let side = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(f64::MIN_POSITIVE) * (1.0 + 1e-9);
-        let hi = [lo[0] + side, lo[1] + side];
         let conn = Connectivity::new(n, faces);
         let boundary_edges: std::collections::HashSet<(u32, u32)> =
             conn.boundary_halfedges(faces).iter().map(|[a, b]| (*a, *b)).collect();
@@ -162,55 +149,44 @@ impl PointLocator {
             .filter(|(_, f)| (0..3).any(|k| boundary_edges.contains(&(f[k], f[(k + 1) % 3]))))
             .map(|(i, _)| i as u32)
             .collect();
+        let boxes: Vec<([f64; 2], [f64; 2])> = faces.iter().map(|&f| face_box(positions, f)).collect();
         let mut loc = PointLocator {
             positions: positions.to_vec(),
             faces: faces.to_vec(),
-            nodes: vec![Node::Leaf(Vec::new())],
-            lo,
-            hi,
+            nodes: Vec::with_capacity(2 * faces.len() / LEAF_CAPACITY + 2),
+            items: (0..faces.len() as u32).collect(),
             boundary_faces,
         };
-        let boxes: Vec<([f64; 2], [f64; 2])> = faces.iter().map(|&f| face_box(positions, f)).collect();
-        let all: Vec<u32> = (0..faces.len() as u32).collect();
-        loc.build(0, lo, hi, all, &boxes, 0);
+        if !faces.is_empty() {
+            loc.build(0, faces.len(), &boxes);
+        }
         Ok(loc)
     }
 
-    fn build(&mut self, node: usize, lo: [f64; 2], hi: [f64; 2], items: Vec<u32>, boxes: &[([f64; 2], [f64; 2])], depth: u32) {
-        if items.len() <= LEAF_CAPACITY || depth >= MAX_DEPTH {
-            self.nodes[node] = Node::Leaf(items);
-            return;
-        }
-        let mid = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
-        let quads = [
-            (lo, mid),
-            ([mid[0], lo[1]], [hi[0], mid[1]]),
-            ([lo[0], mid[1]], [mid[0], hi[1]]),
-            (mid, hi),
-        ];
-        let mut parts: [Vec<u32>; 4] = Default::default();
-        for &t in &items {
+    /// Builds the node over `items[start..end]` and returns its index.
+    fn build(&mut self, start: usize, end: usize, boxes: &[([f64; 2], [f64; 2])]) -> usize {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for &t in &self.items[start..end] {
             let (bl, bh) = boxes[t as usize];
-            for (q, (ql, qh)) in quads.iter().enumerate() {
-                if bl[0] <= qh[0] && bh[0] >= ql[0] && bl[1] <= qh[1] && bh[1] >= ql[1] {
-                    parts[q].push(t);
-                }
+            for k in 0..2 {
+                lo[k] = lo[k].min(bl[k]);
+                hi[k] = hi[k].max(bh[k]);
             }
         }
-        // no progress (every triangle overlaps every quadrant): stop splitting
-        if parts.iter().all(|p| p.len() == items.len()) {
-            self.nodes[node] = Node::Leaf(items);
-            return;
+        let id = self.nodes.len();
+        self.nodes.push(Node { lo, hi, start, end, leaf: true });
+        if end - start <= LEAF_CAPACITY {
+            return id;
         }
-        let base = self.nodes.len();
-        for _ in 0..4 {
-            self.nodes.push(Node::Leaf(Vec::new()));
-        }
-        self.nodes[node] = Node::Split(Box::new([base, base + 1, base + 2, base + 3]));
-        for (q, part) in parts.into_iter().enumerate() {
-            let (ql, qh) = quads[q];
-            self.build(base + q, ql, qh, part, boxes, depth + 1);
-        }
+        let axis = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
+        let mid = start + (end - start) / 2;
+        let centre = |t: &u32| boxes[*t as usize].0[axis] + boxes[*t as usize].1[axis];
+        self.items[start..end].select_nth_unstable_by(mid - start, |a, b| centre(a).total_cmp(&centre(b)));
+        let left = self.build(start, mid, boxes);
+        let right = self.build(mid, end, boxes);
+        self.nodes[id] = Node { lo, hi, start: left, end: right, leaf: false };
+        id
     }
 
     /// Number of triangles indexed.
@@ -218,32 +194,24 @@ impl PointLocator {
         self.faces.len()
     }
 
-    fn leaf_of(&self, p: [f64; 2]) -> Option<&[u32]> {
-        if !(p[0] >= self.lo[0] && p[0] <= self.hi[0] && p[1] >= self.lo[1] && p[1] <= self.hi[1]) {
-            return None;
+    /// Calls `visit` for every triangle whose bounding box contains `p`.
+    fn for_candidates(&self, p: [f64; 2], mut visit: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
         }
-        let (mut lo, mut hi) = (self.lo, self.hi);
-        let mut node = 0;
-        loop {
-            match &self.nodes[node] {
-                Node::Leaf(items) => return Some(items),
-                Node::Split(children) => {
-                    let mid = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
-                    let right = p[0] >= mid[0];
-                    let top = p[1] >= mid[1];
-                    let q = usize::from(right) + 2 * usize::from(top);
-                    if right {
-                        lo[0] = mid[0];
-                    } else {
-                        hi[0] = mid[0];
-                    }
-                    if top {
-                        lo[1] = mid[1];
-                    } else {
-                        hi[1] = mid[1];
-                    }
-                    node = children[q];
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let nd = self.nodes[i];
+            if !(p[0] >= nd.lo[0] && p[0] <= nd.hi[0] && p[1] >= nd.lo[1] && p[1] <= nd.hi[1]) {
+                continue;
+            }
+            if nd.leaf {
+                for &t in &self.items[nd.start..nd.end] {
+                    visit(t);
                 }
+            } else {
+                stack.push(nd.start);
+                stack.push(nd.end);
             }
         }
     }
@@ -260,20 +228,18 @@ impl PointLocator {
         if self.faces.is_empty() || !(p[0].is_finite() && p[1].is_finite()) {
             return None;
         }
-        if let Some(items) = self.leaf_of(p) {
-            let mut best: Option<(u32, [f64; 3], f64)> = None;
-            for &t in items {
-                let [a, b, c] = self.corners(t);
-                if let Some(bc) = barycentric(p, a, b, c) {
-                    let m = bc[0].min(bc[1]).min(bc[2]);
-                    if m >= -INSIDE_TOLERANCE && best.is_none_or(|(_, _, bm)| m > bm) {
-                        best = Some((t, bc, m));
-                    }
+        let mut best: Option<(u32, [f64; 3], f64)> = None;
+        self.for_candidates(p, |t| {
+            let [a, b, c] = self.corners(t);
+            if let Some(bc) = barycentric(p, a, b, c) {
+                let m = bc[0].min(bc[1]).min(bc[2]);
+                if m >= -INSIDE_TOLERANCE && best.is_none_or(|(bt, _, bm)| m > bm || (m == bm && t < bt)) {
+                    best = Some((t, bc, m));
                 }
             }
-            if let Some((t, bc, _)) = best {
-                return Some(Location { face: t, bary: bc, snap_distance: 0.0 });
-            }
+        });
+        if let Some((t, bc, _)) = best {
+            return Some(Location { face: t, bary: bc, snap_distance: 0.0 });
         }
         // outside the triangulation (or in a crack): the closest point of the boundary triangles,
         // then of all triangles if there is no boundary (closed fan) or it is far
@@ -342,7 +308,7 @@ mod tests {
     }
 
     #[test]
-    fn tiny_triangles_are_resolved_by_the_quadtree() {
+    fn tiny_triangles_are_resolved_by_the_hierarchy() {
         // a fan scaled by 1e-13 around (0.5, 0.25) plus a unit fan: points in both are found
         let (p, f) = fan(64);
         let mut pos: Vec<[f64; 2]> = p.clone();

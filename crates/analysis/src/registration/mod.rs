@@ -18,7 +18,7 @@
 //!
 //!    $$ (L g)_i = 0 \ \text{at free interior vertices}, \quad g = \varphi_1 \ \text{on } \partial S_1, \quad g(\varphi_1(l1_k)) = \varphi_2(l2_k); $$
 //! 3. composition f = φ₂⁻¹ ∘ g ∘ φ₁ by point location ([`crate::point_location`]): for each
-//!    vertex v of S₁ the point g(φ₁(v)) is located in the triangulation φ₂(S₂) (quadtree;
+//!    vertex v of S₁ the point g(φ₁(v)) is located in the triangulation φ₂(S₂) (bounding-volume hierarchy;
 //!    points a hair outside its boundary polygon snap to the nearest boundary triangle), and
 //!    f(v) is the barycentric point of the corresponding 3D triangle of S₂.
 //!
@@ -82,7 +82,7 @@ impl std::str::FromStr for Method {
 }
 
 /// Parameters of [`register`].
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct RegistrationParams {
     /// Disk maps by OMT (default) or conformal.
     pub method: Method,
@@ -91,8 +91,27 @@ pub struct RegistrationParams {
     /// Disk-map markers of S₂.
     pub target_markers: Markers,
     /// Parameters of the area-preserving map; its `disk_map` field also parameterizes the
-    /// conformal maps of [`Method::Conformal`].
+    /// conformal maps of [`Method::Conformal`]. Default: [`registration_area_params`].
     pub area_preserving: AreaPreservingParams,
+}
+
+impl Default for RegistrationParams {
+    fn default() -> Self {
+        RegistrationParams {
+            method: Method::Omt,
+            source_markers: Markers::default(),
+            target_markers: Markers::default(),
+            area_preserving: registration_area_params(),
+        }
+    }
+}
+
+/// The area-preserving parameters used for registration: the defaults of
+/// [`AreaPreservingParams`] except `require_convergence = false`: an OT solve that stops at its
+/// iteration cap slightly above its tolerance (cell areas off by ~1e-6 relative) still gives a
+/// usable disk map; the reached accuracy is kept in [`DiskImage::ot_max_relative_error`].
+pub fn registration_area_params() -> AreaPreservingParams {
+    AreaPreservingParams { require_convergence: false, ..AreaPreservingParams::default() }
 }
 
 /// A disk image φ(S) of a surface: #V planar positions in the unit disk and how long it took.
@@ -104,17 +123,34 @@ pub struct DiskImage {
     pub method: Method,
     /// Wall-clock seconds.
     pub seconds: f64,
+    /// For [`Method::Omt`]: max_i |μ(W_i) − ν_i|/ν_i reached by the OT solver (NaN for conformal).
+    pub ot_max_relative_error: f64,
+    /// For [`Method::Omt`]: faces of the disk image with reversed orientation (the centroid map
+    /// is not guaranteed to be an embedding); for conformal maps likewise.
+    pub flipped_faces: usize,
 }
 
 /// The disk map of `mesh` by `method` (module docs, step 1). Errors from the conformal map or
 /// the OT solver.
 pub fn disk_image(mesh: &TriMesh, markers: &Markers, method: Method, params: &AreaPreservingParams) -> Result<DiskImage, AnalysisError> {
     let t = Instant::now();
-    let uv = match method {
-        Method::Omt => area_preserving_map(mesh, markers, params)?.uv,
-        Method::Conformal => disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?.uv,
+    let (uv, ot_max_relative_error) = match method {
+        Method::Omt => {
+            let ap = area_preserving_map(mesh, markers, params)?;
+            (ap.uv, ap.ot.max_relative_error)
+        }
+        Method::Conformal => (disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?.uv, f64::NAN),
     };
-    Ok(DiskImage { uv, method, seconds: t.elapsed().as_secs_f64() })
+    let seconds = t.elapsed().as_secs_f64();
+    let flipped_faces = mesh
+        .faces
+        .iter()
+        .filter(|f| {
+            let [a, b, c] = [uv[f[0] as usize], uv[f[1] as usize], uv[f[2] as usize]];
+            (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) <= 0.0
+        })
+        .count();
+    Ok(DiskImage { uv, method, seconds, ot_max_relative_error, flipped_faces })
 }
 
 /// Wall-clock seconds of the stages of a registration.
