@@ -13,6 +13,9 @@
 //! * [`harmonic`]: harmonic maps with boundary and landmark constraints;
 //! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips.
 
+// `!(x > 0.0)` is used on purpose: it also rejects NaN. Index loops mirror the mathematics.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
 pub mod disk_map;
 pub mod error;
 pub mod green;
