@@ -5,14 +5,21 @@
 //! areas; curvatures are taken on both surfaces scaled to area π).
 //!
 //! * **Flipped area ratio, disk** ([`RegistrationMetrics::flipped_area_ratio`]): the area of
-//!   the S₁ triangles t whose image (g(φ₁(a)), g(φ₁(b)), g(φ₁(c))) has the opposite orientation
-//!   to (φ₁(a), φ₁(b), φ₁(c)) (signed areas of strictly opposite signs), over the total area
-//!   of S₁. This is the fold of g relative to φ₁.
+//!   the S₁ triangles t = (a, b, c) whose image (g(φ₁(a)), g(φ₁(b)), g(φ₁(c))) in the disk is
+//!   inverted, i.e. has a strictly negative signed area, while the disk orientation is the
+//!   counter-clockwise one of φ₁(S₁) (the disk maps preserve the orientation of S₁: their
+//!   boundary runs counter-clockwise and unfolded faces have positive signed area), over the
+//!   total area of S₁. Not relative to each face of φ₁: an area-preserving map may itself fold a
+//!   few faces, and g (with positive weights) tends to unfold them; those are not flips of the
+//!   registration. Folds of φ₂ are seen by the 3D measure.
 //! * **Flipped area ratio, 3D** ([`RegistrationMetrics::flipped_area_ratio_3d`]): the area of
 //!   the S₁ triangles whose image triangle (f(a), f(b), f(c)) in space has a normal with a
-//!   negative dot product with the normal of S₂ there (the area-weighted vertex normals of S₂
-//!   interpolated at f(a), f(b), f(c) by their barycentric coordinates and summed), over the
-//!   total area. This sees folds of the whole composition, including those of φ₁ and φ₂.
+//!   negative dot product with the normal of S₂ there: the normal of the face of S₂ that holds
+//!   the image of t's centroid (g is linear on t in the disk, so that point is the mean of the
+//!   corners' g-images, located in φ₂(S₂)), over the total area. This sees folds of the whole
+//!   composition, including those of φ₂. (Vertex normals would not do: at a sharp crease a
+//!   face's own normal can point away from its corners' averaged normals, and the identity map
+//!   would count as folded.)
 //! * **Curvature difference** per interior vertex v of S₁: max(|c₁|/|c₂|, |c₂|/|c₁|) with c the
 //!   signed mean curvature (`shapespace_geometry::curvature::vertex_mean_curvatures`), c₁ at v,
 //!   c₂ interpolated at f(v) from the corners of its face. Near-zero curvatures are clamped:
@@ -32,11 +39,12 @@
 
 use serde::Serialize;
 use shapespace_geometry::curvature::vertex_mean_curvatures;
-use shapespace_geometry::quantities::{face_areas, total_area, vertex_normals};
+use shapespace_geometry::quantities::{face_areas, total_area};
 use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
 use crate::geodesic::HeatGeodesics;
+use crate::point_location::PointLocator;
 use crate::registration::Registration;
 
 /// Parameters of [`registration_metrics`].
@@ -104,7 +112,7 @@ pub struct GeodesicErrors {
 /// The measures of the module docs.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RegistrationMetrics {
-    /// Flipped area ratio in the disk (g against φ₁).
+    /// Flipped area ratio in the disk (inverted faces of g ∘ φ₁).
     pub flipped_area_ratio: f64,
     /// Number of such flipped faces.
     pub flipped_faces: usize,
@@ -192,35 +200,26 @@ pub fn registration_metrics(
     let areas1 = face_areas(source);
 
     // flips
-    let normals2 = vertex_normals(target);
-    let image_normal = |v: usize| {
-        let t = target.faces[reg.faces[v] as usize];
-        let b = reg.bary[v];
-        let mut nrm = [0.0; 3];
-        for k in 0..3 {
-            for d in 0..3 {
-                nrm[d] += b[k] * normals2[t[k] as usize][d];
-            }
-        }
-        nrm
+    let locator = PointLocator::new(&reg.target_uv, &target.faces)?;
+    let face_normal2 = |fi: usize| {
+        let p = target.face_positions(fi);
+        cross(sub(p[1], p[0]), sub(p[2], p[0]))
     };
     let (mut flipped, mut flipped_area, mut flipped3, mut flipped_area3) = (0usize, 0.0, 0usize, 0.0);
     let mut ring_image = vec![0.0; n1];
     let mut ring_source = vec![0.0; n1];
     for (fi, f) in source.faces.iter().enumerate() {
         let [a, b, c] = [f[0] as usize, f[1] as usize, f[2] as usize];
-        let s0 = signed_area2(reg.source_uv[a], reg.source_uv[b], reg.source_uv[c]);
         let s1 = signed_area2(reg.harmonic_uv[a], reg.harmonic_uv[b], reg.harmonic_uv[c]);
-        if (s0 > 0.0 && s1 < 0.0) || (s0 < 0.0 && s1 > 0.0) {
+        if s1 < 0.0 {
             flipped += 1;
             flipped_area += areas1[fi];
         }
         let (pa, pb, pc) = (reg.points[a], reg.points[b], reg.points[c]);
         let nimg = cross(sub(pb, pa), sub(pc, pa));
-        let nref = {
-            let (x, y, z) = (image_normal(a), image_normal(b), image_normal(c));
-            [x[0] + y[0] + z[0], x[1] + y[1] + z[1], x[2] + y[2] + z[2]]
-        };
+        let (ha, hb, hc) = (reg.harmonic_uv[a], reg.harmonic_uv[b], reg.harmonic_uv[c]);
+        let centroid = [(ha[0] + hb[0] + hc[0]) / 3.0, (ha[1] + hb[1] + hc[1]) / 3.0];
+        let nref = locator.locate(centroid).map_or([0.0; 3], |l| face_normal2(l.face as usize));
         if dot(nimg, nref) < 0.0 {
             flipped3 += 1;
             flipped_area3 += areas1[fi];

@@ -1,0 +1,179 @@
+//! Registration through disk maps (Su et al. 2015, Alg. 4) on the TOSCA wolf poses
+//! (datasets/poses/wolf, 4,327 vertices, same vertex order in every pose = ground truth).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use shapespace_analysis::registration::{
+    disk_image, register, register_with_maps, registration_area_params, registration_metrics, DiskImage, Landmarks,
+    MetricParams, Method, RegistrationParams,
+};
+use shapespace_analysis::AnalysisError;
+use shapespace_conformal::MarkerFile;
+use shapespace_geometry::{Connectivity, TriMesh};
+
+fn wolf_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses/wolf")
+}
+
+fn wolf(i: usize) -> TriMesh {
+    shapespace_geometry::io::read_mesh(&wolf_dir().join(format!("wolf{i}.off"))).unwrap()
+}
+
+fn markers() -> MarkerFile {
+    MarkerFile::from_json_file(&wolf_dir().join("landmarks.json")).unwrap()
+}
+
+fn named(mf: &MarkerFile) -> Landmarks {
+    Landmarks::from_named(&mf.landmarks, &mf.landmarks, "wolf/landmarks.json").unwrap()
+}
+
+/// Disk maps of wolf0 and wolf1 by both methods, computed once for all tests.
+fn maps() -> &'static [(Method, DiskImage, DiskImage)] {
+    static MAPS: OnceLock<Vec<(Method, DiskImage, DiskImage)>> = OnceLock::new();
+    MAPS.get_or_init(|| {
+        let mf = markers();
+        let p = registration_area_params();
+        [Method::Conformal, Method::Omt]
+            .into_iter()
+            .map(|m| (m, disk_image(&wolf(0), &mf.markers, m, &p).unwrap(), disk_image(&wolf(1), &mf.markers, m, &p).unwrap()))
+            .collect()
+    })
+}
+
+fn params(method: Method) -> RegistrationParams {
+    let mf = markers();
+    RegistrationParams { method, source_markers: mf.markers.clone(), target_markers: mf.markers, ..RegistrationParams::default() }
+}
+
+#[test]
+fn self_registration_is_the_identity() {
+    let s = wolf(0);
+    let (_, phi, _) = &maps()[0];
+    let reg = register_with_maps(&s, &s, phi, phi, &named(&markers())).unwrap();
+    let met = registration_metrics(&s, &s, &reg, &MetricParams::default()).unwrap();
+    let g = met.geodesic.as_ref().unwrap();
+    let scale = shapespace_geometry::quantities::total_area(&s).sqrt();
+    let max_move = reg
+        .points
+        .iter()
+        .zip(&s.positions)
+        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
+        .fold(0.0f64, f64::max)
+        / scale;
+    eprintln!("self (conformal): max |f(v) - v| / sqrt(A) = {max_move:.3e}, geodesic max {:.3e}, flips {} {}", g.summary.max, met.flipped_faces, met.flipped_faces_3d);
+    assert!(max_move < 1e-6, "max displacement {max_move}");
+    assert!(g.summary.max < 1e-6, "geodesic error {}", g.summary.max);
+    assert_eq!(met.flipped_faces, 0);
+    assert_eq!(met.flipped_faces_3d, 0);
+    // identical areas: the area distortion is 1 up to the displacement above
+    assert!(met.area_distortion_summary.max < 1.0 + 1e-6, "{:?}", met.area_distortion_summary);
+    // curvature ratios interpolated at points displaced by ~1e-9: within 1e-4 of 1 (measured 3.3e-6)
+    assert!(met.curvature_summary.max < 1.0 + 1e-4, "{:?}", met.curvature_summary);
+}
+
+#[test]
+fn rigid_motion_gives_near_zero_error() {
+    let s = wolf(0);
+    let (c, sn) = (0.6f64.cos(), 0.6f64.sin());
+    let moved = TriMesh::new(
+        s.positions.iter().map(|p| [c * p[0] - sn * p[2] + 10.0, p[1] - 3.0, sn * p[0] + c * p[2] + 7.5]).collect(),
+        s.faces.clone(),
+    )
+    .unwrap();
+    let reg = register(&s, &moved, &named(&markers()), &params(Method::Conformal)).unwrap();
+    let met = registration_metrics(&s, &moved, &reg, &MetricParams::default()).unwrap();
+    let g = met.geodesic.as_ref().unwrap();
+    eprintln!("rigid (conformal): geodesic mean {:.3e} max {:.3e}, flips {}", g.summary.mean, g.summary.max, met.flipped_faces_3d);
+    assert!(g.summary.max < 1e-4, "geodesic error {}", g.summary.max);
+    assert_eq!(met.flipped_faces_3d, 0);
+}
+
+#[test]
+fn landmarks_map_onto_their_partners() {
+    let (s1, s2) = (wolf(0), wolf(1));
+    let lm = named(&markers());
+    let scale = shapespace_geometry::quantities::total_area(&s2).sqrt();
+    for (method, phi1, phi2) in maps() {
+        let reg = register_with_maps(&s1, &s2, phi1, phi2, &lm).unwrap();
+        for (&(a, b), name) in lm.pairs.iter().zip(&lm.names) {
+            let (p, q) = (reg.points[a as usize], s2.positions[b as usize]);
+            let d = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt() / scale;
+            assert!(d < 1e-9, "{method}: landmark {name}: |f(l1) - l2| / sqrt(A) = {d}");
+            let h = reg.harmonic_uv[a as usize];
+            assert_eq!(h, phi2.uv[b as usize], "{method}: g does not pin {name}");
+        }
+    }
+}
+
+#[test]
+fn omt_beats_conformal_on_the_wolf_poses() {
+    let (s0, s1) = (wolf(0), wolf(1));
+    let lm = named(&markers());
+    let mut results = Vec::new();
+    for (method, phi0, phi1) in maps() {
+        for (a, b, pa, pb) in [(&s0, &s1, phi0, phi1), (&s1, &s0, phi1, phi0)] {
+            let reg = register_with_maps(a, b, pa, pb, &lm).unwrap();
+            let met = registration_metrics(a, b, &reg, &MetricParams::default()).unwrap();
+            let g = met.geodesic.as_ref().unwrap().summary;
+            eprintln!(
+                "{method}: flipped {:.4} (disk) {:.4} (3D), curvature median {:.3}, area median {:.3} mean {:.3}, geodesic mean {:.4} median {:.4}",
+                met.flipped_area_ratio, met.flipped_area_ratio_3d, met.curvature_summary.median,
+                met.area_distortion_summary.median, met.area_distortion_summary.mean, g.mean, g.median
+            );
+            results.push((*method, met.flipped_area_ratio, met.flipped_area_ratio_3d, met.area_distortion_summary.median, g.mean));
+        }
+    }
+    let mean = |m: Method, k: usize| {
+        let v: Vec<f64> = results
+            .iter()
+            .filter(|r| r.0 == m)
+            .map(|r| [r.1, r.2, r.3, r.4][k])
+            .collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let (omt, conf) = (Method::Omt, Method::Conformal);
+    // measured (wolf0 <-> wolf1): geodesic mean error omt 0.032 vs conformal 0.086
+    assert!(mean(omt, 3) < 0.6 * mean(conf, 3), "geodesic error omt {} vs conformal {}", mean(omt, 3), mean(conf, 3));
+    // measured: area distortion median omt 1.20 vs conformal 4.95
+    assert!(mean(omt, 2) < 1.5 && mean(conf, 2) > 3.0, "area distortion omt {} conformal {}", mean(omt, 2), mean(conf, 2));
+    // flips: see the report; both methods fold a few percent of the area (measured)
+    assert!(mean(omt, 0) < mean(conf, 0), "flipped area omt {} vs conformal {}", mean(omt, 0), mean(conf, 0));
+}
+
+#[test]
+fn bad_landmarks_give_errors() {
+    let (s1, s2) = (wolf(0), wolf(1));
+    let boundary = Connectivity::of(&s1).boundary_vertices(s1.num_vertices());
+    let bv = boundary.iter().position(|&b| b).unwrap() as u32;
+    let p = params(Method::Conformal);
+    let check = |lm: Landmarks, needle: &str| {
+        let err = register(&s1, &s2, &lm, &p).unwrap_err();
+        let msg = err.to_string();
+        assert!(matches!(err, AnalysisError::Landmark { .. }), "{msg}");
+        assert!(msg.contains(needle), "`{msg}` does not mention `{needle}`");
+    };
+    check(Landmarks::from_pairs(vec![(10, 10), (99_999, 5)], "pairs.csv"), "out of range");
+    check(Landmarks::from_pairs(vec![(10, 10), (10, 11)], "pairs.csv"), "also landmark 0");
+    check(Landmarks::from_pairs(vec![(10, 10), (11, 10)], "pairs.csv"), "target vertex 10");
+    check(Landmarks::from_pairs(vec![(bv, 10)], "pairs.csv"), "boundary");
+    // CSV: file and line in the message
+    let dir = std::env::temp_dir().join(format!("shapespace_reg_test_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let f = dir.join("bad.csv");
+    std::fs::write(&f, "source,target\n1,2\n3,x\n").unwrap();
+    let msg = Landmarks::from_csv(&f).unwrap_err().to_string();
+    assert!(msg.contains("bad.csv") && msg.contains("line 3") && msg.contains("`x`"), "{msg}");
+    std::fs::write(&f, "1,2,3\n").unwrap();
+    let msg = Landmarks::from_csv(&f).unwrap_err().to_string();
+    assert!(msg.contains("bad.csv:1"), "{msg}");
+    std::fs::write(&f, "source,target\n5,6\n").unwrap();
+    assert_eq!(Landmarks::from_csv(&f).unwrap().pairs, vec![(5, 6)]);
+    // named landmarks that do not match
+    let mut a = markers().landmarks;
+    let b = a.clone();
+    a.insert("ear".into(), 12);
+    let msg = Landmarks::from_named(&a, &b, "a.json / b.json").unwrap_err().to_string();
+    assert!(msg.contains("ear") && msg.contains("a.json"), "{msg}");
+    std::fs::remove_dir_all(&dir).ok();
+}
