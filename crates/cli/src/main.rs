@@ -27,6 +27,10 @@ enum Command {
     Ot(cmd::ot::OtArgs),
     /// Area-preserving parameterization onto the disk or square by optimal mass transport (OBJ with vt, report, plots).
     Param(cmd::param::ParamArgs),
+    /// Register a source disk surface onto a target through disk maps and a landmark-constrained harmonic map (correspondence CSV, metrics, histograms).
+    Register(cmd::register::RegisterArgs),
+    /// Registration benchmark over class folders of poses: all ordered pairs, OMT vs conformal (results.csv, histograms).
+    RegisterBench(cmd::register::RegisterBenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +41,8 @@ fn main() -> ExitCode {
         Command::Mds(args) => cmd::mds::run(args),
         Command::Ot(args) => cmd::ot::run(args),
         Command::Param(args) => cmd::param::run(args),
+        Command::Register(args) => cmd::register::run(args),
+        Command::RegisterBench(args) => cmd::register::run_bench(args),
     };
     match result {
         Ok(code) => code,

@@ -5,3 +5,4 @@ pub mod info;
 pub mod mds;
 pub mod ot;
 pub mod param;
+pub mod register;

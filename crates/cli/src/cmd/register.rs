@@ -1,0 +1,175 @@
+//! `shapespace register SOURCE TARGET [--landmarks pairs.csv] [--method omt|conformal] --out DIR`
+//! and `shapespace register-bench DATASET_DIR --out DIR [--methods omt,conformal]`:
+//! registration f = φ₂⁻¹ ∘ g ∘ φ₁ through disk maps and a landmark-constrained harmonic map
+//! (Su et al. 2015, Alg. 4), its quality measures, and the benchmark over pose sets.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::Context;
+use shapespace_analysis::registration::bench::{register_bench, write_registration};
+use shapespace_analysis::registration::{
+    register, registration_area_params, registration_metrics, Landmarks, MetricParams, Method, RegistrationParams,
+};
+use shapespace_conformal::MarkerFile;
+
+/// Arguments of `shapespace register`.
+#[derive(clap::Args)]
+pub struct RegisterArgs {
+    /// Source mesh S₁ (disk topology).
+    pub source: PathBuf,
+    /// Target mesh S₂ (disk topology).
+    pub target: PathBuf,
+    /// Landmark pairs CSV `source,target` (vertex indices). Default: the named landmarks of the
+    /// meshes' marker files, paired by name.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Marker file of the source (`{"center", "boundary", "landmarks"}`); default: its sidecar
+    /// `NAME.landmarks.json` or `landmarks.json` beside it.
+    #[arg(long)]
+    pub source_markers: Option<PathBuf>,
+    /// Marker file of the target; default: its sidecar.
+    #[arg(long)]
+    pub target_markers: Option<PathBuf>,
+    /// Disk maps: `omt` (area-preserving) or `conformal` (the baseline).
+    #[arg(long, default_value = "omt")]
+    pub method: String,
+    /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of sampled vertices for the geodesic error (when both meshes share the vertex order).
+    #[arg(long, default_value_t = 300)]
+    pub samples: usize,
+    /// Seed of the vertex sample.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+}
+
+/// Arguments of `shapespace register-bench`.
+#[derive(clap::Args)]
+pub struct RegisterBenchArgs {
+    /// Folder of class folders (e.g. datasets/poses with wolf/ and centaur/), each holding meshes
+    /// with the same vertex order and a landmarks.json.
+    pub dataset: PathBuf,
+    /// Output directory (results.csv, summary.json, geodesic_curve.csv, histograms).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Comma-separated methods.
+    #[arg(long, default_value = "omt,conformal")]
+    pub methods: String,
+    /// Number of sampled vertices for the geodesic error.
+    #[arg(long, default_value_t = 300)]
+    pub samples: usize,
+    /// Seed of the vertex sample.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+}
+
+fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(PathBuf, MarkerFile)>> {
+    let path = match explicit {
+        Some(p) => Some(p.to_path_buf()),
+        None => MarkerFile::sidecar_path(mesh),
+    };
+    match path {
+        Some(p) => {
+            let mf = MarkerFile::from_json_file(&p).with_context(|| format!("reading markers {}", p.display()))?;
+            Ok(Some((p, mf)))
+        }
+        None => Ok(None),
+    }
+}
+
+pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
+    let method: Method = args.method.parse()?;
+    let read = |p: &Path| shapespace_geometry::io::read_mesh(p).with_context(|| format!("reading {}", p.display()));
+    let source = read(&args.source)?;
+    let target = read(&args.target)?;
+    let m1 = marker_file(args.source_markers.as_deref(), &args.source)?;
+    let m2 = marker_file(args.target_markers.as_deref(), &args.target)?;
+    let landmarks = match (&args.landmarks, &m1, &m2) {
+        (Some(csv), _, _) => Landmarks::from_csv(csv)?,
+        (None, Some((p1, f1)), Some((p2, f2))) => {
+            Landmarks::from_named(&f1.landmarks, &f2.landmarks, &format!("{} / {}", p1.display(), p2.display()))?
+        }
+        _ => anyhow::bail!(
+            "no landmarks: pass --landmarks pairs.csv or put a landmarks.json (with \"landmarks\") beside both meshes"
+        ),
+    };
+    let params = RegistrationParams {
+        method,
+        source_markers: m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
+        target_markers: m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
+        area_preserving: registration_area_params(),
+    };
+    eprintln!("register: {} landmark pairs, method {method}", landmarks.len());
+    let t = Instant::now();
+    let reg = register(&source, &target, &landmarks, &params)
+        .with_context(|| format!("registering {} onto {}", args.source.display(), args.target.display()))?;
+    let secs = t.elapsed().as_secs_f64();
+    let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
+    let met = registration_metrics(&source, &target, &reg, &mp)?;
+    let extra = serde_json::json!({
+        "source": args.source, "target": args.target, "landmarks": landmarks.source_name,
+        "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
+        "geodesic_samples": args.samples, "seed": args.seed,
+    });
+    let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
+    eprintln!(
+        "register: {secs:.2}s (maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s); snapped {}",
+        reg.timings.source_map, reg.timings.target_map, reg.timings.harmonic, reg.timings.composition, reg.num_snapped
+    );
+    eprintln!(
+        "register: flipped area {:.4} (disk) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion median {:.3} mean {:.3}",
+        met.flipped_area_ratio,
+        met.flipped_area_ratio_3d,
+        met.curvature_summary.median,
+        met.curvature_summary.mean,
+        met.area_distortion_summary.median,
+        met.area_distortion_summary.mean
+    );
+    if let Some(g) = &met.geodesic {
+        eprintln!("register: geodesic error (v <-> v, {} samples) median {:.4} mean {:.4}", g.samples.len(), g.summary.median, g.summary.mean);
+    }
+    for f in files {
+        eprintln!("register: wrote {}", f.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
+    let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
+    let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
+    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), &mp, |m| eprintln!("register-bench: {m}"))
+        .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
+    println!(
+        "| method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. mean | geodesic err. median | geodesic err. mean | s/pair |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for s in &res.summaries {
+        println!(
+            "| {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
+            s.method,
+            s.pairs_ok,
+            s.pairs_failed,
+            s.flipped_ratio,
+            s.flipped_ratio_3d,
+            s.curvature_median,
+            s.curvature_mean,
+            s.area_distortion_median,
+            s.area_distortion_mean,
+            s.geodesic_median,
+            s.geodesic_mean,
+            s.seconds
+        );
+    }
+    println!("total time {:.1} s", res.total_seconds);
+    for r in res.rows.iter().filter(|r| r.status != "ok") {
+        eprintln!("register-bench: {} {} -> {} ({}) failed: {}", r.class, r.source, r.target, r.method, r.status);
+    }
+    for f in &res.files {
+        eprintln!("register-bench: wrote {}", f.display());
+    }
+    let failed = res.rows.iter().any(|r| r.status != "ok");
+    Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
