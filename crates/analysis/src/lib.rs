@@ -3,11 +3,14 @@
 
 pub mod area_preserving;
 pub mod distance;
+pub mod geodesic;
 pub mod distortion;
 pub mod error;
 pub mod matrix_io;
 pub mod mds;
 pub mod plot;
+pub mod point_location;
+pub mod registration;
 pub mod shape_space;
 pub mod stats;
 
