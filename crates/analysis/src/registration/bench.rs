@@ -70,13 +70,14 @@ pub fn write_registration(
     std::fs::write(&path, text).map_err(|e| AnalysisError::io(&path, e))?;
     files.push(path);
 
-    let name = reg.method.name();
     for ext in ["png", "svg"] {
         let p = out.join(format!("curvature_difference.{ext}"));
-        histograms(&p, &[(name, &metrics.curvature_difference)], HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Curvature difference", "max(|c1|/|c2|, |c2|/|c1|)")?;
+        let cname = series_name(reg.method, &metrics.curvature_difference);
+        histograms(&p, &[(cname.as_str(), &metrics.curvature_difference)], HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Curvature difference", "max(|c1|/|c2|, |c2|/|c1|)")?;
         files.push(p);
         let p = out.join(format!("area_distortion.{ext}"));
-        histograms(&p, &[(name, &metrics.area_distortion)], HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Local area distortion", "max(J, 1/J)")?;
+        let aname = series_name(reg.method, &metrics.area_distortion);
+        histograms(&p, &[(aname.as_str(), &metrics.area_distortion)], HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Local area distortion", "max(J, 1/J)")?;
         files.push(p);
     }
 
@@ -146,9 +147,11 @@ pub struct BenchRow {
     pub seconds: f64,
 }
 
-/// Means over the successful pairs of one method.
+/// Means over the successful pairs of one method (in one class, or `all`).
 #[derive(Clone, Debug, Serialize)]
 pub struct MethodSummary {
+    /// The class folder, or `all` for every class together.
+    pub class: String,
     pub method: Method,
     pub pairs_ok: usize,
     pub pairs_failed: usize,
@@ -322,10 +325,20 @@ pub fn register_bench(
     }
     files.push(path);
 
-    let summaries: Vec<MethodSummary> = methods
-        .iter()
-        .map(|&m| {
-            let ok: Vec<&BenchRow> = rows.iter().filter(|r| r.method == m && r.status == "ok").collect();
+    let mut class_names: Vec<String> = Vec::new();
+    for r in &rows {
+        if !class_names.contains(&r.class) {
+            class_names.push(r.class.clone());
+        }
+    }
+    class_names.push("all".into());
+    let groups: Vec<(String, Method)> =
+        class_names.iter().flat_map(|c| methods.iter().map(move |&m| (c.clone(), m))).collect();
+    let summaries: Vec<MethodSummary> = groups
+        .into_iter()
+        .map(|(class, m)| {
+            let in_group = |r: &&BenchRow| r.method == m && (class == "all" || r.class == class);
+            let ok: Vec<&BenchRow> = rows.iter().filter(in_group).filter(|r| r.status == "ok").collect();
             let mean = |f: &dyn Fn(&BenchRow) -> f64| {
                 let v: Vec<f64> = ok.iter().map(|r| f(r)).filter(|x| x.is_finite()).collect();
                 if v.is_empty() {
@@ -335,9 +348,10 @@ pub fn register_bench(
                 }
             };
             MethodSummary {
+                pairs_failed: rows.iter().filter(in_group).filter(|r| r.status != "ok").count(),
+                class,
                 method: m,
                 pairs_ok: ok.len(),
-                pairs_failed: rows.iter().filter(|r| r.method == m && r.status != "ok").count(),
                 flipped_ratio: mean(&|r| r.flipped_ratio),
                 flipped_ratio_3d: mean(&|r| r.flipped_ratio_3d),
                 curvature_median: mean(&|r| r.curvature_median),
@@ -374,8 +388,10 @@ pub fn register_bench(
 
     let have: Vec<&(Method, Vec<f64>, Vec<f64>, Vec<Vec<f64>>)> = pooled.iter().filter(|p| !p.1.is_empty()).collect();
     if !have.is_empty() {
-        let curv: Vec<(&str, &[f64])> = have.iter().map(|p| (p.0.name(), p.1.as_slice())).collect();
-        let area: Vec<(&str, &[f64])> = have.iter().map(|p| (p.0.name(), p.2.as_slice())).collect();
+        let curv_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.1)).collect();
+        let area_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.2)).collect();
+        let curv: Vec<(&str, &[f64])> = have.iter().zip(&curv_names).map(|(p, n)| (n.as_str(), p.1.as_slice())).collect();
+        let area: Vec<(&str, &[f64])> = have.iter().zip(&area_names).map(|(p, n)| (n.as_str(), p.2.as_slice())).collect();
         for ext in ["png", "svg"] {
             let p = out.join(format!("curvature_difference.{ext}"));
             histograms(&p, &curv, HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Curvature difference (all pairs)", "max(|c1|/|c2|, |c2|/|c1|)")?;
@@ -392,6 +408,13 @@ pub fn register_bench(
     std::fs::write(&path, text).map_err(|e| AnalysisError::io(&path, e))?;
     files.push(path);
     Ok(BenchResult { rows, summaries, total_seconds, files })
+}
+
+/// Histogram series name: the method and the share of values beyond the truncated range (the
+/// bars show fractions of the values inside the range only).
+fn series_name(method: Method, values: &[f64]) -> String {
+    let beyond = values.iter().filter(|&&v| !(v <= HISTOGRAM_RANGE.1)).count();
+    format!("{method}: {:.0}% > {} not shown", 100.0 * beyond as f64 / values.len().max(1) as f64, HISTOGRAM_RANGE.1)
 }
 
 /// The error and its sources joined by `: `.
