@@ -14,7 +14,7 @@ use crate::area_preserving::AreaPreservingParams;
 use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics, MetricParams, RegistrationMetrics};
-use crate::registration::{disk_image, register_with_maps, DiskImage, Landmarks, Method, Registration};
+use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicWeights, Landmarks, Method, Registration};
 
 /// Histogram range of the curvature difference and the area distortion (Su et al. 2015, Fig. 7).
 pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
@@ -211,6 +211,7 @@ pub fn register_bench(
     out: &Path,
     methods: &[Method],
     params: &AreaPreservingParams,
+    weights: HarmonicWeights,
     metric_params: &MetricParams,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchResult, AnalysisError> {
@@ -286,7 +287,7 @@ pub fn register_bench(
                             &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks).map_err(|e| error_chain(&e))?;
+                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, weights).map_err(|e| error_chain(&e))?;
                         let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params).map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
                     })();

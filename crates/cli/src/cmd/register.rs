@@ -38,6 +38,10 @@ pub struct RegisterArgs {
     /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
     #[arg(long)]
     pub out: PathBuf,
+    /// Cotangent weights of the harmonic map g: `planar` (of the planar mesh φ₁(S₁), signed) or
+    /// `intrinsic-delaunay`.
+    #[arg(long, default_value = "planar")]
+    pub weights: String,
     /// Number of sampled vertices for the geodesic error (when both meshes share the vertex order).
     #[arg(long, default_value_t = 300)]
     pub samples: usize,
@@ -58,6 +62,10 @@ pub struct RegisterBenchArgs {
     /// Comma-separated methods.
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
+    /// Cotangent weights of the harmonic map g: `planar` (of the planar mesh φ₁(S₁), signed) or
+    /// `intrinsic-delaunay`.
+    #[arg(long, default_value = "planar")]
+    pub weights: String,
     /// Number of sampled vertices for the geodesic error.
     #[arg(long, default_value_t = 300)]
     pub samples: usize,
@@ -101,6 +109,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         source_markers: m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         target_markers: m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         area_preserving: registration_area_params(),
+        harmonic_weights: args.weights.parse()?,
     };
     eprintln!("register: {} landmark pairs, method {method}", landmarks.len());
     let t = Instant::now();
@@ -112,7 +121,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let extra = serde_json::json!({
         "source": args.source, "target": args.target, "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
-        "geodesic_samples": args.samples, "seed": args.seed,
+        "geodesic_samples": args.samples, "seed": args.seed, "harmonic_weights": args.weights,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
     eprintln!(
@@ -140,7 +149,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
-    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), &mp, |m| eprintln!("register-bench: {m}"))
+    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), args.weights.parse()?, &mp, |m| eprintln!("register-bench: {m}"))
         .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
         "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. mean | geodesic err. median | geodesic err. mean | s/pair |"
