@@ -200,8 +200,8 @@ fn stem(p: &Path) -> String {
 /// a `landmarks.json` or per-mesh sidecars, meshes of a class sharing the vertex order), all
 /// ordered pairs of meshes within the class, for each method: register (disk maps computed once
 /// per mesh and method), evaluate the metrics (geodesic error against v ↔ v), write
-/// `results.csv`, `summary.json`, `geodesic_curve.csv` (per method, mean fraction of samples
-/// under each threshold) and pooled histograms per method (all evaluated vertices of all pairs)
+/// `results.csv`, `summary.json`, `geodesic_curve.csv` (per class and method and over all classes,
+/// mean over pairs of the fraction of samples under each threshold) and pooled histograms per method (all evaluated vertices of all pairs)
 /// `curvature_difference.{png,svg}` and `area_distortion.{png,svg}` into `out`. A pair whose
 /// disk map fails is recorded with its error and NaN measures; the benchmark continues.
 /// `seconds` of a pair = both disk maps + harmonic map + composition (a registration from
@@ -224,7 +224,7 @@ pub fn register_bench(
         .collect();
     classes.sort();
     let mut rows = Vec::new();
-    let mut pooled: Vec<(Method, Vec<f64>, Vec<f64>, Vec<Vec<f64>>)> =
+    let mut pooled: Vec<(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> =
         methods.iter().map(|&m| (m, Vec::new(), Vec::new(), Vec::new())).collect();
     for class_dir in &classes {
         let files = mesh_files(class_dir)?;
@@ -302,7 +302,7 @@ pub fn register_bench(
                             if let Some(g) = &met.geodesic {
                                 row.geodesic_median = g.summary.median;
                                 row.geodesic_mean = g.summary.mean;
-                                pooled[mi].3.push(g.fractions.clone());
+                                pooled[mi].3.push((class.clone(), g.fractions.clone()));
                             }
                             row.seconds = reg.timings.total;
                             pooled[mi].1.extend_from_slice(&met.curvature_difference);
@@ -370,15 +370,27 @@ pub fn register_bench(
     {
         let mut w = create(&path)?;
         let io = |e| AnalysisError::io(&path, e);
+        // columns: class/method for every class with curves, then all/method
+        let mut columns: Vec<(String, usize)> = Vec::new();
+        for (mi, (_, _, _, curves)) in pooled.iter().enumerate() {
+            for (c, _) in curves {
+                if !columns.iter().any(|(cc, mm)| cc == c && *mm == mi) {
+                    columns.push((c.clone(), mi));
+                }
+            }
+        }
+        columns.sort();
+        columns.extend((0..pooled.len()).map(|mi| ("all".to_string(), mi)));
         write!(w, "threshold").map_err(io)?;
-        for (m, ..) in &pooled {
-            write!(w, ",{m}").map_err(io)?;
+        for (c, mi) in &columns {
+            write!(w, ",{c}/{}", pooled[*mi].0).map_err(io)?;
         }
         writeln!(w).map_err(io)?;
         for k in 0..=25 {
             write!(w, "{:.2}", k as f64 * 0.01).map_err(io)?;
-            for (_, _, _, curves) in &pooled {
-                let v = if curves.is_empty() { f64::NAN } else { curves.iter().map(|c| c[k]).sum::<f64>() / curves.len() as f64 };
+            for (c, mi) in &columns {
+                let sel: Vec<f64> = pooled[*mi].3.iter().filter(|(cc, _)| c == "all" || cc == c).map(|(_, f)| f[k]).collect();
+                let v = if sel.is_empty() { f64::NAN } else { sel.iter().sum::<f64>() / sel.len() as f64 };
                 write!(w, ",{v:.6}").map_err(io)?;
             }
             writeln!(w).map_err(io)?;
@@ -387,7 +399,7 @@ pub fn register_bench(
     }
     files.push(path);
 
-    let have: Vec<&(Method, Vec<f64>, Vec<f64>, Vec<Vec<f64>>)> = pooled.iter().filter(|p| !p.1.is_empty()).collect();
+    let have: Vec<&(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> = pooled.iter().filter(|p| !p.1.is_empty()).collect();
     if !have.is_empty() {
         let curv_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.1)).collect();
         let area_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.2)).collect();
