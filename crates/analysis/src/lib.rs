@@ -4,6 +4,7 @@
 pub mod area_preserving;
 pub mod distance;
 pub mod geodesic;
+pub mod pipeline;
 pub mod distortion;
 pub mod error;
 pub mod matrix_io;

@@ -17,6 +17,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job on the bundled faces: distances, MDS, statistics and plots into out/demo.
+    Demo(cmd::demo::DemoArgs),
+    /// Conformal Wasserstein distances between disk surfaces: distances.csv, pairs.csv, report.json.
+    Distances(cmd::distances::DistancesArgs),
     /// Conformal map of a disk-type mesh onto the unit disk (OBJ with vt, factors CSV, report JSON).
     Conformal(cmd::conformal::ConformalArgs),
     /// Print mesh statistics (V, F, components, boundary loops, χ, genus, manifoldness, class).
@@ -37,6 +41,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Conformal(args) => cmd::conformal::run(args),
+        Command::Demo(args) => cmd::demo::run(args),
+        Command::Distances(args) => cmd::distances::run(args),
         Command::Info(args) => cmd::info::run(args),
         Command::Mds(args) => cmd::mds::run(args),
         Command::Ot(args) => cmd::ot::run(args),

@@ -1,6 +1,8 @@
 //! One module per subcommand: its clap `Args` struct and a `run` that calls one library function.
 
 pub mod conformal;
+pub mod demo;
+pub mod distances;
 pub mod info;
 pub mod mds;
 pub mod ot;

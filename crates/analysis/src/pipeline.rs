@@ -1,0 +1,293 @@
+//! The main job: conformal Wasserstein distances among mesh files, written as files a
+//! statistician can use directly (`distances.csv`, `pairs.csv`, `report.json`).
+//!
+//! Each file is read, validated and mapped once ([`crate::distance::prepare_shape`]); a file that
+//! fails (unreadable, not a disk, bad markers) is reported with its reason and its row and
+//! column of the matrix are empty, while all other pairs still complete.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde::Serialize;
+use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
+use shapespace_omt::NewtonParams;
+
+use crate::distance::{pairwise_distances, prepare_shape, PairRecord, PairwiseOptions, PreparedShape};
+use crate::error::AnalysisError;
+use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
+use crate::stats::{summarize, Summary};
+
+/// How markers are chosen for each file.
+#[derive(Clone, Debug, Default)]
+pub struct MarkerOptions {
+    /// `--center` for every file (overrides marker files).
+    pub center: Option<CenterMarker>,
+    /// `--boundary-marker` for every file (overrides marker files).
+    pub boundary: Option<BoundaryMarker>,
+    /// One marker file for all files (a set with shared vertex order).
+    pub marker_file: Option<PathBuf>,
+}
+
+/// Where a file's markers came from, for the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct MarkerChoice {
+    pub center: String,
+    pub boundary: String,
+    pub source: String,
+}
+
+/// The markers of one mesh file: command-line values first, then `marker_file`, then the
+/// sidecar (`NAME.landmarks.json`, else `landmarks.json` beside the mesh), else `auto`.
+pub fn markers_for(path: &Path, options: &MarkerOptions) -> Result<(Markers, String), AnalysisError> {
+    let file = match &options.marker_file {
+        Some(p) => Some(p.clone()),
+        None => MarkerFile::sidecar_path(path),
+    };
+    let (mut markers, source) = match &file {
+        Some(p) => (
+            MarkerFile::from_json_file(p).map_err(|e| AnalysisError::Shape { name: path.display().to_string(), message: e.to_string() })?.markers,
+            p.display().to_string(),
+        ),
+        None => (Markers::default(), "auto".to_string()),
+    };
+    if let Some(c) = &options.center {
+        markers.center = c.clone();
+    }
+    if let Some(b) = &options.boundary {
+        markers.boundary = b.clone();
+    }
+    Ok((markers, source))
+}
+
+/// Options of [`run_distances`].
+#[derive(Clone, Debug, Default)]
+pub struct DistancesOptions {
+    pub markers: MarkerOptions,
+    pub pairwise: PairwiseOptions,
+    pub disk_map: DiskMapParams,
+}
+
+/// Per-file outcome of the preparation stage.
+#[derive(Clone, Debug, Serialize)]
+pub struct ShapeReport {
+    pub name: String,
+    pub path: PathBuf,
+    pub ok: bool,
+    pub error: Option<String>,
+    pub vertices: Option<usize>,
+    pub faces: Option<usize>,
+    pub markers: Option<MarkerChoice>,
+    pub seconds: f64,
+    /// Range of the pushed-forward density (min, max) on the disk.
+    pub density_range: Option<[f64; 2]>,
+    /// Flipped image triangles of the conformal map.
+    pub flipped_faces: Option<usize>,
+}
+
+/// Timing of the stages, seconds (wall clock, except `pairs_cpu`: the sum over pairs).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StageTimings {
+    pub prepare_wall: f64,
+    pub pairs_wall: f64,
+    pub pairs_cpu: f64,
+    pub write: f64,
+    pub total: f64,
+}
+
+/// Everything `report.json` holds.
+#[derive(Clone, Debug, Serialize)]
+pub struct DistancesReport {
+    pub shapespace_version: String,
+    pub inputs: Vec<ShapeReport>,
+    pub options: ReportOptions,
+    pub threads: usize,
+    pub timings: StageTimings,
+    pub pairs_computed: usize,
+    pub pairs_failed: usize,
+    pub failures: Vec<String>,
+    /// Newton iterations over the pairs.
+    pub iterations: Option<Summary>,
+    /// Relative asymmetry |d(a→b) − d(b→a)| / mean over the unordered pairs (with symmetrize).
+    pub asymmetry: Option<Summary>,
+    pub files: Vec<PathBuf>,
+}
+
+/// The options as recorded in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct ReportOptions {
+    pub symmetrize: bool,
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    pub warm_start: bool,
+    pub intrinsic_delaunay: bool,
+}
+
+/// The result of [`run_distances`].
+#[derive(Clone, Debug)]
+pub struct DistancesRun {
+    pub matrix: DistanceMatrix,
+    pub pairs: Vec<PairRecord>,
+    pub report: DistancesReport,
+}
+
+/// Shape name of a file: its stem (made unique by the parent folder name when stems repeat).
+pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
+    let stems: Vec<String> = paths.iter().map(|p| p.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default()).collect();
+    stems
+        .iter()
+        .zip(paths)
+        .map(|(s, p)| {
+            if stems.iter().filter(|t| *t == s).count() > 1 {
+                format!("{}/{}", p.parent().and_then(|d| d.file_name()).map(|d| d.to_string_lossy().to_string()).unwrap_or_default(), s)
+            } else {
+                s.clone()
+            }
+        })
+        .collect()
+}
+
+/// Reads, maps and compares all `paths`; writes `out/distances.csv`, `out/pairs.csv` and
+/// `out/report.json`. `progress(done, total, stage)` is called as work finishes.
+///
+/// Only output failures are errors: per-file and per-pair failures are recorded in the
+/// report, the pair list and as empty matrix cells.
+pub fn run_distances(
+    paths: &[PathBuf],
+    out: &Path,
+    options: &DistancesOptions,
+    progress: &(dyn Fn(usize, usize, &str) + Sync),
+) -> Result<DistancesRun, AnalysisError> {
+    let t_total = Instant::now();
+    if paths.len() < 2 {
+        return Err(AnalysisError::InvalidInput(format!("distances need at least 2 mesh files, got {}", paths.len())));
+    }
+    std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
+    let names = shape_names(paths);
+    let n = paths.len();
+
+    let t_prepare = Instant::now();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let prepared: Vec<(Option<PreparedShape>, ShapeReport)> = paths
+        .par_iter()
+        .zip(&names)
+        .map(|(path, name)| {
+            let t = Instant::now();
+            let outcome = (|| -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
+                let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| AnalysisError::Shape { name: name.clone(), message: e.to_string() })?;
+                let (markers, source) = markers_for(path, &options.markers)?;
+                let shape = prepare_shape(name, &mesh, &markers, &options.disk_map)
+                    .map_err(|e| AnalysisError::Shape { name: path.display().to_string(), message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string() })?;
+                let choice = MarkerChoice {
+                    center: format!("{:?}", shape.disk.info.markers.center),
+                    boundary: shape.disk.info.markers.boundary_vertex.to_string(),
+                    source,
+                };
+                Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
+            })();
+            let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(k, n, "prepare");
+            let seconds = t.elapsed().as_secs_f64();
+            match outcome {
+                Ok((shape, choice, v, f)) => {
+                    let (lo, hi) = shape.disk.face_densities.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+                    let report = ShapeReport {
+                        name: name.clone(),
+                        path: path.clone(),
+                        ok: true,
+                        error: None,
+                        vertices: Some(v),
+                        faces: Some(f),
+                        markers: Some(choice),
+                        seconds,
+                        density_range: Some([lo, hi]),
+                        flipped_faces: Some(shape.disk.quality.num_flipped),
+                    };
+                    (Some(shape), report)
+                }
+                Err(e) => (
+                    None,
+                    ShapeReport {
+                        name: name.clone(),
+                        path: path.clone(),
+                        ok: false,
+                        error: Some(e.to_string()),
+                        vertices: None,
+                        faces: None,
+                        markers: None,
+                        seconds,
+                        density_range: None,
+                        flipped_faces: None,
+                    },
+                ),
+            }
+        })
+        .collect();
+    let prepare_wall = t_prepare.elapsed().as_secs_f64();
+    let (shapes, inputs): (Vec<Option<PreparedShape>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
+
+    let t_pairs = Instant::now();
+    let total_pairs = (0..n).map(|t| (0..n).filter(|&s| s != t && (options.pairwise.symmetrize || s < t)).count()).sum::<usize>();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let result = pairwise_distances(&shapes, &options.pairwise, &|| {
+        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(k, total_pairs, "pairs");
+    });
+    let pairs_wall = t_pairs.elapsed().as_secs_f64();
+
+    let t_write = Instant::now();
+    let matrix = DistanceMatrix::new(names.clone(), result.matrix.clone())?;
+    let mut files = Vec::new();
+    let matrix_path = out.join("distances.csv");
+    write_distance_matrix(&matrix_path, &matrix)?;
+    files.push(matrix_path);
+    let pairs_path = out.join("pairs.csv");
+    write_pairs_csv(&pairs_path, &result.pairs)?;
+    files.push(pairs_path);
+
+    let mut failures: Vec<String> = inputs.iter().filter_map(|r| r.error.clone()).collect();
+    failures.extend(result.pairs.iter().filter(|p| !p.distance.is_finite()).map(|p| format!("{} -> {}: {}", p.a, p.b, p.status)));
+    let iterations: Vec<f64> = result.pairs.iter().filter(|p| p.distance.is_finite()).map(|p| p.iterations as f64).collect();
+    let report_path = out.join("report.json");
+    files.push(report_path.clone());
+    let mut report = DistancesReport {
+        shapespace_version: env!("CARGO_PKG_VERSION").to_string(),
+        inputs,
+        options: ReportOptions {
+            symmetrize: options.pairwise.symmetrize,
+            tolerance: options.pairwise.newton.tolerance,
+            max_iterations: options.pairwise.newton.max_iterations,
+            warm_start: options.pairwise.warm_start,
+            intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
+        },
+        threads: rayon::current_num_threads(),
+        timings: StageTimings { prepare_wall, pairs_wall, pairs_cpu: result.pair_seconds, write: 0.0, total: 0.0 },
+        pairs_computed: result.pairs.len(),
+        pairs_failed: result.pairs.iter().filter(|p| !p.distance.is_finite()).count(),
+        failures,
+        iterations: (!iterations.is_empty()).then(|| summarize(&iterations)),
+        asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
+        files,
+    };
+    report.timings.write = t_write.elapsed().as_secs_f64();
+    report.timings.total = t_total.elapsed().as_secs_f64();
+    let json = serde_json::to_string_pretty(&report).map_err(|e| AnalysisError::Serialize { path: report_path.clone(), message: e.to_string() })?;
+    std::fs::write(&report_path, json).map_err(|e| AnalysisError::io(&report_path, e))?;
+    Ok(DistancesRun { matrix, pairs: result.pairs, report })
+}
+
+/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status` (a is the
+/// source density side, b the target points side).
+pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), AnalysisError> {
+    let to_err = |e: csv::Error| AnalysisError::parse(path, 0, e.to_string());
+    let mut w = csv::Writer::from_path(path).map_err(to_err)?;
+    for p in pairs {
+        w.serialize(p).map_err(to_err)?;
+    }
+    w.flush().map_err(|e| AnalysisError::io(path, e))
+}
+
+/// Default Newton parameters for distances (tolerance 1e-6 on the relative mass error).
+pub fn default_newton() -> NewtonParams {
+    NewtonParams::default()
+}

@@ -1,0 +1,36 @@
+//! `shapespace demo`: the main job on the bundled faces: distances, MDS and statistics.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use super::distances::{compute, exit_code, mds, SolverArgs};
+
+/// Arguments of `shapespace demo`.
+#[derive(clap::Args)]
+pub struct DemoArgs {
+    /// Folder with the faces, their `landmarks.json` and `labels.csv`.
+    #[arg(long, default_value = "datasets/faces")]
+    pub data: PathBuf,
+    /// Output folder.
+    #[arg(long, default_value = "out/demo")]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+}
+
+pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&args.data)
+        .map_err(|e| anyhow::anyhow!("{}: {e} (run the demo from the repository root, or pass --data)", args.data.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("obj")))
+        .collect();
+    files.sort();
+    if files.len() < 2 {
+        anyhow::bail!("{}: fewer than 2 OBJ meshes", args.data.display());
+    }
+    eprintln!("demo: {} faces from {} -> {}", files.len(), args.data.display(), args.out.display());
+    let run = compute(&files, &args.out, &args.solver)?;
+    let labels = args.data.join("labels.csv");
+    mds(&args.out, labels.is_file().then_some(labels.as_path()), &args.solver)?;
+    Ok(exit_code(&run))
+}

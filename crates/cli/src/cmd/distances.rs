@@ -1,0 +1,161 @@
+//! `shapespace distances FILES... --out DIR`: conformal Wasserstein distances between disk
+//! surfaces (Su et al. 2015, Algorithm 3), optionally followed by MDS and statistics.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use shapespace_analysis::distance::PairwiseOptions;
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun, MarkerOptions};
+use shapespace_analysis::shape_space::{run_mds, MdsParams};
+use shapespace_conformal::{BoundaryMarker, CenterMarker};
+use shapespace_omt::NewtonParams;
+
+/// Arguments shared by `distances` and `demo`.
+#[derive(clap::Args, Clone)]
+pub struct SolverArgs {
+    /// Interior marker for every file: a vertex index, a point `x,y,z`, or `auto` (default: the
+    /// marker file, else the sidecar `NAME.landmarks.json` / `landmarks.json`, else auto).
+    #[arg(long)]
+    pub center: Option<String>,
+    /// Boundary marker for every file: a boundary vertex index or `auto`.
+    #[arg(long)]
+    pub boundary_marker: Option<String>,
+    /// One marker file for all inputs (`{"center": V, "boundary": V, ...}`).
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Compute both directions of every pair and report their mean and the asymmetry.
+    #[arg(long)]
+    pub symmetrize: bool,
+    /// Relative mass tolerance of the OT solver.
+    #[arg(long, default_value_t = 1e-6)]
+    pub tol: f64,
+    /// Iteration cap of the OT solver.
+    #[arg(long, default_value_t = 200)]
+    pub max_iterations: usize,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Arguments of `shapespace distances`.
+#[derive(clap::Args)]
+pub struct DistancesArgs {
+    /// Disk-topology meshes (OBJ, OFF, PLY).
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Output directory (distances.csv, pairs.csv, report.json; with --mds also the MDS files).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+    /// Also run MDS and statistics on the result (as `shapespace mds`).
+    #[arg(long)]
+    pub mds: bool,
+    /// Labels CSV for --mds (file,label columns...).
+    #[arg(long)]
+    pub labels: Option<PathBuf>,
+}
+
+pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
+    let run = compute(&args.files, &args.out, &args.solver)?;
+    if args.mds {
+        mds(&args.out, args.labels.as_deref(), &args.solver)?;
+    }
+    Ok(exit_code(&run))
+}
+
+/// Runs the distances with a progress bar; prints a summary to stderr.
+pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) -> anyhow::Result<DistancesRun> {
+    if let Some(t) = solver.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().ok();
+    }
+    let markers = MarkerOptions {
+        center: solver.center.as_deref().map(CenterMarker::parse).transpose().context("--center")?,
+        boundary: solver.boundary_marker.as_deref().map(BoundaryMarker::parse).transpose().context("--boundary-marker")?,
+        marker_file: solver.landmarks.clone(),
+    };
+    let options = DistancesOptions {
+        markers,
+        pairwise: PairwiseOptions {
+            symmetrize: solver.symmetrize,
+            newton: NewtonParams { tolerance: solver.tol, max_iterations: solver.max_iterations, ..NewtonParams::default() },
+            warm_start: true,
+        },
+        ..DistancesOptions::default()
+    };
+    let show = !solver.quiet && std::io::stderr().is_terminal();
+    let bar = if show { ProgressBar::new(0) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let progress = |done: usize, total: usize, stage: &str| {
+        if bar.length() != Some(total as u64) || done == 1 {
+            bar.set_prefix(stage.to_string());
+            bar.set_length(total as u64);
+            bar.reset_eta();
+        }
+        bar.set_position(done as u64);
+    };
+    let run = run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
+    bar.finish_and_clear();
+    let r = &run.report;
+    for input in r.inputs.iter().filter(|i| !i.ok) {
+        eprintln!("shapespace: {}: {}", input.path.display(), input.error.as_deref().unwrap_or("failed"));
+    }
+    eprintln!(
+        "distances: {} shapes ({} failed), {} directed pairs ({} failed) in {:.1} s (prepare {:.1} s, pairs {:.1} s on {} threads)",
+        r.inputs.len(),
+        r.inputs.iter().filter(|i| !i.ok).count(),
+        r.pairs_computed,
+        r.pairs_failed,
+        r.timings.total,
+        r.timings.prepare_wall,
+        r.timings.pairs_wall,
+        r.threads
+    );
+    if let Some(a) = &r.asymmetry {
+        eprintln!("distances: relative asymmetry median {:.2e}, max {:.2e}", a.median.unwrap_or(f64::NAN), a.max.unwrap_or(f64::NAN));
+    }
+    for f in &r.files {
+        eprintln!("distances: wrote {}", f.display());
+    }
+    Ok(run)
+}
+
+/// MDS + statistics on `out/distances.csv`.
+pub fn mds(out: &std::path::Path, labels: Option<&std::path::Path>, _solver: &SolverArgs) -> anyhow::Result<()> {
+    let result = run_mds(&out.join("distances.csv"), labels, out, &MdsParams::default()).context("mds")?;
+    for (col, s) in &result.stats.labels {
+        eprintln!(
+            "mds: {col}: 1-NN LOO accuracy {}, silhouette {}",
+            s.loo_1nn.accuracy.map_or("n/a".into(), |a| format!("{:.3} ({}/{})", a, s.loo_1nn.correct, s.loo_1nn.total)),
+            s.silhouette.map_or("n/a".into(), |v| format!("{v:.3}"))
+        );
+    }
+    for c in &result.stats.cross {
+        if let Some(a) = c.loo_1nn.accuracy {
+            eprintln!("mds: {} (neighbour with another {}): 1-NN accuracy {:.3}", c.target, c.exclude_same, a);
+        }
+    }
+    for f in &result.files {
+        eprintln!("mds: wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// 0 when every file and pair succeeded, 1 otherwise.
+pub fn exit_code(run: &DistancesRun) -> ExitCode {
+    if run.report.failures.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}
