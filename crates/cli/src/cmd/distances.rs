@@ -35,6 +35,9 @@ pub struct SolverArgs {
     /// Iteration cap of the OT solver.
     #[arg(long, default_value_t = 200)]
     pub max_iterations: usize,
+    /// Start every pair from the Voronoi heights instead of the previous pair with the same target.
+    #[arg(long)]
+    pub no_warm_start: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -85,7 +88,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         pairwise: PairwiseOptions {
             symmetrize: solver.symmetrize,
             newton: NewtonParams { tolerance: solver.tol, max_iterations: solver.max_iterations, ..NewtonParams::default() },
-            warm_start: true,
+            warm_start: !solver.no_warm_start,
         },
         ..DistancesOptions::default()
     };
