@@ -1,0 +1,274 @@
+//! Conformal Wasserstein distances: the closed form of a hemisphere against a flat disk,
+//! convergence under refinement, invariance under similarity, remeshing, symmetry and the
+//! triangle inequality on bundled faces, and the pairwise pipeline's outputs and failures.
+
+use std::path::{Path, PathBuf};
+
+use shapespace_analysis::distance::{directed_distance, pairwise_distances, prepare_shape, PairwiseOptions, PreparedShape};
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
+use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
+use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::primitives::{spherical_cap, unit_disk};
+use shapespace_geometry::TriMesh;
+use shapespace_omt::NewtonParams;
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(path)
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("distance").join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Pole (vertex 0) to the center, the last vertex (on the boundary ring) to 1.
+fn pole_markers(mesh: &TriMesh) -> Markers {
+    Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Vertex(mesh.num_vertices() as u32 - 1) }
+}
+
+fn face_markers() -> Markers {
+    Markers { center: CenterMarker::Vertex(4841), boundary: BoundaryMarker::Vertex(8889) }
+}
+
+fn prepared(name: &str, mesh: &TriMesh, markers: &Markers) -> PreparedShape {
+    prepare_shape(name, mesh, markers, &DiskMapParams::default()).unwrap()
+}
+
+fn face(name: &str) -> (TriMesh, PreparedShape) {
+    let mesh = read_mesh(&repo(&format!("datasets/faces/{name}.obj"))).unwrap();
+    let shape = prepared(name, &mesh, &face_markers());
+    (mesh, shape)
+}
+
+fn cost(source: &PreparedShape, target: &PreparedShape) -> f64 {
+    let (d, _) = directed_distance(source, target, &NewtonParams::default()).unwrap();
+    assert!(d.converged, "{} -> {}: {}", source.name, target.name, d.status);
+    d.cost
+}
+
+/// W₂² between the pushed-forward area of a spherical cap of angle α (scaled to area π,
+/// density (1+R²)/(1+R²r²)² on the unit disk by stereographic projection, R = tan(α/2)) and
+/// the uniform density: both radial, so the optimal map is the monotone radial rearrangement
+/// T(r)² = (1+R²) r² / (1+R²r²) (equal mass within r and T(r)), and
+/// W₂² = ∫₀¹ (r − T(r))² ρ(r) 2πr dr, evaluated by composite Simpson on 20000 intervals.
+fn radial_rearrangement_cost(alpha: f64) -> f64 {
+    let r2 = (alpha / 2.0).tan().powi(2);
+    let f = |r: f64| {
+        let rho = (1.0 + r2) / (1.0 + r2 * r * r).powi(2);
+        let t = ((1.0 + r2) * r * r / (1.0 + r2 * r * r)).sqrt();
+        (r - t).powi(2) * rho * 2.0 * std::f64::consts::PI * r
+    };
+    let n = 20000;
+    let h = 1.0 / n as f64;
+    let mut s = f(0.0) + f(1.0);
+    for k in 1..n {
+        s += f(k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    s * h / 3.0
+}
+
+#[test]
+fn hemisphere_against_flat_disk_matches_the_radial_rearrangement_and_converges() {
+    let exact = radial_rearrangement_cost(std::f64::consts::FRAC_PI_2);
+    // The value of an independent Python Simpson quadrature of the same integral at 10⁶ intervals.
+    assert!((exact - 0.0329512).abs() < 1e-6, "closed form {exact}");
+    let mut errors = Vec::new();
+    let mut costs = Vec::new();
+    for rings in [20, 40, 60] {
+        let cap = spherical_cap(std::f64::consts::FRAC_PI_2, rings);
+        let disk = unit_disk(rings);
+        let a = prepared("cap", &cap, &pole_markers(&cap));
+        let b = prepared("disk", &disk, &pole_markers(&disk));
+        let forward = cost(&a, &b);
+        let backward = cost(&b, &a);
+        let rel = ((forward - exact) / exact).abs();
+        let rel_back = ((backward - exact) / exact).abs();
+        eprintln!("rings {rings} V {}: cap->disk {forward:.7} ({rel:.2e}), disk->cap {backward:.7} ({rel_back:.2e})", cap.num_vertices());
+        errors.push((cap.num_vertices(), rel, rel_back));
+        costs.push((cap.num_vertices() as f64, forward));
+    }
+    let (v, rel, rel_back) = errors[2];
+    assert!(v > 9000 && v < 12000);
+    assert!(rel < 5e-3, "cap->disk relative error {rel} at {v} vertices");
+    assert!(rel_back < 5e-3, "disk->cap relative error {rel_back} at {v} vertices");
+    // Second order in h ~ V^(-1/2): quadrupling V divides the error by ≥ 3.
+    assert!(errors[0].1 / errors[1].1 > 3.0, "{errors:?}");
+    assert!(errors[0].2 / errors[1].2 > 3.0, "{errors:?}");
+    // Richardson extrapolation of the last two levels with error ∝ 1/V lands on the closed form.
+    let ((v1, c1), (v2, c2)) = (costs[1], costs[2]);
+    let extrapolated = c2 + (c2 - c1) / (v2 / v1 - 1.0);
+    assert!(((extrapolated - exact) / exact).abs() < 5e-4, "extrapolated {extrapolated} vs {exact}");
+}
+
+#[test]
+fn self_distance_is_a_discretization_floor_that_vanishes_under_refinement() {
+    let mut floors = Vec::new();
+    for rings in [10, 20, 40] {
+        let cap = spherical_cap(2.0 * std::f64::consts::FRAC_PI_3, rings);
+        let a = prepared("cap", &cap, &pole_markers(&cap));
+        floors.push(cost(&a, &a).sqrt());
+    }
+    eprintln!("d(M, M) of a 120° cap at 10/20/40 rings: {floors:?}");
+    // The semi-discrete self-distance is a quantization error, O(h): halving h halves it.
+    assert!(floors[0] / floors[1] > 1.7 && floors[1] / floors[2] > 1.7, "{floors:?}");
+}
+
+/// x ↦ s·Rx + t with R a rotation about (1, 2, 2)/3 by 0.7 rad.
+fn similarity(mesh: &TriMesh, s: f64, t: [f64; 3]) -> TriMesh {
+    let (k, a) = ([1.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0], 0.7f64);
+    let (c, sn) = (a.cos(), a.sin());
+    let rot = |p: [f64; 3]| {
+        let kxp = [k[1] * p[2] - k[2] * p[1], k[2] * p[0] - k[0] * p[2], k[0] * p[1] - k[1] * p[0]];
+        let kdp = k[0] * p[0] + k[1] * p[1] + k[2] * p[2];
+        [0, 1, 2].map(|i| p[i] * c + kxp[i] * sn + k[i] * kdp * (1.0 - c))
+    };
+    let positions = mesh.positions.iter().map(|&p| {
+        let q = rot(p);
+        [0, 1, 2].map(|i| s * q[i] + t[i])
+    });
+    TriMesh::new(positions.collect(), mesh.faces.clone()).unwrap()
+}
+
+/// 1-to-4 midpoint subdivision: the same piecewise-linear surface, four times the triangles.
+fn subdivide(mesh: &TriMesh) -> TriMesh {
+    let mut positions = mesh.positions.clone();
+    let mut midpoint = std::collections::HashMap::new();
+    let mut mid = |a: u32, b: u32, positions: &mut Vec<[f64; 3]>| -> u32 {
+        *midpoint.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            let (p, q) = (positions[a as usize], positions[b as usize]);
+            positions.push([0, 1, 2].map(|i| 0.5 * (p[i] + q[i])));
+            positions.len() as u32 - 1
+        })
+    };
+    let mut faces = Vec::new();
+    for &[a, b, c] in &mesh.faces {
+        let (ab, bc, ca) = (mid(a, b, &mut positions), mid(b, c, &mut positions), mid(c, a, &mut positions));
+        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    TriMesh::new(positions, faces).unwrap()
+}
+
+#[test]
+fn face_distances_are_similarity_invariant_and_stable_under_remeshing() {
+    let (mesh, m) = face("id00_neutral");
+    let (_, other_expression) = face("id00_happy");
+    let (_, other_person) = face("id01_neutral");
+    let moved = prepared("moved", &similarity(&mesh, 3.7, [10.0, -4.0, 2.5]), &face_markers());
+    let fine = prepared("subdivided", &subdivide(&mesh), &face_markers());
+
+    let self_cost = cost(&m, &m);
+    let moved_cost = cost(&m, &moved);
+    let moved_source = cost(&moved, &other_person);
+    let person = cost(&m, &other_person);
+    let expression = cost(&m, &other_expression);
+    // Source subdivided: the same density on a finer triangulation of the same image.
+    let remeshed = cost(&fine, &m);
+    eprintln!(
+        "d: self {:.5} moved {:.5} remeshed {:.5} expression {:.5} person {:.5} (moved source -> person {:.5})",
+        self_cost.sqrt(),
+        moved_cost.sqrt(),
+        remeshed.sqrt(),
+        expression.sqrt(),
+        person.sqrt(),
+        moved_source.sqrt()
+    );
+    assert!((moved_cost - self_cost).abs() <= 1e-6 * self_cost, "{moved_cost} vs {self_cost}");
+    assert!((moved_source - person).abs() <= 1e-6 * person, "{moved_source} vs {person}");
+    // The midpoint subdivision has the same conformal image: d(fine → M) is d(M → M) up to the
+    // discrete conformal map's change under refinement.
+    assert!((remeshed.sqrt() - self_cost.sqrt()).abs() < 0.1 * self_cost.sqrt(), "{remeshed} vs {self_cost}");
+    // The floor is below the distance to another expression and to another person.
+    assert!(self_cost.sqrt() < 0.6 * expression.sqrt() && expression < person, "{self_cost} {expression} {person}");
+}
+
+#[test]
+fn symmetric_run_on_four_faces_bounds_asymmetry_and_triangle_violations() {
+    let names = ["id00_neutral", "id00_happy", "id01_neutral", "id01_happy"];
+    let shapes: Vec<Option<PreparedShape>> = names.iter().map(|n| Some(face(n).1)).collect();
+    let options = PairwiseOptions { symmetrize: true, ..PairwiseOptions::default() };
+    let result = pairwise_distances(&shapes, &options, &|| {});
+    assert_eq!(result.pairs.len(), 12);
+    assert!(result.pairs.iter().all(|p| p.status.starts_with("converged")), "{:?}", result.pairs);
+    let n = names.len();
+    let d = |i: usize, j: usize| result.matrix[i * n + j];
+    let max_asym = result.asymmetries.iter().cloned().fold(0.0, f64::max);
+    let mut worst_triangle = 0.0f64;
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                if i != j && j != k && i != k {
+                    worst_triangle = worst_triangle.max((d(i, k) - d(i, j) - d(j, k)) / d(i, k));
+                }
+            }
+        }
+    }
+    eprintln!("matrix {:?}\nasymmetries {:?}\nworst triangle excess {worst_triangle:.3e}", result.matrix, result.asymmetries);
+    assert!(max_asym < 2e-2, "max relative asymmetry {max_asym}");
+    assert!(worst_triangle <= 0.0, "triangle inequality violated by {worst_triangle}");
+    // Same person closer than the same expression of another person.
+    assert!(d(0, 1) < d(0, 2) && d(2, 3) < d(1, 3), "{:?}", result.matrix);
+}
+
+#[test]
+fn pairwise_result_does_not_depend_on_the_thread_count() {
+    let shapes: Vec<Option<PreparedShape>> = [1.2, 1.6, 2.0, 2.4]
+        .iter()
+        .map(|&alpha| {
+            let cap = spherical_cap(alpha, 12);
+            Some(prepared(&format!("cap{alpha}"), &cap, &pole_markers(&cap)))
+        })
+        .collect();
+    let options = PairwiseOptions { symmetrize: true, ..PairwiseOptions::default() };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| pairwise_distances(&shapes, &options, &|| {}))
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), two.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+    // Caps of growing angle move away from the flattest one.
+    assert!(one.matrix[1] < one.matrix[2] && one.matrix[2] < one.matrix[3], "{:?}", one.matrix);
+}
+
+#[test]
+fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
+    let dir = out_dir("pipeline");
+    let inputs = dir.join("inputs");
+    std::fs::create_dir_all(&inputs).unwrap();
+    let mut files = Vec::new();
+    for (name, alpha) in [("a", 1.0), ("b", 1.5), ("c", 2.0)] {
+        let path = inputs.join(format!("{name}.obj"));
+        write_mesh(&path, &spherical_cap(alpha, 10)).unwrap();
+        std::fs::write(inputs.join(format!("{name}.landmarks.json")), r#"{"center": 0, "boundary": "auto"}"#).unwrap();
+        files.push(path);
+    }
+    let bad = inputs.join("truncated.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap();
+    files.insert(1, bad);
+    let out = dir.join("out");
+    let run = run_distances(&files, &out, &DistancesOptions::default(), &|_, _, _| {}).unwrap();
+    let report = &run.report;
+    assert_eq!(report.inputs.len(), 4);
+    let failed: Vec<_> = report.inputs.iter().filter(|i| !i.ok).collect();
+    assert_eq!(failed.len(), 1);
+    let why = failed[0].error.as_deref().unwrap();
+    assert!(why.contains("truncated.obj"), "{why}");
+    // Six pairs: the three among good shapes complete, the three with the bad one are failures.
+    assert_eq!((report.pairs_computed, report.pairs_failed), (6, 3));
+    assert_eq!(run.pairs.iter().filter(|p| p.status == "converged").count(), 3, "{:?}", run.pairs);
+    let matrix = std::fs::read_to_string(out.join("distances.csv")).unwrap();
+    let rows: Vec<&str> = matrix.lines().collect();
+    assert_eq!(rows.len(), 5);
+    assert!(rows[0].contains("truncated") && rows[2].starts_with("truncated"), "{matrix}");
+    let pairs = std::fs::read_to_string(out.join("pairs.csv")).unwrap();
+    assert!(pairs.lines().next().unwrap().starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert!(json["failures"].as_array().unwrap().iter().any(|f| f.as_str().unwrap().contains("truncated")), "{json}");
+    // The good entries agree with a direct computation.
+    let a = prepared("a", &spherical_cap(1.0, 10), &Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Auto });
+    let c = prepared("c", &spherical_cap(2.0, 10), &Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Auto });
+    let direct = cost(&a, &c).sqrt();
+    let ac = run.matrix.get(0, 3);
+    assert!((ac - direct).abs() <= 1e-9 * direct, "{ac} vs {direct}");
+}
