@@ -13,6 +13,15 @@
 //! 4. every vertex is sent to the centroid $c_i = \frac{1}{|W_i|}\int_{W_i} x\,dx$ of its cell.
 //!    The OT map $T = \nabla u_h$ sends $W_i$ to $y_i$; the map $v_i \mapsto c_i$ is the discrete
 //!    inverse $T^{-1} \circ \varphi$, the area-preserving map closest to φ in the $L^2$ sense.
+//! 5. fold repair (on by default, [`AreaPreservingParams::fold_repair`]): the single-shot
+//!    centroid map can fold small triangles where the conformal image is strongly compressed
+//!    (the points y_i are nearly coincident relative to their cells, the cells become long
+//!    strips, and the order of their centroids need not follow the mesh). The vertices around
+//!    the folded faces are re-embedded by a Tutte/Floater map with mean-value weights of the
+//!    centroid layout, in regions that grow until no face is folded
+//!    ([`crate::fold_repair`]; guaranteed to end with an embedding when the region reaches
+//!    the whole disk). Only positions change: `cell_areas` and the OT summary still describe
+//!    the transport; [`FoldRepairSummary`] reports the distortion before and after.
 //!
 //! # Domain and boundary (choices, not in the papers)
 //! - **Disk** ([`Domain::Disk`]): Ω is the regular polygon with K vertices (one at angle 0) and
@@ -41,12 +50,15 @@ use std::path::Path;
 use std::time::Instant;
 
 use serde::Serialize;
+use shapespace_conformal::quality::Stats;
 use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 use shapespace_omt::{solve_ot, NewtonParams, OtSolution, SourceMeasure};
 
+use crate::distortion::map_distortion;
 use crate::error::AnalysisError;
+use crate::fold_repair::{repair_folds, FoldRepairInfo, FoldRepairParams};
 
 /// The domain of the area-preserving map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -89,6 +101,8 @@ pub struct AreaPreservingParams {
     /// (default true). When false, the map of the last iterate is returned and
     /// [`OtSummary::converged`] tells.
     pub require_convergence: bool,
+    /// Fold repair after the centroid map (default on; [`crate::fold_repair`]).
+    pub fold_repair: FoldRepairParams,
 }
 
 impl Default for AreaPreservingParams {
@@ -100,6 +114,7 @@ impl Default for AreaPreservingParams {
             newton: NewtonParams::default(),
             weights: None,
             require_convergence: true,
+            fold_repair: FoldRepairParams::default(),
         }
     }
 }
@@ -136,20 +151,50 @@ pub struct Timings {
     pub ot: f64,
     /// Centroids, boundary projection and checks.
     pub output: f64,
+    /// Fold repair, with the distortion measured before and after it.
+    pub repair: f64,
     /// Everything.
     pub total: f64,
+}
+
+/// Area distortion and folds of a map (the summary kept in [`FoldRepairSummary`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MapQuality {
+    /// Statistics of |Υ| per face.
+    pub abs_area_distortion: Stats,
+    /// Statistics of |ε| per vertex (log one-ring area ratio, [`crate::distortion`]).
+    pub abs_vertex_log_area_ratio: Stats,
+    /// Clockwise faces (exact predicate).
+    pub num_flipped: usize,
+    /// Faces of exactly zero image area.
+    pub num_degenerate: usize,
+}
+
+/// The fold repair step of [`area_preserving_map`]: what it did and the distortion of the
+/// centroid map (before) and of the returned map (after).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FoldRepairSummary {
+    /// Counts, rounds and moved vertices of the repair.
+    #[serde(flatten)]
+    pub info: FoldRepairInfo,
+    /// The centroid map.
+    pub before: MapQuality,
+    /// The returned map (equal to `before` when nothing moved).
+    pub after: MapQuality,
 }
 
 /// An area-preserving map of a disk-type surface onto the disk or the square.
 #[derive(Clone, Debug)]
 pub struct AreaPreservingMap {
-    /// Image of each vertex, #V: the centroid of its OT cell; boundary vertices on ∂Ω.
+    /// Image of each vertex, #V: the centroid of its OT cell, boundary vertices on ∂Ω, then
+    /// (fold repair on) the vertices near folded faces re-embedded ([`crate::fold_repair`]).
     pub uv: Vec<[f64; 2]>,
     /// The conformal map the OT started from (its `uv` are the targets y_i).
     pub conformal: DiskMap,
     /// Target masses ν_i after weights and normalization, #V (Σ = π).
     pub target_masses: Vec<f64>,
-    /// Areas |W_i ∩ Ω| of the cells at the final heights, #V.
+    /// Areas |W_i ∩ Ω| of the cells at the final heights, #V (of the OT, not of the repaired
+    /// map's one-rings: see [`FoldRepairSummary::after`]).
     pub cell_areas: Vec<f64>,
     /// OT heights h, #V (u_h(x) = max_i ⟨x, y_i⟩ + h_i).
     pub heights: Vec<f64>,
@@ -166,6 +211,8 @@ pub struct AreaPreservingMap {
     pub boundary_order_violations: usize,
     /// OT solver summary.
     pub ot: OtSummary,
+    /// The fold repair step.
+    pub fold_repair: FoldRepairSummary,
     /// Stage timings.
     pub timings: Timings,
 }
@@ -329,7 +376,7 @@ pub fn area_preserving_map(
     };
     let t2 = Instant::now();
 
-    let (uv, max_boundary_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
+    let (mut uv, max_boundary_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
     let boundary_order_violations = boundary_order_violations(mesh, &uv);
     let ot = OtSummary {
         iterations: solution.iterations,
@@ -343,6 +390,11 @@ pub fn area_preserving_map(
         domain_vertices: polygon.len(),
     };
     let t3 = Instant::now();
+    let before = map_quality(mesh, &uv)?;
+    let info = repair_folds(mesh, &is_boundary, &mut uv, &params.fold_repair)?;
+    let after = if info.vertices_moved > 0 { map_quality(mesh, &uv)? } else { before.clone() };
+    let fold_repair = FoldRepairSummary { info, before, after };
+    let t4 = Instant::now();
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     Ok(AreaPreservingMap {
         uv,
@@ -356,7 +408,25 @@ pub fn area_preserving_map(
         max_boundary_projection,
         boundary_order_violations,
         ot,
-        timings: Timings { conformal: secs(t0, t1), ot: secs(t1, t2), output: secs(t2, t3), total: secs(t0, t3) },
+        fold_repair,
+        timings: Timings {
+            conformal: secs(t0, t1),
+            ot: secs(t1, t2),
+            output: secs(t2, t3),
+            repair: secs(t3, t4),
+            total: secs(t0, t4),
+        },
+    })
+}
+
+/// |Υ|, |ε| statistics and fold counts of the map `uv` of `mesh`.
+fn map_quality(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<MapQuality, AnalysisError> {
+    let d = map_distortion("", mesh, uv)?;
+    Ok(MapQuality {
+        abs_area_distortion: d.abs_area_distortion,
+        abs_vertex_log_area_ratio: d.abs_vertex_log_area_ratio,
+        num_flipped: d.num_flipped,
+        num_degenerate: d.num_degenerate,
     })
 }
 

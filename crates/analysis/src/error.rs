@@ -105,6 +105,9 @@ pub enum AnalysisError {
     /// Invalid plot input (empty data, mismatched lengths, bad range).
     #[error("invalid plot input: {message}")]
     PlotInput { message: String },
+    /// The fold repair of a planar map could not produce an embedding; `folded` faces remain.
+    #[error("fold repair: {message} ({folded} folded faces)")]
+    FoldRepair { folded: usize, message: String },
 }
 
 impl AnalysisError {

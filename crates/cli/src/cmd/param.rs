@@ -1,6 +1,6 @@
 //! `shapespace param IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
 //! [--landmarks FILE.json] [--domain disk|square] [--weights W.csv] [--report R.json]
-//! [--plots DIR]`: the area-preserving parameterization of a disk-type mesh by optimal mass
+//! [--plots DIR] [--no-fold-repair]`: the area-preserving parameterization of a disk-type mesh by optimal mass
 //! transport ([`shapespace_analysis::area_preserving::area_preserving_map`]).
 //!
 //! Markers as in `shapespace conformal` (marker file, else sidecar, then `--center` /
@@ -8,7 +8,9 @@
 //! `--weights` reads `vertex,weight` rows (missing vertices weigh 1). `--report` writes the OT
 //! summary, timings and the side-by-side distortion of the conformal and the area-preserving
 //! map (per face Υ, Λ, angle; per vertex ε; statistics; flips) as JSON; `--plots` writes the
-//! distortion histograms (PNG and SVG). Exit code 1 when the OT solver did not reach its
+//! distortion histograms (PNG and SVG). The fold repair after the centroid map is on unless
+//! `--no-fold-repair`; the report's `fold_repair` gives the folded faces before, the vertices
+//! moved, the rounds and the distortion before and after. Exit code 1 when the OT solver did not reach its
 //! tolerance (the map of its last iterate is still written).
 
 use std::path::PathBuf;
@@ -56,6 +58,9 @@ pub struct ParamArgs {
     /// OT tolerance on max_i |cell area − target| / target.
     #[arg(long, default_value_t = 1e-6)]
     pub tolerance: f64,
+    /// Keep the single-shot centroid map (no repair of folded triangles).
+    #[arg(long = "no-fold-repair")]
+    pub no_fold_repair: bool,
 }
 
 /// Runs `f` on a worker thread; when it takes more than a second, shows a spinner with
@@ -117,6 +122,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     };
     let mut params = AreaPreservingParams { domain, weights, require_convergence: false, ..Default::default() };
     params.newton.tolerance = args.tolerance;
+    params.fold_repair.enabled = !args.no_fold_repair;
     let message = format!("area-preserving map of {} ({} vertices)", args.input.display(), mesh.num_vertices());
     let map = with_spinner(message, || area_preserving_map(&mesh, &markers, &params))
         .with_context(|| format!("parameterizing {}", args.input.display()))?;
@@ -126,7 +132,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
     let ap = &report.maps[1];
     eprintln!(
-        "{}: {} V, {} F; OT {} after {} iterations (max rel. mass error {:.2e}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; conformal {:.2} s, OT {:.2} s, output {:.2} s",
+        "{}: {} V, {} F; OT {} after {} iterations (max rel. mass error {:.2e}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; fold repair: {} folded before, {} vertices moved in {} rounds; conformal {:.2} s, OT {:.2} s, output {:.2} s, repair {:.2} s",
         args.input.display(),
         mesh.num_vertices(),
         mesh.num_faces(),
@@ -139,9 +145,13 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         report.maps[0].abs_area_distortion.p95,
         ap.quasi_conformal_distortion.median,
         ap.num_flipped,
+        map.fold_repair.info.flipped_before + map.fold_repair.info.degenerate_before,
+        map.fold_repair.info.vertices_moved,
+        map.fold_repair.info.rounds,
         map.timings.conformal,
         map.timings.ot,
         map.timings.output,
+        map.timings.repair,
     );
     if let Some(dir) = &args.plots {
         write_distortion_histograms(&report, dir, 60).with_context(|| format!("writing plots into {}", dir.display()))?;
@@ -160,6 +170,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "ot": map.ot,
             "max_boundary_projection": map.max_boundary_projection,
             "boundary_order_violations": map.boundary_order_violations,
+            "fold_repair": map.fold_repair,
             "timings": map.timings,
             "wall_seconds": t0.elapsed().as_secs_f64(),
             "distortion": report,

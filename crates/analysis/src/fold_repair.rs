@@ -1,0 +1,614 @@
+//! Repair of folded triangles of a planar disk map by local Tutte/Floater re-embedding
+//! [Tutte 1963, "How to draw a graph"; Floater 2003, "One-to-one piecewise linear mappings over
+//! triangulations", Thm. 1; Floater 2003, "Mean value coordinates"].
+//!
+//! Input: a map `uv` (#V) of a disk-type mesh whose boundary vertices lie on a convex curve
+//! (the unit circle or the square) in counter-clockwise order, with some faces folded (clockwise
+//! or degenerate image). Every interior vertex i gets strictly positive weights $w_{ij}$ over its
+//! neighbours, normalized to $\sum_j w_{ij} = 1$. A region R of interior vertices is re-solved
+//! as a convex-combination (Tutte) map with everything outside R fixed at its input position:
+//! $$ x_i - \sum_{j \in R} w_{ij} x_j = \sum_{j \notin R} w_{ij}\, x_j \qquad (i \in R), $$
+//! a sparse, row-diagonally dominant system (every connected component of R touches a fixed
+//! vertex) solved by faer's sparse LU, one system per connected component, in coordinates
+//! relative to the mean of the component's fixed neighbours (keeps relative precision in small
+//! regions).
+//!
+//! Rounds: R starts as the folded faces' vertices grown by k rings (k = `initial_rings`), only
+//! interior vertices (boundary vertices never move). After each solve the faces are checked;
+//! if some are still folded, R grows by 2k rings around them (R only grows, the solve restarts
+//! from the input positions) and k doubles. Once R holds every interior vertex, the fixed
+//! vertices are exactly the boundary polygon, which is convex, and Floater's theorem (strictly
+//! positive weights, convex boundary polygon, boundary in order) makes the solution an
+//! embedding: the loop ends after at most ⌈log₂(diameter in rings)⌉ + 1 rounds. In floating
+//! point, a whole-disk solve that still folds is retried once with [`RepairWeights::Surface`];
+//! if that folds too, the repair fails with a typed error instead of returning a folded map.
+//!
+//! Weights (both are mean-value weights $w_{ij} \propto (\tan\frac{\alpha_{ij}}2 +
+//! \tan\frac{\beta_{ij}}2)/\lVert x_j - x_i\rVert$, α, β the angles at i of the two faces at the
+//! edge ij, Floater's mean value coordinates; the angles are unsigned, in [0, π], so the weights
+//! are ≥ 0 on any layout):
+//! - [`RepairWeights::Layout`] (default): measured on the input map `uv` itself. On a vertex
+//!   whose one-ring is embedded (star-shaped around it) these are its mean value coordinates,
+//!   which reproduce its position exactly; so wherever the input is already an embedding, the
+//!   Tutte map reproduces it, and the area-preserving layout changes only near the folds.
+//!   Weights are floored at 1e-12 of the largest weight of their row (strict positivity); a
+//!   row that is not finite (coincident or straight-angle neighbours) takes the surface weights.
+//! - [`RepairWeights::Surface`]: measured on the 3D mesh (a discrete harmonic-like map; it
+//!   ignores the area-preserving layout inside R).
+//!
+//! Validity of a face: the exact orientation predicate ([`orient_scaled`]) says
+//! counter-clockwise, and its doubled area, computed from power-of-two scaled edge vectors,
+//! is at least 1e-300 (relative to the unit disk / square of area π); anything else is folded.
+
+use std::collections::VecDeque;
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use geogram_predicates::Sign;
+use serde::Serialize;
+use shapespace_conformal::quality::orient_scaled;
+use shapespace_geometry::{Connectivity, TriMesh};
+
+use crate::error::AnalysisError;
+
+/// Smallest doubled image area of a valid face (relative to a domain of area π).
+pub const MIN_DOUBLED_AREA: f64 = 1e-300;
+
+/// Where the Tutte weights come from (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RepairWeights {
+    /// Mean-value weights of the input planar map (reproduce it where it is embedded).
+    #[default]
+    Layout,
+    /// Mean-value weights of the 3D surface.
+    Surface,
+}
+
+/// Parameters of [`repair_folds`].
+#[derive(Clone, Debug)]
+pub struct FoldRepairParams {
+    /// Run the repair (default true). When false, [`repair_folds`] only counts folds.
+    pub enabled: bool,
+    /// Tutte weights (default [`RepairWeights::Layout`]).
+    pub weights: RepairWeights,
+    /// Rings k of the first region around the folded faces (default 2; at least 1).
+    pub initial_rings: usize,
+}
+
+impl Default for FoldRepairParams {
+    fn default() -> Self {
+        FoldRepairParams { enabled: true, weights: RepairWeights::Layout, initial_rings: 2 }
+    }
+}
+
+/// What [`repair_folds`] did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FoldRepairInfo {
+    /// Whether the repair ran.
+    pub enabled: bool,
+    /// The weights asked for.
+    pub weights: RepairWeights,
+    /// Clockwise faces of the input map (exact predicate).
+    pub flipped_before: usize,
+    /// Faces of the input map with zero or sub-1e-300 area.
+    pub degenerate_before: usize,
+    /// Folded (flipped or degenerate) faces of the output map (0 unless the repair is off).
+    pub folded_after: usize,
+    /// Solve rounds (0 when nothing was folded or the repair is off).
+    pub rounds: usize,
+    /// Rings k of the last round.
+    pub rings: usize,
+    /// Interior vertices in the final region R.
+    pub region_vertices: usize,
+    /// Whether R grew to every interior vertex.
+    pub whole_disk: bool,
+    /// Whether the whole-disk fallback to surface weights was used.
+    pub surface_fallback: bool,
+    /// Vertices whose position changed.
+    pub vertices_moved: usize,
+    /// Largest displacement |uv_after − uv_before|.
+    pub max_displacement: f64,
+}
+
+/// Whether the image of face (a, b, c) is counter-clockwise with doubled area ≥
+/// [`MIN_DOUBLED_AREA`] (module docs).
+pub fn face_is_valid(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> bool {
+    if orient_scaled(a, b, c) != Sign::Positive {
+        return false;
+    }
+    let d1 = [b[0] - a[0], b[1] - a[1]];
+    let d2 = [c[0] - a[0], c[1] - a[1]];
+    let m = d1.iter().chain(d2.iter()).fold(0.0f64, |acc, x| acc.max(x.abs()));
+    if !(m > 0.0 && m.is_finite()) {
+        return false;
+    }
+    let e = m.log2().floor() as i32;
+    let s = 2f64.powi(-e);
+    let cross = (d1[0] * s) * (d2[1] * s) - (d1[1] * s) * (d2[0] * s);
+    // doubled area = cross · 4^e ≥ MIN_DOUBLED_AREA, compared in logs (no underflow)
+    cross > 0.0 && cross.ln() + 2.0 * e as f64 * std::f64::consts::LN_2 >= MIN_DOUBLED_AREA.ln()
+}
+
+/// Counts (flipped, degenerate) faces of `uv` and lists the folded ones.
+fn folded_faces(faces: &[[u32; 3]], uv: &[[f64; 2]]) -> (usize, usize, Vec<usize>) {
+    let (mut flipped, mut degenerate, mut bad) = (0, 0, Vec::new());
+    for (f, face) in faces.iter().enumerate() {
+        let [a, b, c] = face.map(|v| uv[v as usize]);
+        if !face_is_valid(a, b, c) {
+            bad.push(f);
+            if orient_scaled(a, b, c) == Sign::Negative {
+                flipped += 1;
+            } else {
+                degenerate += 1;
+            }
+        }
+    }
+    (flipped, degenerate, bad)
+}
+
+/// tan(θ/2) of the unsigned angle θ ∈ [0, π] between `a` and `b` (∞ at θ = π, NaN for a zero
+/// vector). Scale-free: the vectors are scaled by a power of two first.
+fn half_angle_tan<const D: usize>(a: [f64; D], b: [f64; D]) -> f64 {
+    let m = a.iter().chain(b.iter()).fold(0.0f64, |acc, x| acc.max(x.abs()));
+    if !(m > 0.0 && m.is_finite()) {
+        return f64::NAN;
+    }
+    let s = 2f64.powi(-(m.log2().floor() as i32));
+    let (a, b) = (a.map(|x| x * s), b.map(|x| x * s));
+    let dot: f64 = (0..D).map(|k| a[k] * b[k]).sum();
+    let na = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let nb = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+    // |a × b| = sqrt(|a|²|b|² − dot²), stable via Lagrange: |a|²|b|² − dot² = Σ_{k<l} (a_k b_l − a_l b_k)²
+    let mut cr2 = 0.0;
+    for k in 0..D {
+        for l in k + 1..D {
+            let c = a[k] * b[l] - a[l] * b[k];
+            cr2 += c * c;
+        }
+    }
+    let cr = cr2.sqrt();
+    if na == 0.0 || nb == 0.0 {
+        return f64::NAN;
+    }
+    if dot >= 0.0 {
+        cr / (na * nb + dot)
+    } else {
+        (na * nb - dot) / cr
+    }
+}
+
+/// Mean-value weights (unsigned angles) of every vertex over its sorted neighbour list
+/// `neighbors[i]`, from positions `p` (#V × D). Rows of boundary vertices are left empty.
+/// Entries may be 0, ∞ or NaN on degenerate layouts; rows are not normalized.
+fn mean_value_weights<const D: usize>(
+    faces: &[[u32; 3]],
+    neighbors: &[Vec<u32>],
+    is_boundary: &[bool],
+    p: &[[f64; D]],
+) -> Vec<Vec<f64>> {
+    let mut w: Vec<Vec<f64>> =
+        neighbors.iter().zip(is_boundary).map(|(n, &b)| if b { Vec::new() } else { vec![0.0; n.len()] }).collect();
+    let sub = |x: [f64; D], y: [f64; D]| -> [f64; D] { std::array::from_fn(|k| x[k] - y[k]) };
+    let norm = |x: [f64; D]| -> f64 {
+        // hypot-style scaling to avoid underflow of tiny edges
+        let m = x.iter().fold(0.0f64, |acc, v| acc.max(v.abs()));
+        if m == 0.0 || !m.is_finite() {
+            return m;
+        }
+        m * x.iter().map(|v| (v / m) * (v / m)).sum::<f64>().sqrt()
+    };
+    for face in faces {
+        for c in 0..3 {
+            let (i, j, k) = (face[c] as usize, face[(c + 1) % 3] as usize, face[(c + 2) % 3] as usize);
+            if is_boundary[i] {
+                continue;
+            }
+            let (a, b) = (sub(p[j], p[i]), sub(p[k], p[i]));
+            let t = half_angle_tan(a, b);
+            for (other, e) in [(j, a), (k, b)] {
+                if let Ok(slot) = neighbors[i].binary_search(&(other as u32)) {
+                    w[i][slot] += t / norm(e);
+                }
+            }
+        }
+    }
+    w
+}
+
+/// Normalizes every interior row to sum 1 with entries ≥ 1e-12 of the row maximum; returns
+/// false for a row that cannot be (non-finite or all zero), leaving it unchanged.
+fn normalize_row(row: &mut [f64]) -> bool {
+    let max = row.iter().fold(0.0f64, |a, &x| if x.is_nan() { f64::NAN } else { a.max(x) });
+    if !(max.is_finite() && max > 0.0) || row.iter().any(|x| !x.is_finite() || *x < 0.0) {
+        return false;
+    }
+    for x in row.iter_mut() {
+        *x = x.max(1e-12 * max);
+    }
+    let sum: f64 = row.iter().sum();
+    for x in row.iter_mut() {
+        *x /= sum;
+    }
+    true
+}
+
+/// The normalized Tutte weights of every interior vertex (module docs). Errors when a surface
+/// row is degenerate (a zero-area 3D face).
+fn tutte_weights(
+    mesh: &TriMesh,
+    neighbors: &[Vec<u32>],
+    is_boundary: &[bool],
+    uv: &[[f64; 2]],
+    kind: RepairWeights,
+) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    let mut surface = mean_value_weights(&mesh.faces, neighbors, is_boundary, &mesh.positions);
+    for (i, row) in surface.iter_mut().enumerate() {
+        if !is_boundary[i] && !normalize_row(row) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "fold repair: degenerate 3D one-ring at vertex {i} (zero-length edge or zero-area face)"
+            )));
+        }
+    }
+    if kind == RepairWeights::Surface {
+        return Ok(surface);
+    }
+    let mut layout = mean_value_weights(&mesh.faces, neighbors, is_boundary, uv);
+    for (i, row) in layout.iter_mut().enumerate() {
+        if !is_boundary[i] && !normalize_row(row) {
+            row.clone_from(&surface[i]);
+        }
+    }
+    Ok(layout)
+}
+
+/// Solves the Tutte system on the region (`in_region`, interior vertices only) with every other
+/// vertex fixed at `fixed`, one connected component at a time; returns the new positions.
+fn solve_region(
+    neighbors: &[Vec<u32>],
+    weights: &[Vec<f64>],
+    in_region: &[bool],
+    fixed: &[[f64; 2]],
+) -> Result<Vec<[f64; 2]>, AnalysisError> {
+    let n = fixed.len();
+    let mut out = fixed.to_vec();
+    let mut local = vec![usize::MAX; n];
+    let mut seen = vec![false; n];
+    for start in 0..n {
+        if !in_region[start] || seen[start] {
+            continue;
+        }
+        // the component of `start`
+        let mut comp = vec![start];
+        seen[start] = true;
+        let mut head = 0;
+        while head < comp.len() {
+            let v = comp[head];
+            head += 1;
+            for &u in &neighbors[v] {
+                let u = u as usize;
+                if in_region[u] && !seen[u] {
+                    seen[u] = true;
+                    comp.push(u);
+                }
+            }
+        }
+        for (li, &v) in comp.iter().enumerate() {
+            local[v] = li;
+        }
+        // reference point: mean of the fixed neighbours
+        let (mut c, mut count) = ([0.0f64; 2], 0usize);
+        for &v in &comp {
+            for &u in &neighbors[v] {
+                if !in_region[u as usize] {
+                    c[0] += fixed[u as usize][0];
+                    c[1] += fixed[u as usize][1];
+                    count += 1;
+                }
+            }
+        }
+        if count == 0 {
+            return Err(AnalysisError::InvalidInput(format!(
+                "fold repair: region component of vertex {start} touches no fixed vertex"
+            )));
+        }
+        c = [c[0] / count as f64, c[1] / count as f64];
+        let m = comp.len();
+        let mut trip = Vec::with_capacity(m * 8);
+        let mut rhs = faer::Mat::<f64>::zeros(m, 2);
+        for (li, &v) in comp.iter().enumerate() {
+            trip.push(Triplet::new(li, li, 1.0));
+            for (&u, &w) in neighbors[v].iter().zip(&weights[v]) {
+                let u = u as usize;
+                if in_region[u] {
+                    trip.push(Triplet::new(li, local[u], -w));
+                } else {
+                    rhs[(li, 0)] += w * (fixed[u][0] - c[0]);
+                    rhs[(li, 1)] += w * (fixed[u][1] - c[1]);
+                }
+            }
+        }
+        let a = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
+            .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: assembling the Tutte system: {e:?}")))?;
+        let lu = a
+            .sp_lu()
+            .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e:?}")))?;
+        lu.solve_in_place(rhs.as_mut());
+        for (li, &v) in comp.iter().enumerate() {
+            let p = [rhs[(li, 0)] + c[0], rhs[(li, 1)] + c[1]];
+            if !(p[0].is_finite() && p[1].is_finite()) {
+                return Err(AnalysisError::InvalidInput(format!("fold repair: non-finite position of vertex {v}")));
+            }
+            out[v] = p;
+        }
+        for &v in &comp {
+            local[v] = usize::MAX;
+        }
+    }
+    Ok(out)
+}
+
+/// Grows `in_region` by the interior vertices within `rings` edges of `seeds` (the path may
+/// pass through boundary vertices). Returns the number of vertices added.
+fn grow_region(neighbors: &[Vec<u32>], is_boundary: &[bool], seeds: &[usize], rings: usize, in_region: &mut [bool]) -> usize {
+    let n = neighbors.len();
+    let mut depth = vec![usize::MAX; n];
+    let mut queue = VecDeque::new();
+    for &s in seeds {
+        if depth[s] == usize::MAX {
+            depth[s] = 0;
+            queue.push_back(s);
+        }
+    }
+    let mut added = 0;
+    while let Some(v) = queue.pop_front() {
+        if !is_boundary[v] && !in_region[v] {
+            in_region[v] = true;
+            added += 1;
+        }
+        if depth[v] == rings {
+            continue;
+        }
+        for &u in &neighbors[v] {
+            let u = u as usize;
+            if depth[u] == usize::MAX {
+                depth[u] = depth[v] + 1;
+                queue.push_back(u);
+            }
+        }
+    }
+    added
+}
+
+/// Repairs the folded faces of the planar map `uv` (#V) of `mesh` in place by local Tutte
+/// re-embedding with growing regions (module docs); boundary vertices (`is_boundary`, #V) never
+/// move. With `params.enabled == false` only counts the folds.
+///
+/// Errors: a folded face with three boundary vertices (cannot be repaired by moving interior
+/// vertices: the boundary is out of order or has coincident vertices), a degenerate 3D
+/// one-ring, a failed sparse solve, or a whole-disk solve that still folds with both weights
+/// (floating point defeating Floater's theorem).
+pub fn repair_folds(
+    mesh: &TriMesh,
+    is_boundary: &[bool],
+    uv: &mut [[f64; 2]],
+    params: &FoldRepairParams,
+) -> Result<FoldRepairInfo, AnalysisError> {
+    let n = mesh.num_vertices();
+    if uv.len() != n || is_boundary.len() != n {
+        return Err(AnalysisError::InvalidInput(format!(
+            "fold repair: {} uv and {} boundary flags for {n} vertices",
+            uv.len(),
+            is_boundary.len()
+        )));
+    }
+    let (flipped, degenerate, mut bad) = folded_faces(&mesh.faces, uv);
+    let mut info = FoldRepairInfo {
+        enabled: params.enabled,
+        weights: params.weights,
+        flipped_before: flipped,
+        degenerate_before: degenerate,
+        folded_after: bad.len(),
+        ..Default::default()
+    };
+    if !params.enabled || bad.is_empty() {
+        return Ok(info);
+    }
+    if let Some(&f) = bad.iter().find(|&&f| mesh.faces[f].iter().all(|&v| is_boundary[v as usize])) {
+        return Err(AnalysisError::FoldRepair {
+            folded: bad.len(),
+            message: format!("face {f} is folded and has only boundary vertices (boundary out of order or coincident)"),
+        });
+    }
+    let neighbors = Connectivity::of(mesh).vertex_neighbors(n);
+    let mut weights = tutte_weights(mesh, &neighbors, is_boundary, uv, params.weights)?;
+    let original = uv.to_vec();
+    let num_interior = is_boundary.iter().filter(|&&b| !b).count();
+    let mut in_region = vec![false; n];
+    let mut region_size = 0;
+    let mut rings = params.initial_rings.max(1);
+    let result = loop {
+        info.rounds += 1;
+        info.rings = rings;
+        let mut seeds: Vec<usize> = bad.iter().flat_map(|&f| mesh.faces[f].map(|v| v as usize)).collect();
+        seeds.sort_unstable();
+        seeds.dedup();
+        region_size += grow_region(&neighbors, is_boundary, &seeds, rings, &mut in_region);
+        let whole = region_size == num_interior;
+        let candidate = solve_region(&neighbors, &weights, &in_region, &original)?;
+        bad = folded_faces(&mesh.faces, &candidate).2;
+        if bad.is_empty() {
+            info.whole_disk = whole;
+            break candidate;
+        }
+        if whole {
+            info.whole_disk = true;
+            if info.weights == RepairWeights::Layout && !info.surface_fallback {
+                info.surface_fallback = true;
+                weights = tutte_weights(mesh, &neighbors, is_boundary, uv, RepairWeights::Surface)?;
+                let candidate = solve_region(&neighbors, &weights, &in_region, &original)?;
+                bad = folded_faces(&mesh.faces, &candidate).2;
+                if bad.is_empty() {
+                    break candidate;
+                }
+            }
+            return Err(AnalysisError::FoldRepair {
+                folded: bad.len(),
+                message: "the whole-disk Tutte map still folds with layout and surface weights (floating point)".into(),
+            });
+        }
+        rings = rings.saturating_mul(2);
+    };
+    info.region_vertices = region_size;
+    info.folded_after = 0;
+    for (v, (p, q)) in result.iter().zip(&original).enumerate() {
+        if p != q {
+            info.vertices_moved += 1;
+            info.max_displacement = info.max_displacement.max((p[0] - q[0]).hypot(p[1] - q[1]));
+        }
+        uv[v] = *p;
+    }
+    Ok(info)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shapespace_geometry::primitives;
+
+    fn disk_layout(rings: usize) -> (TriMesh, Vec<bool>, Vec<[f64; 2]>) {
+        let mesh = primitives::unit_disk(rings);
+        let is_boundary = Connectivity::of(&mesh).boundary_vertices(mesh.num_vertices());
+        let uv: Vec<[f64; 2]> = mesh.positions.iter().map(|p| [p[0], p[1]]).collect();
+        (mesh, is_boundary, uv)
+    }
+
+    #[test]
+    fn validity_uses_orientation_and_an_area_floor() {
+        assert!(face_is_valid([0.0, 0.0], [1.0, 0.0], [0.0, 1.0]));
+        assert!(!face_is_valid([0.0, 0.0], [0.0, 1.0], [1.0, 0.0]));
+        assert!(!face_is_valid([0.0, 0.0], [1.0, 0.0], [2.0, 0.0]));
+        // tiny but representable triangles are valid; below 1e-300 doubled area they are not
+        assert!(face_is_valid([1e-140, 1e-140], [2e-140, 1e-140], [1e-140, 2e-140]));
+        assert!(face_is_valid([0.0, 0.0], [1e-150, 0.0], [0.0, 1e-150]));
+        assert!(!face_is_valid([0.0, 0.0], [1e-151, 0.0], [0.0, 1e-151]));
+    }
+
+    #[test]
+    fn half_angle_tangent_is_exact_on_known_angles() {
+        let t = half_angle_tan([1.0, 0.0], [0.0, 2.0]);
+        assert!((t - 1.0).abs() < 1e-15);
+        let t = half_angle_tan([1.0, 0.0], [-1.0, 1.0]); // 135°
+        assert!((t - (3.0 * std::f64::consts::PI / 8.0).tan()).abs() < 1e-14);
+        let t = half_angle_tan([1e-200, 0.0, 0.0], [1e-200, 1e-200, 0.0]); // 45°, tiny
+        assert!((t - (std::f64::consts::PI / 8.0).tan()).abs() < 1e-15);
+        assert!(half_angle_tan([0.0, 0.0], [1.0, 0.0]).is_nan());
+    }
+
+    #[test]
+    fn layout_weights_reproduce_an_embedded_map() {
+        let (mesh, is_boundary, uv) = disk_layout(6);
+        let n = mesh.num_vertices();
+        let neighbors = Connectivity::of(&mesh).vertex_neighbors(n);
+        let w = tutte_weights(&mesh, &neighbors, &is_boundary, &uv, RepairWeights::Layout).unwrap();
+        let all_interior: Vec<bool> = is_boundary.iter().map(|b| !b).collect();
+        let out = solve_region(&neighbors, &w, &all_interior, &uv).unwrap();
+        let d = out.iter().zip(&uv).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
+        assert!(d < 1e-14, "max displacement {d:e}");
+    }
+
+    /// The unit test of the issue: fold a known planar disk mesh by pushing an interior vertex
+    /// across its neighbours; the repair restores an embedding, moving only nearby vertices.
+    #[test]
+    fn pushed_vertex_fold_is_repaired_locally() {
+        let (mesh, is_boundary, reference) = disk_layout(8);
+        let n = mesh.num_vertices();
+        let neighbors = Connectivity::of(&mesh).vertex_neighbors(n);
+        // an interior vertex on ring 4 and the direction to its farthest neighbour
+        let v = (0..n).find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9).unwrap();
+        let far = *neighbors[v]
+            .iter()
+            .max_by(|&&a, &&b| {
+                let d = |u: u32| (reference[u as usize][0] - reference[v][0]).hypot(reference[u as usize][1] - reference[v][1]);
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap() as usize;
+        let mut uv = reference.clone();
+        // push v past `far` by half an edge: v's star folds
+        uv[v] = [
+            reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]),
+            reference[far][1] + 0.5 * (reference[far][1] - reference[v][1]),
+        ];
+        let (flipped, _, _) = folded_faces(&mesh.faces, &uv);
+        assert!(flipped >= 2, "the push should fold faces, got {flipped}");
+        for kind in [RepairWeights::Layout, RepairWeights::Surface] {
+            let mut out = uv.clone();
+            let params = FoldRepairParams { weights: kind, ..Default::default() };
+            let info = repair_folds(&mesh, &is_boundary, &mut out, &params).unwrap();
+            let (f, d, _) = folded_faces(&mesh.faces, &out);
+            assert_eq!((f, d), (0, 0), "{kind:?}: {info:?}");
+            assert_eq!(info.flipped_before, flipped);
+            assert_eq!(info.folded_after, 0);
+            assert!(!info.whole_disk, "{kind:?}: {info:?}");
+            assert!(info.vertices_moved < n / 4, "{kind:?}: {info:?}");
+            // vertices far from v do not move
+            for u in 0..n {
+                let dist = (reference[u][0] - reference[v][0]).hypot(reference[u][1] - reference[v][1]);
+                if dist > 0.6 {
+                    assert_eq!(out[u], uv[u], "{kind:?}: vertex {u} at distance {dist} moved");
+                }
+            }
+            if kind == RepairWeights::Layout {
+                // the pushed vertex's layout weights come from its folded star; it lands within
+                // its neighbours' hull, near its old place
+                let e = (out[v][0] - reference[v][0]).hypot(out[v][1] - reference[v][1]);
+                assert!(e < 0.125, "vertex {v} repaired to {:?}, reference {:?}", out[v], reference[v]);
+            }
+        }
+    }
+
+    /// A scrambled map (every interior vertex at a pseudo-random point of the disk) needs the
+    /// whole disk: Floater's theorem then gives an embedding.
+    #[test]
+    fn scrambled_map_is_repaired_on_the_whole_disk() {
+        let (mesh, is_boundary, reference) = disk_layout(10);
+        let mut uv = reference.clone();
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for (v, p) in uv.iter_mut().enumerate() {
+            if !is_boundary[v] {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let r = 0.9 * ((state >> 11) as f64 / (1u64 << 53) as f64).sqrt();
+                let t = (state & 0xffff) as f64 / 65536.0 * std::f64::consts::TAU;
+                *p = [r * t.cos(), r * t.sin()];
+            }
+        }
+        let before = folded_faces(&mesh.faces, &uv).0;
+        assert!(before > 50, "{before}");
+        let info = repair_folds(&mesh, &is_boundary, &mut uv, &FoldRepairParams::default()).unwrap();
+        assert_eq!(folded_faces(&mesh.faces, &uv).2.len(), 0, "{info:?}");
+        assert!(info.whole_disk, "{info:?}");
+        for (v, p) in uv.iter().enumerate() {
+            if is_boundary[v] {
+                assert_eq!(*p, reference[v]);
+            } else {
+                assert!(p[0].hypot(p[1]) < 1.0);
+            }
+        }
+    }
+
+    #[test]
+    fn disabled_repair_only_counts() {
+        let (mesh, is_boundary, reference) = disk_layout(4);
+        let mut uv = reference.clone();
+        let v = (0..mesh.num_vertices()).find(|&v| !is_boundary[v] && v > 0).unwrap();
+        uv[v] = [-uv[v][0] * 3.0, -uv[v][1] * 3.0];
+        let before = uv.clone();
+        let info = repair_folds(&mesh, &is_boundary, &mut uv, &FoldRepairParams { enabled: false, ..Default::default() })
+            .unwrap();
+        assert_eq!(uv, before);
+        assert!(info.flipped_before > 0 && info.folded_after == info.flipped_before + info.degenerate_before);
+        assert_eq!((info.rounds, info.vertices_moved), (0, 0));
+    }
+}
