@@ -16,8 +16,9 @@
 //!   * if the norm test failed, ‖G(h + τδ)‖ is modelled by the quadratic with value ‖G‖ and slope
 //!     −‖G‖ at 0 (the Newton direction's) through the observed value at τ_r; the largest τ
 //!     passing the test under that model is a candidate;
-//!   the next trial is 0.9 × the smallest candidate. On the faces every rejection was a mass
-//!   floor violation by one to a few cells, and this cut the evaluations per step from ~2.4 to ~1.5.
+//!
+//! The next trial is 0.9 × the smallest candidate. On the faces every rejection was a mass floor
+//! violation by one to a few cells, and this cut the evaluations per step from ~2.4 to ~1.5.
 //!
 //! The search gives up below τ = 2^−`max_halvings` (the conditions hold for τ small enough by KMT's
 //! Prop. 6.1, so failing there means a floating-point floor or a pathological start).
