@@ -77,6 +77,8 @@ pub struct DirectedDistance {
     pub status: String,
     /// Whether the tolerance was reached.
     pub converged: bool,
+    /// Cell evaluations (power diagram + restricted integration), including line-search trials.
+    pub evaluations: usize,
 }
 
 /// Solves the semi-discrete OT from `source`'s density to `target`'s points and masses.
@@ -96,9 +98,9 @@ pub fn directed_distance(source: &PreparedShape, target: &PreparedShape, params:
     let (solution, note) = match direct {
         Ok(solution) if solution.converged() => (solution, String::new()),
         first => {
-            let (first_iterations, why) = match &first {
-                Ok(s) => (s.iterations, s.stop.to_string()),
-                Err(e) => (0, e.to_string()),
+            let (first_iterations, first_evaluations, why) = match &first {
+                Ok(s) => (s.iterations, s.evaluations, s.stop.to_string()),
+                Err(e) => (0, 0, e.to_string()),
             };
             let fallback_params = NewtonParams {
                 initial_heights: None,
@@ -107,6 +109,7 @@ pub fn directed_distance(source: &PreparedShape, target: &PreparedShape, params:
             };
             let mut solution = solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(pair_error)?;
             solution.iterations += first_iterations;
+            solution.evaluations += first_evaluations;
             (solution, format!(" (after a direct solve that stopped: {why})"))
         }
     };
@@ -119,6 +122,7 @@ pub fn directed_distance(source: &PreparedShape, target: &PreparedShape, params:
         seconds: start.elapsed().as_secs_f64(),
         status: format!("{}{note}", solution.stop),
         converged,
+        evaluations: solution.evaluations,
     };
     Ok((result, solution.heights))
 }
@@ -156,6 +160,8 @@ pub struct PairRecord {
     pub max_mass_error: f64,
     pub seconds: f64,
     pub status: String,
+    /// Cell evaluations (diagram + integration) of the solve, line-search trials included.
+    pub evaluations: usize,
 }
 
 /// The result of a pairwise run over n shapes.
@@ -223,6 +229,7 @@ pub fn pairwise_distances(shapes: &[Option<PreparedShape>], options: &PairwiseOp
                                     max_mass_error: d.max_mass_error,
                                     seconds: d.seconds,
                                     status: d.status,
+                                    evaluations: d.evaluations,
                                 }
                             }
                             Err(e) => failed_record(&names, s, *t, e.to_string()),
@@ -278,5 +285,6 @@ fn failed_record(names: &[String], s: usize, t: usize, status: String) -> PairRe
         max_mass_error: f64::NAN,
         seconds: 0.0,
         status: format!("failed: {status}"),
+        evaluations: 0,
     }
 }

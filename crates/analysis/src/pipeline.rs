@@ -276,7 +276,7 @@ pub fn run_distances(
     Ok(DistancesRun { matrix, pairs: result.pairs, report })
 }
 
-/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status` (a is the
+/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations` (a is the
 /// source density side, b the target points side).
 pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), AnalysisError> {
     let to_err = |e: csv::Error| AnalysisError::parse(path, 0, e.to_string());

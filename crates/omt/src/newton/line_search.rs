@@ -1,15 +1,37 @@
-//! The damped step of Kitagawa, Mérigot, Thibert [2019, Alg. 1]: τ = 1, ½, ¼, … until every cell
+//! The damped step of Kitagawa, Mérigot, Thibert [2019, Alg. 1]: accept τ when every cell
 //! keeps mass ≥ ε₀ and ‖G(h + τδ)‖₂ ≤ (1 − τ/2)‖G(h)‖₂.
 //!
-//! One deviation from the paper, for speed: the search starts at τ = min(1, 4τ_prev) instead of 1
-//! (τ_prev the previous accepted step), so a long phase of small steps (strong density contrast)
-//! does not re-evaluate the same rejected trials every iteration; the accepted τ can still grow
-//! back to 1 in a few iterations, where the quadratic phase starts. The search gives up below
-//! τ = 2^−`max_halvings` (the conditions hold for τ small enough by KMT's Prop. 6.1, so failing
-//! there means a floating-point floor or a pathological start).
+//! The acceptance test is exactly KMT's; two deviations in how the trial τ are chosen, for speed
+//! (measured on face pairs, see ARCHITECTURE.md):
+//! - The search starts at τ = min(1, `growth`·τ_prev) (τ_prev the previous accepted step; the
+//!   caller picks the growth, 1.5), so a long phase of small steps (strong density contrast)
+//!   does not re-evaluate the same rejected trials every iteration, while τ can still grow back
+//!   to 1 in a few iterations, where the quadratic phase starts.
+//! - After a rejected trial τ_r the next trial is not τ_r/2 but a model prediction clamped to
+//!   [τ_r/10, 0.7·τ_r] (safeguarded backtracking, so the search still terminates and the KMT
+//!   lower bound on acceptable τ still gives an accepted τ within a factor 10 of it):
+//!   * for each cell whose mass fell below ε₀, the mass along the line is modelled as a shrinking
+//!     similar polygon, m(τ) = m(0)(1 − τ/τ₀)², fitted through m(0) and m(τ_r) (m(τ_r) = 0 gives
+//!     τ₀ = τ_r, the most optimistic vanishing point); its root of m = ε₀ is a candidate;
+//!   * if the norm test failed, ‖G(h + τδ)‖ is modelled by the quadratic with value ‖G‖ and slope
+//!     −‖G‖ at 0 (the Newton direction's) through the observed value at τ_r; the largest τ
+//!     passing the test under that model is a candidate;
+//!
+//! The next trial is 0.9 × the smallest candidate. On the faces every rejection was a mass floor
+//! violation by one to a few cells, and this cut the evaluations per step from ~2.4 to ~1.5.
+//!
+//! The search gives up below τ = 2^−`max_halvings` (the conditions hold for τ small enough by KMT's
+//! Prop. 6.1, so failing there means a floating-point floor or a pathological start).
 
 use super::{errors, evaluate, Backend, Evaluation};
+use crate::cells::CellIntegrals;
 use crate::error::OmtError;
+
+/// Safeguards of the backtracking: the next trial lies in [LOWER·τ_r, UPPER·τ_r].
+const LOWER: f64 = 0.1;
+const UPPER: f64 = 0.7;
+/// Factor applied to the model's predicted largest acceptable τ.
+const SAFETY: f64 = 0.9;
 
 /// An accepted step.
 pub(crate) struct AcceptedStep {
@@ -18,23 +40,60 @@ pub(crate) struct AcceptedStep {
     pub tau: f64,
 }
 
-/// The line search's result: the accepted step (None after `max_halvings` failed halvings),
-/// the number of halvings and the time spent.
+/// The line search's result: the accepted step (None when τ would fall below
+/// 2^−max_halvings), the number of rejected trials by cause and the time spent.
 pub(crate) struct LineSearchOutcome {
     pub accepted: Option<AcceptedStep>,
-    pub halvings: usize,
+    /// Trials rejected because some cell mass fell below ε₀.
+    pub rejected_min_mass: usize,
+    /// Trials rejected (with every mass ≥ ε₀) by the gradient-norm test.
+    pub rejected_norm: usize,
     pub t_diagram: f64,
     pub t_integration: f64,
 }
 
-/// Searches τ ∈ {τ_start, τ_start/2, …} down to 2^−max_halvings for the KMT conditions from
-/// heights `heights` along `delta` (both #N), with current gradient norm `gradient_norm`.
+impl LineSearchOutcome {
+    /// Rejected trials (the former "halvings").
+    pub fn rejections(&self) -> usize {
+        self.rejected_min_mass + self.rejected_norm
+    }
+}
+
+/// The next trial after rejecting `tau` (see the module docs): masses `m0` at τ = 0 and `m1`
+/// at `tau`, gradient norms `g0` at 0 and `g1` at `tau`.
+fn next_trial(tau: f64, m0: &[f64], m1: &[f64], epsilon0: f64, g0: f64, g1: f64) -> f64 {
+    let mut predicted = f64::INFINITY;
+    for (&a, &b) in m0.iter().zip(m1) {
+        if b < epsilon0 && a > b && a > epsilon0 {
+            let (r_eps, r_1) = ((epsilon0 / a).sqrt(), (b.max(0.0) / a).sqrt());
+            predicted = predicted.min(tau * (1.0 - r_eps) / (1.0 - r_1));
+        }
+    }
+    if g1 > (1.0 - 0.5 * tau) * g0 {
+        let curvature = (g1 - g0 + g0 * tau) / (tau * tau);
+        if curvature > 0.0 {
+            predicted = predicted.min(g0 / (2.0 * curvature));
+        }
+    }
+    // NaN (not expected) falls back to halving.
+    let next = SAFETY * predicted;
+    if next.is_nan() {
+        0.5 * tau
+    } else {
+        next.clamp(LOWER * tau, UPPER * tau)
+    }
+}
+
+/// Searches τ from `tau_start` down (see `next_trial`) to 2^−max_halvings for the KMT
+/// conditions from heights `heights` (cells `current`) along `delta` (both #N), with current
+/// gradient norm `gradient_norm`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn damped_step(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
     targets: &[f64],
     heights: &[f64],
+    current: &CellIntegrals,
     delta: &[f64],
     gradient_norm: f64,
     epsilon0: f64,
@@ -43,7 +102,8 @@ pub(crate) fn damped_step(
 ) -> Result<LineSearchOutcome, OmtError> {
     let mut tau = tau_start.min(1.0);
     let tau_min = 0.5f64.powi(max_halvings.min(1000) as i32);
-    let mut outcome = LineSearchOutcome { accepted: None, halvings: 0, t_diagram: 0.0, t_integration: 0.0 };
+    let mut outcome =
+        LineSearchOutcome { accepted: None, rejected_min_mass: 0, rejected_norm: 0, t_diagram: 0.0, t_integration: 0.0 };
     loop {
         let trial: Vec<f64> = heights.iter().zip(delta).map(|(h, d)| h + tau * d).collect();
         let evaluation = evaluate(backend, points, &trial)?;
@@ -55,10 +115,15 @@ pub(crate) fn damped_step(
             outcome.accepted = Some(AcceptedStep { heights: trial, evaluation, tau });
             return Ok(outcome);
         }
-        if tau * 0.5 < tau_min {
+        if min_mass < epsilon0 {
+            outcome.rejected_min_mass += 1;
+        } else {
+            outcome.rejected_norm += 1;
+        }
+        let next = next_trial(tau, &current.masses, &evaluation.cells.masses, epsilon0, gradient_norm, norm);
+        if next < tau_min {
             return Ok(outcome);
         }
-        tau *= 0.5;
-        outcome.halvings += 1;
+        tau = next;
     }
 }

@@ -39,7 +39,7 @@
 //! - **Pinning.** The unknown with the largest target mass (first one on ties) is pinned for the
 //!   whole solve (step 0), so the sparsity pattern only changes when neighbours change.
 //! - **Stops.** `Converged` when $\max_i |G_i|/\nu_i \le$ `tolerance`; `IterationCap`; `Stalled` when
-//!   the line search needs more than `max_halvings` halvings (typically the floating-point floor
+//!   the line search would need τ below 2^−`max_halvings` (typically the floating-point floor
 //!   of the mass error, far below the default tolerance), or when a non-finite value appears.
 
 mod line_search;
@@ -55,6 +55,9 @@ use crate::power_diagram::PowerDiagram;
 use crate::restricted::RestrictedIntegrator;
 
 pub use multiscale::nearest_points;
+
+/// The line search of a step starts at min(1, TAU_GROWTH × the previous accepted τ).
+const TAU_GROWTH: f64 = 1.5;
 
 /// Which cell integrator the solver calls.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -151,8 +154,14 @@ pub struct IterationRecord {
     pub gradient_norm: f64,
     /// Accepted step length τ.
     pub step: f64,
-    /// Number of halvings of τ.
+    /// Number of rejected line-search trials (reductions of τ; not always by ½).
     pub halvings: usize,
+    /// Line-search trials (diagram + integration evaluations) of this step.
+    pub evaluations: usize,
+    /// Rejected trials with some cell mass below ε₀.
+    pub rejected_min_mass: usize,
+    /// Rejected trials with every mass ≥ ε₀ but ‖G(h + τδ)‖ > (1 − τ/2)‖G(h)‖.
+    pub rejected_norm: usize,
     /// min_i μ(W_i) after the step.
     pub min_cell_mass: f64,
     /// Seconds building power diagrams (all line-search trials).
@@ -176,6 +185,9 @@ pub struct OtSolution {
     pub cost: f64,
     /// Newton steps taken.
     pub iterations: usize,
+    /// Cell evaluations (power diagram + integration) of all line searches, including the
+    /// initial one of each stage.
+    pub evaluations: usize,
     /// max_i |μ(W_i) − ν_i| / ν_i at the final heights (ν rescaled).
     pub max_relative_error: f64,
     /// The tolerance that was asked for.
@@ -422,6 +434,7 @@ pub fn solve_ot(
     let mut heights: Option<Vec<f64>> = None;
     let mut log = Vec::new();
     let mut iterations = 0;
+    let mut stage_evaluations = 0;
     for k in 1..stages {
         let t = k as f64 / stages as f64;
         let stage_measure = SourceMeasure {
@@ -437,6 +450,7 @@ pub fn solve_ot(
         };
         let stage = solve_single(&stage_measure, points, masses, &stage_params, Instant::now())?;
         iterations += stage.iterations;
+        stage_evaluations += stage.evaluations;
         log.extend(stage.log);
         heights = Some(stage.heights);
     }
@@ -444,6 +458,7 @@ pub fn solve_ot(
     let mut solution = solve_single(measure, points, masses, &final_params, Instant::now())?;
     solution.start = Start::DensityContinuation { stages, iterations };
     solution.iterations += iterations;
+    solution.evaluations += stage_evaluations;
     log.append(&mut solution.log);
     solution.log = log;
     solution.t_total = t_begin.elapsed().as_secs_f64();
@@ -473,6 +488,7 @@ fn solve_single(
     let mut heights = heights.unwrap_or_else(|| points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect());
     let backend = Backend::new(measure, params.integrator);
     let mut current = evaluate(&backend, points, &heights)?;
+    let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = source_barycenter(measure);
         // Plain Voronoi first (if that was not the start), then contracted ones.
@@ -481,6 +497,7 @@ fn solve_single(
             scale *= 0.5;
             heights = contracted_voronoi_heights(points, center, scale);
             current = evaluate(&backend, points, &heights)?;
+            start_evaluations += 1;
             if current.cells.masses.iter().all(|&m| m > 0.0) {
                 break;
             }
@@ -530,6 +547,7 @@ fn solve_single(
             points,
             &targets,
             &heights,
+            &current.cells,
             &delta,
             norm,
             epsilon0,
@@ -541,7 +559,10 @@ fn solve_single(
             max_relative_error: max_rel,
             gradient_norm: norm,
             step: 0.0,
-            halvings: outcome.halvings,
+            halvings: outcome.rejections(),
+            evaluations: outcome.rejections() + usize::from(outcome.accepted.is_some()),
+            rejected_min_mass: outcome.rejected_min_mass,
+            rejected_norm: outcome.rejected_norm,
             min_cell_mass: current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min),
             t_diagram: outcome.t_diagram,
             t_integration: outcome.t_integration,
@@ -553,7 +574,7 @@ fn solve_single(
                 current = step.evaluation;
                 (max_rel, norm, gradient) = errors(&current.cells, &targets);
                 record.step = step.tau;
-                tau_start = (4.0 * step.tau).min(1.0);
+                tau_start = (TAU_GROWTH * step.tau).min(1.0);
                 record.max_relative_error = max_rel;
                 record.gradient_norm = norm;
                 record.min_cell_mass = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
@@ -579,6 +600,7 @@ fn solve_single(
         cells: current.cells,
         cost,
         iterations,
+        evaluations: start_evaluations + log.iter().map(|r| r.evaluations).sum::<usize>(),
         max_relative_error: max_rel,
         tolerance: params.tolerance,
         stop,
