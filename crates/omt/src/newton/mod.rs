@@ -56,8 +56,10 @@ use crate::restricted::RestrictedIntegrator;
 
 pub use multiscale::nearest_points;
 
-/// The line search of a step starts at min(1, TAU_GROWTH × the previous accepted τ).
+/// The line search of a step starts at min(1, g × the previous accepted τ), with g =
+/// TAU_GROWTH_FREE when that step was accepted at its first trial and TAU_GROWTH otherwise.
 const TAU_GROWTH: f64 = 1.5;
+const TAU_GROWTH_FREE: f64 = 4.0;
 
 /// Which cell integrator the solver calls.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -574,7 +576,8 @@ fn solve_single(
                 current = step.evaluation;
                 (max_rel, norm, gradient) = errors(&current.cells, &targets);
                 record.step = step.tau;
-                tau_start = (TAU_GROWTH * step.tau).min(1.0);
+                let growth = if outcome.rejected_min_mass + outcome.rejected_norm == 0 { TAU_GROWTH_FREE } else { TAU_GROWTH };
+                tau_start = (growth * step.tau).min(1.0);
                 record.max_relative_error = max_rel;
                 record.gradient_norm = norm;
                 record.min_cell_mass = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
