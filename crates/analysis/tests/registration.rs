@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use shapespace_analysis::registration::{
-    disk_image, register, register_with_maps, HarmonicWeights, registration_area_params, registration_metrics, DiskImage, Landmarks,
+    disk_image, register, register_with_maps, HarmonicParams, HarmonicWeights, registration_area_params, registration_metrics, DiskImage, Landmarks,
     MetricParams, Method, RegistrationParams,
 };
 use shapespace_analysis::AnalysisError;
@@ -50,7 +50,7 @@ fn params(method: Method) -> RegistrationParams {
 fn self_registration_is_the_identity() {
     let s = wolf(0);
     let (_, phi, _) = &maps()[0];
-    let reg = register_with_maps(&s, &s, phi, phi, &named(&markers()), HarmonicWeights::Planar).unwrap();
+    let reg = register_with_maps(&s, &s, phi, phi, &named(&markers()), &HarmonicParams::default()).unwrap();
     let met = registration_metrics(&s, &s, &reg, &MetricParams::default()).unwrap();
     let g = met.geodesic.as_ref().unwrap();
     let scale = shapespace_geometry::quantities::total_area(&s).sqrt();
@@ -95,7 +95,7 @@ fn landmarks_map_onto_their_partners() {
     let lm = named(&markers());
     let scale = shapespace_geometry::quantities::total_area(&s2).sqrt();
     for (method, phi1, phi2) in maps() {
-        let reg = register_with_maps(&s1, &s2, phi1, phi2, &lm, HarmonicWeights::Planar).unwrap();
+        let reg = register_with_maps(&s1, &s2, phi1, phi2, &lm, &HarmonicParams::default()).unwrap();
         for (&(a, b), name) in lm.pairs.iter().zip(&lm.names) {
             let (p, q) = (reg.points[a as usize], s2.positions[b as usize]);
             let d = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt() / scale;
@@ -113,7 +113,7 @@ fn omt_beats_conformal_on_the_wolf_poses() {
     let mut results = Vec::new();
     for (method, phi0, phi1) in maps() {
         for (a, b, pa, pb) in [(&s0, &s1, phi0, phi1), (&s1, &s0, phi1, phi0)] {
-            let reg = register_with_maps(a, b, pa, pb, &lm, HarmonicWeights::Planar).unwrap();
+            let reg = register_with_maps(a, b, pa, pb, &lm, &HarmonicParams::default()).unwrap();
             let met = registration_metrics(a, b, &reg, &MetricParams::default()).unwrap();
             let g = met.geodesic.as_ref().unwrap().summary;
             eprintln!(

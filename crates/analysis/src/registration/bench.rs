@@ -14,7 +14,7 @@ use crate::area_preserving::AreaPreservingParams;
 use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics, MetricParams, RegistrationMetrics};
-use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicWeights, Landmarks, Method, Registration};
+use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Registration};
 
 /// Histogram range of the curvature difference and the area distortion (Su et al. 2015, Fig. 7).
 pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
@@ -138,6 +138,8 @@ pub struct BenchRow {
     pub status: String,
     pub flipped_ratio: f64,
     pub flipped_ratio_3d: f64,
+    /// Folded faces of g ∘ φ₁ before its fold repair (exact predicate).
+    pub harmonic_folded: usize,
     pub curvature_median: f64,
     pub curvature_mean: f64,
     pub area_distortion_median: f64,
@@ -211,7 +213,7 @@ pub fn register_bench(
     out: &Path,
     methods: &[Method],
     params: &AreaPreservingParams,
-    weights: HarmonicWeights,
+    harmonic: &HarmonicParams,
     metric_params: &MetricParams,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchResult, AnalysisError> {
@@ -270,6 +272,7 @@ pub fn register_bench(
                         status: "ok".into(),
                         flipped_ratio: f64::NAN,
                         flipped_ratio_3d: f64::NAN,
+                        harmonic_folded: 0,
                         curvature_median: f64::NAN,
                         curvature_mean: f64::NAN,
                         area_distortion_median: f64::NAN,
@@ -287,7 +290,7 @@ pub fn register_bench(
                             &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, weights).map_err(|e| error_chain(&e))?;
+                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, harmonic).map_err(|e| error_chain(&e))?;
                         let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params).map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
                     })();
@@ -295,6 +298,7 @@ pub fn register_bench(
                         Ok((reg, met)) => {
                             row.flipped_ratio = met.flipped_area_ratio;
                             row.flipped_ratio_3d = met.flipped_area_ratio_3d;
+                            row.harmonic_folded = reg.harmonic_folded;
                             row.curvature_median = met.curvature_summary.median;
                             row.curvature_mean = met.curvature_summary.mean;
                             row.area_distortion_median = met.area_distortion_summary.median;

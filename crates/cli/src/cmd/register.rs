@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::Context;
 use shapespace_analysis::registration::bench::{register_bench, write_registration};
 use shapespace_analysis::registration::{
-    register, registration_area_params, registration_metrics, Landmarks, MetricParams, Method, RegistrationParams,
+    register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, MetricParams, Method, RegistrationParams,
 };
 use shapespace_conformal::MarkerFile;
 
@@ -38,10 +38,18 @@ pub struct RegisterArgs {
     /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
     #[arg(long)]
     pub out: PathBuf,
-    /// Cotangent weights of the harmonic map g: `planar` (of the planar mesh φ₁(S₁), signed) or
-    /// `intrinsic-delaunay`.
+    /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
+    /// signed), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's weights of
+    /// φ₁(S₁)) or `intrinsic-delaunay`.
     #[arg(long, default_value = "planar")]
     pub weights: String,
+    /// Repair folded faces of g (boundary and landmarks held fixed).
+    #[arg(long)]
+    pub repair_g_folds: bool,
+    /// Steps in which the landmarks move from φ₁ to φ₂ (each step uses the weights of the
+    /// previous layout).
+    #[arg(long, default_value_t = 1)]
+    pub landmark_steps: usize,
     /// Number of sampled vertices for the geodesic error (when both meshes share the vertex order).
     #[arg(long, default_value_t = 300)]
     pub samples: usize,
@@ -62,10 +70,18 @@ pub struct RegisterBenchArgs {
     /// Comma-separated methods.
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
-    /// Cotangent weights of the harmonic map g: `planar` (of the planar mesh φ₁(S₁), signed) or
-    /// `intrinsic-delaunay`.
+    /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
+    /// signed), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's weights of
+    /// φ₁(S₁)) or `intrinsic-delaunay`.
     #[arg(long, default_value = "planar")]
     pub weights: String,
+    /// Repair folded faces of g (boundary and landmarks held fixed).
+    #[arg(long)]
+    pub repair_g_folds: bool,
+    /// Steps in which the landmarks move from φ₁ to φ₂ (each step uses the weights of the
+    /// previous layout).
+    #[arg(long, default_value_t = 1)]
+    pub landmark_steps: usize,
     /// Number of sampled vertices for the geodesic error.
     #[arg(long, default_value_t = 300)]
     pub samples: usize,
@@ -109,7 +125,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         source_markers: m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         target_markers: m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         area_preserving: registration_area_params(),
-        harmonic_weights: args.weights.parse()?,
+        harmonic: HarmonicParams { weights: args.weights.parse()?, fold_repair: args.repair_g_folds, landmark_steps: args.landmark_steps },
     };
     eprintln!("register: {} landmark pairs, method {method}", landmarks.len());
     let t = Instant::now();
@@ -121,7 +137,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let extra = serde_json::json!({
         "source": args.source, "target": args.target, "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
-        "geodesic_samples": args.samples, "seed": args.seed, "harmonic_weights": args.weights,
+        "geodesic_samples": args.samples, "seed": args.seed, "harmonic_weights": args.weights, "repair_g_folds": args.repair_g_folds,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
     eprintln!(
@@ -149,7 +165,8 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
-    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), args.weights.parse()?, &mp, |m| eprintln!("register-bench: {m}"))
+    let harmonic = HarmonicParams { weights: args.weights.parse()?, fold_repair: args.repair_g_folds, landmark_steps: args.landmark_steps };
+    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), &harmonic, &mp, |m| eprintln!("register-bench: {m}"))
         .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
         "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. mean | geodesic err. median | geodesic err. mean | s/pair |"
