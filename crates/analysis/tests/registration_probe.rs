@@ -39,15 +39,25 @@ fn probe_harmonic_variants() {
                 d
             })
             .collect();
-        let variants = [
-            (HarmonicWeights::Planar, 1, false),
-            (HarmonicWeights::Planar, 1, true),
-            (HarmonicWeights::Planar, 4, true),
-            (HarmonicWeights::MeanValue, 1, false),
-            (HarmonicWeights::MeanValue, 1, true),
-            (HarmonicWeights::IntrinsicDelaunay, 1, false),
-            (HarmonicWeights::IntrinsicDelaunay, 1, true),
-        ];
+        let variants: Vec<(HarmonicWeights, usize, bool)> = match std::env::var("PROBE_VARIANTS") {
+            // e.g. planar:8:1,mean-value:1:0
+            Ok(v) => v
+                .split(',')
+                .map(|t| {
+                    let f: Vec<&str> = t.split(':').collect();
+                    (f[0].parse().unwrap(), f[1].parse().unwrap(), f[2] == "1")
+                })
+                .collect(),
+            Err(_) => vec![
+                (HarmonicWeights::Planar, 1, false),
+                (HarmonicWeights::Planar, 1, true),
+                (HarmonicWeights::Planar, 4, true),
+                (HarmonicWeights::MeanValue, 1, false),
+                (HarmonicWeights::MeanValue, 1, true),
+                (HarmonicWeights::IntrinsicDelaunay, 1, false),
+                (HarmonicWeights::IntrinsicDelaunay, 1, true),
+            ],
+        };
         for (lmk, lname) in [(&lm, "landmarks"), (&none, "no-landmarks")] {
             for &(w, rep, fr) in &variants {
                 if lname == "no-landmarks" && (rep > 1 || fr) {
@@ -87,6 +97,9 @@ fn probe_harmonic_variants() {
                             *a += v;
                         }
                         k += 1.0;
+                        if std::env::var("PROBE_VERBOSE").is_ok() {
+                            eprintln!("  {i}->{j}: g folded {} left {:?} 3D flipped {}", reg.harmonic_folded, reg.harmonic_fold_repair, met.flipped_faces_3d);
+                        }
                     }
                 }
                 let a = acc.map(|x| x / k);

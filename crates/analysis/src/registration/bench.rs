@@ -206,6 +206,7 @@ fn stem(p: &Path) -> String {
 /// mean over pairs of the fraction of samples under each threshold) and pooled histograms per method (all evaluated vertices of all pairs)
 /// `curvature_difference.{png,svg}` and `area_distortion.{png,svg}` into `out`. A pair whose
 /// disk map fails is recorded with its error and NaN measures; the benchmark continues.
+/// g of each method: `harmonic(method)` (e.g. [`HarmonicParams::for_method`]).
 /// `seconds` of a pair = both disk maps + harmonic map + composition (a registration from
 /// scratch), not the metrics.
 pub fn register_bench(
@@ -213,7 +214,7 @@ pub fn register_bench(
     out: &Path,
     methods: &[Method],
     params: &AreaPreservingParams,
-    harmonic: &HarmonicParams,
+    harmonic: &dyn Fn(Method) -> HarmonicParams,
     metric_params: &MetricParams,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchResult, AnalysisError> {
@@ -290,7 +291,7 @@ pub fn register_bench(
                             &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, harmonic).map_err(|e| error_chain(&e))?;
+                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method)).map_err(|e| error_chain(&e))?;
                         let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params).map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
                     })();
