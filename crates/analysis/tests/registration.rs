@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use shapespace_analysis::registration::{
-    disk_image, register, register_with_maps, HarmonicParams, HarmonicWeights, registration_area_params, registration_metrics, DiskImage, Landmarks,
+    disk_image, register, register_with_maps, HarmonicParams, registration_area_params, registration_metrics, DiskImage, Landmarks,
     MetricParams, Method, RegistrationParams,
 };
 use shapespace_analysis::AnalysisError;

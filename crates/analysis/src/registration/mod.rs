@@ -31,6 +31,13 @@
 //! drops from 0.032 to 0.024. The price: the folds of φ₁ stay in g (flipped area 3.6% instead
 //! of 2.3%).
 //!
+//! Default g for OMT ([`HarmonicParams::for_method`], measured in ARCHITECTURE.md): planar
+//! weights; if one solve folds, the landmarks move to their targets in 16 steps (each solved
+//! with the weights of the previous layout), then folded faces are untangled with the boundary
+//! and landmarks fixed ([`crate::fold_repair::untangle_kernels`]): 0 folded faces of g on all
+//! six wolf pairs (one solve: 9.2 per pair), geodesic mean 0.0282 (one solve: 0.0292). Not a
+//! guarantee.
+//!
 //! Radó's theorem makes g bijective only without interior constraints; hard landmark pins can
 //! fold it (DESIGN.md), and the disk maps themselves may fold: [`metrics`] measures flips.
 
@@ -115,8 +122,8 @@ pub struct HarmonicParams {
     /// [`crate::fold_repair::repair_folds`] does not apply: with landmarks held, its whole-disk
     /// solve still folds on every wolf pair.)
     pub fold_repair: bool,
-    /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k); each step
-    /// solves with the weights of the previous step's layout (1: one solve on φ₁).
+    /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k) when one
+    /// solve on φ₁ folds; each step solves with the weights of the previous step's layout.
     pub landmark_steps: usize,
 }
 
@@ -300,6 +307,8 @@ pub struct Registration {
     /// Folded faces of g ∘ φ₁ (exact predicate, [`crate::fold_repair::count_folded_faces`])
     /// as computed, before any fold repair.
     pub harmonic_folded: usize,
+    /// Landmark steps used: 1, or [`HarmonicParams::landmark_steps`] when one solve folded.
+    pub harmonic_steps: usize,
     /// What the fold repair of g did (when [`HarmonicParams::fold_repair`] is on).
     pub harmonic_fold_repair: Option<UntangleInfo>,
     /// Stage timings.
@@ -350,21 +359,29 @@ pub fn register_with_maps(
     let conn1 = Connectivity::of(source);
     let loops = conn1.boundary_loops(&source.faces);
     let boundary: Vec<(u32, [f64; 2])> = loops.iter().flatten().map(|&v| (v, phi1.uv[v as usize])).collect();
-    // K steps: the landmarks move along the straight segments φ₁(l1_k) → φ₂(l2_k); step s
-    // solves with the weights of the previous step's layout (step 1: φ₁)
-    let steps = harmonic.landmark_steps.max(1);
-    let mut harmonic_uv = phi1.uv.clone();
-    for s in 1..=steps {
-        let t = s as f64 / steps as f64;
-        let pins: Vec<(u32, [f64; 2])> = landmarks
-            .pairs
-            .iter()
-            .map(|&(a, b)| {
-                let (x, y) = (phi1.uv[a as usize], phi2.uv[b as usize]);
-                (a, if s == steps { y } else { [x[0] + t * (y[0] - x[0]), x[1] + t * (y[1] - x[1])] })
-            })
-            .collect();
-        harmonic_uv = harmonic_step(source, &harmonic_uv, &boundary, pins, harmonic.weights)?;
+    // one solve on φ₁; if it folds, K steps: the landmarks move along the straight segments
+    // φ₁(l1_k) → φ₂(l2_k), step s solved with the weights of the previous step's layout
+    let solve_in_steps = |steps: usize| -> Result<Vec<[f64; 2]>, AnalysisError> {
+        let mut uv = phi1.uv.clone();
+        for s in 1..=steps {
+            let t = s as f64 / steps as f64;
+            let pins: Vec<(u32, [f64; 2])> = landmarks
+                .pairs
+                .iter()
+                .map(|&(a, b)| {
+                    let (x, y) = (phi1.uv[a as usize], phi2.uv[b as usize]);
+                    (a, if s == steps { y } else { [x[0] + t * (y[0] - x[0]), x[1] + t * (y[1] - x[1])] })
+                })
+                .collect();
+            uv = harmonic_step(source, &uv, &boundary, pins, harmonic.weights)?;
+        }
+        Ok(uv)
+    };
+    let mut harmonic_uv = solve_in_steps(1)?;
+    let mut steps_used = 1;
+    if harmonic.landmark_steps > 1 && count_folded_faces(&source.faces, &harmonic_uv) > 0 {
+        harmonic_uv = solve_in_steps(harmonic.landmark_steps)?;
+        steps_used = harmonic.landmark_steps;
     }
     let harmonic_folded = count_folded_faces(&source.faces, &harmonic_uv);
     let harmonic_fold_repair = if harmonic.fold_repair && harmonic_folded > 0 {
@@ -418,6 +435,7 @@ pub fn register_with_maps(
         num_snapped,
         max_snap_distance,
         harmonic_folded,
+        harmonic_steps: steps_used,
         harmonic_fold_repair,
         timings: RegistrationTimings {
             source_map: phi1.seconds,
