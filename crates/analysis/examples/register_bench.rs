@@ -12,7 +12,7 @@ fn main() {
     let out = PathBuf::from(args.get(2).map_or("/tmp/register_bench", String::as_str));
     let methods: Vec<Method> =
         args.get(3).map_or("omt,conformal", String::as_str).split(',').map(|m| m.parse().expect("method")).collect();
-    let res = register_bench(&dataset, &out, &methods, &shapespace_analysis::registration::registration_area_params(), Default::default(), &MetricParams::default(), |m| {
+    let res = register_bench(&dataset, &out, &methods, &shapespace_analysis::registration::registration_area_params(), &shapespace_analysis::registration::HarmonicParams::for_method, &MetricParams::default(), |m| {
         eprintln!("{m}")
     })
     .expect("bench");

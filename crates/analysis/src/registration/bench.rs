@@ -14,7 +14,7 @@ use crate::area_preserving::AreaPreservingParams;
 use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics, MetricParams, RegistrationMetrics};
-use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicWeights, Landmarks, Method, Registration};
+use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Registration};
 
 /// Histogram range of the curvature difference and the area distortion (Su et al. 2015, Fig. 7).
 pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
@@ -138,6 +138,8 @@ pub struct BenchRow {
     pub status: String,
     pub flipped_ratio: f64,
     pub flipped_ratio_3d: f64,
+    /// Folded faces of g ∘ φ₁ before its fold repair (exact predicate).
+    pub harmonic_folded: usize,
     pub curvature_median: f64,
     pub curvature_mean: f64,
     pub area_distortion_median: f64,
@@ -204,6 +206,7 @@ fn stem(p: &Path) -> String {
 /// mean over pairs of the fraction of samples under each threshold) and pooled histograms per method (all evaluated vertices of all pairs)
 /// `curvature_difference.{png,svg}` and `area_distortion.{png,svg}` into `out`. A pair whose
 /// disk map fails is recorded with its error and NaN measures; the benchmark continues.
+/// g of each method: `harmonic(method)` (e.g. [`HarmonicParams::for_method`]).
 /// `seconds` of a pair = both disk maps + harmonic map + composition (a registration from
 /// scratch), not the metrics.
 pub fn register_bench(
@@ -211,7 +214,7 @@ pub fn register_bench(
     out: &Path,
     methods: &[Method],
     params: &AreaPreservingParams,
-    weights: HarmonicWeights,
+    harmonic: &dyn Fn(Method) -> HarmonicParams,
     metric_params: &MetricParams,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchResult, AnalysisError> {
@@ -270,6 +273,7 @@ pub fn register_bench(
                         status: "ok".into(),
                         flipped_ratio: f64::NAN,
                         flipped_ratio_3d: f64::NAN,
+                        harmonic_folded: 0,
                         curvature_median: f64::NAN,
                         curvature_mean: f64::NAN,
                         area_distortion_median: f64::NAN,
@@ -287,7 +291,7 @@ pub fn register_bench(
                             &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, weights).map_err(|e| error_chain(&e))?;
+                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method)).map_err(|e| error_chain(&e))?;
                         let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params).map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
                     })();
@@ -295,6 +299,7 @@ pub fn register_bench(
                         Ok((reg, met)) => {
                             row.flipped_ratio = met.flipped_area_ratio;
                             row.flipped_ratio_3d = met.flipped_area_ratio_3d;
+                            row.harmonic_folded = reg.harmonic_folded;
                             row.curvature_median = met.curvature_summary.median;
                             row.curvature_mean = met.curvature_summary.mean;
                             row.area_distortion_median = met.area_distortion_summary.median;

@@ -31,6 +31,13 @@
 //! drops from 0.032 to 0.024. The price: the folds of φ₁ stay in g (flipped area 3.6% instead
 //! of 2.3%).
 //!
+//! Default g for OMT ([`HarmonicParams::for_method`], measured in ARCHITECTURE.md): planar
+//! weights; if one solve folds, the landmarks move to their targets in 16 steps (each solved
+//! with the weights of the previous layout), then folded faces are untangled with the boundary
+//! and landmarks fixed ([`crate::fold_repair::untangle_kernels`]): 0 folded faces of g on all
+//! six wolf pairs (one solve: 9.2 per pair), geodesic mean 0.0282 (one solve: 0.0292). Not a
+//! guarantee.
+//!
 //! Radó's theorem makes g bijective only without interior constraints; hard landmark pins can
 //! fold it (DESIGN.md), and the disk maps themselves may fold: [`metrics`] measures flips.
 
@@ -46,12 +53,13 @@ use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::area_preserving::{area_preserving_map, AreaPreservingParams};
 use crate::error::AnalysisError;
+use crate::fold_repair::{count_folded_faces, mean_value_tutte_map, untangle_kernels, UntangleInfo};
 use crate::point_location::PointLocator;
 
 pub use landmarks::Landmarks;
 pub use metrics::{registration_metrics, MetricParams, RegistrationMetrics};
 
-/// Cotangent weights of the harmonic map g.
+/// Weights of the harmonic map g.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum HarmonicWeights {
@@ -61,23 +69,89 @@ pub enum HarmonicWeights {
     /// identity. Solved by sparse LU (the matrix need not be definite). Default.
     #[default]
     Planar,
+    /// The planar cotangent weights with every negative edge weight (obtuse pairs of angles,
+    /// folded faces) set to 0: a convex-combination map where every vertex keeps a positive
+    /// weight, but linear precision is lost at the clamped edges.
+    PlanarClamped,
+    /// Floater's mean-value weights of the planar mesh φ₁(S₁) (unsigned angles, all > 0;
+    /// [`crate::fold_repair::mean_value_tutte_map`]). On an embedded φ₁ they are its mean value
+    /// coordinates, so g reproduces φ₁ exactly when the landmarks agree (like `Planar`), and
+    /// without landmarks Floater's theorem makes g an embedding.
+    MeanValue,
     /// The weights of the intrinsic Delaunay triangulation of φ₁(S₁)'s edge lengths
     /// (`shapespace_conformal::harmonic_map`): all ≥ 0, but a folded face of φ₁ is treated as
     /// unfolded, so g is not the identity on a folded φ₁ even without landmark displacement.
     IntrinsicDelaunay,
 }
 
-impl std::str::FromStr for HarmonicWeights {
-    type Err = AnalysisError;
-    /// Parses `planar` or `intrinsic-delaunay` (case-insensitive).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "planar" => Ok(HarmonicWeights::Planar),
-            "intrinsic-delaunay" | "idt" => Ok(HarmonicWeights::IntrinsicDelaunay),
-            other => Err(AnalysisError::InvalidInput(format!("unknown harmonic weights `{other}` (expected planar or intrinsic-delaunay)"))),
+impl HarmonicWeights {
+    /// `planar`, `planar-clamped`, `mean-value` or `intrinsic-delaunay`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HarmonicWeights::Planar => "planar",
+            HarmonicWeights::PlanarClamped => "planar-clamped",
+            HarmonicWeights::MeanValue => "mean-value",
+            HarmonicWeights::IntrinsicDelaunay => "intrinsic-delaunay",
         }
     }
 }
+
+impl std::str::FromStr for HarmonicWeights {
+    type Err = AnalysisError;
+    /// Parses `planar`, `planar-clamped`, `mean-value` or `intrinsic-delaunay` (case-insensitive).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "planar" => Ok(HarmonicWeights::Planar),
+            "planar-clamped" | "clamped" => Ok(HarmonicWeights::PlanarClamped),
+            "mean-value" | "mvc" | "floater" => Ok(HarmonicWeights::MeanValue),
+            "intrinsic-delaunay" | "idt" => Ok(HarmonicWeights::IntrinsicDelaunay),
+            other => Err(AnalysisError::InvalidInput(format!(
+                "unknown harmonic weights `{other}` (expected planar, planar-clamped, mean-value or intrinsic-delaunay)"
+            ))),
+        }
+    }
+}
+
+/// How the harmonic map g is computed: its weights, and whether its folds are repaired.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct HarmonicParams {
+    /// Weights of g.
+    pub weights: HarmonicWeights,
+    /// Untangle folded faces of g with [`crate::fold_repair::untangle_kernels`], the boundary
+    /// and the landmark vertices held fixed. (The Tutte-region repair of
+    /// [`crate::fold_repair::repair_folds`] does not apply: with landmarks held, its whole-disk
+    /// solve still folds on every wolf pair.)
+    pub fold_repair: bool,
+    /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k) when one
+    /// solve on φ₁ folds; each step solves with the weights of the previous step's layout.
+    pub landmark_steps: usize,
+}
+
+impl Default for HarmonicParams {
+    /// One solve with the planar weights, no untangling (Su et al.'s g; the conformal default).
+    fn default() -> Self {
+        HarmonicParams { weights: HarmonicWeights::Planar, fold_repair: false, landmark_steps: 1 }
+    }
+}
+
+impl HarmonicParams {
+    /// The default g of a method. OMT: planar weights, [`OMT_LANDMARK_STEPS`] landmark steps,
+    /// untangling on (measured on the wolf poses: 0 flipped faces of g on all six pairs, geodesic
+    /// mean 0.0282 vs 0.0292 for one solve; ARCHITECTURE.md). Conformal: [`Default`] (the
+    /// baseline as published; steps and untangling leave it folding 6–8% of the area).
+    pub fn for_method(method: Method) -> Self {
+        match method {
+            Method::Omt => HarmonicParams { weights: HarmonicWeights::Planar, fold_repair: true, landmark_steps: OMT_LANDMARK_STEPS },
+            Method::Conformal => HarmonicParams::default(),
+        }
+    }
+}
+
+/// Landmark steps of the default g for [`Method::Omt`].
+pub const OMT_LANDMARK_STEPS: usize = 16;
+
+/// Sweep cap of the untangling of g ([`crate::fold_repair::untangle_kernels`]).
+pub const UNTANGLE_SWEEPS: usize = 200;
 
 /// Which disk maps φ₁, φ₂ the registration uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize)]
@@ -130,8 +204,9 @@ pub struct RegistrationParams {
     /// Parameters of the area-preserving map; its `disk_map` field also parameterizes the
     /// conformal maps of [`Method::Conformal`]. Default: [`registration_area_params`].
     pub area_preserving: AreaPreservingParams,
-    /// Weights of the harmonic map g (default: the planar cotangent weights of φ₁(S₁)).
-    pub harmonic_weights: HarmonicWeights,
+    /// Weights, landmark steps and untangling of the harmonic map g (set it with
+    /// [`HarmonicParams::for_method`] when changing `method`).
+    pub harmonic: HarmonicParams,
 }
 
 impl Default for RegistrationParams {
@@ -141,7 +216,7 @@ impl Default for RegistrationParams {
             source_markers: Markers::default(),
             target_markers: Markers::default(),
             area_preserving: registration_area_params(),
-            harmonic_weights: HarmonicWeights::Planar,
+            harmonic: HarmonicParams::for_method(Method::Omt),
         }
     }
 }
@@ -229,6 +304,13 @@ pub struct Registration {
     pub num_snapped: usize,
     /// Largest snap distance in the disk.
     pub max_snap_distance: f64,
+    /// Folded faces of g ∘ φ₁ (exact predicate, [`crate::fold_repair::count_folded_faces`])
+    /// as computed, before any fold repair.
+    pub harmonic_folded: usize,
+    /// Landmark steps used: 1, or [`HarmonicParams::landmark_steps`] when one solve folded.
+    pub harmonic_steps: usize,
+    /// What the fold repair of g did (when [`HarmonicParams::fold_repair`] is on).
+    pub harmonic_fold_repair: Option<UntangleInfo>,
     /// Stage timings.
     pub timings: RegistrationTimings,
 }
@@ -242,7 +324,7 @@ pub fn register(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks, param
     check_landmarks(source, target, landmarks)?;
     let phi1 = disk_image(source, &params.source_markers, params.method, &params.area_preserving)?;
     let phi2 = disk_image(target, &params.target_markers, params.method, &params.area_preserving)?;
-    register_with_maps(source, target, &phi1, &phi2, landmarks, params.harmonic_weights)
+    register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
 }
 
 fn check_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
@@ -260,7 +342,7 @@ pub fn register_with_maps(
     phi1: &DiskImage,
     phi2: &DiskImage,
     landmarks: &Landmarks,
-    weights: HarmonicWeights,
+    harmonic: &HarmonicParams,
 ) -> Result<Registration, AnalysisError> {
     check_landmarks(source, target, landmarks)?;
     if phi1.uv.len() != source.num_vertices() || phi2.uv.len() != target.num_vertices() {
@@ -273,16 +355,43 @@ pub fn register_with_maps(
         )));
     }
     let t0 = Instant::now();
+    let n1 = source.num_vertices();
     let conn1 = Connectivity::of(source);
     let loops = conn1.boundary_loops(&source.faces);
     let boundary: Vec<(u32, [f64; 2])> = loops.iter().flatten().map(|&v| (v, phi1.uv[v as usize])).collect();
-    let pins: Vec<(u32, [f64; 2])> = landmarks.pairs.iter().map(|&(a, b)| (a, phi2.uv[b as usize])).collect();
-    let harmonic_uv = match weights {
-        HarmonicWeights::IntrinsicDelaunay => {
-            let constraints = HarmonicConstraints { boundary: BoundaryConstraint::Fixed(boundary), landmarks: pins };
-            harmonic_map(&phi1.uv, &source.faces, &constraints).map_err(AnalysisError::DiskMap)?
+    // one solve on φ₁; if it folds, K steps: the landmarks move along the straight segments
+    // φ₁(l1_k) → φ₂(l2_k), step s solved with the weights of the previous step's layout
+    let solve_in_steps = |steps: usize| -> Result<Vec<[f64; 2]>, AnalysisError> {
+        let mut uv = phi1.uv.clone();
+        for s in 1..=steps {
+            let t = s as f64 / steps as f64;
+            let pins: Vec<(u32, [f64; 2])> = landmarks
+                .pairs
+                .iter()
+                .map(|&(a, b)| {
+                    let (x, y) = (phi1.uv[a as usize], phi2.uv[b as usize]);
+                    (a, if s == steps { y } else { [x[0] + t * (y[0] - x[0]), x[1] + t * (y[1] - x[1])] })
+                })
+                .collect();
+            uv = harmonic_step(source, &uv, &boundary, pins, harmonic.weights)?;
         }
-        HarmonicWeights::Planar => planar_harmonic_map(&phi1.uv, &source.faces, &boundary, &pins)?,
+        Ok(uv)
+    };
+    let mut harmonic_uv = solve_in_steps(1)?;
+    let mut steps_used = 1;
+    if harmonic.landmark_steps > 1 && count_folded_faces(&source.faces, &harmonic_uv) > 0 {
+        harmonic_uv = solve_in_steps(harmonic.landmark_steps)?;
+        steps_used = harmonic.landmark_steps;
+    }
+    let harmonic_folded = count_folded_faces(&source.faces, &harmonic_uv);
+    let harmonic_fold_repair = if harmonic.fold_repair && harmonic_folded > 0 {
+        let mut held = conn1.boundary_vertices(n1);
+        for &(a, _) in &landmarks.pairs {
+            held[a as usize] = true;
+        }
+        Some(untangle_kernels(&source.faces, &conn1.vertex_faces, &held, &mut harmonic_uv, UNTANGLE_SWEEPS))
+    } else {
+        None
     };
     let t1 = Instant::now();
 
@@ -325,6 +434,9 @@ pub fn register_with_maps(
         points,
         num_snapped,
         max_snap_distance,
+        harmonic_folded,
+        harmonic_steps: steps_used,
+        harmonic_fold_repair,
         timings: RegistrationTimings {
             source_map: phi1.seconds,
             target_map: phi2.seconds,
@@ -335,16 +447,44 @@ pub fn register_with_maps(
     })
 }
 
+/// One solve of g with the weights of `layout` (#V), the boundary fixed and the `pins` held.
+fn harmonic_step(
+    source: &TriMesh,
+    layout: &[[f64; 2]],
+    boundary: &[(u32, [f64; 2])],
+    pins: Vec<(u32, [f64; 2])>,
+    weights: HarmonicWeights,
+) -> Result<Vec<[f64; 2]>, AnalysisError> {
+    match weights {
+        HarmonicWeights::IntrinsicDelaunay => {
+            let constraints = HarmonicConstraints { boundary: BoundaryConstraint::Fixed(boundary.to_vec()), landmarks: pins };
+            harmonic_map(layout, &source.faces, &constraints).map_err(AnalysisError::DiskMap)
+        }
+        HarmonicWeights::Planar => planar_harmonic_map(layout, &source.faces, boundary, &pins, false),
+        HarmonicWeights::PlanarClamped => planar_harmonic_map(layout, &source.faces, boundary, &pins, true),
+        HarmonicWeights::MeanValue => {
+            let mut fixed: Vec<Option<[f64; 2]>> = vec![None; source.num_vertices()];
+            for &(v, p) in boundary.iter().chain(&pins) {
+                fixed[v as usize] = Some(p);
+            }
+            mean_value_tutte_map(source, layout, &fixed)
+        }
+    }
+}
+
 /// The harmonic map of the planar triangulation (`positions` #V, `faces` #F) with the cotangent
 /// weights of the planar triangles themselves (signed: cot θ = (u·v)/(u×v) with the signed cross
 /// product, so folded faces give negative cotangents): (L g)_i = 0 at free vertices, g fixed at
 /// the `fixed` vertices (boundary) and `pins` (landmarks). #V image positions. Solved by sparse
-/// LU. Errors: a vertex constrained twice, a singular system.
+/// LU. With `clamp_negative`, every edge weight (the sum of the two half-cotangents at the edge)
+/// below 0 is set to 0 ([`HarmonicWeights::PlanarClamped`]). Errors: a vertex constrained
+/// twice, a singular system.
 pub fn planar_harmonic_map(
     positions: &[[f64; 2]],
     faces: &[[u32; 3]],
     fixed: &[(u32, [f64; 2])],
     pins: &[(u32, [f64; 2])],
+    clamp_negative: bool,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
     use faer::linalg::solvers::Solve;
     let n = positions.len();
@@ -370,8 +510,8 @@ pub fn planar_harmonic_map(
     if m == 0 {
         return Ok(out);
     }
-    let mut trip = Vec::with_capacity(12 * faces.len());
-    let mut rhs = faer::Mat::<f64>::zeros(m, 2);
+    // edge weights: sum of ½ cot of the angles opposite each edge (one per incident face)
+    let mut edges: Vec<(usize, usize, f64)> = Vec::with_capacity(3 * faces.len());
     for f in faces {
         for k in 0..3 {
             let (o, i, j) = (f[k] as usize, f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
@@ -383,18 +523,34 @@ pub fn planar_harmonic_map(
             if cross == 0.0 {
                 continue;
             }
-            let w = 0.5 * (u[0] * v[0] + u[1] * v[1]) / cross;
-            for (a, b) in [(i, j), (j, i)] {
-                if index[a] == usize::MAX {
-                    continue;
-                }
-                trip.push(faer::sparse::Triplet::new(index[a], index[a], w));
-                if index[b] != usize::MAX {
-                    trip.push(faer::sparse::Triplet::new(index[a], index[b], -w));
-                } else {
-                    rhs[(index[a], 0)] += w * out[b][0];
-                    rhs[(index[a], 1)] += w * out[b][1];
-                }
+            edges.push((i.min(j), i.max(j), 0.5 * (u[0] * v[0] + u[1] * v[1]) / cross));
+        }
+    }
+    edges.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    let mut merged: Vec<(usize, usize, f64)> = Vec::with_capacity(edges.len());
+    for (i, j, w) in edges {
+        match merged.last_mut() {
+            Some(last) if (last.0, last.1) == (i, j) => last.2 += w,
+            _ => merged.push((i, j, w)),
+        }
+    }
+    let mut trip = Vec::with_capacity(4 * merged.len());
+    let mut rhs = faer::Mat::<f64>::zeros(m, 2);
+    for (i, j, w) in merged {
+        let w = if clamp_negative { w.max(0.0) } else { w };
+        if w == 0.0 {
+            continue;
+        }
+        for (a, b) in [(i, j), (j, i)] {
+            if index[a] == usize::MAX {
+                continue;
+            }
+            trip.push(faer::sparse::Triplet::new(index[a], index[a], w));
+            if index[b] != usize::MAX {
+                trip.push(faer::sparse::Triplet::new(index[a], index[b], -w));
+            } else {
+                rhs[(index[a], 0)] += w * out[b][0];
+                rhs[(index[a], 1)] += w * out[b][1];
             }
         }
     }

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::Context;
 use shapespace_analysis::registration::bench::{register_bench, write_registration};
 use shapespace_analysis::registration::{
-    register, registration_area_params, registration_metrics, Landmarks, MetricParams, Method, RegistrationParams,
+    register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, MetricParams, Method, RegistrationParams,
 };
 use shapespace_conformal::MarkerFile;
 
@@ -38,10 +38,19 @@ pub struct RegisterArgs {
     /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
     #[arg(long)]
     pub out: PathBuf,
-    /// Cotangent weights of the harmonic map g: `planar` (of the planar mesh φ₁(S₁), signed) or
-    /// `intrinsic-delaunay`.
-    #[arg(long, default_value = "planar")]
-    pub weights: String,
+    /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
+    /// signed; default), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's
+    /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
+    #[arg(long)]
+    pub weights: Option<String>,
+    /// Untangle folded faces of g, boundary and landmarks fixed: `on` or `off` (default: on for
+    /// omt, off for conformal).
+    #[arg(long)]
+    pub untangle_g: Option<String>,
+    /// Steps in which the landmarks move from φ₁ to φ₂, each solved with the weights of the
+    /// previous layout (default: 16 for omt, 1 for conformal).
+    #[arg(long)]
+    pub landmark_steps: Option<usize>,
     /// Number of sampled vertices for the geodesic error (when both meshes share the vertex order).
     #[arg(long, default_value_t = 300)]
     pub samples: usize,
@@ -62,10 +71,19 @@ pub struct RegisterBenchArgs {
     /// Comma-separated methods.
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
-    /// Cotangent weights of the harmonic map g: `planar` (of the planar mesh φ₁(S₁), signed) or
-    /// `intrinsic-delaunay`.
-    #[arg(long, default_value = "planar")]
-    pub weights: String,
+    /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
+    /// signed; default), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's
+    /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
+    #[arg(long)]
+    pub weights: Option<String>,
+    /// Untangle folded faces of g, boundary and landmarks fixed: `on` or `off` (default: on for
+    /// omt, off for conformal).
+    #[arg(long)]
+    pub untangle_g: Option<String>,
+    /// Steps in which the landmarks move from φ₁ to φ₂, each solved with the weights of the
+    /// previous layout (default: 16 for omt, 1 for conformal).
+    #[arg(long)]
+    pub landmark_steps: Option<usize>,
     /// Number of sampled vertices for the geodesic error.
     #[arg(long, default_value_t = 300)]
     pub samples: usize,
@@ -86,6 +104,26 @@ fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(P
         }
         None => Ok(None),
     }
+}
+
+/// The method's default g ([`HarmonicParams::for_method`]) with the options given.
+fn harmonic_params(method: Method, weights: Option<&str>, untangle: Option<&str>, steps: Option<usize>) -> anyhow::Result<HarmonicParams> {
+    let mut h = HarmonicParams::for_method(method);
+    if let Some(w) = weights {
+        h.weights = w.parse()?;
+    }
+    if let Some(u) = untangle {
+        h.fold_repair = match u.trim().to_ascii_lowercase().as_str() {
+            "on" | "true" | "yes" => true,
+            "off" | "false" | "no" => false,
+            other => anyhow::bail!("--untangle-g: expected on or off, got `{other}`"),
+        };
+    }
+    if let Some(k) = steps {
+        anyhow::ensure!(k >= 1, "--landmark-steps must be at least 1");
+        h.landmark_steps = k;
+    }
+    Ok(h)
 }
 
 pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
@@ -109,7 +147,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         source_markers: m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         target_markers: m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         area_preserving: registration_area_params(),
-        harmonic_weights: args.weights.parse()?,
+        harmonic: harmonic_params(method, args.weights.as_deref(), args.untangle_g.as_deref(), args.landmark_steps)?,
     };
     eprintln!("register: {} landmark pairs, method {method}", landmarks.len());
     let t = Instant::now();
@@ -121,7 +159,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let extra = serde_json::json!({
         "source": args.source, "target": args.target, "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
-        "geodesic_samples": args.samples, "seed": args.seed, "harmonic_weights": args.weights,
+        "geodesic_samples": args.samples, "seed": args.seed, "harmonic": params.harmonic,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
     eprintln!(
@@ -149,7 +187,13 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
-    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), args.weights.parse()?, &mp, |m| eprintln!("register-bench: {m}"))
+    for &m in &methods {
+        harmonic_params(m, args.weights.as_deref(), args.untangle_g.as_deref(), args.landmark_steps)?;
+    }
+    let harmonic = |m: Method| {
+        harmonic_params(m, args.weights.as_deref(), args.untangle_g.as_deref(), args.landmark_steps).unwrap_or_else(|_| HarmonicParams::for_method(m))
+    };
+    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), &harmonic, &mp, |m| eprintln!("register-bench: {m}"))
         .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
         "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. mean | geodesic err. median | geodesic err. mean | s/pair |"
