@@ -92,6 +92,13 @@ pub struct NewtonParams {
     /// (default 10) and no warm start is given, solve first for the densities ρ^t, t = 1/K, …,
     /// (K−1)/K with K = ⌈ln(max/min)/ln r⌉, each warm-starting the next. `None` disables it.
     pub density_continuation: Option<f64>,
+    /// Mass continuation (`Some(r)`, r > 1; default `None`): start from the Voronoi (or
+    /// contracted) start, whose cell masses m⁰ make it an exact solution for the targets m⁰,
+    /// and solve for ν(t) = (1 − t) m⁰ + t ν along t = t₁ < t₂ < … < 1, each t_{k+1} the largest
+    /// with every ν_i(t_{k+1}) / ν_i(t_k) ∈ [1/r, r], each stage warm-starting the next
+    /// (intermediate stages stop at max(tolerance, 1e-3)). Takes precedence over density
+    /// continuation; ignored with `initial_heights`.
+    pub mass_continuation: Option<f64>,
 }
 
 impl Default for NewtonParams {
@@ -105,6 +112,7 @@ impl Default for NewtonParams {
             coarse_to_fine: false,
             integrator: CellIntegrator::Restricted,
             density_continuation: Some(10.0),
+            mass_continuation: None,
         }
     }
 }
@@ -145,6 +153,9 @@ pub enum Start {
     /// Warm start from a density continuation of `stages` stages (the last is the problem
     /// itself) that took `iterations` Newton steps before the last stage.
     DensityContinuation { stages: usize, iterations: usize },
+    /// Warm start from a mass continuation of `stages` stages (the last is the problem itself)
+    /// that took `iterations` Newton steps before the last stage.
+    MassContinuation { stages: usize, iterations: usize },
 }
 
 /// One Newton step.
@@ -422,6 +433,9 @@ pub fn solve_ot(
             return Ok(solution);
         }
     }
+    if let (Some(ratio), None) = (params.mass_continuation, &params.initial_heights) {
+        return solve_mass_continuation(measure, points, masses, params, ratio, t_begin);
+    }
     let stages = match params.density_continuation {
         Some(ratio) if ratio > 1.0 && contrast > ratio && params.initial_heights.is_none() => {
             (contrast.ln() / ratio.ln()).ceil() as usize
@@ -465,6 +479,72 @@ pub fn solve_ot(
     solution.log = log;
     solution.t_total = t_begin.elapsed().as_secs_f64();
     Ok(solution)
+}
+
+/// The mass continuation of [`NewtonParams::mass_continuation`].
+fn solve_mass_continuation(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    params: &NewtonParams,
+    ratio: f64,
+    t_begin: Instant,
+) -> Result<OtSolution, OmtError> {
+    if !(ratio > 1.0 && ratio.is_finite()) {
+        return Err(OmtError::InvalidInput(format!("mass continuation ratio {ratio} (must be finite and > 1)")));
+    }
+    let base = NewtonParams { mass_continuation: None, density_continuation: None, initial_heights: None, ..params.clone() };
+    // The start alone (no step): its cell masses m⁰ are all > 0.
+    let start = solve_single(measure, points, masses, &NewtonParams { max_iterations: 0, ..base.clone() }, Instant::now())?;
+    let m0 = start.cells.masses.clone();
+    let targets = &start.target_masses;
+    let mut heights = start.heights;
+    let (mut t, mut stages, mut iterations, mut log) = (0.0f64, 0usize, 0usize, Vec::new());
+    loop {
+        // The largest t' ≤ 1 with ν_i(t') / ν_i(t) ∈ [1/r, r] for all i (ν_i(t) is linear in t).
+        let mut t_next = 1.0f64;
+        for (&a, &b) in m0.iter().zip(targets) {
+            let (d, current) = (b - a, a + t * (b - a));
+            let bound = if d > 0.0 {
+                (ratio * current - a) / d
+            } else if d < 0.0 {
+                (current / ratio - a) / d
+            } else {
+                f64::INFINITY
+            };
+            t_next = t_next.min(bound);
+        }
+        let last = t_next >= 1.0;
+        let t_stage = if last { 1.0 } else { t_next };
+        let stage_targets: Vec<f64> = m0.iter().zip(targets).map(|(&a, &b)| (1.0 - t_stage) * a + t_stage * b).collect();
+        let stage_params = NewtonParams {
+            tolerance: if last { params.tolerance } else { params.tolerance.max(1e-3) },
+            initial_heights: Some(heights),
+            ..base.clone()
+        };
+        let mut stage = solve_single(measure, points, &stage_targets, &stage_params, Instant::now())?;
+        stages += 1;
+        if last || !stage.converged() {
+            // The final problem, or an intermediate stage that failed (reported as it stopped).
+            stage.start = Start::MassContinuation { stages, iterations };
+            stage.iterations += iterations;
+            log.append(&mut stage.log);
+            stage.log = log;
+            if !last {
+                stage.stop = StopReason::Stalled {
+                    reason: format!("mass continuation stage {stages} at t = {t_stage:.3e} stopped: {}", stage.stop),
+                };
+            }
+            stage.target_masses = targets.clone();
+            stage.mass_scale = start.mass_scale;
+            stage.t_total = t_begin.elapsed().as_secs_f64();
+            return Ok(stage);
+        }
+        iterations += stage.iterations;
+        log.append(&mut stage.log);
+        heights = stage.heights;
+        t = t_stage;
+    }
 }
 
 /// One damped Newton solve (no density continuation).
