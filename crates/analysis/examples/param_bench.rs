@@ -1,7 +1,8 @@
 //! Timing table of the area-preserving map (conformal / OT / output / total, seconds):
 //! `cargo run --release -p shapespace-analysis --example param_bench`.
 //!
-//! Meshes: the bundled libigl face (25.9k V, 51.7k F) and camelhead, and TOSCA meshes from
+//! Meshes: the bundled libigl face (25.9k V, 51.7k F), camelhead and camelhead subdivided 1-to-4
+//! (45k V, 90.8k F: the ~85k-face size of the issue), and TOSCA meshes from
 //! `/work/shared/datasets/tosca` (skipped cleanly when absent) cut to a disk by removing the
 //! 3-ring around the vertex nearest to the area centroid (dog0 ~50k faces, horse0 ~38k,
 //! centaur0 ~31.5k); open scans (victoria0, ~91k faces) keep their longest boundary loop and
@@ -46,6 +47,25 @@ fn tosca_disk(path: &Path) -> Result<TriMesh, String> {
     cut_disk(&mesh, center as u32, Radius::Rings(3)).map(|(m, _)| m).map_err(|e| e.to_string())
 }
 
+/// 1-to-4 midpoint subdivision (the same surface with four times the faces).
+fn subdivide(mesh: &TriMesh) -> TriMesh {
+    let mut positions = mesh.positions.clone();
+    let mut mid = std::collections::HashMap::new();
+    let mut faces = Vec::with_capacity(4 * mesh.faces.len());
+    for &[a, b, c] in &mesh.faces {
+        let mut m = |u: u32, v: u32| -> u32 {
+            *mid.entry((u.min(v), u.max(v))).or_insert_with(|| {
+                let (p, q) = (positions[u as usize], positions[v as usize]);
+                positions.push([0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1]), 0.5 * (p[2] + q[2])]);
+                (positions.len() - 1) as u32
+            })
+        };
+        let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    TriMesh { positions, faces, uvs: None }
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let tosca = Path::new("/work/shared/datasets/tosca");
@@ -53,6 +73,8 @@ fn main() {
         ("disks/face.obj".into(), shapespace_geometry::io::read_mesh(&root.join("datasets/disks/face.obj")).map_err(|e| e.to_string())),
         ("disks/camelhead.off".into(), shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string())),
     ];
+    let camel = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string());
+    meshes.push(("camelhead 1-to-4 subdivided".into(), camel.map(|m| subdivide(&m))));
     if tosca.is_dir() {
         for name in ["victoria0", "dog0", "horse0", "centaur0"] {
             meshes.push((format!("tosca/{name} (cut)"), tosca_disk(&tosca.join(format!("{name}.off")))));
@@ -60,8 +82,8 @@ fn main() {
     } else {
         println!("(skipping TOSCA meshes: {} not found)", tosca.display());
     }
-    println!("| mesh | V | F | conformal s | OT s | output s | total s | OT iterations | max rel. mass error | median abs(Υ) | flips |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| mesh | V | F | conformal s | OT s | output s | repair s | total s | OT iterations | max rel. mass error | median abs(Υ) | flips |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, mesh) in meshes {
         let mesh = match mesh {
             Ok(m) => m,
@@ -76,12 +98,13 @@ fn main() {
                 let wall = t.elapsed().as_secs_f64();
                 let d = map_distortion("ap", &mesh, &map.uv).expect("distortion");
                 println!(
-                    "| {name} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} (wall {wall:.3}) | {} | {:.1e} | {:.3} | {} |",
+                    "| {name} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} (wall {wall:.3}) | {} | {:.1e} | {:.3} | {} |",
                     mesh.num_vertices(),
                     mesh.num_faces(),
                     map.timings.conformal,
                     map.timings.ot,
                     map.timings.output,
+                    map.timings.repair,
                     map.timings.total,
                     map.ot.iterations,
                     map.ot.max_relative_error,
