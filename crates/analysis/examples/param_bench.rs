@@ -14,7 +14,7 @@ use std::time::Instant;
 use shapespace_analysis::area_preserving::{area_preserving_map, AreaPreservingParams};
 use shapespace_analysis::distortion::map_distortion;
 use shapespace_conformal::Markers;
-use shapespace_geometry::prepare::{cut_disk, fill_holes_except_longest, reorient, Radius};
+use shapespace_geometry::prepare::{cut_disk, fill_holes_except_longest, reorient, subdivide_midpoint, Radius};
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::TriMesh;
 
@@ -47,25 +47,6 @@ fn tosca_disk(path: &Path) -> Result<TriMesh, String> {
     cut_disk(&mesh, center as u32, Radius::Rings(3)).map(|(m, _)| m).map_err(|e| e.to_string())
 }
 
-/// 1-to-4 midpoint subdivision (the same surface with four times the faces).
-fn subdivide(mesh: &TriMesh) -> TriMesh {
-    let mut positions = mesh.positions.clone();
-    let mut mid = std::collections::HashMap::new();
-    let mut faces = Vec::with_capacity(4 * mesh.faces.len());
-    for &[a, b, c] in &mesh.faces {
-        let mut m = |u: u32, v: u32| -> u32 {
-            *mid.entry((u.min(v), u.max(v))).or_insert_with(|| {
-                let (p, q) = (positions[u as usize], positions[v as usize]);
-                positions.push([0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1]), 0.5 * (p[2] + q[2])]);
-                (positions.len() - 1) as u32
-            })
-        };
-        let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-    }
-    TriMesh { positions, faces, uvs: None }
-}
-
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let tosca = Path::new("/work/shared/datasets/tosca");
@@ -74,7 +55,7 @@ fn main() {
         ("disks/camelhead.off".into(), shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string())),
     ];
     let camel = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string());
-    meshes.push(("camelhead 1-to-4 subdivided".into(), camel.map(|m| subdivide(&m))));
+    meshes.push(("camelhead 1-to-4 subdivided".into(), camel.and_then(|m| subdivide_midpoint(&m).map_err(|e| e.to_string()))));
     if tosca.is_dir() {
         for name in ["victoria0", "dog0", "horse0", "centaur0"] {
             meshes.push((format!("tosca/{name} (cut)"), tosca_disk(&tosca.join(format!("{name}.off")))));

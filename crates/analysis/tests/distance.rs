@@ -8,6 +8,7 @@ use shapespace_analysis::distance::{directed_distance, pairwise_distances, prepa
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::prepare::subdivide_midpoint;
 use shapespace_geometry::primitives::{spherical_cap, unit_disk};
 use shapespace_geometry::TriMesh;
 use shapespace_omt::NewtonParams;
@@ -131,32 +132,13 @@ fn similarity(mesh: &TriMesh, s: f64, t: [f64; 3]) -> TriMesh {
     TriMesh::new(positions.collect(), mesh.faces.clone()).unwrap()
 }
 
-/// 1-to-4 midpoint subdivision: the same piecewise-linear surface, four times the triangles.
-fn subdivide(mesh: &TriMesh) -> TriMesh {
-    let mut positions = mesh.positions.clone();
-    let mut midpoint = std::collections::HashMap::new();
-    let mut mid = |a: u32, b: u32, positions: &mut Vec<[f64; 3]>| -> u32 {
-        *midpoint.entry((a.min(b), a.max(b))).or_insert_with(|| {
-            let (p, q) = (positions[a as usize], positions[b as usize]);
-            positions.push([0, 1, 2].map(|i| 0.5 * (p[i] + q[i])));
-            positions.len() as u32 - 1
-        })
-    };
-    let mut faces = Vec::new();
-    for &[a, b, c] in &mesh.faces {
-        let (ab, bc, ca) = (mid(a, b, &mut positions), mid(b, c, &mut positions), mid(c, a, &mut positions));
-        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-    }
-    TriMesh::new(positions, faces).unwrap()
-}
-
 #[test]
 fn face_distances_are_similarity_invariant_and_stable_under_remeshing() {
     let (mesh, m) = face("id00_neutral");
     let (_, other_expression) = face("id00_happy");
     let (_, other_person) = face("id01_neutral");
     let moved = prepared("moved", &similarity(&mesh, 3.7, [10.0, -4.0, 2.5]), &face_markers());
-    let fine = prepared("subdivided", &subdivide(&mesh), &face_markers());
+    let fine = prepared("subdivided", &subdivide_midpoint(&mesh).unwrap(), &face_markers());
 
     let self_cost = cost(&m, &m);
     let moved_cost = cost(&m, &moved);

@@ -468,6 +468,39 @@ pub fn scale_to_area(mesh: &TriMesh, target_area: f64) -> Result<TriMesh, Geomet
     Ok(out)
 }
 
+/// 1-to-4 midpoint subdivision: every edge gets its midpoint (appended after the original
+/// vertices, in order of first appearance over the faces) and every face (a, b, c) becomes
+/// (a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca). The piecewise-linear surface is
+/// unchanged (same area, same topology: V + E vertices, 4F faces); texture coordinates, if any,
+/// are interpolated the same way. Used to remesh a surface without changing its geometry.
+pub fn subdivide_midpoint(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
+    mesh.validate()?;
+    let mut positions = mesh.positions.clone();
+    let mut uvs = mesh.uvs.clone();
+    let mut midpoint: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut faces = Vec::with_capacity(4 * mesh.faces.len());
+    for &[a, b, c] in &mesh.faces {
+        let mut mid = |u: u32, v: u32| -> u32 {
+            *midpoint.entry((u.min(v), u.max(v))).or_insert_with(|| {
+                positions.push(scale(add(positions[u as usize], positions[v as usize]), 0.5));
+                if let Some(uv) = uvs.as_mut() {
+                    let (p, q) = (uv[u as usize], uv[v as usize]);
+                    uv.push([0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]);
+                }
+                (positions.len() - 1) as u32
+            })
+        };
+        let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    if positions.len() > u32::MAX as usize {
+        return Err(GeometryError::Invalid(format!("subdivision would have {} vertices (over the u32 range)", positions.len())));
+    }
+    let mut out = TriMesh::new(positions, faces)?;
+    out.uvs = uvs;
+    Ok(out)
+}
+
 /// Scales the mesh to total area π, the area of the unit disk (DESIGN.md, "Normalization of a
 /// surface"; Su et al. 2015 §4.2), about its area-weighted centroid ([`scale_to_area`]).
 pub fn normalize_for_shape_space(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {

@@ -405,6 +405,27 @@ fn scale_to_area_and_normalize() {
 }
 
 #[test]
+fn midpoint_subdivision_keeps_the_surface_and_its_topology() {
+    for mesh in [unit_disk(3), icosphere(1)] {
+        let conn = Connectivity::of(&mesh);
+        let fine = prepare::subdivide_midpoint(&mesh).unwrap();
+        let e = conn.num_edges();
+        assert_eq!((fine.num_vertices(), fine.num_faces()), (mesh.num_vertices() + e, 4 * mesh.num_faces()));
+        assert_eq!(&fine.positions[..mesh.num_vertices()], &mesh.positions[..]);
+        assert!((total_area(&fine) - total_area(&mesh)).abs() < 1e-12 * total_area(&mesh));
+        assert_eq!(classify(&fine).unwrap().class, classify(&mesh).unwrap().class);
+        assert!(inconsistent_edges(&fine.faces, &Connectivity::of(&fine)).is_empty());
+    }
+    // texture coordinates are interpolated at the midpoints
+    let mut m = grid(2, 2);
+    m.uvs = Some(m.positions.iter().map(|p| [p[0], p[1]]).collect());
+    let fine = prepare::subdivide_midpoint(&m).unwrap();
+    for (p, uv) in fine.positions.iter().zip(fine.uvs.as_ref().unwrap()) {
+        assert!((p[0] - uv[0]).abs() < 1e-15 && (p[1] - uv[1]).abs() < 1e-15);
+    }
+}
+
+#[test]
 fn unreferenced_duplicate_and_degenerate_elements() {
     let mut m = unit_disk(2);
     let n = m.num_vertices() as u32;
