@@ -14,8 +14,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
-use shapespace_conformal::{disk_map, BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, PolePlacement};
+use shapespace_conformal::{disk_map, DiskMapParams, PolePlacement};
 use shapespace_geometry::io::{read_mesh, write_obj};
 
 /// Arguments of `shapespace conformal`.
@@ -26,18 +27,8 @@ pub struct ConformalArgs {
     /// Output OBJ: the input mesh with per-vertex texture coordinates (the disk map).
     #[arg(long)]
     pub out: PathBuf,
-    /// Interior marker p ↦ 0: a vertex index, a point `x,y,z` (projected to the surface) or
-    /// `auto` (the vertex farthest from the boundary).
-    #[arg(long)]
-    pub center: Option<String>,
-    /// Boundary marker q ↦ 1: a boundary vertex index or `auto` (the boundary vertex farthest
-    /// from the center).
-    #[arg(long = "boundary-marker")]
-    pub boundary_marker: Option<String>,
-    /// Marker file `{"center": .., "boundary": .., "landmarks": {..}}` (default: the sidecar
-    /// NAME.landmarks.json or landmarks.json beside the input, if present).
-    #[arg(long)]
-    pub landmarks: Option<PathBuf>,
+    #[command(flatten)]
+    pub markers: MarkerArgs,
     /// Write per-vertex `vertex,u,v,lambda` (λ: log conformal factor) as CSV.
     #[arg(long)]
     pub factors: Option<PathBuf>,
@@ -71,17 +62,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
-    let marker_path = args.landmarks.clone().or_else(|| MarkerFile::sidecar_path(&args.input));
-    let mut markers = match &marker_path {
-        Some(p) => MarkerFile::from_json_file(p)?.markers,
-        None => Default::default(),
-    };
-    if let Some(c) = &args.center {
-        markers.center = CenterMarker::parse(c)?;
-    }
-    if let Some(b) = &args.boundary_marker {
-        markers.boundary = BoundaryMarker::parse(b)?;
-    }
+    let (markers, marker_source) = args.markers.resolve(&args.input)?;
     let pole = if args.pole == "central" {
         PolePlacement::Central
     } else {
@@ -118,7 +99,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
         let report = serde_json::json!({
             "input": args.input.display().to_string(),
             "output": args.out.display().to_string(),
-            "marker_file": marker_path.map(|p| p.display().to_string()),
+            "marker_file": marker_source,
             "num_vertices": mesh.num_vertices(),
             "num_faces": mesh.num_faces(),
             "scale": map.scale,

@@ -5,27 +5,19 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use super::markers::MarkerArgs;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use shapespace_analysis::distance::PairwiseOptions;
-use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun, MarkerOptions};
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun};
 use shapespace_analysis::shape_space::{run_mds, MdsParams};
-use shapespace_conformal::{BoundaryMarker, CenterMarker};
 use shapespace_omt::NewtonParams;
 
 /// Arguments shared by `distances` and `demo`.
 #[derive(clap::Args, Clone)]
 pub struct SolverArgs {
-    /// Interior marker for every file: a vertex index, a point `x,y,z`, or `auto` (default: the
-    /// marker file, else the sidecar `NAME.landmarks.json` / `landmarks.json`, else auto).
-    #[arg(long)]
-    pub center: Option<String>,
-    /// Boundary marker for every file: a boundary vertex index or `auto`.
-    #[arg(long)]
-    pub boundary_marker: Option<String>,
-    /// One marker file for all inputs (`{"center": V, "boundary": V, ...}`).
-    #[arg(long)]
-    pub landmarks: Option<PathBuf>,
+    #[command(flatten)]
+    pub markers: MarkerArgs,
     /// Compute both directions of every pair and report their mean and the asymmetry.
     #[arg(long)]
     pub symmetrize: bool,
@@ -78,11 +70,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
     if let Some(t) = solver.threads {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().ok();
     }
-    let markers = MarkerOptions {
-        center: solver.center.as_deref().map(CenterMarker::parse).transpose().context("--center")?,
-        boundary: solver.boundary_marker.as_deref().map(BoundaryMarker::parse).transpose().context("--boundary-marker")?,
-        marker_file: solver.landmarks.clone(),
-    };
+    let markers = solver.markers.options()?;
     let options = DistancesOptions {
         markers,
         pairwise: PairwiseOptions {

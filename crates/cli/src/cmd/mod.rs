@@ -4,6 +4,7 @@ pub mod conformal;
 pub mod demo;
 pub mod distances;
 pub mod info;
+pub mod markers;
 pub mod mds;
 pub mod ot;
 pub mod param;

@@ -18,11 +18,11 @@ use std::process::ExitCode;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
 use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
-use shapespace_conformal::{BoundaryMarker, CenterMarker, MarkerFile};
 use shapespace_geometry::io::{read_mesh, write_obj};
 
 /// Arguments of `shapespace param`.
@@ -33,16 +33,8 @@ pub struct ParamArgs {
     /// Output OBJ: the input mesh with per-vertex texture coordinates (the area-preserving map).
     #[arg(long)]
     pub out: PathBuf,
-    /// Interior marker p ↦ 0: a vertex index, a point `x,y,z` or `auto`.
-    #[arg(long)]
-    pub center: Option<String>,
-    /// Boundary marker q ↦ 1: a boundary vertex index or `auto`.
-    #[arg(long = "boundary-marker")]
-    pub boundary_marker: Option<String>,
-    /// Marker file `{"center": .., "boundary": ..}` (default: the sidecar NAME.landmarks.json or
-    /// landmarks.json beside the input, if present).
-    #[arg(long)]
-    pub landmarks: Option<PathBuf>,
+    #[command(flatten)]
+    pub markers: MarkerArgs,
     /// Target domain: `disk` (unit disk) or `square` (side √π, centered at 0).
     #[arg(long, default_value = "disk")]
     pub domain: String,
@@ -105,17 +97,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk parameterization", args.input.display()))?;
-    let marker_path = args.landmarks.clone().or_else(|| MarkerFile::sidecar_path(&args.input));
-    let mut markers = match &marker_path {
-        Some(p) => MarkerFile::from_json_file(p)?.markers,
-        None => Default::default(),
-    };
-    if let Some(c) = &args.center {
-        markers.center = CenterMarker::parse(c)?;
-    }
-    if let Some(b) = &args.boundary_marker {
-        markers.boundary = BoundaryMarker::parse(b)?;
-    }
+    let (markers, marker_source) = args.markers.resolve(&args.input)?;
     let weights = match &args.weights {
         Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),
         None => None,
@@ -160,7 +142,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         let json = serde_json::json!({
             "input": args.input.display().to_string(),
             "output": args.out.display().to_string(),
-            "marker_file": marker_path.map(|p| p.display().to_string()),
+            "marker_file": marker_source,
             "markers": map.conformal.info.markers,
             "domain": map.domain,
             "weights": args.weights.as_ref().map(|p| p.display().to_string()),
