@@ -1,7 +1,6 @@
 //! The registration benchmark without the CLI: `cargo run --release -p shapespace-analysis
 //! --example register_bench -- DATASET_DIR OUT_DIR [omt,conformal]` (same as
 //! `shapespace register-bench`). Prints the per-pair rows and the per-method means.
-use shapespace_analysis::area_preserving::AreaPreservingParams;
 use shapespace_analysis::registration::bench::register_bench;
 use shapespace_analysis::registration::{MetricParams, Method};
 use std::path::PathBuf;
