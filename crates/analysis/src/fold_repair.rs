@@ -898,4 +898,60 @@ mod tests {
         assert!(info.flipped_before > 0 && info.folded_after == info.flipped_before + info.degenerate_before);
         assert_eq!((info.rounds, info.vertices_moved), (0, 0));
     }
+
+    /// Kernel untangling of a pushed vertex: the fold is removed, the count never grows, and
+    /// fixed vertices (the boundary and a pinned "landmark") do not move.
+    #[test]
+    fn untangle_kernels_removes_a_pushed_fold_and_keeps_fixed_vertices() {
+        let (mesh, is_boundary, reference) = disk_layout(8);
+        let n = mesh.num_vertices();
+        let conn = Connectivity::of(&mesh);
+        let neighbors = conn.vertex_neighbors(n);
+        let v = (0..n).find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9).unwrap();
+        let far = neighbors[v][0] as usize;
+        let mut uv = reference.clone();
+        uv[v] = [reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]), reference[far][1] + 0.5 * (reference[far][1] - reference[v][1])];
+        let mut fixed = is_boundary.clone();
+        let pinned = neighbors[v].iter().map(|&u| u as usize).find(|&u| u != far && !is_boundary[u]).unwrap();
+        fixed[pinned] = true;
+        let before = uv.clone();
+        let info = untangle_kernels(&mesh.faces, &conn.vertex_faces, &fixed, &mut uv, 20);
+        assert!(info.folded_before >= 2, "{info:?}");
+        assert_eq!(info.folded_after, 0, "{info:?}");
+        assert_eq!(count_folded_faces(&mesh.faces, &uv), 0);
+        for u in (0..n).filter(|&u| fixed[u]) {
+            assert_eq!(uv[u], before[u], "fixed vertex {u} moved");
+        }
+        // an embedded map is left as it is
+        let mut clean = reference.clone();
+        let info = untangle_kernels(&mesh.faces, &conn.vertex_faces, &is_boundary, &mut clean, 20);
+        assert_eq!((info.folded_before, info.moves), (0, 0));
+        assert_eq!(clean, reference);
+    }
+
+    /// The mean-value Tutte map reproduces an embedded layout when its vertices are pinned where
+    /// the layout has them (here: the boundary and one interior landmark), and with a warped but
+    /// embedded layout (r ↦ r², boundary fixed) it is an embedding.
+    #[test]
+    fn mean_value_tutte_map_reproduces_and_embeds() {
+        let (mesh, is_boundary, reference) = disk_layout(8);
+        let n = mesh.num_vertices();
+        let landmark = (0..n).find(|&v| !is_boundary[v] && reference[v][0] > 0.3).unwrap();
+        let fixed: Vec<Option<[f64; 2]>> =
+            (0..n).map(|v| (is_boundary[v] || v == landmark).then_some(reference[v])).collect();
+        let out = mean_value_tutte_map(&mesh, &reference, &fixed).unwrap();
+        let d = out.iter().zip(&reference).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
+        assert!(d < 1e-12, "max displacement {d:e}");
+        let warped: Vec<[f64; 2]> = reference.iter().map(|p| {
+            let r = p[0].hypot(p[1]);
+            [p[0] * r, p[1] * r]
+        }).collect();
+        let boundary_only: Vec<Option<[f64; 2]>> = (0..n).map(|v| is_boundary[v].then_some(warped[v])).collect();
+        let out = mean_value_tutte_map(&mesh, &warped, &boundary_only).unwrap();
+        assert_eq!(count_folded_faces(&mesh.faces, &out), 0);
+        // the bad inputs are errors
+        assert!(mean_value_tutte_map(&mesh, &reference[..n - 1], &fixed).is_err());
+        let free_boundary: Vec<Option<[f64; 2]>> = vec![None; n];
+        assert!(mean_value_tutte_map(&mesh, &reference, &free_boundary).is_err());
+    }
 }
