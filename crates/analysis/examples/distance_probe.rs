@@ -5,23 +5,57 @@ use shapespace_omt::NewtonParams;
 
 fn main() {
     let dir = std::path::Path::new("datasets/faces");
-    let m = Markers { center: CenterMarker::Vertex(4841), boundary: BoundaryMarker::Vertex(8889) };
+    let m = Markers {
+        center: CenterMarker::Vertex(4841),
+        boundary: BoundaryMarker::Vertex(8889),
+    };
     let args: Vec<String> = std::env::args().collect();
     let a = args.get(1).cloned().unwrap_or("id00_neutral".into());
     let b = args.get(2).cloned().unwrap_or("id00_happy".into());
     let cont: Option<f64> = args.get(3).and_then(|s| s.parse().ok());
-    let shapes: Vec<_> = [a.as_str(), b.as_str()].iter().map(|n| {
-        let mesh = shapespace_geometry::io::read_mesh(&dir.join(format!("{n}.obj"))).unwrap();
-        prepare_shape(n, &mesh, &m, &DiskMapParams::default()).unwrap()
-    }).collect();
-    let (lo, hi) = shapes[0].measure.densities.iter().fold((f64::INFINITY, 0.0f64), |(l, h), &d| (l.min(d), h.max(d)));
+    let shapes: Vec<_> = [a.as_str(), b.as_str()]
+        .iter()
+        .map(|n| {
+            let mesh = shapespace_geometry::io::read_mesh(&dir.join(format!("{n}.obj"))).unwrap();
+            prepare_shape(n, &mesh, &m, &DiskMapParams::default()).unwrap()
+        })
+        .collect();
+    let (lo, hi) = shapes[0]
+        .measure
+        .densities
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &d| (l.min(d), h.max(d)));
     println!("density range {lo:.3e} .. {hi:.3e}");
-    let params = NewtonParams { density_continuation: cont, max_iterations: 300, ..Default::default() };
+    let params = NewtonParams {
+        density_continuation: cont,
+        max_iterations: 300,
+        ..Default::default()
+    };
     let sol = shapespace_omt::solve_ot(&shapes[0].measure, &shapes[1].points, &shapes[1].masses, &params).unwrap();
     for (k, r) in sol.log.iter().enumerate() {
-        println!("{k:3} err {:.2e} tau {:.4} halv {} rejm {} rejn {} minmass {:.2e} diag {:.3} integ {:.3} solve {:.3}", r.max_relative_error, r.step, r.halvings, r.rejected_min_mass, r.rejected_norm, r.min_cell_mass, r.t_diagram, r.t_integration, r.t_solve);
+        println!(
+            "{k:3} err {:.2e} tau {:.4} halv {} rejm {} rejn {} minmass {:.2e} diag {:.3} integ {:.3} solve {:.3}",
+            r.max_relative_error,
+            r.step,
+            r.halvings,
+            r.rejected_min_mass,
+            r.rejected_norm,
+            r.min_cell_mass,
+            r.t_diagram,
+            r.t_integration,
+            r.t_solve
+        );
     }
-    let (rm, rn): (usize, usize) = sol.log.iter().fold((0, 0), |(a, b), r| (a + r.rejected_min_mass, b + r.rejected_norm));
-    println!("SUMMARY it {} evals {} rej_minmass {rm} rej_norm {rn} cost {:.15e} err {:.2e}", sol.iterations, sol.evaluations, sol.cost, sol.max_relative_error);
-    println!("start {:?} eps0 {:.2e} t_start {:.3} total {:.3} cost {:.6} stop {}", sol.start, sol.epsilon0, sol.t_start, sol.t_total, sol.cost, sol.stop);
+    let (rm, rn): (usize, usize) = sol
+        .log
+        .iter()
+        .fold((0, 0), |(a, b), r| (a + r.rejected_min_mass, b + r.rejected_norm));
+    println!(
+        "SUMMARY it {} evals {} rej_minmass {rm} rej_norm {rn} cost {:.15e} err {:.2e}",
+        sol.iterations, sol.evaluations, sol.cost, sol.max_relative_error
+    );
+    println!(
+        "start {:?} eps0 {:.2e} t_start {:.3} total {:.3} cost {:.6} stop {}",
+        sol.start, sol.epsilon0, sol.t_start, sol.t_total, sol.cost, sol.stop
+    );
 }

@@ -44,21 +44,36 @@ fn tosca_disk(path: &Path) -> Result<TriMesh, String> {
             d(a).total_cmp(&d(b))
         })
         .ok_or("empty mesh")?;
-    cut_disk(&mesh, center as u32, Radius::Rings(3)).map(|(m, _)| m).map_err(|e| e.to_string())
+    cut_disk(&mesh, center as u32, Radius::Rings(3))
+        .map(|(m, _)| m)
+        .map_err(|e| e.to_string())
 }
 
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let tosca = Path::new("/work/shared/datasets/tosca");
     let mut meshes: Vec<(String, Result<TriMesh, String>)> = vec![
-        ("disks/face.obj".into(), shapespace_geometry::io::read_mesh(&root.join("datasets/disks/face.obj")).map_err(|e| e.to_string())),
-        ("disks/camelhead.off".into(), shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string())),
+        (
+            "disks/face.obj".into(),
+            shapespace_geometry::io::read_mesh(&root.join("datasets/disks/face.obj")).map_err(|e| e.to_string()),
+        ),
+        (
+            "disks/camelhead.off".into(),
+            shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string()),
+        ),
     ];
-    let camel = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string());
-    meshes.push(("camelhead 1-to-4 subdivided".into(), camel.and_then(|m| subdivide_midpoint(&m).map_err(|e| e.to_string()))));
+    let camel =
+        shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string());
+    meshes.push((
+        "camelhead 1-to-4 subdivided".into(),
+        camel.and_then(|m| subdivide_midpoint(&m).map_err(|e| e.to_string())),
+    ));
     if tosca.is_dir() {
         for name in ["victoria0", "dog0", "horse0", "centaur0"] {
-            meshes.push((format!("tosca/{name} (cut)"), tosca_disk(&tosca.join(format!("{name}.off")))));
+            meshes.push((
+                format!("tosca/{name} (cut)"),
+                tosca_disk(&tosca.join(format!("{name}.off"))),
+            ));
         }
     } else {
         println!("(skipping TOSCA meshes: {} not found)", tosca.display());
@@ -95,7 +110,12 @@ fn main() {
             }
             Err(e) => {
                 let source = std::error::Error::source(&e).map(|s| s.to_string()).unwrap_or_default();
-                println!("| {name} | {} | {} | failed after {:.2} s: {e}: {source} |", mesh.num_vertices(), mesh.num_faces(), t.elapsed().as_secs_f64());
+                println!(
+                    "| {name} | {} | {} | failed after {:.2} s: {e}: {source} |",
+                    mesh.num_vertices(),
+                    mesh.num_faces(),
+                    t.elapsed().as_secs_f64()
+                );
             }
         }
     }

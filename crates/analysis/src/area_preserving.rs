@@ -78,7 +78,9 @@ impl std::str::FromStr for Domain {
         match s.trim().to_ascii_lowercase().as_str() {
             "disk" => Ok(Domain::Disk),
             "square" => Ok(Domain::Square),
-            other => Err(AnalysisError::InvalidInput(format!("unknown domain `{other}` (expected disk or square)"))),
+            other => Err(AnalysisError::InvalidInput(format!(
+                "unknown domain `{other}` (expected disk or square)"
+            ))),
         }
     }
 }
@@ -224,11 +226,15 @@ pub fn domain_polygon(domain: Domain, k: usize) -> Result<Vec<[f64; 2]>, Analysi
     match domain {
         Domain::Disk => {
             if k < 3 {
-                return Err(AnalysisError::InvalidInput(format!("the disk polygon needs at least 3 vertices, got {k}")));
+                return Err(AnalysisError::InvalidInput(format!(
+                    "the disk polygon needs at least 3 vertices, got {k}"
+                )));
             }
             let step = std::f64::consts::TAU / k as f64;
             let rho = (std::f64::consts::TAU / (k as f64 * step.sin())).sqrt();
-            Ok((0..k).map(|j| [rho * (j as f64 * step).cos(), rho * (j as f64 * step).sin()]).collect())
+            Ok((0..k)
+                .map(|j| [rho * (j as f64 * step).cos(), rho * (j as f64 * step).sin()])
+                .collect())
         }
         Domain::Square => {
             let a = 0.5 * std::f64::consts::PI.sqrt();
@@ -250,7 +256,9 @@ pub fn domain_polygon(domain: Domain, k: usize) -> Result<Vec<[f64; 2]>, Analysi
 pub fn domain_measure(domain: Domain, polygon: &[[f64; 2]]) -> Result<SourceMeasure, AnalysisError> {
     let k = polygon.len();
     if k < 3 {
-        return Err(AnalysisError::InvalidInput(format!("the domain polygon needs at least 3 vertices, got {k}")));
+        return Err(AnalysisError::InvalidInput(format!(
+            "the domain polygon needs at least 3 vertices, got {k}"
+        )));
     }
     if domain == Domain::Square || k <= 16 {
         return SourceMeasure::uniform_polygon(polygon, 1.0).map_err(AnalysisError::Transport);
@@ -320,10 +328,17 @@ fn project_to_boundary(domain: Domain, c: [f64; 2]) -> [f64; 2] {
 pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> Result<Vec<f64>, AnalysisError> {
     if let Some(w) = weights {
         if w.len() != ring_thirds.len() {
-            return Err(AnalysisError::InvalidInput(format!("{} weights for {} vertices", w.len(), ring_thirds.len())));
+            return Err(AnalysisError::InvalidInput(format!(
+                "{} weights for {} vertices",
+                w.len(),
+                ring_thirds.len()
+            )));
         }
         if let Some(i) = w.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
-            return Err(AnalysisError::InvalidInput(format!("weight of vertex {i} is {} (must be finite and > 0)", w[i])));
+            return Err(AnalysisError::InvalidInput(format!(
+                "weight of vertex {i} is {} (must be finite and > 0)",
+                w[i]
+            )));
         }
     }
     if let Some(i) = ring_thirds.iter().position(|a| !(a.is_finite() && *a > 0.0)) {
@@ -368,7 +383,8 @@ pub fn area_preserving_map(
     };
     let polygon = domain_polygon(params.domain, k)?;
     let measure = domain_measure(params.domain, &polygon)?;
-    let solution = solve_ot(&measure, &conformal.uv, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
+    let solution =
+        solve_ot(&measure, &conformal.uv, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
     let solution = if params.require_convergence {
         solution.into_result().map_err(AnalysisError::Transport)?
     } else {
@@ -392,7 +408,11 @@ pub fn area_preserving_map(
     let t3 = Instant::now();
     let before = map_quality(mesh, &uv)?;
     let info = repair_folds(mesh, &is_boundary, &mut uv, &params.fold_repair)?;
-    let after = if info.vertices_moved > 0 { map_quality(mesh, &uv)? } else { before.clone() };
+    let after = if info.vertices_moved > 0 {
+        map_quality(mesh, &uv)?
+    } else {
+        before.clone()
+    };
     let fold_repair = FoldRepairSummary { info, before, after };
     let t4 = Instant::now();
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
@@ -432,7 +452,11 @@ fn map_quality(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<MapQuality, AnalysisEr
 
 /// Cell centroids, boundary vertices projected onto ∂Ω; returns the map and the largest
 /// projection distance. Errors on an empty cell (only possible for an unconverged solution).
-fn centroid_map(domain: Domain, solution: &OtSolution, is_boundary: &[bool]) -> Result<(Vec<[f64; 2]>, f64), AnalysisError> {
+fn centroid_map(
+    domain: Domain,
+    solution: &OtSolution,
+    is_boundary: &[bool],
+) -> Result<(Vec<[f64; 2]>, f64), AnalysisError> {
     let mut max_move = 0.0f64;
     let mut uv = Vec::with_capacity(is_boundary.len());
     for (i, c) in solution.centroids().into_iter().enumerate() {
@@ -484,7 +508,11 @@ pub fn read_vertex_weights(path: &Path, num_vertices: usize) -> Result<Vec<f64>,
         let record = record.map_err(|e| csv_error(path, e))?;
         let line = record.position().map_or(0, |p| p.line());
         if record.len() != 2 {
-            return Err(AnalysisError::parse(path, line, format!("expected 2 fields `vertex,weight`, got {}", record.len())));
+            return Err(AnalysisError::parse(
+                path,
+                line,
+                format!("expected 2 fields `vertex,weight`, got {}", record.len()),
+            ));
         }
         let v: usize = record[0]
             .parse()
@@ -493,10 +521,18 @@ pub fn read_vertex_weights(path: &Path, num_vertices: usize) -> Result<Vec<f64>,
             .parse()
             .map_err(|_| AnalysisError::parse(path, line, format!("`{}` is not a number", &record[1])))?;
         if v >= num_vertices {
-            return Err(AnalysisError::parse(path, line, format!("vertex {v} out of range (the mesh has {num_vertices} vertices)")));
+            return Err(AnalysisError::parse(
+                path,
+                line,
+                format!("vertex {v} out of range (the mesh has {num_vertices} vertices)"),
+            ));
         }
         if !(w.is_finite() && w > 0.0) {
-            return Err(AnalysisError::parse(path, line, format!("weight {w} of vertex {v} must be finite and > 0")));
+            return Err(AnalysisError::parse(
+                path,
+                line,
+                format!("weight {w} of vertex {v} must be finite and > 0"),
+            ));
         }
         if seen[v] {
             return Err(AnalysisError::parse(path, line, format!("vertex {v} listed twice")));
@@ -519,13 +555,15 @@ fn csv_error(path: &Path, e: csv::Error) -> AnalysisError {
 /// index out of range or a factor that is not finite and > 0.
 pub fn region_weights(num_vertices: usize, region: &[u32], factor: f64) -> Result<Vec<f64>, AnalysisError> {
     if !(factor.is_finite() && factor > 0.0) {
-        return Err(AnalysisError::InvalidInput(format!("weight factor {factor} must be finite and > 0")));
+        return Err(AnalysisError::InvalidInput(format!(
+            "weight factor {factor} must be finite and > 0"
+        )));
     }
     let mut w = vec![1.0; num_vertices];
     for &v in region {
-        let slot = w
-            .get_mut(v as usize)
-            .ok_or_else(|| AnalysisError::InvalidInput(format!("region vertex {v} out of range (#V = {num_vertices})")))?;
+        let slot = w.get_mut(v as usize).ok_or_else(|| {
+            AnalysisError::InvalidInput(format!("region vertex {v} out of range (#V = {num_vertices})"))
+        })?;
         *slot = factor;
     }
     Ok(w)
@@ -566,8 +604,16 @@ mod tests {
         for k in [17usize, 64, 1000, 1024, 4096] {
             let p = domain_polygon(Domain::Disk, k).unwrap();
             let m = domain_measure(Domain::Disk, &p).unwrap(); // checks counter-clockwise triangles
-            assert!((m.total_mass() - std::f64::consts::PI).abs() < 1e-12, "k={k}: {}", m.total_mass());
-            assert!(m.triangles.len() <= 3 * k + 16, "k={k}: {} triangles", m.triangles.len());
+            assert!(
+                (m.total_mass() - std::f64::consts::PI).abs() < 1e-12,
+                "k={k}: {}",
+                m.total_mass()
+            );
+            assert!(
+                m.triangles.len() <= 3 * k + 16,
+                "k={k}: {} triangles",
+                m.triangles.len()
+            );
             // the boundary edges of the triangulation are exactly the K-gon's edges: every
             // directed polygon edge appears in exactly one triangle
             let mut found = 0;

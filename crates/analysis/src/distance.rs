@@ -44,11 +44,24 @@ pub struct PreparedShape {
 }
 
 /// Conformal map, density and target data of one surface (scaled to area π internally).
-pub fn prepare_shape(name: &str, mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Result<PreparedShape, AnalysisError> {
+pub fn prepare_shape(
+    name: &str,
+    mesh: &TriMesh,
+    markers: &Markers,
+    params: &DiskMapParams,
+) -> Result<PreparedShape, AnalysisError> {
     let start = Instant::now();
-    let disk = disk_map(mesh, markers, params).map_err(|e| AnalysisError::Shape { name: name.to_string(), message: e.to_string() })?;
-    let measure = SourceMeasure::new(disk.uv.clone(), mesh.faces.clone(), disk.face_densities.clone())
-        .map_err(|e| AnalysisError::Shape { name: name.to_string(), message: format!("pushed-forward density: {e}") })?;
+    let disk = disk_map(mesh, markers, params).map_err(|e| AnalysisError::Shape {
+        name: name.to_string(),
+        message: e.to_string(),
+    })?;
+    let measure =
+        SourceMeasure::new(disk.uv.clone(), mesh.faces.clone(), disk.face_densities.clone()).map_err(|e| {
+            AnalysisError::Shape {
+                name: name.to_string(),
+                message: format!("pushed-forward density: {e}"),
+            }
+        })?;
     let scale2 = disk.scale * disk.scale;
     let masses: Vec<f64> = vertex_dual_areas(mesh).iter().map(|a| a * scale2).collect();
     if let Some(i) = masses.iter().position(|&m| !(m > 0.0 && m.is_finite())) {
@@ -57,7 +70,14 @@ pub fn prepare_shape(name: &str, mesh: &TriMesh, markers: &Markers, params: &Dis
             message: format!("vertex {i} has no incident area (unreferenced vertex or degenerate one-ring): remove unreferenced vertices first"),
         });
     }
-    Ok(PreparedShape { name: name.to_string(), points: disk.uv.clone(), disk, measure, masses, seconds: start.elapsed().as_secs_f64() })
+    Ok(PreparedShape {
+        name: name.to_string(),
+        points: disk.uv.clone(),
+        disk,
+        measure,
+        masses,
+        seconds: start.elapsed().as_secs_f64(),
+    })
 }
 
 /// The outcome of one directed computation source → target.
@@ -90,10 +110,21 @@ pub struct DirectedDistance {
 /// takes 3–5× longer on these inputs, so it is only the fallback when the direct solve does not
 /// converge or cannot start. The fallback restarts from scratch with `params` as given (and
 /// continuation at ratio 10 if `params` has none); its iterations are added to the count.
-pub fn directed_distance(source: &PreparedShape, target: &PreparedShape, params: &NewtonParams) -> Result<(DirectedDistance, Vec<f64>), AnalysisError> {
+pub fn directed_distance(
+    source: &PreparedShape,
+    target: &PreparedShape,
+    params: &NewtonParams,
+) -> Result<(DirectedDistance, Vec<f64>), AnalysisError> {
     let start = Instant::now();
-    let pair_error = |e: shapespace_omt::OmtError| AnalysisError::Pair { a: source.name.clone(), b: target.name.clone(), message: e.to_string() };
-    let direct_params = NewtonParams { density_continuation: None, ..params.clone() };
+    let pair_error = |e: shapespace_omt::OmtError| AnalysisError::Pair {
+        a: source.name.clone(),
+        b: target.name.clone(),
+        message: e.to_string(),
+    };
+    let direct_params = NewtonParams {
+        density_continuation: None,
+        ..params.clone()
+    };
     let direct = solve_ot(&source.measure, &target.points, &target.masses, &direct_params);
     let (solution, note) = match direct {
         Ok(solution) if solution.converged() => (solution, String::new()),
@@ -107,7 +138,8 @@ pub fn directed_distance(source: &PreparedShape, target: &PreparedShape, params:
                 density_continuation: params.density_continuation.or(Some(10.0)),
                 ..params.clone()
             };
-            let mut solution = solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(pair_error)?;
+            let mut solution =
+                solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(pair_error)?;
             solution.iterations += first_iterations;
             solution.evaluations += first_evaluations;
             (solution, format!(" (after a direct solve that stopped: {why})"))
@@ -140,7 +172,11 @@ pub struct PairwiseOptions {
 
 impl Default for PairwiseOptions {
     fn default() -> Self {
-        PairwiseOptions { symmetrize: false, newton: NewtonParams::default(), warm_start: true }
+        PairwiseOptions {
+            symmetrize: false,
+            newton: NewtonParams::default(),
+            warm_start: true,
+        }
     }
 }
 
@@ -187,7 +223,11 @@ pub struct PairwiseResult {
 /// with it, both directions. Pairs are grouped by target and each group runs sequentially in
 /// a fixed order (warm-started from the previous pair), groups in parallel: the result is the
 /// same for any number of threads. `progress` is called once per finished directed pair.
-pub fn pairwise_distances(shapes: &[Option<PreparedShape>], options: &PairwiseOptions, progress: &(dyn Fn() + Sync)) -> PairwiseResult {
+pub fn pairwise_distances(
+    shapes: &[Option<PreparedShape>],
+    options: &PairwiseOptions,
+    progress: &(dyn Fn() + Sync),
+) -> PairwiseResult {
     let n = shapes.len();
     let names: Vec<String> = shapes
         .iter()
@@ -270,7 +310,13 @@ pub fn pairwise_distances(shapes: &[Option<PreparedShape>], options: &PairwiseOp
         }
     }
     let pair_seconds = pairs.iter().map(|p| p.seconds).sum();
-    PairwiseResult { names, matrix, pairs, asymmetries, pair_seconds }
+    PairwiseResult {
+        names,
+        matrix,
+        pairs,
+        asymmetries,
+        pair_seconds,
+    }
 }
 
 fn failed_record(names: &[String], s: usize, t: usize, status: String) -> PairRecord {

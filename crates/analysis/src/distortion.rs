@@ -86,8 +86,11 @@ pub fn map_distortion(name: &str, mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<Map
             ring2[v as usize] += areas2[f];
         }
     }
-    let vertex_log_area_ratio: Vec<f64> =
-        ring2.iter().zip(&ring3).map(|(a2, a3)| ((a2 / total2) / (a3 / total3)).ln()).collect();
+    let vertex_log_area_ratio: Vec<f64> = ring2
+        .iter()
+        .zip(&ring3)
+        .map(|(a2, a3)| ((a2 / total2) / (a3 / total3)).ln())
+        .collect();
     let mut bad3 = 0.0;
     let mut flipped_image_area = 0.0;
     for (f, &o) in d.orientation.iter().enumerate() {
@@ -138,12 +141,26 @@ pub fn distortion_report(
 /// `angle_distortion` (degrees per face) and `quasi_conformal_distortion` (Λ per face), all maps
 /// overlaid. Returns the written paths. Ranges: min..max of all maps' finite values (Υ and Λ
 /// of flipped faces are finite; an infinite Λ of a degenerate face is left out of the plot).
-pub fn write_distortion_histograms(report: &DistortionReport, dir: &Path, bins: usize) -> Result<Vec<PathBuf>, AnalysisError> {
+pub fn write_distortion_histograms(
+    report: &DistortionReport,
+    dir: &Path,
+    bins: usize,
+) -> Result<Vec<PathBuf>, AnalysisError> {
     std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
     let mut written = Vec::new();
     let plots: [(&str, &str, &str, fn(&MapDistortion) -> &[f64]); 3] = [
-        ("area_distortion", "Area distortion", "Υ = ln(A_2D / A_3D) per face", |m| &m.face_area_distortion),
-        ("angle_distortion", "Angle distortion", "mean |θ_3D − θ_2D| per face (degrees)", |m| &m.face_angle_distortion_deg),
+        (
+            "area_distortion",
+            "Area distortion",
+            "Υ = ln(A_2D / A_3D) per face",
+            |m| &m.face_area_distortion,
+        ),
+        (
+            "angle_distortion",
+            "Angle distortion",
+            "mean |θ_3D − θ_2D| per face (degrees)",
+            |m| &m.face_angle_distortion_deg,
+        ),
         (
             "quasi_conformal_distortion",
             "Quasi-conformal distortion",

@@ -14,11 +14,7 @@ pub enum AnalysisError {
     Io { path: PathBuf, error: std::io::Error },
     /// A CSV file is malformed at a given 1-based line.
     #[error("{}:{line}: {message}", path.display())]
-    Parse {
-        path: PathBuf,
-        line: u64,
-        message: String,
-    },
+    Parse { path: PathBuf, line: u64, message: String },
     /// The distance matrix has `rows` rows but a row or the name list has `cols` entries.
     #[error("distance matrix is not square: {rows} rows but {cols} columns")]
     NotSquare { rows: usize, cols: usize },
@@ -34,12 +30,7 @@ pub enum AnalysisError {
     MissingDistance { a: String, b: String },
     /// `|d_ab − d_ba|` exceeds the tolerance allowed by the caller.
     #[error("distance matrix is not symmetric: d({a:?},{b:?}) = {d_ab} but d({b:?},{a:?}) = {d_ba}")]
-    Asymmetric {
-        a: String,
-        b: String,
-        d_ab: f64,
-        d_ba: f64,
-    },
+    Asymmetric { a: String, b: String, d_ab: f64, d_ba: f64 },
     /// Shapes of the distance matrix that have no row in the labels file.
     #[error("{}: no label row for {} shape(s): {}", path.display(), names.len(), names.join(", "))]
     MissingLabels { path: PathBuf, names: Vec<String> },
@@ -57,10 +48,7 @@ pub enum AnalysisError {
     LabelCountMismatch { labels: usize, shapes: usize },
     /// A label column asked for does not exist.
     #[error("label column {column:?} not found (available: {})", available.join(", "))]
-    UnknownLabelColumn {
-        column: String,
-        available: Vec<String>,
-    },
+    UnknownLabelColumn { column: String, available: Vec<String> },
     /// An option that refers to label columns was given without a labels file.
     #[error("{what} needs a labels file")]
     LabelsRequired { what: String },
@@ -101,7 +89,11 @@ pub enum AnalysisError {
     /// A registration landmark that is malformed, out of range, repeated or on the boundary;
     /// `source_name` is the file (or `pairs`) it came from, `landmark` its name or line.
     #[error("{source_name}: landmark {landmark}: {message}")]
-    Landmark { source_name: String, landmark: String, message: String },
+    Landmark {
+        source_name: String,
+        landmark: String,
+        message: String,
+    },
     /// Invalid plot input (empty data, mismatched lengths, bad range).
     #[error("invalid plot input: {message}")]
     PlotInput { message: String },

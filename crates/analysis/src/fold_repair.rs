@@ -94,7 +94,13 @@ pub struct FoldRepairParams {
 
 impl Default for FoldRepairParams {
     fn default() -> Self {
-        FoldRepairParams { enabled: true, weights: RepairWeights::Layout, initial_rings: 2, retraction_sweeps: 200, retraction_log_floor: 1.0 }
+        FoldRepairParams {
+            enabled: true,
+            weights: RepairWeights::Layout,
+            initial_rings: 2,
+            retraction_sweeps: 200,
+            retraction_log_floor: 1.0,
+        }
     }
 }
 
@@ -213,8 +219,11 @@ fn mean_value_weights<const D: usize>(
     is_boundary: &[bool],
     p: &[[f64; D]],
 ) -> Vec<Vec<f64>> {
-    let mut w: Vec<Vec<f64>> =
-        neighbors.iter().zip(is_boundary).map(|(n, &b)| if b { Vec::new() } else { vec![0.0; n.len()] }).collect();
+    let mut w: Vec<Vec<f64>> = neighbors
+        .iter()
+        .zip(is_boundary)
+        .map(|(n, &b)| if b { Vec::new() } else { vec![0.0; n.len()] })
+        .collect();
     let sub = |x: [f64; D], y: [f64; D]| -> [f64; D] { std::array::from_fn(|k| x[k] - y[k]) };
     let norm = |x: [f64; D]| -> f64 {
         // hypot-style scaling to avoid underflow of tiny edges
@@ -245,7 +254,9 @@ fn mean_value_weights<const D: usize>(
 /// Normalizes every interior row to sum 1 with entries ≥ 1e-12 of the row maximum; returns
 /// false for a row that cannot be (non-finite or all zero), leaving it unchanged.
 fn normalize_row(row: &mut [f64]) -> bool {
-    let max = row.iter().fold(0.0f64, |a, &x| if x.is_nan() { f64::NAN } else { a.max(x) });
+    let max = row
+        .iter()
+        .fold(0.0f64, |a, &x| if x.is_nan() { f64::NAN } else { a.max(x) });
     if !(max.is_finite() && max > 0.0) || row.iter().any(|x| !x.is_finite() || *x < 0.0) {
         return false;
     }
@@ -356,14 +367,16 @@ fn solve_region(
         }
         let a = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
             .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: assembling the Tutte system: {e:?}")))?;
-        let lu = a
-            .sp_lu()
-            .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e:?}")))?;
+        let lu = a.sp_lu().map_err(|e| {
+            AnalysisError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e:?}"))
+        })?;
         lu.solve_in_place(rhs.as_mut());
         for (li, &v) in comp.iter().enumerate() {
             let p = [rhs[(li, 0)] + c[0], rhs[(li, 1)] + c[1]];
             if !(p[0].is_finite() && p[1].is_finite()) {
-                return Err(AnalysisError::InvalidInput(format!("fold repair: non-finite position of vertex {v}")));
+                return Err(AnalysisError::InvalidInput(format!(
+                    "fold repair: non-finite position of vertex {v}"
+                )));
             }
             out[v] = p;
         }
@@ -397,7 +410,10 @@ fn retract(
     let star_ok = |uv: &[[f64; 2]], v: usize, p: [f64; 2]| {
         vertex_faces[v].iter().all(|&f| {
             let f = f as usize;
-            match (log_doubled_area_with(faces, uv, f, v, p), log_doubled_area_with(faces, uv, f, v, uv[v])) {
+            match (
+                log_doubled_area_with(faces, uv, f, v, p),
+                log_doubled_area_with(faces, uv, f, v, uv[v]),
+            ) {
                 (Some(new), Some(old)) => new >= old.min(floors[f]),
                 (Some(_), None) => true,
                 (None, _) => false,
@@ -413,7 +429,11 @@ fn retract(
             }
             let mut t = 1.0;
             for _ in 0..6 {
-                let p = if t == 1.0 { goal } else { [x[0] + t * (goal[0] - x[0]), x[1] + t * (goal[1] - x[1])] };
+                let p = if t == 1.0 {
+                    goal
+                } else {
+                    [x[0] + t * (goal[0] - x[0]), x[1] + t * (goal[1] - x[1])]
+                };
                 if p != x && star_ok(uv, v, p) {
                     uv[v] = p;
                     moved = true;
@@ -431,7 +451,13 @@ fn retract(
 
 /// Grows `in_region` by the interior vertices within `rings` edges of `seeds` (the path may
 /// pass through boundary vertices). Returns the number of vertices added.
-fn grow_region(neighbors: &[Vec<u32>], is_boundary: &[bool], seeds: &[usize], rings: usize, in_region: &mut [bool]) -> usize {
+fn grow_region(
+    neighbors: &[Vec<u32>],
+    is_boundary: &[bool],
+    seeds: &[usize],
+    rings: usize,
+    in_region: &mut [bool],
+) -> usize {
     let n = neighbors.len();
     let mut depth = vec![usize::MAX; n];
     let mut queue = VecDeque::new();
@@ -495,7 +521,10 @@ pub fn repair_folds(
     if !params.enabled || bad.is_empty() {
         return Ok(info);
     }
-    if let Some(&f) = bad.iter().find(|&&f| mesh.faces[f].iter().all(|&v| is_boundary[v as usize])) {
+    if let Some(&f) = bad
+        .iter()
+        .find(|&&f| mesh.faces[f].iter().all(|&v| is_boundary[v as usize]))
+    {
         return Err(AnalysisError::FoldRepair {
             folded: bad.len(),
             message: format!("face {f} is folded and has only boundary vertices (boundary out of order or coincident)"),
@@ -564,8 +593,15 @@ pub fn repair_folds(
             log_doubled_area(a, b, c).map_or(share, |l| l.min(share))
         })
         .collect();
-    info.retraction_sweeps =
-        retract(&mesh.faces, &conn.vertex_faces, &floors, &movable, &original, &mut result, params.retraction_sweeps);
+    info.retraction_sweeps = retract(
+        &mesh.faces,
+        &conn.vertex_faces,
+        &floors,
+        &movable,
+        &original,
+        &mut result,
+        params.retraction_sweeps,
+    );
     info.folded_after = 0;
     for (v, (p, q)) in result.iter().zip(&original).enumerate() {
         if p != q {
@@ -589,7 +625,11 @@ pub fn repair_folds(
 ///
 /// Errors: `fixed` or `layout` not #V long, a free vertex on the boundary of `mesh` (its row
 /// would be empty), a degenerate 3D one-ring, a failed sparse solve.
-pub fn mean_value_tutte_map(mesh: &TriMesh, layout: &[[f64; 2]], fixed: &[Option<[f64; 2]>]) -> Result<Vec<[f64; 2]>, AnalysisError> {
+pub fn mean_value_tutte_map(
+    mesh: &TriMesh,
+    layout: &[[f64; 2]],
+    fixed: &[Option<[f64; 2]>],
+) -> Result<Vec<[f64; 2]>, AnalysisError> {
     let n = mesh.num_vertices();
     if layout.len() != n || fixed.len() != n {
         return Err(AnalysisError::InvalidInput(format!(
@@ -601,7 +641,9 @@ pub fn mean_value_tutte_map(mesh: &TriMesh, layout: &[[f64; 2]], fixed: &[Option
     let conn = Connectivity::of(mesh);
     let on_boundary = conn.boundary_vertices(n);
     if let Some(v) = (0..n).find(|&v| on_boundary[v] && fixed[v].is_none()) {
-        return Err(AnalysisError::InvalidInput(format!("mean-value map: boundary vertex {v} is not fixed")));
+        return Err(AnalysisError::InvalidInput(format!(
+            "mean-value map: boundary vertex {v} is not fixed"
+        )));
     }
     let neighbors = conn.vertex_neighbors(n);
     let is_fixed: Vec<bool> = fixed.iter().map(Option::is_some).collect();
@@ -693,12 +735,19 @@ pub fn untangle_kernels(
     max_sweeps: usize,
 ) -> UntangleInfo {
     let bad = folded_faces(faces, uv).2;
-    let mut info = UntangleInfo { folded_before: bad.len(), folded_after: bad.len(), ..Default::default() };
+    let mut info = UntangleInfo {
+        folded_before: bad.len(),
+        folded_after: bad.len(),
+        ..Default::default()
+    };
     let invalid_around = |uv: &[[f64; 2]], v: usize| {
-        vertex_faces[v].iter().filter(|&&f| {
-            let [a, b, c] = faces[f as usize].map(|u| uv[u as usize]);
-            !face_is_valid(a, b, c)
-        }).count()
+        vertex_faces[v]
+            .iter()
+            .filter(|&&f| {
+                let [a, b, c] = faces[f as usize].map(|u| uv[u as usize]);
+                !face_is_valid(a, b, c)
+            })
+            .count()
     };
     let mut bad = bad;
     while !bad.is_empty() && info.sweeps < max_sweeps {
@@ -707,7 +756,11 @@ pub fn untangle_kernels(
         if info.sweeps > max_sweeps / 2 {
             let ring: Vec<usize> = verts
                 .iter()
-                .flat_map(|&v| vertex_faces[v].iter().flat_map(|&f| faces[f as usize].map(|u| u as usize)))
+                .flat_map(|&v| {
+                    vertex_faces[v]
+                        .iter()
+                        .flat_map(|&f| faces[f as usize].map(|u| u as usize))
+                })
                 .collect();
             verts.extend(ring);
         }
@@ -731,7 +784,9 @@ pub fn untangle_kernels(
                 })
                 .collect();
             let origin = uv[v];
-            let Some(c) = polygon_centroid(&star_kernel(&links, origin)) else { continue };
+            let Some(c) = polygon_centroid(&star_kernel(&links, origin)) else {
+                continue;
+            };
             let old = uv[v];
             uv[v] = [origin[0] + c[0], origin[1] + c[1]];
             if invalid_around(uv, v) < before {
@@ -800,7 +855,11 @@ mod tests {
         let w = tutte_weights(&mesh, &neighbors, &is_boundary, &uv, RepairWeights::Layout).unwrap();
         let all_interior: Vec<bool> = is_boundary.iter().map(|b| !b).collect();
         let out = solve_region(&neighbors, &w, &all_interior, &uv).unwrap();
-        let d = out.iter().zip(&uv).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
+        let d = out
+            .iter()
+            .zip(&uv)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max);
         assert!(d < 1e-14, "max displacement {d:e}");
     }
 
@@ -812,11 +871,15 @@ mod tests {
         let n = mesh.num_vertices();
         let neighbors = Connectivity::of(&mesh).vertex_neighbors(n);
         // an interior vertex on ring 4 and the direction to its farthest neighbour
-        let v = (0..n).find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9).unwrap();
+        let v = (0..n)
+            .find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9)
+            .unwrap();
         let far = *neighbors[v]
             .iter()
             .max_by(|&&a, &&b| {
-                let d = |u: u32| (reference[u as usize][0] - reference[v][0]).hypot(reference[u as usize][1] - reference[v][1]);
+                let d = |u: u32| {
+                    (reference[u as usize][0] - reference[v][0]).hypot(reference[u as usize][1] - reference[v][1])
+                };
                 d(a).total_cmp(&d(b))
             })
             .unwrap() as usize;
@@ -830,7 +893,10 @@ mod tests {
         assert!(flipped >= 2, "the push should fold faces, got {flipped}");
         for kind in [RepairWeights::Layout, RepairWeights::Surface] {
             let mut out = uv.clone();
-            let params = FoldRepairParams { weights: kind, ..Default::default() };
+            let params = FoldRepairParams {
+                weights: kind,
+                ..Default::default()
+            };
             let info = repair_folds(&mesh, &is_boundary, &mut out, &params).unwrap();
             let (f, d, _) = folded_faces(&mesh.faces, &out);
             assert_eq!((f, d), (0, 0), "{kind:?}: {info:?}");
@@ -849,7 +915,12 @@ mod tests {
                 // the pushed vertex's layout weights come from its folded star; it lands within
                 // its neighbours' hull, near its old place
                 let e = (out[v][0] - reference[v][0]).hypot(out[v][1] - reference[v][1]);
-                assert!(e < 0.125, "vertex {v} repaired to {:?}, reference {:?}", out[v], reference[v]);
+                assert!(
+                    e < 0.125,
+                    "vertex {v} repaired to {:?}, reference {:?}",
+                    out[v],
+                    reference[v]
+                );
             }
         }
     }
@@ -892,8 +963,16 @@ mod tests {
         let v = (0..mesh.num_vertices()).find(|&v| !is_boundary[v] && v > 0).unwrap();
         uv[v] = [-uv[v][0] * 3.0, -uv[v][1] * 3.0];
         let before = uv.clone();
-        let info = repair_folds(&mesh, &is_boundary, &mut uv, &FoldRepairParams { enabled: false, ..Default::default() })
-            .unwrap();
+        let info = repair_folds(
+            &mesh,
+            &is_boundary,
+            &mut uv,
+            &FoldRepairParams {
+                enabled: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(uv, before);
         assert!(info.flipped_before > 0 && info.folded_after == info.flipped_before + info.degenerate_before);
         assert_eq!((info.rounds, info.vertices_moved), (0, 0));
@@ -907,12 +986,21 @@ mod tests {
         let n = mesh.num_vertices();
         let conn = Connectivity::of(&mesh);
         let neighbors = conn.vertex_neighbors(n);
-        let v = (0..n).find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9).unwrap();
+        let v = (0..n)
+            .find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9)
+            .unwrap();
         let far = neighbors[v][0] as usize;
         let mut uv = reference.clone();
-        uv[v] = [reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]), reference[far][1] + 0.5 * (reference[far][1] - reference[v][1])];
+        uv[v] = [
+            reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]),
+            reference[far][1] + 0.5 * (reference[far][1] - reference[v][1]),
+        ];
         let mut fixed = is_boundary.clone();
-        let pinned = neighbors[v].iter().map(|&u| u as usize).find(|&u| u != far && !is_boundary[u]).unwrap();
+        let pinned = neighbors[v]
+            .iter()
+            .map(|&u| u as usize)
+            .find(|&u| u != far && !is_boundary[u])
+            .unwrap();
         fixed[pinned] = true;
         let before = uv.clone();
         let info = untangle_kernels(&mesh.faces, &conn.vertex_faces, &fixed, &mut uv, 20);
@@ -937,15 +1025,23 @@ mod tests {
         let (mesh, is_boundary, reference) = disk_layout(8);
         let n = mesh.num_vertices();
         let landmark = (0..n).find(|&v| !is_boundary[v] && reference[v][0] > 0.3).unwrap();
-        let fixed: Vec<Option<[f64; 2]>> =
-            (0..n).map(|v| (is_boundary[v] || v == landmark).then_some(reference[v])).collect();
+        let fixed: Vec<Option<[f64; 2]>> = (0..n)
+            .map(|v| (is_boundary[v] || v == landmark).then_some(reference[v]))
+            .collect();
         let out = mean_value_tutte_map(&mesh, &reference, &fixed).unwrap();
-        let d = out.iter().zip(&reference).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
+        let d = out
+            .iter()
+            .zip(&reference)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max);
         assert!(d < 1e-12, "max displacement {d:e}");
-        let warped: Vec<[f64; 2]> = reference.iter().map(|p| {
-            let r = p[0].hypot(p[1]);
-            [p[0] * r, p[1] * r]
-        }).collect();
+        let warped: Vec<[f64; 2]> = reference
+            .iter()
+            .map(|p| {
+                let r = p[0].hypot(p[1]);
+                [p[0] * r, p[1] * r]
+            })
+            .collect();
         let boundary_only: Vec<Option<[f64; 2]>> = (0..n).map(|v| is_boundary[v].then_some(warped[v])).collect();
         let out = mean_value_tutte_map(&mesh, &warped, &boundary_only).unwrap();
         assert_eq!(count_folded_faces(&mesh.faces, &out), 0);

@@ -42,7 +42,11 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -59,7 +63,9 @@ impl HeatGeodesics {
     pub fn new(mesh: &TriMesh) -> Result<Self, AnalysisError> {
         let n = mesh.num_vertices();
         if n < 3 || mesh.faces.is_empty() {
-            return Err(AnalysisError::InvalidInput("heat method: the mesh has no triangles".into()));
+            return Err(AnalysisError::InvalidInput(
+                "heat method: the mesh has no triangles".into(),
+            ));
         }
         let mut hat_gradients = Vec::with_capacity(mesh.num_faces());
         let mut face_areas = Vec::with_capacity(mesh.num_faces());
@@ -70,7 +76,9 @@ impl HeatGeodesics {
             let nrm = cross(sub(p[1], p[0]), sub(p[2], p[0]));
             let a2 = dot(nrm, nrm).sqrt();
             if !(a2 > 0.0) || !a2.is_finite() {
-                return Err(AnalysisError::InvalidInput(format!("heat method: face {fi} is degenerate (zero area)")));
+                return Err(AnalysisError::InvalidInput(format!(
+                    "heat method: face {fi} is degenerate (zero area)"
+                )));
             }
             let unit = [nrm[0] / a2, nrm[1] / a2, nrm[2] / a2];
             let mut g = [[0.0; 3]; 3];
@@ -94,13 +102,17 @@ impl HeatGeodesics {
         let time = h * h;
         let mass = vertex_dual_areas(mesh);
         if let Some(i) = mass.iter().position(|m| !(*m > 0.0)) {
-            return Err(AnalysisError::InvalidInput(format!("heat method: vertex {i} has no incident triangle")));
+            return Err(AnalysisError::InvalidInput(format!(
+                "heat method: vertex {i} has no incident triangle"
+            )));
         }
         let mut heat_trip: Vec<Triplet<usize, usize, f64>> =
             trip_l.iter().map(|&(i, j, w)| Triplet::new(i, j, time * w)).collect();
         heat_trip.extend(mass.iter().enumerate().map(|(i, &m)| Triplet::new(i, i, m)));
         let a = SparseColMat::try_new_from_triplets(n, n, &heat_trip).map_err(|e| la_err("assembling M + tL", e))?;
-        let heat = a.sp_cholesky(Side::Lower).map_err(|e| la_err("Cholesky of M + tL", e))?;
+        let heat = a
+            .sp_cholesky(Side::Lower)
+            .map_err(|e| la_err("Cholesky of M + tL", e))?;
         // Laplacian with vertex 0 removed (its value pinned to 0)
         let pin_trip: Vec<Triplet<usize, usize, f64>> = trip_l
             .iter()
@@ -111,7 +123,15 @@ impl HeatGeodesics {
         let poisson = lp
             .sp_cholesky(Side::Lower)
             .map_err(|e| la_err("Cholesky of the pinned Laplacian (is the mesh connected?)", e))?;
-        Ok(HeatGeodesics { n, faces: mesh.faces.clone(), hat_gradients, face_areas, heat, poisson, time })
+        Ok(HeatGeodesics {
+            n,
+            faces: mesh.faces.clone(),
+            hat_gradients,
+            face_areas,
+            heat,
+            poisson,
+            time,
+        })
     }
 
     /// Number of vertices.
@@ -123,7 +143,10 @@ impl HeatGeodesics {
     /// in `sources`; one `Vec` per source, in order. Errors on a source out of range.
     pub fn distances(&self, sources: &[u32]) -> Result<Vec<Vec<f64>>, AnalysisError> {
         if let Some(&s) = sources.iter().find(|&&s| s as usize >= self.n) {
-            return Err(AnalysisError::InvalidInput(format!("heat method: source {s} out of range (#V = {})", self.n)));
+            return Err(AnalysisError::InvalidInput(format!(
+                "heat method: source {s} out of range (#V = {})",
+                self.n
+            )));
         }
         let mut out = Vec::with_capacity(sources.len());
         for chunk in sources.chunks(32) {

@@ -3,13 +3,13 @@
 
 pub mod area_preserving;
 pub mod distance;
-pub mod geodesic;
-pub mod pipeline;
 pub mod distortion;
 pub mod error;
 pub mod fold_repair;
+pub mod geodesic;
 pub mod matrix_io;
 pub mod mds;
+pub mod pipeline;
 pub mod plot;
 pub mod point_location;
 pub mod registration;

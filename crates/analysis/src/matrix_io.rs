@@ -227,20 +227,12 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
     let header_line = header.position().map(|p| p.line()).unwrap_or(1);
     let names: Vec<String> = header.iter().skip(1).map(str::to_string).collect();
     if names.is_empty() {
-        return Err(AnalysisError::parse(
-            path,
-            header_line,
-            "header has no shape names",
-        ));
+        return Err(AnalysisError::parse(path, header_line, "header has no shape names"));
     }
     let mut first_line = HashMap::new();
     for name in &names {
         if name.is_empty() {
-            return Err(AnalysisError::parse(
-                path,
-                header_line,
-                "empty shape name in header",
-            ));
+            return Err(AnalysisError::parse(path, header_line, "empty shape name in header"));
         }
         if first_line.insert(name.as_str(), ()).is_some() {
             return Err(AnalysisError::parse(
@@ -297,10 +289,7 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
                 return Err(AnalysisError::parse(
                     path,
                     line,
-                    format!(
-                        "column {:?}: distance {v} must be finite and >= 0",
-                        names[j]
-                    ),
+                    format!("column {:?}: distance {v} must be finite and >= 0", names[j]),
                 ));
             }
             values.push(v);
@@ -408,11 +397,7 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
         }
     }
 
-    let exact: HashMap<&str, usize> = names
-        .iter()
-        .enumerate()
-        .map(|(i, n)| (n.as_str(), i))
-        .collect();
+    let exact: HashMap<&str, usize> = names.iter().enumerate().map(|(i, n)| (n.as_str(), i)).collect();
     let mut by_stem: HashMap<&str, Vec<usize>> = HashMap::new();
     for (i, n) in names.iter().enumerate() {
         by_stem.entry(file_stem(n)).or_default().push(i);
@@ -428,11 +413,7 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
             return Err(AnalysisError::parse(
                 path,
                 line,
-                format!(
-                    "expected {} cells, found {}",
-                    columns.len() + 1,
-                    record.len()
-                ),
+                format!("expected {} cells, found {}", columns.len() + 1, record.len()),
             ));
         }
         let key = &record[0];

@@ -131,10 +131,7 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     let positive_sum: f64 = eigenvalues.iter().filter(|&&l| l > 0.0).sum();
     let negative_sum: f64 = eigenvalues.iter().filter(|&&l| l < 0.0).map(|l| -l).sum();
     let max_abs = eigenvalues.iter().fold(0.0f64, |m, l| m.max(l.abs()));
-    let negative_count = eigenvalues
-        .iter()
-        .filter(|&&l| l < -1e-12 * max_abs)
-        .count();
+    let negative_count = eigenvalues.iter().filter(|&&l| l < -1e-12 * max_abs).count();
 
     let mut coordinates = vec![vec![0.0; dims]; n];
     let mut variance_shares = Vec::with_capacity(dims);
@@ -232,13 +229,7 @@ mod tests {
     #[test]
     fn invalid_dims_rejected() {
         let d = euclidean_matrix(&[vec![0.0], vec![1.0]]);
-        assert!(matches!(
-            classical_mds(&d, 0),
-            Err(AnalysisError::InvalidDims { .. })
-        ));
-        assert!(matches!(
-            classical_mds(&d, 3),
-            Err(AnalysisError::InvalidDims { .. })
-        ));
+        assert!(matches!(classical_mds(&d, 0), Err(AnalysisError::InvalidDims { .. })));
+        assert!(matches!(classical_mds(&d, 3), Err(AnalysisError::InvalidDims { .. })));
     }
 }

@@ -46,7 +46,12 @@ pub fn markers_for(path: &Path, options: &MarkerOptions) -> Result<(Markers, Str
     };
     let (mut markers, source) = match &file {
         Some(p) => (
-            MarkerFile::from_json_file(p).map_err(|e| AnalysisError::Shape { name: path.display().to_string(), message: e.to_string() })?.markers,
+            MarkerFile::from_json_file(p)
+                .map_err(|e| AnalysisError::Shape {
+                    name: path.display().to_string(),
+                    message: e.to_string(),
+                })?
+                .markers,
             p.display().to_string(),
         ),
         None => (Markers::default(), "auto".to_string()),
@@ -133,13 +138,27 @@ pub struct DistancesRun {
 
 /// Shape name of a file: its stem (made unique by the parent folder name when stems repeat).
 pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
-    let stems: Vec<String> = paths.iter().map(|p| p.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default()).collect();
+    let stems: Vec<String> = paths
+        .iter()
+        .map(|p| {
+            p.file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default()
+        })
+        .collect();
     stems
         .iter()
         .zip(paths)
         .map(|(s, p)| {
             if stems.iter().filter(|t| *t == s).count() > 1 {
-                format!("{}/{}", p.parent().and_then(|d| d.file_name()).map(|d| d.to_string_lossy().to_string()).unwrap_or_default(), s)
+                format!(
+                    "{}/{}",
+                    p.parent()
+                        .and_then(|d| d.file_name())
+                        .map(|d| d.to_string_lossy().to_string())
+                        .unwrap_or_default(),
+                    s
+                )
             } else {
                 s.clone()
             }
@@ -160,7 +179,10 @@ pub fn run_distances(
 ) -> Result<DistancesRun, AnalysisError> {
     let t_total = Instant::now();
     if paths.len() < 2 {
-        return Err(AnalysisError::InvalidInput(format!("distances need at least 2 mesh files, got {}", paths.len())));
+        return Err(AnalysisError::InvalidInput(format!(
+            "distances need at least 2 mesh files, got {}",
+            paths.len()
+        )));
     }
     std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
     let names = shape_names(paths);
@@ -174,10 +196,16 @@ pub fn run_distances(
         .map(|(path, name)| {
             let t = Instant::now();
             let outcome = (|| -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| AnalysisError::Shape { name: name.clone(), message: e.to_string() })?;
+                let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| AnalysisError::Shape {
+                    name: name.clone(),
+                    message: e.to_string(),
+                })?;
                 let (markers, source) = markers_for(path, &options.markers)?;
-                let shape = prepare_shape(name, &mesh, &markers, &options.disk_map)
-                    .map_err(|e| AnalysisError::Shape { name: path.display().to_string(), message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string() })?;
+                let shape =
+                    prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
+                        name: path.display().to_string(),
+                        message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                    })?;
                 let choice = MarkerChoice {
                     center: format!("{:?}", shape.disk.info.markers.center),
                     boundary: shape.disk.info.markers.boundary_vertex.to_string(),
@@ -190,7 +218,11 @@ pub fn run_distances(
             let seconds = t.elapsed().as_secs_f64();
             match outcome {
                 Ok((shape, choice, v, f)) => {
-                    let (lo, hi) = shape.disk.face_densities.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+                    let (lo, hi) = shape
+                        .disk
+                        .face_densities
+                        .iter()
+                        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
                     let report = ShapeReport {
                         name: name.clone(),
                         path: path.clone(),
@@ -227,7 +259,13 @@ pub fn run_distances(
     let (shapes, inputs): (Vec<Option<PreparedShape>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
 
     let t_pairs = Instant::now();
-    let total_pairs = (0..n).map(|t| (0..n).filter(|&s| s != t && (options.pairwise.symmetrize || s < t)).count()).sum::<usize>();
+    let total_pairs = (0..n)
+        .map(|t| {
+            (0..n)
+                .filter(|&s| s != t && (options.pairwise.symmetrize || s < t))
+                .count()
+        })
+        .sum::<usize>();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let result = pairwise_distances(&shapes, &options.pairwise, &|| {
         let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -246,8 +284,19 @@ pub fn run_distances(
     files.push(pairs_path);
 
     let mut failures: Vec<String> = inputs.iter().filter_map(|r| r.error.clone()).collect();
-    failures.extend(result.pairs.iter().filter(|p| !p.distance.is_finite()).map(|p| format!("{} -> {}: {}", p.a, p.b, p.status)));
-    let iterations: Vec<f64> = result.pairs.iter().filter(|p| p.distance.is_finite()).map(|p| p.iterations as f64).collect();
+    failures.extend(
+        result
+            .pairs
+            .iter()
+            .filter(|p| !p.distance.is_finite())
+            .map(|p| format!("{} -> {}: {}", p.a, p.b, p.status)),
+    );
+    let iterations: Vec<f64> = result
+        .pairs
+        .iter()
+        .filter(|p| p.distance.is_finite())
+        .map(|p| p.iterations as f64)
+        .collect();
     let report_path = out.join("report.json");
     files.push(report_path.clone());
     let mut report = DistancesReport {
@@ -261,7 +310,13 @@ pub fn run_distances(
             intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
         },
         threads: rayon::current_num_threads(),
-        timings: StageTimings { prepare_wall, pairs_wall, pairs_cpu: result.pair_seconds, write: 0.0, total: 0.0 },
+        timings: StageTimings {
+            prepare_wall,
+            pairs_wall,
+            pairs_cpu: result.pair_seconds,
+            write: 0.0,
+            total: 0.0,
+        },
         pairs_computed: result.pairs.len(),
         pairs_failed: result.pairs.iter().filter(|p| !p.distance.is_finite()).count(),
         failures,
@@ -271,9 +326,16 @@ pub fn run_distances(
     };
     report.timings.write = t_write.elapsed().as_secs_f64();
     report.timings.total = t_total.elapsed().as_secs_f64();
-    let json = serde_json::to_string_pretty(&report).map_err(|e| AnalysisError::Serialize { path: report_path.clone(), message: e.to_string() })?;
+    let json = serde_json::to_string_pretty(&report).map_err(|e| AnalysisError::Serialize {
+        path: report_path.clone(),
+        message: e.to_string(),
+    })?;
     std::fs::write(&report_path, json).map_err(|e| AnalysisError::io(&report_path, e))?;
-    Ok(DistancesRun { matrix, pairs: result.pairs, report })
+    Ok(DistancesRun {
+        matrix,
+        pairs: result.pairs,
+        report,
+    })
 }
 
 /// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations` (a is the

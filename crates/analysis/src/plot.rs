@@ -26,14 +26,8 @@ static FONT_REGISTERED: OnceLock<bool> = OnceLock::new();
 
 /// Registers the bundled DejaVu Sans as `sans-serif` (once per process).
 fn ensure_font() -> Result<(), AnalysisError> {
-    let ok = *FONT_REGISTERED.get_or_init(|| {
-        register_font(
-            FONT,
-            FontStyle::Normal,
-            include_bytes!("../assets/DejaVuSans.ttf"),
-        )
-        .is_ok()
-    });
+    let ok = *FONT_REGISTERED
+        .get_or_init(|| register_font(FONT, FontStyle::Normal, include_bytes!("../assets/DejaVuSans.ttf")).is_ok());
     if ok {
         Ok(())
     } else {
@@ -157,28 +151,15 @@ fn draw_marker<DB: DrawingBackend>(
         }
         Marker::Square => {
             let s = (r as f64 * 0.9) as i32;
-            polygon(vec![
-                (x - s, y - s),
-                (x + s, y - s),
-                (x + s, y + s),
-                (x - s, y + s),
-            ])
+            polygon(vec![(x - s, y - s), (x + s, y - s), (x + s, y + s), (x - s, y + s)])
         }
         Marker::Triangle => {
             let h = (r as f64 * 1.15) as i32;
-            polygon(vec![
-                (x, y - h),
-                (x + h, y + h * 3 / 4),
-                (x - h, y + h * 3 / 4),
-            ])
+            polygon(vec![(x, y - h), (x + h, y + h * 3 / 4), (x - h, y + h * 3 / 4)])
         }
         Marker::TriangleDown => {
             let h = (r as f64 * 1.15) as i32;
-            polygon(vec![
-                (x, y + h),
-                (x + h, y - h * 3 / 4),
-                (x - h, y - h * 3 / 4),
-            ])
+            polygon(vec![(x, y + h), (x + h, y - h * 3 / 4), (x - h, y - h * 3 / 4)])
         }
         Marker::Diamond => {
             let h = (r as f64 * 1.3) as i32;
@@ -191,24 +172,15 @@ fn draw_marker<DB: DrawingBackend>(
                 .map(|k| {
                     let rad = if k % 2 == 0 { outer } else { inner };
                     let a = std::f64::consts::PI * (k as f64 / 5.0 - 0.5);
-                    (
-                        x + (rad * a.cos()).round() as i32,
-                        y + (rad * a.sin()).round() as i32,
-                    )
+                    (x + (rad * a.cos()).round() as i32, y + (rad * a.sin()).round() as i32)
                 })
                 .collect();
             polygon(pts)
         }
         Marker::Cross => {
             let s = r;
-            area.draw(&PathElement::new(
-                vec![(x - s, y - s), (x + s, y + s)],
-                stroke,
-            ))?;
-            area.draw(&PathElement::new(
-                vec![(x - s, y + s), (x + s, y - s)],
-                stroke,
-            ))
+            area.draw(&PathElement::new(vec![(x - s, y - s), (x + s, y + s)], stroke))?;
+            area.draw(&PathElement::new(vec![(x - s, y + s), (x + s, y - s)], stroke))
         }
         Marker::Plus => {
             let s = (r as f64 * 1.2) as i32;
@@ -270,8 +242,7 @@ fn draw_legend<DB: DrawingBackend>(
     // every section and end it with "… and N more".
     let top = 80i32;
     let max_rows = ((h as i32 - top - 20) / MIN_LEGEND_ROW).max(1) as usize;
-    let full_rows =
-        |cap: usize| -> usize { sections.iter().map(|(_, e)| e.len().min(cap + 1) + 2).sum() };
+    let full_rows = |cap: usize| -> usize { sections.iter().map(|(_, e)| e.len().min(cap + 1) + 2).sum() };
     let mut cap = sections.iter().map(|(_, e)| e.len()).max().unwrap_or(0);
     while cap > 1 && full_rows(cap) > max_rows {
         cap -= 1;
@@ -279,16 +250,10 @@ fn draw_legend<DB: DrawingBackend>(
     let capped: Vec<(String, Vec<(&LegendSymbol, String)>)> = sections
         .iter()
         .map(|(title, entries)| {
-            let mut kept: Vec<(&LegendSymbol, String)> = entries
-                .iter()
-                .take(cap)
-                .map(|(s, l)| (s, l.clone()))
-                .collect();
+            let mut kept: Vec<(&LegendSymbol, String)> =
+                entries.iter().take(cap).map(|(s, l)| (s, l.clone())).collect();
             if entries.len() > cap {
-                kept.push((
-                    &LegendSymbol::None,
-                    format!("… and {} more", entries.len() - cap),
-                ));
+                kept.push((&LegendSymbol::None, format!("… and {} more", entries.len() - cap)));
             }
             (title.clone(), kept)
         })
@@ -299,12 +264,7 @@ fn draw_legend<DB: DrawingBackend>(
     for (title, entries) in sections {
         let mut lines = Vec::with_capacity(entries.len());
         for (_, label) in entries {
-            let l = wrap_text(
-                panel,
-                label,
-                &wrap_style,
-                w.saturating_sub(text_x as u32 + 10),
-            )?;
+            let l = wrap_text(panel, label, &wrap_style, w.saturating_sub(text_x as u32 + 10))?;
             rows += l.len();
             lines.push(l);
         }
@@ -320,27 +280,15 @@ fn draw_legend<DB: DrawingBackend>(
     let text = (FONT, font_size).into_font().color(&BLACK.mix(0.85));
     let mut y = top;
     for ((title, lines), (_, entries)) in wrapped.iter().zip(sections) {
-        panel.draw(&Text::new(
-            title.to_string(),
-            (12, y - row_h / 2),
-            heading.clone(),
-        ))?;
+        panel.draw(&Text::new(title.to_string(), (12, y - row_h / 2), heading.clone()))?;
         y += row_h;
         for (label_lines, (symbol, _)) in lines.iter().zip(entries) {
             let cy = y;
             match symbol {
-                LegendSymbol::Marker(m, c) => {
-                    draw_marker(panel, (30, cy), (row_h / 3).clamp(4, 7), *m, *c)?
-                }
+                LegendSymbol::Marker(m, c) => draw_marker(panel, (30, cy), (row_h / 3).clamp(4, 7), *m, *c)?,
                 LegendSymbol::Line(c) => {
-                    panel.draw(&Rectangle::new(
-                        [(16, cy - 6), (44, cy + 6)],
-                        c.mix(0.3).filled(),
-                    ))?;
-                    panel.draw(&PathElement::new(
-                        vec![(16, cy), (44, cy)],
-                        c.stroke_width(3),
-                    ))?;
+                    panel.draw(&Rectangle::new([(16, cy - 6), (44, cy + 6)], c.mix(0.3).filled()))?;
+                    panel.draw(&PathElement::new(vec![(16, cy), (44, cy)], c.stroke_width(3)))?;
                 }
                 LegendSymbol::None => {}
             }
@@ -378,15 +326,11 @@ struct ScatterInput<'a> {
     title: &'a str,
 }
 
-fn draw_scatter<DB: DrawingBackend>(
-    root: DrawingArea<DB, Shift>,
-    input: &ScatterInput,
-) -> DrawResult<DB> {
+fn draw_scatter<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &ScatterInput) -> DrawResult<DB> {
     root.fill(&WHITE)?;
     let has_legend = input.color.is_some() || input.marker.is_some();
     let (w, _) = root.dim_in_pixel();
-    let (plot_area, legend_area) =
-        root.split_horizontally(if has_legend { w - LEGEND_WIDTH } else { w });
+    let (plot_area, legend_area) = root.split_horizontally(if has_legend { w - LEGEND_WIDTH } else { w });
     let titled = plot_area
         .margin(14, 0, 0, 0)
         .titled(input.title, (FONT, 26).into_font())?;
@@ -399,15 +343,11 @@ fn draw_scatter<DB: DrawingBackend>(
     let (mut x0, mut x1) = input
         .points
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-            (a.min(p.0), b.max(p.0))
-        });
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
     let (mut y0, mut y1) = input
         .points
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-            (a.min(p.1), b.max(p.1))
-        });
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
     (x0, x1) = padded(x0, x1, 0.06);
     (y0, y1) = padded(y0, y1, 0.06);
     let scale = ((x1 - x0) / plot_w).max((y1 - y0) / plot_h);
@@ -470,12 +410,7 @@ fn draw_scatter<DB: DrawingBackend>(
             let entries = values
                 .iter()
                 .enumerate()
-                .map(|(k, v)| {
-                    (
-                        LegendSymbol::Marker(MARKERS[k % MARKERS.len()], grey),
-                        v.clone(),
-                    )
-                })
+                .map(|(k, v)| (LegendSymbol::Marker(MARKERS[k % MARKERS.len()], grey), v.clone()))
                 .collect();
             sections.push((format!("{col} (marker)"), entries));
         }
@@ -527,10 +462,7 @@ pub fn mds_scatter(
         if let Some((col, values)) = labels {
             if values.len() != n {
                 return Err(AnalysisError::PlotInput {
-                    message: format!(
-                        "{what} column {col:?} has {} values for {n} points",
-                        values.len()
-                    ),
+                    message: format!("{what} column {col:?} has {} values for {n} points", values.len()),
                 });
             }
         }
@@ -566,16 +498,10 @@ pub fn mds_scatter(
         title,
     };
     let result = match kind {
-        "png" => draw_scatter(
-            BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(),
-            &input,
-        )
-        .map_err(|e| plot_err(path, e)),
-        _ => draw_scatter(
-            SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(),
-            &input,
-        )
-        .map_err(|e| plot_err(path, e)),
+        "png" => draw_scatter(BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
+        _ => draw_scatter(SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
     };
     result
 }
@@ -615,9 +541,7 @@ pub fn histogram_counts(
                 .iter()
                 .flat_map(|(_, v)| v.iter().copied())
                 .filter(|v| v.is_finite());
-            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(v), b.max(v))
-            });
+            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
             if !lo.is_finite() {
                 return Err(AnalysisError::PlotInput {
                     message: "histogram series contain no finite values".into(),
@@ -658,10 +582,7 @@ struct HistogramInput<'a> {
     x_label: &'a str,
 }
 
-fn draw_histograms<DB: DrawingBackend>(
-    root: DrawingArea<DB, Shift>,
-    input: &HistogramInput,
-) -> DrawResult<DB> {
+fn draw_histograms<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &HistogramInput) -> DrawResult<DB> {
     root.fill(&WHITE)?;
     let (w, _) = root.dim_in_pixel();
     let (plot_area, legend_area) = root.split_horizontally(w - LEGEND_WIDTH);
@@ -671,12 +592,7 @@ fn draw_histograms<DB: DrawingBackend>(
     let (lo, hi) = input.hist.range;
     let bins = input.fractions.first().map_or(1, Vec::len);
     let width = (hi - lo) / bins as f64;
-    let y_max = input
-        .fractions
-        .iter()
-        .flatten()
-        .copied()
-        .fold(0.0f64, f64::max);
+    let y_max = input.fractions.iter().flatten().copied().fold(0.0f64, f64::max);
     let y_top = if y_max > 0.0 { 1.08 * y_max } else { 1.0 };
     let mut chart = ChartBuilder::on(&titled)
         .margin(20)
@@ -712,10 +628,7 @@ fn draw_histograms<DB: DrawingBackend>(
             steps.push((x + width, f));
         }
         steps.push((hi, 0.0));
-        chart.draw_series(std::iter::once(PathElement::new(
-            steps,
-            color.stroke_width(3),
-        )))?;
+        chart.draw_series(std::iter::once(PathElement::new(steps, color.stroke_width(3))))?;
     }
     let entries = input
         .names
@@ -763,13 +676,7 @@ pub fn histograms(
         .map(|c| {
             let total: usize = c.iter().sum();
             c.iter()
-                .map(|&k| {
-                    if total > 0 {
-                        k as f64 / total as f64
-                    } else {
-                        0.0
-                    }
-                })
+                .map(|&k| if total > 0 { k as f64 / total as f64 } else { 0.0 })
                 .collect()
         })
         .collect();
@@ -781,16 +688,10 @@ pub fn histograms(
         x_label,
     };
     let result = match kind {
-        "png" => draw_histograms(
-            BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(),
-            &input,
-        )
-        .map_err(|e| plot_err(path, e)),
-        _ => draw_histograms(
-            SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(),
-            &input,
-        )
-        .map_err(|e| plot_err(path, e)),
+        "png" => draw_histograms(BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
+        _ => draw_histograms(SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+            .map_err(|e| plot_err(path, e)),
     };
     result?;
     Ok(input.hist)

@@ -117,7 +117,10 @@ pub fn closest_point_in_triangle(p: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64;
     for k in 0..3 {
         let (i, j) = (k, (k + 1) % 3);
         let t = segment_parameter(p, corners[i], corners[j]);
-        let q = [corners[i][0] + t * (corners[j][0] - corners[i][0]), corners[i][1] + t * (corners[j][1] - corners[i][1])];
+        let q = [
+            corners[i][0] + t * (corners[j][0] - corners[i][0]),
+            corners[i][1] + t * (corners[j][1] - corners[i][1]),
+        ];
         let d = (q[0] - p[0]).hypot(q[1] - p[1]);
         if d < best.1 {
             let mut bc = [0.0; 3];
@@ -135,10 +138,14 @@ impl PointLocator {
     pub fn new(positions: &[[f64; 2]], faces: &[[u32; 3]]) -> Result<Self, AnalysisError> {
         let n = positions.len();
         if let Some(f) = faces.iter().position(|f| f.iter().any(|&v| v as usize >= n)) {
-            return Err(AnalysisError::InvalidInput(format!("point location: face {f} references a vertex out of range (#V = {n})")));
+            return Err(AnalysisError::InvalidInput(format!(
+                "point location: face {f} references a vertex out of range (#V = {n})"
+            )));
         }
         if let Some(v) = positions.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
-            return Err(AnalysisError::InvalidInput(format!("point location: vertex {v} has a non-finite position")));
+            return Err(AnalysisError::InvalidInput(format!(
+                "point location: vertex {v} has a non-finite position"
+            )));
         }
         let conn = Connectivity::new(n, faces);
         let boundary_edges: std::collections::HashSet<(u32, u32)> =
@@ -175,7 +182,13 @@ impl PointLocator {
             }
         }
         let id = self.nodes.len();
-        self.nodes.push(Node { lo, hi, start, end, leaf: true });
+        self.nodes.push(Node {
+            lo,
+            hi,
+            start,
+            end,
+            leaf: true,
+        });
         if end - start <= LEAF_CAPACITY {
             return id;
         }
@@ -185,7 +198,13 @@ impl PointLocator {
         self.items[start..end].select_nth_unstable_by(mid - start, |a, b| centre(a).total_cmp(&centre(b)));
         let left = self.build(start, mid, boxes);
         let right = self.build(mid, end, boxes);
-        self.nodes[id] = Node { lo, hi, start: left, end: right, leaf: false };
+        self.nodes[id] = Node {
+            lo,
+            hi,
+            start: left,
+            end: right,
+            leaf: false,
+        };
         id
     }
 
@@ -218,7 +237,11 @@ impl PointLocator {
 
     fn corners(&self, t: u32) -> [[f64; 2]; 3] {
         let f = self.faces[t as usize];
-        [self.positions[f[0] as usize], self.positions[f[1] as usize], self.positions[f[2] as usize]]
+        [
+            self.positions[f[0] as usize],
+            self.positions[f[1] as usize],
+            self.positions[f[2] as usize],
+        ]
     }
 
     /// Locates `p` (module docs): the triangle holding it, or the closest point of the nearest
@@ -239,7 +262,11 @@ impl PointLocator {
             }
         });
         if let Some((t, bc, _)) = best {
-            return Some(Location { face: t, bary: bc, snap_distance: 0.0 });
+            return Some(Location {
+                face: t,
+                bary: bc,
+                snap_distance: 0.0,
+            });
         }
         // outside the triangulation (or in a crack): the closest point of the boundary triangles,
         // then of all triangles if there is no boundary (closed fan) or it is far
@@ -253,7 +280,11 @@ impl PointLocator {
             let [a, b, c] = self.corners(t);
             let (bc, d) = closest_point_in_triangle(p, a, b, c);
             if best.is_none_or(|l| d < l.snap_distance) {
-                best = Some(Location { face: t, bary: bc, snap_distance: d });
+                best = Some(Location {
+                    face: t,
+                    bary: bc,
+                    snap_distance: d,
+                });
             }
         }
         best

@@ -12,8 +12,8 @@ use crate::matrix_io::{read_distance_matrix, read_labels, DistanceMatrix, Labels
 use crate::mds::{classical_mds, Mds};
 use crate::plot::mds_scatter;
 use crate::stats::{
-    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, symmetry_gap,
-    triangle_violations, ClassDistances, NnAccuracy, SymmetryGap, TriangleViolations,
+    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, symmetry_gap, triangle_violations,
+    ClassDistances, NnAccuracy, SymmetryGap, TriangleViolations,
 };
 
 /// Options of [`run_mds`].
@@ -173,10 +173,7 @@ pub fn shape_space_stats(
     })
 }
 
-fn write_csv(
-    path: &Path,
-    rows: impl IntoIterator<Item = Vec<String>>,
-) -> Result<(), AnalysisError> {
+fn write_csv(path: &Path, rows: impl IntoIterator<Item = Vec<String>>) -> Result<(), AnalysisError> {
     let to_err = |e: csv::Error| match e.into_kind() {
         csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
         kind => AnalysisError::parse(path, 0, format!("{kind:?}")),
@@ -189,12 +186,7 @@ fn write_csv(
 }
 
 /// Writes `mds.csv`: header `name,<label columns>,x1..xk`, one row per shape.
-pub fn write_mds_csv(
-    path: &Path,
-    names: &[String],
-    labels: Option<&Labels>,
-    mds: &Mds,
-) -> Result<(), AnalysisError> {
+pub fn write_mds_csv(path: &Path, names: &[String], labels: Option<&Labels>, mds: &Mds) -> Result<(), AnalysisError> {
     let mut header = vec!["name".to_string()];
     if let Some(l) = labels {
         header.extend(l.columns.iter().cloned());
@@ -214,11 +206,7 @@ pub fn write_mds_csv(
 /// Writes `eigenvalues.csv`: header `k,eigenvalue,share`, all eigenvalues in non-increasing
 /// order, `share = λ_k / Σ_{λ>0} λ` (negative for negative eigenvalues).
 pub fn write_eigenvalues_csv(path: &Path, mds: &Mds) -> Result<(), AnalysisError> {
-    let header = vec![
-        "k".to_string(),
-        "eigenvalue".to_string(),
-        "share".to_string(),
-    ];
+    let header = vec!["k".to_string(), "eigenvalue".to_string(), "share".to_string()];
     let rows = mds
         .eigenvalues
         .iter()
@@ -249,15 +237,10 @@ pub fn run_mds(
 ) -> Result<MdsResult, AnalysisError> {
     let d = read_distance_matrix(distances)?;
     let labels = labels.map(|p| read_labels(p, &d.names)).transpose()?;
-    let pick = |given: &Option<String>,
-                default_index: usize,
-                what: &str|
-     -> Result<Option<String>, AnalysisError> {
+    let pick = |given: &Option<String>, default_index: usize, what: &str| -> Result<Option<String>, AnalysisError> {
         match (given, &labels) {
             (Some(col), Some(l)) => l.column_index(col).map(|_| Some(col.clone())),
-            (Some(_), None) => Err(AnalysisError::LabelsRequired {
-                what: what.to_string(),
-            }),
+            (Some(_), None) => Err(AnalysisError::LabelsRequired { what: what.to_string() }),
             (None, Some(l)) => Ok(l.columns.get(default_index).cloned()),
             (None, None) => Ok(None),
         }
@@ -285,10 +268,9 @@ pub fn run_mds(
     };
     let colors = column(&color_by)?;
     let markers = column(&marker_by)?;
-    let source = distances.file_name().map_or_else(
-        || distances.display().to_string(),
-        |f| f.to_string_lossy().into_owned(),
-    );
+    let source = distances
+        .file_name()
+        .map_or_else(|| distances.display().to_string(), |f| f.to_string_lossy().into_owned());
     let title = format!("Classical MDS of {source} (n = {})", d.len());
     for ext in ["png", "svg"] {
         let path = out_dir.join(format!("mds.{ext}"));

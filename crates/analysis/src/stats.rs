@@ -34,11 +34,7 @@ pub struct NnAccuracy {
 
 /// Index of the nearest admissible neighbour of `i` (lowest index on ties), skipping missing
 /// distances.
-fn nearest_neighbour(
-    d: &DistanceMatrix,
-    i: usize,
-    admissible: impl Fn(usize) -> bool,
-) -> Option<usize> {
+fn nearest_neighbour(d: &DistanceMatrix, i: usize, admissible: impl Fn(usize) -> bool) -> Option<usize> {
     let mut best: Option<(usize, f64)> = None;
     for j in 0..d.len() {
         if j == i || !admissible(j) {
@@ -79,11 +75,7 @@ fn accuracy_of(correct: usize, total: usize, unscored: usize) -> NnAccuracy {
 ///
 /// Example: identity accuracy of a face matrix = fraction of faces whose nearest other face is
 /// of the same person.
-pub fn loo_1nn_accuracy(
-    d: &DistanceMatrix,
-    labels: &Labels,
-    target_col: &str,
-) -> Result<NnAccuracy, AnalysisError> {
+pub fn loo_1nn_accuracy(d: &DistanceMatrix, labels: &Labels, target_col: &str) -> Result<NnAccuracy, AnalysisError> {
     check_rows(d, labels)?;
     let target = labels.column(target_col)?;
     let (mut correct, mut total, mut unscored) = (0, 0, 0);
@@ -133,20 +125,13 @@ pub fn loo_1nn_accuracy_across(
 /// `s(i) = 0` for a member of a singleton class; `None` when `s(i)` is undefined: fewer than two
 /// classes, or all distances from `i` to its own class (or to every other class) missing.
 /// Means skip missing distances.
-pub fn silhouette_values(
-    d: &DistanceMatrix,
-    labels: &Labels,
-    col: &str,
-) -> Result<Vec<Option<f64>>, AnalysisError> {
+pub fn silhouette_values(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<Vec<Option<f64>>, AnalysisError> {
     check_rows(d, labels)?;
     let column = labels.column(col)?;
     let mut classes: Vec<&str> = column.clone();
     classes.sort_unstable();
     classes.dedup();
-    let class_of: Vec<usize> = column
-        .iter()
-        .map(|c| classes.binary_search(c).unwrap_or(0))
-        .collect();
+    let class_of: Vec<usize> = column.iter().map(|c| classes.binary_search(c).unwrap_or(0)).collect();
     let class_sizes: Vec<usize> = (0..classes.len())
         .map(|c| class_of.iter().filter(|&&k| k == c).count())
         .collect();
@@ -195,15 +180,8 @@ pub fn silhouette_values(
 
 /// Mean silhouette of column `col` over the shapes where it is defined ([`silhouette_values`]);
 /// `None` if it is defined nowhere (e.g. a single class).
-pub fn mean_silhouette(
-    d: &DistanceMatrix,
-    labels: &Labels,
-    col: &str,
-) -> Result<Option<f64>, AnalysisError> {
-    let values: Vec<f64> = silhouette_values(d, labels, col)?
-        .into_iter()
-        .flatten()
-        .collect();
+pub fn mean_silhouette(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<Option<f64>, AnalysisError> {
+    let values: Vec<f64> = silhouette_values(d, labels, col)?.into_iter().flatten().collect();
     Ok((!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64))
 }
 
@@ -253,11 +231,7 @@ pub struct ClassDistances {
 
 /// Summaries of the symmetric distances over unordered pairs `i < j` (missing pairs skipped),
 /// split by whether `col` has the same value for `i` and `j`.
-pub fn class_distances(
-    d: &DistanceMatrix,
-    labels: &Labels,
-    col: &str,
-) -> Result<ClassDistances, AnalysisError> {
+pub fn class_distances(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<ClassDistances, AnalysisError> {
     check_rows(d, labels)?;
     let column = labels.column(col)?;
     let (mut within, mut between) = (Vec::new(), Vec::new());
@@ -396,7 +370,6 @@ pub fn triangle_violations(d: &DistanceMatrix, eps: f64) -> TriangleViolations {
         violations,
         eps,
         worst_relative: worst.map_or(0.0, |w| w.0),
-        worst_triple: worst
-            .map(|(_, i, j, k)| [d.names[i].clone(), d.names[j].clone(), d.names[k].clone()]),
+        worst_triple: worst.map(|(_, i, j, k)| [d.names[i].clone(), d.names[j].clone(), d.names[k].clone()]),
     }
 }

@@ -37,11 +37,18 @@ fn ring_markers(mesh: &TriMesh) -> Markers {
         .filter(|&v| mesh.positions[v][1].abs() < 1e-12 && mesh.positions[v][0] > 0.0)
         .max()
         .unwrap();
-    Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Vertex(q as u32) }
+    Markers {
+        center: CenterMarker::Vertex(0),
+        boundary: BoundaryMarker::Vertex(q as u32),
+    }
 }
 
 fn max_relative_cell_error(cells: &[f64], targets: &[f64]) -> f64 {
-    cells.iter().zip(targets).map(|(a, b)| ((a - b) / b).abs()).fold(0.0, f64::max)
+    cells
+        .iter()
+        .zip(targets)
+        .map(|(a, b)| ((a - b) / b).abs())
+        .fold(0.0, f64::max)
 }
 
 struct Expect {
@@ -85,15 +92,78 @@ struct Expect {
 #[test]
 fn area_preservation_distortion_and_folds_on_bundled_disks() {
     let cases = [
-        Expect { path: "datasets/faces/id00_neutral.obj", median_before: 0.06, p95_before: 0.45, flips_before: 60, median: 0.055, p95: 0.38 },
-        Expect { path: "datasets/disks/camelhead.off", median_before: 0.05, p95_before: 0.6, flips_before: 400, median: 0.045, p95: 0.52 },
-        Expect { path: "datasets/disks/lion.off", median_before: 0.13, p95_before: 0.9, flips_before: 350, median: 0.12, p95: 0.85 },
-        Expect { path: "datasets/disks/face.obj", median_before: 0.05, p95_before: 0.16, flips_before: 20, median: 0.042, p95: 0.14 },
-        Expect { path: "datasets/disks/woody.obj", median_before: 0.15, p95_before: 0.6, flips_before: 10, median: 0.135, p95: 0.55 },
-        Expect { path: "datasets/disks/cat_head.obj", median_before: 0.3, p95_before: 1.0, flips_before: 6, median: 0.27, p95: 1.05 },
-        Expect { path: "datasets/disks/plate121.ply", median_before: 0.08, p95_before: 0.3, flips_before: 0, median: 0.08, p95: 0.3 },
-        Expect { path: "datasets/disks/plate121_rolledA.ply", median_before: 0.08, p95_before: 0.3, flips_before: 0, median: 0.08, p95: 0.3 },
-        Expect { path: "datasets/poses/wolf/wolf0.off", median_before: 0.3, p95_before: 1.5, flips_before: 400, median: 0.42, p95: 1.3 },
+        Expect {
+            path: "datasets/faces/id00_neutral.obj",
+            median_before: 0.06,
+            p95_before: 0.45,
+            flips_before: 60,
+            median: 0.055,
+            p95: 0.38,
+        },
+        Expect {
+            path: "datasets/disks/camelhead.off",
+            median_before: 0.05,
+            p95_before: 0.6,
+            flips_before: 400,
+            median: 0.045,
+            p95: 0.52,
+        },
+        Expect {
+            path: "datasets/disks/lion.off",
+            median_before: 0.13,
+            p95_before: 0.9,
+            flips_before: 350,
+            median: 0.12,
+            p95: 0.85,
+        },
+        Expect {
+            path: "datasets/disks/face.obj",
+            median_before: 0.05,
+            p95_before: 0.16,
+            flips_before: 20,
+            median: 0.042,
+            p95: 0.14,
+        },
+        Expect {
+            path: "datasets/disks/woody.obj",
+            median_before: 0.15,
+            p95_before: 0.6,
+            flips_before: 10,
+            median: 0.135,
+            p95: 0.55,
+        },
+        Expect {
+            path: "datasets/disks/cat_head.obj",
+            median_before: 0.3,
+            p95_before: 1.0,
+            flips_before: 6,
+            median: 0.27,
+            p95: 1.05,
+        },
+        Expect {
+            path: "datasets/disks/plate121.ply",
+            median_before: 0.08,
+            p95_before: 0.3,
+            flips_before: 0,
+            median: 0.08,
+            p95: 0.3,
+        },
+        Expect {
+            path: "datasets/disks/plate121_rolledA.ply",
+            median_before: 0.08,
+            p95_before: 0.3,
+            flips_before: 0,
+            median: 0.08,
+            p95: 0.3,
+        },
+        Expect {
+            path: "datasets/poses/wolf/wolf0.off",
+            median_before: 0.3,
+            p95_before: 1.5,
+            flips_before: 400,
+            median: 0.42,
+            p95: 1.3,
+        },
     ];
     let mut table = String::new();
     for case in &cases {
@@ -110,7 +180,11 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
         for (v, p) in map.uv.iter().enumerate() {
             let r = p[0].hypot(p[1]);
             if map.is_boundary[v] {
-                assert!((r - 1.0).abs() < 1e-14, "{}: boundary vertex {v} at radius {r}", case.path);
+                assert!(
+                    (r - 1.0).abs() < 1e-14,
+                    "{}: boundary vertex {v} at radius {r}",
+                    case.path
+                );
             } else {
                 assert!(r < 1.0, "{}: interior vertex {v} at radius {r}", case.path);
             }
@@ -143,22 +217,54 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
         );
         eprintln!("{}", table.lines().last().unwrap_or(""));
         // the centroid map (before the repair), as measured before the repair existed
-        assert!(before.abs_area_distortion.median < case.median_before, "{}: {before:?}", case.path);
-        assert!(before.abs_area_distortion.p95 < case.p95_before, "{}: {before:?}", case.path);
-        assert!(before.num_flipped + before.num_degenerate <= case.flips_before, "{}: {before:?}", case.path);
-        assert_eq!(repair.flipped_before + repair.degenerate_before, before.num_flipped + before.num_degenerate);
+        assert!(
+            before.abs_area_distortion.median < case.median_before,
+            "{}: {before:?}",
+            case.path
+        );
+        assert!(
+            before.abs_area_distortion.p95 < case.p95_before,
+            "{}: {before:?}",
+            case.path
+        );
+        assert!(
+            before.num_flipped + before.num_degenerate <= case.flips_before,
+            "{}: {before:?}",
+            case.path
+        );
+        assert_eq!(
+            repair.flipped_before + repair.degenerate_before,
+            before.num_flipped + before.num_degenerate
+        );
         // the returned map: no flipped and no degenerate face
         assert_eq!((ap.num_flipped, ap.num_degenerate), (0, 0), "{}: {repair:?}", case.path);
         assert_eq!(repair.folded_after, 0);
         assert_eq!(map.fold_repair.after.abs_area_distortion, ap.abs_area_distortion);
-        assert_eq!(map.fold_repair.after.abs_vertex_log_area_ratio, ap.abs_vertex_log_area_ratio);
+        assert_eq!(
+            map.fold_repair.after.abs_vertex_log_area_ratio,
+            ap.abs_vertex_log_area_ratio
+        );
         if before.num_flipped + before.num_degenerate == 0 {
             assert_eq!((repair.rounds, repair.vertices_moved), (0, 0));
         }
-        assert!(ap.abs_area_distortion.median < case.median, "{}: median |Υ| {}", case.path, ap.abs_area_distortion.median);
-        assert!(ap.abs_area_distortion.p95 < case.p95, "{}: p95 |Υ| {}", case.path, ap.abs_area_distortion.p95);
+        assert!(
+            ap.abs_area_distortion.median < case.median,
+            "{}: median |Υ| {}",
+            case.path,
+            ap.abs_area_distortion.median
+        );
+        assert!(
+            ap.abs_area_distortion.p95 < case.p95,
+            "{}: p95 |Υ| {}",
+            case.path,
+            ap.abs_area_distortion.p95
+        );
         // the OT map removes most of the conformal area distortion, also after the repair
-        assert!(ap.abs_area_distortion.median < 0.35 * conf.abs_area_distortion.median, "{}", case.path);
+        assert!(
+            ap.abs_area_distortion.median < 0.35 * conf.abs_area_distortion.median,
+            "{}",
+            case.path
+        );
     }
     eprintln!("{table}");
 }
@@ -202,7 +308,10 @@ fn meshes_that_fail_report_why() {
     let (mesh, markers) = load("datasets/disks/alligator.obj");
     match area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()) {
         Err(AnalysisError::DiskMap(_)) => {}
-        other => panic!("alligator: expected a conformal-map error, got {:?}", other.map(|m| m.ot)),
+        other => panic!(
+            "alligator: expected a conformal-map error, got {:?}",
+            other.map(|m| m.ot)
+        ),
     }
 }
 
@@ -217,7 +326,12 @@ fn flat_disk_maps_nearly_to_itself_first_order() {
     for rings in [8usize, 16, 32] {
         let mesh = primitives::unit_disk(rings);
         let map = area_preserving_map(&mesh, &ring_markers(&mesh), &AreaPreservingParams::default()).unwrap();
-        let d = map.uv.iter().zip(&mesh.positions).map(|(a, p)| (a[0] - p[0]).hypot(a[1] - p[1])).fold(0.0, f64::max);
+        let d = map
+            .uv
+            .iter()
+            .zip(&mesh.positions)
+            .map(|(a, p)| (a[0] - p[0]).hypot(a[1] - p[1]))
+            .fold(0.0, f64::max);
         out.push((rings, d));
         if prev.is_finite() {
             let ratio = prev / d;
@@ -238,19 +352,35 @@ fn importance_weights_give_the_region_its_share() {
     let mesh = primitives::spherical_cap(2.0, 14);
     let markers = ring_markers(&mesh);
     let plain = area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()).unwrap();
-    let region: Vec<u32> = (0..mesh.num_vertices() as u32).filter(|&v| mesh.positions[v as usize][0] > 0.3).collect();
+    let region: Vec<u32> = (0..mesh.num_vertices() as u32)
+        .filter(|&v| mesh.positions[v as usize][0] > 0.3)
+        .collect();
     let in_region = |v: usize| mesh.positions[v][0] > 0.3;
-    let w: f64 = (0..mesh.num_vertices()).filter(|&v| in_region(v)).map(|v| plain.target_masses[v]).sum();
+    let w: f64 = (0..mesh.num_vertices())
+        .filter(|&v| in_region(v))
+        .map(|v| plain.target_masses[v])
+        .sum();
     let rest = PI - w;
     let weights = region_weights(mesh.num_vertices(), &region, 2.0).unwrap();
-    let params = AreaPreservingParams { weights: Some(weights), ..Default::default() };
+    let params = AreaPreservingParams {
+        weights: Some(weights),
+        ..Default::default()
+    };
     let weighted = area_preserving_map(&mesh, &markers, &params).unwrap();
     let share = |m: &shapespace_analysis::area_preserving::AreaPreservingMap| {
-        (0..mesh.num_vertices()).filter(|&v| in_region(v)).map(|v| m.cell_areas[v]).sum::<f64>() / PI
+        (0..mesh.num_vertices())
+            .filter(|&v| in_region(v))
+            .map(|v| m.cell_areas[v])
+            .sum::<f64>()
+            / PI
     };
     let (s1, s2) = (share(&plain), share(&weighted));
     let expect = 2.0 * w / (2.0 * w + rest);
-    assert!((s1 - w / PI).abs() < 1e-6 * w / PI, "unweighted share {s1} vs {}", w / PI);
+    assert!(
+        (s1 - w / PI).abs() < 1e-6 * w / PI,
+        "unweighted share {s1} vs {}",
+        w / PI
+    );
     assert!((s2 - expect).abs() < 1e-6 * expect, "weighted share {s2} vs {expect}");
     assert!(s2 > s1 * 1.2, "{s1} → {s2}");
     eprintln!("region share: unweighted {s1:.6}, weighted {s2:.6} (expected {expect:.6})");
@@ -272,7 +402,10 @@ fn weights_csv_reading_and_errors() {
     assert!(e.contains("bad.csv:2:") && e.contains("> 0"), "{e}");
     std::fs::write(&bad, "vertex,weight\n1,2\n1,3\n").unwrap();
     assert!(read_vertex_weights(&bad, 4).unwrap_err().to_string().contains("twice"));
-    assert!(matches!(read_vertex_weights(&dir.join("missing.csv"), 4), Err(AnalysisError::Io { .. })));
+    assert!(matches!(
+        read_vertex_weights(&dir.join("missing.csv"), 4),
+        Err(AnalysisError::Io { .. })
+    ));
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -294,7 +427,11 @@ fn rigid_motion_invariance() {
     params.newton.tolerance = 1e-10;
     let a = area_preserving_map(&mesh, &markers, &params).unwrap();
     let b = area_preserving_map(&moved, &markers, &params).unwrap();
-    let d = a.uv.iter().zip(&b.uv).map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1])).fold(0.0, f64::max);
+    let d =
+        a.uv.iter()
+            .zip(&b.uv)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max);
     assert!(d <= 1e-8, "max uv difference {d:e}");
 }
 
@@ -302,7 +439,10 @@ fn rigid_motion_invariance() {
 #[test]
 fn square_domain() {
     let mesh = primitives::spherical_cap(1.2, 12);
-    let params = AreaPreservingParams { domain: Domain::Square, ..Default::default() };
+    let params = AreaPreservingParams {
+        domain: Domain::Square,
+        ..Default::default()
+    };
     let map = area_preserving_map(&mesh, &ring_markers(&mesh), &params).unwrap();
     assert_eq!(map.ot.domain_vertices, 4);
     assert!(max_relative_cell_error(&map.cell_areas, &map.target_masses) <= 1e-6);

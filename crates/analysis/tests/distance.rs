@@ -4,7 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
-use shapespace_analysis::distance::{directed_distance, pairwise_distances, prepare_shape, PairwiseOptions, PreparedShape};
+use shapespace_analysis::distance::{
+    directed_distance, pairwise_distances, prepare_shape, PairwiseOptions, PreparedShape,
+};
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::{read_mesh, write_mesh};
@@ -26,11 +28,17 @@ fn out_dir(name: &str) -> PathBuf {
 
 /// Pole (vertex 0) to the center, the last vertex (on the boundary ring) to 1.
 fn pole_markers(mesh: &TriMesh) -> Markers {
-    Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Vertex(mesh.num_vertices() as u32 - 1) }
+    Markers {
+        center: CenterMarker::Vertex(0),
+        boundary: BoundaryMarker::Vertex(mesh.num_vertices() as u32 - 1),
+    }
 }
 
 fn face_markers() -> Markers {
-    Markers { center: CenterMarker::Vertex(4841), boundary: BoundaryMarker::Vertex(8889) }
+    Markers {
+        center: CenterMarker::Vertex(4841),
+        boundary: BoundaryMarker::Vertex(8889),
+    }
 }
 
 fn prepared(name: &str, mesh: &TriMesh, markers: &Markers) -> PreparedShape {
@@ -86,7 +94,10 @@ fn hemisphere_against_flat_disk_matches_the_radial_rearrangement_and_converges()
         let backward = cost(&b, &a);
         let rel = ((forward - exact) / exact).abs();
         let rel_back = ((backward - exact) / exact).abs();
-        eprintln!("rings {rings} V {}: cap->disk {forward:.7} ({rel:.2e}), disk->cap {backward:.7} ({rel_back:.2e})", cap.num_vertices());
+        eprintln!(
+            "rings {rings} V {}: cap->disk {forward:.7} ({rel:.2e}), disk->cap {backward:.7} ({rel_back:.2e})",
+            cap.num_vertices()
+        );
         errors.push((cap.num_vertices(), rel, rel_back));
         costs.push((cap.num_vertices() as f64, forward));
     }
@@ -100,7 +111,10 @@ fn hemisphere_against_flat_disk_matches_the_radial_rearrangement_and_converges()
     // Richardson extrapolation of the last two levels with error ∝ 1/V lands on the closed form.
     let ((v1, c1), (v2, c2)) = (costs[1], costs[2]);
     let extrapolated = c2 + (c2 - c1) / (v2 / v1 - 1.0);
-    assert!(((extrapolated - exact) / exact).abs() < 5e-4, "extrapolated {extrapolated} vs {exact}");
+    assert!(
+        ((extrapolated - exact) / exact).abs() < 5e-4,
+        "extrapolated {extrapolated} vs {exact}"
+    );
 }
 
 #[test]
@@ -121,7 +135,11 @@ fn similarity(mesh: &TriMesh, s: f64, t: [f64; 3]) -> TriMesh {
     let (k, a) = ([1.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0], 0.7f64);
     let (c, sn) = (a.cos(), a.sin());
     let rot = |p: [f64; 3]| {
-        let kxp = [k[1] * p[2] - k[2] * p[1], k[2] * p[0] - k[0] * p[2], k[0] * p[1] - k[1] * p[0]];
+        let kxp = [
+            k[1] * p[2] - k[2] * p[1],
+            k[2] * p[0] - k[0] * p[2],
+            k[0] * p[1] - k[1] * p[0],
+        ];
         let kdp = k[0] * p[0] + k[1] * p[1] + k[2] * p[2];
         [0, 1, 2].map(|i| p[i] * c + kxp[i] * sn + k[i] * kdp * (1.0 - c))
     };
@@ -156,23 +174,42 @@ fn face_distances_are_similarity_invariant_and_stable_under_remeshing() {
         person.sqrt(),
         moved_source.sqrt()
     );
-    assert!((moved_cost - self_cost).abs() <= 1e-6 * self_cost, "{moved_cost} vs {self_cost}");
-    assert!((moved_source - person).abs() <= 1e-6 * person, "{moved_source} vs {person}");
+    assert!(
+        (moved_cost - self_cost).abs() <= 1e-6 * self_cost,
+        "{moved_cost} vs {self_cost}"
+    );
+    assert!(
+        (moved_source - person).abs() <= 1e-6 * person,
+        "{moved_source} vs {person}"
+    );
     // The midpoint subdivision has the same conformal image: d(fine → M) is d(M → M) up to the
     // discrete conformal map's change under refinement.
-    assert!((remeshed.sqrt() - self_cost.sqrt()).abs() < 0.1 * self_cost.sqrt(), "{remeshed} vs {self_cost}");
+    assert!(
+        (remeshed.sqrt() - self_cost.sqrt()).abs() < 0.1 * self_cost.sqrt(),
+        "{remeshed} vs {self_cost}"
+    );
     // The floor is below the distance to another expression and to another person.
-    assert!(self_cost.sqrt() < 0.6 * expression.sqrt() && expression < person, "{self_cost} {expression} {person}");
+    assert!(
+        self_cost.sqrt() < 0.6 * expression.sqrt() && expression < person,
+        "{self_cost} {expression} {person}"
+    );
 }
 
 #[test]
 fn symmetric_run_on_four_faces_bounds_asymmetry_and_triangle_violations() {
     let names = ["id00_neutral", "id00_happy", "id01_neutral", "id01_happy"];
     let shapes: Vec<Option<PreparedShape>> = names.iter().map(|n| Some(face(n).1)).collect();
-    let options = PairwiseOptions { symmetrize: true, ..PairwiseOptions::default() };
+    let options = PairwiseOptions {
+        symmetrize: true,
+        ..PairwiseOptions::default()
+    };
     let result = pairwise_distances(&shapes, &options, &|| {});
     assert_eq!(result.pairs.len(), 12);
-    assert!(result.pairs.iter().all(|p| p.status.starts_with("converged")), "{:?}", result.pairs);
+    assert!(
+        result.pairs.iter().all(|p| p.status.starts_with("converged")),
+        "{:?}",
+        result.pairs
+    );
     let n = names.len();
     let d = |i: usize, j: usize| result.matrix[i * n + j];
     let max_asym = result.asymmetries.iter().cloned().fold(0.0, f64::max);
@@ -186,9 +223,15 @@ fn symmetric_run_on_four_faces_bounds_asymmetry_and_triangle_violations() {
             }
         }
     }
-    eprintln!("matrix {:?}\nasymmetries {:?}\nworst triangle excess {worst_triangle:.3e}", result.matrix, result.asymmetries);
+    eprintln!(
+        "matrix {:?}\nasymmetries {:?}\nworst triangle excess {worst_triangle:.3e}",
+        result.matrix, result.asymmetries
+    );
     assert!(max_asym < 2e-2, "max relative asymmetry {max_asym}");
-    assert!(worst_triangle <= 0.0, "triangle inequality violated by {worst_triangle}");
+    assert!(
+        worst_triangle <= 0.0,
+        "triangle inequality violated by {worst_triangle}"
+    );
     // Same person closer than the same expression of another person.
     assert!(d(0, 1) < d(0, 2) && d(2, 3) < d(1, 3), "{:?}", result.matrix);
 }
@@ -202,15 +245,25 @@ fn pairwise_result_does_not_depend_on_the_thread_count() {
             Some(prepared(&format!("cap{alpha}"), &cap, &pole_markers(&cap)))
         })
         .collect();
-    let options = PairwiseOptions { symmetrize: true, ..PairwiseOptions::default() };
+    let options = PairwiseOptions {
+        symmetrize: true,
+        ..PairwiseOptions::default()
+    };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| pairwise_distances(&shapes, &options, &|| {}))
     };
     let (one, two) = (run(1), run(2));
-    assert_eq!(one.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), two.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+    assert_eq!(
+        one.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        two.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
     // Caps of growing angle move away from the flattest one.
-    assert!(one.matrix[1] < one.matrix[2] && one.matrix[2] < one.matrix[3], "{:?}", one.matrix);
+    assert!(
+        one.matrix[1] < one.matrix[2] && one.matrix[2] < one.matrix[3],
+        "{:?}",
+        one.matrix
+    );
 }
 
 #[test]
@@ -222,7 +275,11 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     for (name, alpha) in [("a", 1.0), ("b", 1.5), ("c", 2.0)] {
         let path = inputs.join(format!("{name}.obj"));
         write_mesh(&path, &spherical_cap(alpha, 10)).unwrap();
-        std::fs::write(inputs.join(format!("{name}.landmarks.json")), r#"{"center": 0, "boundary": "auto"}"#).unwrap();
+        std::fs::write(
+            inputs.join(format!("{name}.landmarks.json")),
+            r#"{"center": 0, "boundary": "auto"}"#,
+        )
+        .unwrap();
         files.push(path);
     }
     let bad = inputs.join("truncated.obj");
@@ -238,18 +295,52 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     assert!(why.contains("truncated.obj"), "{why}");
     // Six pairs: the three among good shapes complete, the three with the bad one are failures.
     assert_eq!((report.pairs_computed, report.pairs_failed), (6, 3));
-    assert_eq!(run.pairs.iter().filter(|p| p.status == "converged").count(), 3, "{:?}", run.pairs);
+    assert_eq!(
+        run.pairs.iter().filter(|p| p.status == "converged").count(),
+        3,
+        "{:?}",
+        run.pairs
+    );
     let matrix = std::fs::read_to_string(out.join("distances.csv")).unwrap();
     let rows: Vec<&str> = matrix.lines().collect();
     assert_eq!(rows.len(), 5);
-    assert!(rows[0].contains("truncated") && rows[2].starts_with("truncated"), "{matrix}");
+    assert!(
+        rows[0].contains("truncated") && rows[2].starts_with("truncated"),
+        "{matrix}"
+    );
     let pairs = std::fs::read_to_string(out.join("pairs.csv")).unwrap();
-    assert!(pairs.lines().next().unwrap().starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert!(json["failures"].as_array().unwrap().iter().any(|f| f.as_str().unwrap().contains("truncated")), "{json}");
+    assert!(pairs
+        .lines()
+        .next()
+        .unwrap()
+        .starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert!(
+        json["failures"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f.as_str().unwrap().contains("truncated")),
+        "{json}"
+    );
     // The good entries agree with a direct computation.
-    let a = prepared("a", &spherical_cap(1.0, 10), &Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Auto });
-    let c = prepared("c", &spherical_cap(2.0, 10), &Markers { center: CenterMarker::Vertex(0), boundary: BoundaryMarker::Auto });
+    let a = prepared(
+        "a",
+        &spherical_cap(1.0, 10),
+        &Markers {
+            center: CenterMarker::Vertex(0),
+            boundary: BoundaryMarker::Auto,
+        },
+    );
+    let c = prepared(
+        "c",
+        &spherical_cap(2.0, 10),
+        &Markers {
+            center: CenterMarker::Vertex(0),
+            boundary: BoundaryMarker::Auto,
+        },
+    );
     let direct = cost(&a, &c).sqrt();
     let ac = run.matrix.get(0, 3);
     assert!((ac - direct).abs() <= 1e-9 * direct, "{ac} vs {direct}");

@@ -34,19 +34,44 @@ fn statistics_of_the_forty_faces_meet_the_measured_floors() {
     let expression = &s.labels["expression"];
     assert!(identity.loo_1nn.accuracy.unwrap() >= 0.975, "{identity:?}");
     assert!(identity.silhouette.unwrap() > 0.40, "{identity:?}");
-    assert!(expression.silhouette.unwrap() < 0.0, "expressions do not cluster: {expression:?}");
-    let cross = |target: &str| s.cross.iter().find(|c| c.target == target).unwrap().loo_1nn.accuracy.unwrap();
+    assert!(
+        expression.silhouette.unwrap() < 0.0,
+        "expressions do not cluster: {expression:?}"
+    );
+    let cross = |target: &str| {
+        s.cross
+            .iter()
+            .find(|c| c.target == target)
+            .unwrap()
+            .loo_1nn
+            .accuracy
+            .unwrap()
+    };
     assert!(cross("identity") >= 0.975);
-    assert!(cross("expression") >= 0.30, "expression across identities {}", cross("expression"));
+    assert!(
+        cross("expression") >= 0.30,
+        "expression across identities {}",
+        cross("expression")
+    );
     // Identity dominates: every within-person distance is below the median between persons,
     // in the ranges found by an independent prototype (0.03–0.04 within, 0.05–0.13 between).
     let (within, between) = (&identity.distances.within, &identity.distances.between);
     assert!(within.max.unwrap() < between.median.unwrap());
-    assert!(within.median.unwrap() > 0.02 && within.median.unwrap() < 0.045, "{within:?}");
-    assert!(between.median.unwrap() > 0.05 && between.median.unwrap() < 0.13, "{between:?}");
+    assert!(
+        within.median.unwrap() > 0.02 && within.median.unwrap() < 0.045,
+        "{within:?}"
+    );
+    assert!(
+        between.median.unwrap() > 0.05 && between.median.unwrap() < 0.13,
+        "{between:?}"
+    );
     // A metric-like matrix: no triangle violation, and the first two MDS axes carry most of it.
     assert_eq!(s.triangle.violations, 0);
-    assert!(s.mds.variance_shares[0] + s.mds.variance_shares[1] > 0.7, "{:?}", s.mds.variance_shares);
+    assert!(
+        s.mds.variance_shares[0] + s.mds.variance_shares[1] > 0.7,
+        "{:?}",
+        s.mds.variance_shares
+    );
     for f in ["mds.csv", "mds.png", "mds.svg", "stats.json"] {
         assert!(out.join(f).is_file(), "{f}");
     }
@@ -55,7 +80,10 @@ fn statistics_of_the_forty_faces_meet_the_measured_floors() {
 #[test]
 fn committed_matrix_agrees_with_a_recomputation() {
     let matrix = read_distance_matrix(&repo("tests/data/faces40/distances.csv")).unwrap();
-    let markers = Markers { center: CenterMarker::Vertex(4841), boundary: BoundaryMarker::Vertex(8889) };
+    let markers = Markers {
+        center: CenterMarker::Vertex(4841),
+        boundary: BoundaryMarker::Vertex(8889),
+    };
     let shape = |name: &str| {
         let mesh = read_mesh(&repo(&format!("datasets/faces/{name}.obj"))).unwrap();
         prepare_shape(name, &mesh, &markers, &DiskMapParams::default()).unwrap()
@@ -68,8 +96,16 @@ fn committed_matrix_agrees_with_a_recomputation() {
         let i = matrix.names.iter().position(|n| n == a).unwrap();
         let j = matrix.names.iter().position(|n| n == b).unwrap();
         let stored = matrix.get(i, j);
-        eprintln!("{a} -> {b}: recomputed {} stored {stored} (relative difference {:.1e})", d.distance, (d.distance - stored).abs() / stored);
+        eprintln!(
+            "{a} -> {b}: recomputed {} stored {stored} (relative difference {:.1e})",
+            d.distance,
+            (d.distance - stored).abs() / stored
+        );
         // Both solves stop at a relative cell-mass error ≤ 1e-6 from different starts.
-        assert!((d.distance - stored).abs() <= 1e-5 * stored, "{a} -> {b}: {} vs stored {stored}", d.distance);
+        assert!(
+            (d.distance - stored).abs() <= 1e-5 * stored,
+            "{a} -> {b}: {} vs stored {stored}",
+            d.distance
+        );
     }
 }

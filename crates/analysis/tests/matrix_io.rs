@@ -2,9 +2,7 @@
 
 use std::path::PathBuf;
 
-use shapespace_analysis::{
-    read_distance_matrix, read_labels, write_distance_matrix, AnalysisError, DistanceMatrix,
-};
+use shapespace_analysis::{read_distance_matrix, read_labels, write_distance_matrix, AnalysisError, DistanceMatrix};
 
 fn tmp(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("matrix_io");
@@ -14,10 +12,7 @@ fn tmp(name: &str) -> PathBuf {
 
 #[test]
 fn matrix_round_trip_is_exact_and_keeps_missing_entries() {
-    let names: Vec<String> = ["face01", "face 02", "face,03"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+    let names: Vec<String> = ["face01", "face 02", "face,03"].iter().map(|s| s.to_string()).collect();
     let values = vec![
         0.0,
         0.1,
@@ -33,17 +28,11 @@ fn matrix_round_trip_is_exact_and_keeps_missing_entries() {
     let path = tmp("round_trip.csv");
     write_distance_matrix(&path, &d).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(
-        text.starts_with("name,face01,face 02,\"face,03\"\n"),
-        "{text}"
-    );
+    assert!(text.starts_with("name,face01,face 02,\"face,03\"\n"), "{text}");
     let back = read_distance_matrix(&path).unwrap();
     assert_eq!(back.names, d.names);
     for (a, b) in back.values.iter().zip(&d.values) {
-        assert!(
-            a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
-            "{a} vs {b}"
-        );
+        assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{a} vs {b}");
     }
     assert_eq!(back.missing_pairs(), vec![]); // (1,2) missing one way only
     assert!((back.symmetric(1, 2) - 123456789.12345679).abs() < 1e-6);
@@ -65,10 +54,7 @@ fn parse_error(contents: &str) -> (u64, String) {
     match read_distance_matrix(&path) {
         Err(e @ AnalysisError::Parse { line, .. }) => {
             let text = e.to_string();
-            assert!(
-                text.starts_with(&format!("{}:{line}: ", path.display())),
-                "{text}"
-            );
+            assert!(text.starts_with(&format!("{}:{line}: ", path.display())), "{text}");
             (line, text)
         }
         other => panic!("expected a parse error, got {other:?}"),
@@ -118,10 +104,7 @@ fn labels_match_by_exact_name_or_file_stem() {
     assert_eq!(l.values[0], vec!["p1", "neutral"]);
     assert_eq!(l.values[1], vec!["p1", "smile"]);
     assert_eq!(l.values[2], vec!["p2", "neutral"]);
-    assert_eq!(
-        l.column("expression").unwrap(),
-        vec!["neutral", "smile", "neutral"]
-    );
+    assert_eq!(l.column("expression").unwrap(), vec!["neutral", "smile", "neutral"]);
 
     // `name` header, a missing shape, an ambiguous match.
     std::fs::write(&path, "name,identity\nface01,p1\nface03,p2\n").unwrap();

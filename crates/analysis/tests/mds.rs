@@ -5,19 +5,13 @@ use rand_chacha::ChaCha8Rng;
 use shapespace_analysis::{classical_mds, DistanceMatrix};
 
 fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
 }
 
 fn euclidean_matrix(points: &[Vec<f64>]) -> DistanceMatrix {
     let n = points.len();
     let names = (0..n).map(|i| format!("p{i}")).collect();
-    let values = (0..n * n)
-        .map(|k| dist(&points[k / n], &points[k % n]))
-        .collect();
+    let values = (0..n * n).map(|k| dist(&points[k / n], &points[k % n])).collect();
     DistanceMatrix::new(names, values).unwrap()
 }
 
@@ -73,13 +67,11 @@ fn planar_configuration_is_recovered_up_to_rigid_motion() {
     }
     // Sign convention: in every dimension the largest-magnitude coordinate is positive.
     for k in 0..2 {
-        let big = mds.coordinates.iter().map(|c| c[k]).fold(0.0f64, |m, x| {
-            if x.abs() > m.abs() {
-                x
-            } else {
-                m
-            }
-        });
+        let big = mds
+            .coordinates
+            .iter()
+            .map(|c| c[k])
+            .fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m });
         assert!(big > 0.0);
     }
 }
@@ -111,11 +103,7 @@ fn box_in_3d_embedded_in_2d_reports_axis_variance_shares() {
         .collect();
     let d = euclidean_matrix(&points);
     let mds = classical_mds(&d, 2).unwrap();
-    for (got, want) in mds
-        .eigenvalues
-        .iter()
-        .zip([72.0, 32.0, 8.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-    {
+    for (got, want) in mds.eigenvalues.iter().zip([72.0, 32.0, 8.0, 0.0, 0.0, 0.0, 0.0, 0.0]) {
         assert!((got - want).abs() < 1e-10, "{:?}", mds.eigenvalues);
     }
     assert!((mds.variance_shares[0] - 9.0 / 14.0).abs() < 1e-12);
@@ -174,9 +162,6 @@ fn bench_mds_timing() {
         for _ in 0..reps {
             std::hint::black_box(classical_mds(&d, 2).unwrap());
         }
-        println!(
-            "{n:>6} {:>10.3} ms",
-            start.elapsed().as_secs_f64() * 1e3 / reps as f64
-        );
+        println!("{n:>6} {:>10.3} ms", start.elapsed().as_secs_f64() * 1e3 / reps as f64);
     }
 }

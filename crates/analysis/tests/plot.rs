@@ -20,20 +20,12 @@ fn check_png(path: &PathBuf) {
     let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
     let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
     assert_eq!((w, h), (1100, 760));
-    assert!(
-        bytes.len() > 10_000,
-        "suspiciously small PNG: {} bytes",
-        bytes.len()
-    );
+    assert!(bytes.len() > 10_000, "suspiciously small PNG: {} bytes", bytes.len());
 }
 
 fn check_svg(path: &PathBuf, must_contain: &[&str]) {
     let text = std::fs::read_to_string(path).unwrap();
-    assert!(
-        text.trim_start().starts_with("<svg"),
-        "{}",
-        &text[..80.min(text.len())]
-    );
+    assert!(text.trim_start().starts_with("<svg"), "{}", &text[..80.min(text.len())]);
     assert!(text.trim_end().ends_with("</svg>"));
     for s in must_contain {
         assert!(text.contains(s), "SVG lacks {s:?}");
@@ -103,14 +95,7 @@ fn mds_scatter_writes_png_and_svg() {
     check_svg(&path, &["MDS 1 ("]);
     // Bad input.
     assert!(mds_scatter(&out("x.jpg"), &mds, None, None, "t").is_err());
-    assert!(mds_scatter(
-        &out("x.png"),
-        &mds,
-        Some(("identity", &ids[..3])),
-        None,
-        "t"
-    )
-    .is_err());
+    assert!(mds_scatter(&out("x.png"), &mds, Some(("identity", &ids[..3])), None, "t").is_err());
 }
 
 #[test]

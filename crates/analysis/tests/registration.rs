@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use shapespace_analysis::registration::{
-    disk_image, register, register_with_maps, HarmonicParams, registration_area_params, registration_metrics, DiskImage, Landmarks,
-    MetricParams, Method, RegistrationParams,
+    disk_image, register, register_with_maps, registration_area_params, registration_metrics, DiskImage,
+    HarmonicParams, Landmarks, Method, MetricParams, RegistrationParams,
 };
 use shapespace_analysis::AnalysisError;
 use shapespace_conformal::MarkerFile;
@@ -36,7 +36,13 @@ fn maps() -> &'static [(Method, DiskImage, DiskImage)] {
         let p = registration_area_params();
         [Method::Conformal, Method::Omt]
             .into_iter()
-            .map(|m| (m, disk_image(&wolf(0), &mf.markers, m, &p).unwrap(), disk_image(&wolf(1), &mf.markers, m, &p).unwrap()))
+            .map(|m| {
+                (
+                    m,
+                    disk_image(&wolf(0), &mf.markers, m, &p).unwrap(),
+                    disk_image(&wolf(1), &mf.markers, m, &p).unwrap(),
+                )
+            })
             .collect()
     })
 }
@@ -67,13 +73,20 @@ fn self_registration_is_the_identity() {
         .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
         .fold(0.0f64, f64::max)
         / scale;
-    eprintln!("self (conformal): max |f(v) - v| / sqrt(A) = {max_move:.3e}, geodesic max {:.3e}, flips {} {}", g.summary.max, met.flipped_faces, met.flipped_faces_3d);
+    eprintln!(
+        "self (conformal): max |f(v) - v| / sqrt(A) = {max_move:.3e}, geodesic max {:.3e}, flips {} {}",
+        g.summary.max, met.flipped_faces, met.flipped_faces_3d
+    );
     assert!(max_move < 1e-6, "max displacement {max_move}");
     assert!(g.summary.max < 1e-6, "geodesic error {}", g.summary.max);
     assert_eq!(met.flipped_faces, 0);
     assert_eq!(met.flipped_faces_3d, 0);
     // identical areas: the area distortion is 1 up to the displacement above
-    assert!(met.area_distortion_summary.max < 1.0 + 1e-6, "{:?}", met.area_distortion_summary);
+    assert!(
+        met.area_distortion_summary.max < 1.0 + 1e-6,
+        "{:?}",
+        met.area_distortion_summary
+    );
     // curvature ratios interpolated at points displaced by ~1e-9: within 1e-4 of 1 (measured 3.3e-6)
     assert!(met.curvature_summary.max < 1.0 + 1e-4, "{:?}", met.curvature_summary);
 }
@@ -83,14 +96,20 @@ fn rigid_motion_gives_near_zero_error() {
     let s = wolf(0);
     let (c, sn) = (0.6f64.cos(), 0.6f64.sin());
     let moved = TriMesh::new(
-        s.positions.iter().map(|p| [c * p[0] - sn * p[2] + 10.0, p[1] - 3.0, sn * p[0] + c * p[2] + 7.5]).collect(),
+        s.positions
+            .iter()
+            .map(|p| [c * p[0] - sn * p[2] + 10.0, p[1] - 3.0, sn * p[0] + c * p[2] + 7.5])
+            .collect(),
         s.faces.clone(),
     )
     .unwrap();
     let reg = register(&s, &moved, &named(&markers()), &params(Method::Conformal)).unwrap();
     let met = registration_metrics(&s, &moved, &reg, &MetricParams::default()).unwrap();
     let g = met.geodesic.as_ref().unwrap();
-    eprintln!("rigid (conformal): geodesic mean {:.3e} max {:.3e}, flips {}", g.summary.mean, g.summary.max, met.flipped_faces_3d);
+    eprintln!(
+        "rigid (conformal): geodesic mean {:.3e} max {:.3e}, flips {}",
+        g.summary.mean, g.summary.max, met.flipped_faces_3d
+    );
     assert!(g.summary.max < 1e-4, "geodesic error {}", g.summary.max);
     assert_eq!(met.flipped_faces_3d, 0);
 }
@@ -132,7 +151,13 @@ fn omt_beats_conformal_on_the_wolf_poses() {
                 // (before untangling 0 and 1; one planar solve folds 2 and 3)
                 assert_eq!(met.flipped_faces, 0, "omt: flipped faces of g ∘ φ1");
             }
-            results.push((*method, met.flipped_area_ratio, met.flipped_area_ratio_3d, met.area_distortion_summary.median, g.mean));
+            results.push((
+                *method,
+                met.flipped_area_ratio,
+                met.flipped_area_ratio_3d,
+                met.area_distortion_summary.median,
+                g.mean,
+            ));
         }
     }
     let mean = |m: Method, k: usize| {
@@ -145,14 +170,34 @@ fn omt_beats_conformal_on_the_wolf_poses() {
     };
     let (omt, conf) = (Method::Omt, Method::Conformal);
     // measured (wolf0 <-> wolf1): geodesic mean error omt 0.0215 vs conformal 0.086
-    assert!(mean(omt, 3) < 0.4 * mean(conf, 3), "geodesic error omt {} vs conformal {}", mean(omt, 3), mean(conf, 3));
+    assert!(
+        mean(omt, 3) < 0.4 * mean(conf, 3),
+        "geodesic error omt {} vs conformal {}",
+        mean(omt, 3),
+        mean(conf, 3)
+    );
     // measured: area distortion median omt 1.13 vs conformal 4.6
-    assert!(mean(omt, 2) < 1.3 && mean(conf, 2) > 3.0, "area distortion omt {} conformal {}", mean(omt, 2), mean(conf, 2));
+    assert!(
+        mean(omt, 2) < 1.3 && mean(conf, 2) > 3.0,
+        "area distortion omt {} conformal {}",
+        mean(omt, 2),
+        mean(conf, 2)
+    );
     // flipped area in the disk: omt 0 (asserted per pair above), conformal 7.9% (measured)
-    assert!(mean(omt, 0) == 0.0 && mean(conf, 0) > 0.05, "flipped area omt {} vs conformal {}", mean(omt, 0), mean(conf, 0));
+    assert!(
+        mean(omt, 0) == 0.0 && mean(conf, 0) > 0.05,
+        "flipped area omt {} vs conformal {}",
+        mean(omt, 0),
+        mean(conf, 0)
+    );
     // 3D flips are NOT zero for omt: measured 0.7% (wolf0 <-> wolf1) vs conformal 8.1%; they come
     // from the composition with φ2 (the same faces flip with g = identity, no landmarks), not from g
-    assert!(mean(omt, 1) < 0.015 && mean(omt, 1) < 0.2 * mean(conf, 1), "3D flipped area omt {} vs conformal {}", mean(omt, 1), mean(conf, 1));
+    assert!(
+        mean(omt, 1) < 0.015 && mean(omt, 1) < 0.2 * mean(conf, 1),
+        "3D flipped area omt {} vs conformal {}",
+        mean(omt, 1),
+        mean(conf, 1)
+    );
 }
 
 #[test]
@@ -167,9 +212,18 @@ fn bad_landmarks_give_errors() {
         assert!(matches!(err, AnalysisError::Landmark { .. }), "{msg}");
         assert!(msg.contains(needle), "`{msg}` does not mention `{needle}`");
     };
-    check(Landmarks::from_pairs(vec![(10, 10), (99_999, 5)], "pairs.csv"), "out of range");
-    check(Landmarks::from_pairs(vec![(10, 10), (10, 11)], "pairs.csv"), "also landmark 0");
-    check(Landmarks::from_pairs(vec![(10, 10), (11, 10)], "pairs.csv"), "target vertex 10");
+    check(
+        Landmarks::from_pairs(vec![(10, 10), (99_999, 5)], "pairs.csv"),
+        "out of range",
+    );
+    check(
+        Landmarks::from_pairs(vec![(10, 10), (10, 11)], "pairs.csv"),
+        "also landmark 0",
+    );
+    check(
+        Landmarks::from_pairs(vec![(10, 10), (11, 10)], "pairs.csv"),
+        "target vertex 10",
+    );
     check(Landmarks::from_pairs(vec![(bv, 10)], "pairs.csv"), "boundary");
     // CSV: file and line in the message
     let dir = std::env::temp_dir().join(format!("shapespace_reg_test_{}", std::process::id()));
@@ -177,7 +231,10 @@ fn bad_landmarks_give_errors() {
     let f = dir.join("bad.csv");
     std::fs::write(&f, "source,target\n1,2\n3,x\n").unwrap();
     let msg = Landmarks::from_csv(&f).unwrap_err().to_string();
-    assert!(msg.contains("bad.csv") && msg.contains("line 3") && msg.contains("`x`"), "{msg}");
+    assert!(
+        msg.contains("bad.csv") && msg.contains("line 3") && msg.contains("`x`"),
+        "{msg}"
+    );
     std::fs::write(&f, "1,2,3\n").unwrap();
     let msg = Landmarks::from_csv(&f).unwrap_err().to_string();
     assert!(msg.contains("bad.csv:1"), "{msg}");
@@ -187,7 +244,9 @@ fn bad_landmarks_give_errors() {
     let mut a = markers().landmarks;
     let b = a.clone();
     a.insert("ear".into(), 12);
-    let msg = Landmarks::from_named(&a, &b, "a.json / b.json").unwrap_err().to_string();
+    let msg = Landmarks::from_named(&a, &b, "a.json / b.json")
+        .unwrap_err()
+        .to_string();
     assert!(msg.contains("ear") && msg.contains("a.json"), "{msg}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -4,24 +4,27 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use shapespace_analysis::registration::{
-    disk_image, register_with_maps, registration_area_params, registration_metrics, HarmonicParams, HarmonicWeights, Landmarks,
-    MetricParams, Method,
-};
 use shapespace_analysis::fold_repair::count_folded_faces;
+use shapespace_analysis::registration::{
+    disk_image, register_with_maps, registration_area_params, registration_metrics, HarmonicParams, HarmonicWeights,
+    Landmarks, Method, MetricParams,
+};
 use shapespace_conformal::MarkerFile;
 use shapespace_geometry::TriMesh;
 
 fn dir(class: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses").join(class)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../datasets/poses")
+        .join(class)
 }
 
 #[test]
 #[ignore]
 fn probe_harmonic_variants() {
     let class = std::env::var("PROBE_CLASS").unwrap_or_else(|_| "wolf".into());
-    let meshes: Vec<TriMesh> =
-        (0..3).map(|i| shapespace_geometry::io::read_mesh(&dir(&class).join(format!("{class}{i}.off"))).unwrap()).collect();
+    let meshes: Vec<TriMesh> = (0..3)
+        .map(|i| shapespace_geometry::io::read_mesh(&dir(&class).join(format!("{class}{i}.off"))).unwrap())
+        .collect();
     let mf = MarkerFile::from_json_file(&dir(&class).join("landmarks.json")).unwrap();
     let lm = Landmarks::from_named(&mf.landmarks, &mf.landmarks, "landmarks.json").unwrap();
     let none = Landmarks::from_pairs(vec![], "none");
@@ -35,7 +38,12 @@ fn probe_harmonic_variants() {
             .iter()
             .map(|m| {
                 let d = disk_image(m, &mf.markers, method, &p).unwrap();
-                eprintln!("{method}: disk map {:.2}s, folded {} (exact), flipped {}", d.seconds, count_folded_faces(&m.faces, &d.uv), d.flipped_faces);
+                eprintln!(
+                    "{method}: disk map {:.2}s, folded {} (exact), flipped {}",
+                    d.seconds,
+                    count_folded_faces(&m.faces, &d.uv),
+                    d.flipped_faces
+                );
                 d
             })
             .collect();
@@ -63,7 +71,11 @@ fn probe_harmonic_variants() {
                 if lname == "no-landmarks" && (rep > 1 || fr) {
                     continue;
                 }
-                let hp = HarmonicParams { weights: w, fold_repair: fr, landmark_steps: rep };
+                let hp = HarmonicParams {
+                    weights: w,
+                    fold_repair: fr,
+                    landmark_steps: rep,
+                };
                 let mut acc = [0.0f64; 9];
                 let mut k = 0.0;
                 let mut errs = Vec::new();
@@ -92,13 +104,18 @@ fn probe_harmonic_variants() {
                             g.mean,
                             g.median,
                             tg,
-                            reg.harmonic_fold_repair.as_ref().map_or(reg.harmonic_folded, |u| u.folded_after) as f64,
+                            reg.harmonic_fold_repair
+                                .as_ref()
+                                .map_or(reg.harmonic_folded, |u| u.folded_after) as f64,
                         ]) {
                             *a += v;
                         }
                         k += 1.0;
                         if std::env::var("PROBE_VERBOSE").is_ok() {
-                            eprintln!("  {i}->{j}: g folded {} left {:?} 3D flipped {}", reg.harmonic_folded, reg.harmonic_fold_repair, met.flipped_faces_3d);
+                            eprintln!(
+                                "  {i}->{j}: g folded {} left {:?} 3D flipped {}",
+                                reg.harmonic_folded, reg.harmonic_fold_repair, met.flipped_faces_3d
+                            );
                         }
                     }
                 }

@@ -47,10 +47,7 @@ fn faces(rng: &mut ChaCha8Rng) -> (DistanceMatrix, String) {
     for i in 0..n {
         for j in 0..n {
             if i != j {
-                let e: f64 = (0..4)
-                    .map(|k| (pts[i][k] - pts[j][k]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
+                let e: f64 = (0..4).map(|k| (pts[i][k] - pts[j][k]).powi(2)).sum::<f64>().sqrt();
                 values[i * n + j] = e * (1.0 + rng.random_range(-0.002..0.002));
             }
         }
@@ -102,10 +99,7 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
 
     // stats.json is the serialized result and parses back; it agrees with direct calls.
     let json = std::fs::read_to_string(out.join("stats.json")).unwrap();
-    assert_eq!(
-        json,
-        serde_json::to_string_pretty(&result.stats).unwrap() + "\n"
-    );
+    assert_eq!(json, serde_json::to_string_pretty(&result.stats).unwrap() + "\n");
     let stats: ShapeSpaceStats = serde_json::from_str(&json).unwrap();
     assert_eq!(stats.n, 40);
     assert_eq!(stats.labels["identity"].classes, 8);
@@ -113,19 +107,12 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
     // People are far apart relative to expressions: identity is recovered perfectly.
     assert_eq!(stats.labels["identity"].loo_1nn.accuracy, Some(1.0));
     assert!(stats.labels["identity"].silhouette.unwrap() > 0.5);
-    assert!(
-        stats.labels["identity"].distances.within.median
-            < stats.labels["identity"].distances.between.median
-    );
+    assert!(stats.labels["identity"].distances.within.median < stats.labels["identity"].distances.between.median);
     // Two ordered pairs of columns.
     assert_eq!(stats.cross.len(), 2);
     let labels = read_labels(&labels_path, &d.names).unwrap();
     let direct = loo_1nn_accuracy_across(&d, &labels, "expression", "identity").unwrap();
-    let cross = stats
-        .cross
-        .iter()
-        .find(|c| c.target == "expression")
-        .unwrap();
+    let cross = stats.cross.iter().find(|c| c.target == "expression").unwrap();
     assert_eq!(cross.exclude_same, "identity");
     assert_eq!(cross.loo_1nn, direct);
     // Asymmetry ±0.2% of each entry: relative gap below 0.4% of a distance; the mean
@@ -134,12 +121,7 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
     assert!(stats.symmetry.median_relative.unwrap() > 0.0);
     assert_eq!(stats.missing_pairs, 0);
     for ext in ["png", "svg"] {
-        assert!(
-            std::fs::metadata(out.join(format!("mds.{ext}")))
-                .unwrap()
-                .len()
-                > 5000
-        );
+        assert!(std::fs::metadata(out.join(format!("mds.{ext}"))).unwrap().len() > 5000);
     }
 }
 
@@ -159,10 +141,7 @@ fn run_mds_errors_name_the_problem() {
         ..MdsParams::default()
     };
     let err = run_mds(&dist_path, Some(&labels_path), &out, &bad_col).unwrap_err();
-    assert!(
-        matches!(err, AnalysisError::UnknownLabelColumn { .. }),
-        "{err}"
-    );
+    assert!(matches!(err, AnalysisError::UnknownLabelColumn { .. }), "{err}");
     let err = run_mds(&dist_path, None, &out, &bad_col).unwrap_err();
     assert!(matches!(err, AnalysisError::LabelsRequired { .. }), "{err}");
 
@@ -173,10 +152,7 @@ fn run_mds_errors_name_the_problem() {
     write_distance_matrix(&dist_path, &d).unwrap();
     let err = run_mds(&dist_path, Some(&labels_path), &out, &MdsParams::default()).unwrap_err();
     let msg = err.to_string();
-    assert!(
-        msg.contains(&d.names[3]) && msg.contains(&d.names[7]),
-        "{msg}"
-    );
+    assert!(msg.contains(&d.names[3]) && msg.contains(&d.names[7]), "{msg}");
     assert!(!out.join("mds.csv").exists());
 
     // Without labels everything but the label statistics is written.

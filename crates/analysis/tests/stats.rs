@@ -3,8 +3,8 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use shapespace_analysis::stats::{
-    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, silhouette_values,
-    symmetry_gap, triangle_violations,
+    class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, silhouette_values, symmetry_gap,
+    triangle_violations,
 };
 use shapespace_analysis::{DistanceMatrix, Labels};
 
@@ -23,10 +23,7 @@ fn symmetric_matrix(n: usize, pairs: &[(usize, usize, f64)]) -> DistanceMatrix {
 fn labels(columns: &[&str], rows: &[&[&str]]) -> Labels {
     Labels {
         columns: columns.iter().map(|s| s.to_string()).collect(),
-        values: rows
-            .iter()
-            .map(|r| r.iter().map(|s| s.to_string()).collect())
-            .collect(),
+        values: rows.iter().map(|r| r.iter().map(|s| s.to_string()).collect()).collect(),
     }
 }
 
@@ -210,10 +207,7 @@ fn triangle_counter_finds_planted_violations_and_none_in_euclidean() {
     let mut pairs = Vec::new();
     for i in 0..30 {
         for j in i + 1..30 {
-            let v = (0..3)
-                .map(|k| (pts[i][k] - pts[j][k]).powi(2))
-                .sum::<f64>()
-                .sqrt();
+            let v = (0..3).map(|k| (pts[i][k] - pts[j][k]).powi(2)).sum::<f64>().sqrt();
             pairs.push((i, j, v));
         }
     }

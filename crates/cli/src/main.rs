@@ -9,7 +9,11 @@ use clap::{Parser, Subcommand};
 mod cmd;
 
 #[derive(Parser)]
-#[command(name = "shapespace", version, about = "Shape analysis with conformal geometry and optimal mass transport")]
+#[command(
+    name = "shapespace",
+    version,
+    about = "Shape analysis with conformal geometry and optimal mass transport"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -53,7 +53,12 @@ impl Connectivity {
                 }
             }
         }
-        Connectivity { edges, edge_faces, face_edges, vertex_faces }
+        Connectivity {
+            edges,
+            edge_faces,
+            face_edges,
+            vertex_faces,
+        }
     }
 
     /// Connectivity of a mesh.

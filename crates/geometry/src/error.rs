@@ -9,20 +9,36 @@ use std::path::PathBuf;
 pub enum GeometryError {
     /// An I/O failure while reading or writing `path`.
     #[error("{path}: {source}")]
-    Io { path: PathBuf, #[source] source: std::io::Error },
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     /// A parse error at a line (1-based) of a text file, or at an element of a binary one.
     #[error("{path}:{line}: {message}")]
-    Parse { path: PathBuf, line: usize, message: String },
+    Parse {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
     /// A parse error at a byte offset of a binary file (binary PLY); `message` names the element
     /// and its index, e.g. `face 17: vertex index 9000 out of range`.
     #[error("{path}: byte {offset}: {message}")]
-    BinaryParse { path: PathBuf, offset: u64, message: String },
+    BinaryParse {
+        path: PathBuf,
+        offset: u64,
+        message: String,
+    },
     /// A file format that is not recognised (by extension or content).
     #[error("{path}: unsupported mesh format ({message})")]
     UnsupportedFormat { path: PathBuf, message: String },
     /// A face references a vertex that does not exist.
     #[error("face {face} references vertex {index}, but the mesh has {num_vertices} vertices")]
-    IndexOutOfRange { face: usize, index: i64, num_vertices: usize },
+    IndexOutOfRange {
+        face: usize,
+        index: i64,
+        num_vertices: usize,
+    },
     /// A vertex coordinate is NaN or infinite.
     #[error("vertex {vertex} has a non-finite coordinate")]
     NonFiniteCoordinate { vertex: usize },
@@ -46,7 +62,11 @@ pub enum GeometryError {
     LinearAlgebra(String),
     /// Wraps another error with the file it came from.
     #[error("{path}: {source}")]
-    WithPath { path: PathBuf, #[source] source: Box<GeometryError> },
+    WithPath {
+        path: PathBuf,
+        #[source]
+        source: Box<GeometryError>,
+    },
 }
 
 impl GeometryError {
@@ -58,7 +78,10 @@ impl GeometryError {
             | GeometryError::BinaryParse { .. }
             | GeometryError::UnsupportedFormat { .. }
             | GeometryError::WithPath { .. }) => e,
-            e => GeometryError::WithPath { path: path.into(), source: Box::new(e) },
+            e => GeometryError::WithPath {
+                path: path.into(),
+                source: Box::new(e),
+            },
         }
     }
 }

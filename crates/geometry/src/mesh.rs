@@ -21,7 +21,11 @@ impl TriMesh {
     /// A mesh from positions and faces, checking that every index is in range and every
     /// coordinate is finite.
     pub fn new(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Result<Self, GeometryError> {
-        let mesh = TriMesh { positions, faces, uvs: None };
+        let mesh = TriMesh {
+            positions,
+            faces,
+            uvs: None,
+        };
         mesh.validate()?;
         Ok(mesh)
     }
@@ -47,7 +51,11 @@ impl TriMesh {
         for (f, face) in self.faces.iter().enumerate() {
             for &v in face {
                 if v as usize >= n {
-                    return Err(GeometryError::IndexOutOfRange { face: f, index: v as i64, num_vertices: n });
+                    return Err(GeometryError::IndexOutOfRange {
+                        face: f,
+                        index: v as i64,
+                        num_vertices: n,
+                    });
                 }
             }
         }
@@ -67,6 +75,10 @@ impl TriMesh {
     #[inline]
     pub fn face_positions(&self, f: usize) -> [[f64; 3]; 3] {
         let [a, b, c] = self.faces[f];
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
     }
 }

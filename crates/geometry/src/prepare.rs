@@ -494,7 +494,10 @@ pub fn subdivide_midpoint(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
         faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
     }
     if positions.len() > u32::MAX as usize {
-        return Err(GeometryError::Invalid(format!("subdivision would have {} vertices (over the u32 range)", positions.len())));
+        return Err(GeometryError::Invalid(format!(
+            "subdivision would have {} vertices (over the u32 range)",
+            positions.len()
+        )));
     }
     let mut out = TriMesh::new(positions, faces)?;
     out.uvs = uvs;

@@ -19,7 +19,10 @@ fn ring_layout(rings: usize) -> (Vec<(f64, f64)>, Vec<[u32; 3]>) {
         let start = params.len();
         let len = 6 * k;
         for j in 0..len {
-            params.push((k as f64 / rings as f64, 2.0 * std::f64::consts::PI * j as f64 / len as f64));
+            params.push((
+                k as f64 / rings as f64,
+                2.0 * std::f64::consts::PI * j as f64 / len as f64,
+            ));
         }
         if k == 1 {
             for j in 0..len {
@@ -55,8 +58,15 @@ fn ring_layout(rings: usize) -> (Vec<(f64, f64)>, Vec<[u32; 3]>) {
 /// vertex 0 is the center, the last 6·rings vertices lie exactly on the unit circle.
 pub fn unit_disk(rings: usize) -> TriMesh {
     let (params, faces) = ring_layout(rings);
-    let positions = params.iter().map(|&(s, phi)| [s * phi.cos(), s * phi.sin(), 0.0]).collect();
-    TriMesh { positions, faces, uvs: None }
+    let positions = params
+        .iter()
+        .map(|&(s, phi)| [s * phi.cos(), s * phi.sin(), 0.0])
+        .collect();
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 /// A spherical cap of half-angle `alpha` (0 < α ≤ π) on the unit sphere, pole at +z.
@@ -73,7 +83,11 @@ pub fn spherical_cap(alpha: f64, rings: usize) -> TriMesh {
             [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()]
         })
         .collect();
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 /// The icosphere of radius 1: an icosahedron with each face split into four `subdivisions`
@@ -130,7 +144,11 @@ pub fn icosphere(subdivisions: usize) -> TriMesh {
             *cache.entry(key).or_insert_with(|| {
                 let pa = positions[a as usize];
                 let pb = positions[b as usize];
-                positions.push(normalize([(pa[0] + pb[0]) / 2.0, (pa[1] + pb[1]) / 2.0, (pa[2] + pb[2]) / 2.0]));
+                positions.push(normalize([
+                    (pa[0] + pb[0]) / 2.0,
+                    (pa[1] + pb[1]) / 2.0,
+                    (pa[2] + pb[2]) / 2.0,
+                ]));
                 (positions.len() - 1) as u32
             })
         };
@@ -143,7 +161,11 @@ pub fn icosphere(subdivisions: usize) -> TriMesh {
         }
         faces = next;
     }
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 /// A planar grid on [0, 1]² (z = 0) with `nx` × `ny` cells, each split along its diagonal
@@ -164,7 +186,11 @@ pub fn grid(nx: usize, ny: usize) -> TriMesh {
             faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
         }
     }
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 /// A tube of radius `radius` and height `height` along +z, closed at z = 0 by a flat cap and
@@ -174,8 +200,10 @@ pub fn grid(nx: usize, ny: usize) -> TriMesh {
 /// Faces are oriented with outward normals (the cap faces −z).
 pub fn capped_tube(radius: f64, height: f64, cap_rings: usize, along: usize) -> TriMesh {
     let (params, cap_faces) = ring_layout(cap_rings);
-    let mut positions: Vec<[f64; 3]> =
-        params.iter().map(|&(s, phi)| [radius * s * phi.cos(), radius * s * phi.sin(), 0.0]).collect();
+    let mut positions: Vec<[f64; 3]> = params
+        .iter()
+        .map(|&(s, phi)| [radius * s * phi.cos(), radius * s * phi.sin(), 0.0])
+        .collect();
     // the cap is seen from −z: reverse its faces so normals point outward (−z)
     let mut faces: Vec<[u32; 3]> = cap_faces.iter().map(|&[a, b, c]| [a, c, b]).collect();
     let around = 6 * cap_rings.max(1);
@@ -200,7 +228,11 @@ pub fn capped_tube(radius: f64, height: f64, cap_rings: usize, along: usize) -> 
         }
         prev = start;
     }
-    TriMesh { positions, faces, uvs: None }
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
 }
 
 #[cfg(test)]
@@ -278,7 +310,11 @@ mod tests {
         let n = face_normals(&t);
         for (f, nf) in n.iter().enumerate() {
             let [p, q, r] = t.face_positions(f);
-            let c = [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0, (p[2] + q[2] + r[2]) / 3.0];
+            let c = [
+                (p[0] + q[0] + r[0]) / 3.0,
+                (p[1] + q[1] + r[1]) / 3.0,
+                (p[2] + q[2] + r[2]) / 3.0,
+            ];
             if c[2] > 1e-9 {
                 assert!(nf[0] * c[0] + nf[1] * c[1] > 0.0);
             } else {

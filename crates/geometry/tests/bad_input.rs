@@ -9,7 +9,10 @@ use shapespace_geometry::io::read_mesh;
 enum Expect {
     /// An error whose message contains `file:line:` (text) or `file: byte N:` (binary), and
     /// each of the given fragments.
-    Error { at: &'static str, problem: &'static [&'static str] },
+    Error {
+        at: &'static str,
+        problem: &'static [&'static str],
+    },
     /// A successful read with this many vertices and triangles.
     Reads { vertices: usize, faces: usize },
 }
@@ -30,17 +33,38 @@ const CORPUS: &[(&str, Expect)] = &[
     ("face_2_vertices.obj", err(":5:", &["face 1 has 2 vertices"])),
     ("face_2_vertices.off", err(":7:", &["face 1 has 2 vertices"])),
     ("face_2_vertices.ply", err(":14:", &["face 1 has 2 vertices"])),
-    ("face_2_vertices_binary.ply", err(": byte 230:", &["face 1 has 2 vertices"])),
-    ("index_out_of_range.obj", err(":6:", &["vertex index 9 out of range", "4 vertices"])),
-    ("index_out_of_range.off", err(":6:", &["face 0", "vertex index 3 out of range"])),
-    ("index_out_of_range.ply", err(":14:", &["face 1", "vertex index 3 out of range"])),
-    ("index_out_of_range_binary.ply", err(": byte 230:", &["face 1", "vertex index 4 out of range"])),
+    (
+        "face_2_vertices_binary.ply",
+        err(": byte 230:", &["face 1 has 2 vertices"]),
+    ),
+    (
+        "index_out_of_range.obj",
+        err(":6:", &["vertex index 9 out of range", "4 vertices"]),
+    ),
+    (
+        "index_out_of_range.off",
+        err(":6:", &["face 0", "vertex index 3 out of range"]),
+    ),
+    (
+        "index_out_of_range.ply",
+        err(":14:", &["face 1", "vertex index 3 out of range"]),
+    ),
+    (
+        "index_out_of_range_binary.ply",
+        err(": byte 230:", &["face 1", "vertex index 4 out of range"]),
+    ),
     ("index_zero.obj", err(":4:", &["index 0 is invalid"])),
     ("inf.off", err(":5:", &["vertex 2 has a non-finite coordinate"])),
     ("inf.ply", err(":11:", &["vertex 1 has a non-finite coordinate"])),
     ("nan.obj", err(":2:", &["vertex 1 has a non-finite coordinate"])),
-    ("nan_binary.ply", err(": byte 181:", &["vertex 1 has a non-finite coordinate"])),
-    ("negative_before_start.obj", err(":5:", &["-4 points before the first vertex"])),
+    (
+        "nan_binary.ply",
+        err(": byte 181:", &["vertex 1 has a non-finite coordinate"]),
+    ),
+    (
+        "negative_before_start.obj",
+        err(":5:", &["-4 points before the first vertex"]),
+    ),
     ("negative_index.off", err(":6:", &["vertex index -1 out of range"])),
     ("non_numeric.obj", err(":2:", &["vertex 1", "non-numeric", "'O'"])),
     ("non_numeric.off", err(":5:", &["vertex 2", "non-numeric", "'1,5'"])),
@@ -50,19 +74,40 @@ const CORPUS: &[(&str, Expect)] = &[
     ("obj_no_faces.obj", err(":4:", &["no faces"])),
     // The header says 3 vertices but 4 follow: the 4th vertex line is read as a face.
     ("off_counts_too_small.off", err(":6:", &["face 0 has 1 vertices"])),
-    ("off_huge_count.off", err(":4:", &["end of file", "declares 4000000000 vertices, found 1"])),
+    (
+        "off_huge_count.off",
+        err(":4:", &["end of file", "declares 4000000000 vertices, found 1"]),
+    ),
     ("off_missing_counts.off", err(":2:", &["end of file", "counts"])),
     ("ply_bad_type.ply", err(":4:", &["unknown property type 'flaot'"])),
-    ("ply_header_lies_ascii.ply", err(":14:", &["data after the last element", "wrong counts"])),
-    ("ply_header_lies_binary.ply", err(": byte 172:", &["declares 1000 'vertex' elements", "only 74 bytes"])),
+    (
+        "ply_header_lies_ascii.ply",
+        err(":14:", &["data after the last element", "wrong counts"]),
+    ),
+    (
+        "ply_header_lies_binary.ply",
+        err(": byte 172:", &["declares 1000 'vertex' elements", "only 74 bytes"]),
+    ),
     ("ply_no_end_header.ply", err(":4:", &["no 'end_header'"])),
     ("ply_no_faces.ply", err(":7:", &["no 'face' or 'tristrips' element"])),
     // Header says 3 vertices, 4 follow: the 4th vertex's bytes are read as face 0.
-    ("ply_trailing_bytes_binary.ply", err(": byte 205:", &["face 0 has 0 vertices"])),
+    (
+        "ply_trailing_bytes_binary.ply",
+        err(": byte 205:", &["face 0 has 0 vertices"]),
+    ),
     ("truncated.obj", err(":7:", &["vertex 4 has 2 coordinates"])),
-    ("truncated.off", err(":8:", &["end of file", "declares 2 faces, found 1"])),
-    ("truncated_ascii.ply", err(":13:", &["end of file", "declares 4 'vertex' elements, found 3"])),
-    ("truncated_binary.ply", err(": byte 230:", &["face 1", "unexpected end of file"])),
+    (
+        "truncated.off",
+        err(":8:", &["end of file", "declares 2 faces, found 1"]),
+    ),
+    (
+        "truncated_ascii.ply",
+        err(":13:", &["end of file", "declares 4 'vertex' elements, found 3"]),
+    ),
+    (
+        "truncated_binary.ply",
+        err(": byte 230:", &["face 1", "unexpected end of file"]),
+    ),
     ("unknown_format.stl", err(":", &["unsupported mesh format", "'.stl'"])),
     ("ok_extra_elements_big_endian.ply", Reads { vertices: 4, faces: 3 }),
     ("ok_mixed_tri_quad.obj", Reads { vertices: 5, faces: 3 }),
@@ -96,9 +141,11 @@ fn every_bad_input_fails_cleanly_and_the_good_ones_read() {
                     failures.push(format!("{name}: expected '{located}' and {problem:?} in: {message}"));
                 }
             }
-            (Error { .. }, Ok(m)) => {
-                failures.push(format!("{name}: read without error ({} V, {} F)", m.num_vertices(), m.num_faces()))
-            }
+            (Error { .. }, Ok(m)) => failures.push(format!(
+                "{name}: read without error ({} V, {} F)",
+                m.num_vertices(),
+                m.num_faces()
+            )),
             (Reads { vertices, faces }, Ok(m)) => {
                 if (m.num_vertices(), m.num_faces()) != (*vertices, *faces) || m.validate().is_err() {
                     failures.push(format!("{name}: read {} V, {} F", m.num_vertices(), m.num_faces()));
@@ -139,7 +186,10 @@ fn topology_problems_read_with_the_faces_as_written() {
     assert_eq!(p, m);
     // Big-endian doubles with skipped list properties and a skipped element.
     let m = read_mesh(&dir.join("ok_extra_elements_big_endian.ply")).unwrap();
-    assert_eq!(m.positions, vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+    assert_eq!(
+        m.positions,
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
+    );
     assert_eq!(m.faces, vec![[0, 1, 2], [0, 1, 2], [0, 2, 3]]);
 }
 

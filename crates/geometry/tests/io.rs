@@ -27,7 +27,10 @@ fn shared() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("note: {} not found; skipping the test on the shared datasets", dir.display());
+        eprintln!(
+            "note: {} not found; skipping the test on the shared datasets",
+            dir.display()
+        );
         None
     }
 }
@@ -96,7 +99,9 @@ fn random_mesh(seed: u64, num_vertices: usize, num_faces: usize, with_uvs: bool)
             return x;
         }
     };
-    let positions = (0..num_vertices).map(|_| [value(&mut rng), value(&mut rng), value(&mut rng)]).collect();
+    let positions = (0..num_vertices)
+        .map(|_| [value(&mut rng), value(&mut rng), value(&mut rng)])
+        .collect();
     let faces = (0..num_faces)
         .map(|_| {
             let n = num_vertices as u32;
@@ -112,7 +117,10 @@ fn round_trips_are_bit_exact() {
     let dir = temp_dir("random");
     for seed in 0..4 {
         let with_uvs = random_mesh(seed, 300, 500, true);
-        let no_uvs = TriMesh { uvs: None, ..with_uvs.clone() };
+        let no_uvs = TriMesh {
+            uvs: None,
+            ..with_uvs.clone()
+        };
 
         let path = dir.join("m.obj");
         write_obj(&path, &with_uvs).unwrap();
@@ -130,7 +138,11 @@ fn round_trips_are_bit_exact() {
         assert_eq!(back, no_uvs, "OFF, seed {seed}");
 
         let path = dir.join("m.ply");
-        for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+        for format in [
+            PlyFormat::Ascii,
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+        ] {
             for mesh in [&with_uvs, &no_uvs] {
                 write_ply(&path, mesh, format).unwrap();
                 let back = read_ply(&path).unwrap();
@@ -145,8 +157,16 @@ fn round_trips_are_bit_exact() {
 #[test]
 fn writers_refuse_invalid_meshes_and_name_the_file() {
     let dir = temp_dir("invalid");
-    let bad_index = TriMesh { positions: vec![[0.0; 3]; 3], faces: vec![[0, 1, 3]], uvs: None };
-    let nan = TriMesh { positions: vec![[0.0, f64::NAN, 0.0]; 3], faces: vec![[0, 1, 2]], uvs: None };
+    let bad_index = TriMesh {
+        positions: vec![[0.0; 3]; 3],
+        faces: vec![[0, 1, 3]],
+        uvs: None,
+    };
+    let nan = TriMesh {
+        positions: vec![[0.0, f64::NAN, 0.0]; 3],
+        faces: vec![[0, 1, 2]],
+        uvs: None,
+    };
     for (mesh, problem) in [(&bad_index, "references vertex 3"), (&nan, "non-finite")] {
         for name in ["x.obj", "x.off", "x.ply"] {
             let path = dir.join(name);
@@ -193,7 +213,12 @@ fn shared_real_format_variants() {
         assert_counts(&mesh, v, f, file);
     }
     // ICT head: 28,911 vt for 26,719 v (UV seams), so no per-vertex UVs.
-    assert_eq!(read_mesh(&root.join("ict_facekit/original/generic_neutral_mesh.obj")).unwrap().uvs, None);
+    assert_eq!(
+        read_mesh(&root.join("ict_facekit/original/generic_neutral_mesh.obj"))
+            .unwrap()
+            .uvs,
+        None
+    );
     // camel_b: one vt per vertex; its first line "vt 68.389594 -2.440819" belongs to vertex 1.
     let camel = read_mesh(&root.join("libigl_tutorial_data/camel_b.obj")).unwrap();
     let uvs = camel.uvs.expect("camel_b.obj has one vt per vertex");
@@ -214,8 +239,11 @@ fn igea_tristrips_match_the_triangle_list() {
     assert_eq!(strips.faces, list.faces);
     // Independently of that file: the decoded strips form a closed, consistently oriented
     // surface, so every directed edge occurs exactly once and its reverse occurs too.
-    let directed: std::collections::HashSet<(u32, u32)> =
-        strips.faces.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]).collect();
+    let directed: std::collections::HashSet<(u32, u32)> = strips
+        .faces
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+        .collect();
     assert_eq!(directed.len(), 3 * strips.num_faces());
     assert!(directed.iter().all(|&(a, b)| directed.contains(&(b, a))));
 }

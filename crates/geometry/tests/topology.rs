@@ -410,7 +410,10 @@ fn midpoint_subdivision_keeps_the_surface_and_its_topology() {
         let conn = Connectivity::of(&mesh);
         let fine = prepare::subdivide_midpoint(&mesh).unwrap();
         let e = conn.num_edges();
-        assert_eq!((fine.num_vertices(), fine.num_faces()), (mesh.num_vertices() + e, 4 * mesh.num_faces()));
+        assert_eq!(
+            (fine.num_vertices(), fine.num_faces()),
+            (mesh.num_vertices() + e, 4 * mesh.num_faces())
+        );
         assert_eq!(&fine.positions[..mesh.num_vertices()], &mesh.positions[..]);
         assert!((total_area(&fine) - total_area(&mesh)).abs() < 1e-12 * total_area(&mesh));
         assert_eq!(classify(&fine).unwrap().class, classify(&mesh).unwrap().class);

@@ -26,8 +26,12 @@ fn disk_points(n: usize, seed: u64) -> Vec<[f64; 2]> {
 /// CPU time (user + system) of the whole process in seconds, from /proc/self/stat (Linux;
 /// 0 elsewhere). The machine is shared, so CPU time is reported next to wall time.
 fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else { return 0.0 };
-    let Some(rest) = stat.rsplit(')').next() else { return 0.0 };
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    let Some(rest) = stat.rsplit(')').next() else {
+        return 0.0;
+    };
     let fields: Vec<&str> = rest.split_whitespace().collect();
     let ticks = |k: usize| fields.get(k).and_then(|s| s.parse::<f64>().ok()).unwrap_or(0.0);
     // Fields 14 and 15 of stat (utime, stime) are at 11 and 12 after the command name.
@@ -53,13 +57,19 @@ fn main() {
     let sizes: Vec<usize> = match std::env::var("DIAGRAM_BENCH_MAX") {
         Ok(s) => {
             let max: usize = s.parse().unwrap_or(1_000_000);
-            [1_000, 10_000, 100_000, 1_000_000].into_iter().filter(|&n| n <= max).collect()
+            [1_000, 10_000, 100_000, 1_000_000]
+                .into_iter()
+                .filter(|&n| n <= max)
+                .collect()
         }
         Err(_) => vec![1_000, 10_000, 100_000, 1_000_000],
     };
     let measure = SourceMeasure::unit_disk(256).expect("valid measure");
     let integrator = RestrictedIntegrator::new(&measure);
-    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("thread pool");
     println!(
         "| N | construction wall / CPU (s) | integration 1 thread wall / CPU (s) | integration {} threads wall (s) | Σ mass error |",
         rayon::current_num_threads()
@@ -81,7 +91,9 @@ fn main() {
     {
         let k = 100u32;
         let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let vertices: Vec<[f64; 2]> = (0..(k + 1) * (k + 1)).map(|v| [(v % (k + 1)) as f64 / k as f64, (v / (k + 1)) as f64 / k as f64]).collect();
+        let vertices: Vec<[f64; 2]> = (0..(k + 1) * (k + 1))
+            .map(|v| [(v % (k + 1)) as f64 / k as f64, (v / (k + 1)) as f64 / k as f64])
+            .collect();
         let mut triangles = Vec::new();
         for i in 0..k {
             for j in 0..k {
@@ -109,11 +121,16 @@ fn main() {
     // Worst case for the exact arithmetic: a square grid (every 4 neighbours co-circular).
     let k = 316;
     let h = 1.4 / k as f64;
-    let sites: Vec<[f64; 2]> = (0..k * k).map(|i| [-0.7 + h * (i % k) as f64, -0.7 + h * (i / k) as f64]).collect();
+    let sites: Vec<[f64; 2]> = (0..k * k)
+        .map(|i| [-0.7 + h * (i % k) as f64, -0.7 + h * (i / k) as f64])
+        .collect();
     let weights = vec![0.0; k * k];
     let (t_build, c_build, diagram) = best_of(2, || PowerDiagram::new(&sites, &weights).expect("valid input"));
     let (t_one, c_one, cells) = best_of(2, || one_thread.install(|| integrator.integrate(&diagram)));
     let total: f64 = cells.masses.iter().sum();
     let err = (total - measure.total_mass()).abs() / measure.total_mass();
-    println!("| {} (grid) | {t_build:.4} / {c_build:.3} | {t_one:.4} / {c_one:.3} | – | {err:.1e} |", k * k);
+    println!(
+        "| {} (grid) | {t_build:.4} / {c_build:.3} | {t_one:.4} / {c_one:.3} | – | {err:.1e} |",
+        k * k
+    );
 }

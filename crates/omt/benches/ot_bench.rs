@@ -51,7 +51,11 @@ fn disk_measure(rings: usize, f: impl Fn([f64; 2]) -> f64) -> SourceMeasure {
         let (s_in, s_out) = (ring_start[k], ring_start[k + 1]);
         let (mut i, mut o) = (if k == 0 { 1usize } else { 0 }, 0usize);
         while i < n_in || o < n_out {
-            let a_in = if k == 0 { f64::INFINITY } else { (i + 1) as f64 / n_in as f64 };
+            let a_in = if k == 0 {
+                f64::INFINITY
+            } else {
+                (i + 1) as f64 / n_in as f64
+            };
             let a_out = (o + 1) as f64 / n_out as f64;
             let vi = (s_in + i % n_in) as u32;
             let vo = (s_out + o % n_out) as u32;
@@ -111,12 +115,22 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     let coarse_to_fine = args.iter().any(|a| a == "--coarse-to-fine");
     let contrast_case = !args.iter().any(|a| a == "--no-contrast");
-    let mut sizes: Vec<usize> = args.iter().filter_map(|a| a.parse::<f64>().ok()).map(|x| x as usize).collect();
+    let mut sizes: Vec<usize> = args
+        .iter()
+        .filter_map(|a| a.parse::<f64>().ok())
+        .map(|x| x as usize)
+        .collect();
     if sizes.is_empty() {
         sizes = vec![1_000, 10_000, 100_000];
     }
-    let params = NewtonParams { coarse_to_fine, ..NewtonParams::default() };
-    println!("threads: {}, coarse_to_fine: {coarse_to_fine}", rayon::current_num_threads());
+    let params = NewtonParams {
+        coarse_to_fine,
+        ..NewtonParams::default()
+    };
+    println!(
+        "threads: {}, coarse_to_fine: {coarse_to_fine}",
+        rayon::current_num_threads()
+    );
     println!("| case                     |        N | steps | diagram/s | integrate/s |  solve/s |  start/s |  total/s | max error | stop |");
     println!("|--------------------------|---------:|------:|----------:|------------:|---------:|---------:|---------:|----------:|------|");
     let uniform = SourceMeasure::unit_disk(512).expect("unit disk");
@@ -131,9 +145,16 @@ fn main() {
     if contrast_case {
         let contrast = disk_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 });
         run("100x contrast half-disk", &contrast, 10_000, &params);
-        let direct = NewtonParams { density_continuation: None, ..params.clone() };
+        let direct = NewtonParams {
+            density_continuation: None,
+            ..params.clone()
+        };
         run("100x contrast, no continuation", &contrast, 10_000, &direct);
-        let mass = NewtonParams { mass_continuation: Some(2.0), max_iterations: 400, ..params.clone() };
+        let mass = NewtonParams {
+            mass_continuation: Some(2.0),
+            max_iterations: 400,
+            ..params.clone()
+        };
         run("100x contrast, mass continuation", &contrast, 10_000, &mass);
     }
 }

@@ -12,7 +12,12 @@ pub enum OmtError {
     /// The Newton iteration stopped at its cap (or could not make progress) before reaching the
     /// tolerance.
     #[error("no convergence after {iterations} iterations: max relative mass error {residual:e} > tolerance {tolerance:e} ({reason})")]
-    NoConvergence { iterations: usize, residual: f64, tolerance: f64, reason: String },
+    NoConvergence {
+        iterations: usize,
+        residual: f64,
+        tolerance: f64,
+        reason: String,
+    },
     /// A failure of the sparse factorization or solve.
     #[error("linear algebra: {0}")]
     LinearAlgebra(String),

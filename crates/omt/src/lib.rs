@@ -6,8 +6,8 @@
 
 pub mod cells;
 pub mod error;
-pub mod measure;
 pub mod linear;
+pub mod measure;
 pub mod newton;
 pub mod power_diagram;
 pub mod predicates;

@@ -31,7 +31,10 @@ pub enum LinearSolver {
     Cholesky,
     /// Conjugate gradients with a Jacobi preconditioner, stopped at
     /// ‖r‖ ≤ `relative_tolerance`·‖b‖ or after `max_iterations`.
-    ConjugateGradient { relative_tolerance: f64, max_iterations: usize },
+    ConjugateGradient {
+        relative_tolerance: f64,
+        max_iterations: usize,
+    },
 }
 
 impl Default for LinearSolver {
@@ -125,9 +128,10 @@ impl NewtonSystem {
         self.t_assembly += t0.elapsed().as_secs_f64();
         let reduced = match self.solver.clone() {
             LinearSolver::Cholesky => self.solve_cholesky(n - 1, &edges, new_pairs, &hessian, rhs)?,
-            LinearSolver::ConjugateGradient { relative_tolerance, max_iterations } => {
-                conjugate_gradient(&hessian, &rhs, relative_tolerance, max_iterations)
-            }
+            LinearSolver::ConjugateGradient {
+                relative_tolerance,
+                max_iterations,
+            } => conjugate_gradient(&hessian, &rhs, relative_tolerance, max_iterations),
         };
         let mut delta = Vec::with_capacity(n);
         let mut k = 0;
@@ -180,7 +184,13 @@ impl NewtonSystem {
                 let d = diagonal[i];
                 let k = next[r as usize] as usize;
                 row_idx[k] = r;
-                values[k] = if d > floor { d } else if mean > 0.0 { mean } else { 1.0 };
+                values[k] = if d > floor {
+                    d
+                } else if mean > 0.0 {
+                    mean
+                } else {
+                    1.0
+                };
                 next[r as usize] += 1;
             }
         }
@@ -192,7 +202,11 @@ impl NewtonSystem {
                 next[ri as usize] += 1;
             }
         }
-        ReducedHessian { col_ptr, row_idx, values }
+        ReducedHessian {
+            col_ptr,
+            row_idx,
+            values,
+        }
     }
 
     fn solve_cholesky(
@@ -207,13 +221,8 @@ impl NewtonSystem {
             return Ok(rhs);
         }
         let same_pattern = self.symbolic.is_some() && !new_pairs;
-        let structure = SymbolicSparseColMat::<u32>::new_checked(
-            m,
-            m,
-            hessian.col_ptr.clone(),
-            None,
-            hessian.row_idx.clone(),
-        );
+        let structure =
+            SymbolicSparseColMat::<u32>::new_checked(m, m, hessian.col_ptr.clone(), None, hessian.row_idx.clone());
         if !same_pattern {
             let t0 = std::time::Instant::now();
             let symbolic = SymbolicLlt::try_new(structure.as_ref(), Side::Lower)
@@ -357,7 +366,10 @@ mod tests {
             let d1 = chol.newton_direction(&points, &cells, &gradient).unwrap();
             let mut cg = NewtonSystem::new(
                 pinned,
-                LinearSolver::ConjugateGradient { relative_tolerance: 1e-14, max_iterations: 100 },
+                LinearSolver::ConjugateGradient {
+                    relative_tolerance: 1e-14,
+                    max_iterations: 100,
+                },
             );
             let d2 = cg.newton_direction(&points, &cells, &gradient).unwrap();
             let h = dense_hessian(&points, &cells);

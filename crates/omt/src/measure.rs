@@ -34,11 +34,15 @@ impl SourceMeasure {
         }
         for (t, tri) in triangles.iter().enumerate() {
             if tri.iter().any(|&v| v as usize >= vertices.len()) {
-                return Err(OmtError::InvalidInput(format!("source triangle {t} has an out-of-range vertex")));
+                return Err(OmtError::InvalidInput(format!(
+                    "source triangle {t} has an out-of-range vertex"
+                )));
             }
             let d = densities[t];
             if !(d.is_finite() && d > 0.0) {
-                return Err(OmtError::InvalidInput(format!("source triangle {t} has density {d} (must be finite and > 0)")));
+                return Err(OmtError::InvalidInput(format!(
+                    "source triangle {t} has density {d} (must be finite and > 0)"
+                )));
             }
             let [a, b, c] = tri.map(|v| vertices[v as usize]);
             let area2 = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
@@ -48,7 +52,11 @@ impl SourceMeasure {
                 )));
             }
         }
-        Ok(SourceMeasure { vertices, triangles, densities })
+        Ok(SourceMeasure {
+            vertices,
+            triangles,
+            densities,
+        })
     }
 
     /// Uniform density `density` on a convex polygon given counter-clockwise, triangulated as a
@@ -58,10 +66,14 @@ impl SourceMeasure {
             return Err(OmtError::InvalidInput("a polygon needs at least 3 vertices".into()));
         }
         let n = polygon.len();
-        let c = polygon.iter().fold([0.0, 0.0], |acc, p| [acc[0] + p[0] / n as f64, acc[1] + p[1] / n as f64]);
+        let c = polygon.iter().fold([0.0, 0.0], |acc, p| {
+            [acc[0] + p[0] / n as f64, acc[1] + p[1] / n as f64]
+        });
         let mut vertices = polygon.to_vec();
         vertices.push(c);
-        let triangles = (0..n).map(|i| [n as u32, i as u32, ((i + 1) % n) as u32]).collect::<Vec<_>>();
+        let triangles = (0..n)
+            .map(|i| [n as u32, i as u32, ((i + 1) % n) as u32])
+            .collect::<Vec<_>>();
         let densities = vec![density; n];
         Self::new(vertices, triangles, densities)
     }

@@ -109,7 +109,17 @@ impl<'a> Builder<'a> {
             return o > 0;
         }
         let w = self.weights;
-        power_side_1d(self.p(a), w[a as usize], a, self.p(b), w[b as usize], b, self.p(q), w[q as usize], q)
+        power_side_1d(
+            self.p(a),
+            w[a as usize],
+            a,
+            self.p(b),
+            w[b as usize],
+            b,
+            self.p(q),
+            w[q as usize],
+            q,
+        )
     }
 
     fn next_random(&mut self) -> u64 {
@@ -233,7 +243,8 @@ impl<'a> Builder<'a> {
             let (s, k) = self.boundary[i];
             let tri = self.tv[s as usize];
             let k = k as usize;
-            self.edges.push((tri[(k + 1) % 3], tri[(k + 2) % 3], self.tn[s as usize][k]));
+            self.edges
+                .push((tri[(k + 1) % 3], tri[(k + 2) % 3], self.tn[s as usize][k]));
         }
         for i in 0..self.cavity.len() {
             let s = self.cavity[i];
@@ -311,7 +322,11 @@ fn mix(mut z: u64) -> u64 {
 /// or the first pair of coincident sites.
 fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<Vec<u32>, OmtError> {
     if sites.len() != weights.len() {
-        return Err(OmtError::InvalidInput(format!("{} sites but {} weights", sites.len(), weights.len())));
+        return Err(OmtError::InvalidInput(format!(
+            "{} sites but {} weights",
+            sites.len(),
+            weights.len()
+        )));
     }
     if sites.is_empty() {
         return Err(OmtError::InvalidInput("a power diagram needs at least one site".into()));
@@ -327,7 +342,9 @@ fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<Vec<u32>, Om
             )));
         }
         if !w.is_finite() || w.abs() > 1e60 {
-            return Err(OmtError::InvalidInput(format!("weight {i} = {w} is not finite or exceeds 1e60 in magnitude")));
+            return Err(OmtError::InvalidInput(format!(
+                "weight {i} = {w} is not finite or exceeds 1e60 in magnitude"
+            )));
         }
     }
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -343,9 +360,21 @@ fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<Vec<u32>, Om
     let mut keyed: Vec<(u64, f64, f64, u32)> = sites
         .iter()
         .enumerate()
-        .map(|(i, p)| (hilbert_index(quantize(p[0], 0), quantize(p[1], 1)), p[0] + 0.0, p[1] + 0.0, i as u32))
+        .map(|(i, p)| {
+            (
+                hilbert_index(quantize(p[0], 0), quantize(p[1], 1)),
+                p[0] + 0.0,
+                p[1] + 0.0,
+                i as u32,
+            )
+        })
         .collect();
-    keyed.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.total_cmp(&b.2)).then(a.3.cmp(&b.3)));
+    keyed.sort_unstable_by(|a, b| {
+        a.0.cmp(&b.0)
+            .then(a.1.total_cmp(&b.1))
+            .then(a.2.total_cmp(&b.2))
+            .then(a.3.cmp(&b.3))
+    });
     for pair in keyed.windows(2) {
         if pair[0].1 == pair[1].1 && pair[0].2 == pair[1].2 {
             let (i, j) = (pair[0].3.min(pair[1].3) as usize, pair[0].3.max(pair[1].3) as usize);
@@ -504,7 +533,13 @@ impl PowerDiagram {
         for &q in &order[3..] {
             builder.insert(q);
         }
-        let Builder { tv, tn, hidden, vertex_triangle, .. } = builder;
+        let Builder {
+            tv,
+            tn,
+            hidden,
+            vertex_triangle,
+            ..
+        } = builder;
         // Neighbours: rotate counter-clockwise around every visible vertex, in insertion
         // (spatially coherent) order for memory locality, then scatter into CSR by index.
         let mut rings: Vec<u32> = Vec::with_capacity(6 * n);
@@ -518,7 +553,13 @@ impl PowerDiagram {
             let mut t = start;
             loop {
                 let tri = tv[t as usize];
-                let k = if tri[0] == v { 0 } else if tri[1] == v { 1 } else { 2 };
+                let k = if tri[0] == v {
+                    0
+                } else if tri[1] == v {
+                    1
+                } else {
+                    2
+                };
                 rings.push(tri[(k + 1) % 3]);
                 t = tn[t as usize][(k + 1) % 3];
                 if t == start || rings.len() - first > n + 1 {
@@ -600,7 +641,11 @@ impl PowerDiagram {
     /// sites are collinear or N = 1. Their power centres are the vertices of the power diagram.
     pub fn triangles(&self) -> Vec<[u32; 3]> {
         let inf = self.sites.len() as u32;
-        self.triangle_vertices.iter().filter(|t| t[0] != NONE && !t.contains(&inf)).copied().collect()
+        self.triangle_vertices
+            .iter()
+            .filter(|t| t[0] != NONE && !t.contains(&inf))
+            .copied()
+            .collect()
     }
 
     /// Index of a site whose (closed) power cell contains x: greedy descent of the power
@@ -706,7 +751,9 @@ impl PowerDiagram {
             }
             let (a, c) = (chain[k - 1], chain[k]);
             if power_side_1d(s[a], w[a], a as u32, s[c], w[c], c as u32, s[h], w[h], h as u32) {
-                return Err(format!("site {h} is hidden but in conflict with its segment ({a}, {c})"));
+                return Err(format!(
+                    "site {h} is hidden but in conflict with its segment ({a}, {c})"
+                ));
             }
         }
         Ok(())
@@ -778,12 +825,16 @@ impl PowerDiagram {
                     return Err(format!("adjacency not symmetric between triangles {t} and {s}"));
                 };
                 if other[(j + 1) % 3] != v || other[(j + 2) % 3] != u {
-                    return Err(format!("triangles {t} and {s} do not share edge ({u}, {v}) in opposite orientation"));
+                    return Err(format!(
+                        "triangles {t} and {s} do not share edge ({u}, {v}) in opposite orientation"
+                    ));
                 }
                 let d = other[j];
                 if !tri.contains(&inf) || d != inf {
                     if d != inf && builder.conflict(t as u32, d) {
-                        return Err(format!("edge ({u}, {v}) is not regular: site {d} is in conflict with triangle {tri:?}"));
+                        return Err(format!(
+                            "edge ({u}, {v}) is not regular: site {d} is in conflict with triangle {tri:?}"
+                        ));
                     }
                 }
                 if u != inf && v != inf && !self.neighbors(u as usize).contains(&v) {
@@ -818,7 +869,10 @@ impl PowerDiagram {
         }
         let visible = (0..n).filter(|&i| !self.hidden[i]).count();
         if alive != 2 * visible - 2 {
-            return Err(format!("{alive} triangles for {visible} visible sites (expected {})", 2 * visible - 2));
+            return Err(format!(
+                "{alive} triangles for {visible} visible sites (expected {})",
+                2 * visible - 2
+            ));
         }
         if edge_count != self.neighbor_list.len() {
             return Err(format!(
@@ -833,7 +887,10 @@ impl PowerDiagram {
             if self.hidden[i] {
                 let t = builder.locate(i as u32, any_alive);
                 if builder.conflict(t, i as u32) {
-                    return Err(format!("hidden site {i} is in conflict with triangle {:?}", tv[t as usize]));
+                    return Err(format!(
+                        "hidden site {i} is in conflict with triangle {:?}",
+                        tv[t as usize]
+                    ));
                 }
             }
         }

@@ -295,7 +295,11 @@ impl Expansion {
 
     /// Exact sum.
     pub(crate) fn add(&self, other: &Expansion) -> Expansion {
-        let (big, small) = if self.0.len() >= other.0.len() { (self, other) } else { (other, self) };
+        let (big, small) = if self.0.len() >= other.0.len() {
+            (self, other)
+        } else {
+            (other, self)
+        };
         let mut acc = big.clone();
         for &f in &small.0 {
             acc = acc.grow(f);
@@ -362,7 +366,9 @@ mod tests {
 
     /// Small deterministic generator for the tests.
     fn lcg(state: &mut u64) -> u64 {
-        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         *state >> 33
     }
 
@@ -382,7 +388,8 @@ mod tests {
                 [x, y, x * x + y * y - (wq - wp) as i128]
             };
             let (ra, rb, rc) = (row(a, wa), row(b, wb), row(c, wc));
-            let det = ra[0] * (rb[1] * rc[2] - rb[2] * rc[1]) + ra[1] * (rb[2] * rc[0] - rb[0] * rc[2])
+            let det = ra[0] * (rb[1] * rc[2] - rb[2] * rc[1])
+                + ra[1] * (rb[2] * rc[0] - rb[0] * rc[2])
                 + ra[2] * (rb[0] * rc[1] - rb[1] * rc[0]);
             // Scale by a power of two: exactness is preserved, the filter sees non-integers.
             let f = |q: [i64; 2]| [q[0] as f64 * 0.125, q[1] as f64 * 0.125];

@@ -172,7 +172,10 @@ fn cell_pieces(measure: &SourceMeasure, site: [f64; 2], cell: &LabelledPolygon) 
         if tlo[0] > chi[0] || tlo[1] > chi[1] || thi[0] < clo[0] || thi[1] < clo[1] {
             continue;
         }
-        let mut piece = LabelledPolygon { vertices: v.to_vec(), labels: vec![NO_SITE; 3] };
+        let mut piece = LabelledPolygon {
+            vertices: v.to_vec(),
+            labels: vec![NO_SITE; 3],
+        };
         for k in 0..n {
             let label = cell.labels[k];
             if label == NO_SITE {
@@ -236,7 +239,12 @@ pub fn integrate_cells_bruteforce(sites: &[[f64; 2]], weights: &[f64], measure: 
             }
         }
         edge_sums.sort_by_key(|e| e.0);
-        out.edge_masses.extend(edge_sums.into_iter().filter(|e| e.1 > 0.0).map(|(j, m)| (i as u32, j, m)));
+        out.edge_masses.extend(
+            edge_sums
+                .into_iter()
+                .filter(|e| e.1 > 0.0)
+                .map(|(j, m)| (i as u32, j, m)),
+        );
     }
     out
 }
@@ -278,7 +286,11 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
     for pass in 0..2 {
         let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
         for &q in iter {
             while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
                 hull.pop();

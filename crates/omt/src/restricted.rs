@@ -77,7 +77,14 @@ impl Polygon {
             let (p, q) = (points[k], points[(k + 1) % m]);
             let n = [q[1] - p[1], p[0] - q[0]];
             let a = [p[0] - origin[0], p[1] - origin[1]];
-            self.push(a, Line { n, c: edge_offset(p, q, origin), label: NO_LABEL });
+            self.push(
+                a,
+                Line {
+                    n,
+                    c: edge_offset(p, q, origin),
+                    label: NO_LABEL,
+                },
+            );
         }
     }
 }
@@ -111,7 +118,10 @@ fn intersect(l: &Line, h: &Line, p: [f64; 2], q: [f64; 2], fp: f64, fq: f64) -> 
         let t = fp / (fp - fq);
         [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
     };
-    [z[0].clamp(p[0].min(q[0]), p[0].max(q[0])), z[1].clamp(p[1].min(q[1]), p[1].max(q[1]))]
+    [
+        z[0].clamp(p[0].min(q[0]), p[0].max(q[0])),
+        z[1].clamp(p[1].min(q[1]), p[1].max(q[1])),
+    ]
 }
 
 /// Keeps the part of `src` where n·z ≤ c, writing it to `dst` (Sutherland–Hodgman; new edges
@@ -183,7 +193,11 @@ fn polygon_integrals(v: &[[f64; 2]]) -> (f64, [f64; 2], f64) {
         area += t;
         m1[0] += t * (a[0] + b[0] + c[0]) / 3.0;
         m1[1] += t * (a[1] + b[1] + c[1]) / 3.0;
-        let s = aa + b[0] * b[0] + b[1] * b[1] + c[0] * c[0] + c[1] * c[1]
+        let s = aa
+            + b[0] * b[0]
+            + b[1] * b[1]
+            + c[0] * c[0]
+            + c[1] * c[1]
             + (a[0] * b[0] + a[1] * b[1])
             + (b[0] * c[0] + b[1] * c[1])
             + (c[0] * a[0] + c[1] * a[1]);
@@ -343,7 +357,15 @@ impl RestrictedIntegrator {
 
     /// The piece W_i ∩ t; records it and its edges, pushes unvisited neighbours across its
     /// power edges. Returns the piece's area.
-    fn visit(&self, diagram: &PowerDiagram, t: usize, i: usize, s: &mut Scratch, out: &mut ChunkResult, push: bool) -> f64 {
+    fn visit(
+        &self,
+        diagram: &PowerDiagram,
+        t: usize,
+        i: usize,
+        s: &mut Scratch,
+        out: &mut ChunkResult,
+        push: bool,
+    ) -> f64 {
         let tri = self.triangles[t].map(|v| self.vertices[v as usize]);
         if !Self::clip_to_cell(diagram, i, &tri, s) {
             return 0.0;
@@ -356,7 +378,13 @@ impl RestrictedIntegrator {
             // non-degenerate pieces on both sides.
             return 0.0;
         }
-        out.pieces.push(Piece { cell: i as u32, density, area, first_moment, second_moment });
+        out.pieces.push(Piece {
+            cell: i as u32,
+            density,
+            area,
+            first_moment,
+            second_moment,
+        });
         let list = diagram.neighbor_list();
         let m = s.a.vertices.len();
         for k in 0..m {
@@ -388,7 +416,10 @@ impl RestrictedIntegrator {
         }
         s.queue.clear();
         let tri = self.triangles[t].map(|v| self.vertices[v as usize]);
-        let centroid = [(tri[0][0] + tri[1][0] + tri[2][0]) / 3.0, (tri[0][1] + tri[1][1] + tri[2][1]) / 3.0];
+        let centroid = [
+            (tri[0][0] + tri[1][0] + tri[2][0]) / 3.0,
+            (tri[0][1] + tri[1][1] + tri[2][1]) / 3.0,
+        ];
         for x in [centroid, tri[0], tri[1], tri[2]] {
             let i = diagram.locate(x, s.hint);
             s.hint = Some(i);
@@ -477,7 +508,12 @@ impl RestrictedIntegrator {
             }
             edge_masses[start..].sort_unstable_by_key(|e| e.1);
         }
-        CellIntegrals { masses, first_moments, second_moments, edge_masses }
+        CellIntegrals {
+            masses,
+            first_moments,
+            second_moments,
+            edge_masses,
+        }
     }
 
     /// The restricted cells W_i ∩ Ω as convex polygons (absolute coordinates,
@@ -516,7 +552,11 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
     for pass in 0..2 {
         let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
         for &q in iter {
             while hull.len() >= start + 2 && orient(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0 {
                 hull.pop();
@@ -532,7 +572,12 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
 /// (see [`RestrictedIntegrator::integrate`]). `sites` and `weights` must be the ones `diagram`
 /// was built from (the diagram's own copies are used). Ω, the union of the measure's triangles,
 /// must be convex. For repeated calls with one measure, reuse a [`RestrictedIntegrator`].
-pub fn integrate_cells(diagram: &PowerDiagram, sites: &[[f64; 2]], weights: &[f64], measure: &SourceMeasure) -> CellIntegrals {
+pub fn integrate_cells(
+    diagram: &PowerDiagram,
+    sites: &[[f64; 2]],
+    weights: &[f64],
+    measure: &SourceMeasure,
+) -> CellIntegrals {
     let _ = (sites, weights);
     RestrictedIntegrator::new(measure).integrate(diagram)
 }
@@ -540,7 +585,12 @@ pub fn integrate_cells(diagram: &PowerDiagram, sites: &[[f64; 2]], weights: &[f6
 /// The restricted cells W_i ∩ Ω as convex polygons (counter-clockwise, absolute coordinates;
 /// empty Vec for empty cells), #N, for output and plots. `sites` and `weights` must be the ones
 /// `diagram` was built from. Ω is the convex hull of the measure's vertices.
-pub fn cell_polygons(diagram: &PowerDiagram, sites: &[[f64; 2]], weights: &[f64], measure: &SourceMeasure) -> Vec<Vec<[f64; 2]>> {
+pub fn cell_polygons(
+    diagram: &PowerDiagram,
+    sites: &[[f64; 2]],
+    weights: &[f64],
+    measure: &SourceMeasure,
+) -> Vec<Vec<[f64; 2]>> {
     let _ = (sites, weights);
     RestrictedIntegrator::new(measure).cell_polygons(diagram)
 }

@@ -14,7 +14,9 @@ use shapespace_omt::OmtError;
 fn brute_force_neighbors(sites: &[[f64; 2]], weights: &[f64], i: usize) -> Vec<usize> {
     let n = sites.len();
     let d: Vec<[f64; 2]> = sites.iter().map(|s| [s[0] - sites[i][0], s[1] - sites[i][1]]).collect();
-    let c: Vec<f64> = (0..n).map(|k| 0.5 * (d[k][0] * d[k][0] + d[k][1] * d[k][1] + weights[i] - weights[k])).collect();
+    let c: Vec<f64> = (0..n)
+        .map(|k| 0.5 * (d[k][0] * d[k][0] + d[k][1] * d[k][1] + weights[i] - weights[k]))
+        .collect();
     let mut out = Vec::new();
     for j in 0..n {
         if j == i {
@@ -56,10 +58,17 @@ fn check_against_brute_force(sites: &[[f64; 2]], weights: &[f64]) {
     diagram.sanity_check().expect("sanity");
     for i in 0..sites.len() {
         let labels = brute_force_neighbors(sites, weights, i);
-        assert_eq!(diagram.is_hidden(i), labels.is_empty() && sites.len() > 1, "hidden flag of site {i}");
+        assert_eq!(
+            diagram.is_hidden(i),
+            labels.is_empty() && sites.len() > 1,
+            "hidden flag of site {i}"
+        );
         let mut ours: Vec<usize> = diagram.neighbors(i).iter().map(|&j| j as usize).collect();
         ours.sort_unstable();
-        assert_eq!(ours, labels, "neighbours of site {i}\nsites {sites:?}\nweights {weights:?}");
+        assert_eq!(
+            ours, labels,
+            "neighbours of site {i}\nsites {sites:?}\nweights {weights:?}"
+        );
     }
 }
 
@@ -73,7 +82,15 @@ fn random_input(rng: &mut ChaCha8Rng, n: usize, weight_scale: f64) -> (Vec<[f64;
 fn random_weighted_sites_match_brute_force() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut total_hidden = 0;
-    for &(n, scale) in &[(3, 0.1), (5, 0.1), (10, 0.05), (50, 0.01), (200, 0.003), (1000, 0.0005), (2000, 0.0002)] {
+    for &(n, scale) in &[
+        (3, 0.1),
+        (5, 0.1),
+        (10, 0.05),
+        (50, 0.01),
+        (200, 0.003),
+        (1000, 0.0005),
+        (2000, 0.0002),
+    ] {
         let (sites, weights) = random_input(&mut rng, n, scale);
         check_against_brute_force(&sites, &weights);
         let d = PowerDiagram::new(&sites, &weights).unwrap();
@@ -236,7 +253,10 @@ fn duplicate_and_invalid_input_errors() {
         other => panic!("expected InvalidInput, got {other:?}"),
     }
     assert!(matches!(PowerDiagram::new(&[], &[]), Err(OmtError::InvalidInput(_))));
-    assert!(matches!(PowerDiagram::new(&[[0.0, 0.0]], &[]), Err(OmtError::InvalidInput(_))));
+    assert!(matches!(
+        PowerDiagram::new(&[[0.0, 0.0]], &[]),
+        Err(OmtError::InvalidInput(_))
+    ));
 }
 
 #[test]
@@ -340,7 +360,9 @@ fn regression_collinear_hull_vertex_hidden_by_outer_site() {
 fn weighted_cluster_at_tiny_scale_matches_brute_force() {
     let mut rng = ChaCha8Rng::seed_from_u64(6);
     let n = 60;
-    let sites: Vec<[f64; 2]> = (0..n).map(|_| [0.5 + 1e-12 * rng.random::<f64>(), 0.5 + 1e-12 * rng.random::<f64>()]).collect();
+    let sites: Vec<[f64; 2]> = (0..n)
+        .map(|_| [0.5 + 1e-12 * rng.random::<f64>(), 0.5 + 1e-12 * rng.random::<f64>()])
+        .collect();
     let weights: Vec<f64> = (0..n).map(|_| 2e-26 * rng.random::<f64>()).collect();
     check_against_brute_force(&sites, &weights);
     let d = PowerDiagram::new(&sites, &weights).unwrap();

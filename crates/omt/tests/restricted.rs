@@ -59,7 +59,10 @@ fn compare(ours: &CellIntegrals, reference: &CellIntegrals, total: f64, label: &
     // Edges: same set up to edges of negligible μ-length, same values.
     let edge_floor = total.sqrt() / (n as f64).sqrt();
     let find = |list: &[(u32, u32, f64)], i: u32, j: u32| {
-        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j))).ok().map(|k| list[k].2).unwrap_or(0.0)
+        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j)))
+            .ok()
+            .map(|k| list[k].2)
+            .unwrap_or(0.0)
     };
     for &(i, j, v) in &reference.edge_masses {
         let w = find(&ours.edge_masses, i, j);
@@ -70,8 +73,14 @@ fn compare(ours: &CellIntegrals, reference: &CellIntegrals, total: f64, label: &
         let r = find(&reference.edge_masses, i, j);
         worst_edge = worst_edge.max((v - r).abs() / (v + edge_floor));
     }
-    assert!(worst_mass < 1e-11, "{label}: mass/moment relative difference {worst_mass:e}");
-    assert!(worst_edge < 1e-11, "{label}: edge mass relative difference {worst_edge:e}");
+    assert!(
+        worst_mass < 1e-11,
+        "{label}: mass/moment relative difference {worst_mass:e}"
+    );
+    assert!(
+        worst_edge < 1e-11,
+        "{label}: edge mass relative difference {worst_edge:e}"
+    );
     (worst_mass, worst_edge)
 }
 
@@ -85,9 +94,21 @@ fn random_inputs_match_brute_force() {
     ];
     for (name, measure) in &measures {
         let total = measure.total_mass();
-        for &(n, spread, weight_scale) in &[(1, 1.0, 0.0), (2, 1.0, 0.1), (7, 1.5, 0.2), (60, 2.0, 0.02), (400, 1.2, 0.002), (2000, 1.0, 0.0005)] {
+        for &(n, spread, weight_scale) in &[
+            (1, 1.0, 0.0),
+            (2, 1.0, 0.1),
+            (7, 1.5, 0.2),
+            (60, 2.0, 0.02),
+            (400, 1.2, 0.002),
+            (2000, 1.0, 0.0005),
+        ] {
             let sites: Vec<[f64; 2]> = (0..n)
-                .map(|_| [spread * (rng.random::<f64>() - 0.5) + 0.5, spread * (rng.random::<f64>() - 0.5) + 0.5])
+                .map(|_| {
+                    [
+                        spread * (rng.random::<f64>() - 0.5) + 0.5,
+                        spread * (rng.random::<f64>() - 0.5) + 0.5,
+                    ]
+                })
                 .collect();
             let weights: Vec<f64> = (0..n).map(|_| weight_scale * rng.random::<f64>()).collect();
             let ours = integrate(&sites, &weights, measure);
@@ -95,11 +116,20 @@ fn random_inputs_match_brute_force() {
             let (dm, de) = compare(&ours, &reference, total, &format!("{name}, N = {n}"));
             eprintln!("{name:>14} N = {n:5}: max rel diff masses/moments {dm:.1e}, edges {de:.1e}");
             let sum: f64 = ours.masses.iter().sum();
-            assert!((sum - total).abs() <= 1e-12 * total, "{name}: Σ masses {sum} vs μ(Ω) {total}");
+            assert!(
+                (sum - total).abs() <= 1e-12 * total,
+                "{name}: Σ masses {sum} vs μ(Ω) {total}"
+            );
             let m1 = measure_first_moment(measure);
-            let s1 = ours.first_moments.iter().fold([0.0, 0.0], |a, m| [a[0] + m[0], a[1] + m[1]]);
+            let s1 = ours
+                .first_moments
+                .iter()
+                .fold([0.0, 0.0], |a, m| [a[0] + m[0], a[1] + m[1]]);
             for c in 0..2 {
-                assert!((s1[c] - m1[c]).abs() <= 1e-12 * total, "{name}: Σ first moments {s1:?} vs {m1:?}");
+                assert!(
+                    (s1[c] - m1[c]).abs() <= 1e-12 * total,
+                    "{name}: Σ first moments {s1:?} vs {m1:?}"
+                );
             }
         }
     }
@@ -111,12 +141,22 @@ fn grid_cells_are_exact_squares() {
     // everywhere, and the cells are exactly the squares.
     for k in [1usize, 2, 3, 8] {
         let h = 1.0 / k as f64;
-        let sites: Vec<[f64; 2]> = (0..k * k).map(|i| [((i % k) as f64 + 0.5) * h, ((i / k) as f64 + 0.5) * h]).collect();
+        let sites: Vec<[f64; 2]> = (0..k * k)
+            .map(|i| [((i % k) as f64 + 0.5) * h, ((i / k) as f64 + 0.5) * h])
+            .collect();
         let measure = SourceMeasure::unit_square().unwrap();
         let c = integrate(&sites, &vec![0.0; k * k], &measure);
         for i in 0..k * k {
-            assert!((c.masses[i] - h * h).abs() < 1e-15, "k = {k}, cell {i}: mass {}", c.masses[i]);
-            assert!((c.second_moments[i] - h.powi(4) / 6.0).abs() < 1e-16, "second moment {}", c.second_moments[i]);
+            assert!(
+                (c.masses[i] - h * h).abs() < 1e-15,
+                "k = {k}, cell {i}: mass {}",
+                c.masses[i]
+            );
+            assert!(
+                (c.second_moments[i] - h.powi(4) / 6.0).abs() < 1e-16,
+                "second moment {}",
+                c.second_moments[i]
+            );
             for d in 0..2 {
                 assert!((c.first_moments[i][d] - h * h * sites[i][d]).abs() < 1e-15);
             }
@@ -167,7 +207,11 @@ fn one_site_owns_everything_even_outside() {
         let c = integrate(&[y], &[0.7], &measure);
         assert!((c.masses[0] - 1.0).abs() < 1e-15);
         let expected = ((1.0 - y[0]).powi(3) + y[0].powi(3)) / 3.0 + ((1.0 - y[1]).powi(3) + y[1].powi(3)) / 3.0;
-        assert!((c.second_moments[0] - expected).abs() < 1e-13 * expected, "{} vs {expected}", c.second_moments[0]);
+        assert!(
+            (c.second_moments[0] - expected).abs() < 1e-13 * expected,
+            "{} vs {expected}",
+            c.second_moments[0]
+        );
         assert!((c.first_moments[0][0] - 0.5).abs() < 1e-14 && (c.first_moments[0][1] - 0.5).abs() < 1e-14);
         assert!(c.edge_masses.is_empty());
     }
@@ -204,14 +248,28 @@ fn tiny_cells_keep_relative_accuracy() {
     // 3×3 grid with spacing h = 2⁻⁴⁰ ≈ 9e-13 around (½, ½), plus four far sites. The centre
     // cell is exactly the square of side h: mass h², second moment h⁴/6.
     let h = 2f64.powi(-40);
-    let mut sites: Vec<[f64; 2]> = (0..9).map(|i| [0.5 + h * ((i % 3) as f64 - 1.0), 0.5 + h * ((i / 3) as f64 - 1.0)]).collect();
+    let mut sites: Vec<[f64; 2]> = (0..9)
+        .map(|i| [0.5 + h * ((i % 3) as f64 - 1.0), 0.5 + h * ((i / 3) as f64 - 1.0)])
+        .collect();
     sites.extend([[0.1, 0.1], [0.9, 0.15], [0.85, 0.9], [0.1, 0.8]]);
     let weights = vec![0.0; sites.len()];
-    for measure in [SourceMeasure::unit_square().unwrap(), SourceMeasure::unit_disk(256).unwrap()] {
+    for measure in [
+        SourceMeasure::unit_square().unwrap(),
+        SourceMeasure::unit_disk(256).unwrap(),
+    ] {
         let c = integrate(&sites, &weights, &measure);
-        assert!((c.masses[4] - h * h).abs() < 1e-12 * h * h, "mass {:e} vs {:e}", c.masses[4], h * h);
+        assert!(
+            (c.masses[4] - h * h).abs() < 1e-12 * h * h,
+            "mass {:e} vs {:e}",
+            c.masses[4],
+            h * h
+        );
         let m2 = h.powi(4) / 6.0;
-        assert!((c.second_moments[4] - m2).abs() < 1e-11 * m2, "second moment {:e} vs {m2:e}", c.second_moments[4]);
+        assert!(
+            (c.second_moments[4] - m2).abs() < 1e-11 * m2,
+            "second moment {:e} vs {m2:e}",
+            c.second_moments[4]
+        );
         for d in 0..2 {
             assert!((c.first_moments[4][d] / c.masses[4] - 0.5).abs() < 1e-15);
         }
@@ -230,7 +288,9 @@ fn tiny_cells_keep_relative_accuracy() {
 fn cell_polygons_match_masses() {
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     let n = 300;
-    let sites: Vec<[f64; 2]> = (0..n).map(|_| [1.4 * rng.random::<f64>() - 0.7, 1.4 * rng.random::<f64>() - 0.7]).collect();
+    let sites: Vec<[f64; 2]> = (0..n)
+        .map(|_| [1.4 * rng.random::<f64>() - 0.7, 1.4 * rng.random::<f64>() - 0.7])
+        .collect();
     let weights: Vec<f64> = (0..n).map(|_| 0.003 * rng.random::<f64>()).collect();
     let measure = SourceMeasure::unit_disk(64).unwrap();
     let d = PowerDiagram::new(&sites, &weights).unwrap();
@@ -244,7 +304,11 @@ fn cell_polygons_match_masses() {
                 0.5 * (a[0] * b[1] - a[1] * b[0])
             })
             .sum();
-        assert!((area - c.masses[i]).abs() < 1e-14, "cell {i}: polygon area {area} vs mass {}", c.masses[i]);
+        assert!(
+            (area - c.masses[i]).abs() < 1e-14,
+            "cell {i}: polygon area {area} vs mass {}",
+            c.masses[i]
+        );
         if d.is_hidden(i) {
             assert!(p.is_empty());
         }
@@ -255,13 +319,19 @@ fn cell_polygons_match_masses() {
 fn result_is_independent_of_thread_count() {
     let mut rng = ChaCha8Rng::seed_from_u64(13);
     let n = 5000;
-    let sites: Vec<[f64; 2]> = (0..n).map(|_| [2.0 * rng.random::<f64>() - 1.0, 2.0 * rng.random::<f64>() - 1.0]).collect();
+    let sites: Vec<[f64; 2]> = (0..n)
+        .map(|_| [2.0 * rng.random::<f64>() - 1.0, 2.0 * rng.random::<f64>() - 1.0])
+        .collect();
     let weights: Vec<f64> = (0..n).map(|_| 1e-4 * rng.random::<f64>()).collect();
     let measure = SourceMeasure::unit_disk(256).unwrap();
     let d = PowerDiagram::new(&sites, &weights).unwrap();
     let integrator = RestrictedIntegrator::new(&measure);
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| integrator.integrate(&d))
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| integrator.integrate(&d))
     };
     let (a, b) = (run(1), run(3));
     assert_eq!(a.masses, b.masses);
@@ -316,12 +386,23 @@ fn fuzz_integration_against_brute_force() {
                 sites.push(p);
             }
         }
-        let weights: Vec<f64> = (0..n).map(|_| if round % 4 < 2 { 0.0 } else { rng.random_range(-2..3) as f64 * 0.5 }).collect();
+        let weights: Vec<f64> = (0..n)
+            .map(|_| {
+                if round % 4 < 2 {
+                    0.0
+                } else {
+                    rng.random_range(-2..3) as f64 * 0.5
+                }
+            })
+            .collect();
         let ours = integrate(&sites, &weights, measure);
         let reference = integrate_cells_bruteforce(&sites, &weights, measure);
         let total = measure.total_mass();
         let sum: f64 = ours.masses.iter().sum();
-        assert!((sum - total).abs() < 1e-12 * total, "round {round}: Σ masses {sum} vs {total}");
+        assert!(
+            (sum - total).abs() < 1e-12 * total,
+            "round {round}: Σ masses {sum} vs {total}"
+        );
         if round % 2 == 0 {
             // Uniform density: the masses are the areas of the cell polygons (another code path:
             // the domain's hull clipped by each cell).
@@ -329,8 +410,14 @@ fn fuzz_integration_against_brute_force() {
             let polygons = cell_polygons(&d, &sites, &weights, measure);
             for i in 0..n {
                 let p = &polygons[i];
-                let area: f64 = (0..p.len()).map(|k| 0.5 * (p[k][0] * p[(k + 1) % p.len()][1] - p[k][1] * p[(k + 1) % p.len()][0])).sum();
-                assert!((area - ours.masses[i]).abs() < 1e-12 * total, "round {round}, cell {i}: area {area} vs mass {}", ours.masses[i]);
+                let area: f64 = (0..p.len())
+                    .map(|k| 0.5 * (p[k][0] * p[(k + 1) % p.len()][1] - p[k][1] * p[(k + 1) % p.len()][0]))
+                    .sum();
+                assert!(
+                    (area - ours.masses[i]).abs() < 1e-12 * total,
+                    "round {round}, cell {i}: area {area} vs mass {}",
+                    ours.masses[i]
+                );
             }
         }
         let reference_sum: f64 = reference.masses.iter().sum();
@@ -360,10 +447,14 @@ fn fuzz_integration_against_brute_force() {
         if round % 3 != 2 {
             continue;
         }
-        let find = |list: &[(u32, u32, f64)], i: u32, j: u32| list.iter().find(|e| e.0 == i && e.1 == j).map_or(0.0, |e| e.2);
+        let find =
+            |list: &[(u32, u32, f64)], i: u32, j: u32| list.iter().find(|e| e.0 == i && e.1 == j).map_or(0.0, |e| e.2);
         for &(i, j, v) in ours.edge_masses.iter().chain(&reference.edge_masses) {
             let (a, b) = (find(&ours.edge_masses, i, j), find(&reference.edge_masses, i, j));
-            assert!((a - b).abs() < 1e-12 * (1.0 + v), "round {round}: edge ({i}, {j}) {a} vs {b}\nsites {sites:?}\nweights {weights:?}");
+            assert!(
+                (a - b).abs() < 1e-12 * (1.0 + v),
+                "round {round}: edge ({i}, {j}) {a} vs {b}\nsites {sites:?}\nweights {weights:?}"
+            );
         }
     }
     eprintln!("fuzz: the oracle lost mass on {oracle_failures} of 600 rounds (not compared)");
@@ -384,10 +475,18 @@ fn edge_on_a_density_jump() {
     let c = integrate(&[[1.0, 0.0], [0.0, 1.0]], &[0.0, 0.0], &measure);
     assert!((c.masses[0] - 0.5).abs() < 1e-15 && (c.masses[1] - 1.5).abs() < 1e-15);
     assert_eq!(c.edge_masses.len(), 1);
-    assert!((c.edge_masses[0].2 - 2.0 * 2f64.sqrt()).abs() < 1e-14, "edge mass {}", c.edge_masses[0].2);
+    assert!(
+        (c.edge_masses[0].2 - 2.0 * 2f64.sqrt()).abs() < 1e-14,
+        "edge mass {}",
+        c.edge_masses[0].2
+    );
     // Moving the sites off the tie by 1e-9 moves the edge into one triangle: density 1 or 3.
     let c = integrate(&[[1.0, 0.0], [0.0, 1.0 + 1e-9]], &[0.0, 0.0], &measure);
-    assert!((c.edge_masses[0].2 - 3.0 * 2f64.sqrt()).abs() < 1e-6, "edge mass {}", c.edge_masses[0].2);
+    assert!(
+        (c.edge_masses[0].2 - 3.0 * 2f64.sqrt()).abs() < 1e-6,
+        "edge mass {}",
+        c.edge_masses[0].2
+    );
 }
 
 /// Edge masses are the off-diagonal derivatives of the masses (DESIGN.md, Hessian):
@@ -414,10 +513,17 @@ fn edge_masses_are_mass_derivatives() {
             }
             let derivative = (cp.masses[i] - cm.masses[i]) / (2.0 * delta);
             let (a, b) = (i.min(j) as u32, i.max(j) as u32);
-            let edge = base.edge_masses.iter().find(|e| e.0 == a && e.1 == b).map_or(0.0, |e| e.2);
+            let edge = base
+                .edge_masses
+                .iter()
+                .find(|e| e.0 == a && e.1 == b)
+                .map_or(0.0, |e| e.2);
             let dist = ((sites[i][0] - sites[j][0]).powi(2) + (sites[i][1] - sites[j][1]).powi(2)).sqrt();
             let predicted = -edge / (2.0 * dist);
-            assert!((derivative - predicted).abs() < 1e-6 * (1.0 + predicted.abs()), "∂m_{i}/∂w_{j}: {derivative} vs {predicted}");
+            assert!(
+                (derivative - predicted).abs() < 1e-6 * (1.0 + predicted.abs()),
+                "∂m_{i}/∂w_{j}: {derivative} vs {predicted}"
+            );
             if edge > 0.0 {
                 checked += 1;
             }
@@ -438,10 +544,19 @@ fn far_sites_and_large_weights() {
     let weights = [0.0, 0.0, 0.0, 0.0, w4, 0.0];
     let ours = integrate(&sites, &weights, &measure);
     let reference = integrate_cells_bruteforce(&sites, &weights, &measure);
-    assert!(ours.masses[4] > 0.1, "the heavy far site owns a strip of Ω: {}", ours.masses[4]);
+    assert!(
+        ours.masses[4] > 0.1,
+        "the heavy far site owns a strip of Ω: {}",
+        ours.masses[4]
+    );
     assert_eq!(ours.masses[2], 0.0);
     assert!((ours.masses.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     for i in 0..sites.len() {
-        assert!((ours.masses[i] - reference.masses[i]).abs() < 1e-10, "cell {i}: {} vs {}", ours.masses[i], reference.masses[i]);
+        assert!(
+            (ours.masses[i] - reference.masses[i]).abs() < 1e-10,
+            "cell {i}: {} vs {}",
+            ours.masses[i],
+            reference.masses[i]
+        );
     }
 }

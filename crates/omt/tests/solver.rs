@@ -29,7 +29,10 @@ fn gradient_and_hessian_match_finite_differences_in_the_heights() {
     }
     for integrator in integrators() {
         let cells = integrate_at_heights(&measure, &points, &heights, integrator).unwrap();
-        assert!(cells.masses.iter().all(|&m| m > 1e-4), "{integrator:?}: a cell is (nearly) empty");
+        assert!(
+            cells.masses.iter().all(|&m| m > 1e-4),
+            "{integrator:?}: a cell is (nearly) empty"
+        );
         let hessian = dense_hessian(&points, &cells);
         let s = 1e-6;
         let mut max_gradient_error: f64 = 0.0;
@@ -42,7 +45,8 @@ fn gradient_and_hessian_match_finite_differences_in_the_heights() {
             minus[j] -= s;
             let cp = integrate_at_heights(&measure, &points, &plus, integrator).unwrap();
             let cm = integrate_at_heights(&measure, &points, &minus, integrator).unwrap();
-            let de = (kantorovich_energy(&points, &plus, &targets, &cp) - kantorovich_energy(&points, &minus, &targets, &cm))
+            let de = (kantorovich_energy(&points, &plus, &targets, &cp)
+                - kantorovich_energy(&points, &minus, &targets, &cm))
                 / (2.0 * s);
             max_gradient_error = max_gradient_error.max((de - (cells.masses[j] - targets[j])).abs());
             for i in 0..30 {
@@ -53,8 +57,14 @@ fn gradient_and_hessian_match_finite_differences_in_the_heights() {
         eprintln!("{integrator:?}: max |dE/dh - G| = {max_gradient_error:e}, max |dm/dh - H|/max H_ii = {max_hessian_error:e}");
         // Masses are O(0.1) and the energy is O(1): central differences with s = 1e-6 are accurate to
         // ~1e-9 here (rounding ~1e-16/1e-6 plus the kinks of the piecewise-quadratic mass function).
-        assert!(max_gradient_error < 1e-8, "{integrator:?}: gradient error {max_gradient_error:e}");
-        assert!(max_hessian_error < 1e-6, "{integrator:?}: Hessian error {max_hessian_error:e}");
+        assert!(
+            max_gradient_error < 1e-8,
+            "{integrator:?}: gradient error {max_gradient_error:e}"
+        );
+        assert!(
+            max_hessian_error < 1e-6,
+            "{integrator:?}: Hessian error {max_hessian_error:e}"
+        );
         // The weight-variable Hessian carries a factor ½ (w = 2h + |y|²): with the factor of DESIGN.md
         // applied to h and not to w, a wrong factor would give an error of 50%.
     }
@@ -71,12 +81,23 @@ fn regular_grid_on_the_unit_square_is_solved_by_the_voronoi_start() {
                 .map(|i| [((i % k) as f64 + 0.5) / k as f64, ((i / k) as f64 + 0.5) / k as f64])
                 .collect();
             let masses = vec![1.0; k * k];
-            let params = NewtonParams { integrator, ..Default::default() };
+            let params = NewtonParams {
+                integrator,
+                ..Default::default()
+            };
             let sol = solve_ot(&measure, &points, &masses, &params).unwrap();
-            assert!(sol.converged() && sol.iterations == 0, "{integrator:?} k={k}: {:?}", sol.stop);
+            assert!(
+                sol.converged() && sol.iterations == 0,
+                "{integrator:?} k={k}: {:?}",
+                sol.stop
+            );
             assert!((sol.mass_scale - 1.0 / (k * k) as f64).abs() < 1e-15);
             let expected = 1.0 / (6.0 * (k * k) as f64);
-            assert!((sol.cost - expected).abs() < 1e-15, "{integrator:?} k={k}: cost {} vs {expected}", sol.cost);
+            assert!(
+                (sol.cost - expected).abs() < 1e-15,
+                "{integrator:?} k={k}: cost {} vs {expected}",
+                sol.cost
+            );
             for (i, c) in sol.centroids().iter().enumerate() {
                 let c = c.unwrap();
                 assert!((c[0] - points[i][0]).abs() < 1e-14 && (c[1] - points[i][1]).abs() < 1e-14);
@@ -94,9 +115,23 @@ fn two_points_on_the_unit_square_closed_form() {
     let box_cost = |a: f64, b: f64, c: f64| ((b - c).powi(3) - (a - c).powi(3)) / 3.0 + (b - a) / 12.0;
     let expected = box_cost(0.0, 0.3, 0.25) + box_cost(0.3, 1.0, 0.75);
     for integrator in integrators() {
-        for solver in [LinearSolver::Cholesky, LinearSolver::ConjugateGradient { relative_tolerance: 1e-12, max_iterations: 100 }] {
-            let params = NewtonParams { integrator, linear_solver: solver, tolerance: 1e-12, ..Default::default() };
-            let sol = solve_ot(&measure, &points, &[0.3, 0.7], &params).unwrap().into_result().unwrap();
+        for solver in [
+            LinearSolver::Cholesky,
+            LinearSolver::ConjugateGradient {
+                relative_tolerance: 1e-12,
+                max_iterations: 100,
+            },
+        ] {
+            let params = NewtonParams {
+                integrator,
+                linear_solver: solver,
+                tolerance: 1e-12,
+                ..Default::default()
+            };
+            let sol = solve_ot(&measure, &points, &[0.3, 0.7], &params)
+                .unwrap()
+                .into_result()
+                .unwrap();
             assert!((sol.cells.masses[0] - 0.3).abs() < 1e-12);
             assert!((sol.cost - expected).abs() < 1e-12, "{} vs {expected}", sol.cost);
             // The cells meet at x = 0.3: ⟨x,y0⟩+h0 = ⟨x,y1⟩+h1 there.
@@ -111,7 +146,10 @@ fn two_points_on_the_unit_square_closed_form() {
 fn one_point_owns_the_whole_domain() {
     let measure = SourceMeasure::unit_square().unwrap();
     for integrator in integrators() {
-        let params = NewtonParams { integrator, ..Default::default() };
+        let params = NewtonParams {
+            integrator,
+            ..Default::default()
+        };
         let sol = solve_ot(&measure, &[[2.0, -1.0]], &[5.0], &params).unwrap();
         assert!(sol.converged() && sol.iterations == 0);
         assert!((sol.mass_scale - 0.2).abs() < 1e-15);
@@ -131,9 +169,20 @@ fn random_points_converge_and_integrators_agree() {
     let masses: Vec<f64> = (0..200).map(|_| 0.5 + rng.next()).collect();
     let mut costs = Vec::new();
     for integrator in integrators() {
-        let params = NewtonParams { integrator, tolerance: 1e-9, ..Default::default() };
-        let sol = solve_ot(&measure, &points, &masses, &params).unwrap().into_result().unwrap();
-        assert!(sol.iterations >= 2 && sol.iterations < 30, "{} iterations", sol.iterations);
+        let params = NewtonParams {
+            integrator,
+            tolerance: 1e-9,
+            ..Default::default()
+        };
+        let sol = solve_ot(&measure, &points, &masses, &params)
+            .unwrap()
+            .into_result()
+            .unwrap();
+        assert!(
+            sol.iterations >= 2 && sol.iterations < 30,
+            "{} iterations",
+            sol.iterations
+        );
         assert!(sol.max_relative_error <= 1e-9);
         for i in 0..200 {
             assert!((sol.cells.masses[i] - sol.target_masses[i]).abs() <= 1e-9 * sol.target_masses[i]);
@@ -142,7 +191,10 @@ fn random_points_converge_and_integrators_agree() {
         let last = sol.log.last().unwrap();
         assert_eq!(last.step, 1.0);
         costs.push(sol.cost);
-        let warm = NewtonParams { initial_heights: Some(sol.heights.clone()), ..params.clone() };
+        let warm = NewtonParams {
+            initial_heights: Some(sol.heights.clone()),
+            ..params.clone()
+        };
         let again = solve_ot(&measure, &points, &masses, &warm).unwrap();
         assert_eq!(again.start, Start::Warm);
         assert_eq!(again.iterations, 0);
@@ -158,7 +210,16 @@ fn scale_invariance() {
     let masses = vec![1.0; 60];
     let base = {
         let measure = SourceMeasure::unit_disk(64).unwrap();
-        solve_ot(&measure, &points, &masses, &NewtonParams { tolerance: 1e-10, ..Default::default() }).unwrap()
+        solve_ot(
+            &measure,
+            &points,
+            &masses,
+            &NewtonParams {
+                tolerance: 1e-10,
+                ..Default::default()
+            },
+        )
+        .unwrap()
     };
     assert!(base.converged());
     for s in [1e-6, 1e6] {
@@ -170,7 +231,16 @@ fn scale_invariance() {
             .collect();
         let measure = SourceMeasure::uniform_polygon(&polygon, 1.0).unwrap();
         let scaled: Vec<[f64; 2]> = points.iter().map(|p| [s * p[0], s * p[1]]).collect();
-        let sol = solve_ot(&measure, &scaled, &masses, &NewtonParams { tolerance: 1e-10, ..Default::default() }).unwrap();
+        let sol = solve_ot(
+            &measure,
+            &scaled,
+            &masses,
+            &NewtonParams {
+                tolerance: 1e-10,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert!(sol.converged(), "s = {s}: {:?}", sol.stop);
         assert_eq!(sol.iterations, base.iterations, "s = {s}");
         let ratio = sol.cost / (base.cost * s.powi(4));
@@ -182,11 +252,26 @@ fn scale_invariance() {
 fn invalid_input_is_rejected() {
     let measure = SourceMeasure::unit_square().unwrap();
     let p = NewtonParams::default();
-    assert!(matches!(solve_ot(&measure, &[], &[], &p), Err(OmtError::InvalidInput(_))));
-    assert!(matches!(solve_ot(&measure, &[[0.5, 0.5]], &[0.0], &p), Err(OmtError::InvalidInput(_))));
-    assert!(matches!(solve_ot(&measure, &[[0.5, 0.5]], &[f64::NAN], &p), Err(OmtError::InvalidInput(_))));
-    assert!(matches!(solve_ot(&measure, &[[f64::INFINITY, 0.5]], &[1.0], &p), Err(OmtError::InvalidInput(_))));
-    assert!(matches!(solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0], &p), Err(OmtError::InvalidInput(_))));
+    assert!(matches!(
+        solve_ot(&measure, &[], &[], &p),
+        Err(OmtError::InvalidInput(_))
+    ));
+    assert!(matches!(
+        solve_ot(&measure, &[[0.5, 0.5]], &[0.0], &p),
+        Err(OmtError::InvalidInput(_))
+    ));
+    assert!(matches!(
+        solve_ot(&measure, &[[0.5, 0.5]], &[f64::NAN], &p),
+        Err(OmtError::InvalidInput(_))
+    ));
+    assert!(matches!(
+        solve_ot(&measure, &[[f64::INFINITY, 0.5]], &[1.0], &p),
+        Err(OmtError::InvalidInput(_))
+    ));
+    assert!(matches!(
+        solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0], &p),
+        Err(OmtError::InvalidInput(_))
+    ));
     assert!(matches!(
         solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2], [0.5, 0.5]], &[1.0; 3], &p),
         Err(OmtError::DuplicatePoints { i: 0, j: 2 })
@@ -198,11 +283,18 @@ fn invalid_input_is_rejected() {
 fn iteration_cap_is_reported() {
     let measure = disk_measure(8, &|x| if x[0] > 0.0 { 100.0 } else { 1.0 });
     let points = sunflower(300, 1.0);
-    let params = NewtonParams { max_iterations: 1, density_continuation: None, ..Default::default() };
+    let params = NewtonParams {
+        max_iterations: 1,
+        density_continuation: None,
+        ..Default::default()
+    };
     let sol = solve_ot(&measure, &points, &vec![1.0; 300], &params).unwrap();
     assert_eq!(sol.stop, StopReason::IterationCap);
     assert_eq!(sol.iterations, 1);
-    assert!(matches!(sol.into_result(), Err(OmtError::NoConvergence { iterations: 1, .. })));
+    assert!(matches!(
+        sol.into_result(),
+        Err(OmtError::NoConvergence { iterations: 1, .. })
+    ));
 }
 
 /// The coarse-to-fine option reaches the same solution as the Voronoi start (it currently falls
@@ -213,14 +305,41 @@ fn coarse_to_fine_start_reaches_the_same_solution() {
     let mut rng = Rng(21);
     let points: Vec<[f64; 2]> = (0..3000).map(|_| rng.in_disk(1.0)).collect();
     let masses = vec![1.0; 3000];
-    let plain = solve_ot(&measure, &points, &masses, &NewtonParams { tolerance: 1e-9, ..Default::default() }).unwrap();
-    let params = NewtonParams { tolerance: 1e-9, coarse_to_fine: true, ..Default::default() };
+    let plain = solve_ot(
+        &measure,
+        &points,
+        &masses,
+        &NewtonParams {
+            tolerance: 1e-9,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let params = NewtonParams {
+        tolerance: 1e-9,
+        coarse_to_fine: true,
+        ..Default::default()
+    };
     let multi = solve_ot(&measure, &points, &masses, &params).unwrap();
-    eprintln!("Voronoi start: {} steps; {:?}: {} steps", plain.iterations, multi.start, multi.iterations);
+    eprintln!(
+        "Voronoi start: {} steps; {:?}: {} steps",
+        plain.iterations, multi.start, multi.iterations
+    );
     assert!(plain.converged() && multi.converged());
-    assert!(matches!(multi.start, Start::CoarseToFine { coarse_points: 375, .. } | Start::Voronoi), "{:?}", multi.start);
+    assert!(
+        matches!(
+            multi.start,
+            Start::CoarseToFine { coarse_points: 375, .. } | Start::Voronoi
+        ),
+        "{:?}",
+        multi.start
+    );
     assert!((plain.cost - multi.cost).abs() < 1e-9 * plain.cost);
     // Heights are unique up to a constant.
     let shift = plain.heights[0] - multi.heights[0];
-    assert!(plain.heights.iter().zip(&multi.heights).all(|(a, b)| (a - b - shift).abs() < 1e-6));
+    assert!(plain
+        .heights
+        .iter()
+        .zip(&multi.heights)
+        .all(|(a, b)| (a - b - shift).abs() < 1e-6));
 }

@@ -6,7 +6,11 @@
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
 
 fn as_points(v: &serde_json::Value) -> Vec<[f64; 2]> {
-    v.as_array().unwrap().iter().map(|p| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]).collect()
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|p| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()])
+        .collect()
 }
 
 fn as_numbers(v: &serde_json::Value) -> Vec<f64> {
@@ -29,12 +33,24 @@ fn semi_discrete_cost_tends_to_the_discrete_cost_as_triangles_shrink() {
             .iter()
             .map(|t| [0, 1, 2].map(|k| t[k].as_u64().unwrap() as u32))
             .collect();
-        let measure = SourceMeasure::new(as_points(&level["vertices"]), triangles, as_numbers(&level["densities"])).unwrap();
-        let params = NewtonParams { tolerance: 1e-9, max_iterations: 200, ..Default::default() };
+        let measure = SourceMeasure::new(
+            as_points(&level["vertices"]),
+            triangles,
+            as_numbers(&level["densities"]),
+        )
+        .unwrap();
+        let params = NewtonParams {
+            tolerance: 1e-9,
+            max_iterations: 200,
+            ..Default::default()
+        };
         let sol = solve_ot(&measure, &targets, &masses, &params).unwrap();
         assert!(sol.converged(), "δ = {delta}: {}", sol.stop);
         let error = (sol.cost - discrete).abs();
-        eprintln!("δ = {delta:e}: semi-discrete cost {:.10}, discrete {discrete:.10}, |Δ| = {error:.2e} ({} steps)", sol.cost, sol.iterations);
+        eprintln!(
+            "δ = {delta:e}: semi-discrete cost {:.10}, discrete {discrete:.10}, |Δ| = {error:.2e} ({} steps)",
+            sol.cost, sol.iterations
+        );
         errors.push((delta, error));
     }
     // First order in δ (the plan splits tiny triangles whose points are O(δ) from s_k).

@@ -14,7 +14,10 @@ fn costs(measure: &SourceMeasure) -> Vec<(usize, f64, usize)> {
         .iter()
         .map(|&n| {
             let points = sunflower(n, 1.0);
-            let sol = solve_ot(measure, &points, &vec![1.0; n], &NewtonParams::default()).unwrap().into_result().unwrap();
+            let sol = solve_ot(measure, &points, &vec![1.0; n], &NewtonParams::default())
+                .unwrap()
+                .into_result()
+                .unwrap();
             (n, sol.cost, sol.iterations)
         })
         .collect()
@@ -23,9 +26,14 @@ fn costs(measure: &SourceMeasure) -> Vec<(usize, f64, usize)> {
 fn check_convergence(name: &str, measured: &[(usize, f64, usize)], exact: f64) {
     let errors: Vec<f64> = measured.iter().map(|m| (m.1 - exact).abs()).collect();
     for (k, m) in measured.iter().enumerate() {
-        eprintln!("{name}: N = {:5}  cost = {:.7}  |cost − exact| = {:.3e}  ({} Newton steps)", m.0, m.1, errors[k], m.2);
+        eprintln!(
+            "{name}: N = {:5}  cost = {:.7}  |cost − exact| = {:.3e}  ({} Newton steps)",
+            m.0, m.1, errors[k], m.2
+        );
     }
-    let rates: Vec<f64> = (1..errors.len()).map(|k| (errors[k - 1] / errors[k]).ln() / 4f64.ln()).collect();
+    let rates: Vec<f64> = (1..errors.len())
+        .map(|k| (errors[k - 1] / errors[k]).ln() / 4f64.ln())
+        .collect();
     eprintln!("{name}: observed rates (error ∝ N^−rate): {rates:.2?}");
     for k in 1..errors.len() {
         assert!(errors[k] < errors[k - 1], "{name}: error does not decrease: {errors:?}");

@@ -27,7 +27,13 @@ fn check(name: &str, sol: &OtSolution, tolerance: f64) {
 fn density_contrast_100_and_1000() {
     let points = sunflower(1000, 1.0);
     for contrast in [100.0, 1000.0] {
-        let disk = disk_measure(30, &|x| if x[0] * x[0] + x[1] * x[1] < 0.25 { contrast } else { 1.0 });
+        let disk = disk_measure(30, &|x| {
+            if x[0] * x[0] + x[1] * x[1] < 0.25 {
+                contrast
+            } else {
+                1.0
+            }
+        });
         let sol = solve_ot(&disk, &points, &vec![1.0; 1000], &NewtonParams::default()).unwrap();
         check(&format!("sub-disk ×{contrast}"), &sol, 1e-6);
         let half = disk_measure(30, &|x| if x[0] > 0.0 { contrast } else { 1.0 });
@@ -47,7 +53,10 @@ fn exponentially_clustered_points() {
                 [0.99 * r * (k as f64).cos(), 0.99 * r * (k as f64).sin()]
             })
             .collect();
-        let params = NewtonParams { max_iterations: 300, ..Default::default() };
+        let params = NewtonParams {
+            max_iterations: 300,
+            ..Default::default()
+        };
         let sol = solve_ot(&measure, &points, &vec![1.0; n], &params).unwrap();
         check(&format!("clustered N = {n}"), &sol, 1e-6);
     }
@@ -58,7 +67,9 @@ fn exponentially_clustered_points() {
 fn points_outside_the_domain() {
     let measure = SourceMeasure::unit_square().unwrap();
     let mut rng = Rng(5);
-    let points: Vec<[f64; 2]> = (0..100).map(|_| [3.0 * rng.next() - 1.0, 3.0 * rng.next() - 1.0]).collect();
+    let points: Vec<[f64; 2]> = (0..100)
+        .map(|_| [3.0 * rng.next() - 1.0, 3.0 * rng.next() - 1.0])
+        .collect();
     let sol = solve_ot(&measure, &points, &vec![1.0; 100], &NewtonParams::default()).unwrap();
     assert!(matches!(sol.start, Start::Contracted { .. }), "{:?}", sol.start);
     check("outside", &sol, 1e-6);
@@ -72,7 +83,11 @@ fn masses_off_by_1e9_are_rescaled() {
     let total = measure.total_mass();
     let masses = vec![total * (1.0 + 1e-9) / 400.0; 400];
     let sol = solve_ot(&measure, &points, &masses, &NewtonParams::default()).unwrap();
-    assert!((sol.mass_scale * (1.0 + 1e-9) - 1.0).abs() < 1e-13, "{}", sol.mass_scale);
+    assert!(
+        (sol.mass_scale * (1.0 + 1e-9) - 1.0).abs() < 1e-13,
+        "{}",
+        sol.mass_scale
+    );
     check("masses 1 + 1e-9", &sol, 1e-6);
 }
 
@@ -97,9 +112,23 @@ fn mass_continuation_reaches_the_direct_solution() {
     let points: Vec<[f64; 2]> = (0..1000).map(|_| rng.in_disk(0.98)).collect();
     let half = disk_measure(30, &|x| if x[0] > 0.0 { 100.0 } else { 1.0 });
     let masses = vec![1.0; points.len()];
-    let direct = solve_ot(&half, &points, &masses, &NewtonParams { density_continuation: None, max_iterations: 400, ..NewtonParams::default() }).unwrap();
+    let direct = solve_ot(
+        &half,
+        &points,
+        &masses,
+        &NewtonParams {
+            density_continuation: None,
+            max_iterations: 400,
+            ..NewtonParams::default()
+        },
+    )
+    .unwrap();
     check("direct", &direct, 1e-6);
-    let params = NewtonParams { mass_continuation: Some(2.0), max_iterations: 400, ..NewtonParams::default() };
+    let params = NewtonParams {
+        mass_continuation: Some(2.0),
+        max_iterations: 400,
+        ..NewtonParams::default()
+    };
     let continued = solve_ot(&half, &points, &masses, &params).unwrap();
     check("mass continuation", &continued, 1e-6);
     let stages = match continued.start {
@@ -107,14 +136,30 @@ fn mass_continuation_reaches_the_direct_solution() {
         ref other => panic!("start {other:?}"),
     };
     assert!(stages >= 3, "{stages} stages");
-    assert!((continued.cost - direct.cost).abs() <= 1e-6 * direct.cost, "{} vs {}", continued.cost, direct.cost);
+    assert!(
+        (continued.cost - direct.cost).abs() <= 1e-6 * direct.cost,
+        "{} vs {}",
+        continued.cost,
+        direct.cost
+    );
     for (a, b) in continued.cells.masses.iter().zip(&direct.cells.masses) {
         assert!((a - b).abs() <= 2e-6 * b);
     }
     // Targets equal to the Voronoi start's masses: the start is the solution.
     let voronoi: Vec<f64> = points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect();
-    let start_masses = shapespace_omt::newton::integrate_at_heights(&half, &points, &voronoi, Default::default()).unwrap().masses;
+    let start_masses = shapespace_omt::newton::integrate_at_heights(&half, &points, &voronoi, Default::default())
+        .unwrap()
+        .masses;
     let trivial = solve_ot(&half, &points, &start_masses, &params).unwrap();
     assert!(trivial.converged());
-    assert_eq!((trivial.iterations, trivial.start.clone()), (0, Start::MassContinuation { stages: 1, iterations: 0 }));
+    assert_eq!(
+        (trivial.iterations, trivial.start.clone()),
+        (
+            0,
+            Start::MassContinuation {
+                stages: 1,
+                iterations: 0
+            }
+        )
+    );
 }

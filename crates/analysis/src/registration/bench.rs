@@ -22,7 +22,9 @@ pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
 pub const HISTOGRAM_BINS: usize = 40;
 
 fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, AnalysisError> {
-    std::fs::File::create(path).map(std::io::BufWriter::new).map_err(|e| AnalysisError::io(path, e))
+    std::fs::File::create(path)
+        .map(std::io::BufWriter::new)
+        .map_err(|e| AnalysisError::io(path, e))
 }
 
 /// Writes the outputs of one registration into `out` (created if missing) and returns the
@@ -49,7 +51,12 @@ pub fn write_registration(
         writeln!(w, "vertex,face,b0,b1,b2,x,y,z").map_err(io)?;
         for v in 0..reg.points.len() {
             let (b, p) = (reg.bary[v], reg.points[v]);
-            writeln!(w, "{v},{},{:.17},{:.17},{:.17},{:.17},{:.17},{:.17}", reg.faces[v], b[0], b[1], b[2], p[0], p[1], p[2]).map_err(io)?;
+            writeln!(
+                w,
+                "{v},{},{:.17},{:.17},{:.17},{:.17},{:.17},{:.17}",
+                reg.faces[v], b[0], b[1], b[2], p[0], p[1], p[2]
+            )
+            .map_err(io)?;
         }
         w.flush().map_err(io)?;
     }
@@ -66,18 +73,35 @@ pub fn write_registration(
         "histogram_bins": HISTOGRAM_BINS,
         "run": extra,
     });
-    let text = serde_json::to_string_pretty(&json).map_err(|e| AnalysisError::Serialize { path: path.clone(), message: e.to_string() })?;
+    let text = serde_json::to_string_pretty(&json).map_err(|e| AnalysisError::Serialize {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
     std::fs::write(&path, text).map_err(|e| AnalysisError::io(&path, e))?;
     files.push(path);
 
     for ext in ["png", "svg"] {
         let p = out.join(format!("curvature_difference.{ext}"));
         let cname = series_name(reg.method, &metrics.curvature_difference);
-        histograms(&p, &[(cname.as_str(), &metrics.curvature_difference)], HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Curvature difference", "max(|c1|/|c2|, |c2|/|c1|)")?;
+        histograms(
+            &p,
+            &[(cname.as_str(), &metrics.curvature_difference)],
+            HISTOGRAM_BINS,
+            Some(HISTOGRAM_RANGE),
+            "Curvature difference",
+            "max(|c1|/|c2|, |c2|/|c1|)",
+        )?;
         files.push(p);
         let p = out.join(format!("area_distortion.{ext}"));
         let aname = series_name(reg.method, &metrics.area_distortion);
-        histograms(&p, &[(aname.as_str(), &metrics.area_distortion)], HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Local area distortion", "max(J, 1/J)")?;
+        histograms(
+            &p,
+            &[(aname.as_str(), &metrics.area_distortion)],
+            HISTOGRAM_BINS,
+            Some(HISTOGRAM_RANGE),
+            "Local area distortion",
+            "max(J, 1/J)",
+        )?;
         files.push(p);
     }
 
@@ -85,13 +109,25 @@ pub fn write_registration(
     let color = |p: [f64; 3]| -> [f64; 3] {
         let mut c = [0.0; 3];
         for d in 0..3 {
-            c[d] = if hi[d] > lo[d] { ((p[d] - lo[d]) / (hi[d] - lo[d])).clamp(0.0, 1.0) } else { 0.5 };
+            c[d] = if hi[d] > lo[d] {
+                ((p[d] - lo[d]) / (hi[d] - lo[d])).clamp(0.0, 1.0)
+            } else {
+                0.5
+            };
         }
         c
     };
     for (file, mesh, colors) in [
-        ("source_colored.obj", source, reg.points.iter().map(|&p| color(p)).collect::<Vec<_>>()),
-        ("target_colored.obj", target, target.positions.iter().map(|&p| color(p)).collect()),
+        (
+            "source_colored.obj",
+            source,
+            reg.points.iter().map(|&p| color(p)).collect::<Vec<_>>(),
+        ),
+        (
+            "target_colored.obj",
+            target,
+            target.positions.iter().map(|&p| color(p)).collect(),
+        ),
     ] {
         let path = out.join(file);
         write_colored_obj(&path, mesh, &colors)?;
@@ -117,7 +153,11 @@ fn bounding_box(p: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
 pub fn write_colored_obj(path: &Path, mesh: &TriMesh, colors: &[[f64; 3]]) -> Result<(), AnalysisError> {
     let mut w = create(path)?;
     let io = |e| AnalysisError::io(path, e);
-    writeln!(w, "# shapespace register: vertex colours = position of the corresponding point on the target").map_err(io)?;
+    writeln!(
+        w,
+        "# shapespace register: vertex colours = position of the corresponding point on the target"
+    )
+    .map_err(io)?;
     for (p, c) in mesh.positions.iter().zip(colors) {
         writeln!(w, "v {} {} {} {:.4} {:.4} {:.4}", p[0], p[1], p[2], c[0], c[1], c[2]).map_err(io)?;
     }
@@ -187,7 +227,9 @@ fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>, AnalysisError> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             p.is_file()
-                && p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).is_some_and(|e| e == "off" || e == "obj" || e == "ply")
+                && p.extension()
+                    .map(|e| e.to_string_lossy().to_ascii_lowercase())
+                    .is_some_and(|e| e == "off" || e == "obj" || e == "ply")
         })
         .collect();
     out.sort();
@@ -195,7 +237,9 @@ fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>, AnalysisError> {
 }
 
 fn stem(p: &Path) -> String {
-    p.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default()
+    p.file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default()
 }
 
 /// The registration benchmark: for each class folder of `dataset` (a folder of mesh files with
@@ -227,8 +271,10 @@ pub fn register_bench(
         .collect();
     classes.sort();
     let mut rows = Vec::new();
-    let mut pooled: Vec<(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> =
-        methods.iter().map(|&m| (m, Vec::new(), Vec::new(), Vec::new())).collect();
+    let mut pooled: Vec<(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> = methods
+        .iter()
+        .map(|&m| (m, Vec::new(), Vec::new(), Vec::new()))
+        .collect();
     for class_dir in &classes {
         let files = mesh_files(class_dir)?;
         if files.len() < 2 {
@@ -238,8 +284,10 @@ pub fn register_bench(
         let mut meshes = Vec::new();
         let mut markers = Vec::new();
         for f in &files {
-            let mesh = shapespace_geometry::io::read_mesh(f)
-                .map_err(|e| AnalysisError::Shape { name: f.display().to_string(), message: e.to_string() })?;
+            let mesh = shapespace_geometry::io::read_mesh(f).map_err(|e| AnalysisError::Shape {
+                name: f.display().to_string(),
+                message: e.to_string(),
+            })?;
             let side = MarkerFile::sidecar_path(f).ok_or_else(|| AnalysisError::Shape {
                 name: f.display().to_string(),
                 message: "no landmark file (NAME.landmarks.json or landmarks.json beside it)".into(),
@@ -283,16 +331,22 @@ pub fn register_bench(
                         seconds: f64::NAN,
                     };
                     let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
-                        let phi1 = maps[i].as_ref().map_err(|e| format!("disk map of {}: {e}", stem(&files[i])))?;
-                        let phi2 = maps[j].as_ref().map_err(|e| format!("disk map of {}: {e}", stem(&files[j])))?;
+                        let phi1 = maps[i]
+                            .as_ref()
+                            .map_err(|e| format!("disk map of {}: {e}", stem(&files[i])))?;
+                        let phi2 = maps[j]
+                            .as_ref()
+                            .map_err(|e| format!("disk map of {}: {e}", stem(&files[j])))?;
                         let landmarks = Landmarks::from_named(
                             &markers[i].1.landmarks,
                             &markers[j].1.landmarks,
                             &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method)).map_err(|e| error_chain(&e))?;
-                        let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params).map_err(|e| error_chain(&e))?;
+                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method))
+                            .map_err(|e| error_chain(&e))?;
+                        let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params)
+                            .map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
                     })();
                     match outcome {
@@ -323,9 +377,15 @@ pub fn register_bench(
     let mut files = Vec::new();
     let path = out.join("results.csv");
     {
-        let mut w = csv::Writer::from_path(&path).map_err(|e| AnalysisError::Serialize { path: path.clone(), message: e.to_string() })?;
+        let mut w = csv::Writer::from_path(&path).map_err(|e| AnalysisError::Serialize {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
         for r in &rows {
-            w.serialize(r).map_err(|e| AnalysisError::Serialize { path: path.clone(), message: e.to_string() })?;
+            w.serialize(r).map_err(|e| AnalysisError::Serialize {
+                path: path.clone(),
+                message: e.to_string(),
+            })?;
         }
         w.flush().map_err(|e| AnalysisError::io(&path, e))?;
     }
@@ -338,8 +398,10 @@ pub fn register_bench(
         }
     }
     class_names.push("all".into());
-    let groups: Vec<(String, Method)> =
-        class_names.iter().flat_map(|c| methods.iter().map(move |&m| (c.clone(), m))).collect();
+    let groups: Vec<(String, Method)> = class_names
+        .iter()
+        .flat_map(|c| methods.iter().map(move |&m| (c.clone(), m)))
+        .collect();
     let summaries: Vec<MethodSummary> = groups
         .into_iter()
         .map(|(class, m)| {
@@ -394,8 +456,17 @@ pub fn register_bench(
         for k in 0..=25 {
             write!(w, "{:.2}", k as f64 * 0.01).map_err(io)?;
             for (c, mi) in &columns {
-                let sel: Vec<f64> = pooled[*mi].3.iter().filter(|(cc, _)| c == "all" || cc == c).map(|(_, f)| f[k]).collect();
-                let v = if sel.is_empty() { f64::NAN } else { sel.iter().sum::<f64>() / sel.len() as f64 };
+                let sel: Vec<f64> = pooled[*mi]
+                    .3
+                    .iter()
+                    .filter(|(cc, _)| c == "all" || cc == c)
+                    .map(|(_, f)| f[k])
+                    .collect();
+                let v = if sel.is_empty() {
+                    f64::NAN
+                } else {
+                    sel.iter().sum::<f64>() / sel.len() as f64
+                };
                 write!(w, ",{v:.6}").map_err(io)?;
             }
             writeln!(w).map_err(io)?;
@@ -404,35 +475,71 @@ pub fn register_bench(
     }
     files.push(path);
 
-    let have: Vec<&(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> = pooled.iter().filter(|p| !p.1.is_empty()).collect();
+    let have: Vec<&(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> =
+        pooled.iter().filter(|p| !p.1.is_empty()).collect();
     if !have.is_empty() {
         let curv_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.1)).collect();
         let area_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.2)).collect();
-        let curv: Vec<(&str, &[f64])> = have.iter().zip(&curv_names).map(|(p, n)| (n.as_str(), p.1.as_slice())).collect();
-        let area: Vec<(&str, &[f64])> = have.iter().zip(&area_names).map(|(p, n)| (n.as_str(), p.2.as_slice())).collect();
+        let curv: Vec<(&str, &[f64])> = have
+            .iter()
+            .zip(&curv_names)
+            .map(|(p, n)| (n.as_str(), p.1.as_slice()))
+            .collect();
+        let area: Vec<(&str, &[f64])> = have
+            .iter()
+            .zip(&area_names)
+            .map(|(p, n)| (n.as_str(), p.2.as_slice()))
+            .collect();
         for ext in ["png", "svg"] {
             let p = out.join(format!("curvature_difference.{ext}"));
-            histograms(&p, &curv, HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Curvature difference (all pairs)", "max(|c1|/|c2|, |c2|/|c1|)")?;
+            histograms(
+                &p,
+                &curv,
+                HISTOGRAM_BINS,
+                Some(HISTOGRAM_RANGE),
+                "Curvature difference (all pairs)",
+                "max(|c1|/|c2|, |c2|/|c1|)",
+            )?;
             files.push(p);
             let p = out.join(format!("area_distortion.{ext}"));
-            histograms(&p, &area, HISTOGRAM_BINS, Some(HISTOGRAM_RANGE), "Local area distortion (all pairs)", "max(J, 1/J)")?;
+            histograms(
+                &p,
+                &area,
+                HISTOGRAM_BINS,
+                Some(HISTOGRAM_RANGE),
+                "Local area distortion (all pairs)",
+                "max(J, 1/J)",
+            )?;
             files.push(p);
         }
     }
     let total_seconds = t0.elapsed().as_secs_f64();
     let path = out.join("summary.json");
-    let text = serde_json::to_string_pretty(&serde_json::json!({"summaries": summaries, "total_seconds": total_seconds}))
-        .map_err(|e| AnalysisError::Serialize { path: path.clone(), message: e.to_string() })?;
+    let text =
+        serde_json::to_string_pretty(&serde_json::json!({"summaries": summaries, "total_seconds": total_seconds}))
+            .map_err(|e| AnalysisError::Serialize {
+                path: path.clone(),
+                message: e.to_string(),
+            })?;
     std::fs::write(&path, text).map_err(|e| AnalysisError::io(&path, e))?;
     files.push(path);
-    Ok(BenchResult { rows, summaries, total_seconds, files })
+    Ok(BenchResult {
+        rows,
+        summaries,
+        total_seconds,
+        files,
+    })
 }
 
 /// Histogram series name: the method and the share of values beyond the truncated range (the
 /// bars show fractions of the values inside the range only).
 fn series_name(method: Method, values: &[f64]) -> String {
     let beyond = values.iter().filter(|&&v| !(v <= HISTOGRAM_RANGE.1)).count();
-    format!("{method}: {:.0}% > {} not shown", 100.0 * beyond as f64 / values.len().max(1) as f64, HISTOGRAM_RANGE.1)
+    format!(
+        "{method}: {:.0}% > {} not shown",
+        100.0 * beyond as f64 / values.len().max(1) as f64,
+        HISTOGRAM_RANGE.1
+    )
 }
 
 /// The error and its sources joined by `: `.

@@ -20,14 +20,22 @@ pub struct Landmarks {
 }
 
 fn lm_err(source: &str, name: &str, message: impl Into<String>) -> AnalysisError {
-    AnalysisError::Landmark { source_name: source.to_string(), landmark: name.to_string(), message: message.into() }
+    AnalysisError::Landmark {
+        source_name: source.to_string(),
+        landmark: name.to_string(),
+        message: message.into(),
+    }
 }
 
 impl Landmarks {
     /// Landmarks from explicit pairs, named `0, 1, ...`.
     pub fn from_pairs(pairs: Vec<(u32, u32)>, source_name: &str) -> Self {
         let names = (0..pairs.len()).map(|k| k.to_string()).collect();
-        Landmarks { pairs, names, source_name: source_name.to_string() }
+        Landmarks {
+            pairs,
+            names,
+            source_name: source_name.to_string(),
+        }
     }
 
     /// Reads a CSV file with rows `source,target` (0-based vertex indices; an optional header
@@ -36,7 +44,10 @@ impl Landmarks {
     pub fn from_csv(path: &Path) -> Result<Self, AnalysisError> {
         let text = std::fs::read_to_string(path).map_err(|e| AnalysisError::io(path, e))?;
         let src = path.display().to_string();
-        let mut out = Landmarks { source_name: src.clone(), ..Default::default() };
+        let mut out = Landmarks {
+            source_name: src.clone(),
+            ..Default::default()
+        };
         for (i, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
@@ -44,15 +55,28 @@ impl Landmarks {
             }
             let fields: Vec<&str> = line.split(',').map(str::trim).collect();
             let name = format!("line {}", i + 1);
-            if out.pairs.is_empty() && out.names.is_empty() && fields[0].parse::<f64>().is_err() && i == first_content_line(&text) {
+            if out.pairs.is_empty()
+                && out.names.is_empty()
+                && fields[0].parse::<f64>().is_err()
+                && i == first_content_line(&text)
+            {
                 continue; // header
             }
             if fields.len() != 2 {
-                return Err(AnalysisError::parse(path, i as u64 + 1, format!("expected `source,target`, got {} fields", fields.len())));
+                return Err(AnalysisError::parse(
+                    path,
+                    i as u64 + 1,
+                    format!("expected `source,target`, got {} fields", fields.len()),
+                ));
             }
             let parse = |s: &str| {
-                s.parse::<u32>()
-                    .map_err(|_| lm_err(&src, &name, format!("`{s}` is not a vertex index (a non-negative integer)")))
+                s.parse::<u32>().map_err(|_| {
+                    lm_err(
+                        &src,
+                        &name,
+                        format!("`{s}` is not a vertex index (a non-negative integer)"),
+                    )
+                })
             };
             out.pairs.push((parse(fields[0])?, parse(fields[1])?));
             out.names.push(name);
@@ -70,8 +94,16 @@ impl Landmarks {
         target: &BTreeMap<String, u32>,
         source_name: &str,
     ) -> Result<Self, AnalysisError> {
-        let only_source: Vec<&str> = source.keys().filter(|k| !target.contains_key(*k)).map(String::as_str).collect();
-        let only_target: Vec<&str> = target.keys().filter(|k| !source.contains_key(*k)).map(String::as_str).collect();
+        let only_source: Vec<&str> = source
+            .keys()
+            .filter(|k| !target.contains_key(*k))
+            .map(String::as_str)
+            .collect();
+        let only_target: Vec<&str> = target
+            .keys()
+            .filter(|k| !source.contains_key(*k))
+            .map(String::as_str)
+            .collect();
         if let Some(first) = only_source.first().or(only_target.first()) {
             return Err(lm_err(
                 source_name,
@@ -83,7 +115,10 @@ impl Landmarks {
                 ),
             ));
         }
-        let mut out = Landmarks { source_name: source_name.to_string(), ..Default::default() };
+        let mut out = Landmarks {
+            source_name: source_name.to_string(),
+            ..Default::default()
+        };
         for (name, &v) in source {
             out.pairs.push((v, target[name]));
             out.names.push(name.clone());
@@ -112,12 +147,18 @@ impl Landmarks {
         let mut seen1: BTreeMap<u32, &str> = BTreeMap::new();
         let mut seen2: BTreeMap<u32, &str> = BTreeMap::new();
         for ((a, b), name) in self.pairs.iter().zip(&self.names) {
-            for (side, v, bnd, seen) in [("source", *a, boundary1, &mut seen1), ("target", *b, boundary2, &mut seen2)] {
+            for (side, v, bnd, seen) in [
+                ("source", *a, boundary1, &mut seen1),
+                ("target", *b, boundary2, &mut seen2),
+            ] {
                 if v as usize >= bnd.len() {
                     return Err(lm_err(
                         &self.source_name,
                         name,
-                        format!("{side} vertex {v} out of range (the {side} mesh has {} vertices)", bnd.len()),
+                        format!(
+                            "{side} vertex {v} out of range (the {side} mesh has {} vertices)",
+                            bnd.len()
+                        ),
                     ));
                 }
                 if bnd[v as usize] {
@@ -128,7 +169,11 @@ impl Landmarks {
                     ));
                 }
                 if let Some(other) = seen.insert(v, name) {
-                    return Err(lm_err(&self.source_name, name, format!("{side} vertex {v} is also landmark {other}")));
+                    return Err(lm_err(
+                        &self.source_name,
+                        name,
+                        format!("{side} vertex {v} is also landmark {other}"),
+                    ));
                 }
             }
         }
@@ -137,5 +182,7 @@ impl Landmarks {
 }
 
 fn first_content_line(text: &str) -> usize {
-    text.lines().position(|l| !l.split('#').next().unwrap_or("").trim().is_empty()).unwrap_or(0)
+    text.lines()
+        .position(|l| !l.split('#').next().unwrap_or("").trim().is_empty())
+        .unwrap_or(0)
 }

@@ -64,7 +64,12 @@ pub struct MetricParams {
 
 impl Default for MetricParams {
     fn default() -> Self {
-        MetricParams { curvature_floor: 0.05, geodesic_samples: 300, seed: 7, ground_truth: true }
+        MetricParams {
+            curvature_floor: 0.05,
+            geodesic_samples: 300,
+            seed: 7,
+            ground_truth: true,
+        }
     }
 }
 
@@ -84,13 +89,29 @@ impl ValueSummary {
     pub fn of(values: &[f64]) -> Self {
         let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
         if v.is_empty() {
-            return ValueSummary { count: 0, mean: f64::NAN, median: f64::NAN, p95: f64::NAN, max: f64::NAN };
+            return ValueSummary {
+                count: 0,
+                mean: f64::NAN,
+                median: f64::NAN,
+                p95: f64::NAN,
+                max: f64::NAN,
+            };
         }
         v.sort_by(f64::total_cmp);
         let n = v.len();
-        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
         let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
-        ValueSummary { count: n, mean: v.iter().sum::<f64>() / n as f64, median, p95: v[rank], max: v[n - 1] }
+        ValueSummary {
+            count: n,
+            mean: v.iter().sum::<f64>() / n as f64,
+            median,
+            p95: v[rank],
+            max: v[n - 1],
+        }
     }
 }
 
@@ -147,7 +168,11 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -190,7 +215,11 @@ pub fn registration_metrics(
 ) -> Result<RegistrationMetrics, AnalysisError> {
     let n1 = source.num_vertices();
     if reg.points.len() != n1 || reg.harmonic_uv.len() != n1 || reg.source_uv.len() != n1 {
-        return Err(AnalysisError::InvalidInput(format!("registration has {} points for {} source vertices", reg.points.len(), n1)));
+        return Err(AnalysisError::InvalidInput(format!(
+            "registration has {} points for {} source vertices",
+            reg.points.len(),
+            n1
+        )));
     }
     let a1 = total_area(source);
     let a2 = total_area(target);
@@ -219,7 +248,9 @@ pub fn registration_metrics(
         let nimg = cross(sub(pb, pa), sub(pc, pa));
         let (ha, hb, hc) = (reg.harmonic_uv[a], reg.harmonic_uv[b], reg.harmonic_uv[c]);
         let centroid = [(ha[0] + hb[0] + hc[0]) / 3.0, (ha[1] + hb[1] + hc[1]) / 3.0];
-        let nref = locator.locate(centroid).map_or([0.0; 3], |l| face_normal2(l.face as usize));
+        let nref = locator
+            .locate(centroid)
+            .map_or([0.0; 3], |l| face_normal2(l.face as usize));
         if dot(nimg, nref) < 0.0 {
             flipped3 += 1;
             flipped_area3 += areas1[fi];
@@ -254,7 +285,10 @@ pub fn registration_metrics(
         let v: Vec<f64> = c.iter().zip(b).filter(|(_, &bb)| !bb).map(|(x, _)| x.abs()).collect();
         ValueSummary::of(&v).median
     };
-    let floors = [params.curvature_floor * median_abs(&c1, &b1), params.curvature_floor * median_abs(&c2, &b2)];
+    let floors = [
+        params.curvature_floor * median_abs(&c1, &b1),
+        params.curvature_floor * median_abs(&c2, &b2),
+    ];
     let mut curvature_difference = Vec::new();
     let mut curvature_vertices = Vec::new();
     let mut curvature_clamped = 0usize;
@@ -297,7 +331,13 @@ pub fn registration_metrics(
             .iter()
             .map(|&th| errors.iter().filter(|&&e| e <= th).count() as f64 / errors.len().max(1) as f64)
             .collect();
-        Some(GeodesicErrors { summary: ValueSummary::of(&errors), samples, errors, thresholds, fractions })
+        Some(GeodesicErrors {
+            summary: ValueSummary::of(&errors),
+            samples,
+            errors,
+            thresholds,
+            fractions,
+        })
     } else {
         None
     };

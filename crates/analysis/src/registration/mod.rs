@@ -130,7 +130,11 @@ pub struct HarmonicParams {
 impl Default for HarmonicParams {
     /// One solve with the planar weights, no untangling (Su et al.'s g; the conformal default).
     fn default() -> Self {
-        HarmonicParams { weights: HarmonicWeights::Planar, fold_repair: false, landmark_steps: 1 }
+        HarmonicParams {
+            weights: HarmonicWeights::Planar,
+            fold_repair: false,
+            landmark_steps: 1,
+        }
     }
 }
 
@@ -141,7 +145,11 @@ impl HarmonicParams {
     /// baseline as published; steps and untangling leave it folding 6–8% of the area).
     pub fn for_method(method: Method) -> Self {
         match method {
-            Method::Omt => HarmonicParams { weights: HarmonicWeights::Planar, fold_repair: true, landmark_steps: OMT_LANDMARK_STEPS },
+            Method::Omt => HarmonicParams {
+                weights: HarmonicWeights::Planar,
+                fold_repair: true,
+                landmark_steps: OMT_LANDMARK_STEPS,
+            },
             Method::Conformal => HarmonicParams::default(),
         }
     }
@@ -187,7 +195,9 @@ impl std::str::FromStr for Method {
         match s.trim().to_ascii_lowercase().as_str() {
             "omt" | "area-preserving" => Ok(Method::Omt),
             "conformal" => Ok(Method::Conformal),
-            other => Err(AnalysisError::InvalidInput(format!("unknown registration method `{other}` (expected omt or conformal)"))),
+            other => Err(AnalysisError::InvalidInput(format!(
+                "unknown registration method `{other}` (expected omt or conformal)"
+            ))),
         }
     }
 }
@@ -226,7 +236,10 @@ impl Default for RegistrationParams {
 /// iteration cap slightly above its tolerance (cell areas off by ~1e-6 relative) still gives a
 /// usable disk map; the reached accuracy is kept in [`DiskImage::ot_max_relative_error`].
 pub fn registration_area_params() -> AreaPreservingParams {
-    AreaPreservingParams { require_convergence: false, ..AreaPreservingParams::default() }
+    AreaPreservingParams {
+        require_convergence: false,
+        ..AreaPreservingParams::default()
+    }
 }
 
 /// A disk image φ(S) of a surface: #V planar positions in the unit disk and how long it took.
@@ -247,14 +260,24 @@ pub struct DiskImage {
 
 /// The disk map of `mesh` by `method` (module docs, step 1). Errors from the conformal map or
 /// the OT solver.
-pub fn disk_image(mesh: &TriMesh, markers: &Markers, method: Method, params: &AreaPreservingParams) -> Result<DiskImage, AnalysisError> {
+pub fn disk_image(
+    mesh: &TriMesh,
+    markers: &Markers,
+    method: Method,
+    params: &AreaPreservingParams,
+) -> Result<DiskImage, AnalysisError> {
     let t = Instant::now();
     let (uv, ot_max_relative_error) = match method {
         Method::Omt => {
             let ap = area_preserving_map(mesh, markers, params)?;
             (ap.uv, ap.ot.max_relative_error)
         }
-        Method::Conformal => (disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?.uv, f64::NAN),
+        Method::Conformal => (
+            disk_map(mesh, markers, &params.disk_map)
+                .map_err(AnalysisError::DiskMap)?
+                .uv,
+            f64::NAN,
+        ),
     };
     let seconds = t.elapsed().as_secs_f64();
     let flipped_faces = mesh
@@ -265,7 +288,13 @@ pub fn disk_image(mesh: &TriMesh, markers: &Markers, method: Method, params: &Ar
             (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) <= 0.0
         })
         .count();
-    Ok(DiskImage { uv, method, seconds, ot_max_relative_error, flipped_faces })
+    Ok(DiskImage {
+        uv,
+        method,
+        seconds,
+        ot_max_relative_error,
+        flipped_faces,
+    })
 }
 
 /// Wall-clock seconds of the stages of a registration.
@@ -320,7 +349,12 @@ pub struct Registration {
 ///
 /// Errors: invalid landmarks (out of range, repeated, on the boundary: named), a disk map that
 /// fails, a harmonic map that cannot be solved.
-pub fn register(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks, params: &RegistrationParams) -> Result<Registration, AnalysisError> {
+pub fn register(
+    source: &TriMesh,
+    target: &TriMesh,
+    landmarks: &Landmarks,
+    params: &RegistrationParams,
+) -> Result<Registration, AnalysisError> {
     check_landmarks(source, target, landmarks)?;
     let phi1 = disk_image(source, &params.source_markers, params.method, &params.area_preserving)?;
     let phi2 = disk_image(target, &params.target_markers, params.method, &params.area_preserving)?;
@@ -370,7 +404,14 @@ pub fn register_with_maps(
                 .iter()
                 .map(|&(a, b)| {
                     let (x, y) = (phi1.uv[a as usize], phi2.uv[b as usize]);
-                    (a, if s == steps { y } else { [x[0] + t * (y[0] - x[0]), x[1] + t * (y[1] - x[1])] })
+                    (
+                        a,
+                        if s == steps {
+                            y
+                        } else {
+                            [x[0] + t * (y[0] - x[0]), x[1] + t * (y[1] - x[1])]
+                        },
+                    )
                 })
                 .collect();
             uv = harmonic_step(source, &uv, &boundary, pins, harmonic.weights)?;
@@ -389,7 +430,13 @@ pub fn register_with_maps(
         for &(a, _) in &landmarks.pairs {
             held[a as usize] = true;
         }
-        Some(untangle_kernels(&source.faces, &conn1.vertex_faces, &held, &mut harmonic_uv, UNTANGLE_SWEEPS))
+        Some(untangle_kernels(
+            &source.faces,
+            &conn1.vertex_faces,
+            &held,
+            &mut harmonic_uv,
+            UNTANGLE_SWEEPS,
+        ))
     } else {
         None
     };
@@ -403,7 +450,9 @@ pub fn register_with_maps(
     let (mut num_snapped, mut max_snap_distance) = (0usize, 0.0f64);
     for (v, &p) in harmonic_uv.iter().enumerate() {
         let loc = locator.locate(p).ok_or_else(|| {
-            AnalysisError::InvalidInput(format!("the harmonic image {p:?} of source vertex {v} cannot be located (non-finite)"))
+            AnalysisError::InvalidInput(format!(
+                "the harmonic image {p:?} of source vertex {v} cannot be located (non-finite)"
+            ))
         })?;
         if loc.snap_distance > 0.0 {
             num_snapped += 1;
@@ -457,7 +506,10 @@ fn harmonic_step(
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
     match weights {
         HarmonicWeights::IntrinsicDelaunay => {
-            let constraints = HarmonicConstraints { boundary: BoundaryConstraint::Fixed(boundary.to_vec()), landmarks: pins };
+            let constraints = HarmonicConstraints {
+                boundary: BoundaryConstraint::Fixed(boundary.to_vec()),
+                landmarks: pins,
+            };
             harmonic_map(layout, &source.faces, &constraints).map_err(AnalysisError::DiskMap)
         }
         HarmonicWeights::Planar => planar_harmonic_map(layout, &source.faces, boundary, &pins, false),
@@ -494,7 +546,9 @@ pub fn planar_harmonic_map(
             .get_mut(v as usize)
             .ok_or_else(|| AnalysisError::InvalidInput(format!("harmonic map: vertex {v} out of range")))?;
         if slot.is_some() {
-            return Err(AnalysisError::InvalidInput(format!("harmonic map: vertex {v} is constrained twice")));
+            return Err(AnalysisError::InvalidInput(format!(
+                "harmonic map: vertex {v} is constrained twice"
+            )));
         }
         *slot = Some(p);
     }
@@ -556,13 +610,17 @@ pub fn planar_harmonic_map(
     }
     let a = faer::sparse::SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
         .map_err(|e| AnalysisError::InvalidInput(format!("harmonic map: assembling the Laplacian: {e:?}")))?;
-    let lu = a.sp_lu().map_err(|e| AnalysisError::InvalidInput(format!("harmonic map: LU of the planar Laplacian: {e:?}")))?;
+    let lu = a
+        .sp_lu()
+        .map_err(|e| AnalysisError::InvalidInput(format!("harmonic map: LU of the planar Laplacian: {e:?}")))?;
     lu.solve_in_place(rhs.as_mut());
     for v in 0..n {
         if index[v] != usize::MAX {
             let p = [rhs[(index[v], 0)], rhs[(index[v], 1)]];
             if !(p[0].is_finite() && p[1].is_finite()) {
-                return Err(AnalysisError::InvalidInput(format!("harmonic map: non-finite image of vertex {v} (singular planar Laplacian)")));
+                return Err(AnalysisError::InvalidInput(format!(
+                    "harmonic map: non-finite image of vertex {v} (singular planar Laplacian)"
+                )));
             }
             out[v] = p;
         }

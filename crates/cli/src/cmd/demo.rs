@@ -20,7 +20,12 @@ pub struct DemoArgs {
 
 pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(&args.data)
-        .map_err(|e| anyhow::anyhow!("{}: {e} (run the demo from the repository root, or pass --data)", args.data.display()))?
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "{}: {e} (run the demo from the repository root, or pass --data)",
+                args.data.display()
+            )
+        })?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("obj")))
         .collect();
@@ -28,7 +33,12 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     if files.len() < 2 {
         anyhow::bail!("{}: fewer than 2 OBJ meshes", args.data.display());
     }
-    eprintln!("demo: {} faces from {} -> {}", files.len(), args.data.display(), args.out.display());
+    eprintln!(
+        "demo: {} faces from {} -> {}",
+        files.len(),
+        args.data.display(),
+        args.out.display()
+    );
     let run = compute(&files, &args.out, &args.solver)?;
     let labels = args.data.join("labels.csv");
     mds(&args.out, labels.is_file().then_some(labels.as_path()), &args.solver)?;

@@ -68,20 +68,31 @@ pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
 /// Runs the distances with a progress bar; prints a summary to stderr.
 pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) -> anyhow::Result<DistancesRun> {
     if let Some(t) = solver.threads {
-        rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().ok();
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t.max(1))
+            .build_global()
+            .ok();
     }
     let markers = solver.markers.options()?;
     let options = DistancesOptions {
         markers,
         pairwise: PairwiseOptions {
             symmetrize: solver.symmetrize,
-            newton: NewtonParams { tolerance: solver.tol, max_iterations: solver.max_iterations, ..NewtonParams::default() },
+            newton: NewtonParams {
+                tolerance: solver.tol,
+                max_iterations: solver.max_iterations,
+                ..NewtonParams::default()
+            },
             warm_start: !solver.no_warm_start,
         },
         ..DistancesOptions::default()
     };
     let show = !solver.quiet && std::io::stderr().is_terminal();
-    let bar = if show { ProgressBar::new(0) } else { ProgressBar::hidden() };
+    let bar = if show {
+        ProgressBar::new(0)
+    } else {
+        ProgressBar::hidden()
+    };
     bar.set_style(
         ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar())
@@ -95,11 +106,16 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         }
         bar.set_position(done as u64);
     };
-    let run = run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
+    let run =
+        run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
     bar.finish_and_clear();
     let r = &run.report;
     for input in r.inputs.iter().filter(|i| !i.ok) {
-        eprintln!("shapespace: {}: {}", input.path.display(), input.error.as_deref().unwrap_or("failed"));
+        eprintln!(
+            "shapespace: {}: {}",
+            input.path.display(),
+            input.error.as_deref().unwrap_or("failed")
+        );
     }
     eprintln!(
         "distances: {} shapes ({} failed), {} directed pairs ({} failed) in {:.1} s (prepare {:.1} s, pairs {:.1} s on {} threads)",
@@ -113,7 +129,11 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         r.threads
     );
     if let Some(a) = &r.asymmetry {
-        eprintln!("distances: relative asymmetry median {:.2e}, max {:.2e}", a.median.unwrap_or(f64::NAN), a.max.unwrap_or(f64::NAN));
+        eprintln!(
+            "distances: relative asymmetry median {:.2e}, max {:.2e}",
+            a.median.unwrap_or(f64::NAN),
+            a.max.unwrap_or(f64::NAN)
+        );
     }
     for f in &r.files {
         eprintln!("distances: wrote {}", f.display());
@@ -127,13 +147,19 @@ pub fn mds(out: &std::path::Path, labels: Option<&std::path::Path>, _solver: &So
     for (col, s) in &result.stats.labels {
         eprintln!(
             "mds: {col}: 1-NN LOO accuracy {}, silhouette {}",
-            s.loo_1nn.accuracy.map_or("n/a".into(), |a| format!("{:.3} ({}/{})", a, s.loo_1nn.correct, s.loo_1nn.total)),
+            s.loo_1nn.accuracy.map_or("n/a".into(), |a| format!(
+                "{:.3} ({}/{})",
+                a, s.loo_1nn.correct, s.loo_1nn.total
+            )),
             s.silhouette.map_or("n/a".into(), |v| format!("{v:.3}"))
         );
     }
     for c in &result.stats.cross {
         if let Some(a) = c.loo_1nn.accuracy {
-            eprintln!("mds: {} (neighbour with another {}): 1-NN accuracy {:.3}", c.target, c.exclude_same, a);
+            eprintln!(
+                "mds: {} (neighbour with another {}): 1-NN accuracy {:.3}",
+                c.target, c.exclude_same, a
+            );
         }
     }
     for f in &result.files {

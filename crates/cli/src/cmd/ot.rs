@@ -73,7 +73,10 @@ struct DensityRow {
 }
 
 fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<Vec<T>> {
-    let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_path(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .with_context(|| format!("reading {}", path.display()))?;
     let mut rows = Vec::new();
     for (k, row) in reader.deserialize().enumerate() {
         rows.push(row.with_context(|| format!("{}:{}: bad row", path.display(), k + 2))?);
@@ -83,7 +86,8 @@ fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<Vec<
 
 fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
     if let Some(mesh_path) = &args.density_mesh {
-        let mesh = shapespace_geometry::io::read_mesh(mesh_path).with_context(|| format!("reading {}", mesh_path.display()))?;
+        let mesh = shapespace_geometry::io::read_mesh(mesh_path)
+            .with_context(|| format!("reading {}", mesh_path.display()))?;
         let vertices: Vec<[f64; 2]> = match &mesh.uvs {
             Some(uvs) => uvs.clone(),
             None => mesh.positions.iter().map(|p| [p[0], p[1]]).collect(),
@@ -92,7 +96,12 @@ fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
             Some(path) => {
                 let rows: Vec<DensityRow> = read_rows(path)?;
                 if rows.len() != mesh.faces.len() {
-                    bail!("{}: {} densities for {} faces", path.display(), rows.len(), mesh.faces.len());
+                    bail!(
+                        "{}: {} densities for {} faces",
+                        path.display(),
+                        rows.len(),
+                        mesh.faces.len()
+                    );
                 }
                 rows.into_iter().map(|r| r.density).collect()
             }
@@ -122,14 +131,22 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
         max_iterations: args.max_iterations,
         coarse_to_fine: args.coarse_to_fine,
         linear_solver: if args.cg {
-            LinearSolver::ConjugateGradient { relative_tolerance: 1e-10, max_iterations: 10_000 }
+            LinearSolver::ConjugateGradient {
+                relative_tolerance: 1e-10,
+                max_iterations: 10_000,
+            }
         } else {
             LinearSolver::Cholesky
         },
         ..NewtonParams::default()
     };
-    eprintln!("shapespace ot: {} points, {} source triangles", points.len(), measure.triangles.len());
-    let solution = solve_ot(&measure, &points, &masses, &params).with_context(|| format!("OT to {}", args.points.display()))?;
+    eprintln!(
+        "shapespace ot: {} points, {} source triangles",
+        points.len(),
+        measure.triangles.len()
+    );
+    let solution =
+        solve_ot(&measure, &points, &masses, &params).with_context(|| format!("OT to {}", args.points.display()))?;
     eprintln!(
         "shapespace ot: {} after {} steps, max relative mass error {:.3e}, cost {:.9}, {:.2} s",
         solution.stop, solution.iterations, solution.max_relative_error, solution.cost, solution.t_total
@@ -157,7 +174,12 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
         w.write_record(["i", "k", "x", "y"])?;
         for (i, polygon) in polygons.iter().enumerate() {
             for (k, p) in polygon.iter().enumerate() {
-                w.write_record([i.to_string(), k.to_string(), format!("{:e}", p[0]), format!("{:e}", p[1])])?;
+                w.write_record([
+                    i.to_string(),
+                    k.to_string(),
+                    format!("{:e}", p[0]),
+                    format!("{:e}", p[1]),
+                ])?;
             }
         }
         w.flush().with_context(|| format!("writing {}", path.display()))?;
@@ -203,7 +225,12 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
             },
             "log": log,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", path.display()))?;
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", path.display()))?;
     }
-    Ok(if solution.converged() { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    Ok(if solution.converged() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }

@@ -72,7 +72,10 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
                 Err(mpsc::RecvTimeoutError::Timeout) => {
                     let bar = spinner.get_or_insert_with(|| {
                         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
-                        bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").unwrap_or_else(|_| ProgressStyle::default_spinner()));
+                        bar.set_style(
+                            ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+                                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+                        );
                         bar.set_message(message.clone());
                         bar
                     });
@@ -102,10 +105,19 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),
         None => None,
     };
-    let mut params = AreaPreservingParams { domain, weights, require_convergence: false, ..Default::default() };
+    let mut params = AreaPreservingParams {
+        domain,
+        weights,
+        require_convergence: false,
+        ..Default::default()
+    };
     params.newton.tolerance = args.tolerance;
     params.fold_repair.enabled = !args.no_fold_repair;
-    let message = format!("area-preserving map of {} ({} vertices)", args.input.display(), mesh.num_vertices());
+    let message = format!(
+        "area-preserving map of {} ({} vertices)",
+        args.input.display(),
+        mesh.num_vertices()
+    );
     let map = with_spinner(message, || area_preserving_map(&mesh, &markers, &params))
         .with_context(|| format!("parameterizing {}", args.input.display()))?;
     mesh.uvs = Some(map.uv.clone());
@@ -136,7 +148,8 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         map.timings.repair,
     );
     if let Some(dir) = &args.plots {
-        write_distortion_histograms(&report, dir, 60).with_context(|| format!("writing plots into {}", dir.display()))?;
+        write_distortion_histograms(&report, dir, 60)
+            .with_context(|| format!("writing plots into {}", dir.display()))?;
     }
     if let Some(p) = &args.report {
         let json = serde_json::json!({

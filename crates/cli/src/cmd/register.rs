@@ -10,7 +10,8 @@ use std::time::Instant;
 use anyhow::Context;
 use shapespace_analysis::registration::bench::{register_bench, write_registration};
 use shapespace_analysis::registration::{
-    register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, MetricParams, Method, RegistrationParams,
+    register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
+    RegistrationParams,
 };
 use shapespace_conformal::MarkerFile;
 
@@ -107,7 +108,12 @@ fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(P
 }
 
 /// The method's default g ([`HarmonicParams::for_method`]) with the options given.
-fn harmonic_params(method: Method, weights: Option<&str>, untangle: Option<&str>, steps: Option<usize>) -> anyhow::Result<HarmonicParams> {
+fn harmonic_params(
+    method: Method,
+    weights: Option<&str>,
+    untangle: Option<&str>,
+    steps: Option<usize>,
+) -> anyhow::Result<HarmonicParams> {
     let mut h = HarmonicParams::for_method(method);
     if let Some(w) = weights {
         h.weights = w.parse()?;
@@ -135,9 +141,11 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let m2 = marker_file(args.target_markers.as_deref(), &args.target)?;
     let landmarks = match (&args.landmarks, &m1, &m2) {
         (Some(csv), _, _) => Landmarks::from_csv(csv)?,
-        (None, Some((p1, f1)), Some((p2, f2))) => {
-            Landmarks::from_named(&f1.landmarks, &f2.landmarks, &format!("{} / {}", p1.display(), p2.display()))?
-        }
+        (None, Some((p1, f1)), Some((p2, f2))) => Landmarks::from_named(
+            &f1.landmarks,
+            &f2.landmarks,
+            &format!("{} / {}", p1.display(), p2.display()),
+        )?,
         _ => anyhow::bail!(
             "no landmarks: pass --landmarks pairs.csv or put a landmarks.json (with \"landmarks\") beside both meshes"
         ),
@@ -147,14 +155,23 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         source_markers: m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         target_markers: m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
         area_preserving: registration_area_params(),
-        harmonic: harmonic_params(method, args.weights.as_deref(), args.untangle_g.as_deref(), args.landmark_steps)?,
+        harmonic: harmonic_params(
+            method,
+            args.weights.as_deref(),
+            args.untangle_g.as_deref(),
+            args.landmark_steps,
+        )?,
     };
     eprintln!("register: {} landmark pairs, method {method}", landmarks.len());
     let t = Instant::now();
     let reg = register(&source, &target, &landmarks, &params)
         .with_context(|| format!("registering {} onto {}", args.source.display(), args.target.display()))?;
     let secs = t.elapsed().as_secs_f64();
-    let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
+    let mp = MetricParams {
+        geodesic_samples: args.samples,
+        seed: args.seed,
+        ..MetricParams::default()
+    };
     let met = registration_metrics(&source, &target, &reg, &mp)?;
     let extra = serde_json::json!({
         "source": args.source, "target": args.target, "landmarks": landmarks.source_name,
@@ -176,7 +193,12 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         met.area_distortion_summary.mean
     );
     if let Some(g) = &met.geodesic {
-        eprintln!("register: geodesic error (v <-> v, {} samples) median {:.4} mean {:.4}", g.samples.len(), g.summary.median, g.summary.mean);
+        eprintln!(
+            "register: geodesic error (v <-> v, {} samples) median {:.4} mean {:.4}",
+            g.samples.len(),
+            g.summary.median,
+            g.summary.mean
+        );
     }
     for f in files {
         eprintln!("register: wrote {}", f.display());
@@ -186,15 +208,38 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
-    let mp = MetricParams { geodesic_samples: args.samples, seed: args.seed, ..MetricParams::default() };
+    let mp = MetricParams {
+        geodesic_samples: args.samples,
+        seed: args.seed,
+        ..MetricParams::default()
+    };
     for &m in &methods {
-        harmonic_params(m, args.weights.as_deref(), args.untangle_g.as_deref(), args.landmark_steps)?;
+        harmonic_params(
+            m,
+            args.weights.as_deref(),
+            args.untangle_g.as_deref(),
+            args.landmark_steps,
+        )?;
     }
     let harmonic = |m: Method| {
-        harmonic_params(m, args.weights.as_deref(), args.untangle_g.as_deref(), args.landmark_steps).unwrap_or_else(|_| HarmonicParams::for_method(m))
+        harmonic_params(
+            m,
+            args.weights.as_deref(),
+            args.untangle_g.as_deref(),
+            args.landmark_steps,
+        )
+        .unwrap_or_else(|_| HarmonicParams::for_method(m))
     };
-    let res = register_bench(&args.dataset, &args.out, &methods, &registration_area_params(), &harmonic, &mp, |m| eprintln!("register-bench: {m}"))
-        .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
+    let res = register_bench(
+        &args.dataset,
+        &args.out,
+        &methods,
+        &registration_area_params(),
+        &harmonic,
+        &mp,
+        |m| eprintln!("register-bench: {m}"),
+    )
+    .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
         "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. mean | geodesic err. median | geodesic err. mean | s/pair |"
     );
@@ -219,7 +264,10 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     }
     println!("total time {:.1} s", res.total_seconds);
     for r in res.rows.iter().filter(|r| r.status != "ok") {
-        eprintln!("register-bench: {} {} -> {} ({}) failed: {}", r.class, r.source, r.target, r.method, r.status);
+        eprintln!(
+            "register-bench: {} {} -> {} ({}) failed: {}",
+            r.class, r.source, r.target, r.method, r.status
+        );
     }
     for f in &res.files {
         eprintln!("register-bench: wrote {}", f.display());

@@ -96,7 +96,10 @@ pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 
 /// Reads a whole file, mapping failures to [`GeometryError::Io`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, GeometryError> {
-    std::fs::read(path).map_err(|source| GeometryError::Io { path: path.to_path_buf(), source })
+    std::fs::read(path).map_err(|source| GeometryError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Validates `mesh`, creates `path` and runs `write` on a buffered writer, mapping I/O
@@ -107,7 +110,10 @@ pub(crate) fn write_file(
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), GeometryError> {
     mesh.validate().map_err(|e| e.with_path(path))?;
-    let io_err = |source| GeometryError::Io { path: path.to_path_buf(), source };
+    let io_err = |source| GeometryError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     let file = std::fs::File::create(path).map_err(io_err)?;
     let mut writer = std::io::BufWriter::new(file);
     write(&mut writer).map_err(io_err)?;
@@ -119,7 +125,11 @@ pub(crate) fn write_file(
 
 /// A [`GeometryError::Parse`] at `line` (1-based) of `path`.
 pub(crate) fn parse_error(path: &Path, line: usize, message: impl Into<String>) -> GeometryError {
-    GeometryError::Parse { path: PathBuf::from(path), line, message: message.into() }
+    GeometryError::Parse {
+        path: PathBuf::from(path),
+        line,
+        message: message.into(),
+    }
 }
 
 /// Lines of a text file as `(1-based line number, bytes)`, split at `\n` with a trailing `\r`
@@ -141,7 +151,10 @@ pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
 /// Rejects a line holding control characters (other than tab, vertical tab, form feed and
 /// carriage return): binary data in a file read as text.
 pub(crate) fn check_text_line(path: &Path, line_no: usize, line: &[u8]) -> Result<(), GeometryError> {
-    if let Some(&b) = line.iter().find(|&&b| (b < 0x20 && !matches!(b, b'\t' | b'\r' | 0x0b | 0x0c)) || b == 0x7f) {
+    if let Some(&b) = line
+        .iter()
+        .find(|&&b| (b < 0x20 && !matches!(b, b'\t' | b'\r' | 0x0b | 0x0c)) || b == 0x7f)
+    {
         return Err(parse_error(
             path,
             line_no,

@@ -84,14 +84,26 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                 let mut p = [0.0; 3];
                 for (k, c) in p.iter_mut().enumerate() {
                     let tok = toks.next().ok_or_else(|| {
-                        parse_error(path, line_no, format!("vertex {vertex} has {k} coordinates, expected 3"))
+                        parse_error(
+                            path,
+                            line_no,
+                            format!("vertex {vertex} has {k} coordinates, expected 3"),
+                        )
                     })?;
                     *c = parse_f64(tok).ok_or_else(|| {
-                        parse_error(path, line_no, format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)))
+                        parse_error(
+                            path,
+                            line_no,
+                            format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
+                        )
                     })?;
                 }
                 if !p.iter().all(|c| c.is_finite()) {
-                    return Err(parse_error(path, line_no, format!("vertex {vertex} has a non-finite coordinate")));
+                    return Err(parse_error(
+                        path,
+                        line_no,
+                        format!("vertex {vertex} has a non-finite coordinate"),
+                    ));
                 }
                 positions.push(p);
             }
@@ -110,7 +122,11 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                             })?
                         }
                         None if k == 0 => {
-                            return Err(parse_error(path, line_no, format!("texture coordinate {index} has no values")))
+                            return Err(parse_error(
+                                path,
+                                line_no,
+                                format!("texture coordinate {index} has no values"),
+                            ))
                         }
                         None => {}
                     }
@@ -139,7 +155,10 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                         return Err(parse_error(
                             path,
                             line_no,
-                            format!("malformed face corner '{}' (expected a, a/b, a//c or a/b/c)", show(corner)),
+                            format!(
+                                "malformed face corner '{}' (expected a, a/b, a//c or a/b/c)",
+                                show(corner)
+                            ),
                         ));
                     }
                     let v = resolve_index(path, line_no, v_tok, positions.len(), "vertex", &mut max_v)?;
@@ -181,7 +200,13 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             }
             _ if key[0] == b'#' => {}
             _ if key[0].is_ascii_alphabetic() && key.iter().all(|b| b.is_ascii_alphanumeric() || *b == b'_') => {}
-            _ => return Err(parse_error(path, line_no, format!("unrecognised OBJ statement '{}'", show(key)))),
+            _ => {
+                return Err(parse_error(
+                    path,
+                    line_no,
+                    format!("unrecognised OBJ statement '{}'", show(key)),
+                ))
+            }
         }
     }
 
@@ -197,7 +222,11 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         return Err(parse_error(
             path,
             max_v.line,
-            format!("vertex index {} out of range (the file has {} vertices)", max_v.index, positions.len()),
+            format!(
+                "vertex index {} out of range (the file has {} vertices)",
+                max_v.index,
+                positions.len()
+            ),
         ));
     }
     if max_vt.index > texcoords.len() {
@@ -248,10 +277,19 @@ fn resolve_index(
         }
         defined as u64 - back
     } else {
-        return Err(parse_error(path, line_no, format!("{what} index 0 is invalid (OBJ indices start at 1)")));
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("{what} index 0 is invalid (OBJ indices start at 1)"),
+        ));
     };
-    u32::try_from(zero_based)
-        .map_err(|_| parse_error(path, line_no, format!("{what} index {i} is too large (more than 2^32 elements)")))
+    u32::try_from(zero_based).map_err(|_| {
+        parse_error(
+            path,
+            line_no,
+            format!("{what} index {i} is too large (more than 2^32 elements)"),
+        )
+    })
 }
 
 /// Per-vertex UVs when every vertex is paired with one texture coordinate (see the module
@@ -300,7 +338,12 @@ pub fn write_obj(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 
 /// Writes `mesh` as OBJ text to `writer` (the format of [`write_obj`]; no validation).
 pub fn write_obj_to<W: Write>(mut writer: W, mesh: &TriMesh) -> std::io::Result<()> {
-    writeln!(writer, "# {} vertices, {} triangles (shapespace)", mesh.num_vertices(), mesh.num_faces())?;
+    writeln!(
+        writer,
+        "# {} vertices, {} triangles (shapespace)",
+        mesh.num_vertices(),
+        mesh.num_faces()
+    )?;
     for [x, y, z] in &mesh.positions {
         writeln!(writer, "v {x:?} {y:?} {z:?}")?;
     }
@@ -369,14 +412,24 @@ mod tests {
     #[test]
     fn errors_name_line_and_problem() {
         let e = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.obj:4:") && e.contains("before the first vertex"), "{e}");
-        let e = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\nv 1 1 1\nf 1 2 6\n").unwrap_err().to_string();
+        assert!(
+            e.starts_with("t.obj:4:") && e.contains("before the first vertex"),
+            "{e}"
+        );
+        let e = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\nv 1 1 1\nf 1 2 6\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.obj:6:") && e.contains("index 6 out of range"), "{e}");
         let e = parse("v 0 0 0\nv 1 nan 0\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.obj:2:") && e.contains("vertex 1 has a non-finite coordinate"), "{e}");
+        assert!(
+            e.starts_with("t.obj:2:") && e.contains("vertex 1 has a non-finite coordinate"),
+            "{e}"
+        );
         let e = parse("v 0 0 0\nv 1 0x 0\n").unwrap_err().to_string();
         assert!(e.starts_with("t.obj:2:") && e.contains("non-numeric"), "{e}");
-        let e = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 2\n").unwrap_err().to_string();
+        let e = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 2\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.obj:6:") && e.contains("face 1 has 2 vertices"), "{e}");
         let e = parse("v 0 0 0\nf 0 1 1\n").unwrap_err().to_string();
         assert!(e.contains("index 0"), "{e}");
@@ -389,7 +442,11 @@ mod tests {
     #[test]
     fn round_trip_is_exact() {
         let mesh = TriMesh {
-            positions: vec![[0.1, -2.0 / 3.0, 1e-300], [f64::MAX, -0.0, 5e-324], [std::f64::consts::PI, 1e22, -7.25]],
+            positions: vec![
+                [0.1, -2.0 / 3.0, 1e-300],
+                [f64::MAX, -0.0, 5e-324],
+                [std::f64::consts::PI, 1e22, -7.25],
+            ],
             faces: vec![[0, 1, 2], [2, 1, 0]],
             uvs: Some(vec![[0.3, 1.0 / 3.0], [-1e-9, 2.5], [0.0, 1e100]]),
         };

@@ -64,7 +64,11 @@ impl<'a, I: Iterator<Item = (usize, &'a [u8])>> ContentLines<'a, I> {
 pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, GeometryError> {
     let data = data.as_ref();
     let data = data.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(data); // UTF-8 byte-order mark
-    let mut src = ContentLines { inner: lines(data), path, last_line: 0 };
+    let mut src = ContentLines {
+        inner: lines(data),
+        path,
+        last_line: 0,
+    };
     let eof_line = |src: &ContentLines<'_, _>| src.last_line + 1;
 
     // Header: optional keyword, then the counts on the same or the next content line.
@@ -77,18 +81,28 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         return Err(parse_error(
             path,
             line_no,
-            format!("not an OFF file: expected 'OFF' or the counts, found '{}'", show(toks[0])),
+            format!(
+                "not an OFF file: expected 'OFF' or the counts, found '{}'",
+                show(toks[0])
+            ),
         ));
     }
     if has_keyword {
         let key = toks[0];
         let prefix = key.strip_suffix(b"OFF").ok_or_else(|| {
-            parse_error(path, line_no, format!("not an OFF file: expected 'OFF' or the counts, found '{}'", show(key)))
+            parse_error(
+                path,
+                line_no,
+                format!("not an OFF file: expected 'OFF' or the counts, found '{}'", show(key)),
+            )
         })?;
         if !prefix.iter().all(|b| b"STCN".contains(b)) {
             return Err(GeometryError::UnsupportedFormat {
                 path: path.to_path_buf(),
-                message: format!("OFF variant '{}' (only 3-D OFF, COFF, NOFF, STOFF... are read)", show(key)),
+                message: format!(
+                    "OFF variant '{}' (only 3-D OFF, COFF, NOFF, STOFF... are read)",
+                    show(key)
+                ),
             });
         }
         if toks.get(1).is_some_and(|t| t.eq_ignore_ascii_case(b"BINARY")) {
@@ -127,7 +141,11 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         return Err(parse_error(path, line_no, "the header declares 0 faces"));
     }
     if u32::try_from(num_vertices).is_err() {
-        return Err(parse_error(path, line_no, format!("{num_vertices} vertices exceed the u32 index range")));
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("{num_vertices} vertices exceed the u32 index range"),
+        ));
     }
 
     // Vertices: the shortest line "0 0 0\n" takes 6 bytes, a face "3 0 0 0\n" 8.
@@ -144,14 +162,26 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         let mut toks = tokens(line);
         for (k, c) in p.iter_mut().enumerate() {
             let tok = toks.next().ok_or_else(|| {
-                parse_error(path, line_no, format!("vertex {vertex} has {k} coordinates, expected 3"))
+                parse_error(
+                    path,
+                    line_no,
+                    format!("vertex {vertex} has {k} coordinates, expected 3"),
+                )
             })?;
             *c = parse_f64(tok).ok_or_else(|| {
-                parse_error(path, line_no, format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)))
+                parse_error(
+                    path,
+                    line_no,
+                    format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
+                )
             })?;
         }
         if !p.iter().all(|c| c.is_finite()) {
-            return Err(parse_error(path, line_no, format!("vertex {vertex} has a non-finite coordinate")));
+            return Err(parse_error(
+                path,
+                line_no,
+                format!("vertex {vertex} has a non-finite coordinate"),
+            ));
         }
         positions.push(p);
     }
@@ -169,18 +199,34 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         let mut toks = tokens(line);
         let k_tok = toks.next().unwrap_or_default();
         let k = parse_i64(k_tok).ok_or_else(|| {
-            parse_error(path, line_no, format!("face {face}: non-integer vertex count '{}'", show(k_tok)))
+            parse_error(
+                path,
+                line_no,
+                format!("face {face}: non-integer vertex count '{}'", show(k_tok)),
+            )
         })?;
         if k < 3 {
-            return Err(parse_error(path, line_no, format!("face {face} has {k} vertices (need at least 3)")));
+            return Err(parse_error(
+                path,
+                line_no,
+                format!("face {face} has {k} vertices (need at least 3)"),
+            ));
         }
         polygon.clear();
         for j in 0..k {
             let tok = toks.next().ok_or_else(|| {
-                parse_error(path, line_no, format!("face {face} declares {k} vertices but lists {j}"))
+                parse_error(
+                    path,
+                    line_no,
+                    format!("face {face} declares {k} vertices but lists {j}"),
+                )
             })?;
             let i = parse_i64(tok).ok_or_else(|| {
-                parse_error(path, line_no, format!("face {face}: non-integer vertex index '{}'", show(tok)))
+                parse_error(
+                    path,
+                    line_no,
+                    format!("face {face}: non-integer vertex index '{}'", show(tok)),
+                )
             })?;
             if i < 0 || i as u64 >= num_vertices as u64 {
                 return Err(parse_error(
@@ -204,7 +250,11 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             ),
         ));
     }
-    Ok(TriMesh { positions, faces, uvs: None })
+    Ok(TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    })
 }
 
 /// Writes `mesh` as ASCII OFF to `path`: `OFF`, `nv nf 0`, one `x y z` line per vertex, one
@@ -239,7 +289,13 @@ mod tests {
     fn header_variants() {
         let body = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n3 0 2 1 255 0 0\n";
         let expected_faces = vec![[0, 1, 2], [0, 2, 3], [0, 2, 1]];
-        for header in ["OFF\n4 2 0\n", "OFF 4 2 0\n", "4 2 0\n", "# c\nCOFF\r\n\n4 2\n", "NOFF # n\n4 2 5\n"] {
+        for header in [
+            "OFF\n4 2 0\n",
+            "OFF 4 2 0\n",
+            "4 2 0\n",
+            "# c\nCOFF\r\n\n4 2\n",
+            "NOFF # n\n4 2 5\n",
+        ] {
             let m = parse(&format!("{header}{body}")).unwrap();
             assert_eq!(m.positions.len(), 4, "{header}");
             assert_eq!(m.faces, expected_faces, "{header}");
@@ -255,31 +311,60 @@ mod tests {
     #[test]
     fn errors_name_line_and_problem() {
         let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.off:5:") && e.contains("declares 3 vertices, found 2"), "{e}");
-        let e = parse("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.off:7:") && e.contains("declares 2 faces, found 1"), "{e}");
-        let e = parse("OFF\n3 1 0\n0 0 0\n1 inf 0\n0 1 0\n3 0 1 2\n").unwrap_err().to_string();
-        assert!(e.starts_with("t.off:4:") && e.contains("vertex 1 has a non-finite"), "{e}");
-        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n").unwrap_err().to_string();
+        assert!(
+            e.starts_with("t.off:5:") && e.contains("declares 3 vertices, found 2"),
+            "{e}"
+        );
+        let e = parse("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.off:7:") && e.contains("declares 2 faces, found 1"),
+            "{e}"
+        );
+        let e = parse("OFF\n3 1 0\n0 0 0\n1 inf 0\n0 1 0\n3 0 1 2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.off:4:") && e.contains("vertex 1 has a non-finite"),
+            "{e}"
+        );
+        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.off:6:") && e.contains("index 3 out of range"), "{e}");
-        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n").unwrap_err().to_string();
+        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.off:6:") && e.contains("index -1 out of range"), "{e}");
-        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n").unwrap_err().to_string();
+        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.off:6:") && e.contains("2 vertices"), "{e}");
-        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n").unwrap_err().to_string();
+        let e = parse("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.off:7:") && e.contains("wrong counts"), "{e}");
         let e = parse("OFF\n99999999999 1 0\n0 0 0\n").unwrap_err().to_string();
         assert!(e.contains("exceed"), "{e}");
         let e = parse("OFF\n999999999 1 0\n0 0 0\n").unwrap_err().to_string();
         assert!(e.starts_with("t.off:4:") && e.contains("end of file"), "{e}");
         assert!(parse("").unwrap_err().to_string().contains("empty file"));
-        assert!(parse("  \n# only a comment\n").unwrap_err().to_string().contains("empty file"));
+        assert!(parse("  \n# only a comment\n")
+            .unwrap_err()
+            .to_string()
+            .contains("empty file"));
     }
 
     #[test]
     fn round_trip_is_exact() {
         let mesh = TriMesh {
-            positions: vec![[0.1, -2.0 / 3.0, 1e-300], [f64::MAX, -0.0, 5e-324], [1.0, 1e22, -7.25], [9.0, 9.0, 9.0]],
+            positions: vec![
+                [0.1, -2.0 / 3.0, 1e-300],
+                [f64::MAX, -0.0, 5e-324],
+                [1.0, 1e22, -7.25],
+                [9.0, 9.0, 9.0],
+            ],
             faces: vec![[0, 1, 2], [2, 1, 0]],
             uvs: None,
         };

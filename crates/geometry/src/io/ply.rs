@@ -175,7 +175,10 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header, GeometryError> {
                 "the header has no 'end_header' line (truncated or not a PLY file)",
             ));
         }
-        let end = data[pos..].iter().position(|&b| b == b'\n').map_or(data.len(), |k| pos + k);
+        let end = data[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(data.len(), |k| pos + k);
         let raw = &data[pos..end];
         let line = raw.strip_suffix(b"\r").unwrap_or(raw);
         line_no += 1;
@@ -211,25 +214,41 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header, GeometryError> {
                 let count = parse_i64(count)
                     .and_then(|c| usize::try_from(c).ok())
                     .ok_or_else(|| bad(format!("invalid element count '{}'", show(count))))?;
-                elements.push(Element { name: show(name), count, properties: Vec::new() });
+                elements.push(Element {
+                    name: show(name),
+                    count,
+                    properties: Vec::new(),
+                });
             }
             b"property" => {
-                let element = elements.last_mut().ok_or_else(|| bad("property before any element".to_string()))?;
+                let element = elements
+                    .last_mut()
+                    .ok_or_else(|| bad("property before any element".to_string()))?;
                 let type_of =
                     |t: &[u8]| Scalar::from_name(t).ok_or_else(|| bad(format!("unknown property type '{}'", show(t))));
                 let (kind, name) = match toks.get(1).copied() {
                     Some(b"list") => {
                         let (Some(ct), Some(it), Some(name)) = (toks.get(2), toks.get(3), toks.get(4)) else {
-                            return Err(bad("expected 'property list <count type> <item type> <name>'".to_string()));
+                            return Err(bad(
+                                "expected 'property list <count type> <item type> <name>'".to_string()
+                            ));
                         };
                         let count = type_of(ct)?;
                         if !count.is_integer() {
                             return Err(bad(format!("list count type '{}' is not an integer type", show(ct))));
                         }
-                        (Kind::List { count, item: type_of(it)? }, name)
+                        (
+                            Kind::List {
+                                count,
+                                item: type_of(it)?,
+                            },
+                            name,
+                        )
                     }
                     Some(t) => {
-                        let name = toks.get(2).ok_or_else(|| bad("expected 'property <type> <name>'".to_string()))?;
+                        let name = toks
+                            .get(2)
+                            .ok_or_else(|| bad("expected 'property <type> <name>'".to_string()))?;
                         (Kind::Scalar(type_of(t)?), name)
                     }
                     None => return Err(bad("expected 'property <type> <name>'".to_string())),
@@ -238,7 +257,12 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header, GeometryError> {
             }
             b"end_header" => {
                 let format = format.ok_or_else(|| bad("the header has no 'format' line".to_string()))?;
-                return Ok(Header { format, elements, body_start: pos.min(data.len()), end_line: line_no });
+                return Ok(Header {
+                    format,
+                    elements,
+                    body_start: pos.min(data.len()),
+                    end_line: line_no,
+                });
             }
             _ => return Err(bad(format!("unknown header keyword '{}'", show(key)))),
         }
@@ -305,7 +329,10 @@ impl<'a> AsciiBody<'a> {
     fn next_token(&mut self) -> Option<&'a [u8]> {
         let line = self.line;
         let start = self.cursor + line[self.cursor..].iter().position(|b| !b.is_ascii_whitespace())?;
-        let end = line[start..].iter().position(|b| b.is_ascii_whitespace()).map_or(line.len(), |k| start + k);
+        let end = line[start..]
+            .iter()
+            .position(|b| b.is_ascii_whitespace())
+            .map_or(line.len(), |k| start + k);
         self.cursor = end;
         Some(&line[start..end])
     }
@@ -313,7 +340,10 @@ impl<'a> AsciiBody<'a> {
     /// The next line that is not blank, with its number.
     fn next_line(&mut self) -> Result<Option<&'a [u8]>, GeometryError> {
         while self.pos < self.data.len() {
-            let end = self.data[self.pos..].iter().position(|&b| b == b'\n').map_or(self.data.len(), |k| self.pos + k);
+            let end = self.data[self.pos..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map_or(self.data.len(), |k| self.pos + k);
             let raw = &self.data[self.pos..end];
             self.pos = end + 1;
             self.line_no += 1;
@@ -377,7 +407,10 @@ impl Body for AsciiBody<'_> {
             Some(line) => Err(parse_error(
                 self.path,
                 self.line_no,
-                format!("data after the last element ('{}'); wrong counts in the header?", show(line.trim_ascii())),
+                format!(
+                    "data after the last element ('{}'); wrong counts in the header?",
+                    show(line.trim_ascii())
+                ),
             )),
         }
     }
@@ -472,7 +505,11 @@ impl Body for BinaryBody<'_> {
     }
 
     fn error_bare(&self, message: String) -> GeometryError {
-        GeometryError::BinaryParse { path: PathBuf::from(self.path), offset: self.start as u64, message }
+        GeometryError::BinaryParse {
+            path: PathBuf::from(self.path),
+            offset: self.start as u64,
+            message,
+        }
     }
 
     fn remaining(&self) -> usize {
@@ -539,15 +576,25 @@ pub fn parse_ply(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
 
 /// The vertex-index list property of a `face` or `tristrips` element.
 fn index_list_property(element: &Element, path: &Path, line: usize) -> Result<usize, GeometryError> {
-    let k = element.property("vertex_indices").or_else(|| element.property("vertex_index")).ok_or_else(|| {
-        parse_error(path, line, format!("the '{}' element has no 'vertex_indices' list property", element.name))
-    })?;
+    let k = element
+        .property("vertex_indices")
+        .or_else(|| element.property("vertex_index"))
+        .ok_or_else(|| {
+            parse_error(
+                path,
+                line,
+                format!("the '{}' element has no 'vertex_indices' list property", element.name),
+            )
+        })?;
     match element.properties[k].kind {
         Kind::List { item, .. } if item.is_integer() => Ok(k),
         _ => Err(parse_error(
             path,
             line,
-            format!("'{}' of element '{}' is not a list of integers", element.properties[k].name, element.name),
+            format!(
+                "'{}' of element '{}' is not a list of integers",
+                element.properties[k].name, element.name
+            ),
         )),
     }
 }
@@ -573,7 +620,11 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
     let num_vertices = match vertex_elements.as_slice() {
         [e] => e.count,
         [] => return Err(at_header("the header declares no 'vertex' element".to_string())),
-        _ => return Err(at_header("the header declares more than one 'vertex' element".to_string())),
+        _ => {
+            return Err(at_header(
+                "the header declares more than one 'vertex' element".to_string(),
+            ))
+        }
     };
     if num_vertices == 0 {
         return Err(at_header("the header declares 0 vertices".to_string()));
@@ -581,8 +632,14 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
     if u32::try_from(num_vertices).is_err() {
         return Err(at_header(format!("{num_vertices} vertices exceed the u32 index range")));
     }
-    if !header.elements.iter().any(|e| e.name == "face" || e.name == "tristrips") {
-        return Err(at_header("the header declares no 'face' or 'tristrips' element".to_string()));
+    if !header
+        .elements
+        .iter()
+        .any(|e| e.name == "face" || e.name == "tristrips")
+    {
+        return Err(at_header(
+            "the header declares no 'face' or 'tristrips' element".to_string(),
+        ));
     }
 
     let mut positions: Vec<[f64; 3]> = Vec::new();
@@ -653,7 +710,11 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
                 let list = index_list_property(element, path, header.end_line)?;
                 let strips = name == "tristrips";
                 if !strips {
-                    faces.reserve(capped_capacity(element.count, body.remaining(), element.min_binary_size().max(2)));
+                    faces.reserve(capped_capacity(
+                        element.count,
+                        body.remaining(),
+                        element.min_binary_size().max(2),
+                    ));
                 }
                 for i in 0..element.count {
                     body.begin(name, i, element.count)?;
@@ -711,7 +772,9 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
     }
     body.finish()?;
     if faces.is_empty() {
-        return Err(at_header("the file has no faces (all face elements empty or degenerate)".to_string()));
+        return Err(at_header(
+            "the file has no faces (all face elements empty or degenerate)".to_string(),
+        ));
     }
     Ok(TriMesh { positions, faces, uvs })
 }
@@ -811,7 +874,10 @@ mod tests {
     fn ascii_with_extra_properties_and_a_quad() {
         let text = format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n4 0 1 2 3 7\n3 3 2 1 8\n");
         let m = parse(text.as_bytes()).unwrap();
-        assert_eq!(m.positions, vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(
+            m.positions,
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
+        );
         assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [3, 2, 1]]);
     }
 
@@ -820,12 +886,27 @@ mod tests {
         let e =
             parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n4 0 1 2 9 7\n").as_bytes()).unwrap_err();
         let e = e.to_string();
-        assert!(e.starts_with("t.ply:17: face 0:") && e.contains("index 9 out of range"), "{e}");
-        let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n").as_bytes()).unwrap_err().to_string();
-        assert!(e.starts_with("t.ply:15:") && e.contains("declares 4 'vertex' elements, found 2"), "{e}");
-        let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 nan 2\n").as_bytes()).unwrap_err().to_string();
-        assert!(e.starts_with("t.ply:14:") && e.contains("vertex 1 has a non-finite"), "{e}");
-        let e = parse(format!("{ASCII_HEADER}0 0 0 1 5\n").as_bytes()).unwrap_err().to_string();
+        assert!(
+            e.starts_with("t.ply:17: face 0:") && e.contains("index 9 out of range"),
+            "{e}"
+        );
+        let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n").as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.ply:15:") && e.contains("declares 4 'vertex' elements, found 2"),
+            "{e}"
+        );
+        let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 nan 2\n").as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.ply:14:") && e.contains("vertex 1 has a non-finite"),
+            "{e}"
+        );
+        let e = parse(format!("{ASCII_HEADER}0 0 0 1 5\n").as_bytes())
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("t.ply:13: vertex 0:") && e.contains("more values"), "{e}");
         let e = parse(format!("{ASCII_HEADER}0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n2 0 1 7\n").as_bytes()).unwrap_err();
         assert!(e.to_string().contains("t.ply:17: face 0 has 2 vertices"), "{e}");
@@ -835,7 +916,9 @@ mod tests {
         assert!(e.starts_with("t.ply:7:") && e.contains("no 'y' property"), "{e}");
         let e = parse(b"solid cube\n").unwrap_err().to_string();
         assert!(e.starts_with("t.ply:1:") && e.contains("not a PLY file"), "{e}");
-        let e = parse(b"ply\nformat ascii 1.0\nelement vertex 3\n").unwrap_err().to_string();
+        let e = parse(b"ply\nformat ascii 1.0\nelement vertex 3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("end_header"), "{e}");
         assert!(parse(b"").unwrap_err().to_string().contains("empty file"));
     }
@@ -855,13 +938,19 @@ mod tests {
         data.extend_from_slice(&3u16.to_le_bytes());
         data.extend_from_slice(&[2, 1, 0]);
         let m = parse(&data).unwrap();
-        assert_eq!(m.positions, vec![[-1.0, 65535.0, -7.0], [2.0, 0.0, (1 << 30) as f64], [127.0, 3.0, 0.0]]);
+        assert_eq!(
+            m.positions,
+            vec![[-1.0, 65535.0, -7.0], [2.0, 0.0, (1 << 30) as f64], [127.0, 3.0, 0.0]]
+        );
         assert_eq!(m.faces, vec![[2, 1, 0]]);
         // ASCII values outside their declared type are errors.
         let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty uchar x\nproperty float y\nproperty float z\n\
                     element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n256 0 0\n0 1 0\n3 0 1 2\n";
         let e = parse(text.as_bytes()).unwrap_err().to_string();
-        assert!(e.starts_with("t.ply:11: vertex 1:") && e.contains("256 out of range"), "{e}");
+        assert!(
+            e.starts_with("t.ply:11: vertex 1:") && e.contains("256 out of range"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -891,12 +980,20 @@ mod tests {
                      property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n\
                      end_header\n\0\0\0\0";
         let e = parse(data).unwrap_err().to_string();
-        assert!(e.starts_with("t.ply: byte 178:") && e.contains("4000000000 'vertex' elements"), "{e}");
+        assert!(
+            e.starts_with("t.ply: byte 178:") && e.contains("4000000000 'vertex' elements"),
+            "{e}"
+        );
     }
 
     fn sample() -> TriMesh {
         TriMesh {
-            positions: vec![[0.1, -2.0 / 3.0, 1e-300], [f64::MAX, -0.0, 5e-324], [1.0, 1e22, -7.25], [9.0, 9.0, 9.0]],
+            positions: vec![
+                [0.1, -2.0 / 3.0, 1e-300],
+                [f64::MAX, -0.0, 5e-324],
+                [1.0, 1e22, -7.25],
+                [9.0, 9.0, 9.0],
+            ],
             faces: vec![[0, 1, 2], [2, 1, 3]],
             uvs: Some(vec![[0.3, 1.0 / 3.0], [-1e-9, 2.5], [0.0, 1e100], [1.0, 1.0]]),
         }
@@ -904,7 +1001,11 @@ mod tests {
 
     #[test]
     fn round_trip_is_exact_in_all_formats() {
-        for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+        for format in [
+            PlyFormat::Ascii,
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+        ] {
             for mesh in [sample(), TriMesh { uvs: None, ..sample() }] {
                 let mut buf = Vec::new();
                 write_ply_to(&mut buf, &mesh, format).unwrap();
@@ -916,12 +1017,25 @@ mod tests {
     #[test]
     fn truncated_binary_names_element_and_offset() {
         let mut buf = Vec::new();
-        write_ply_to(&mut buf, &TriMesh { uvs: None, ..sample() }, PlyFormat::BinaryLittleEndian).unwrap();
+        write_ply_to(
+            &mut buf,
+            &TriMesh { uvs: None, ..sample() },
+            PlyFormat::BinaryLittleEndian,
+        )
+        .unwrap();
         // Cut inside face 1: the header check passes (lists are counted as empty), the read fails.
         buf.truncate(buf.len() - 3);
         let e = parse(&buf).unwrap_err().to_string();
         assert!(e.contains("face 1: unexpected end of file"), "{e}");
-        let offset: usize = e.split("byte ").nth(1).unwrap().split(':').next().unwrap().parse().unwrap();
+        let offset: usize = e
+            .split("byte ")
+            .nth(1)
+            .unwrap()
+            .split(':')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
         assert_eq!(offset, buf.len() + 3 - 13, "{e}");
     }
 }

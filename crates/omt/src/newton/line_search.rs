@@ -102,8 +102,13 @@ pub(crate) fn damped_step(
 ) -> Result<LineSearchOutcome, OmtError> {
     let mut tau = tau_start.min(1.0);
     let tau_min = 0.5f64.powi(max_halvings.min(1000) as i32);
-    let mut outcome =
-        LineSearchOutcome { accepted: None, rejected_min_mass: 0, rejected_norm: 0, t_diagram: 0.0, t_integration: 0.0 };
+    let mut outcome = LineSearchOutcome {
+        accepted: None,
+        rejected_min_mass: 0,
+        rejected_norm: 0,
+        t_diagram: 0.0,
+        t_integration: 0.0,
+    };
     loop {
         let trial: Vec<f64> = heights.iter().zip(delta).map(|(h, d)| h + tau * d).collect();
         let evaluation = evaluate(backend, points, &trial)?;
@@ -112,7 +117,11 @@ pub(crate) fn damped_step(
         let min_mass = evaluation.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
         let (_, norm, _) = errors(&evaluation.cells, targets);
         if min_mass >= epsilon0 && norm <= (1.0 - 0.5 * tau) * gradient_norm {
-            outcome.accepted = Some(AcceptedStep { heights: trial, evaluation, tau });
+            outcome.accepted = Some(AcceptedStep {
+                heights: trial,
+                evaluation,
+                tau,
+            });
             return Ok(outcome);
         }
         if min_mass < epsilon0 {
@@ -120,7 +129,14 @@ pub(crate) fn damped_step(
         } else {
             outcome.rejected_norm += 1;
         }
-        let next = next_trial(tau, &current.masses, &evaluation.cells.masses, epsilon0, gradient_norm, norm);
+        let next = next_trial(
+            tau,
+            &current.masses,
+            &evaluation.cells.masses,
+            epsilon0,
+            gradient_norm,
+            norm,
+        );
         if next < tau_min {
             return Ok(outcome);
         }

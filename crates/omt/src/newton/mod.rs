@@ -146,7 +146,10 @@ pub enum Start {
     /// `NewtonParams::initial_heights`.
     Warm,
     /// The coarse-to-fine initialization from a subsample of `coarse_points` points.
-    CoarseToFine { coarse_points: usize, coarse_iterations: usize },
+    CoarseToFine {
+        coarse_points: usize,
+        coarse_iterations: usize,
+    },
     /// The Voronoi diagram of the points contracted by `scale` toward the barycenter of Ω (used
     /// when the other start had an empty cell).
     Contracted { scale: f64 },
@@ -255,12 +258,20 @@ impl OtSolution {
 
 /// Power weights w_i = 2h_i + |y_i|² of heights h (#N).
 pub fn weights_from_heights(points: &[[f64; 2]], heights: &[f64]) -> Vec<f64> {
-    points.iter().zip(heights).map(|(y, h)| 2.0 * h + y[0] * y[0] + y[1] * y[1]).collect()
+    points
+        .iter()
+        .zip(heights)
+        .map(|(y, h)| 2.0 * h + y[0] * y[0] + y[1] * y[1])
+        .collect()
 }
 
 /// Heights h_i = (w_i − |y_i|²)/2 of power weights w (#N).
 pub fn heights_from_weights(points: &[[f64; 2]], weights: &[f64]) -> Vec<f64> {
-    points.iter().zip(weights).map(|(y, w)| 0.5 * (w - y[0] * y[0] - y[1] * y[1])).collect()
+    points
+        .iter()
+        .zip(weights)
+        .map(|(y, w)| 0.5 * (w - y[0] * y[0] - y[1] * y[1]))
+        .collect()
 }
 
 /// The Kantorovich energy E(h) = ∫_Ω u_h dμ − Σ ν_i h_i, evaluated exactly from the cell
@@ -309,13 +320,20 @@ impl<'a> Backend<'a> {
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f64]) -> Result<Evaluation, OmtError> {
     let weights = weights_from_heights(points, heights);
     if let Some(i) = weights.iter().position(|w| !w.is_finite()) {
-        return Err(OmtError::InvalidInput(format!("height {i} is not finite ({})", heights[i])));
+        return Err(OmtError::InvalidInput(format!(
+            "height {i} is not finite ({})",
+            heights[i]
+        )));
     }
     match backend {
         Backend::BruteForce(measure) => {
             let t0 = Instant::now();
             let cells = crate::reference::integrate_cells_bruteforce(points, &weights, measure);
-            Ok(Evaluation { cells, t_diagram: 0.0, t_integration: t0.elapsed().as_secs_f64() })
+            Ok(Evaluation {
+                cells,
+                t_diagram: 0.0,
+                t_integration: t0.elapsed().as_secs_f64(),
+            })
         }
         Backend::Restricted(integrator) => {
             let t0 = Instant::now();
@@ -323,7 +341,11 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f6
             let t_diagram = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let cells = integrator.integrate(&diagram);
-            Ok(Evaluation { cells, t_diagram, t_integration: t1.elapsed().as_secs_f64() })
+            Ok(Evaluation {
+                cells,
+                t_diagram,
+                t_integration: t1.elapsed().as_secs_f64(),
+            })
         }
     }
 }
@@ -331,47 +353,80 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f6
 /// max_i |G_i| / ν_i and ‖G‖₂ for G = masses − targets.
 pub(crate) fn errors(cells: &CellIntegrals, targets: &[f64]) -> (f64, f64, Vec<f64>) {
     let gradient: Vec<f64> = cells.masses.iter().zip(targets).map(|(m, t)| m - t).collect();
-    let max_rel = gradient.iter().zip(targets).map(|(g, t)| g.abs() / t).fold(0.0, f64::max);
+    let max_rel = gradient
+        .iter()
+        .zip(targets)
+        .map(|(g, t)| g.abs() / t)
+        .fold(0.0, f64::max);
     let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
     (max_rel, norm, gradient)
 }
 
-fn validate(measure: &SourceMeasure, points: &[[f64; 2]], masses: &[f64], params: &NewtonParams) -> Result<(), OmtError> {
+fn validate(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    params: &NewtonParams,
+) -> Result<(), OmtError> {
     if points.is_empty() {
         return Err(OmtError::InvalidInput("no target point".into()));
     }
     if points.len() != masses.len() {
-        return Err(OmtError::InvalidInput(format!("{} target points but {} masses", points.len(), masses.len())));
+        return Err(OmtError::InvalidInput(format!(
+            "{} target points but {} masses",
+            points.len(),
+            masses.len()
+        )));
     }
     if points.len() > u32::MAX as usize - 1 {
-        return Err(OmtError::InvalidInput(format!("{} target points exceed the u32 index range", points.len())));
+        return Err(OmtError::InvalidInput(format!(
+            "{} target points exceed the u32 index range",
+            points.len()
+        )));
     }
     if let Some(i) = points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
         return Err(OmtError::InvalidInput(format!("target point {i} is not finite")));
     }
     if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
-        return Err(OmtError::InvalidInput(format!("target mass {i} is {} (must be finite and > 0)", masses[i])));
+        return Err(OmtError::InvalidInput(format!(
+            "target mass {i} is {} (must be finite and > 0)",
+            masses[i]
+        )));
     }
     let total = measure.total_mass();
     if !(total.is_finite() && total > 0.0) {
         return Err(OmtError::InvalidInput(format!("source mass is {total}")));
     }
     if !(params.tolerance.is_finite() && params.tolerance > 0.0) {
-        return Err(OmtError::InvalidInput(format!("tolerance {} must be finite and > 0", params.tolerance)));
+        return Err(OmtError::InvalidInput(format!(
+            "tolerance {} must be finite and > 0",
+            params.tolerance
+        )));
     }
     if let Some(h) = &params.initial_heights {
         if h.len() != points.len() {
-            return Err(OmtError::InvalidInput(format!("{} initial heights for {} points", h.len(), points.len())));
+            return Err(OmtError::InvalidInput(format!(
+                "{} initial heights for {} points",
+                h.len(),
+                points.len()
+            )));
         }
         if let Some(i) = h.iter().position(|v| !v.is_finite()) {
             return Err(OmtError::InvalidInput(format!("initial height {i} is not finite")));
         }
     }
     let mut order: Vec<usize> = (0..points.len()).collect();
-    order.sort_unstable_by(|&a, &b| points[a][0].total_cmp(&points[b][0]).then(points[a][1].total_cmp(&points[b][1])));
+    order.sort_unstable_by(|&a, &b| {
+        points[a][0]
+            .total_cmp(&points[b][0])
+            .then(points[a][1].total_cmp(&points[b][1]))
+    });
     for w in order.windows(2) {
         if points[w[0]] == points[w[1]] {
-            return Err(OmtError::DuplicatePoints { i: w[0].min(w[1]), j: w[0].max(w[1]) });
+            return Err(OmtError::DuplicatePoints {
+                i: w[0].min(w[1]),
+                j: w[0].max(w[1]),
+            });
         }
     }
     Ok(())
@@ -384,7 +439,10 @@ fn contracted_voronoi_heights(points: &[[f64; 2]], center: [f64; 2], scale: f64)
     points
         .iter()
         .map(|y| {
-            let z = [center[0] + scale * (y[0] - center[0]), center[1] + scale * (y[1] - center[1])];
+            let z = [
+                center[0] + scale * (y[0] - center[0]),
+                center[1] + scale * (y[1] - center[1]),
+            ];
             -(z[0] * z[0] + z[1] * z[1]) / (2.0 * scale)
         })
         .collect()
@@ -416,7 +474,10 @@ pub fn solve_ot(
 ) -> Result<OtSolution, OmtError> {
     let t_begin = Instant::now();
     validate(measure, points, masses, params)?;
-    let (lo, hi) = measure.densities.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    let (lo, hi) = measure
+        .densities
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
     let contrast = hi / lo;
     if params.coarse_to_fine && params.initial_heights.is_none() {
         let total = measure.total_mass();
@@ -425,10 +486,16 @@ pub fn solve_ot(
         if let Some((heights, coarse_points, coarse_iterations)) =
             multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
         {
-            let fine_params = NewtonParams { initial_heights: Some(heights), ..params.clone() };
+            let fine_params = NewtonParams {
+                initial_heights: Some(heights),
+                ..params.clone()
+            };
             let mut solution = solve_single(measure, points, masses, &fine_params, t_begin)?;
             if solution.start == Start::Warm {
-                solution.start = Start::CoarseToFine { coarse_points, coarse_iterations };
+                solution.start = Start::CoarseToFine {
+                    coarse_points,
+                    coarse_iterations,
+                };
             }
             return Ok(solution);
         }
@@ -470,7 +537,11 @@ pub fn solve_ot(
         log.extend(stage.log);
         heights = Some(stage.heights);
     }
-    let final_params = NewtonParams { initial_heights: heights, density_continuation: None, ..params.clone() };
+    let final_params = NewtonParams {
+        initial_heights: heights,
+        density_continuation: None,
+        ..params.clone()
+    };
     let mut solution = solve_single(measure, points, masses, &final_params, Instant::now())?;
     solution.start = Start::DensityContinuation { stages, iterations };
     solution.iterations += iterations;
@@ -491,11 +562,27 @@ fn solve_mass_continuation(
     t_begin: Instant,
 ) -> Result<OtSolution, OmtError> {
     if !(ratio > 1.0 && ratio.is_finite()) {
-        return Err(OmtError::InvalidInput(format!("mass continuation ratio {ratio} (must be finite and > 1)")));
+        return Err(OmtError::InvalidInput(format!(
+            "mass continuation ratio {ratio} (must be finite and > 1)"
+        )));
     }
-    let base = NewtonParams { mass_continuation: None, density_continuation: None, initial_heights: None, ..params.clone() };
+    let base = NewtonParams {
+        mass_continuation: None,
+        density_continuation: None,
+        initial_heights: None,
+        ..params.clone()
+    };
     // The start alone (no step): its cell masses m⁰ are all > 0.
-    let start = solve_single(measure, points, masses, &NewtonParams { max_iterations: 0, ..base.clone() }, Instant::now())?;
+    let start = solve_single(
+        measure,
+        points,
+        masses,
+        &NewtonParams {
+            max_iterations: 0,
+            ..base.clone()
+        },
+        Instant::now(),
+    )?;
     let m0 = start.cells.masses.clone();
     let targets = &start.target_masses;
     let mut heights = start.heights;
@@ -516,9 +603,17 @@ fn solve_mass_continuation(
         }
         let last = t_next >= 1.0;
         let t_stage = if last { 1.0 } else { t_next };
-        let stage_targets: Vec<f64> = m0.iter().zip(targets).map(|(&a, &b)| (1.0 - t_stage) * a + t_stage * b).collect();
+        let stage_targets: Vec<f64> = m0
+            .iter()
+            .zip(targets)
+            .map(|(&a, &b)| (1.0 - t_stage) * a + t_stage * b)
+            .collect();
         let stage_params = NewtonParams {
-            tolerance: if last { params.tolerance } else { params.tolerance.max(1e-3) },
+            tolerance: if last {
+                params.tolerance
+            } else {
+                params.tolerance.max(1e-3)
+            },
             initial_heights: Some(heights),
             ..base.clone()
         };
@@ -532,7 +627,10 @@ fn solve_mass_continuation(
             stage.log = log;
             if !last {
                 stage.stop = StopReason::Stalled {
-                    reason: format!("mass continuation stage {stages} at t = {t_stage:.3e} stopped: {}", stage.stop),
+                    reason: format!(
+                        "mass continuation stage {stages} at t = {t_stage:.3e} stopped: {}",
+                        stage.stop
+                    ),
                 };
             }
             stage.target_masses = targets.clone();
@@ -589,7 +687,11 @@ fn solve_single(
                 ));
             }
         }
-        start = if scale == 1.0 { Start::Voronoi } else { Start::Contracted { scale } };
+        start = if scale == 1.0 {
+            Start::Voronoi
+        } else {
+            Start::Contracted { scale }
+        };
     }
     let t_start = t_begin.elapsed().as_secs_f64();
 
@@ -606,7 +708,9 @@ fn solve_single(
     let mut tau_start = 1.0;
     loop {
         if !(max_rel.is_finite() && norm.is_finite()) {
-            stop = StopReason::Stalled { reason: "non-finite cell masses".into() };
+            stop = StopReason::Stalled {
+                reason: "non-finite cell masses".into(),
+            };
             break;
         }
         if max_rel <= params.tolerance {
@@ -621,7 +725,9 @@ fn solve_single(
         let delta = system.newton_direction(points, &current.cells, &gradient)?;
         let t_solve = t_solve.elapsed().as_secs_f64();
         if delta.iter().any(|d| !d.is_finite()) {
-            stop = StopReason::Stalled { reason: "the Newton direction is not finite".into() };
+            stop = StopReason::Stalled {
+                reason: "the Newton direction is not finite".into(),
+            };
             break;
         }
         let outcome = line_search::damped_step(
@@ -656,7 +762,11 @@ fn solve_single(
                 current = step.evaluation;
                 (max_rel, norm, gradient) = errors(&current.cells, &targets);
                 record.step = step.tau;
-                let growth = if outcome.rejected_min_mass + outcome.rejected_norm == 0 { TAU_GROWTH_FREE } else { TAU_GROWTH };
+                let growth = if outcome.rejected_min_mass + outcome.rejected_norm == 0 {
+                    TAU_GROWTH_FREE
+                } else {
+                    TAU_GROWTH
+                };
                 tau_start = (growth * step.tau).min(1.0);
                 record.max_relative_error = max_rel;
                 record.gradient_norm = norm;

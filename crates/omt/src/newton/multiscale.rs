@@ -54,12 +54,19 @@ pub fn nearest_points(sites: &[[f64; 2]], queries: &[[f64; 2]]) -> Vec<usize> {
         }
     }
     let side = (((hi[0] - lo[0]) * (hi[1] - lo[1])).max(0.0) / sites.len() as f64).sqrt();
-    let side = if side > 0.0 { side } else { (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-300) / sites.len() as f64 };
+    let side = if side > 0.0 {
+        side
+    } else {
+        (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-300) / sites.len() as f64
+    };
     let dims = [
         (((hi[0] - lo[0]) / side) as usize + 1).min(1 << 12),
         (((hi[1] - lo[1]) / side) as usize + 1).min(1 << 12),
     ];
-    let cell_size = [(hi[0] - lo[0]).max(1e-300) / dims[0] as f64, (hi[1] - lo[1]).max(1e-300) / dims[1] as f64];
+    let cell_size = [
+        (hi[0] - lo[0]).max(1e-300) / dims[0] as f64,
+        (hi[1] - lo[1]).max(1e-300) / dims[1] as f64,
+    ];
     let bucket = |p: [f64; 2]| -> [i64; 2] {
         [
             (((p[0] - lo[0]) / cell_size[0]).floor() as i64).clamp(0, dims[0] as i64 - 1),
@@ -171,10 +178,15 @@ pub(crate) fn coarse_to_fine_heights(
                 return 1.0;
             }
             let yc = coarse_points[c];
-            let about_centroid = solution.cells.second_moments[c] - m * ((xc[0] - yc[0]).powi(2) + (xc[1] - yc[1]).powi(2));
+            let about_centroid =
+                solution.cells.second_moments[c] - m * ((xc[0] - yc[0]).powi(2) + (xc[1] - yc[1]).powi(2));
             let r_cell = (about_centroid.max(0.0) / m).sqrt();
             cell_radii[c] = r_cell;
-            if r_cell > 0.0 { r_cell / r_children } else { 1.0 }
+            if r_cell > 0.0 {
+                r_cell / r_children
+            } else {
+                1.0
+            }
         })
         .collect();
     let anchor = |i: usize| {
@@ -211,7 +223,9 @@ pub(crate) fn coarse_to_fine_heights(
                 }
                 let gap = [points[i][0] - points[j][0], points[i][1] - points[j][1]];
                 let margin = 0.1 * cell_radii[c] * gap[0].hypot(gap[1]);
-                heights[i] = z[0] * points[j][0] + z[1] * points[j][1] + heights[j] - (z[0] * points[i][0] + z[1] * points[i][1]) + margin;
+                heights[i] = z[0] * points[j][0] + z[1] * points[j][1] + heights[j]
+                    - (z[0] * points[i][0] + z[1] * points[i][1])
+                    + margin;
             }
         }
     }
