@@ -345,3 +345,37 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     let ac = run.matrix.get(0, 3);
     assert!((ac - direct).abs() <= 1e-9 * direct, "{ac} vs {direct}");
 }
+
+/// When the direct solve stops short, `directed_distance` falls back to a density continuation
+/// from scratch, counts the steps of both and says so in the status.
+#[test]
+fn a_direct_solve_that_stops_short_falls_back_and_says_so() {
+    let cap = spherical_cap(std::f64::consts::FRAC_PI_2, 12);
+    let disk = unit_disk(12);
+    let (a, b) = (
+        prepared("cap", &cap, &pole_markers(&cap)),
+        prepared("disk", &disk, &pole_markers(&disk)),
+    );
+    let full = NewtonParams::default();
+    let (reference, _) = directed_distance(&a, &b, &full).unwrap();
+    assert!(
+        reference.converged && reference.status == "converged",
+        "{}",
+        reference.status
+    );
+    // One step is too few for the direct solve (it needs several); the fallback gets the same cap
+    // per stage and stops short too: the outcome is reported, not hidden.
+    let short = NewtonParams {
+        max_iterations: 1,
+        density_continuation: Some(1.2),
+        ..NewtonParams::default()
+    };
+    let (d, _) = directed_distance(&a, &b, &short).unwrap();
+    assert!(!d.converged);
+    assert!(
+        d.status.contains("after a direct solve that stopped: iteration cap"),
+        "{}",
+        d.status
+    );
+    assert!(d.iterations > 1, "{} steps counted", d.iterations);
+}
