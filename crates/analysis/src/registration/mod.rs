@@ -356,9 +356,12 @@ pub fn register(
     params: &RegistrationParams,
 ) -> Result<Registration, AnalysisError> {
     check_landmarks(source, target, landmarks)?;
-    let phi1 = disk_image(source, &params.source_markers, params.method, &params.area_preserving)?;
-    let phi2 = disk_image(target, &params.target_markers, params.method, &params.area_preserving)?;
-    register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
+    // The two disk maps are independent: compute them in parallel.
+    let (phi1, phi2) = rayon::join(
+        || disk_image(source, &params.source_markers, params.method, &params.area_preserving),
+        || disk_image(target, &params.target_markers, params.method, &params.area_preserving),
+    );
+    register_with_maps(source, target, &phi1?, &phi2?, landmarks, &params.harmonic)
 }
 
 fn check_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
