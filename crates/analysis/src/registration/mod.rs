@@ -400,6 +400,7 @@ pub fn register_with_maps(
     // φ₁(l1_k) → φ₂(l2_k), step s solved with the weights of the previous step's layout
     let solve_in_steps = |steps: usize| -> Result<Vec<[f64; 2]>, AnalysisError> {
         let mut uv = phi1.uv.clone();
+        let mut cache = None;
         for s in 1..=steps {
             let t = s as f64 / steps as f64;
             let pins: Vec<(u32, [f64; 2])> = landmarks
@@ -417,7 +418,7 @@ pub fn register_with_maps(
                     )
                 })
                 .collect();
-            uv = harmonic_step(source, &uv, &boundary, pins, harmonic.weights)?;
+            uv = harmonic_step(source, &uv, &boundary, pins, harmonic.weights, &mut cache)?;
         }
         Ok(uv)
     };
@@ -506,6 +507,7 @@ fn harmonic_step(
     boundary: &[(u32, [f64; 2])],
     pins: Vec<(u32, [f64; 2])>,
     weights: HarmonicWeights,
+    cache: &mut Option<SymbolicLuCache>,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
     match weights {
         HarmonicWeights::IntrinsicDelaunay => {
@@ -515,8 +517,10 @@ fn harmonic_step(
             };
             harmonic_map(layout, &source.faces, &constraints).map_err(AnalysisError::DiskMap)
         }
-        HarmonicWeights::Planar => planar_harmonic_map(layout, &source.faces, boundary, &pins, false),
-        HarmonicWeights::PlanarClamped => planar_harmonic_map(layout, &source.faces, boundary, &pins, true),
+        HarmonicWeights::Planar => planar_harmonic_map_reusing(layout, &source.faces, boundary, &pins, false, cache),
+        HarmonicWeights::PlanarClamped => {
+            planar_harmonic_map_reusing(layout, &source.faces, boundary, &pins, true, cache)
+        }
         HarmonicWeights::MeanValue => {
             let mut fixed: Vec<Option<[f64; 2]>> = vec![None; source.num_vertices()];
             for &(v, p) in boundary.iter().chain(&pins) {
@@ -541,7 +545,30 @@ pub fn planar_harmonic_map(
     pins: &[(u32, [f64; 2])],
     clamp_negative: bool,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
+    planar_harmonic_map_reusing(positions, faces, fixed, pins, clamp_negative, &mut None)
+}
+
+/// A symbolic LU factorization with the sparsity pattern (column pointers, row indices) it was
+/// computed for.
+struct SymbolicLuCache {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    symbolic: faer::sparse::linalg::solvers::SymbolicLu<usize>,
+}
+
+/// [`planar_harmonic_map`] reusing the symbolic LU factorization in `symbolic` when the
+/// system's sparsity pattern is the one it was made for (same faces and constrained vertices:
+/// the landmark steps), and storing the new one otherwise.
+fn planar_harmonic_map_reusing(
+    positions: &[[f64; 2]],
+    faces: &[[u32; 3]],
+    fixed: &[(u32, [f64; 2])],
+    pins: &[(u32, [f64; 2])],
+    clamp_negative: bool,
+    cache: &mut Option<SymbolicLuCache>,
+) -> Result<Vec<[f64; 2]>, AnalysisError> {
     use faer::linalg::solvers::Solve;
+    use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
     let n = positions.len();
     let mut target: Vec<Option<[f64; 2]>> = vec![None; n];
     for &(v, p) in fixed.iter().chain(pins) {
@@ -577,10 +604,13 @@ pub fn planar_harmonic_map(
                 [positions[j][0] - positions[o][0], positions[j][1] - positions[o][1]],
             );
             let cross = u[0] * v[1] - u[1] * v[0];
-            if cross == 0.0 {
-                continue;
-            }
-            edges.push((i.min(j), i.max(j), 0.5 * (u[0] * v[0] + u[1] * v[1]) / cross));
+            // a degenerate face contributes nothing, but its edges stay in the pattern
+            let w = if cross == 0.0 {
+                0.0
+            } else {
+                0.5 * (u[0] * v[0] + u[1] * v[1]) / cross
+            };
+            edges.push((i.min(j), i.max(j), w));
         }
     }
     edges.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
@@ -594,10 +624,8 @@ pub fn planar_harmonic_map(
     let mut trip = Vec::with_capacity(4 * merged.len());
     let mut rhs = faer::Mat::<f64>::zeros(m, 2);
     for (i, j, w) in merged {
+        // zero weights are kept as explicit entries: the pattern depends on the mesh only
         let w = if clamp_negative { w.max(0.0) } else { w };
-        if w == 0.0 {
-            continue;
-        }
         for (a, b) in [(i, j), (j, i)] {
             if index[a] == usize::MAX {
                 continue;
@@ -613,9 +641,25 @@ pub fn planar_harmonic_map(
     }
     let a = faer::sparse::SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
         .map_err(|e| AnalysisError::InvalidInput(format!("harmonic map: assembling the Laplacian: {e:?}")))?;
-    let lu = a
-        .sp_lu()
-        .map_err(|e| AnalysisError::InvalidInput(format!("harmonic map: LU of the planar Laplacian: {e:?}")))?;
+    let lu_error = |e: String| AnalysisError::InvalidInput(format!("harmonic map: LU of the planar Laplacian: {e}"));
+    let pattern = a.symbolic();
+    let reusable = cache
+        .as_ref()
+        .filter(|c| c.col_ptr == pattern.col_ptr() && c.row_idx == pattern.row_idx())
+        .map(|c| c.symbolic.clone());
+    let symbolic = match reusable {
+        Some(symbolic) => symbolic,
+        None => {
+            let symbolic = SymbolicLu::try_new(pattern).map_err(|e| lu_error(format!("{e:?}")))?;
+            *cache = Some(SymbolicLuCache {
+                col_ptr: pattern.col_ptr().to_vec(),
+                row_idx: pattern.row_idx().to_vec(),
+                symbolic: symbolic.clone(),
+            });
+            symbolic
+        }
+    };
+    let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref()).map_err(|e| lu_error(format!("{e:?}")))?;
     lu.solve_in_place(rhs.as_mut());
     for v in 0..n {
         if index[v] != usize::MAX {
