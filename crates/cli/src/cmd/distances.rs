@@ -144,27 +144,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
 /// MDS + statistics on `out/distances.csv`.
 pub fn mds(out: &std::path::Path, labels: Option<&std::path::Path>, _solver: &SolverArgs) -> anyhow::Result<()> {
     let result = run_mds(&out.join("distances.csv"), labels, out, &MdsParams::default()).context("mds")?;
-    for (col, s) in &result.stats.labels {
-        eprintln!(
-            "mds: {col}: 1-NN LOO accuracy {}, silhouette {}",
-            s.loo_1nn.accuracy.map_or("n/a".into(), |a| format!(
-                "{:.3} ({}/{})",
-                a, s.loo_1nn.correct, s.loo_1nn.total
-            )),
-            s.silhouette.map_or("n/a".into(), |v| format!("{v:.3}"))
-        );
-    }
-    for c in &result.stats.cross {
-        if let Some(a) = c.loo_1nn.accuracy {
-            eprintln!(
-                "mds: {} (neighbour with another {}): 1-NN accuracy {:.3}",
-                c.target, c.exclude_same, a
-            );
-        }
-    }
-    for f in &result.files {
-        eprintln!("mds: wrote {}", f.display());
-    }
+    super::mds::print_summary(&result);
     Ok(())
 }
 

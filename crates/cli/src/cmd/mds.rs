@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use shapespace_analysis::shape_space::{run_mds, MdsParams};
+use shapespace_analysis::shape_space::{run_mds, MdsParams, MdsResult};
 
 /// Arguments of `shapespace mds`.
 #[derive(clap::Args)]
@@ -38,6 +38,12 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
     };
     let result = run_mds(&args.distances, args.labels.as_deref(), &args.out, &params)
         .with_context(|| format!("mds of {}", args.distances.display()))?;
+    print_summary(&result);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Prints the embedding's variance shares, the label statistics and the files written (stderr).
+pub fn print_summary(result: &MdsResult) {
     let shares: Vec<String> = result
         .mds
         .variance_shares
@@ -61,8 +67,15 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
             s.silhouette.map_or("n/a".into(), |v| format!("{v:.3}"))
         );
     }
+    for c in &result.stats.cross {
+        if let Some(a) = c.loo_1nn.accuracy {
+            eprintln!(
+                "mds: {} (neighbour with another {}): 1-NN accuracy {:.3}",
+                c.target, c.exclude_same, a
+            );
+        }
+    }
     for file in &result.files {
         eprintln!("mds: wrote {}", file.display());
     }
-    Ok(ExitCode::SUCCESS)
 }
