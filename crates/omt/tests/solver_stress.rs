@@ -136,6 +136,12 @@ fn mass_continuation_reaches_the_direct_solution() {
         ref other => panic!("start {other:?}"),
     };
     assert!(stages >= 3, "{stages} stages");
+    // every stage's evaluations are counted, and each step evaluates at least once
+    assert!(
+        continued.evaluations > continued.iterations,
+        "{} evaluations",
+        continued.evaluations
+    );
     assert!(
         (continued.cost - direct.cost).abs() <= 1e-6 * direct.cost,
         "{} vs {}",

@@ -587,6 +587,7 @@ fn solve_mass_continuation(
     let targets = &start.target_masses;
     let mut heights = start.heights;
     let (mut t, mut stages, mut iterations, mut log) = (0.0f64, 0usize, 0usize, Vec::new());
+    let mut evaluations = start.evaluations;
     loop {
         // The largest t' ≤ 1 with ν_i(t') / ν_i(t) ∈ [1/r, r] for all i (ν_i(t) is linear in t).
         let mut t_next = 1.0f64;
@@ -623,6 +624,7 @@ fn solve_mass_continuation(
             // The final problem, or an intermediate stage that failed (reported as it stopped).
             stage.start = Start::MassContinuation { stages, iterations };
             stage.iterations += iterations;
+            stage.evaluations += evaluations;
             log.append(&mut stage.log);
             stage.log = log;
             if !last {
@@ -639,6 +641,7 @@ fn solve_mass_continuation(
             return Ok(stage);
         }
         iterations += stage.iterations;
+        evaluations += stage.evaluations;
         log.append(&mut stage.log);
         heights = stage.heights;
         t = t_stage;
