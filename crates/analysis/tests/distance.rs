@@ -325,22 +325,13 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         "{json}"
     );
     // The good entries agree with a direct computation.
-    let a = prepared(
-        "a",
-        &spherical_cap(1.0, 10),
-        &Markers {
-            center: CenterMarker::Vertex(0),
-            boundary: BoundaryMarker::Auto,
-        },
-    );
-    let c = prepared(
-        "c",
-        &spherical_cap(2.0, 10),
-        &Markers {
-            center: CenterMarker::Vertex(0),
-            boundary: BoundaryMarker::Auto,
-        },
-    );
+    // the markers of the sidecar files written above
+    let markers = Markers {
+        center: CenterMarker::Vertex(0),
+        boundary: BoundaryMarker::Auto,
+    };
+    let a = prepared("a", &spherical_cap(1.0, 10), &markers);
+    let c = prepared("c", &spherical_cap(2.0, 10), &markers);
     let direct = cost(&a, &c).sqrt();
     let ac = run.matrix.get(0, 3);
     assert!((ac - direct).abs() <= 1e-9 * direct, "{ac} vs {direct}");

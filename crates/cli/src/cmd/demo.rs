@@ -41,6 +41,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     );
     let run = compute(&files, &args.out, &args.solver)?;
     let labels = args.data.join("labels.csv");
-    mds(&args.out, labels.is_file().then_some(labels.as_path()), &args.solver)?;
+    mds(&args.out, labels.is_file().then_some(labels.as_path()))?;
     Ok(exit_code(&run))
 }

@@ -60,7 +60,7 @@ pub struct DistancesArgs {
 pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
     let run = compute(&args.files, &args.out, &args.solver)?;
     if args.mds {
-        mds(&args.out, args.labels.as_deref(), &args.solver)?;
+        mds(&args.out, args.labels.as_deref())?;
     }
     Ok(exit_code(&run))
 }
@@ -142,7 +142,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
 }
 
 /// MDS + statistics on `out/distances.csv`.
-pub fn mds(out: &std::path::Path, labels: Option<&std::path::Path>, _solver: &SolverArgs) -> anyhow::Result<()> {
+pub fn mds(out: &std::path::Path, labels: Option<&std::path::Path>) -> anyhow::Result<()> {
     let result = run_mds(&out.join("distances.csv"), labels, out, &MdsParams::default()).context("mds")?;
     super::mds::print_summary(&result);
     Ok(())
