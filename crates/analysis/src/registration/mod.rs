@@ -66,7 +66,8 @@ pub enum HarmonicWeights {
     /// The cotangent weights of the planar mesh φ₁(S₁) itself, with signed angles (a folded
     /// face of φ₁ contributes negative cotangents). Linear precision holds for any planar
     /// configuration, folds included, so with landmarks that agree with φ₁ g is exactly the
-    /// identity. Solved by sparse LU (the matrix need not be definite). Default.
+    /// identity. Solved by sparse Cholesky, with an LU fallback when folds make the matrix
+    /// indefinite. Default.
     #[default]
     Planar,
     /// The planar cotangent weights with every negative edge weight (obtuse pairs of angles,
@@ -507,7 +508,7 @@ fn harmonic_step(
     boundary: &[(u32, [f64; 2])],
     pins: Vec<(u32, [f64; 2])>,
     weights: HarmonicWeights,
-    cache: &mut Option<SymbolicLuCache>,
+    cache: &mut Option<SymbolicCache>,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
     match weights {
         HarmonicWeights::IntrinsicDelaunay => {
@@ -535,7 +536,7 @@ fn harmonic_step(
 /// weights of the planar triangles themselves (signed: cot θ = (u·v)/(u×v) with the signed cross
 /// product, so folded faces give negative cotangents): (L g)_i = 0 at free vertices, g fixed at
 /// the `fixed` vertices (boundary) and `pins` (landmarks). #V image positions. Solved by sparse
-/// LU. With `clamp_negative`, every edge weight (the sum of the two half-cotangents at the edge)
+/// Cholesky, or LU when the system is indefinite (folded faces). With `clamp_negative`, every edge weight (the sum of the two half-cotangents at the edge)
 /// below 0 is set to 0 ([`HarmonicWeights::PlanarClamped`]). Errors: a vertex constrained
 /// twice, a singular system.
 pub fn planar_harmonic_map(
@@ -548,27 +549,35 @@ pub fn planar_harmonic_map(
     planar_harmonic_map_reusing(positions, faces, fixed, pins, clamp_negative, &mut None)
 }
 
-/// A symbolic LU factorization with the sparsity pattern (column pointers, row indices) it was
-/// computed for.
-struct SymbolicLuCache {
+/// Symbolic factorizations of the planar Laplacian for the sparsity pattern (column pointers,
+/// row indices of the full matrix) they were computed for: Cholesky of the lower triangle, and
+/// LU once a Cholesky failed (an indefinite system).
+struct SymbolicCache {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
-    symbolic: faer::sparse::linalg::solvers::SymbolicLu<usize>,
+    llt: faer::sparse::linalg::solvers::SymbolicLlt<usize>,
+    lu: Option<faer::sparse::linalg::solvers::SymbolicLu<usize>>,
 }
 
-/// [`planar_harmonic_map`] reusing the symbolic LU factorization in `symbolic` when the
-/// system's sparsity pattern is the one it was made for (same faces and constrained vertices:
-/// the landmark steps), and storing the new one otherwise.
+/// [`planar_harmonic_map`] reusing the symbolic factorizations in `cache` when the system's
+/// sparsity pattern is the one they were made for (same faces and constrained vertices: the
+/// landmark steps), and storing new ones otherwise.
+///
+/// The reduced system is the P1 stiffness matrix of the layout with Dirichlet rows removed:
+/// symmetric, and positive definite when no face is folded (cotangent Laplacian = FEM stiffness,
+/// positive semidefinite per unfolded triangle, definite once some vertex of every component is
+/// fixed). It is solved by sparse Cholesky (about half the work of LU); a folded layout can make
+/// it indefinite, and then a failed Cholesky falls back to LU.
 fn planar_harmonic_map_reusing(
     positions: &[[f64; 2]],
     faces: &[[u32; 3]],
     fixed: &[(u32, [f64; 2])],
     pins: &[(u32, [f64; 2])],
     clamp_negative: bool,
-    cache: &mut Option<SymbolicLuCache>,
+    cache: &mut Option<SymbolicCache>,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
     use faer::linalg::solvers::Solve;
-    use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+    use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt, SymbolicLu};
     let n = positions.len();
     let mut target: Vec<Option<[f64; 2]>> = vec![None; n];
     for &(v, p) in fixed.iter().chain(pins) {
@@ -641,26 +650,43 @@ fn planar_harmonic_map_reusing(
     }
     let a = faer::sparse::SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
         .map_err(|e| AnalysisError::InvalidInput(format!("harmonic map: assembling the Laplacian: {e:?}")))?;
-    let lu_error = |e: String| AnalysisError::InvalidInput(format!("harmonic map: LU of the planar Laplacian: {e}"));
+    let solver_error = |what: &str, e: String| {
+        AnalysisError::InvalidInput(format!("harmonic map: {what} of the planar Laplacian: {e}"))
+    };
     let pattern = a.symbolic();
     let reusable = cache
-        .as_ref()
-        .filter(|c| c.col_ptr == pattern.col_ptr() && c.row_idx == pattern.row_idx())
-        .map(|c| c.symbolic.clone());
-    let symbolic = match reusable {
-        Some(symbolic) => symbolic,
+        .as_mut()
+        .filter(|c| c.col_ptr == pattern.col_ptr() && c.row_idx == pattern.row_idx());
+    let entry = match reusable {
+        Some(entry) => entry,
         None => {
-            let symbolic = SymbolicLu::try_new(pattern).map_err(|e| lu_error(format!("{e:?}")))?;
-            *cache = Some(SymbolicLuCache {
+            let llt = SymbolicLlt::try_new(pattern, faer::Side::Lower)
+                .map_err(|e| solver_error("symbolic Cholesky", format!("{e:?}")))?;
+            cache.insert(SymbolicCache {
                 col_ptr: pattern.col_ptr().to_vec(),
                 row_idx: pattern.row_idx().to_vec(),
-                symbolic: symbolic.clone(),
-            });
-            symbolic
+                llt,
+                lu: None,
+            })
         }
     };
-    let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref()).map_err(|e| lu_error(format!("{e:?}")))?;
-    lu.solve_in_place(rhs.as_mut());
+    // faer's Cholesky with Side::Lower reads the lower triangle of the (symmetric) matrix
+    match Llt::try_new_with_symbolic(entry.llt.clone(), a.as_ref(), faer::Side::Lower) {
+        Ok(llt) => llt.solve_in_place(rhs.as_mut()),
+        Err(_) => {
+            let symbolic = match &entry.lu {
+                Some(lu) => lu.clone(),
+                None => {
+                    let lu = SymbolicLu::try_new(pattern).map_err(|e| solver_error("symbolic LU", format!("{e:?}")))?;
+                    entry.lu = Some(lu.clone());
+                    lu
+                }
+            };
+            let lu =
+                Lu::try_new_with_symbolic(symbolic, a.as_ref()).map_err(|e| solver_error("LU", format!("{e:?}")))?;
+            lu.solve_in_place(rhs.as_mut());
+        }
+    }
     for v in 0..n {
         if index[v] != usize::MAX {
             let p = [rhs[(index[v], 0)], rhs[(index[v], 1)]];
@@ -673,4 +699,115 @@ fn planar_harmonic_map_reusing(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A (2k+1)² grid on [−1, 1]², split along alternating diagonals; #V positions and faces.
+    fn grid(k: usize) -> (Vec<[f64; 2]>, Vec<[u32; 3]>, Vec<u32>) {
+        let m = 2 * k + 1;
+        let mut positions = Vec::new();
+        for j in 0..m {
+            for i in 0..m {
+                let (x, y) = (i as f64 / k as f64 - 1.0, j as f64 / k as f64 - 1.0);
+                // a smooth interior warp (no fold) so that the cotangents are not all equal
+                positions.push([x + 0.1 * (1.0 - x * x) * y, y + 0.05 * (1.0 - y * y) * x * x]);
+            }
+        }
+        let id = |i: usize, j: usize| (j * m + i) as u32;
+        let mut faces = Vec::new();
+        for j in 0..m - 1 {
+            for i in 0..m - 1 {
+                if (i + j) % 2 == 0 {
+                    faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                    faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+                } else {
+                    faces.push([id(i, j), id(i + 1, j), id(i, j + 1)]);
+                    faces.push([id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+                }
+            }
+        }
+        let boundary = (0..m * m)
+            .filter(|&v| {
+                let (i, j) = (v % m, v / m);
+                i == 0 || j == 0 || i == m - 1 || j == m - 1
+            })
+            .map(|v| v as u32)
+            .collect();
+        (positions, faces, boundary)
+    }
+
+    fn affine(p: [f64; 2]) -> [f64; 2] {
+        [0.3 + 1.2 * p[0] - 0.4 * p[1], -0.1 + 0.5 * p[0] + 0.9 * p[1]]
+    }
+
+    /// Linear precision of the planar cotangent weights: boundary and pin values taken from an
+    /// affine map A give A at every vertex, whether the system is definite (Cholesky) or a fold
+    /// makes it indefinite (LU fallback); the cached factorizations give the same answer.
+    #[test]
+    fn planar_harmonic_map_reproduces_affine_maps_through_both_solvers() {
+        let (mut positions, faces, boundary) = grid(6);
+        let fixed: Vec<(u32, [f64; 2])> = boundary.iter().map(|&v| (v, affine(positions[v as usize]))).collect();
+        let pin = 3 * 13 + 4;
+        let check = |positions: &[[f64; 2]], cache: &mut Option<SymbolicCache>| {
+            let pins = vec![(pin as u32, affine(positions[pin]))];
+            let uv = planar_harmonic_map_reusing(positions, &faces, &fixed, &pins, false, cache).unwrap();
+            let err = positions
+                .iter()
+                .zip(&uv)
+                .map(|(p, q)| {
+                    let a = affine(*p);
+                    (a[0] - q[0]).hypot(a[1] - q[1])
+                })
+                .fold(0.0f64, f64::max);
+            assert!(err < 1e-12, "affine map reproduced to {err:e}");
+        };
+        let mut cache = None;
+        check(&positions, &mut cache);
+        assert!(
+            cache.as_ref().unwrap().lu.is_none(),
+            "unfolded layout: Cholesky succeeded"
+        );
+        check(&positions, &mut cache);
+
+        // push an interior vertex far across its neighbours: its faces fold and the sum of its
+        // edge weights (its diagonal entry) becomes negative, so the matrix is not definite
+        let v = 6 * 13 + 6;
+        positions[v] = [positions[v][0] + 0.45, positions[v][1] + 0.41];
+        let diagonal: f64 = faces
+            .iter()
+            .filter(|f| f.contains(&(v as u32)))
+            .map(|f| {
+                let k = f.iter().position(|&w| w == v as u32).unwrap();
+                // the two angles opposite the edges at v are at the other two corners
+                let mut sum = 0.0;
+                for o in [f[(k + 1) % 3], f[(k + 2) % 3]] {
+                    let other = f.iter().copied().find(|&w| w != o && w != v as u32).unwrap();
+                    let (po, pv, pw) = (positions[o as usize], positions[v], positions[other as usize]);
+                    let (a, b) = ([pv[0] - po[0], pv[1] - po[1]], [pw[0] - po[0], pw[1] - po[1]]);
+                    let cross = a[0] * b[1] - a[1] * b[0];
+                    // orientation of the face (o, v, other) as it appears in f
+                    let sign = if f[(f.iter().position(|&w| w == o).unwrap() + 1) % 3] == v as u32 {
+                        1.0
+                    } else {
+                        -1.0
+                    };
+                    sum += 0.5 * (a[0] * b[0] + a[1] * b[1]) / (sign * cross);
+                }
+                sum
+            })
+            .sum();
+        assert!(
+            diagonal < 0.0,
+            "the test layout must make the diagonal negative ({diagonal})"
+        );
+        let mut cache = None;
+        check(&positions, &mut cache);
+        assert!(
+            cache.as_ref().unwrap().lu.is_some(),
+            "indefinite system: LU fallback used"
+        );
+    }
 }
