@@ -75,6 +75,27 @@ fn points_outside_the_domain() {
     check("outside", &sol, 1e-6);
 }
 
+/// 40 points 1e−15 apart (a few ulps of their coordinates) beside 200 well-spread ones: their
+/// cells cannot get positive masses in f64, contraction cannot cure it, and the error says so
+/// (crowding, with the spacing) instead of blaming points outside the domain.
+#[test]
+fn points_crowded_beyond_double_precision_give_a_clear_error() {
+    let measure = SourceMeasure::unit_disk(128).unwrap();
+    let mut points = sunflower(200, 0.95);
+    for k in 0..40 {
+        let t = k as f64 * 1e-15;
+        points.push([0.31 + t, 0.17 - 0.5 * t]);
+    }
+    let err = solve_ot(&measure, &points, &vec![1.0; points.len()], &NewtonParams::default()).unwrap_err();
+    let msg = err.to_string();
+    eprintln!("{msg}");
+    assert!(msg.contains("too crowded for double precision"), "{msg}");
+    assert!(
+        msg.contains("1.1") || msg.contains("e-15") || msg.contains("e-16"),
+        "{msg}"
+    );
+}
+
 /// Masses summing to (1 + 1e−9)·μ(Ω) are rescaled by 1/(1 + 1e−9).
 #[test]
 fn masses_off_by_1e9_are_rescaled() {

@@ -448,6 +448,61 @@ fn contracted_voronoi_heights(points: &[[f64; 2]], center: [f64; 2], scale: f64)
         .collect()
 }
 
+/// Componentwise minimum and maximum of `points` (non-empty).
+fn bounding_box(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    points
+        .iter()
+        .fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
+            ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+        })
+}
+
+/// The error message when no start has all cells non-empty: how many cells were empty at the
+/// Voronoi start (`empty`, indices), the smallest distance from one of their points to another
+/// point, and the likely cause. Points closer than ~1e−9 of Ω's extent get cells whose masses
+/// (areas ~ spacing²) and bisector offsets (height differences ~ spacing × cell size) are below
+/// what f64 heights of order one resolve: typical of conformal images of long protrusions.
+fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f64; 2], scale: f64) -> String {
+    let extent = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
+    // nearest neighbour of each empty cell's point: a sweep over the points sorted by x
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
+    let mut rank = vec![0usize; points.len()];
+    for (r, &i) in order.iter().enumerate() {
+        rank[i] = r;
+    }
+    let mut closest = f64::INFINITY;
+    for &i in empty {
+        let p = points[i];
+        let mut best = f64::INFINITY;
+        for dir in [-1isize, 1] {
+            let mut r = rank[i] as isize + dir;
+            while r >= 0 && (r as usize) < order.len() {
+                let q = points[order[r as usize]];
+                if (q[0] - p[0]).abs() >= best {
+                    break;
+                }
+                best = best.min((q[0] - p[0]).hypot(q[1] - p[1]));
+                r += dir;
+            }
+        }
+        closest = closest.min(best);
+    }
+    let cause = if closest < 1e-9 * extent {
+        "the points are too crowded for double precision (typical of the conformal image of a long \
+         protrusion); spread them or use a less distorted embedding"
+    } else {
+        "points far outside the domain?"
+    };
+    format!(
+        "no start with all cells non-empty was found: {} of {} cells are empty at the Voronoi start and \
+         contracting the points toward Ω's barycenter (down to scale {scale:.1e}) did not fill them; the \
+         nearest other point of one of these is {closest:.2e} away, against Ω's extent {extent:.2e}: {cause}",
+        empty.len(),
+        points.len()
+    )
+}
+
 /// μ-barycenter of Ω.
 fn source_barycenter(measure: &SourceMeasure) -> [f64; 2] {
     let (mut m, mut c) = (0.0, [0.0, 0.0]);
@@ -674,20 +729,45 @@ fn solve_single(
     let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = source_barycenter(measure);
-        // Plain Voronoi first (if that was not the start), then contracted ones.
+        let (lo, hi) = bounding_box(&measure.vertices);
+        let empty_at = |cells: &CellIntegrals| cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
+        let mut fewest_empty = empty_at(&current.cells);
+        let first_empty: Vec<usize> = (0..n).filter(|&i| !(current.cells.masses[i] > 0.0)).collect();
+        // Plain Voronoi first (if that was not the start), then contracted ones. Contraction
+        // brings points from outside Ω in; once every contracted point lies in Ω's bounding box
+        // and four more halvings empty no fewer cells, the empty cells come from points too close
+        // together for f64 (crowding), which contraction cannot cure: stop there.
         let mut scale = if start == Start::Voronoi { 1.0 } else { 2.0 };
+        let mut stale = 0;
         loop {
             scale *= 0.5;
             heights = contracted_voronoi_heights(points, center, scale);
             current = evaluate(&backend, points, &heights)?;
             start_evaluations += 1;
-            if current.cells.masses.iter().all(|&m| m > 0.0) {
+            let empty = empty_at(&current.cells);
+            if empty == 0 {
                 break;
             }
-            if scale < 1e-30 {
-                return Err(OmtError::InvalidInput(
-                    "no start with all cells non-empty was found (points far outside the domain?)".into(),
-                ));
+            if empty < fewest_empty {
+                fewest_empty = empty;
+                stale = 0;
+            } else {
+                stale += 1;
+            }
+            let inside = points.iter().all(|y| {
+                (0..2).all(|d| {
+                    let z = center[d] + scale * (y[d] - center[d]);
+                    lo[d] <= z && z <= hi[d]
+                })
+            });
+            if (inside && stale >= 4) || scale < 1e-30 {
+                return Err(OmtError::InvalidInput(no_start_diagnosis(
+                    points,
+                    &first_empty,
+                    lo,
+                    hi,
+                    scale,
+                )));
             }
         }
         start = if scale == 1.0 {
