@@ -155,7 +155,7 @@ pub struct DiskMap {
     pub quality: QualitySummary,
 }
 
-fn count_negative(tri: &IntrinsicTriangulation) -> usize {
+pub(crate) fn count_negative(tri: &IntrinsicTriangulation) -> usize {
     (0..tri.tail.len() as u32)
         .filter(|&h| {
             let t = tri.twin[h as usize];
@@ -166,7 +166,7 @@ fn count_negative(tri: &IntrinsicTriangulation) -> usize {
 
 /// Checks that the intrinsic triangulation is a single disk: one boundary loop, Euler
 /// characteristic 1, one component, every vertex used.
-fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), ConformalError> {
+pub(crate) fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), ConformalError> {
     let n = mesh.num_vertices();
     let nf = mesh.num_faces();
     if nf == 0 {
@@ -310,7 +310,7 @@ fn exp_map(a: &[f64], theta: &[f64], pole: u32, is_boundary: &[bool]) -> Result<
 }
 
 /// Vertex adjacency from the (unflipped) triangulation.
-fn neighbors(tri: &IntrinsicTriangulation) -> Vec<Vec<u32>> {
+pub(crate) fn neighbors(tri: &IntrinsicTriangulation) -> Vec<Vec<u32>> {
     let mut adj = vec![Vec::new(); tri.num_vertices];
     for h in 0..tri.tail.len() as u32 {
         let (a, b) = (tri.tail[h as usize], tri.head(h));

@@ -7,6 +7,7 @@
 //!
 //! * [`disk_map`]: the Riemann map (Green's function + harmonic conjugate on the intrinsic
 //!   Delaunay triangulation), with densities and conformal factors;
+//! * [`bff`]: the same map by Boundary First Flattening with the disk target (for comparison);
 //! * [`mobius`]: disk automorphisms z ↦ e^{iθ}(z − a)/(1 − āz);
 //! * [`markers`]: interior/boundary markers, parsing and automatic choices;
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;
@@ -16,6 +17,7 @@
 // `!(x > 0.0)` is used on purpose: it also rejects NaN. Index loops mirror the mathematics.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
+pub mod bff;
 pub mod disk_map;
 pub mod error;
 pub mod green;
@@ -27,6 +29,7 @@ pub mod mobius;
 pub mod quality;
 pub mod repair;
 
+pub use bff::{bff_disk_coordinates, bff_disk_map, BffCoordinates, BffDiskMap, BffInfo, BffParams};
 pub use disk_map::{disk_map, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
 pub use error::ConformalError;
 pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};
