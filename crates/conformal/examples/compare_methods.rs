@@ -16,7 +16,12 @@
 //! image density of the area-π surface, one-ring estimate) where a closed form exists; the quasi-conformal
 //! distortion Λ = ln(γmax/γmin) per face (median / p95 / max); folded original faces without
 //! repair → after repair (vertex moves); iterations (BFF scale-factor iterations) or sparse
-//! solves (Green); the smallest 1 − |z| over interior vertices.
+//! solves (Green); the smallest 1 − |z| over interior vertices. Then BFF on the alligator
+//! without its crowding check, a refinement study (1-to-4 midpoint subdivision of an ICT face,
+//! camelhead and the square plate: the same polyhedral surface, so the same continuum map;
+//! levels set by COMPARE_FACE_LEVELS (default 3), COMPARE_CAMEL_LEVELS (3),
+//! COMPARE_PLATE_LEVELS (5)) and the 40 ICT faces one by one. SHAPESPACE_SEQ=1: single-threaded
+//! faer.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -479,6 +484,7 @@ fn main() {
     // surface, so the continuum map is the same): distances on the original vertices
     let face_levels = env_usize("COMPARE_FACE_LEVELS", 3);
     let plate_levels = env_usize("COMPARE_PLATE_LEVELS", 5);
+    let camel_levels = env_usize("COMPARE_CAMEL_LEVELS", 3);
     println!();
     println!("Midpoint-subdivision refinement (distances on the original vertices, max / mean):");
     println!();
@@ -489,6 +495,9 @@ fn main() {
         MarkerFile::from_json_file(&data.join("faces/landmarks.json")),
     ) {
         refinement("faces/id00_neutral", mesh, mf.markers, face_levels);
+    }
+    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("disks/camelhead.off")) {
+        refinement("disks/camelhead", mesh, Markers::default(), camel_levels);
     }
     if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("disks/plate121.ply")) {
         refinement("disks/plate121", mesh, Markers::default(), plate_levels);
