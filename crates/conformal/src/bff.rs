@@ -28,8 +28,8 @@
 //!   log|M'(e^{iψ})| = 2 Re(ā e^{iψ}) + O(|a|²). The published code stops after a fixed 10
 //!   iterations. Linearized at a circle, boundary Fourier mode m of the error is multiplied by
 //!   1/|m| per iteration (the Neumann-to-Dirichlet map of a circle), so m = 2 contracts by ½
-//!   (observed: residual ratio ≈ 0.5, 7–17 iterations to 1e-11 on caps, 28–38 on real
-//!   meshes) while m = ±1 does not contract at all: without P the iterates drift along the
+//!   (observed: residual ratio ≈ 0.5; 7–20 iterations to 1e-11 on caps, 28–38 on real
+//!   meshes and on f(D)) while m = ±1 does not contract at all: without P the iterates drift along the
 //!   Möbius orbit (measured: the residual stalls at 2e-4 … 8e-4 on real meshes and at 4e-9 on
 //!   a 331-vertex cap). With P they converge geometrically to roundoff; the Möbius part left
 //!   in u is removed exactly by the marker normalization;

@@ -7,7 +7,9 @@
 //!
 //! * [`disk_map`]: the Riemann map (Green's function + harmonic conjugate on the intrinsic
 //!   Delaunay triangulation), with densities and conformal factors;
-//! * [`bff`]: the same map by Boundary First Flattening with the disk target (for comparison);
+//! * [`bff`]: the same map by Boundary First Flattening with the disk target: second order on
+//!   smooth surfaces, less accurate than the Green's map on the real meshes measured, so not
+//!   the default (ARCHITECTURE.md, "Method choice", 2026-12-01);
 //! * [`mobius`]: disk automorphisms z ↦ e^{iθ}(z − a)/(1 − āz);
 //! * [`markers`]: interior/boundary markers, parsing and automatic choices;
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;
