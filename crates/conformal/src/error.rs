@@ -65,6 +65,13 @@ pub enum ConformalError {
         element: String,
         log10_value: f64,
     },
+    /// An iteration (e.g. the boundary scale factors of BFF) did not reach its tolerance.
+    #[error("{what} did not converge: residual {residual:.3e} after {iterations} iterations")]
+    NoConvergence {
+        what: &'static str,
+        iterations: usize,
+        residual: f64,
+    },
     /// A non-finite intermediate value (a bug or a broken input), named by stage.
     #[error("non-finite value in {stage} at vertex {vertex}")]
     NonFinite { stage: &'static str, vertex: usize },

@@ -7,6 +7,9 @@
 //!
 //! * [`disk_map`]: the Riemann map (Green's function + harmonic conjugate on the intrinsic
 //!   Delaunay triangulation), with densities and conformal factors;
+//! * [`bff`]: the same map by Boundary First Flattening with the disk target: second order on
+//!   smooth surfaces, less accurate than the Green's map on the real meshes measured, so not
+//!   the default (ARCHITECTURE.md, "Method choice", 2026-12-01);
 //! * [`mobius`]: disk automorphisms z ↦ e^{iθ}(z − a)/(1 − āz);
 //! * [`markers`]: interior/boundary markers, parsing and automatic choices;
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;
@@ -16,6 +19,7 @@
 // `!(x > 0.0)` is used on purpose: it also rejects NaN. Index loops mirror the mathematics.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
+pub mod bff;
 pub mod disk_map;
 pub mod error;
 pub mod green;
@@ -27,6 +31,7 @@ pub mod mobius;
 pub mod quality;
 pub mod repair;
 
+pub use bff::{bff_disk_coordinates, bff_disk_map, BffCoordinates, BffDiskMap, BffInfo, BffParams};
 pub use disk_map::{disk_map, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
 pub use error::ConformalError;
 pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};

@@ -28,10 +28,15 @@ pub fn map(mesh: &TriMesh, markers: &Markers) -> DiskMap {
 /// Errors of a cap map against stereographic projection: (max radius error, max relative
 /// density error over faces at the centroid's exact image radius, max angle error).
 pub fn cap_errors(mesh: &TriMesh, alpha: f64, dm: &DiskMap) -> (f64, f64, f64) {
+    cap_errors_of(mesh, alpha, &dm.uv, &dm.face_densities, dm.info.markers.boundary_vertex)
+}
+
+/// [`cap_errors`] for any map: image `uv` (#V), `face_densities` (#F), boundary marker `q`.
+pub fn cap_errors_of(mesh: &TriMesh, alpha: f64, uv: &[[f64; 2]], face_densities: &[f64], q: u32) -> (f64, f64, f64) {
     let big_r = (alpha / 2.0).tan();
     let mut rad: f64 = 0.0;
     let mut ang: f64 = 0.0;
-    for (p, z) in mesh.positions.iter().zip(&dm.uv) {
+    for (p, z) in mesh.positions.iter().zip(uv) {
         let theta = p[2].clamp(-1.0, 1.0).acos();
         let r_exact = (theta / 2.0).tan() / big_r;
         let r = z[0].hypot(z[1]);
@@ -39,7 +44,7 @@ pub fn cap_errors(mesh: &TriMesh, alpha: f64, dm: &DiskMap) -> (f64, f64, f64) {
         if r_exact > 0.05 {
             // exact angle up to the global rotation fixed by q ↦ 1: compare to q's azimuth
             let phi = p[1].atan2(p[0]);
-            let q = mesh.positions[dm.info.markers.boundary_vertex as usize];
+            let q = mesh.positions[q as usize];
             let phi_q = q[1].atan2(q[0]);
             let expect = phi - phi_q;
             let got = z[1].atan2(z[0]);
@@ -56,7 +61,7 @@ pub fn cap_errors(mesh: &TriMesh, alpha: f64, dm: &DiskMap) -> (f64, f64, f64) {
         let theta = (c[2] / n).clamp(-1.0, 1.0).acos();
         let r = (theta / 2.0).tan() / big_r;
         let mu = (1.0 + big_r * big_r) / (1.0 + big_r * big_r * r * r).powi(2);
-        dens = dens.max((dm.face_densities[f] / mu - 1.0).abs());
+        dens = dens.max((face_densities[f] / mu - 1.0).abs());
     }
     (rad, dens, ang)
 }
