@@ -1,7 +1,9 @@
 //! `shapespace conformal IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
-//! [--landmarks FILE.json] [--factors OUT.csv] [--report OUT.json] [--pole center|central]`:
+//! [--landmarks FILE.json] [--factors OUT.csv] [--report OUT.json] [--pole center|central]
+//! [--method green|bff]`:
 //! the discrete Riemann map
-//! of a disk-type mesh onto the unit disk ([`shapespace_conformal::disk_map`]).
+//! of a disk-type mesh onto the unit disk ([`shapespace_conformal::disk_map`], or boundary-first
+//! flattening with `--method bff`, [`shapespace_conformal::bff_disk_map`], as a cross-check).
 //!
 //! Markers: a marker file (`--landmarks`, else the sidecar `NAME.landmarks.json` or
 //! `landmarks.json` beside the mesh) gives the defaults; `--center` / `--boundary-marker`
@@ -16,7 +18,8 @@ use std::time::Instant;
 
 use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
-use shapespace_conformal::{disk_map, DiskMapParams, PolePlacement};
+use shapespace_conformal::quality::QualitySummary;
+use shapespace_conformal::{bff_disk_map, disk_map, BffParams, DiskMapParams, PolePlacement};
 use shapespace_geometry::io::{read_mesh, write_obj};
 
 /// Arguments of `shapespace conformal`.
@@ -43,9 +46,30 @@ pub struct ConformalArgs {
     /// Use the plain cotangent Laplacian instead of the intrinsic Delaunay one (comparison only).
     #[arg(long)]
     pub no_intrinsic_delaunay: bool,
+    /// Construction: `green` (Green's function and harmonic conjugate, default) or `bff`
+    /// (boundary-first flattening iterated to the circle; same normalization; a cross-check,
+    /// compared in crates/conformal/ARCHITECTURE.md). `--pole` applies to `green` only.
+    #[arg(long, default_value = "green", value_parser = ["green", "bff"])]
+    pub method: String,
 }
 
-fn write_factors(path: &Path, map: &shapespace_conformal::DiskMap) -> Result<()> {
+/// What the command writes, from either construction.
+struct MapOutput {
+    uv: Vec<[f64; 2]>,
+    conformal_factor: Vec<f64>,
+    face_densities: Vec<f64>,
+    quality: QualitySummary,
+    scale: f64,
+    method: String,
+    center: String,
+    boundary_vertex: u32,
+    intrinsic_flips: usize,
+    fold_repairs: usize,
+    seconds: f64,
+    info: serde_json::Value,
+}
+
+fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
     let file = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut w = std::io::BufWriter::new(file);
     writeln!(w, "vertex,u,v,lambda")?;
@@ -63,17 +87,54 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
     let (markers, marker_source) = args.markers.resolve(&args.input)?;
-    let pole = if args.pole == "central" {
-        PolePlacement::Central
+    let context = || format!("mapping {}", args.input.display());
+    let map = if args.method == "bff" {
+        let params = BffParams {
+            intrinsic_delaunay: !args.no_intrinsic_delaunay,
+            ..Default::default()
+        };
+        let map = bff_disk_map(&mesh, &markers, &params).with_context(context)?;
+        MapOutput {
+            center: format!("{:?}", map.info.markers.center),
+            boundary_vertex: map.info.markers.boundary_vertex,
+            intrinsic_flips: map.info.intrinsic_flips,
+            fold_repairs: map.info.fold_repairs,
+            seconds: map.info.timings.total,
+            method: map.info.method.clone(),
+            info: serde_json::to_value(&map.info)?,
+            uv: map.uv,
+            conformal_factor: map.conformal_factor,
+            face_densities: map.face_densities,
+            quality: map.quality,
+            scale: map.scale,
+        }
     } else {
-        PolePlacement::AtCenter
+        let pole = if args.pole == "central" {
+            PolePlacement::Central
+        } else {
+            PolePlacement::AtCenter
+        };
+        let params = DiskMapParams {
+            intrinsic_delaunay: !args.no_intrinsic_delaunay,
+            pole,
+            ..Default::default()
+        };
+        let map = disk_map(&mesh, &markers, &params).with_context(context)?;
+        MapOutput {
+            center: format!("{:?}", map.info.markers.center),
+            boundary_vertex: map.info.markers.boundary_vertex,
+            intrinsic_flips: map.info.intrinsic_flips,
+            fold_repairs: map.info.fold_repairs,
+            seconds: map.info.timings.total,
+            method: map.info.method.to_string(),
+            info: serde_json::to_value(&map.info)?,
+            uv: map.uv,
+            conformal_factor: map.conformal_factor,
+            face_densities: map.face_densities,
+            quality: map.quality,
+            scale: map.scale,
+        }
     };
-    let params = DiskMapParams {
-        intrinsic_delaunay: !args.no_intrinsic_delaunay,
-        pole,
-        ..Default::default()
-    };
-    let map = disk_map(&mesh, &markers, &params).with_context(|| format!("mapping {}", args.input.display()))?;
     mesh.uvs = Some(map.uv.clone());
     write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
     if let Some(p) = &args.factors {
@@ -81,19 +142,20 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     }
     let q = &map.quality;
     eprintln!(
-        "{}: {} V, {} F, center {:?}, boundary {}; {} intrinsic flips, {} fold repairs; Λ mean {:.3e} p95 {:.3e} max {:.3e}; {} flipped; {:.3} s",
+        "{}: {} V, {} F, {}, center {}, boundary {}; {} intrinsic flips, {} fold repairs; Λ mean {:.3e} p95 {:.3e} max {:.3e}; {} flipped; {:.3} s",
         args.input.display(),
         mesh.num_vertices(),
         mesh.num_faces(),
-        map.info.markers.center,
-        map.info.markers.boundary_vertex,
-        map.info.intrinsic_flips,
-        map.info.fold_repairs,
+        map.method,
+        map.center,
+        map.boundary_vertex,
+        map.intrinsic_flips,
+        map.fold_repairs,
         q.quasi_conformal_distortion.mean,
         q.quasi_conformal_distortion.p95,
         q.quasi_conformal_distortion.max,
         q.num_flipped,
-        map.info.timings.total
+        map.seconds
     );
     if let Some(p) = &args.report {
         let report = serde_json::json!({
@@ -103,7 +165,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
             "num_vertices": mesh.num_vertices(),
             "num_faces": mesh.num_faces(),
             "scale": map.scale,
-            "method": map.info.method,
+            "method": map.method,
             "info": map.info,
             "quality": map.quality,
             "face_density": shapespace_conformal::quality::Stats::of(&map.face_densities),

@@ -147,7 +147,13 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
             &format!("{} / {}", p1.display(), p2.display()),
         )?,
         _ => anyhow::bail!(
-            "no landmarks: pass --landmarks pairs.csv or put a landmarks.json (with \"landmarks\") beside both meshes"
+            "no landmarks: no marker file found for {}: pass --landmarks pairs.csv or put a landmarks.json (with \"landmarks\") beside both meshes",
+            [(&m1, &args.source), (&m2, &args.target)]
+                .iter()
+                .filter(|(m, _)| m.is_none())
+                .map(|(_, p)| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(" and ")
         ),
     };
     let params = RegistrationParams {

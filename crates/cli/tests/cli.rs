@@ -1,0 +1,233 @@
+//! End-to-end runs of the `shapespace` binary on bundled data: the outputs exist, have the
+//! documented shape and agree with each other; bad input exits with status 2 and a message that
+//! names the file, never a panic (status 101).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn shapespace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_shapespace"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("the binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("shapespace-cli-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// `vt` lines of an OBJ as (u, v), and the number of `v` lines.
+fn read_vt(path: &Path) -> (Vec<[f64; 2]>, usize) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut vt = Vec::new();
+    let mut v = 0;
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("vt") => {
+                let u: f64 = it.next().unwrap().parse().unwrap();
+                let w: f64 = it.next().unwrap().parse().unwrap();
+                vt.push([u, w]);
+            }
+            Some("v") => v += 1,
+            _ => {}
+        }
+    }
+    (vt, v)
+}
+
+/// Both constructions of `shapespace conformal` write one `vt` per vertex inside the closed
+/// unit disk, the center marker at 0 and the boundary marker at 1, a factor CSV that agrees with
+/// the OBJ, and a report; on the same face they agree to the discretization (the library test
+/// tests/bff.rs bounds the difference by 1.51e-2, measured; here 2e-2).
+#[test]
+fn conformal_with_both_methods() {
+    let dir = scratch("conformal");
+    let mut maps = Vec::new();
+    for method in ["green", "bff"] {
+        let obj = dir.join(format!("{method}.obj"));
+        let csv = dir.join(format!("{method}.csv"));
+        let json = dir.join(format!("{method}.json"));
+        let out = shapespace(&[
+            "conformal",
+            "datasets/faces/id00_neutral.obj",
+            "--method",
+            method,
+            "--out",
+            obj.to_str().unwrap(),
+            "--factors",
+            csv.to_str().unwrap(),
+            "--report",
+            json.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{method}: {}", stderr(&out));
+        let (vt, nv) = read_vt(&obj);
+        assert_eq!(vt.len(), nv);
+        assert!(vt.iter().all(|p| p[0].hypot(p[1]) <= 1.0 + 1e-12));
+        let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(report["num_vertices"].as_u64().unwrap() as usize, nv);
+        assert_eq!(report["quality"]["num_flipped"].as_u64(), Some(0));
+        // the markers of the sidecar landmarks.json: center 4841 -> 0, boundary 8889 -> 1
+        let center = report["info"]["markers"]["center"]["Vertex"].as_u64().unwrap() as usize;
+        let boundary = report["info"]["markers"]["boundary_vertex"].as_u64().unwrap() as usize;
+        assert!(
+            vt[center][0].hypot(vt[center][1]) < 1e-12,
+            "{method}: center at {:?}",
+            vt[center]
+        );
+        assert!((vt[boundary][0] - 1.0).abs() < 1e-12 && vt[boundary][1].abs() < 1e-12);
+        let mut rows = csv::Reader::from_path(&csv).unwrap();
+        assert_eq!(rows.headers().unwrap(), vec!["vertex", "u", "v", "lambda"]);
+        let mut n = 0;
+        for (i, row) in rows.records().enumerate() {
+            let row = row.unwrap();
+            let (u, v): (f64, f64) = (row[1].parse().unwrap(), row[2].parse().unwrap());
+            // the OBJ prints fewer digits than the CSV's round-trip format
+            assert!((u - vt[i][0]).abs() < 1e-6 && (v - vt[i][1]).abs() < 1e-6);
+            assert!(row[3].parse::<f64>().unwrap().is_finite());
+            n += 1;
+        }
+        assert_eq!(n, nv);
+        maps.push(vt);
+    }
+    let diff = maps[0]
+        .iter()
+        .zip(&maps[1])
+        .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+        .fold(0.0f64, f64::max);
+    assert!(diff > 0.0 && diff < 2e-2, "green vs bff: max difference {diff:e}");
+}
+
+/// `shapespace ot` on a small point set: the result CSV has one row per point, the masses match
+/// the targets to the tolerance and the report records convergence.
+#[test]
+fn ot_on_a_point_file() {
+    let dir = scratch("ot");
+    let points = dir.join("points.csv");
+    let mut text = String::from("x,y,mass\n");
+    let n = 200;
+    for k in 0..n {
+        // sunflower points, masses 1 and 2 alternating
+        let r = 0.95 * ((k as f64 + 0.5) / n as f64).sqrt();
+        let t = k as f64 * 2.399_963_229_728_653;
+        text.push_str(&format!("{},{},{}\n", r * t.cos(), r * t.sin(), 1 + k % 2));
+    }
+    std::fs::write(&points, text).unwrap();
+    let result = dir.join("result.csv");
+    let report = dir.join("report.json");
+    let out = shapespace(&[
+        "ot",
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        result.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut rows = csv::Reader::from_path(&result).unwrap();
+    assert_eq!(rows.headers().unwrap(), vec!["i", "height", "mass", "cx", "cy"]);
+    let masses: Vec<f64> = rows.records().map(|r| r.unwrap()[2].parse().unwrap()).collect();
+    assert_eq!(masses.len(), n);
+    // masses rescaled to the disk polygon's area, in the ratio 1 : 2
+    let total: f64 = masses.iter().sum();
+    for (k, m) in masses.iter().enumerate() {
+        let target = total * (1 + k % 2) as f64 / (3 * n / 2) as f64;
+        assert!((m - target).abs() <= 1e-6 * target, "cell {k}: {m} vs {target}");
+    }
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(report.to_string().contains("onverged"), "{report}");
+}
+
+/// `shapespace param` writes an area-preserving map: one `vt` per vertex, boundary vertices on
+/// the unit circle, and a report whose OT converged and whose map has no flipped face.
+#[test]
+fn param_on_a_face() {
+    let dir = scratch("param");
+    let obj = dir.join("param.obj");
+    let json = dir.join("param.json");
+    let out = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        obj.to_str().unwrap(),
+        "--report",
+        json.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (vt, nv) = read_vt(&obj);
+    assert_eq!(vt.len(), nv);
+    let on_circle = vt.iter().filter(|p| (p[0].hypot(p[1]) - 1.0).abs() < 1e-9).count();
+    assert!(on_circle > 100, "{on_circle} vertices on the circle");
+    let report = std::fs::read_to_string(&json).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+    let text = report.to_string();
+    assert!(text.contains("\"converged\":true"), "{text}");
+    assert!(text.contains("\"num_flipped\":0"), "{text}");
+}
+
+/// Bad input: exit status 2 (not a panic's 101), and a message naming the file and the problem.
+#[test]
+fn bad_input_exits_cleanly_and_names_the_file() {
+    let dir = scratch("bad");
+    let truncated = dir.join("truncated.obj");
+    let face = std::fs::read(root().join("datasets/faces/id00_neutral.obj")).unwrap();
+    std::fs::write(&truncated, &face[..face.len() - 7]).unwrap();
+    let not_a_disk = dir.join("tetrahedron.obj");
+    std::fs::write(
+        &not_a_disk,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
+    )
+    .unwrap();
+    let nan = dir.join("nan.obj");
+    std::fs::write(&nan, "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let out_obj = dir.join("out.obj");
+    let out_dir = dir.join("out");
+    let cases: Vec<(Vec<&str>, &Path, &str)> = vec![
+        (vec!["conformal"], &truncated, "has 2 vertices"),
+        (vec!["param"], &truncated, "has 2 vertices"),
+        (vec!["conformal"], &not_a_disk, "not a disk"),
+        (vec!["param"], &not_a_disk, "not a disk"),
+        (vec!["conformal", "--method", "bff"], &nan, "non-finite"),
+        (
+            vec!["conformal", "--center", "999999"],
+            Path::new("datasets/faces/id00_neutral.obj"),
+            "999999",
+        ),
+    ];
+    for (args, file, problem) in cases {
+        let mut all = args.clone();
+        all.push(file.to_str().unwrap());
+        all.extend(["--out", out_obj.to_str().unwrap()]);
+        let out = shapespace(&all);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{all:?}: {msg}");
+        let name = file.file_name().unwrap().to_str().unwrap();
+        assert!(msg.contains(name) && msg.contains(problem), "{all:?}: {msg}");
+    }
+    let pairs = dir.join("pairs.csv");
+    std::fs::write(&pairs, "source,target\n0,0\n").unwrap();
+    let out = shapespace(&[
+        "register",
+        "datasets/faces/id00_neutral.obj",
+        not_a_disk.to_str().unwrap(),
+        "--landmarks",
+        pairs.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("tetrahedron.obj"), "{}", stderr(&out));
+}
