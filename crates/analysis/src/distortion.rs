@@ -136,6 +136,9 @@ pub fn distortion_report(
     })
 }
 
+/// A histogram to write: file stem, title, x label and the values it plots.
+type PlotSpec = (&'static str, &'static str, &'static str, fn(&MapDistortion) -> &[f64]);
+
 /// Writes the distortion histograms of every map of `report` into `dir` (created if missing),
 /// each as PNG and SVG, as in Su et al. 2015, Fig. 2 (e)–(h): `area_distortion` (Υ per face),
 /// `angle_distortion` (degrees per face) and `quasi_conformal_distortion` (Λ per face), all maps
@@ -148,7 +151,7 @@ pub fn write_distortion_histograms(
 ) -> Result<Vec<PathBuf>, AnalysisError> {
     std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
     let mut written = Vec::new();
-    let plots: [(&str, &str, &str, fn(&MapDistortion) -> &[f64]); 3] = [
+    let plots: [PlotSpec; 3] = [
         (
             "area_distortion",
             "Area distortion",

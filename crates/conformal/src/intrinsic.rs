@@ -56,7 +56,7 @@ pub fn next(h: u32) -> u32 {
 /// The previous half-edge of the same face.
 #[inline]
 pub fn prev(h: u32) -> u32 {
-    if h % 3 == 0 {
+    if h.is_multiple_of(3) {
         h + 2
     } else {
         h - 1

@@ -6,6 +6,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
+/// errors per class.
+type Pooled = (Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>);
+
 use serde::Serialize;
 use shapespace_conformal::MarkerFile;
 use shapespace_geometry::TriMesh;
@@ -271,7 +275,7 @@ pub fn register_bench(
         .collect();
     classes.sort();
     let mut rows = Vec::new();
-    let mut pooled: Vec<(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> = methods
+    let mut pooled: Vec<Pooled> = methods
         .iter()
         .map(|&m| (m, Vec::new(), Vec::new(), Vec::new()))
         .collect();
@@ -475,8 +479,7 @@ pub fn register_bench(
     }
     files.push(path);
 
-    let have: Vec<&(Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>)> =
-        pooled.iter().filter(|p| !p.1.is_empty()).collect();
+    let have: Vec<&Pooled> = pooled.iter().filter(|p| !p.1.is_empty()).collect();
     if !have.is_empty() {
         let curv_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.1)).collect();
         let area_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.2)).collect();

@@ -622,7 +622,7 @@ fn planar_harmonic_map_reusing(
             edges.push((i.min(j), i.max(j), w));
         }
     }
-    edges.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    edges.sort_by_key(|e| (e.0, e.1));
     let mut merged: Vec<(usize, usize, f64)> = Vec::with_capacity(edges.len());
     for (i, j, w) in edges {
         match merged.last_mut() {
