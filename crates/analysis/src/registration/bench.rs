@@ -6,10 +6,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
-/// errors per class.
-type Pooled = (Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>);
-
 use serde::Serialize;
 use shapespace_conformal::MarkerFile;
 use shapespace_geometry::TriMesh;
@@ -19,6 +15,10 @@ use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics, MetricParams, RegistrationMetrics};
 use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Registration};
+
+/// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
+/// errors per class.
+type Pooled = (Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>);
 
 /// Histogram range of the curvature difference and the area distortion (Su et al. 2015, Fig. 7).
 pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
