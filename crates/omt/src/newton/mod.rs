@@ -225,6 +225,8 @@ pub struct OtSolution {
     pub t_total: f64,
     /// Number of symbolic Cholesky factorizations (changes of the neighbour graph).
     pub symbolic_factorizations: usize,
+    /// Number of those that computed a new fill-reducing ordering (the others reused one).
+    pub orderings: usize,
     /// Seconds in Hessian assembly, symbolic factorization, numeric factorization + solve.
     pub t_assembly: f64,
     pub t_symbolic: f64,
@@ -808,6 +810,7 @@ fn solve_single(
         t_start,
         t_total: t_begin.elapsed().as_secs_f64(),
         symbolic_factorizations: system.symbolic_factorizations,
+        orderings: system.orderings,
         t_assembly: system.t_assembly,
         t_symbolic: system.t_symbolic,
         t_numeric: system.t_numeric,
