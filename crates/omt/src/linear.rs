@@ -267,7 +267,7 @@ impl NewtonSystem {
             SymbolicSparseColMat::<u32>::new_checked(m, m, hessian.col_ptr.clone(), None, hessian.row_idx.clone());
         if !same_pattern {
             let t0 = std::time::Instant::now();
-            let symbolic = self.symbolic_factorization(m, structure.as_ref())?;
+            let symbolic = self.symbolic_factorization(hessian, structure.as_ref())?;
             self.factor = vec![0.0; symbolic.len_val()];
             self.symbolic = Some(symbolic);
             self.pattern = edges.iter().map(|e| (e.0, e.1)).collect();
@@ -310,40 +310,97 @@ impl NewtonSystem {
         Ok(rhs)
     }
 
-    /// Symbolic Cholesky factorization of the pattern `structure` (m × m, lower): with the kept
-    /// ordering when there is one and its fill stays within [`REORDER_FILL_GROWTH`] of the fill
-    /// it had when computed, else with a new AMD ordering (which is then kept). Reusing the
-    /// ordering skips AMD, the bulk of a symbolic factorization; the neighbour graph changes
-    /// little from one Newton step to the next, so the ordering stays good.
+    /// Symbolic Cholesky factorization of the reduced Hessian's pattern (m × m, lower): with the
+    /// kept ordering when there is one and its fill nnz(L)/nnz(A) stays within
+    /// [`REORDER_FILL_GROWTH`] of the fill it had on the pattern it was computed for, else with
+    /// a new AMD ordering (which is then kept). The fill of the kept ordering is counted first
+    /// (elimination tree and column counts only, much cheaper than AMD), since a few new
+    /// neighbour pairs can multiply it: on the 1e5 disk the first Newton steps change enough
+    /// pairs to raise it 5–9×, while on face pairs most steps keep it.
     fn symbolic_factorization(
         &mut self,
-        m: usize,
+        hessian: &ReducedHessian,
         structure: faer::sparse::SymbolicSparseColMatRef<'_, u32>,
     ) -> Result<SymbolicCholesky<u32>, OmtError> {
         let err = |e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}"));
+        let m = structure.nrows();
         let nnz_a = structure.compute_nnz() as f64;
         if let Some((fwd, inv, fill)) = &self.ordering {
-            if fwd.len() == m {
-                let perm = PermRef::new_checked(fwd, inv, m);
-                let symbolic = factorize_symbolic_cholesky(
+            let budget = (REORDER_FILL_GROWTH * fill * nnz_a) as usize;
+            if fwd.len() == m && factor_nnz(hessian, inv, budget).is_some() {
+                return factorize_symbolic_cholesky(
                     structure,
                     Side::Lower,
-                    SymmetricOrdering::Custom(perm),
+                    SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, m)),
                     symbolic_params(m),
                 )
-                .map_err(err)?;
-                if symbolic.len_val() as f64 / nnz_a <= REORDER_FILL_GROWTH * fill {
-                    return Ok(symbolic);
-                }
+                .map_err(err);
             }
         }
         let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Amd, symbolic_params(m))
             .map_err(err)?;
         let (fwd, inv) = symbolic.perm().expect("AMD gives a permutation").arrays();
-        self.ordering = Some((fwd.to_vec(), inv.to_vec(), symbolic.len_val() as f64 / nnz_a));
+        let nnz_l = factor_nnz(hessian, inv, usize::MAX).unwrap_or(usize::MAX);
+        self.ordering = Some((fwd.to_vec(), inv.to_vec(), nnz_l as f64 / nnz_a));
         self.orderings += 1;
         Ok(symbolic)
     }
+}
+
+/// nnz(L) of the Cholesky factor of the symmetric pattern `hessian` (lower CSC with diagonal)
+/// permuted by `inv` (unknown → elimination position), or None when it exceeds `budget`.
+/// Counts by walking the row subtrees of the elimination tree (Liu 1990; as faer's
+/// `prefactorize_symbolic_cholesky`), O(nnz(L)), stopping as soon as the budget is exceeded.
+fn factor_nnz(hessian: &ReducedHessian, inv: &[u32], budget: usize) -> Option<usize> {
+    const NONE: u32 = u32::MAX;
+    let m = inv.len();
+    // Permuted upper triangle by columns (rows unsorted, diagonal dropped).
+    let mut col_ptr = vec![0u32; m + 1];
+    let entries = || {
+        (0..m).flat_map(move |c| {
+            hessian.row_idx[hessian.col_ptr[c] as usize..hessian.col_ptr[c + 1] as usize]
+                .iter()
+                .map(move |&r| (inv[r as usize], inv[c]))
+        })
+    };
+    for (p, q) in entries() {
+        if p != q {
+            col_ptr[p.max(q) as usize + 1] += 1;
+        }
+    }
+    for c in 0..m {
+        col_ptr[c + 1] += col_ptr[c];
+    }
+    let mut next = col_ptr[..m].to_vec();
+    let mut row_idx = vec![0u32; col_ptr[m] as usize];
+    for (p, q) in entries() {
+        if p != q {
+            let col = p.max(q) as usize;
+            row_idx[next[col] as usize] = p.min(q);
+            next[col] += 1;
+        }
+    }
+    let mut parent = vec![NONE; m];
+    let mut visited = vec![NONE; m];
+    let mut count = m;
+    for j in 0..m {
+        visited[j] = j as u32;
+        for &row in &row_idx[col_ptr[j] as usize..col_ptr[j + 1] as usize] {
+            let mut i = row as usize;
+            while visited[i] != j as u32 {
+                if parent[i] == NONE {
+                    parent[i] = j as u32;
+                }
+                count += 1;
+                visited[i] = j as u32;
+                i = parent[i] as usize;
+            }
+        }
+        if count > budget {
+            return None;
+        }
+    }
+    Some(count)
 }
 
 /// Union of the sorted pair list `pattern` with the sorted weighted `edges` (pairs of `pattern`
@@ -561,6 +618,53 @@ mod tests {
             }
             assert_eq!(system.symbolic_factorizations, factorizations);
             assert_eq!(system.orderings, 1);
+        }
+    }
+
+    /// The fill count agrees with faer's simplicial symbolic factorization (whose value count
+    /// is nnz(L)), and stops at the budget.
+    #[test]
+    fn factor_nnz_matches_faer() {
+        let k = 9u32;
+        let n = (k * k) as usize;
+        let mut edges = Vec::new();
+        for y in 0..k {
+            for x in 0..k {
+                let v = y * k + x;
+                if x + 1 < k {
+                    edges.push((v, v + 1, 1.0));
+                }
+                if y + 1 < k {
+                    edges.push((v, v + k, 1.0));
+                }
+                if x + 1 < k && y + 1 < k && (x + y) % 3 == 0 {
+                    edges.push((v, v + k + 1, 1.0));
+                }
+            }
+        }
+        edges.sort_unstable_by_key(|e| (e.0, e.1));
+        let system = NewtonSystem::new(4, LinearSolver::Cholesky);
+        let hessian = system.assemble(n, &edges);
+        let m = n - 1;
+        let structure =
+            SymbolicSparseColMat::<u32>::new_checked(m, m, hessian.col_ptr.clone(), None, hessian.row_idx.clone());
+        for ordering in [0, 1] {
+            let params = CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+                ..Default::default()
+            };
+            let identity: Vec<u32> = (0..m as u32).collect();
+            let ord = if ordering == 0 {
+                SymmetricOrdering::Amd
+            } else {
+                SymmetricOrdering::Custom(PermRef::new_checked(&identity, &identity, m))
+            };
+            let symbolic = factorize_symbolic_cholesky(structure.as_ref(), Side::Lower, ord, params).unwrap();
+            let (_, inv) = symbolic.perm().unwrap().arrays();
+            let count = factor_nnz(&hessian, inv, usize::MAX).unwrap();
+            assert_eq!(count, symbolic.len_val());
+            assert_eq!(factor_nnz(&hessian, inv, count), Some(count));
+            assert_eq!(factor_nnz(&hessian, inv, count - 1), None);
         }
     }
 }
