@@ -5,7 +5,7 @@
 //! `cargo run --release -p shapespace-omt --example eval_probe -- pair FILE.json [REPEATS]`
 //!
 //! The pair is solved as `distance::directed_distance` does (no density continuation, Voronoi
-//! start). Prints iterations, evaluations and the cost to full precision (to check that a change
+//! start, `LinearSolver::CholeskyReusedOrdering`; env CHOLESKY=1: `LinearSolver::Cholesky`). Prints iterations, evaluations and the cost to full precision (to check that a change
 //! keeps the result), then the best times over REPEATS (default 10) of: power diagram, restricted
 //! integration, Newton direction with a new symbolic factorization and with a reused one, all
 //! at the solution heights.
@@ -59,6 +59,11 @@ fn main() {
             .unwrap();
             let params = NewtonParams {
                 density_continuation: None,
+                linear_solver: if std::env::var("CHOLESKY").is_ok() {
+                    LinearSolver::Cholesky
+                } else {
+                    LinearSolver::CholeskyReusedOrdering
+                },
                 ..NewtonParams::default()
             };
             (
@@ -79,6 +84,14 @@ fn main() {
         }
     };
     let sol = solve_ot(&measure, &points, &masses, &params).expect("solve");
+    if std::env::var("LOG").is_ok() {
+        for (k, r) in sol.log.iter().enumerate() {
+            println!(
+                "{k:3} err {:.3e} tau {:.3e} evals {} min mass {:.2e}",
+                r.max_relative_error, r.step, r.evaluations, r.min_cell_mass
+            );
+        }
+    }
     let sum = |f: fn(&shapespace_omt::newton::IterationRecord) -> f64| sol.log.iter().map(f).sum::<f64>();
     println!(
         "solve: N {} M {} its {} evals {} symbolic {} orderings {} err {:.3e} stop {} cost {:.17e}",

@@ -1,7 +1,6 @@
 //! The Newton system of semi-discrete OT: assembly of the Hessian of the Kantorovich energy in the
 //! heights, and its solution by sparse Cholesky (symbolic factorization reused while no new
-//! neighbour pair appears, ordering reused across those) or Jacobi-preconditioned conjugate
-//! gradients.
+//! neighbour pair appears) or Jacobi-preconditioned conjugate gradients.
 //!
 //! The Hessian of $E(h) = \int_\Omega u_h\,d\mu - \sum_i \nu_i h_i$ is the weighted graph Laplacian
 //! of the restricted power diagram [Kitagawa, Mérigot, Thibert 2019, Thm. 1.3; Zhao et al. 2013]:
@@ -9,8 +8,9 @@
 //! with $\mu(e_{ij}) = \int_{e_{ij} \cap \Omega} \mu\,ds$. (Raising $h_j$ by $t$ moves the edge
 //! $e_{ij}$ into $W_i$ by $t/|y_i - y_j|$, so $\partial \mu(W_i)/\partial h_j = -\mu(e_{ij})/|y_i-y_j|$.)
 //! Cholesky reuses its symbolic factorization across Newton steps while the neighbour pattern
-//! stays within the one it was computed for (explicit zeros for vanished pairs), and its
-//! fill-reducing (AMD) ordering across patterns while the fill stays low.
+//! stays within the one it was computed for (explicit zeros for vanished pairs);
+//! [`LinearSolver::CholeskyReusedOrdering`] also keeps its fill-reducing (AMD) ordering across
+//! new patterns while the fill stays low.
 //! The constant vector spans its kernel when the cells with positive mass form a connected graph;
 //! we remove it by pinning one unknown, `pinned`: its row and column are dropped and its step is 0.
 //! A row whose diagonal is below $10^{-13}$ times the mean diagonal (an isolated cell) gets the mean
@@ -32,10 +32,20 @@ use crate::error::OmtError;
 /// How the Newton system H δ = −G is solved.
 #[derive(Clone, Debug, PartialEq)]
 pub enum LinearSolver {
-    /// Sparse LLᵀ (faer, AMD ordering, supernodal from 2000 unknowns, sequential); the
-    /// symbolic factorization is kept while no new neighbouring pair appears, the ordering also
-    /// across new pairs while the fill stays within 20% of the fill it was computed for.
+    /// Sparse LLᵀ (faer, AMD ordering, sequential); the symbolic factorization is kept while no
+    /// new neighbouring pair appears, and recomputed on the union of all patterns since the
+    /// previous one otherwise.
     Cholesky,
+    /// As `Cholesky`, but a new pattern keeps the previous AMD ordering while its fill
+    /// nnz(L)/nnz(A) stays within 20% of the fill the ordering was computed with (checked by
+    /// counting, see `factor_nnz`), the symbolic factorization is on the current pattern only,
+    /// and the factorization is supernodal from 2000 unknowns. The same solutions up to
+    /// round-off, ~30% cheaper on face pairs (9.4k unknowns, a new pattern at almost every
+    /// step). Not the default because the round-off differs: on problems at the floating-point
+    /// floor of the heights (sites 5e-9 apart whose cells must be 1e-3 wide, as in the wolf of
+    /// the area-preserving tests) whether the tolerance is reached within the iteration cap
+    /// depends on it.
+    CholeskyReusedOrdering,
     /// Conjugate gradients with a Jacobi preconditioner, stopped at
     /// ‖r‖ ≤ `relative_tolerance`·‖b‖ or after `max_iterations`.
     ConjugateGradient {
@@ -72,7 +82,8 @@ pub struct NewtonSystem {
     factor: Vec<f64>,
     /// Number of symbolic factorizations computed so far.
     pub symbolic_factorizations: usize,
-    /// Number of those that computed a new (AMD) ordering.
+    /// Number of those that computed a new (AMD) ordering (all of them, but with
+    /// [`LinearSolver::CholeskyReusedOrdering`]).
     pub orderings: usize,
     /// Seconds spent in assembly, symbolic factorization and numeric factorization + solve.
     pub t_assembly: f64,
@@ -89,9 +100,9 @@ const REORDER_FILL_GROWTH: f64 = 1.2;
 const SUPERNODAL_MIN: usize = 2000;
 
 /// Parameters of the symbolic factorization of an m × m system.
-fn symbolic_params(m: usize) -> CholeskySymbolicParams<'static> {
+fn symbolic_params(m: usize, reuse_ordering: bool) -> CholeskySymbolicParams<'static> {
     CholeskySymbolicParams {
-        supernodal_flop_ratio_threshold: if m >= SUPERNODAL_MIN {
+        supernodal_flop_ratio_threshold: if reuse_ordering && m >= SUPERNODAL_MIN {
             SupernodalThreshold::FORCE_SUPERNODAL
         } else {
             SupernodalThreshold::AUTO
@@ -154,14 +165,17 @@ impl NewtonSystem {
         });
         // For Cholesky, assemble on the pattern of the current symbolic factorization (explicit
         // zeros for absent pairs) when it contains every pair of this one, reusing the symbolic
-        // factorization; otherwise on this step's own pattern, with a new symbolic
-        // factorization (cheap: it keeps the fill-reducing ordering, see
-        // `symbolic_factorization`), so no stale pairs add fill.
+        // factorization. Otherwise a new symbolic factorization, on the union of both patterns
+        // (`Cholesky`) or, when the ordering is kept (cheap symbolic factorizations, see
+        // `symbolic_factorization`), on this step's own pattern, so no stale pairs add fill.
         let mut new_pairs = false;
-        if self.solver == LinearSolver::Cholesky {
+        if matches!(
+            self.solver,
+            LinearSolver::Cholesky | LinearSolver::CholeskyReusedOrdering
+        ) {
             let (merged, added) = merge_patterns(&self.pattern, &edges);
             new_pairs = added || self.symbolic.is_none();
-            if !new_pairs {
+            if !new_pairs || self.solver == LinearSolver::Cholesky {
                 edges = merged;
             }
         }
@@ -169,7 +183,9 @@ impl NewtonSystem {
         let rhs: Vec<f64> = (0..n).filter(|&i| i != self.pinned).map(|i| -gradient[i]).collect();
         self.t_assembly += t0.elapsed().as_secs_f64();
         let reduced = match self.solver.clone() {
-            LinearSolver::Cholesky => self.solve_cholesky(n - 1, &edges, new_pairs, &hessian, rhs)?,
+            LinearSolver::Cholesky | LinearSolver::CholeskyReusedOrdering => {
+                self.solve_cholesky(n - 1, &edges, new_pairs, &hessian, rhs)?
+            }
             LinearSolver::ConjugateGradient {
                 relative_tolerance,
                 max_iterations,
@@ -310,13 +326,14 @@ impl NewtonSystem {
         Ok(rhs)
     }
 
-    /// Symbolic Cholesky factorization of the reduced Hessian's pattern (m × m, lower): with the
-    /// kept ordering when there is one and its fill nnz(L)/nnz(A) stays within
-    /// [`REORDER_FILL_GROWTH`] of the fill it had on the pattern it was computed for, else with
-    /// a new AMD ordering (which is then kept). The fill of the kept ordering is counted first
-    /// (elimination tree and column counts only, much cheaper than AMD), since a few new
-    /// neighbour pairs can multiply it: on the 1e5 disk the first Newton steps change enough
-    /// pairs to raise it 5–9×, while on face pairs most steps keep it.
+    /// Symbolic Cholesky factorization of the reduced Hessian's pattern (m × m, lower), with a
+    /// new AMD ordering; with [`LinearSolver::CholeskyReusedOrdering`], with the kept ordering
+    /// when there is one and its fill nnz(L)/nnz(A) stays within [`REORDER_FILL_GROWTH`] of the
+    /// fill it had on the pattern it was computed for (the new AMD ordering is then kept). The
+    /// fill of the kept ordering is counted first (elimination tree and column counts only,
+    /// much cheaper than AMD), since a few new neighbour pairs can multiply it: on the 1e5 disk
+    /// the first Newton steps change enough pairs to raise it 5–9×, while on face pairs most
+    /// steps keep it.
     fn symbolic_factorization(
         &mut self,
         hessian: &ReducedHessian,
@@ -325,24 +342,32 @@ impl NewtonSystem {
         let err = |e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}"));
         let m = structure.nrows();
         let nnz_a = structure.compute_nnz() as f64;
-        if let Some((fwd, inv, fill)) = &self.ordering {
+        let reuse = self.solver == LinearSolver::CholeskyReusedOrdering;
+        if let Some((fwd, inv, fill)) = self.ordering.as_ref().filter(|_| reuse) {
             let budget = (REORDER_FILL_GROWTH * fill * nnz_a) as usize;
             if fwd.len() == m && factor_nnz(hessian, inv, budget).is_some() {
                 return factorize_symbolic_cholesky(
                     structure,
                     Side::Lower,
                     SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, m)),
-                    symbolic_params(m),
+                    symbolic_params(m, reuse),
                 )
                 .map_err(err);
             }
         }
-        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Amd, symbolic_params(m))
-            .map_err(err)?;
-        let (fwd, inv) = symbolic.perm().expect("AMD gives a permutation").arrays();
-        let nnz_l = factor_nnz(hessian, inv, usize::MAX).unwrap_or(usize::MAX);
-        self.ordering = Some((fwd.to_vec(), inv.to_vec(), nnz_l as f64 / nnz_a));
+        let symbolic = factorize_symbolic_cholesky(
+            structure,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            symbolic_params(m, reuse),
+        )
+        .map_err(err)?;
         self.orderings += 1;
+        if reuse {
+            let (fwd, inv) = symbolic.perm().expect("AMD gives a permutation").arrays();
+            let nnz_l = factor_nnz(hessian, inv, usize::MAX).unwrap_or(usize::MAX);
+            self.ordering = Some((fwd.to_vec(), inv.to_vec(), nnz_l as f64 / nnz_a));
+        }
         Ok(symbolic)
     }
 }
@@ -575,8 +600,8 @@ mod tests {
         }
     }
 
-    /// A new pair recomputes the symbolic factorization with the kept ordering (no new AMD) when
-    /// the fill stays low; the step still solves the system.
+    /// A new pair recomputes the symbolic factorization, with the kept ordering (no new AMD)
+    /// when asked for and the fill stays low; the step solves the system either way.
     #[test]
     fn ordering_is_reused_across_new_pairs() {
         // 12 × 12 grid graph, later with a few diagonals added (as when neighbours change).
@@ -598,26 +623,33 @@ mod tests {
         let gradient: Vec<f64> = (0..n).map(|i| ((i * 7) % 5) as f64 - 2.0).collect();
         let mean = gradient.iter().sum::<f64>() / n as f64;
         let gradient: Vec<f64> = gradient.iter().map(|g| g - mean).collect();
-        let mut system = NewtonSystem::new(0, LinearSolver::Cholesky);
         let mut with_diagonals = grid.clone();
         for v in [13u32, 50, 77, 100] {
             with_diagonals.push((v, v + k + 1, 0.3));
         }
-        for (edges, factorizations) in [(grid.clone(), 1), (with_diagonals, 2), (grid, 2)] {
-            let cells = CellIntegrals {
-                masses: vec![1.0; n],
-                first_moments: vec![[0.0; 2]; n],
-                second_moments: vec![0.0; n],
-                edge_masses: edges,
-            };
-            let delta = system.newton_direction(&points, &cells, &gradient).unwrap();
-            let h = dense_hessian(&points, &cells);
-            for i in 1..n {
-                let hd: f64 = (0..n).map(|j| h[i][j] * delta[j]).sum();
-                assert!((hd + gradient[i]).abs() < 1e-10, "row {i}: {}", hd + gradient[i]);
+        for solver in [LinearSolver::Cholesky, LinearSolver::CholeskyReusedOrdering] {
+            let mut system = NewtonSystem::new(0, solver.clone());
+            for (edges, factorizations) in [(grid.clone(), 1), (with_diagonals.clone(), 2), (grid.clone(), 2)] {
+                let cells = CellIntegrals {
+                    masses: vec![1.0; n],
+                    first_moments: vec![[0.0; 2]; n],
+                    second_moments: vec![0.0; n],
+                    edge_masses: edges,
+                };
+                let delta = system.newton_direction(&points, &cells, &gradient).unwrap();
+                let h = dense_hessian(&points, &cells);
+                for i in 1..n {
+                    let hd: f64 = (0..n).map(|j| h[i][j] * delta[j]).sum();
+                    assert!((hd + gradient[i]).abs() < 1e-10, "row {i}: {}", hd + gradient[i]);
+                }
+                assert_eq!(system.symbolic_factorizations, factorizations);
+                let orderings = if solver == LinearSolver::Cholesky {
+                    factorizations
+                } else {
+                    1
+                };
+                assert_eq!(system.orderings, orderings);
             }
-            assert_eq!(system.symbolic_factorizations, factorizations);
-            assert_eq!(system.orderings, 1);
         }
     }
 
