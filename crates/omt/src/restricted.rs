@@ -562,7 +562,11 @@ impl RestrictedIntegrator {
             .map_init(
                 || Scratch::new(n),
                 |s, c| {
-                    let mut out = ChunkResult::default();
+                    // ~3.6 pieces per triangle and 3 power edges per piece on face pairs.
+                    let mut out = ChunkResult {
+                        pieces: Vec::with_capacity(4 * chunk),
+                        edges: Vec::with_capacity(12 * chunk),
+                    };
                     for &t in &self.order[c * chunk..((c + 1) * chunk).min(num_triangles)] {
                         self.integrate_triangle(diagram, t as usize, s, &mut out);
                     }
