@@ -21,6 +21,7 @@ use serde::Serialize;
 use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
+use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
 
 use crate::error::AnalysisError;
@@ -164,7 +165,8 @@ pub fn directed_distance(
 pub struct PairwiseOptions {
     /// Compute both directions and report their mean (and the asymmetry).
     pub symmetrize: bool,
-    /// Newton parameters (tolerance, caps).
+    /// Newton parameters (tolerance, caps). Default: `NewtonParams::default()` with
+    /// `LinearSolver::CholeskyReusedOrdering` (~30% cheaper linear solves on face pairs).
     pub newton: NewtonParams,
     /// Warm-start each pair from the previous pair with the same target.
     pub warm_start: bool,
@@ -174,7 +176,10 @@ impl Default for PairwiseOptions {
     fn default() -> Self {
         PairwiseOptions {
             symmetrize: false,
-            newton: NewtonParams::default(),
+            newton: NewtonParams {
+                linear_solver: LinearSolver::CholeskyReusedOrdering,
+                ..NewtonParams::default()
+            },
             warm_start: true,
         }
     }

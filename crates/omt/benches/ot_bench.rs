@@ -105,8 +105,8 @@ fn solve_split(n: usize, measure: &SourceMeasure, params: &NewtonParams) {
     let points = disk_points(n, 2024);
     if let Ok(sol) = solve_ot(measure, &points, &vec![1.0; n], params) {
         println!(
-            "  N = {n}: solve split over the final stage: assembly {:.3} s, symbolic {:.3} s ({} factorizations), numeric+solve {:.3} s",
-            sol.t_assembly, sol.t_symbolic, sol.symbolic_factorizations, sol.t_numeric
+            "  N = {n}: solve split over the final stage: assembly {:.3} s, symbolic {:.3} s ({} factorizations, {} orderings), numeric+solve {:.3} s",
+            sol.t_assembly, sol.t_symbolic, sol.symbolic_factorizations, sol.orderings, sol.t_numeric
         );
     }
 }

@@ -16,7 +16,9 @@
 //! Teillaud, Yvinec 2002), so no bounding construction can hide true hull points. Insertion
 //! follows a biased randomized insertion order (Amenta, Choi, Rote 2003) whose rounds are sorted
 //! along a Hilbert curve; point location is a visibility walk from the last created triangle
-//! (it terminates on regular triangulations, Edelsbrunner 1990).
+//! (it terminates on regular triangulations, Edelsbrunner 1990). The insertion order depends on the
+//! sites only ([`InsertionOrder`]); the Newton solver computes it once per set of points and
+//! rebuilds only the triangulation for every new set of weights ([`PowerDiagram::with_order`]).
 //!
 //! All combinatorial decisions use exact predicates with symbolic perturbation, so the result is
 //! the regular triangulation of the input (for ties: of the consistently perturbed input).
@@ -398,6 +400,62 @@ fn brio_order(hilbert_sorted: &[u32]) -> Vec<u32> {
     buckets.into_iter().flatten().collect()
 }
 
+/// The order in which [`PowerDiagram`] inserts a set of sites: a biased randomized insertion
+/// order along a Hilbert curve, starting with a non-degenerate triangle. It depends on the sites
+/// only; computing it once (which also validates the sites) saves that part of every diagram of
+/// the same sites ([`PowerDiagram::with_order`]).
+#[derive(Clone, Debug)]
+pub struct InsertionOrder {
+    order: Vec<u32>,
+    /// The first site along the Hilbert curve (start of point location without a hint).
+    first: u32,
+    /// All sites on one line.
+    collinear: bool,
+}
+
+impl InsertionOrder {
+    /// The insertion order of `sites`. Errors as [`PowerDiagram::new`] for the sites: no site,
+    /// a non-finite one or one out of range, coincident sites.
+    pub fn new(sites: &[[f64; 2]]) -> Result<Self, OmtError> {
+        let sorted = validate_and_sort(sites, &vec![0.0; sites.len()])?;
+        Ok(Self::from_sorted(sites, sorted))
+    }
+
+    fn from_sorted(sites: &[[f64; 2]], sorted: Vec<u32>) -> Self {
+        let n = sites.len();
+        let first = sorted[0];
+        if n == 1 {
+            return InsertionOrder {
+                order: sorted,
+                first,
+                collinear: false,
+            };
+        }
+        let mut order = brio_order(&sorted);
+        let (a, b) = (order[0], order[1]);
+        let third = (2..n).find(|&k| orient(sites[a as usize], sites[b as usize], sites[order[k] as usize]) != 0);
+        if let Some(k) = third {
+            let c = order.remove(k);
+            order.insert(2, c);
+        }
+        InsertionOrder {
+            order,
+            first,
+            collinear: third.is_none(),
+        }
+    }
+
+    /// Number of sites.
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// True for no site (never: `new` rejects that).
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+}
+
 impl PowerDiagram {
     /// The regular (weighted Delaunay) triangulation of `sites` (#N) with power weights
     /// `weights` (#N), i.e. the power diagram with cells
@@ -409,6 +467,33 @@ impl PowerDiagram {
     /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
     pub fn new(sites: &[[f64; 2]], weights: &[f64]) -> Result<Self, OmtError> {
         let sorted = validate_and_sort(sites, weights)?;
+        Ok(Self::build(sites, weights, &InsertionOrder::from_sorted(sites, sorted)))
+    }
+
+    /// [`PowerDiagram::new`] with the insertion order of the sites computed beforehand
+    /// ([`InsertionOrder::new`]), for many diagrams of the same sites with different weights
+    /// (the Newton iterations): skips the validation of the sites and their sorting. The
+    /// result is the same as with `new`. Errors: [`OmtError::InvalidInput`] for weights of the
+    /// wrong length, non-finite or out of range, or `sites` of another length than the order's.
+    pub fn with_order(sites: &[[f64; 2]], weights: &[f64], order: &InsertionOrder) -> Result<Self, OmtError> {
+        if sites.len() != order.order.len() || weights.len() != sites.len() {
+            return Err(OmtError::InvalidInput(format!(
+                "{} sites and {} weights for an insertion order of {} sites",
+                sites.len(),
+                weights.len(),
+                order.order.len()
+            )));
+        }
+        if let Some(i) = weights.iter().position(|w| !w.is_finite() || w.abs() > 1e60) {
+            return Err(OmtError::InvalidInput(format!(
+                "weight {i} = {} is not finite or exceeds 1e60 in magnitude",
+                weights[i]
+            )));
+        }
+        Ok(Self::build(sites, weights, order))
+    }
+
+    fn build(sites: &[[f64; 2]], weights: &[f64], order: &InsertionOrder) -> Self {
         let n = sites.len();
         let mut diagram = PowerDiagram {
             sites: sites.to_vec(),
@@ -419,23 +504,17 @@ impl PowerDiagram {
             dimension: 0,
             triangle_vertices: Vec::new(),
             triangle_neighbors: Vec::new(),
-            start_site: sorted[0],
+            start_site: order.first,
         };
         if n == 1 {
-            return Ok(diagram);
+            return diagram;
         }
-        let mut order = brio_order(&sorted);
-        let (a, b) = (order[0], order[1]);
-        let third = (2..n).find(|&k| orient(sites[a as usize], sites[b as usize], sites[order[k] as usize]) != 0);
-        match third {
-            None => diagram.build_collinear(),
-            Some(k) => {
-                let c = order.remove(k);
-                order.insert(2, c);
-                diagram.build_2d(&order);
-            }
+        if order.collinear {
+            diagram.build_collinear();
+        } else {
+            diagram.build_2d(&order.order);
         }
-        Ok(diagram)
+        diagram
     }
 
     /// One-dimensional case: all sites on a line. Lower hull of the lifted points along the line.

@@ -12,8 +12,9 @@
 //! The pieces of one source triangle are enumerated as in Lévy's restricted Voronoi diagram
 //! (Lévy & Bonneel 2012, *Variational anisotropic surface meshing with Voronoi parallel linear
 //! enumeration*; Lévy 2015, *A numerical algorithm for L2 semi-discrete optimal transport in
-//! 3D*): start from the cells containing the triangle's corners and centroid, clip, and walk to
-//! the neighbours across clipped edges. Total cost O(N + M + #pieces) for N sites and M source
+//! 3D*): start from one cell meeting the triangle (the one of its largest piece at the previous
+//! call if it still meets it, else the cell containing its centroid), clip, and walk to the
+//! neighbours across clipped edges. Total cost O(N + M + #pieces) for N sites and M source
 //! triangles. Triangles are processed in parallel (rayon) and the pieces are summed afterwards
 //! in a fixed triangle order (along a Hilbert curve of the centroids, which also keeps point
 //! location walks short), so the result does not depend on the number of threads.
@@ -31,6 +32,9 @@
 //! width (area ≤ 1e-14 × squared diameter: a cell touching a triangle along a segment, up to
 //! rounding) are dropped, so such an edge is never counted twice.
 
+use std::sync::atomic::AtomicU32;
+use std::sync::atomic::Ordering::Relaxed;
+
 use rayon::prelude::*;
 
 use crate::cells::CellIntegrals;
@@ -41,6 +45,9 @@ use crate::predicates::{orient, two_product, two_sum};
 /// Label of a polygon edge that is not a power-diagram edge (source triangle or domain edge).
 const NO_LABEL: u32 = u32::MAX;
 
+/// No seed cell recorded for a triangle.
+const NO_SEED: u32 = u32::MAX;
+
 /// A directed polygon edge: the supporting line {z : n·z = c} (inside: n·z ≤ c) and its label,
 /// the slot of the neighbour in the diagram's neighbour list of the cell being clipped.
 #[derive(Clone, Copy, Debug)]
@@ -50,42 +57,51 @@ struct Line {
     label: u32,
 }
 
-/// A convex polygon: vertex k and the line of the edge from vertex k to vertex k + 1.
+/// A convex polygon: vertex k and the line of the edge from vertex k to vertex k + 1, the
+/// first `len` entries of the buffers (which are kept at least one longer than any polygon
+/// clipped so far, so that clipping writes by index without growing them).
 #[derive(Clone, Debug, Default)]
 struct Polygon {
+    len: usize,
     vertices: Vec<[f64; 2]>,
     lines: Vec<Line>,
 }
 
+const UNSET_LINE: Line = Line {
+    n: [0.0; 2],
+    c: 0.0,
+    label: NO_LABEL,
+};
+
 impl Polygon {
-    fn clear(&mut self) {
-        self.vertices.clear();
-        self.lines.clear();
+    fn vertices(&self) -> &[[f64; 2]] {
+        &self.vertices[..self.len]
     }
 
-    fn push(&mut self, v: [f64; 2], l: Line) {
-        self.vertices.push(v);
-        self.lines.push(l);
+    /// Makes room for `capacity` vertices.
+    fn reserve(&mut self, capacity: usize) {
+        if self.vertices.len() < capacity {
+            self.vertices.resize(capacity, [0.0; 2]);
+            self.lines.resize(capacity, UNSET_LINE);
+        }
     }
 
     /// Sets the polygon to the convex polygon `points` − `origin` (counter-clockwise), edges
     /// unlabelled.
     fn set_convex(&mut self, points: &[[f64; 2]], origin: [f64; 2]) {
-        self.clear();
         let m = points.len();
+        self.reserve(m + 1);
         for k in 0..m {
-            let (p, q) = (points[k], points[(k + 1) % m]);
+            let (p, q) = (points[k], points[if k + 1 == m { 0 } else { k + 1 }]);
             let n = [q[1] - p[1], p[0] - q[0]];
-            let a = [p[0] - origin[0], p[1] - origin[1]];
-            self.push(
-                a,
-                Line {
-                    n,
-                    c: edge_offset(p, q, origin),
-                    label: NO_LABEL,
-                },
-            );
+            self.vertices[k] = [p[0] - origin[0], p[1] - origin[1]];
+            self.lines[k] = Line {
+                n,
+                c: edge_offset(p, q, origin),
+                label: NO_LABEL,
+            };
         }
+        self.len = m;
     }
 }
 
@@ -118,18 +134,29 @@ fn intersect(l: &Line, h: &Line, p: [f64; 2], q: [f64; 2], fp: f64, fq: f64) -> 
         let t = fp / (fp - fq);
         [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]
     };
-    [
-        z[0].clamp(p[0].min(q[0]), p[0].max(q[0])),
-        z[1].clamp(p[1].min(q[1]), p[1].max(q[1])),
-    ]
+    // `f64::clamp` without its check that the bounds are ordered (they are).
+    let clamp = |x: f64, a: f64, b: f64| {
+        let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+        if x < lo {
+            lo
+        } else if x > hi {
+            hi
+        } else {
+            x
+        }
+    };
+    [clamp(z[0], p[0], q[0]), clamp(z[1], p[1], q[1])]
 }
 
 /// Keeps the part of `src` where n·z ≤ c, writing it to `dst` (Sutherland–Hodgman; new edges
-/// get the line `h`). Returns false (and leaves `dst` untouched) when nothing is cut.
-fn clip(src: &Polygon, dst: &mut Polygon, h: Line, values: &mut Vec<f64>) -> bool {
-    values.clear();
+/// get the line `h`). Returns false when nothing is cut (`dst` untouched), after relabelling in
+/// place an edge of `src` lying on the line. `values` must hold at least `src.len` entries and
+/// `dst` room for `src.len + 1` vertices.
+#[inline]
+fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> bool {
+    let m = src.len;
     let mut any_out = false;
-    for v in &src.vertices {
+    for (f_out, v) in values[..m].iter_mut().zip(&src.vertices[..m]) {
         let (a, b) = (h.n[0] * v[0], h.n[1] * v[1]);
         let mut f = a + b - h.c;
         // Vertices on the line up to rounding count as on it (and inside): an edge of the
@@ -139,43 +166,45 @@ fn clip(src: &Polygon, dst: &mut Polygon, h: Line, values: &mut Vec<f64>) -> boo
             f = 0.0;
         }
         any_out |= f > 0.0;
-        values.push(f);
+        *f_out = f;
     }
+    let values = &values[..m];
     if !any_out {
         // Nothing cut; still relabel an edge lying on the line.
-        let m = values.len();
-        let on = (0..m).find(|&k| values[k] == 0.0 && values[(k + 1) % m] == 0.0);
-        if let Some(k) = on {
-            dst.clone_from(src);
-            dst.lines[k] = h;
-            return true;
+        if let Some(k) = (0..m).find(|&k| values[k] == 0.0 && values[if k + 1 == m { 0 } else { k + 1 }] == 0.0) {
+            src.lines[k] = *h;
         }
         return false;
     }
-    dst.clear();
-    let m = src.vertices.len();
+    let (sv, sl) = (&src.vertices[..m], &src.lines[..m]);
+    let (dv, dl) = (&mut dst.vertices[..m + 1], &mut dst.lines[..m + 1]);
+    let mut n = 0;
     for k in 0..m {
         let k1 = if k + 1 == m { 0 } else { k + 1 };
-        let (p, q) = (src.vertices[k], src.vertices[k1]);
+        let (p, q) = (sv[k], sv[k1]);
         let (fp, fq) = (values[k], values[k1]);
-        let mut l = src.lines[k];
+        let mut l = sl[k];
         if fp == 0.0 && fq == 0.0 {
             // The edge lies on the clipping line (a power edge along a source-triangle edge):
             // it is the power edge.
-            l = h;
+            l = *h;
         }
         if fp <= 0.0 {
-            dst.push(p, l);
+            dv[n] = p;
+            dl[n] = l;
+            n += 1;
             if fq > 0.0 {
-                dst.push(intersect(&l, &h, p, q, fp, fq), h);
+                dv[n] = intersect(&l, h, p, q, fp, fq);
+                dl[n] = *h;
+                n += 1;
             }
         } else if fq <= 0.0 {
-            dst.push(intersect(&l, &h, p, q, fp, fq), l);
+            dv[n] = intersect(&l, h, p, q, fp, fq);
+            dl[n] = l;
+            n += 1;
         }
     }
-    if dst.vertices.len() < 3 {
-        dst.clear();
-    }
+    dst.len = if n < 3 { 0 } else { n };
     true
 }
 
@@ -265,7 +294,7 @@ struct ChunkResult {
 /// Reusable integration data for one source measure: the triangles with their areas and the
 /// boundary of Ω. Build it once and call [`RestrictedIntegrator::integrate`] at every Newton
 /// iteration.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct RestrictedIntegrator {
     vertices: Vec<[f64; 2]>,
     triangles: Vec<[u32; 3]>,
@@ -276,6 +305,25 @@ pub struct RestrictedIntegrator {
     /// Processing order of the triangles: along a Hilbert curve of their centroids, so that
     /// point location walks from one triangle to the next are short.
     order: Vec<u32>,
+    /// Per triangle: the cell of its largest piece at the last integration (`u32::MAX`: none
+    /// yet). Only a starting point of the walk over the pieces (the next diagram usually differs
+    /// little), so it never changes a result; relaxed atomics, as concurrent integrations may
+    /// race on it harmlessly.
+    seeds: Vec<AtomicU32>,
+}
+
+impl Clone for RestrictedIntegrator {
+    fn clone(&self) -> Self {
+        RestrictedIntegrator {
+            vertices: self.vertices.clone(),
+            triangles: self.triangles.clone(),
+            densities: self.densities.clone(),
+            triangle_areas: self.triangle_areas.clone(),
+            boundary: self.boundary.clone(),
+            order: self.order.clone(),
+            seeds: self.seeds.iter().map(|a| AtomicU32::new(a.load(Relaxed))).collect(),
+        }
+    }
 }
 
 impl RestrictedIntegrator {
@@ -323,6 +371,7 @@ impl RestrictedIntegrator {
             densities: measure.densities.clone(),
             triangle_areas,
             boundary: convex_hull(&measure.vertices),
+            seeds: (0..measure.triangles.len()).map(|_| AtomicU32::new(NO_SEED)).collect(),
         }
     }
 
@@ -332,27 +381,40 @@ impl RestrictedIntegrator {
     }
 
     /// Clips the convex polygon `poly` (absolute coordinates) to the power cell of `i`, in
-    /// coordinates relative to y_i. Returns false when the result is empty.
+    /// coordinates relative to y_i, into `s.a`. Returns false when the result is empty.
     fn clip_to_cell(diagram: &PowerDiagram, i: usize, poly: &[[f64; 2]], s: &mut Scratch) -> bool {
         let sites = diagram.sites();
         let weights = diagram.weights();
         let y = sites[i];
-        s.a.set_convex(poly, y);
         let offsets = diagram.neighbor_offsets();
         let list = diagram.neighbor_list();
-        for slot in offsets[i]..offsets[i + 1] {
-            let j = list[slot as usize] as usize;
+        let (start, end) = (offsets[i] as usize, offsets[i + 1] as usize);
+        // Every clip adds at most one vertex.
+        let capacity = poly.len() + (end - start) + 1;
+        s.b.reserve(capacity);
+        if s.values.len() < capacity {
+            s.values.resize(capacity, 0.0);
+        }
+        s.a.set_convex(poly, y);
+        s.a.reserve(capacity);
+        let wi = weights[i];
+        for (slot, &j) in (start..end).zip(&list[start..end]) {
+            let j = j as usize;
             let d = [sites[j][0] - y[0], sites[j][1] - y[1]];
-            let c = 0.5 * ((d[0] * d[0] + d[1] * d[1]) + (weights[i] - weights[j]));
-            let h = Line { n: d, c, label: slot };
-            if clip(&s.a, &mut s.b, h, &mut s.values) {
+            let c = 0.5 * ((d[0] * d[0] + d[1] * d[1]) + (wi - weights[j]));
+            let h = Line {
+                n: d,
+                c,
+                label: slot as u32,
+            };
+            if clip(&mut s.a, &mut s.b, &h, &mut s.values) {
                 std::mem::swap(&mut s.a, &mut s.b);
-                if s.a.vertices.is_empty() {
+                if s.a.len == 0 {
                     return false;
                 }
             }
         }
-        !s.a.vertices.is_empty()
+        s.a.len != 0
     }
 
     /// The piece W_i ∩ t; records it and its edges, pushes unvisited neighbours across its
@@ -371,11 +433,26 @@ impl RestrictedIntegrator {
             return 0.0;
         }
         let density = self.densities[t];
-        let (area, first_moment, second_moment) = polygon_integrals(&s.a.vertices);
-        if !(area > 1e-14 * diameter_squared(&s.a.vertices)) {
+        let (area, first_moment, second_moment) = polygon_integrals(s.a.vertices());
+        let list = diagram.neighbor_list();
+        let m = s.a.len;
+        if !(area > 1e-14 * diameter_squared(s.a.vertices())) {
             // Degenerate piece: the cell touches t along a segment or at a point (a power edge
             // on a source-triangle edge, up to rounding). Its edge is counted from the
-            // non-degenerate pieces on both sides.
+            // non-degenerate pieces on both sides. The walk still continues across its edges,
+            // so that it does not depend on where it started.
+            if push {
+                for k in 0..m {
+                    let slot = s.a.lines[k].label;
+                    if slot != NO_LABEL {
+                        let j = list[slot as usize];
+                        if s.visited[j as usize] != s.stamp {
+                            s.visited[j as usize] = s.stamp;
+                            s.queue.push(j);
+                        }
+                    }
+                }
+            }
             return 0.0;
         }
         out.pieces.push(Piece {
@@ -385,8 +462,6 @@ impl RestrictedIntegrator {
             first_moment,
             second_moment,
         });
-        let list = diagram.neighbor_list();
-        let m = s.a.vertices.len();
         for k in 0..m {
             let slot = s.a.lines[k].label;
             if slot == NO_LABEL {
@@ -396,7 +471,7 @@ impl RestrictedIntegrator {
             // Each edge is seen from both cells: half from each side. A power edge lying on
             // a source-triangle edge is seen from one cell in each of the two triangles, and
             // gets the mean density of the two.
-            let (p, q) = (s.a.vertices[k], s.a.vertices[(k + 1) % m]);
+            let (p, q) = (s.a.vertices[k], s.a.vertices[if k + 1 == m { 0 } else { k + 1 }]);
             let length = ((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1])).sqrt();
             out.edges.push((slot, 0.5 * density * length));
             if push && s.visited[j as usize] != s.stamp {
@@ -407,7 +482,12 @@ impl RestrictedIntegrator {
         area
     }
 
-    /// All pieces of source triangle t.
+    /// All pieces of source triangle t: a walk over the cells from a seed cell across the power
+    /// edges inside t. The seed is the cell of t's largest piece at the last integration when
+    /// it still meets t (the diagrams of successive Newton trials differ little), else the cell
+    /// containing t's centroid (point location from that cell or the previous triangle's). The
+    /// set of pieces does not depend on the seed: the pieces of t tile it and the walk crosses
+    /// every edge between two of them; the area check below is the safety net.
     fn integrate_triangle(&self, diagram: &PowerDiagram, t: usize, s: &mut Scratch, out: &mut ChunkResult) {
         s.stamp = s.stamp.wrapping_add(1);
         if s.stamp == 0 {
@@ -415,21 +495,33 @@ impl RestrictedIntegrator {
             s.stamp = 1;
         }
         s.queue.clear();
-        let tri = self.triangles[t].map(|v| self.vertices[v as usize]);
-        let centroid = [
-            (tri[0][0] + tri[1][0] + tri[2][0]) / 3.0,
-            (tri[0][1] + tri[1][1] + tri[2][1]) / 3.0,
-        ];
-        for x in [centroid, tri[0], tri[1], tri[2]] {
-            let i = diagram.locate(x, s.hint);
-            s.hint = Some(i);
+        let n = diagram.num_sites();
+        let first_piece = out.pieces.len();
+        let mut covered = 0.0;
+        let seed = self.seeds[t].load(Relaxed) as usize;
+        let seeded = seed < n && !diagram.is_hidden(seed) && {
+            s.visited[seed] = s.stamp;
+            let a = self.visit(diagram, t, seed, s, out, true);
+            covered += a;
+            a > 0.0
+        };
+        if !seeded {
+            let tri = self.triangles[t].map(|v| self.vertices[v as usize]);
+            let centroid = [
+                (tri[0][0] + tri[1][0] + tri[2][0]) / 3.0,
+                (tri[0][1] + tri[1][1] + tri[2][1]) / 3.0,
+            ];
+            let hint = if seed < n && !diagram.is_hidden(seed) {
+                Some(seed)
+            } else {
+                s.hint
+            };
+            let i = diagram.locate(centroid, hint);
             if s.visited[i] != s.stamp {
                 s.visited[i] = s.stamp;
                 s.queue.push(i as u32);
             }
         }
-        let first_piece = out.pieces.len();
-        let mut covered = 0.0;
         while let Some(i) = s.queue.pop() {
             covered += self.visit(diagram, t, i as usize, s, out, true);
         }
@@ -445,7 +537,12 @@ impl RestrictedIntegrator {
             }
         }
         // Pieces of one triangle in cell order: the sum does not depend on the walk.
-        out.pieces[first_piece..].sort_unstable_by_key(|p| p.cell);
+        let pieces = &mut out.pieces[first_piece..];
+        pieces.sort_unstable_by_key(|p| p.cell);
+        if let Some(largest) = pieces.iter().max_by(|a, b| a.area.total_cmp(&b.area)) {
+            self.seeds[t].store(largest.cell, Relaxed);
+            s.hint = Some(largest.cell as usize);
+        }
     }
 
     /// Integrals over the restricted cells W_i ∩ Ω (see [`CellIntegrals`]): masses, first
@@ -465,7 +562,11 @@ impl RestrictedIntegrator {
             .map_init(
                 || Scratch::new(n),
                 |s, c| {
-                    let mut out = ChunkResult::default();
+                    // ~3.6 pieces per triangle and 3 power edges per piece on face pairs.
+                    let mut out = ChunkResult {
+                        pieces: Vec::with_capacity(4 * chunk),
+                        edges: Vec::with_capacity(12 * chunk),
+                    };
                     for &t in &self.order[c * chunk..((c + 1) * chunk).min(num_triangles)] {
                         self.integrate_triangle(diagram, t as usize, s, &mut out);
                     }
@@ -528,12 +629,12 @@ impl RestrictedIntegrator {
                     if diagram.is_hidden(i) || !Self::clip_to_cell(diagram, i, &self.boundary, s) {
                         return Vec::new();
                     }
-                    let (area, _, _) = polygon_integrals(&s.a.vertices);
-                    if !(area > 1e-14 * diameter_squared(&s.a.vertices)) {
+                    let (area, _, _) = polygon_integrals(s.a.vertices());
+                    if !(area > 1e-14 * diameter_squared(s.a.vertices())) {
                         return Vec::new();
                     }
                     let y = diagram.sites()[i];
-                    s.a.vertices.iter().map(|v| [v[0] + y[0], v[1] + y[1]]).collect()
+                    s.a.vertices().iter().map(|v| [v[0] + y[0], v[1] + y[1]]).collect()
                 },
             )
             .collect()

@@ -3,7 +3,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use shapespace_omt::power_diagram::PowerDiagram;
+use shapespace_omt::power_diagram::{InsertionOrder, PowerDiagram};
 use shapespace_omt::OmtError;
 
 /// Brute-force neighbours of site i: j is a neighbour when the part of the bisector line
@@ -178,6 +178,48 @@ fn collinear_sites_make_strips() {
     d.sanity_check().unwrap();
     assert_eq!(d.neighbors(2), &[3, 1]);
     assert_eq!(d.locate([7.0, -2.6], None), 3);
+}
+
+/// A precomputed insertion order gives the same diagram as `new`, for any weights; wrong
+/// lengths and bad weights are errors.
+#[test]
+fn insertion_order_reuse_gives_the_same_diagram() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let line: Vec<[f64; 2]> = (0..6).map(|i| [0.5 * i as f64, 0.25 * i as f64]).collect();
+    let grid: Vec<[f64; 2]> = (0..49).map(|i| [(i % 7) as f64, (i / 7) as f64]).collect();
+    let random: Vec<[f64; 2]> = (0..500).map(|_| [rng.random::<f64>(), rng.random::<f64>()]).collect();
+    for sites in [vec![[0.3, 0.4]], line, grid, random] {
+        let order = InsertionOrder::new(&sites).unwrap();
+        assert_eq!(order.len(), sites.len());
+        for scale in [0.0, 1e-3, 0.1] {
+            let weights: Vec<f64> = (0..sites.len()).map(|_| scale * rng.random::<f64>()).collect();
+            let (a, b) = (
+                PowerDiagram::new(&sites, &weights).unwrap(),
+                PowerDiagram::with_order(&sites, &weights, &order).unwrap(),
+            );
+            b.sanity_check().unwrap();
+            assert_eq!(a.dimension(), b.dimension());
+            assert_eq!(a.neighbor_offsets(), b.neighbor_offsets());
+            assert_eq!(a.neighbor_list(), b.neighbor_list());
+            assert_eq!(a.triangles(), b.triangles());
+            for i in 0..sites.len() {
+                assert_eq!(a.is_hidden(i), b.is_hidden(i));
+            }
+            assert_eq!(a.locate([0.37, 0.61], None), b.locate([0.37, 0.61], None));
+        }
+        let bad = PowerDiagram::with_order(&sites, &vec![0.0; sites.len() + 1], &order);
+        assert!(matches!(bad, Err(OmtError::InvalidInput(_))));
+        let mut weights = vec![0.0; sites.len()];
+        weights[0] = f64::NAN;
+        assert!(matches!(
+            PowerDiagram::with_order(&sites, &weights, &order),
+            Err(OmtError::InvalidInput(_))
+        ));
+    }
+    assert!(matches!(
+        InsertionOrder::new(&[[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]]),
+        Err(OmtError::DuplicatePoints { i: 0, j: 2 })
+    ));
 }
 
 #[test]

@@ -340,6 +340,60 @@ fn result_is_independent_of_thread_count() {
     assert_eq!(a.edge_masses, b.edge_masses);
 }
 
+/// The integrator remembers one cell per source triangle from its last call as the start of
+/// the next walk; that must never change a result. A reused integrator and fresh ones agree
+/// exactly over a sequence of diagrams: moving weights (cells appearing and vanishing), a
+/// different number of sites, and integer sites with ties (zero-length edges, cell corners on
+/// triangle corners).
+#[test]
+fn remembered_seeds_do_not_change_the_result() {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    // 16 × 16 squares, two triangles each, densities varying by 100×.
+    let k = 16u32;
+    let vertices: Vec<[f64; 2]> = (0..=k)
+        .flat_map(|y| (0..=k).map(move |x| [x as f64, y as f64]))
+        .collect();
+    let mut triangles = Vec::new();
+    for y in 0..k {
+        for x in 0..k {
+            let v = y * (k + 1) + x;
+            triangles.push([v, v + 1, v + k + 2]);
+            triangles.push([v, v + k + 2, v + k + 1]);
+        }
+    }
+    let densities: Vec<f64> = (0..triangles.len()).map(|_| 0.1 + 10.0 * rng.random::<f64>()).collect();
+    let measure = SourceMeasure::new(vertices, triangles, densities).unwrap();
+    let reused = RestrictedIntegrator::new(&measure);
+    let mut cases: Vec<(Vec<[f64; 2]>, Vec<f64>)> = Vec::new();
+    let sites: Vec<[f64; 2]> = (0..400)
+        .map(|_| [16.0 * rng.random::<f64>(), 16.0 * rng.random::<f64>()])
+        .collect();
+    let mut weights = vec![0.0; sites.len()];
+    for _ in 0..4 {
+        cases.push((sites.clone(), weights.clone()));
+        for w in &mut weights {
+            *w += 0.3 * (rng.random::<f64>() - 0.5);
+        }
+    }
+    cases.push((sites[..150].to_vec(), weights[..150].to_vec()));
+    let grid: Vec<[f64; 2]> = (0..64)
+        .map(|i| [(2 * (i % 8) + 1) as f64, (2 * (i / 8) + 1) as f64])
+        .collect();
+    cases.push((grid.clone(), vec![0.0; 64]));
+    cases.push((grid, (0..64).map(|i| 0.5 * (i % 3) as f64).collect()));
+    cases.push((sites.clone(), vec![0.0; sites.len()]));
+    for (c, (sites, weights)) in cases.iter().enumerate() {
+        let d = PowerDiagram::new(sites, weights).unwrap();
+        let (a, b) = (reused.integrate(&d), RestrictedIntegrator::new(&measure).integrate(&d));
+        assert_eq!(a.masses, b.masses, "case {c}");
+        assert_eq!(a.first_moments, b.first_moments, "case {c}");
+        assert_eq!(a.second_moments, b.second_moments, "case {c}");
+        assert_eq!(a.edge_masses, b.edge_masses, "case {c}");
+        let total: f64 = a.masses.iter().sum();
+        assert!((total - measure.total_mass()).abs() < 1e-10 * total, "case {c}");
+    }
+}
+
 /// Tie-rich small configurations (integer-grid sites, half-integer weights: co-circular sites,
 /// cell vertices on source-triangle corners, zero-length edges, hidden sites) and random ones:
 /// mass conservation and agreement with the brute force.

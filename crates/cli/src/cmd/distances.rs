@@ -11,6 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use shapespace_analysis::distance::PairwiseOptions;
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun};
 use shapespace_analysis::shape_space::{run_mds, MdsParams};
+use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::NewtonParams;
 
 /// Arguments shared by `distances` and `demo`.
@@ -81,6 +82,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             newton: NewtonParams {
                 tolerance: solver.tol,
                 max_iterations: solver.max_iterations,
+                linear_solver: LinearSolver::CholeskyReusedOrdering,
                 ..NewtonParams::default()
             },
             warm_start: !solver.no_warm_start,

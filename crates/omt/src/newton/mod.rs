@@ -45,13 +45,14 @@
 mod line_search;
 mod multiscale;
 
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 use crate::linear::{LinearSolver, NewtonSystem};
 use crate::measure::SourceMeasure;
-use crate::power_diagram::PowerDiagram;
+use crate::power_diagram::{InsertionOrder, PowerDiagram};
 use crate::restricted::RestrictedIntegrator;
 
 pub use multiscale::nearest_points;
@@ -225,6 +226,8 @@ pub struct OtSolution {
     pub t_total: f64,
     /// Number of symbolic Cholesky factorizations (changes of the neighbour graph).
     pub symbolic_factorizations: usize,
+    /// Number of those that computed a new fill-reducing ordering (the others reused one).
+    pub orderings: usize,
     /// Seconds in Hessian assembly, symbolic factorization, numeric factorization + solve.
     pub t_assembly: f64,
     pub t_symbolic: f64,
@@ -302,16 +305,17 @@ pub fn integrate_at_heights(
     evaluate(&Backend::new(measure, integrator), points, heights).map(|e| e.cells)
 }
 
-/// The cell integrator with its per-measure precomputation.
+/// The cell integrator with its per-measure precomputation, and the insertion order of the
+/// points (computed at the first evaluation; a backend serves one set of points).
 pub(crate) enum Backend<'a> {
-    Restricted(RestrictedIntegrator),
+    Restricted(RestrictedIntegrator, OnceLock<InsertionOrder>),
     BruteForce(&'a SourceMeasure),
 }
 
 impl<'a> Backend<'a> {
     pub(crate) fn new(measure: &'a SourceMeasure, integrator: CellIntegrator) -> Self {
         match integrator {
-            CellIntegrator::Restricted => Backend::Restricted(RestrictedIntegrator::new(measure)),
+            CellIntegrator::Restricted => Backend::Restricted(RestrictedIntegrator::new(measure), OnceLock::new()),
             CellIntegrator::BruteForce => Backend::BruteForce(measure),
         }
     }
@@ -335,9 +339,21 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f6
                 t_integration: t0.elapsed().as_secs_f64(),
             })
         }
-        Backend::Restricted(integrator) => {
+        Backend::Restricted(integrator, order) => {
             let t0 = Instant::now();
-            let diagram = PowerDiagram::new(points, &weights)?;
+            let other;
+            let order = match order.get() {
+                Some(order) if order.len() == points.len() => order,
+                Some(_) => {
+                    other = InsertionOrder::new(points)?;
+                    &other
+                }
+                None => {
+                    let computed = InsertionOrder::new(points)?;
+                    order.get_or_init(|| computed)
+                }
+            };
+            let diagram = PowerDiagram::with_order(points, &weights, order)?;
             let t_diagram = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let cells = integrator.integrate(&diagram);
@@ -888,6 +904,7 @@ fn solve_single(
         t_start,
         t_total: t_begin.elapsed().as_secs_f64(),
         symbolic_factorizations: system.symbolic_factorizations,
+        orderings: system.orderings,
         t_assembly: system.t_assembly,
         t_symbolic: system.t_symbolic,
         t_numeric: system.t_numeric,
