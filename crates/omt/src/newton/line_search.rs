@@ -23,7 +23,7 @@
 //! The search gives up below τ = 2^−`max_halvings` (the conditions hold for τ small enough by KMT's
 //! Prop. 6.1, so failing there means a floating-point floor or a pathological start).
 
-use super::{errors, evaluate, Backend, Evaluation};
+use super::{errors, evaluate_unless_hidden, Backend, Evaluation};
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 
@@ -111,7 +111,7 @@ pub(crate) fn damped_step(
     };
     loop {
         let trial: Vec<f64> = heights.iter().zip(delta).map(|(h, d)| h + tau * d).collect();
-        let evaluation = evaluate(backend, points, &trial)?;
+        let evaluation = evaluate_unless_hidden(backend, points, &trial, true)?;
         outcome.t_diagram += evaluation.t_diagram;
         outcome.t_integration += evaluation.t_integration;
         let min_mass = evaluation.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);

@@ -322,6 +322,18 @@ impl<'a> Backend<'a> {
 }
 
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f64]) -> Result<Evaluation, OmtError> {
+    evaluate_unless_hidden(backend, points, heights, false)
+}
+
+/// [`evaluate`]; with `skip_if_hidden`, a diagram with a hidden site (an empty cell: mass 0 < ε₀,
+/// so a line-search trial that must be rejected) is not integrated: the masses are 0 for the
+/// hidden sites and NaN for the others, the moments NaN and the edge list empty.
+pub(crate) fn evaluate_unless_hidden(
+    backend: &Backend<'_>,
+    points: &[[f64; 2]],
+    heights: &[f64],
+    skip_if_hidden: bool,
+) -> Result<Evaluation, OmtError> {
     let weights = weights_from_heights(points, heights);
     if let Some(i) = weights.iter().position(|w| !w.is_finite()) {
         return Err(OmtError::InvalidInput(format!(
@@ -355,6 +367,22 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f6
             };
             let diagram = PowerDiagram::with_order(points, &weights, order)?;
             let t_diagram = t0.elapsed().as_secs_f64();
+            if skip_if_hidden && (0..points.len()).any(|i| diagram.is_hidden(i)) {
+                let n = points.len();
+                let cells = CellIntegrals {
+                    masses: (0..n)
+                        .map(|i| if diagram.is_hidden(i) { 0.0 } else { f64::NAN })
+                        .collect(),
+                    first_moments: vec![[f64::NAN; 2]; n],
+                    second_moments: vec![f64::NAN; n],
+                    edge_masses: Vec::new(),
+                };
+                return Ok(Evaluation {
+                    cells,
+                    t_diagram,
+                    t_integration: 0.0,
+                });
+            }
             let t1 = Instant::now();
             let cells = integrator.integrate(&diagram);
             Ok(Evaluation {
