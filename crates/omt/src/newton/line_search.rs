@@ -20,6 +20,12 @@
 //! The next trial is 0.9 × the smallest candidate. On the faces every rejection was a mass floor
 //! violation by one to a few cells, and this cut the evaluations per step from ~2.4 to ~1.5.
 //!
+//! A trial whose power diagram already hides a site (its cell is empty: mass 0 < ε₀) is rejected
+//! without integrating the cells; `next_trial` then sees mass 0 for the hidden sites and nothing
+//! for the others (NaN). About half the evaluations on face pairs are rejected trials, most of them
+//! with a vanished cell: this cut the 8-face distance benchmark from 16.8 to 12.2 s with the same
+//! costs to 7e-12 (the trial sequence differs slightly: 1063 → 1052 evaluations).
+//!
 //! The search gives up below τ = 2^−`max_halvings` (the conditions hold for τ small enough by KMT's
 //! Prop. 6.1, so failing there means a floating-point floor or a pathological start).
 
