@@ -1,7 +1,7 @@
 //! Probe (experimental, not wired into the solver; see ARCHITECTURE.md): hierarchical merge of
 //! near-coincident points for the 1e4 random points / 100x contrast case of ot_bench.
 //! `cluster_probe N ALPHAS` with env CTOL (level tolerance), FRAC (a level is used when it
-//! merges > N/FRAC points), KAPPA, SPREAD. The point and disk generators copy ot_bench's.
+//! merges > N/FRAC points), KAPPA, SPREAD. Inputs from `synthetic` (those of ot_bench).
 //! Levels: greedy matching of pairs closer than alpha * sqrt(pi/N) (alpha kept while a level
 //! merges enough, then the next alpha); the coarsest level solved directly; each finer level
 //! starts from the lifted coarse heights (children split the parent cell around its centroid,
@@ -11,72 +11,9 @@
 //! mass continuation 62 s). Other schedules had levels whose repair failed and fell back to the
 //! Voronoi start (6-25 s): the repair is the open problem.
 use shapespace_omt::newton::integrate_at_heights;
+use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
 use std::time::Instant;
-
-fn rng(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut x = *state;
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    ((x ^ (x >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
-
-fn disk_points(n: usize, seed: u64) -> Vec<[f64; 2]> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            let r = rng(&mut s).sqrt();
-            let t = 2.0 * std::f64::consts::PI * rng(&mut s);
-            [r * t.cos(), r * t.sin()]
-        })
-        .collect()
-}
-
-/// Triangulated unit disk with `rings` rings (ring k has 6k vertices), density f at centroids.
-fn disk_measure(rings: usize, f: impl Fn([f64; 2]) -> f64) -> SourceMeasure {
-    let mut vertices = vec![[0.0, 0.0]];
-    let mut ring_start = vec![0usize];
-    for k in 1..=rings {
-        ring_start.push(vertices.len());
-        for j in 0..6 * k {
-            let t = 2.0 * std::f64::consts::PI * j as f64 / (6 * k) as f64;
-            let r = k as f64 / rings as f64;
-            vertices.push([r * t.cos(), r * t.sin()]);
-        }
-    }
-    let mut triangles = Vec::new();
-    for k in 0..rings {
-        let (n_in, n_out) = (if k == 0 { 1 } else { 6 * k }, 6 * (k + 1));
-        let (s_in, s_out) = (ring_start[k], ring_start[k + 1]);
-        let (mut i, mut o) = (if k == 0 { 1usize } else { 0 }, 0usize);
-        while i < n_in || o < n_out {
-            let a_in = if k == 0 {
-                f64::INFINITY
-            } else {
-                (i + 1) as f64 / n_in as f64
-            };
-            let a_out = (o + 1) as f64 / n_out as f64;
-            let vi = (s_in + i % n_in) as u32;
-            let vo = (s_out + o % n_out) as u32;
-            if o < n_out && (i >= n_in || a_out <= a_in) {
-                triangles.push([vi, vo, (s_out + (o + 1) % n_out) as u32]);
-                o += 1;
-            } else {
-                triangles.push([vi, vo, (s_in + (i + 1) % n_in) as u32]);
-                i += 1;
-            }
-        }
-    }
-    let densities = triangles
-        .iter()
-        .map(|t| {
-            let p = t.map(|v| vertices[v as usize]);
-            f([(p[0][0] + p[1][0] + p[2][0]) / 3.0, (p[0][1] + p[1][1] + p[2][1]) / 3.0])
-        })
-        .collect();
-    SourceMeasure::new(vertices, triangles, densities).expect("valid disk")
-}
 
 fn find(p: &mut Vec<usize>, i: usize) -> usize {
     let mut r = i;
@@ -299,8 +236,8 @@ fn main() {
         .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
         .unwrap_or(vec![0.5]);
     let contrast: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(100.0);
-    let measure = disk_measure(30, |x| if x[0] > 0.0 { contrast } else { 1.0 });
-    let points = disk_points(n, 2024);
+    let measure = disk_rings_measure(30, |x| if x[0] > 0.0 { contrast } else { 1.0 }).expect("valid disk");
+    let points = random_disk_points(n, 2024);
     let masses = vec![1.0; n];
     let t0 = Instant::now();
     let mut stats = Vec::new();

@@ -16,27 +16,8 @@ use shapespace_omt::linear::{LinearSolver, NewtonSystem};
 use shapespace_omt::newton::weights_from_heights;
 use shapespace_omt::power_diagram::PowerDiagram;
 use shapespace_omt::restricted::RestrictedIntegrator;
+use shapespace_omt::synthetic::random_disk_points;
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
-
-fn rng(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut x = *state;
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    ((x ^ (x >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// The points of `ot_bench`.
-fn disk_points(n: usize, seed: u64) -> Vec<[f64; 2]> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            let r = rng(&mut s).sqrt();
-            let t = 2.0 * std::f64::consts::PI * rng(&mut s);
-            [r * t.cos(), r * t.sin()]
-        })
-        .collect()
-}
 
 /// Minimum: the least disturbed run on a shared machine.
 fn best(v: Vec<f64>) -> f64 {
@@ -77,7 +58,7 @@ fn main() {
             let n = args.get(1).and_then(|s| s.parse::<f64>().ok()).unwrap_or(1e5) as usize;
             (
                 SourceMeasure::unit_disk(512).unwrap(),
-                disk_points(n, 2024),
+                random_disk_points(n, 2024),
                 vec![1.0; n],
                 NewtonParams::default(),
             )

@@ -13,6 +13,7 @@ pub mod power_diagram;
 pub mod predicates;
 pub mod reference;
 pub mod restricted;
+pub mod synthetic;
 
 pub use cells::CellIntegrals;
 pub use error::OmtError;
