@@ -97,9 +97,17 @@ mod tests {
         let m = disk_rings_measure(rings, |_| 1.0).unwrap();
         let k = (6 * rings) as f64;
         let polygon = 0.5 * k * (std::f64::consts::TAU / k).sin();
-        assert!((m.total_mass() - polygon).abs() < 1e-12, "{} vs {polygon}", m.total_mass());
+        assert!(
+            (m.total_mass() - polygon).abs() < 1e-12,
+            "{} vs {polygon}",
+            m.total_mass()
+        );
         let h = disk_rings_measure(rings, |x| if x[0] > 0.0 { 3.0 } else { 1.0 }).unwrap();
-        assert!((h.total_mass() - 2.0 * polygon).abs() < 0.02 * polygon, "{}", h.total_mass());
+        assert!(
+            (h.total_mass() - 2.0 * polygon).abs() < 0.02 * polygon,
+            "{}",
+            h.total_mass()
+        );
         assert!(disk_rings_measure(rings, |_| f64::NAN).is_err());
     }
 }
