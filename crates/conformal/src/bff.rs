@@ -52,14 +52,13 @@
 use std::f64::consts::{PI, TAU};
 use std::time::Instant;
 
-use faer::sparse::Triplet;
 use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
 use crate::disk_map::{check_disk, count_negative, finish, neighbors, CROWDING_LIMIT};
 use crate::error::ConformalError;
 use crate::intrinsic::{next, prev, triangle_area_from_lengths, IntrinsicTriangulation, NONE};
-use crate::linsolve::SpdSolver;
+use crate::linsolve::restricted_laplacian;
 use crate::markers::{resolve_markers, Markers, ResolvedMarkers};
 use crate::mobius::Mobius;
 use crate::quality::QualitySummary;
@@ -219,46 +218,6 @@ fn boundary_loop(tri: &IntrinsicTriangulation, start: u32) -> Result<(Vec<u32>, 
         });
     }
     Ok((verts, lens))
-}
-
-/// A matrix row's coupling to an excluded vertex: (row, vertex, w), the entry being −w.
-type Coupling = (u32, u32, f64);
-
-/// Factorizes the cotangent Laplacian of `tri` restricted to the vertices with
-/// `index[v] != u32::MAX` (m of them). Returns the solver and the couplings (row, excluded
-/// vertex, w) of the rows to the excluded vertices (L_row,v = −w).
-fn restricted_laplacian(
-    tri: &IntrinsicTriangulation,
-    index: &[u32],
-    m: usize,
-    what: &str,
-) -> Result<(SpdSolver, Vec<Coupling>), ConformalError> {
-    let mut diag = vec![0.0; m];
-    let mut trip = Vec::with_capacity(tri.tail.len() + m);
-    let mut coupling = Vec::new();
-    for (i, j, w) in tri.half_cotan_triplets() {
-        if i == j {
-            continue;
-        }
-        let (ii, jj) = (index[i as usize], index[j as usize]);
-        if ii != u32::MAX {
-            diag[ii as usize] += w;
-        }
-        if jj != u32::MAX {
-            diag[jj as usize] += w;
-        }
-        match (ii != u32::MAX, jj != u32::MAX) {
-            (true, true) => {
-                let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
-                trip.push(Triplet::new(r as usize, c as usize, -w));
-            }
-            (true, false) => coupling.push((ii, j, w)),
-            (false, true) => coupling.push((jj, i, w)),
-            (false, false) => {}
-        }
-    }
-    trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
-    Ok((SpdSolver::new(m, &trip, what)?, coupling))
 }
 
 /// δ − P δ, where P is the weighted least-squares projection (weights: the dual boundary

@@ -28,7 +28,7 @@ use faer::sparse::Triplet;
 
 use crate::error::ConformalError;
 use crate::intrinsic::{next, prev, IntrinsicTriangulation, NONE};
-use crate::linsolve::SpdSolver;
+use crate::linsolve::{restricted_laplacian, SpdSolver};
 
 /// Solves the discrete Green's function problem L u = e_pole, u = 0 on the boundary, on the
 /// given triangulation. Returns u (#V; 0 on boundary vertices, > 0 inside).
@@ -42,28 +42,7 @@ pub fn green_function(tri: &IntrinsicTriangulation, pole: u32) -> Result<Vec<f64
             m += 1;
         }
     }
-    let weights = tri.half_cotan_triplets();
-    let mut diag = vec![0.0; m];
-    let mut trip = Vec::with_capacity(weights.len() + m);
-    for &(i, j, w) in &weights {
-        if i == j {
-            continue;
-        }
-        let (ii, jj) = (index[i as usize], index[j as usize]);
-        if ii != u32::MAX {
-            diag[ii as usize] += w;
-        }
-        if jj != u32::MAX {
-            diag[jj as usize] += w;
-        }
-        if ii != u32::MAX && jj != u32::MAX {
-            // lower triangle only (the Cholesky reads Side::Lower)
-            let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
-            trip.push(Triplet::new(r as usize, c as usize, -w));
-        }
-    }
-    trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
-    let solver = SpdSolver::new(m, &trip, "the Dirichlet Laplacian (Green's function)")?;
+    let (solver, _) = restricted_laplacian(tri, &index, m, "the Dirichlet Laplacian (Green's function)")?;
     let mut rhs = vec![vec![0.0; m]];
     rhs[0][index[pole as usize] as usize] = 1.0;
     solver.solve(&mut rhs);

@@ -5,6 +5,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
 
 use crate::error::ConformalError;
+use crate::intrinsic::IntrinsicTriangulation;
 
 /// A factorized SPD matrix, reusable for several right-hand sides.
 pub struct SpdSolver {
@@ -36,4 +37,44 @@ impl SpdSolver {
             }
         }
     }
+}
+
+/// A matrix row's coupling to an excluded vertex: (row, vertex, w), the entry being −w.
+pub(crate) type Coupling = (u32, u32, f64);
+
+/// Factorizes the cotangent Laplacian of `tri` restricted to the vertices with
+/// `index[v] != u32::MAX` (m of them). Returns the solver and the couplings (row, excluded
+/// vertex, w) of the rows to the excluded vertices (L_row,v = −w).
+pub(crate) fn restricted_laplacian(
+    tri: &IntrinsicTriangulation,
+    index: &[u32],
+    m: usize,
+    what: &str,
+) -> Result<(SpdSolver, Vec<Coupling>), ConformalError> {
+    let mut diag = vec![0.0; m];
+    let mut trip = Vec::with_capacity(tri.tail.len() + m);
+    let mut coupling = Vec::new();
+    for (i, j, w) in tri.half_cotan_triplets() {
+        if i == j {
+            continue;
+        }
+        let (ii, jj) = (index[i as usize], index[j as usize]);
+        if ii != u32::MAX {
+            diag[ii as usize] += w;
+        }
+        if jj != u32::MAX {
+            diag[jj as usize] += w;
+        }
+        match (ii != u32::MAX, jj != u32::MAX) {
+            (true, true) => {
+                let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
+                trip.push(Triplet::new(r as usize, c as usize, -w));
+            }
+            (true, false) => coupling.push((ii, j, w)),
+            (false, true) => coupling.push((jj, i, w)),
+            (false, false) => {}
+        }
+    }
+    trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
+    Ok((SpdSolver::new(m, &trip, what)?, coupling))
 }
