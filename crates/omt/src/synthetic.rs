@@ -27,10 +27,11 @@ pub fn random_disk_points(n: usize, seed: u64) -> Vec<[f64; 2]> {
         .collect()
 }
 
-/// The unit disk triangulated in `rings` rings (ring k has 6k vertices, on the circle of radius
-/// k/rings), with density `f` at each triangle's centroid. Errors as [`SourceMeasure::new`] (e.g.
-/// a density that is not finite and > 0).
-pub fn disk_rings_measure(rings: usize, f: impl Fn([f64; 2]) -> f64) -> Result<SourceMeasure, OmtError> {
+/// The unit disk triangulated in `rings` rings: the center, then ring k = 1..=rings with 6k
+/// vertices on the circle of radius k/rings; consecutive rings are joined by merging their
+/// angles. Returns (vertices, counter-clockwise triangles); the boundary is the inscribed
+/// 6·rings-gon.
+pub fn disk_rings_mesh(rings: usize) -> (Vec<[f64; 2]>, Vec<[u32; 3]>) {
     let mut vertices = vec![[0.0, 0.0]];
     let mut ring_start = vec![0usize];
     for k in 1..=rings {
@@ -64,6 +65,13 @@ pub fn disk_rings_measure(rings: usize, f: impl Fn([f64; 2]) -> f64) -> Result<S
             }
         }
     }
+    (vertices, triangles)
+}
+
+/// [`disk_rings_mesh`] with density `f` at each triangle's centroid. Errors as
+/// [`SourceMeasure::new`] (e.g. a density that is not finite and > 0).
+pub fn disk_rings_measure(rings: usize, f: impl Fn([f64; 2]) -> f64) -> Result<SourceMeasure, OmtError> {
+    let (vertices, triangles) = disk_rings_mesh(rings);
     let densities = triangles
         .iter()
         .map(|t| {

@@ -4,42 +4,10 @@
 
 use shapespace_omt::SourceMeasure;
 
-/// A triangulated unit disk (inscribed polygon with 6·rings boundary vertices): ring k has 6k
-/// vertices at radius k/rings; triangles between consecutive rings by merging angles.
-/// Returns (vertices, counter-clockwise triangles).
+/// A triangulated unit disk (inscribed polygon with 6·rings boundary vertices):
+/// [`shapespace_omt::synthetic::disk_rings_mesh`].
 pub fn disk_mesh(rings: usize) -> (Vec<[f64; 2]>, Vec<[u32; 3]>) {
-    let mut vertices = vec![[0.0, 0.0]];
-    let mut ring_start = vec![0usize];
-    for k in 1..=rings {
-        ring_start.push(vertices.len());
-        let r = k as f64 / rings as f64;
-        let n = 6 * k;
-        for j in 0..n {
-            let t = 2.0 * std::f64::consts::PI * j as f64 / n as f64;
-            vertices.push([r * t.cos(), r * t.sin()]);
-        }
-    }
-    let mut triangles = Vec::new();
-    for k in 0..rings {
-        let (n_in, n_out) = (if k == 0 { 1 } else { 6 * k }, 6 * (k + 1));
-        let (s_in, s_out) = (ring_start[k], ring_start[k + 1]);
-        let angle = |j: usize, n: usize| j as f64 / n as f64;
-        let (mut i, mut o) = (if k == 0 { 1usize } else { 0 }, 0usize);
-        while i < n_in || o < n_out {
-            let a_in = if k == 0 { f64::INFINITY } else { angle(i + 1, n_in) };
-            let a_out = angle(o + 1, n_out);
-            let vi = (s_in + i % n_in) as u32;
-            let vo = (s_out + o % n_out) as u32;
-            if o < n_out && (i >= n_in || a_out <= a_in) {
-                triangles.push([vi, vo, (s_out + (o + 1) % n_out) as u32]);
-                o += 1;
-            } else {
-                triangles.push([vi, vo, (s_in + (i + 1) % n_in) as u32]);
-                i += 1;
-            }
-        }
-    }
-    (vertices, triangles)
+    shapespace_omt::synthetic::disk_rings_mesh(rings)
 }
 
 /// Triangle average of f by the degree-5 (7-point) Dunavant rule.
