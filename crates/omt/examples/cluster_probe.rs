@@ -15,7 +15,7 @@ use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
 use std::time::Instant;
 
-fn find(p: &mut Vec<usize>, i: usize) -> usize {
+fn find(p: &mut [usize], i: usize) -> usize {
     let mut r = i;
     while p[r] != r {
         r = p[r];

@@ -30,11 +30,12 @@ use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 
 /// How the Newton system H δ = −G is solved.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub enum LinearSolver {
     /// Sparse LLᵀ (faer, AMD ordering, sequential); the symbolic factorization is kept while no
     /// new neighbouring pair appears, and recomputed on the union of all patterns since the
     /// previous one otherwise.
+    #[default]
     Cholesky,
     /// As `Cholesky`, but a new pattern keeps the previous AMD ordering while its fill
     /// nnz(L)/nnz(A) stays within 20% of the fill the ordering was computed with (checked by
@@ -52,12 +53,6 @@ pub enum LinearSolver {
         relative_tolerance: f64,
         max_iterations: usize,
     },
-}
-
-impl Default for LinearSolver {
-    fn default() -> Self {
-        LinearSolver::Cholesky
-    }
 }
 
 /// The reduced (pinned) Hessian in lower-triangular CSC form, #(N−1) columns.

@@ -909,12 +909,10 @@ impl PowerDiagram {
                     ));
                 }
                 let d = other[j];
-                if !tri.contains(&inf) || d != inf {
-                    if d != inf && builder.conflict(t as u32, d) {
-                        return Err(format!(
-                            "edge ({u}, {v}) is not regular: site {d} is in conflict with triangle {tri:?}"
-                        ));
-                    }
+                if d != inf && builder.conflict(t as u32, d) {
+                    return Err(format!(
+                        "edge ({u}, {v}) is not regular: site {d} is in conflict with triangle {tri:?}"
+                    ));
                 }
                 if u != inf && v != inf && !self.neighbors(u as usize).contains(&v) {
                     return Err(format!("edge ({u}, {v}) missing from the neighbour lists"));

@@ -58,6 +58,7 @@ pub fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> i8 {
 /// triangle (a, b, c) with weights (wa, wb, wc) and the query p with weight wp: `1` when p is in
 /// conflict (its lifted point is strictly below the lifted plane of the triangle), `-1` when it is
 /// strictly above, `0` exactly on it. No perturbation.
+#[allow(clippy::too_many_arguments)] // the four weighted points of the determinant
 pub fn power_side_exact_sign(
     a: [f64; 2],
     wa: f64,

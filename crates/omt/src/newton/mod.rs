@@ -561,7 +561,7 @@ fn source_barycenter(measure: &SourceMeasure) -> [f64; 2] {
 }
 
 /// Solves semi-discrete OT from `measure` to the points `points` (#N) with masses `masses` (#N,
-/// > 0, rescaled to sum to μ(Ω)) by the damped Newton method of Kitagawa–Mérigot–Thibert on the
+/// positive, rescaled to sum to μ(Ω)) by the damped Newton method of Kitagawa–Mérigot–Thibert on the
 /// heights (module docs). Returns the solution whether or not it converged (check
 /// [`OtSolution::converged`] or call [`OtSolution::into_result`]); errors on invalid input
 /// (N = 0, non-finite values, masses ≤ 0, coincident points) and linear-algebra failures.
