@@ -536,9 +536,9 @@ fn harmonic_step(
 /// weights of the planar triangles themselves (signed: cot θ = (u·v)/(u×v) with the signed cross
 /// product, so folded faces give negative cotangents): (L g)_i = 0 at free vertices, g fixed at
 /// the `fixed` vertices (boundary) and `pins` (landmarks). #V image positions. Solved by sparse
-/// Cholesky, or LU when the system is indefinite (folded faces). With `clamp_negative`, every edge weight (the sum of the two half-cotangents at the edge)
-/// below 0 is set to 0 ([`HarmonicWeights::PlanarClamped`]). Errors: a vertex constrained
-/// twice, a singular system.
+/// Cholesky, or LU when the system is indefinite (folded faces). With `clamp_negative`, every
+/// edge weight (the sum of the two half-cotangents at the edge) below 0 is set to 0
+/// ([`HarmonicWeights::PlanarClamped`]). Errors: a vertex constrained twice, a singular system.
 pub fn planar_harmonic_map(
     positions: &[[f64; 2]],
     faces: &[[u32; 3]],
