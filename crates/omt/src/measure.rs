@@ -107,3 +107,12 @@ impl SourceMeasure {
             .sum()
     }
 }
+
+/// Componentwise minimum and maximum of `points` (([∞, ∞], [−∞, −∞]) when empty).
+pub(crate) fn bounding_box(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    points
+        .iter()
+        .fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
+            ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+        })
+}

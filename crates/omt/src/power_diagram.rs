@@ -349,13 +349,7 @@ fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<Vec<u32>, Om
             )));
         }
     }
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in sites {
-        for c in 0..2 {
-            lo[c] = lo[c].min(p[c]);
-            hi[c] = hi[c].max(p[c]);
-        }
-    }
+    let (lo, hi) = crate::measure::bounding_box(sites);
     let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
     let quantize = |v: f64, c: usize| (((v - lo[c]) * scale).clamp(0.0, 65535.0)) as u32;

@@ -237,13 +237,7 @@ fn polygon_integrals(v: &[[f64; 2]]) -> (f64, [f64; 2], f64) {
 
 /// Squared diagonal of the bounding box of the points.
 fn diameter_squared(points: &[[f64; 2]]) -> f64 {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for v in points {
-        for c in 0..2 {
-            lo[c] = lo[c].min(v[c]);
-            hi[c] = hi[c].max(v[c]);
-        }
-    }
+    let (lo, hi) = crate::measure::bounding_box(points);
     (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)
 }
 
@@ -346,13 +340,7 @@ impl RestrictedIntegrator {
                 [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
             })
             .collect();
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in &centroids {
-            for c in 0..2 {
-                lo[c] = lo[c].min(p[c]);
-                hi[c] = hi[c].max(p[c]);
-            }
-        }
+        let (lo, hi) = crate::measure::bounding_box(&centroids);
         let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
         let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
         let mut keyed: Vec<(u64, u32)> = centroids

@@ -492,15 +492,6 @@ fn contracted_voronoi_heights(points: &[[f64; 2]], center: [f64; 2], scale: f64)
         .collect()
 }
 
-/// Componentwise minimum and maximum of `points` (non-empty).
-fn bounding_box(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
-    points
-        .iter()
-        .fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
-            ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
-        })
-}
-
 /// The error message when no start has all cells non-empty: how many cells were empty at the
 /// Voronoi start (`empty`, indices), the smallest distance from one of their points to another
 /// point, and the likely cause. Points closer than ~1e−9 of Ω's extent get cells whose masses
@@ -773,7 +764,7 @@ fn solve_single(
     let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = source_barycenter(measure);
-        let (lo, hi) = bounding_box(&measure.vertices);
+        let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
         let empty_at = |cells: &CellIntegrals| cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
         let mut fewest_empty = empty_at(&current.cells);
         let first_empty: Vec<usize> = (0..n).filter(|&i| !(current.cells.masses[i] > 0.0)).collect();

@@ -45,14 +45,7 @@ pub fn nearest_points(sites: &[[f64; 2]], queries: &[[f64; 2]]) -> Vec<usize> {
     if sites.is_empty() {
         return vec![0; queries.len()];
     }
-    let mut lo = [f64::INFINITY; 2];
-    let mut hi = [f64::NEG_INFINITY; 2];
-    for p in sites {
-        for c in 0..2 {
-            lo[c] = lo[c].min(p[c]);
-            hi[c] = hi[c].max(p[c]);
-        }
-    }
+    let (lo, hi) = crate::measure::bounding_box(sites);
     let side = (((hi[0] - lo[0]) * (hi[1] - lo[1])).max(0.0) / sites.len() as f64).sqrt();
     let side = if side > 0.0 {
         side
