@@ -190,3 +190,44 @@ fn mass_continuation_reaches_the_direct_solution() {
         )
     );
 }
+
+/// The ot_bench contrast case at N = 4000 (uniform random points, density 100 on x > 0): the
+/// fixed two-stage schedule of ratio 10 stopped at the iteration cap with max error 8.9e-2; the
+/// adaptive continuation halves the stage that fails and converges with default parameters.
+#[test]
+fn adaptive_density_continuation_converges_on_random_points_with_contrast() {
+    use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
+    let half = disk_rings_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 }).unwrap();
+    let points = random_disk_points(4000, 2024);
+    let sol = solve_ot(&half, &points, &vec![1.0; points.len()], &NewtonParams::default()).unwrap();
+    check("random points, half-plane ×100", &sol, 1e-6);
+    match sol.start {
+        Start::DensityContinuation { stages, .. } => assert!(stages > 2, "{stages} stages"),
+        ref other => panic!("start {other:?}"),
+    }
+}
+
+/// A continuation that cannot advance (one Newton step per stage) stops as `Stalled` and says
+/// where, instead of looping or reporting the last stage as the answer.
+#[test]
+fn density_continuation_that_cannot_advance_says_so() {
+    let mut rng = Rng(5);
+    let points: Vec<[f64; 2]> = (0..500).map(|_| rng.in_disk(0.98)).collect();
+    let half = disk_measure(30, &|x| if x[0] > 0.0 { 100.0 } else { 1.0 });
+    let params = NewtonParams {
+        max_iterations: 2,
+        ..NewtonParams::default()
+    };
+    let sol = solve_ot(&half, &points, &vec![1.0; points.len()], &params).unwrap();
+    assert!(!sol.converged());
+    match &sol.stop {
+        shapespace_omt::StopReason::Stalled { reason } => {
+            assert!(
+                reason.contains("density continuation could not advance past t ="),
+                "{reason}"
+            )
+        }
+        other => panic!("stop {other}"),
+    }
+    assert!(sol.heights.iter().all(|h| h.is_finite()));
+}
