@@ -290,7 +290,6 @@ impl NewtonSystem {
             .symbolic
             .as_ref()
             .expect("symbolic factorization was just computed");
-        let matrix = SparseColMatRef::new(structure.as_ref(), &hessian.values);
         // Sequential: as fast as rayon at N = 1e5 on 2 shared cores (and faster when the
         // caller already runs one solve per thread), and independent of the thread count.
         let par = Par::Seq;
@@ -300,17 +299,41 @@ impl NewtonSystem {
         let mut buffer = MemBuffer::try_new(scratch)
             .map_err(|_| OmtError::LinearAlgebra("out of memory in the Cholesky factorization".into()))?;
         let stack = MemStack::new(&mut buffer);
-        symbolic
-            .factorize_numeric_llt::<f64>(
+        // A Hessian whose edge weights span ~20 orders of magnitude (sites 1e-18 apart beside
+        // ordinary ones) can lose a pivot to round-off. Then the diagonal is raised by a relative
+        // 1e-10, 1e-8, 1e-6 (strict diagonal dominance; the direction changes by about as much,
+        // which the damped step tolerates) before giving up.
+        let mut shifted: Vec<f64>;
+        let mut values: &[f64] = &hessian.values;
+        let mut attempt = 0;
+        loop {
+            let matrix = SparseColMatRef::new(structure.as_ref(), values);
+            match symbolic.factorize_numeric_llt::<f64>(
                 &mut self.factor,
                 matrix,
                 Side::Lower,
                 Default::default(),
                 par,
-                stack,
+                &mut *stack,
                 Default::default(),
-            )
-            .map_err(|e| OmtError::LinearAlgebra(format!("numeric Cholesky of the Newton Hessian: {e:?}")))?;
+            ) {
+                Ok(_) => break,
+                Err(e) if attempt >= 3 => {
+                    return Err(OmtError::LinearAlgebra(format!(
+                        "numeric Cholesky of the Newton Hessian (also with the diagonal raised by 1e-6): {e:?}"
+                    )))
+                }
+                Err(_) => {
+                    attempt += 1;
+                    let raise = 1.0 + [1e-10, 1e-8, 1e-6][attempt - 1];
+                    shifted = hessian.values.clone();
+                    for c in 0..m {
+                        shifted[hessian.col_ptr[c] as usize] *= raise;
+                    }
+                    values = &shifted;
+                }
+            }
+        }
         LltRef::new(symbolic, &self.factor).solve_in_place_with_conj(
             Conj::No,
             MatMut::from_column_major_slice_mut(&mut rhs, m, 1),

@@ -30,7 +30,7 @@
 //! product overflows); coincident sites are rejected with [`OmtError::DuplicatePoints`].
 
 use crate::error::OmtError;
-use crate::predicates::{orient, power_compare, power_side_1d, power_side_sos};
+use crate::predicates::{orient, power_compare, power_side_1d, power_side_sos, Weight};
 
 /// Sentinel for "no triangle / dead triangle".
 const NONE: u32 = u32::MAX;
@@ -40,6 +40,8 @@ const NONE: u32 = u32::MAX;
 pub struct PowerDiagram {
     sites: Vec<[f64; 2]>,
     weights: Vec<f64>,
+    /// The weights in double-double form (high part = `weights`), as the predicates see them.
+    dd: Vec<Weight>,
     hidden: Vec<bool>,
     /// CSR offsets into `neighbor_list`, #N + 1.
     neighbor_offsets: Vec<u32>,
@@ -59,7 +61,7 @@ pub struct PowerDiagram {
 /// The triangulation under construction (2-D case).
 struct Builder<'a> {
     sites: &'a [[f64; 2]],
-    weights: &'a [f64],
+    weights: &'a [Weight],
     infinite: u32,
     tv: Vec<[u32; 3]>,
     tn: Vec<[u32; 3]>,
@@ -461,7 +463,12 @@ impl PowerDiagram {
     /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
     pub fn new(sites: &[[f64; 2]], weights: &[f64]) -> Result<Self, OmtError> {
         let sorted = validate_and_sort(sites, weights)?;
-        Ok(Self::build(sites, weights, &InsertionOrder::from_sorted(sites, sorted)))
+        Ok(Self::build(
+            sites,
+            weights,
+            None,
+            &InsertionOrder::from_sorted(sites, sorted),
+        ))
     }
 
     /// [`PowerDiagram::new`] with the insertion order of the sites computed beforehand
@@ -470,6 +477,30 @@ impl PowerDiagram {
     /// result is the same as with `new`. Errors: [`OmtError::InvalidInput`] for weights of the
     /// wrong length, non-finite or out of range, or `sites` of another length than the order's.
     pub fn with_order(sites: &[[f64; 2]], weights: &[f64], order: &InsertionOrder) -> Result<Self, OmtError> {
+        Self::with_order_dd(sites, weights, None, order)
+    }
+
+    /// [`PowerDiagram::with_order`] with weights in double-double form: w_i = `weights[i]` +
+    /// `weights_lo[i]` exactly (|lo| at most half an ulp of the high part). Every predicate
+    /// sees the exact sum, so sites closer than the weights' ulp still get their cells right.
+    pub fn with_order_dd(
+        sites: &[[f64; 2]],
+        weights: &[f64],
+        weights_lo: Option<&[f64]>,
+        order: &InsertionOrder,
+    ) -> Result<Self, OmtError> {
+        if let Some(lo) = weights_lo {
+            if lo.len() != weights.len() {
+                return Err(OmtError::InvalidInput(format!(
+                    "{} weights but {} low parts",
+                    weights.len(),
+                    lo.len()
+                )));
+            }
+            if let Some(i) = lo.iter().position(|w| !w.is_finite()) {
+                return Err(OmtError::InvalidInput(format!("weight {i} has a non-finite low part")));
+            }
+        }
         if sites.len() != order.order.len() || weights.len() != sites.len() {
             return Err(OmtError::InvalidInput(format!(
                 "{} sites and {} weights for an insertion order of {} sites",
@@ -484,14 +515,19 @@ impl PowerDiagram {
                 weights[i]
             )));
         }
-        Ok(Self::build(sites, weights, order))
+        Ok(Self::build(sites, weights, weights_lo, order))
     }
 
-    fn build(sites: &[[f64; 2]], weights: &[f64], order: &InsertionOrder) -> Self {
+    fn build(sites: &[[f64; 2]], weights: &[f64], weights_lo: Option<&[f64]>, order: &InsertionOrder) -> Self {
         let n = sites.len();
+        let dd = match weights_lo {
+            Some(lo) => weights.iter().zip(lo).map(|(&h, &l)| [h, l]).collect(),
+            None => weights.iter().map(|&h| [h, 0.0]).collect(),
+        };
         let mut diagram = PowerDiagram {
             sites: sites.to_vec(),
             weights: weights.to_vec(),
+            dd,
             hidden: vec![false; n],
             neighbor_offsets: vec![0; n + 1],
             neighbor_list: Vec::new(),
@@ -516,7 +552,7 @@ impl PowerDiagram {
         let n = self.sites.len();
         self.dimension = 1;
         let s = &self.sites;
-        let w = &self.weights;
+        let w = &self.dd;
         let mut along: Vec<u32> = (0..n as u32).collect();
         along.sort_unstable_by(|&i, &j| {
             let (p, q) = (s[i as usize], s[j as usize]);
@@ -577,7 +613,7 @@ impl PowerDiagram {
         let tn = vec![[2, 3, 1], [3, 2, 0], [1, 3, 0], [2, 1, 0]];
         let mut builder = Builder {
             sites: &self.sites,
-            weights: &self.weights,
+            weights: &self.dd,
             infinite: inf,
             tv,
             tn,
@@ -671,9 +707,16 @@ impl PowerDiagram {
         &self.sites
     }
 
-    /// The power weights the diagram was built from, #N.
+    /// The power weights the diagram was built from, #N (the high parts of
+    /// [`PowerDiagram::weight`]).
     pub fn weights(&self) -> &[f64] {
         &self.weights
+    }
+
+    /// Weight `i` in double-double form (low part 0 unless built by
+    /// [`PowerDiagram::with_order_dd`]).
+    pub fn weight(&self, i: usize) -> Weight {
+        self.dd[i]
     }
 
     /// 0 (a single site), 1 (all sites on one line: the cells are parallel strips) or 2.
@@ -740,7 +783,7 @@ impl PowerDiagram {
             let mut best = v;
             for &j in self.neighbors(v) {
                 let j = j as usize;
-                if power_compare(x, self.sites[j], self.weights[j], self.sites[best], self.weights[best]) < 0 {
+                if power_compare(x, self.sites[j], self.dd[j], self.sites[best], self.dd[best]) < 0 {
                     best = j;
                 }
             }
@@ -785,7 +828,7 @@ impl PowerDiagram {
     }
 
     fn sanity_check_collinear(&self) -> Result<(), String> {
-        let (s, w) = (&self.sites, &self.weights);
+        let (s, w) = (&self.sites, &self.dd);
         let n = s.len();
         for k in 2..n {
             if orient(s[0], s[1], s[k]) != 0 {
@@ -839,7 +882,7 @@ impl PowerDiagram {
         let tn = &self.triangle_neighbors;
         let builder = Builder {
             sites: &self.sites,
-            weights: &self.weights,
+            weights: &self.dd,
             infinite: inf,
             tv: tv.clone(),
             tn: tn.clone(),
@@ -929,7 +972,7 @@ impl PowerDiagram {
                         return Err(format!("hull not convex at site {b}"));
                     }
                     if b == b2 && o == 0 {
-                        let w = &self.weights;
+                        let w = &self.dd;
                         let ok = power_side_1d(pa, w[a as usize], a, pc, w[c as usize], c, pb, w[b as usize], b);
                         if !ok {
                             return Err(format!("collinear hull site {b} is visible but redundant"));

@@ -61,22 +61,22 @@ pub fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> i8 {
 #[allow(clippy::too_many_arguments)] // the four weighted points of the determinant
 pub fn power_side_exact_sign(
     a: [f64; 2],
-    wa: f64,
+    wa: Weight,
     b: [f64; 2],
-    wb: f64,
+    wb: Weight,
     c: [f64; 2],
-    wc: f64,
+    wc: Weight,
     p: [f64; 2],
-    wp: f64,
+    wp: Weight,
 ) -> i8 {
     // Floating-point filter.
     let (ax, ay) = (a[0] - p[0], a[1] - p[1]);
     let (bx, by) = (b[0] - p[0], b[1] - p[1]);
     let (cx, cy) = (c[0] - p[0], c[1] - p[1]);
-    let (dwa, dwb, dwc) = (wa - wp, wb - wp, wc - wp);
+    let ((dwa, ea), (dwb, eb), (dwc, ec)) = (weight_diff(wa, wp), weight_diff(wb, wp), weight_diff(wc, wp));
     let (sa, sb, sc) = (ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy);
     let (az, bz, cz) = (sa - dwa, sb - dwb, sc - dwc);
-    let (ma, mb, mc) = (sa + dwa.abs(), sb + dwb.abs(), sc + dwc.abs());
+    let (ma, mb, mc) = (sa + ea, sb + eb, sc + ec);
     let det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
     let permanent = ax.abs() * (by.abs() * mc + mb * cy.abs())
         + ay.abs() * (mb * cx.abs() + bx.abs() * mc)
@@ -91,10 +91,10 @@ pub fn power_side_exact_sign(
         }
     }
     // Exact evaluation with expansions.
-    let row = |q: [f64; 2], wq: f64| -> [Expansion; 3] {
+    let row = |q: [f64; 2], wq: Weight| -> [Expansion; 3] {
         let x = Expansion::diff(q[0], p[0]);
         let y = Expansion::diff(q[1], p[1]);
-        let z = x.mul(&x).add(&y.mul(&y)).sub(&Expansion::diff(wq, wp));
+        let z = x.mul(&x).add(&y.mul(&y)).sub(&weight_diff_exact(wq, wp));
         [x, y, z]
     };
     let [ax, ay, az] = row(a, wa);
@@ -116,16 +116,16 @@ pub fn power_side_exact_sign(
 #[allow(clippy::too_many_arguments)]
 pub fn power_side_sos(
     a: [f64; 2],
-    wa: f64,
+    wa: Weight,
     ka: u32,
     b: [f64; 2],
-    wb: f64,
+    wb: Weight,
     kb: u32,
     c: [f64; 2],
-    wc: f64,
+    wc: Weight,
     kc: u32,
     p: [f64; 2],
-    wp: f64,
+    wp: Weight,
     kp: u32,
 ) -> bool {
     let s = power_side_exact_sign(a, wa, b, wb, c, wc, p, wp);
@@ -159,13 +159,13 @@ pub fn power_side_sos(
 #[allow(clippy::too_many_arguments)]
 pub fn power_side_1d(
     a: [f64; 2],
-    wa: f64,
+    wa: Weight,
     ka: u32,
     b: [f64; 2],
-    wb: f64,
+    wb: Weight,
     kb: u32,
     p: [f64; 2],
-    wp: f64,
+    wp: Weight,
     kp: u32,
 ) -> bool {
     // Coordinate along the line: x unless the line is vertical.
@@ -188,14 +188,22 @@ pub fn power_side_1d(
 /// Sign of V' = sign(u_b)·(u_b ζ_p − u_p ζ_b) where u are coordinates along `axis` relative to
 /// `a` and ζ_q = |q − a|² − (w_q − w_a) (lifted heights relative to â, up to a linear function
 /// along the line). Negative means p̂ is strictly below the lifted line through â, b̂.
-fn power_side_1d_exact_sign(a: [f64; 2], wa: f64, b: [f64; 2], wb: f64, p: [f64; 2], wp: f64, axis: usize) -> i8 {
+fn power_side_1d_exact_sign(
+    a: [f64; 2],
+    wa: Weight,
+    b: [f64; 2],
+    wb: Weight,
+    p: [f64; 2],
+    wp: Weight,
+    axis: usize,
+) -> i8 {
     let ub = b[axis] - a[axis];
     let up = p[axis] - a[axis];
     let (bx, by, px, py) = (b[0] - a[0], b[1] - a[1], p[0] - a[0], p[1] - a[1]);
-    let (dwb, dwp) = (wb - wa, wp - wa);
+    let ((dwb, eb), (dwp, ep)) = (weight_diff(wb, wa), weight_diff(wp, wa));
     let (sb, sp) = (bx * bx + by * by, px * px + py * py);
     let value = (ub * (sp - dwp) - up * (sb - dwb)) * ub.signum();
-    let magnitude = ub.abs() * (sp + dwp.abs()) + up.abs() * (sb + dwb.abs());
+    let magnitude = ub.abs() * (sp + ep) + up.abs() * (sb + eb);
     if magnitude.is_finite() && magnitude > 1e-250 {
         let bound = 32.0 * EPS * magnitude;
         if value > bound {
@@ -207,10 +215,10 @@ fn power_side_1d_exact_sign(a: [f64; 2], wa: f64, b: [f64; 2], wb: f64, p: [f64;
     }
     let ub = Expansion::diff(b[axis], a[axis]);
     let up = Expansion::diff(p[axis], a[axis]);
-    let zeta = |q: [f64; 2], wq: f64| {
+    let zeta = |q: [f64; 2], wq: Weight| {
         let x = Expansion::diff(q[0], a[0]);
         let y = Expansion::diff(q[1], a[1]);
-        x.mul(&x).add(&y.mul(&y)).sub(&Expansion::diff(wq, wa))
+        x.mul(&x).add(&y.mul(&y)).sub(&weight_diff_exact(wq, wa))
     };
     let v = ub.mul(&zeta(p, wp)).sub(&up.mul(&zeta(b, wb)));
     v.sign() * ub.sign()
@@ -219,12 +227,12 @@ fn power_side_1d_exact_sign(a: [f64; 2], wa: f64, b: [f64; 2], wb: f64, p: [f64;
 /// Exact sign of π_i(x) − π_j(x) = (|x − y_i|² − w_i) − (|x − y_j|² − w_j): `-1` when x is
 /// strictly closer to site i in the power sense, `1` when strictly closer to j, `0` on the
 /// bisector (no perturbation: point location breaks ties by the order of its walk).
-pub fn power_compare(x: [f64; 2], yi: [f64; 2], wi: f64, yj: [f64; 2], wj: f64) -> i8 {
+pub fn power_compare(x: [f64; 2], yi: [f64; 2], wi: Weight, yj: [f64; 2], wj: Weight) -> i8 {
     let (ax, ay, bx, by) = (x[0] - yi[0], x[1] - yi[1], x[0] - yj[0], x[1] - yj[1]);
-    let dw = wi - wj;
+    let (dw, ew) = weight_diff(wi, wj);
     let (sa, sb) = (ax * ax + ay * ay, bx * bx + by * by);
     let value = (sa - sb) - dw;
-    let magnitude = sa + sb + dw.abs();
+    let magnitude = sa + sb + ew;
     if magnitude.is_finite() && magnitude > 1e-250 {
         let bound = 16.0 * EPS * magnitude;
         if value > bound {
@@ -238,7 +246,32 @@ pub fn power_compare(x: [f64; 2], yi: [f64; 2], wi: f64, yj: [f64; 2], wj: f64) 
     let (bx, by) = (Expansion::diff(x[0], yj[0]), Expansion::diff(x[1], yj[1]));
     let pa = ax.mul(&ax).add(&ay.mul(&ay));
     let pb = bx.mul(&bx).add(&by.mul(&by));
-    pa.sub(&pb).sub(&Expansion::diff(wi, wj)).sign()
+    pa.sub(&pb).sub(&weight_diff_exact(wi, wj)).sign()
+}
+
+/// A power weight in double-double form, w = w[0] + w[1] with |w[1]| ≤ ulp(w[0])/2 (w[1] = 0 for
+/// plain `f64` weights). The solver keeps its heights, hence the weights 2h + |y|², in this form:
+/// cells of sites 1e-9 apart must be placed by weight differences below one ulp of the weights
+/// themselves (see `newton`).
+pub type Weight = [f64; 2];
+
+/// The difference a − b of two weights, rounded (the filters' value), and a bound on its magnitude
+/// that also covers the rounding of the low parts (the filters' error terms).
+#[inline]
+fn weight_diff(a: Weight, b: Weight) -> (f64, f64) {
+    let hi = a[0] - b[0];
+    let lo = a[1] - b[1];
+    (hi + lo, hi.abs() + lo.abs())
+}
+
+/// The exact difference a − b of two weights as an expansion.
+fn weight_diff_exact(a: Weight, b: Weight) -> Expansion {
+    let hi = Expansion::diff(a[0], b[0]);
+    if a[1] == 0.0 && b[1] == 0.0 {
+        hi
+    } else {
+        hi.add(&Expansion::diff(a[1], b[1]))
+    }
 }
 
 /// A nonoverlapping floating-point expansion (Shewchuk 1997): the exact value is the sum of the
@@ -394,7 +427,7 @@ mod tests {
                 + ra[2] * (rb[0] * rc[1] - rb[1] * rc[0]);
             // Scale by a power of two: exactness is preserved, the filter sees non-integers.
             let f = |q: [i64; 2]| [q[0] as f64 * 0.125, q[1] as f64 * 0.125];
-            let g = |wq: i64| wq as f64 / 64.0;
+            let g = |wq: i64| [wq as f64 / 64.0, 0.0];
             let got = power_side_exact_sign(f(a), g(wa), f(b), g(wb), f(c), g(wc), f(p), g(wp));
             assert_eq!(got as i128, det.signum(), "a={a:?} b={b:?} c={c:?} p={p:?}");
             if det == 0 {
@@ -410,11 +443,13 @@ mod tests {
         let yi = [1.0, 1.0];
         let yj = [1.0 + 2f64.powi(-40), 1.0];
         let x = [1.0 + 2f64.powi(-41), 1.0 + 0.3];
-        assert_eq!(power_compare(x, yi, 0.0, yj, 0.0), 0);
+        assert_eq!(power_compare(x, yi, [0.0; 2], yj, [0.0; 2]), 0);
         let x2 = [1.0 + 2f64.powi(-41) + 2f64.powi(-52), 1.3];
-        assert_eq!(power_compare(x2, yi, 0.0, yj, 0.0), 1);
-        // Weights shift the bisector: w_i larger wins.
-        assert_eq!(power_compare(x, yi, 1e-30, yj, 0.0), -1);
+        assert_eq!(power_compare(x2, yi, [0.0; 2], yj, [0.0; 2]), 1);
+        // Weights shift the bisector: w_i larger wins, also by a low part alone.
+        assert_eq!(power_compare(x, yi, [1e-30, 0.0], yj, [0.0; 2]), -1);
+        assert_eq!(power_compare(x, yi, [1.0, 1e-30], yj, [1.0, 0.0]), -1);
+        assert_eq!(power_compare(x, yi, [1.0, -1e-30], yj, [1.0, 0.0]), 1);
     }
 
     #[test]

@@ -372,7 +372,6 @@ impl RestrictedIntegrator {
     /// coordinates relative to y_i, into `s.a`. Returns false when the result is empty.
     fn clip_to_cell(diagram: &PowerDiagram, i: usize, poly: &[[f64; 2]], s: &mut Scratch) -> bool {
         let sites = diagram.sites();
-        let weights = diagram.weights();
         let y = sites[i];
         let offsets = diagram.neighbor_offsets();
         let list = diagram.neighbor_list();
@@ -385,11 +384,15 @@ impl RestrictedIntegrator {
         }
         s.a.set_convex(poly, y);
         s.a.reserve(capacity);
-        let wi = weights[i];
+        let wi = diagram.weight(i);
         for (slot, &j) in (start..end).zip(&list[start..end]) {
             let j = j as usize;
             let d = [sites[j][0] - y[0], sites[j][1] - y[1]];
-            let c = 0.5 * ((d[0] * d[0] + d[1] * d[1]) + (wi - weights[j]));
+            // w_i − w_j from the double-double weights: exact high difference for close weights
+            // (Sterbenz) plus the low parts, so sites closer than the weights' ulp still get the
+            // bisector the weights say.
+            let wj = diagram.weight(j);
+            let c = 0.5 * ((d[0] * d[0] + d[1] * d[1]) + ((wi[0] - wj[0]) + (wi[1] - wj[1])));
             let h = Line {
                 n: d,
                 c,

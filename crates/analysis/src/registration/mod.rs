@@ -235,13 +235,19 @@ impl Default for RegistrationParams {
 /// The area-preserving parameters used for registration: the defaults of
 /// [`AreaPreservingParams`] except `require_convergence = false`: an OT solve that stops at its
 /// iteration cap slightly above its tolerance (cell areas off by ~1e-6 relative) still gives a
-/// usable disk map; the reached accuracy is kept in [`DiskImage::ot_max_relative_error`].
+/// usable disk map (up to [`MAX_USABLE_OT_ERROR`]); the reached accuracy is kept in
+/// [`DiskImage::ot_max_relative_error`].
 pub fn registration_area_params() -> AreaPreservingParams {
     AreaPreservingParams {
         require_convergence: false,
         ..AreaPreservingParams::default()
     }
 }
+
+/// The largest OT mass error (max_i |μ(W_i) − ν_i|/ν_i) at which a non-converged area-preserving
+/// map is still used for registration (cell areas within 0.1 %); beyond it [`disk_image`] fails
+/// with the solver's reason instead of registering through a map that is not area-preserving.
+pub const MAX_USABLE_OT_ERROR: f64 = 1e-3;
 
 /// A disk image φ(S) of a surface: #V planar positions in the unit disk and how long it took.
 #[derive(Clone, Debug, PartialEq)]
@@ -271,6 +277,14 @@ pub fn disk_image(
     let (uv, ot_max_relative_error) = match method {
         Method::Omt => {
             let ap = area_preserving_map(mesh, markers, params)?;
+            if !(ap.ot.max_relative_error <= MAX_USABLE_OT_ERROR) {
+                return Err(AnalysisError::Transport(shapespace_omt::OmtError::NoConvergence {
+                    iterations: ap.ot.iterations,
+                    residual: ap.ot.max_relative_error,
+                    tolerance: MAX_USABLE_OT_ERROR,
+                    reason: format!("area-preserving map for registration: {}", ap.ot.stop),
+                }));
+            }
             (ap.uv, ap.ot.max_relative_error)
         }
         Method::Conformal => (

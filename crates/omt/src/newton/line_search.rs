@@ -29,7 +29,7 @@
 //! The search gives up below τ = 2^−`max_halvings` (the conditions hold for τ small enough by KMT's
 //! Prop. 6.1, so failing there means a floating-point floor or a pathological start).
 
-use super::{errors, evaluate_unless_hidden, Backend, Evaluation};
+use super::{errors, evaluate_unless_hidden, Backend, Evaluation, Heights};
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 
@@ -41,7 +41,7 @@ const SAFETY: f64 = 0.9;
 
 /// An accepted step.
 pub(crate) struct AcceptedStep {
-    pub heights: Vec<f64>,
+    pub heights: Heights,
     pub evaluation: Evaluation,
     pub tau: f64,
 }
@@ -98,7 +98,7 @@ pub(crate) fn damped_step(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
     targets: &[f64],
-    heights: &[f64],
+    heights: &Heights,
     current: &CellIntegrals,
     delta: &[f64],
     gradient_norm: f64,
@@ -116,7 +116,7 @@ pub(crate) fn damped_step(
         t_integration: 0.0,
     };
     loop {
-        let trial: Vec<f64> = heights.iter().zip(delta).map(|(h, d)| h + tau * d).collect();
+        let trial = heights.step(delta, tau);
         let evaluation = evaluate_unless_hidden(backend, points, &trial, true)?;
         outcome.t_diagram += evaluation.t_diagram;
         outcome.t_integration += evaluation.t_integration;

@@ -85,7 +85,10 @@ pub struct NewtonParams {
     pub tolerance: f64,
     /// Maximum number of Newton steps (default 100).
     pub max_iterations: usize,
-    /// The line search gives up (`Stalled`) below τ = 2^−max_halvings (default 60).
+    /// The line search gives up (`Stalled`) below τ = 2^−max_halvings (default 100: with the
+    /// heights in double-double form a step τδ down to ~2^−100 still changes them; conformal
+    /// images of protrusions start with cells of mass 1e-26 that only such steps keep
+    /// non-empty, see `ARCHITECTURE.md`).
     pub max_halvings: usize,
     /// Linear solver of the Newton system (default sparse Cholesky).
     pub linear_solver: LinearSolver,
@@ -114,7 +117,7 @@ impl Default for NewtonParams {
         NewtonParams {
             tolerance: 1e-6,
             max_iterations: 100,
-            max_halvings: 60,
+            max_halvings: 100,
             linear_solver: LinearSolver::Cholesky,
             initial_heights: None,
             coarse_to_fine: false,
@@ -285,6 +288,86 @@ pub fn heights_from_weights(points: &[[f64; 2]], weights: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// Heights in double-double form, h_i = hi_i + lo_i exactly, as the solver keeps them.
+///
+/// What places a cell edge is a weight difference w_i − w_j = 2(h_i − h_j) + |y_i|² − |y_j|²
+/// against the site distance |y_i − y_j|: sites 1e-9 apart whose cells must be 1e-2 wide need
+/// h_i − h_j to ~1e-17, below one ulp of heights of order one. With plain f64 heights the
+/// solve then ends at a floor of the mass error (≈ 1e-6 on the wolf of the area-preserving
+/// tests, see `ARCHITECTURE.md`); in double-double form the weights reach the predicates and
+/// the clipping exactly ([`PowerDiagram::with_order_dd`]). The Newton directions stay f64: an
+/// error of a few ulps in δ only perturbs the step, it does not set a floor.
+#[derive(Clone, Debug)]
+pub(crate) struct Heights {
+    pub hi: Vec<f64>,
+    pub lo: Vec<f64>,
+}
+
+/// Renormalizes a + b (|b| small against |a| or not) into a double-double pair.
+#[inline]
+fn renormalize(a: f64, b: f64) -> [f64; 2] {
+    let (s, e) = crate::predicates::two_sum(a, b);
+    [s, e]
+}
+
+/// |y|² as a double-double pair (exact up to the last renormalization).
+#[inline]
+fn squared_norm_dd(y: [f64; 2]) -> [f64; 2] {
+    let (p1, e1) = crate::predicates::two_product(y[0], y[0]);
+    let (p2, e2) = crate::predicates::two_product(y[1], y[1]);
+    let (s, e) = crate::predicates::two_sum(p1, p2);
+    renormalize(s, e + e1 + e2)
+}
+
+impl Heights {
+    pub(crate) fn from_f64(hi: Vec<f64>) -> Self {
+        let lo = vec![0.0; hi.len()];
+        Heights { hi, lo }
+    }
+
+    /// The Voronoi heights −|y_i|²/2 (weights exactly 0).
+    pub(crate) fn voronoi(points: &[[f64; 2]]) -> Self {
+        let (hi, lo) = points
+            .iter()
+            .map(|&y| {
+                let q = squared_norm_dd(y);
+                (-0.5 * q[0], -0.5 * q[1])
+            })
+            .unzip();
+        Heights { hi, lo }
+    }
+
+    /// h + τ·δ (the product rounded once, the sum kept exactly).
+    pub(crate) fn step(&self, delta: &[f64], tau: f64) -> Self {
+        let (hi, lo) = self
+            .hi
+            .iter()
+            .zip(&self.lo)
+            .zip(delta)
+            .map(|((&h, &l), &d)| {
+                let (s, e) = crate::predicates::two_sum(h, tau * d);
+                let r = renormalize(s, e + l);
+                (r[0], r[1])
+            })
+            .unzip();
+        Heights { hi, lo }
+    }
+
+    /// The power weights w_i = 2h_i + |y_i|² as (high parts, low parts).
+    pub(crate) fn weights(&self, points: &[[f64; 2]]) -> (Vec<f64>, Vec<f64>) {
+        points
+            .iter()
+            .zip(self.hi.iter().zip(&self.lo))
+            .map(|(&y, (&h, &l))| {
+                let q = squared_norm_dd(y);
+                let (s, e) = crate::predicates::two_sum(2.0 * h, q[0]);
+                let r = renormalize(s, e + 2.0 * l + q[1]);
+                (r[0], r[1])
+            })
+            .unzip()
+    }
+}
+
 /// The Kantorovich energy E(h) = ∫_Ω u_h dμ − Σ ν_i h_i, evaluated exactly from the cell
 /// integrals at h: on W_i, u_h(x) = ⟨x, y_i⟩ + h_i, so ∫ u_h dμ = Σ_i ⟨∫_{W_i} x dμ, y_i⟩ + h_i μ(W_i).
 pub fn kantorovich_energy(points: &[[f64; 2]], heights: &[f64], targets: &[f64], cells: &CellIntegrals) -> f64 {
@@ -310,7 +393,12 @@ pub fn integrate_at_heights(
     heights: &[f64],
     integrator: CellIntegrator,
 ) -> Result<CellIntegrals, OmtError> {
-    evaluate(&Backend::new(measure, integrator), points, heights).map(|e| e.cells)
+    evaluate(
+        &Backend::new(measure, integrator),
+        points,
+        &Heights::from_f64(heights.to_vec()),
+    )
+    .map(|e| e.cells)
 }
 
 /// The cell integrator with its per-measure precomputation, and the insertion order of the
@@ -329,7 +417,7 @@ impl<'a> Backend<'a> {
     }
 }
 
-pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f64]) -> Result<Evaluation, OmtError> {
+pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Heights) -> Result<Evaluation, OmtError> {
     evaluate_unless_hidden(backend, points, heights, false)
 }
 
@@ -339,14 +427,14 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &[f6
 pub(crate) fn evaluate_unless_hidden(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
-    heights: &[f64],
+    heights: &Heights,
     skip_if_hidden: bool,
 ) -> Result<Evaluation, OmtError> {
-    let weights = weights_from_heights(points, heights);
-    if let Some(i) = weights.iter().position(|w| !w.is_finite()) {
+    let (weights, weights_lo) = heights.weights(points);
+    if let Some(i) = (0..weights.len()).find(|&i| !(weights[i].is_finite() && weights_lo[i].is_finite())) {
         return Err(OmtError::InvalidInput(format!(
             "height {i} is not finite ({})",
-            heights[i]
+            heights.hi[i]
         )));
     }
     match backend {
@@ -373,7 +461,7 @@ pub(crate) fn evaluate_unless_hidden(
                     order.get_or_init(|| computed)
                 }
             };
-            let diagram = PowerDiagram::with_order(points, &weights, order)?;
+            let diagram = PowerDiagram::with_order_dd(points, &weights, Some(&weights_lo), order)?;
             let t_diagram = t0.elapsed().as_secs_f64();
             if skip_if_hidden && (0..points.len()).any(|i| diagram.is_hidden(i)) {
                 let n = points.len();
@@ -507,7 +595,25 @@ fn contracted_voronoi_heights(points: &[[f64; 2]], center: [f64; 2], scale: f64)
 /// what f64 heights of order one resolve: typical of conformal images of long protrusions.
 fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f64; 2], scale: f64) -> String {
     let extent = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
-    // nearest neighbour of each empty cell's point: a sweep over the points sorted by x
+    let closest = nearest_other_point(points, empty);
+    let cause = if closest < 1e-9 * extent {
+        "the points are too crowded for double precision (typical of the conformal image of a long \
+         protrusion); spread them or use a less distorted embedding"
+    } else {
+        "points far outside the domain?"
+    };
+    format!(
+        "no start with all cells non-empty was found: {} of {} cells are empty at the Voronoi start and \
+         contracting the points toward Ω's barycenter (down to scale {scale:.1e}) did not fill them; the \
+         nearest other point of one of these is {closest:.2e} away, against Ω's extent {extent:.2e}: {cause}",
+        empty.len(),
+        points.len()
+    )
+}
+
+/// The smallest distance from a point of `subset` to another point (a sweep over the points
+/// sorted by x; for error messages).
+fn nearest_other_point(points: &[[f64; 2]], subset: &[usize]) -> f64 {
     let mut order: Vec<usize> = (0..points.len()).collect();
     order.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
     let mut rank = vec![0usize; points.len()];
@@ -515,7 +621,7 @@ fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f
         rank[i] = r;
     }
     let mut closest = f64::INFINITY;
-    for &i in empty {
+    for &i in subset {
         let p = points[i];
         let mut best = f64::INFINITY;
         for dir in [-1isize, 1] {
@@ -531,19 +637,26 @@ fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f
         }
         closest = closest.min(best);
     }
-    let cause = if closest < 1e-9 * extent {
-        "the points are too crowded for double precision (typical of the conformal image of a long \
-         protrusion); spread them or use a less distorted embedding"
+    closest
+}
+
+/// Why a line search found no acceptable step: when the smallest cells belong to points much
+/// closer together than Ω's extent, the Newton direction (f64) cannot resolve their heights.
+fn stall_diagnosis(points: &[[f64; 2]], masses: &[f64], lo: [f64; 2], hi: [f64; 2]) -> String {
+    let extent = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
+    let mut smallest: Vec<usize> = (0..points.len()).collect();
+    smallest.sort_by(|&a, &b| masses[a].total_cmp(&masses[b]));
+    smallest.truncate(64);
+    let closest = nearest_other_point(points, &smallest);
+    if closest < 1e-12 * extent {
+        format!(
+            "; the smallest cells belong to points {closest:.2e} from another point, against Ω's extent \
+             {extent:.2e}: the points are too crowded for double precision (typical of the conformal image \
+             of a long protrusion); spread them or use a less distorted embedding"
+        )
     } else {
-        "points far outside the domain?"
-    };
-    format!(
-        "no start with all cells non-empty was found: {} of {} cells are empty at the Voronoi start and \
-         contracting the points toward Ω's barycenter (down to scale {scale:.1e}) did not fill them; the \
-         nearest other point of one of these is {closest:.2e} away, against Ω's extent {extent:.2e}: {cause}",
-        empty.len(),
-        points.len()
-    )
+        String::new()
+    }
 }
 
 /// μ-barycenter of Ω.
@@ -816,7 +929,10 @@ fn solve_single(
         heights = Some(h.clone());
         start = Start::Warm;
     }
-    let mut heights = heights.unwrap_or_else(|| points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect());
+    let mut heights = match heights {
+        Some(h) => Heights::from_f64(h),
+        None => Heights::voronoi(points),
+    };
     let backend = Backend::new(measure, params.integrator);
     let mut current = evaluate(&backend, points, &heights)?;
     let mut start_evaluations = 1;
@@ -834,7 +950,7 @@ fn solve_single(
         let mut stale = 0;
         loop {
             scale *= 0.5;
-            heights = contracted_voronoi_heights(points, center, scale);
+            heights = Heights::from_f64(contracted_voronoi_heights(points, center, scale));
             current = evaluate(&backend, points, &heights)?;
             start_evaluations += 1;
             let empty = empty_at(&current.cells);
@@ -951,20 +1067,22 @@ fn solve_single(
             }
             None => {
                 log.push(record);
+                let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
                 stop = StopReason::Stalled {
                     reason: format!(
-                        "no step τ ≥ 2^-{} satisfied the damping conditions (max relative mass error {max_rel:e})",
-                        params.max_halvings
+                        "no step τ ≥ 2^-{} satisfied the damping conditions (max relative mass error {max_rel:e}){}",
+                        params.max_halvings,
+                        stall_diagnosis(points, &current.cells.masses, lo, hi)
                     ),
                 };
                 break;
             }
         }
     }
-    let weights = weights_from_heights(points, &heights);
+    let weights = heights.weights(points).0;
     let cost = current.cells.transport_cost();
     Ok(OtSolution {
-        heights,
+        heights: heights.hi,
         weights,
         cells: current.cells,
         cost,
