@@ -231,3 +231,26 @@ fn bad_input_exits_cleanly_and_names_the_file() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("tetrahedron.obj"), "{}", stderr(&out));
 }
+
+/// A missing input or a directory in place of a file: exit status 2 and the I/O problem printed
+/// once after the path (it was repeated as the error's source).
+#[test]
+fn io_errors_are_printed_once() {
+    let dir = scratch("io");
+    let out_obj = dir.join("out.obj");
+    let missing = dir.join("missing.obj");
+    let folder = dir.join("folder.obj");
+    std::fs::create_dir_all(&folder).unwrap();
+    for (file, problem) in [(&missing, "No such file"), (&folder, "directory")] {
+        for cmd in ["conformal", "param"] {
+            let out = shapespace(&[cmd, file.to_str().unwrap(), "--out", out_obj.to_str().unwrap()]);
+            let msg = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{cmd}: {msg}");
+            assert!(
+                msg.contains(file.file_name().unwrap().to_str().unwrap()),
+                "{cmd}: {msg}"
+            );
+            assert_eq!(msg.matches(problem).count(), 1, "{cmd}: {msg}");
+        }
+    }
+}
