@@ -254,3 +254,52 @@ fn io_errors_are_printed_once() {
         }
     }
 }
+
+/// A 4×4 grid disk (25 vertices, 32 faces) with its coordinates multiplied by `scale`, as OBJ.
+fn grid_obj(scale: f64) -> String {
+    let mut text = String::new();
+    for j in 0..5 {
+        for i in 0..5 {
+            let (x, y) = (i as f64 / 4.0, j as f64 / 4.0);
+            text.push_str(&format!(
+                "v {:?} {:?} {:?}\n",
+                x * scale,
+                y * scale,
+                0.1 * x * y * scale
+            ));
+        }
+    }
+    for j in 0..4 {
+        for i in 0..4 {
+            let a = j * 5 + i + 1;
+            let (b, c, d) = (a + 1, a + 5, a + 6);
+            text.push_str(&format!("f {a} {b} {d}\nf {a} {d} {c}\n"));
+        }
+    }
+    text
+}
+
+/// Finite coordinates whose squares overflow (1e300) or underflow (1e-300): the disk commands
+/// say the coordinates are out of range (not "zero-length edge"), `info` reports an infinite
+/// area instead of NaN.
+#[test]
+fn coordinates_out_of_range_are_named() {
+    let dir = scratch("range");
+    let out_obj = dir.join("out.obj");
+    for (name, scale) in [("huge.obj", 1e300), ("tiny.obj", 1e-300)] {
+        let file = dir.join(name);
+        std::fs::write(&file, grid_obj(scale)).unwrap();
+        for cmd in ["conformal", "param"] {
+            let out = shapespace(&[cmd, file.to_str().unwrap(), "--out", out_obj.to_str().unwrap()]);
+            let msg = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{cmd} {name}: {msg}");
+            assert!(
+                msg.contains(name) && msg.contains("rescale the mesh"),
+                "{cmd} {name}: {msg}"
+            );
+        }
+    }
+    let out = shapespace(&["info", dir.join("huge.obj").to_str().unwrap()]);
+    let table = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(table.contains("inf") && !table.contains("NaN"), "{table}");
+}
