@@ -303,3 +303,21 @@ fn coordinates_out_of_range_are_named() {
     let table = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(table.contains("inf") && !table.contains("NaN"), "{table}");
 }
+
+/// Distances whose squares overflow: `mds` exits with status 2 naming the file and the pair
+/// (it wrote NaN coordinates and eigenvalues with status 0).
+#[test]
+fn mds_rejects_distances_whose_squares_overflow() {
+    let dir = scratch("mds-big");
+    let matrix = dir.join("big.csv");
+    std::fs::write(&matrix, "name,a,b,c\na,0,1e300,2\nb,1e300,0,1.5\nc,2,1.5,0\n").unwrap();
+    let out = shapespace(&[
+        "mds",
+        matrix.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("big.csv") && msg.contains("too large"), "{msg}");
+}
