@@ -321,3 +321,22 @@ fn mds_rejects_distances_whose_squares_overflow() {
     assert_eq!(out.status.code(), Some(2), "{msg}");
     assert!(msg.contains("big.csv") && msg.contains("too large"), "{msg}");
 }
+
+/// A dataset folder without any class of two meshes: `register-bench` exits with status 2
+/// naming the folder (it printed a table of NaN with status 0).
+#[test]
+fn register_bench_on_an_empty_dataset() {
+    let dir = scratch("bench-empty");
+    let dataset = dir.join("dataset");
+    std::fs::create_dir_all(dataset.join("only-one")).unwrap();
+    std::fs::write(dataset.join("only-one/a.obj"), grid_obj(1.0)).unwrap();
+    let out = shapespace(&[
+        "register-bench",
+        dataset.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("dataset") && msg.contains("no class folder"), "{msg}");
+}
