@@ -340,3 +340,22 @@ fn register_bench_on_an_empty_dataset() {
     assert_eq!(out.status.code(), Some(2), "{msg}");
     assert!(msg.contains("dataset") && msg.contains("no class folder"), "{msg}");
 }
+
+/// `ot` with a directory in place of a CSV: status 2 and "Is a directory" (it was read as an
+/// empty file: "no target point", "0 densities").
+#[test]
+fn ot_rejects_a_directory_for_a_csv() {
+    let dir = scratch("ot-dir");
+    let folder = dir.join("points.csv");
+    std::fs::create_dir_all(&folder).unwrap();
+    let out = shapespace(&[
+        "ot",
+        "--points",
+        folder.to_str().unwrap(),
+        "--out",
+        dir.join("out.csv").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("points.csv") && msg.contains("directory"), "{msg}");
+}
