@@ -359,3 +359,31 @@ fn ot_rejects_a_directory_for_a_csv() {
     assert_eq!(out.status.code(), Some(2), "{msg}");
     assert!(msg.contains("points.csv") && msg.contains("directory"), "{msg}");
 }
+
+/// `distances`: an invalid `--tol` is a usage error (status 2), and a pair that fails prints
+/// why (it was only in report.json).
+#[test]
+fn distances_report_failed_pairs_and_bad_tolerances() {
+    let dir = scratch("distances-fail");
+    let a = dir.join("a.obj");
+    let b = dir.join("b.obj");
+    std::fs::write(&a, grid_obj(1.0)).unwrap();
+    std::fs::write(&b, grid_obj(2.0).replace("v 0.0 0.0 0.0", "v 0.0 0.0 0.3")).unwrap();
+    let out_dir = dir.join("out");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["distances", a.to_str().unwrap(), b.to_str().unwrap(), "--quiet"];
+        args.extend(["--out", out_dir.to_str().unwrap()]);
+        args.extend(extra);
+        shapespace(&args)
+    };
+    let out = run(&["--tol", "nan"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--tol"), "{}", stderr(&out));
+    let out = run(&["--max-iterations", "0"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--max-iterations"), "{}", stderr(&out));
+    // one Newton step is not enough: the pair fails and says why
+    let out = run(&["--max-iterations", "1"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("pair a -> b: "), "{}", stderr(&out));
+}
