@@ -25,6 +25,9 @@ pub enum AnalysisError {
     /// [`AnalysisError::MissingDistance`] where they are not allowed).
     #[error("invalid distance {value} between {a:?} and {b:?} (must be finite and >= 0)")]
     InvalidDistance { a: String, b: String, value: f64 },
+    /// A distance so large that the squared distances of classical MDS overflow f64.
+    #[error("distance {value:e} between {a:?} and {b:?} is too large for classical MDS (the squared distances overflow); rescale the matrix")]
+    DistanceTooLarge { a: String, b: String, value: f64 },
     /// A distance needed by the computation is missing (empty cell or NaN: a failed pair).
     #[error("missing distance between {a:?} and {b:?} (empty or NaN cell); MDS needs a complete matrix")]
     MissingDistance { a: String, b: String },

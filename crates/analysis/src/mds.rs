@@ -65,7 +65,8 @@ impl Mds {
 /// The double-centred matrix `B = −½ J D² J` (row-major `n²`) of the symmetric distances
 /// [`DistanceMatrix::symmetric`] (`(d_ij + d_ji)/2`, diagonal 0).
 ///
-/// Errors: [`AnalysisError::MissingDistance`] naming the first pair with neither direction.
+/// Errors: [`AnalysisError::MissingDistance`] naming the first pair with neither direction,
+/// [`AnalysisError::DistanceTooLarge`] when the squared distances overflow.
 pub fn double_centred(d: &DistanceMatrix) -> Result<Vec<f64>, AnalysisError> {
     let n = d.len();
     let mut sq = vec![0.0; n * n];
@@ -90,6 +91,15 @@ pub fn double_centred(d: &DistanceMatrix) -> Result<Vec<f64>, AnalysisError> {
         for j in 0..n {
             b[i * n + j] = -0.5 * (sq[i * n + j] - row_means[i] - row_means[j] + grand_mean);
         }
+    }
+    if b.iter().any(|x| !x.is_finite()) {
+        // finite distances whose squares (or their sums) overflow: name the largest
+        let k = (0..n * n).max_by(|&k, &l| sq[k].total_cmp(&sq[l])).unwrap_or(0);
+        return Err(AnalysisError::DistanceTooLarge {
+            a: d.names[k / n].clone(),
+            b: d.names[k % n].clone(),
+            value: d.symmetric(k / n, k % n),
+        });
     }
     Ok(b)
 }

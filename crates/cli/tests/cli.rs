@@ -231,3 +231,159 @@ fn bad_input_exits_cleanly_and_names_the_file() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("tetrahedron.obj"), "{}", stderr(&out));
 }
+
+/// A missing input or a directory in place of a file: exit status 2 and the I/O problem printed
+/// once after the path (it was repeated as the error's source).
+#[test]
+fn io_errors_are_printed_once() {
+    let dir = scratch("io");
+    let out_obj = dir.join("out.obj");
+    let missing = dir.join("missing.obj");
+    let folder = dir.join("folder.obj");
+    std::fs::create_dir_all(&folder).unwrap();
+    for (file, problem) in [(&missing, "No such file"), (&folder, "directory")] {
+        for cmd in ["conformal", "param"] {
+            let out = shapespace(&[cmd, file.to_str().unwrap(), "--out", out_obj.to_str().unwrap()]);
+            let msg = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{cmd}: {msg}");
+            assert!(
+                msg.contains(file.file_name().unwrap().to_str().unwrap()),
+                "{cmd}: {msg}"
+            );
+            assert_eq!(msg.matches(problem).count(), 1, "{cmd}: {msg}");
+        }
+    }
+}
+
+/// A 4×4 grid disk (25 vertices, 32 faces) with its coordinates multiplied by `scale`, as OBJ.
+fn grid_obj(scale: f64) -> String {
+    let mut text = String::new();
+    for j in 0..5 {
+        for i in 0..5 {
+            let (x, y) = (i as f64 / 4.0, j as f64 / 4.0);
+            text.push_str(&format!(
+                "v {:?} {:?} {:?}\n",
+                x * scale,
+                y * scale,
+                0.1 * x * y * scale
+            ));
+        }
+    }
+    for j in 0..4 {
+        for i in 0..4 {
+            let a = j * 5 + i + 1;
+            let (b, c, d) = (a + 1, a + 5, a + 6);
+            text.push_str(&format!("f {a} {b} {d}\nf {a} {d} {c}\n"));
+        }
+    }
+    text
+}
+
+/// Finite coordinates whose squares overflow (1e300) or underflow (1e-300): the disk commands
+/// say the coordinates are out of range (not "zero-length edge"), `info` reports an infinite
+/// area instead of NaN.
+#[test]
+fn coordinates_out_of_range_are_named() {
+    let dir = scratch("range");
+    let out_obj = dir.join("out.obj");
+    for (name, scale) in [("huge.obj", 1e300), ("tiny.obj", 1e-300)] {
+        let file = dir.join(name);
+        std::fs::write(&file, grid_obj(scale)).unwrap();
+        for cmd in ["conformal", "param"] {
+            let out = shapespace(&[cmd, file.to_str().unwrap(), "--out", out_obj.to_str().unwrap()]);
+            let msg = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{cmd} {name}: {msg}");
+            assert!(
+                msg.contains(name) && msg.contains("rescale the mesh"),
+                "{cmd} {name}: {msg}"
+            );
+        }
+    }
+    let out = shapespace(&["info", dir.join("huge.obj").to_str().unwrap()]);
+    let table = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(table.contains("inf") && !table.contains("NaN"), "{table}");
+}
+
+/// Distances whose squares overflow: `mds` exits with status 2 naming the file and the pair
+/// (it wrote NaN coordinates and eigenvalues with status 0).
+#[test]
+fn mds_rejects_distances_whose_squares_overflow() {
+    let dir = scratch("mds-big");
+    let matrix = dir.join("big.csv");
+    std::fs::write(&matrix, "name,a,b,c\na,0,1e300,2\nb,1e300,0,1.5\nc,2,1.5,0\n").unwrap();
+    let out = shapespace(&[
+        "mds",
+        matrix.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("big.csv") && msg.contains("too large"), "{msg}");
+}
+
+/// A dataset folder without any class of two meshes: `register-bench` exits with status 2
+/// naming the folder (it printed a table of NaN with status 0).
+#[test]
+fn register_bench_on_an_empty_dataset() {
+    let dir = scratch("bench-empty");
+    let dataset = dir.join("dataset");
+    std::fs::create_dir_all(dataset.join("only-one")).unwrap();
+    std::fs::write(dataset.join("only-one/a.obj"), grid_obj(1.0)).unwrap();
+    let out = shapespace(&[
+        "register-bench",
+        dataset.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("dataset") && msg.contains("no class folder"), "{msg}");
+}
+
+/// `ot` with a directory in place of a CSV: status 2 and "Is a directory" (it was read as an
+/// empty file: "no target point", "0 densities").
+#[test]
+fn ot_rejects_a_directory_for_a_csv() {
+    let dir = scratch("ot-dir");
+    let folder = dir.join("points.csv");
+    std::fs::create_dir_all(&folder).unwrap();
+    let out = shapespace(&[
+        "ot",
+        "--points",
+        folder.to_str().unwrap(),
+        "--out",
+        dir.join("out.csv").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("points.csv") && msg.contains("directory"), "{msg}");
+}
+
+/// `distances`: an invalid `--tol` is a usage error (status 2), and a pair that fails prints
+/// why (it was only in report.json).
+#[test]
+fn distances_report_failed_pairs_and_bad_tolerances() {
+    let dir = scratch("distances-fail");
+    let a = dir.join("a.obj");
+    let b = dir.join("b.obj");
+    std::fs::write(&a, grid_obj(1.0)).unwrap();
+    std::fs::write(&b, grid_obj(2.0).replace("v 0.0 0.0 0.0", "v 0.0 0.0 0.3")).unwrap();
+    let out_dir = dir.join("out");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["distances", a.to_str().unwrap(), b.to_str().unwrap(), "--quiet"];
+        args.extend(["--out", out_dir.to_str().unwrap()]);
+        args.extend(extra);
+        shapespace(&args)
+    };
+    let out = run(&["--tol", "nan"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--tol"), "{}", stderr(&out));
+    let out = run(&["--max-iterations", "0"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--max-iterations"), "{}", stderr(&out));
+    // one Newton step is not enough: the pair fails and says why
+    let out = run(&["--max-iterations", "1"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("pair a -> b: "), "{}", stderr(&out));
+}

@@ -31,13 +31,10 @@ pub enum ConformalError {
     /// A marker specification that cannot be parsed (CLI string or JSON).
     #[error("{source_name}: cannot parse marker: {message}")]
     MarkerParse { source_name: String, message: String },
-    /// Reading a marker file failed.
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// Reading a marker file failed. (The I/O error is part of the message, not a `source()`,
+    /// so that `{:#}` chains do not print it twice.)
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
     /// A constraint of the harmonic map that is inconsistent (e.g. a pinned boundary vertex, a
     /// vertex constrained twice, fewer than three anchors).
     #[error("invalid constraint: {0}")]

@@ -122,6 +122,12 @@ impl IntrinsicTriangulation {
                     reason: "repeated vertex".into(),
                 });
             }
+            if l.iter().any(|x| x.is_infinite()) {
+                return Err(ConformalError::DegenerateFace {
+                    face: f,
+                    reason: "edge length overflows f64 (coordinates too large; rescale the mesh)".into(),
+                });
+            }
             if l.iter().any(|x| !(*x > 0.0) || !x.is_finite()) {
                 return Err(ConformalError::DegenerateFace {
                     face: f,

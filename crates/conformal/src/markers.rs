@@ -213,9 +213,9 @@ impl MarkerFile {
 
     /// Reads and parses a marker file.
     pub fn from_json_file(path: &Path) -> Result<Self, ConformalError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConformalError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| ConformalError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
         })?;
         Self::from_json_str(&text, &path.display().to_string())
     }

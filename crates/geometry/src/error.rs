@@ -7,13 +7,10 @@ use std::path::PathBuf;
 /// `Display` follows `path:line: problem` where a file and line are known.
 #[derive(Debug, thiserror::Error)]
 pub enum GeometryError {
-    /// An I/O failure while reading or writing `path`.
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// An I/O failure while reading or writing `path`. (The I/O error is part of the message,
+    /// not a `source()`, so that `{:#}` chains do not print it twice.)
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
     /// A parse error at a line (1-based) of a text file, or at an element of a binary one.
     #[error("{path}:{line}: {message}")]
     Parse {
@@ -60,13 +57,10 @@ pub enum GeometryError {
     /// An error in a numerical factorization or solve.
     #[error("linear algebra: {0}")]
     LinearAlgebra(String),
-    /// Wraps another error with the file it came from.
-    #[error("{path}: {source}")]
-    WithPath {
-        path: PathBuf,
-        #[source]
-        source: Box<GeometryError>,
-    },
+    /// Wraps another error with the file it came from (the inner error is part of the message,
+    /// not a `source()`, so that `{:#}` chains do not print it twice).
+    #[error("{path}: {error}")]
+    WithPath { path: PathBuf, error: Box<GeometryError> },
 }
 
 impl GeometryError {
@@ -80,7 +74,7 @@ impl GeometryError {
             | GeometryError::WithPath { .. }) => e,
             e => GeometryError::WithPath {
                 path: path.into(),
-                source: Box::new(e),
+                error: Box::new(e),
             },
         }
     }

@@ -453,7 +453,19 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
     let degenerate = degenerate_faces(mesh);
     let duplicates = duplicate_vertices(mesh);
     let closed = conn.edge_faces.iter().all(|ef| ef.len() != 1);
-    let area = face_areas(mesh).iter().sum();
+    let mut area: f64 = face_areas(mesh).iter().sum();
+    if !area.is_finite() {
+        // coordinates near f64::MAX: the cross products overflow (inf − inf = NaN); with the
+        // positions scaled to at most 1 the sum is finite and the true area is s² times it
+        let s = mesh.positions.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+        let scaled: f64 = (0..nf)
+            .map(|f| {
+                let [a, b, c] = mesh.face_positions(f).map(|p| p.map(|x| x / s));
+                crate::quantities::triangle_area(a, b, c)
+            })
+            .sum();
+        area = scaled * s * s;
+    }
 
     let mut bbox = [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]];
     for (p, _) in mesh.positions.iter().zip(&referenced).filter(|(_, &u)| u) {
@@ -611,6 +623,11 @@ pub fn classify(mesh: &TriMesh) -> Result<Classification, GeometryError> {
     Ok(mesh_report(mesh)?.classification)
 }
 
+/// Largest coordinate magnitude [`require_disk`] accepts (squares stay below f64::MAX).
+pub const MAX_COORDINATE: f64 = 1e150;
+/// Smallest mesh extent [`require_disk`] accepts (squares stay above the f64 subnormals).
+pub const MIN_EXTENT: f64 = 1e-150;
+
 /// Checks that a mesh is ready for a disk conformal map: a topological disk ([`classify`])
 /// without unreferenced vertices and without degenerate faces. The error says what is wrong and
 /// which `prepare` operation fixes it.
@@ -619,6 +636,17 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
     let mut problems: Vec<String> = Vec::new();
     if r.num_faces == 0 {
         return Err(GeometryError::Topology("the mesh has no faces".into()));
+    }
+    // squared edge lengths and areas must be representable: with coordinates beyond 1e150
+    // they overflow, with a mesh smaller than 1e-150 they underflow to 0
+    let [lo, hi] = r.bounding_box;
+    let extent = (0..3).fold(0.0f64, |m, d| m.max(hi[d] - lo[d]));
+    let largest = lo.iter().chain(&hi).fold(0.0f64, |m, c| m.max(c.abs()));
+    if largest > MAX_COORDINATE || (extent > 0.0 && extent < MIN_EXTENT) {
+        return Err(GeometryError::Invalid(format!(
+            "coordinates out of the usable range: the mesh spans {extent:e} with coordinates up to {largest:e} \
+             (squared lengths need coordinates below {MAX_COORDINATE:e} and a size above {MIN_EXTENT:e}); rescale the mesh"
+        )));
     }
     if r.classification.class == MeshClass::Sphere {
         problems.push("closed surface (sphere): cut a disk first with `prepare::cut_disk`".into());

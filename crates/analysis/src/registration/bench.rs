@@ -279,11 +279,13 @@ pub fn register_bench(
         .iter()
         .map(|&m| (m, Vec::new(), Vec::new(), Vec::new()))
         .collect();
+    let mut num_classes = 0;
     for class_dir in &classes {
         let files = mesh_files(class_dir)?;
         if files.len() < 2 {
             continue;
         }
+        num_classes += 1;
         let class = stem(class_dir);
         let mut meshes = Vec::new();
         let mut markers = Vec::new();
@@ -377,6 +379,12 @@ pub fn register_bench(
                 }
             }
         }
+    }
+    if num_classes == 0 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{}: no class folder with at least 2 mesh files (.obj, .off, .ply); expected DATASET/CLASS/*.obj with a landmarks.json",
+            dataset.display()
+        )));
     }
     let mut files = Vec::new();
     let path = out.join("results.csv");

@@ -74,6 +74,12 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             .build_global()
             .ok();
     }
+    anyhow::ensure!(
+        solver.tol.is_finite() && solver.tol > 0.0,
+        "--tol must be a finite number > 0, got {}",
+        solver.tol
+    );
+    anyhow::ensure!(solver.max_iterations >= 1, "--max-iterations must be at least 1");
     let markers = solver.markers.options()?;
     let options = DistancesOptions {
         markers,
@@ -118,6 +124,16 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             input.path.display(),
             input.error.as_deref().unwrap_or("failed")
         );
+    }
+    // the failures after those of the inputs are the pairs'
+    let failed_inputs = r.inputs.iter().filter(|i| i.error.is_some()).count();
+    for failure in r
+        .failures
+        .iter()
+        .skip(failed_inputs)
+        .filter(|f| !f.ends_with("shape failed to prepare"))
+    {
+        eprintln!("shapespace: pair {failure}");
     }
     eprintln!(
         "distances: {} shapes ({} failed), {} directed pairs ({} failed) in {:.1} s (prepare {:.1} s, pairs {:.1} s on {} threads)",

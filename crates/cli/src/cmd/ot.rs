@@ -73,10 +73,11 @@ struct DensityRow {
 }
 
 fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<Vec<T>> {
+    // read the whole file first: the csv reader takes a directory for an empty file
+    let data = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
-        .from_path(path)
-        .with_context(|| format!("reading {}", path.display()))?;
+        .from_reader(data.as_slice());
     let mut rows = Vec::new();
     for (k, row) in reader.deserialize().enumerate() {
         rows.push(row.with_context(|| format!("{}:{}: bad row", path.display(), k + 2))?);

@@ -96,9 +96,9 @@ pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 
 /// Reads a whole file, mapping failures to [`GeometryError::Io`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, GeometryError> {
-    std::fs::read(path).map_err(|source| GeometryError::Io {
+    std::fs::read(path).map_err(|error| GeometryError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     })
 }
 
@@ -110,9 +110,9 @@ pub(crate) fn write_file(
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), GeometryError> {
     mesh.validate().map_err(|e| e.with_path(path))?;
-    let io_err = |source| GeometryError::Io {
+    let io_err = |error| GeometryError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     };
     let file = std::fs::File::create(path).map_err(io_err)?;
     let mut writer = std::io::BufWriter::new(file);
