@@ -35,6 +35,8 @@ enum Command {
     Ot(cmd::ot::OtArgs),
     /// Area-preserving parameterization onto the disk or square by optimal mass transport (OBJ with vt, report, plots).
     Param(cmd::param::ParamArgs),
+    /// Make a disk-topology mesh: drop unreferenced vertices and smaller components, orient, cut a disk out of a closed surface, fill all holes but the longest.
+    Prepare(cmd::prepare::PrepareArgs),
     /// Register a source disk surface onto a target through disk maps and a landmark-constrained harmonic map (correspondence CSV, metrics, histograms).
     Register(cmd::register::RegisterArgs),
     /// Registration benchmark over class folders of poses: all ordered pairs, OMT vs conformal (results.csv, histograms).
@@ -51,6 +53,7 @@ fn main() -> ExitCode {
         Command::Mds(args) => cmd::mds::run(args),
         Command::Ot(args) => cmd::ot::run(args),
         Command::Param(args) => cmd::param::run(args),
+        Command::Prepare(args) => cmd::prepare::run(args),
         Command::Register(args) => cmd::register::run(args),
         Command::RegisterBench(args) => cmd::register::run_bench(args),
     };

@@ -387,3 +387,74 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert!(stderr(&out).contains("pair a -> b: "), "{}", stderr(&out));
 }
+
+/// The not-a-disk error points to `shapespace prepare`, and that command turns a closed surface
+/// (an icosahedron subdivided once: 42 V, 80 F) and a face with a spare component into disks the
+/// conformal map accepts; its vertex map leads back to the input.
+#[test]
+fn prepare_makes_disks_that_conformal_accepts() {
+    let dir = scratch("prepare");
+    // subdivided icosahedron, closed
+    let mesh = shapespace_geometry::primitives::icosphere(1);
+    let closed = dir.join("sphere.obj");
+    shapespace_geometry::io::write_mesh(&closed, &mesh).unwrap();
+    let out = shapespace(&[
+        "conformal",
+        closed.to_str().unwrap(),
+        "--out",
+        dir.join("x.obj").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("shapespace prepare"), "{}", stderr(&out));
+    let disk = dir.join("sphere_disk.off");
+    let map = dir.join("map.csv");
+    let out = shapespace(&[
+        "prepare",
+        closed.to_str().unwrap(),
+        "--out",
+        disk.to_str().unwrap(),
+        "--cut-rings",
+        "1",
+        "--vertex-map",
+        map.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(stderr(&out).contains("cut a 1-ring disk"), "{}", stderr(&out));
+    let prepared = shapespace_geometry::io::read_mesh(&disk).unwrap();
+    shapespace_geometry::topology::require_disk(&prepared).unwrap();
+    assert_eq!(prepared.num_vertices(), mesh.num_vertices() - 1);
+    let rows: Vec<String> = std::fs::read_to_string(&map)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(String::from)
+        .collect();
+    assert_eq!(rows.len(), prepared.num_vertices());
+    for row in &rows {
+        let (v, o) = row.split_once(',').unwrap();
+        let (v, o): (usize, usize) = (v.parse().unwrap(), o.parse().unwrap());
+        assert_eq!(prepared.positions[v], mesh.positions[o]);
+    }
+    let out = shapespace(&[
+        "conformal",
+        disk.to_str().unwrap(),
+        "--out",
+        dir.join("c.obj").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    // an out-of-range cut centre is a usage error naming it
+    let out = shapespace(&[
+        "prepare",
+        closed.to_str().unwrap(),
+        "--out",
+        disk.to_str().unwrap(),
+        "--cut-center",
+        "4242",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("4242") && stderr(&out).contains("sphere.obj"),
+        "{}",
+        stderr(&out)
+    );
+}

@@ -14,7 +14,7 @@ pub enum ConformalError {
     #[error(transparent)]
     Geometry(#[from] GeometryError),
     /// The mesh is not a topological disk (one boundary loop, χ = 1, manifold, oriented).
-    #[error("not a disk: {reason} (hint: fill holes and keep the largest component, e.g. with `shapespace prepare`)")]
+    #[error("not a disk: {reason} (hint: `shapespace prepare` keeps the largest component, fills holes and cuts closed surfaces open)")]
     NotDisk { reason: String },
     /// Two faces traverse edge (v0, v1) in the same direction: the orientation is inconsistent.
     #[error("inconsistent face orientation at edge ({v0}, {v1}) (hint: orient the faces consistently)")]

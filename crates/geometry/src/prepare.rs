@@ -509,3 +509,130 @@ pub fn subdivide_midpoint(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
 pub fn normalize_for_shape_space(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
     scale_to_area(mesh, std::f64::consts::PI)
 }
+
+/// Where [`prepare_disk`] cuts a closed surface open.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CutCenter {
+    /// The vertex nearest to the area-weighted centroid of the surface (the rule of the bundled
+    /// TOSCA poses: on a body it lands on the torso, away from the extremities).
+    Auto,
+    /// A vertex index of the *input* mesh.
+    Vertex(u32),
+}
+
+/// Options of [`prepare_disk`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrepareOptions {
+    /// Centre of the disk removed from a closed surface.
+    pub cut_center: CutCenter,
+    /// Size of the removed disk (default: 3 rings).
+    pub cut_radius: Radius,
+}
+
+impl Default for PrepareOptions {
+    fn default() -> Self {
+        PrepareOptions {
+            cut_center: CutCenter::Auto,
+            cut_radius: Radius::Rings(3),
+        }
+    }
+}
+
+/// What [`prepare_disk`] did, in order.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PrepareReport {
+    /// Unreferenced vertices dropped.
+    pub unreferenced_dropped: usize,
+    /// Faces of the components other than the largest, dropped.
+    pub faces_of_other_components_dropped: usize,
+    /// Faces flipped to make the orientation consistent (and closed components outward).
+    pub faces_flipped: usize,
+    /// Input vertex at the centre of the disk cut from a closed surface, if one was cut.
+    pub cut_center: Option<u32>,
+    /// Faces removed by the cut.
+    pub faces_cut: usize,
+    /// Holes filled (every boundary loop but the longest), one vertex appended per hole.
+    pub holes_filled: usize,
+}
+
+/// Makes a disk-topology mesh out of a surface with the explicit operations of this module, in
+/// this order: drop unreferenced vertices, keep the largest component, make the orientation
+/// consistent, cut a disk out of a closed surface ([`cut_disk`] at `options.cut_center`), fill
+/// every boundary loop but the longest ([`fill_holes_except_longest`]), and check the result with
+/// [`topology::require_disk`].
+///
+/// Returns the mesh, the map from its vertices to the input's (`None` for vertices added by hole
+/// filling; the others keep their relative order) and what was done. Errors: an invalid mesh, a
+/// non-orientable or non-manifold surface, a cut centre out of range or removed by an earlier
+/// step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1, which a disk
+/// cut leaves with handles: the error names the genus).
+pub fn prepare_disk(
+    mesh: &TriMesh,
+    options: &PrepareOptions,
+) -> Result<(TriMesh, Vec<Option<u32>>, PrepareReport), GeometryError> {
+    let mut report = PrepareReport::default();
+    // new→input index for the current mesh
+    let mut origin: Vec<Option<u32>> = (0..mesh.num_vertices() as u32).map(Some).collect();
+    let follow = |origin: &[Option<u32>], map: &VertexMap, new_len: usize| -> Vec<Option<u32>> {
+        let mut out = vec![None; new_len];
+        for (old, new) in map.iter().enumerate() {
+            if let Some(n) = new {
+                out[*n as usize] = origin[old];
+            }
+        }
+        out
+    };
+    let (m, map) = drop_unreferenced_vertices(mesh)?;
+    report.unreferenced_dropped = mesh.num_vertices() - m.num_vertices();
+    origin = follow(&origin, &map, m.num_vertices());
+    let faces_before = m.num_faces();
+    let (m, map) = keep_largest_component(&m)?;
+    report.faces_of_other_components_dropped = faces_before - m.num_faces();
+    origin = follow(&origin, &map, m.num_vertices());
+    let (mut m, info) = reorient(&m)?;
+    report.faces_flipped = info.faces_flipped_for_consistency;
+    let conn = Connectivity::of(&m);
+    if conn.boundary_loops(&m.faces).is_empty() {
+        let center = match options.cut_center {
+            CutCenter::Vertex(v) => {
+                if v as usize >= mesh.num_vertices() {
+                    return Err(GeometryError::Invalid(format!(
+                        "cut centre {v} is out of range ({} vertices)",
+                        mesh.num_vertices()
+                    )));
+                }
+                origin.iter().position(|&o| o == Some(v)).ok_or_else(|| {
+                    GeometryError::Invalid(format!(
+                        "cut centre {v} is not on the largest component (or is unreferenced)"
+                    ))
+                })? as u32
+            }
+            CutCenter::Auto => {
+                let areas = face_areas(&m);
+                let total: f64 = areas.iter().sum();
+                let mut c = [0.0; 3];
+                for (f, a) in areas.iter().enumerate() {
+                    for p in m.face_positions(f) {
+                        c = add(c, scale(p, a / (3.0 * total)));
+                    }
+                }
+                (0..m.num_vertices())
+                    .min_by(|&a, &b| norm(sub(m.positions[a], c)).total_cmp(&norm(sub(m.positions[b], c))))
+                    .ok_or_else(|| GeometryError::Topology("the mesh has no vertices".into()))? as u32
+            }
+        };
+        report.cut_center = origin[center as usize];
+        let faces_before = m.num_faces();
+        let (cut, map) = cut_disk(&m, center, options.cut_radius)?;
+        report.faces_cut = faces_before - cut.num_faces();
+        origin = follow(&origin, &map, cut.num_vertices());
+        m = cut;
+    } else if conn.boundary_loops(&m.faces).len() > 1 {
+        let (filled, info) = fill_holes_except_longest(&m)?;
+        report.holes_filled = info.holes_filled;
+        origin.resize(filled.num_vertices(), None);
+        m = filled;
+    }
+    topology::require_disk(&m)?;
+    Ok((m, origin, report))
+}

@@ -649,11 +649,13 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
         )));
     }
     if r.classification.class == MeshClass::Sphere {
-        problems.push("closed surface (sphere): cut a disk first with `prepare::cut_disk`".into());
+        problems.push(
+            "closed surface (sphere): cut a disk first (`prepare::cut_disk`, or `shapespace prepare` on the command line)".into(),
+        );
     } else if r.classification.class == MeshClass::Other {
         if r.num_components > 1 {
             problems.push(format!(
-                "{} components: keep one with `prepare::keep_largest_component`",
+                "{} components: keep one (`prepare::keep_largest_component`, or `shapespace prepare`)",
                 r.num_components
             ));
         }
@@ -684,7 +686,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
             problems.push("not orientable (like a Möbius strip): no conformal disk map exists".into());
         } else if r.num_inconsistent_edges > 0 {
             problems.push(format!(
-                "inconsistent face orientation at {}: fix it with `prepare::reorient`",
+                "inconsistent face orientation at {}: fix it with `prepare::reorient` (or `shapespace prepare`)",
                 plural(r.num_inconsistent_edges, "edge", "edges")
             ));
         }
@@ -701,7 +703,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
                 let g = r.genus;
                 if g == 0.0 {
                     problems.push(format!(
-                        "{b} boundary loops: fill the inner holes with `prepare::fill_holes_except_longest`"
+                        "{b} boundary loops: fill the inner holes with `prepare::fill_holes_except_longest` (or `shapespace prepare`)"
                     ));
                 } else {
                     problems.push(format!(
@@ -722,7 +724,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
     }
     if r.num_unreferenced_vertices > 0 {
         problems.push(format!(
-            "{}, first {}: remove them with `prepare::drop_unreferenced_vertices`",
+            "{}, first {}: remove them with `prepare::drop_unreferenced_vertices` (or `shapespace prepare`)",
             plural(
                 r.num_unreferenced_vertices,
                 "unreferenced vertex",

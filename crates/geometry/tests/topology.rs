@@ -575,3 +575,77 @@ fn reorient_an_open_disk_and_fill_three_holes() {
     assert!(face_normals(&filled).iter().all(|n| n[2] == 1.0));
     require_disk(&filled).unwrap();
 }
+
+/// `prepare_disk` runs the explicit operations in order and says what it did: a closed sphere
+/// is cut open at the vertex nearest its centroid (or a given input vertex), an annulus gets its
+/// inner hole filled, a second component and unreferenced vertices are dropped; every result is
+/// a disk whose vertices map back to the input's; a torus stays a non-disk and the error says so.
+#[test]
+fn prepare_disk_makes_disks_and_reports_its_steps() {
+    // sphere plus a far, smaller second sphere and an unreferenced vertex
+    let big = icosphere(2);
+    let small = icosphere(1);
+    let mut positions = big.positions.clone();
+    let off = positions.len() as u32;
+    positions.extend(
+        small
+            .positions
+            .iter()
+            .map(|p| [p[0] * 0.1 + 5.0, p[1] * 0.1, p[2] * 0.1]),
+    );
+    positions.push([9.0, 9.0, 9.0]);
+    let mut faces = big.faces.clone();
+    faces.extend(small.faces.iter().map(|f| f.map(|v| v + off)));
+    let mesh = TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    };
+    let (disk, origin, report) = prepare::prepare_disk(&mesh, &prepare::PrepareOptions::default()).unwrap();
+    require_disk(&disk).unwrap();
+    assert_eq!(report.unreferenced_dropped, 1);
+    assert_eq!(report.faces_of_other_components_dropped, small.num_faces());
+    assert_eq!(disk.num_faces(), big.num_faces() - report.faces_cut);
+    assert!(report.faces_cut > 0 && report.holes_filled == 0);
+    for (v, o) in origin.iter().enumerate() {
+        let o = o.expect("no vertex added on a cut") as usize;
+        assert!(o < big.num_vertices());
+        assert_eq!(disk.positions[v], mesh.positions[o]);
+    }
+    // the automatic centre is the vertex nearest the centroid (the origin for an icosphere:
+    // any vertex; the rule picks the first nearest); a given centre is honoured
+    let (_, _, given) = prepare::prepare_disk(
+        &mesh,
+        &prepare::PrepareOptions {
+            cut_center: prepare::CutCenter::Vertex(7),
+            cut_radius: Radius::Rings(1),
+        },
+    )
+    .unwrap();
+    assert_eq!(given.cut_center, Some(7));
+    // a centre on the dropped component or out of range is an error naming it
+    for v in [off + 2, 1_000_000] {
+        let err = prepare::prepare_disk(
+            &mesh,
+            &prepare::PrepareOptions {
+                cut_center: prepare::CutCenter::Vertex(v),
+                ..Default::default()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains(&v.to_string()), "{err}");
+    }
+    // an annulus: the inner hole is filled with one appended vertex
+    let annulus = square_annulus(6, 2);
+    let (disk, origin, report) = prepare::prepare_disk(&annulus, &prepare::PrepareOptions::default()).unwrap();
+    require_disk(&disk).unwrap();
+    assert_eq!(report.holes_filled, 1);
+    assert_eq!(report.cut_center, None);
+    assert_eq!(origin.iter().filter(|o| o.is_none()).count(), 1);
+    // a torus cannot become a disk by cutting a ball out
+    let err = prepare::prepare_disk(&torus(2.0, 0.7, 24, 12), &prepare::PrepareOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("non-disk"), "{err}");
+}

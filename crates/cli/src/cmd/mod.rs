@@ -8,4 +8,5 @@ pub mod markers;
 pub mod mds;
 pub mod ot;
 pub mod param;
+pub mod prepare;
 pub mod register;
