@@ -250,3 +250,18 @@ fn bad_landmarks_give_errors() {
     assert!(msg.contains("ear") && msg.contains("a.json"), "{msg}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A surface that is not a disk is named (source or target) before its landmarks are checked:
+/// a closed target is reported as such, not as landmarks out of range.
+#[test]
+fn a_non_disk_surface_is_named() {
+    let s1 = wolf(0);
+    let closed = shapespace_geometry::primitives::icosphere(1);
+    let lm = Landmarks::from_pairs(vec![(10, 10), (2000, 20)], "pairs.csv");
+    for method in [Method::Conformal, Method::Omt] {
+        let msg = register(&s1, &closed, &lm, &params(method)).unwrap_err().to_string();
+        assert!(msg.starts_with("target") && msg.contains("closed surface"), "{msg}");
+        let msg = register(&closed, &s1, &lm, &params(method)).unwrap_err().to_string();
+        assert!(msg.starts_with("source") && msg.contains("closed surface"), "{msg}");
+    }
+}

@@ -157,6 +157,16 @@ impl MarkerFile {
         let obj = value
             .as_object()
             .ok_or_else(|| parse_err(source_name, "expected a JSON object"))?;
+        // A misspelt key ("centre") must not silently fall back to the automatic markers.
+        if let Some(key) = obj
+            .keys()
+            .find(|k| !matches!(k.as_str(), "center" | "boundary" | "landmarks" | "comment") && !k.starts_with('_'))
+        {
+            return Err(parse_err(
+                source_name,
+                format!("unknown key `{key}` (expected `center`, `boundary`, `landmarks`; `comment` or keys starting with `_` are ignored)"),
+            ));
+        }
         let mut out = MarkerFile::default();
         if let Some(c) = obj.get("center") {
             out.markers.center = match c {
@@ -536,6 +546,15 @@ mod tests {
         assert!(e.starts_with("x.json: "), "{e}");
         assert!(MarkerFile::from_json_str("{", "x.json").is_err());
         assert!(MarkerFile::from_json_str(r#"{"landmarks": {"a": 1.5}}"#, "x.json").is_err());
+        // a misspelt key is an error naming it, not a silent fallback to automatic markers
+        let e = MarkerFile::from_json_str(r#"{"centre": 40}"#, "x.json")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("x.json: ") && e.contains("`centre`"), "{e}");
+        // comments and `_`-keys are ignored
+        let f =
+            MarkerFile::from_json_str(r#"{"comment": "made by hand", "_by": "me", "center": 4}"#, "t.json").unwrap();
+        assert_eq!(f.markers.center, CenterMarker::Vertex(4));
     }
 
     #[test]

@@ -370,13 +370,25 @@ pub fn register(
     landmarks: &Landmarks,
     params: &RegistrationParams,
 ) -> Result<Registration, AnalysisError> {
+    // Which surface failed, in every error before the harmonic map: the topology first (a
+    // closed target would otherwise be reported as landmarks out of range), then the landmarks,
+    // then the disk maps.
+    let named = |name: &str, message: String| AnalysisError::Shape {
+        name: name.to_string(),
+        message,
+    };
+    for (name, mesh) in [("source", source), ("target", target)] {
+        shapespace_geometry::topology::require_disk(mesh).map_err(|e| named(name, e.to_string()))?;
+    }
     check_landmarks(source, target, landmarks)?;
     // The two disk maps are independent: compute them in parallel.
     let (phi1, phi2) = rayon::join(
         || disk_image(source, &params.source_markers, params.method, &params.area_preserving),
         || disk_image(target, &params.target_markers, params.method, &params.area_preserving),
     );
-    register_with_maps(source, target, &phi1?, &phi2?, landmarks, &params.harmonic)
+    let phi1 = phi1.map_err(|e| named("source", e.to_string()))?;
+    let phi2 = phi2.map_err(|e| named("target", e.to_string()))?;
+    register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
 }
 
 fn check_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
