@@ -302,6 +302,38 @@ fn coordinates_out_of_range_are_named() {
     let out = shapespace(&["info", dir.join("huge.obj").to_str().unwrap()]);
     let table = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(table.contains("inf") && !table.contains("NaN"), "{table}");
+    // the distances go through the conformal map directly: same message, per file
+    let (normal, normal2) = (dir.join("normal.obj"), dir.join("normal2.obj"));
+    std::fs::write(&normal, grid_obj(1.0)).unwrap();
+    std::fs::write(&normal2, grid_obj(2.0)).unwrap();
+    let out = shapespace(&[
+        "distances",
+        dir.join("tiny.obj").to_str().unwrap(),
+        normal.to_str().unwrap(),
+        normal2.to_str().unwrap(),
+        "--out",
+        dir.join("d").to_str().unwrap(),
+        "--quiet",
+    ]);
+    let msg = stderr(&out);
+    assert_ne!(out.status.code(), Some(101), "{msg}");
+    assert!(msg.contains("tiny.obj") && msg.contains("rescale the mesh"), "{msg}");
+    // OT points beyond the power diagram's range
+    let points = dir.join("far.csv");
+    std::fs::write(&points, "x,y,mass\n1e300,0,1\n0,0,1\n").unwrap();
+    let out = shapespace(&[
+        "ot",
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        dir.join("ot.csv").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("target point 0") && msg.contains("rescale the points"),
+        "{msg}"
+    );
 }
 
 /// Distances whose squares overflow: `mds` exits with status 2 naming the file and the pair

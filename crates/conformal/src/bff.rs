@@ -442,6 +442,7 @@ pub fn bff_disk_coordinates(
 pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Result<BffDiskMap, ConformalError> {
     let t0 = Instant::now();
     mesh.validate()?;
+    shapespace_geometry::topology::check_coordinate_range(mesh)?;
     let mut tri = IntrinsicTriangulation::from_mesh(mesh)?;
     check_disk(mesh, &tri)?;
     let adj = neighbors(&tri);

@@ -503,6 +503,7 @@ pub(crate) fn finish(
 pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Result<DiskMap, ConformalError> {
     let t0 = Instant::now();
     mesh.validate()?;
+    shapespace_geometry::topology::check_coordinate_range(mesh)?;
     let mut tri = IntrinsicTriangulation::from_mesh(mesh)?;
     check_disk(mesh, &tri)?;
     let adj = neighbors(&tri);

@@ -623,6 +623,36 @@ pub fn classify(mesh: &TriMesh) -> Result<Classification, GeometryError> {
     Ok(mesh_report(mesh)?.classification)
 }
 
+/// Squared edge lengths and areas must be representable: with coordinates beyond
+/// [`MAX_COORDINATE`] they overflow, with a mesh smaller than [`MIN_EXTENT`] they underflow to 0.
+/// An error that says so (and to rescale), for the vertices referenced by faces.
+pub fn check_coordinate_range(mesh: &TriMesh) -> Result<(), GeometryError> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for f in &mesh.faces {
+        for &v in f {
+            if let Some(p) = mesh.positions.get(v as usize) {
+                for d in 0..3 {
+                    lo[d] = lo[d].min(p[d]);
+                    hi[d] = hi[d].max(p[d]);
+                }
+            }
+        }
+    }
+    if mesh.faces.is_empty() {
+        return Ok(());
+    }
+    let extent = (0..3).fold(0.0f64, |m, d| m.max(hi[d] - lo[d]));
+    let largest = lo.iter().chain(&hi).fold(0.0f64, |m, c| m.max(c.abs()));
+    if largest > MAX_COORDINATE || (extent > 0.0 && extent < MIN_EXTENT) {
+        return Err(GeometryError::Invalid(format!(
+            "coordinates out of the usable range: the mesh spans {extent:e} with coordinates up to {largest:e} \
+             (squared lengths need coordinates below {MAX_COORDINATE:e} and a size above {MIN_EXTENT:e}); rescale the mesh"
+        )));
+    }
+    Ok(())
+}
+
 /// Largest coordinate magnitude [`require_disk`] accepts (squares stay below f64::MAX).
 pub const MAX_COORDINATE: f64 = 1e150;
 /// Smallest mesh extent [`require_disk`] accepts (squares stay above the f64 subnormals).
@@ -637,17 +667,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
     if r.num_faces == 0 {
         return Err(GeometryError::Topology("the mesh has no faces".into()));
     }
-    // squared edge lengths and areas must be representable: with coordinates beyond 1e150
-    // they overflow, with a mesh smaller than 1e-150 they underflow to 0
-    let [lo, hi] = r.bounding_box;
-    let extent = (0..3).fold(0.0f64, |m, d| m.max(hi[d] - lo[d]));
-    let largest = lo.iter().chain(&hi).fold(0.0f64, |m, c| m.max(c.abs()));
-    if largest > MAX_COORDINATE || (extent > 0.0 && extent < MIN_EXTENT) {
-        return Err(GeometryError::Invalid(format!(
-            "coordinates out of the usable range: the mesh spans {extent:e} with coordinates up to {largest:e} \
-             (squared lengths need coordinates below {MAX_COORDINATE:e} and a size above {MIN_EXTENT:e}); rescale the mesh"
-        )));
-    }
+    check_coordinate_range(mesh)?;
     if r.classification.class == MeshClass::Sphere {
         problems.push(
             "closed surface (sphere): cut a disk first (`prepare::cut_disk`, or `shapespace prepare` on the command line)".into(),

@@ -527,6 +527,13 @@ fn validate(
     if let Some(i) = points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
         return Err(OmtError::InvalidInput(format!("target point {i} is not finite")));
     }
+    // The power diagram's documented range (|x| ≤ 1e30: lifted heights |y|² stay finite).
+    if let Some(i) = points.iter().position(|p| p[0].abs() > 1e30 || p[1].abs() > 1e30) {
+        return Err(OmtError::InvalidInput(format!(
+            "target point {i} = ({:e}, {:e}) is beyond the supported range |x| <= 1e30; rescale the points",
+            points[i][0], points[i][1]
+        )));
+    }
     if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
         return Err(OmtError::InvalidInput(format!(
             "target mass {i} is {} (must be finite and > 0)",
@@ -535,7 +542,9 @@ fn validate(
     }
     let total = measure.total_mass();
     if !(total.is_finite() && total > 0.0) {
-        return Err(OmtError::InvalidInput(format!("source mass is {total}")));
+        return Err(OmtError::InvalidInput(format!(
+            "the source measure's total mass is {total} (its triangles' areas times densities must sum to a finite positive number; rescale the density mesh or the densities)"
+        )));
     }
     if !(params.tolerance.is_finite() && params.tolerance > 0.0) {
         return Err(OmtError::InvalidInput(format!(
