@@ -3,10 +3,11 @@
 //!
 //! Meshes: the bundled libigl face (25.9k V, 51.7k F), camelhead and camelhead subdivided 1-to-4
 //! (45k V, 90.8k F: the ~85k-face size of the issue), and TOSCA meshes from
-//! `/work/shared/datasets/tosca` (skipped cleanly when absent) cut to a disk by removing the
-//! 3-ring around the vertex nearest to the area centroid (dog0 ~50k faces, horse0 ~38k,
-//! centaur0 ~31.5k); open scans (victoria0, ~91k faces) keep their longest boundary loop and
-//! get the other holes filled. Failures are printed as table rows, not hidden.
+//! `/work/shared/datasets/tosca` (skipped cleanly when absent) made disks as `shapespace prepare`
+//! does (`geometry::prepare::prepare_disk`): closed meshes lose the 3-ring around the vertex
+//! nearest to the area centroid (dog0 ~50k faces, horse0 ~38k, centaur0 ~31.5k); open scans
+//! (victoria0, ~91k faces) keep their longest boundary loop and get the other holes filled.
+//! Failures are printed as table rows, not hidden.
 
 use std::path::Path;
 use std::time::Instant;
@@ -14,38 +15,15 @@ use std::time::Instant;
 use shapespace_analysis::area_preserving::{area_preserving_map, AreaPreservingParams};
 use shapespace_analysis::distortion::map_distortion;
 use shapespace_conformal::Markers;
-use shapespace_geometry::prepare::{cut_disk, fill_holes_except_longest, reorient, subdivide_midpoint, Radius};
-use shapespace_geometry::quantities::face_areas;
+use shapespace_geometry::prepare::{prepare_disk, subdivide_midpoint, PrepareOptions};
 use shapespace_geometry::TriMesh;
 
 fn tosca_disk(path: &Path) -> Result<TriMesh, String> {
     let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| e.to_string())?;
-    let (mesh, _) = reorient(&mesh).map_err(|e| e.to_string())?;
-    let conn = shapespace_geometry::Connectivity::of(&mesh);
-    if !conn.boundary_loops(&mesh.faces).is_empty() {
-        // an open scan (victoria, david, michael): keep the longest boundary, fill the others
-        let (filled, _) = fill_holes_except_longest(&mesh).map_err(|e| e.to_string())?;
-        shapespace_geometry::topology::require_disk(&filled).map_err(|e| e.to_string())?;
-        return Ok(filled);
-    }
-    let areas = face_areas(&mesh);
-    let total: f64 = areas.iter().sum();
-    let mut c = [0.0; 3];
-    for (f, a) in areas.iter().enumerate() {
-        for p in mesh.face_positions(f) {
-            for k in 0..3 {
-                c[k] += a * p[k] / (3.0 * total);
-            }
-        }
-    }
-    let center = (0..mesh.num_vertices())
-        .min_by(|&a, &b| {
-            let d = |v: usize| (0..3).map(|k| (mesh.positions[v][k] - c[k]).powi(2)).sum::<f64>();
-            d(a).total_cmp(&d(b))
-        })
-        .ok_or("empty mesh")?;
-    cut_disk(&mesh, center as u32, Radius::Rings(3))
-        .map(|(m, _)| m)
+    // what `shapespace prepare` does: closed meshes are cut open at the vertex nearest the area
+    // centroid (3 rings), open scans keep their longest boundary and get the other holes filled
+    prepare_disk(&mesh, &PrepareOptions::default())
+        .map(|(m, _, _)| m)
         .map_err(|e| e.to_string())
 }
 
