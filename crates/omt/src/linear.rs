@@ -42,10 +42,10 @@ pub enum LinearSolver {
     /// counting, see `factor_nnz`), the symbolic factorization is on the current pattern only,
     /// and the factorization is supernodal from 2000 unknowns. The same solutions up to
     /// round-off, ~30% cheaper on face pairs (9.4k unknowns, a new pattern at almost every
-    /// step). Not the default because the round-off differs: on problems at the floating-point
-    /// floor of the heights (sites 5e-9 apart whose cells must be 1e-3 wide, as in the wolf of
-    /// the area-preserving tests) whether the tolerance is reached within the iteration cap
-    /// depends on it.
+    /// step). Not the default: on the uniform disk the first steps change so many pairs that a
+    /// kept ordering's fill grows 5–9× (1e5), and on camelhead subdivided it gave no gain. (It
+    /// was also held back by the f64 floor of the heights on the wolf of the area-preserving
+    /// tests; with the heights in double-double form that floor is gone.)
     CholeskyReusedOrdering,
     /// Conjugate gradients with a Jacobi preconditioner, stopped at
     /// ‖r‖ ≤ `relative_tolerance`·‖b‖ or after `max_iterations`.
