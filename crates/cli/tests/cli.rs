@@ -490,3 +490,38 @@ fn prepare_makes_disks_that_conformal_accepts() {
         stderr(&out)
     );
 }
+
+/// A center point beyond the coordinate range says so (it said "no face to project the center
+/// onto"), and an unknown `--domain` lists the valid values (it said "reading circle: No such
+/// file").
+#[test]
+fn marker_point_and_domain_messages() {
+    let dir = scratch("messages");
+    let out = shapespace(&[
+        "conformal",
+        "datasets/disks/cat_head.obj",
+        "--out",
+        dir.join("x.obj").to_str().unwrap(),
+        "--center",
+        "1e300,0,0",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("beyond the usable coordinate range"),
+        "{}",
+        stderr(&out)
+    );
+    let points = dir.join("p.csv");
+    std::fs::write(&points, "x,y,mass\n0.1,0,1\n0,0.2,1\n").unwrap();
+    let out = shapespace(&[
+        "ot",
+        "--points",
+        points.to_str().unwrap(),
+        "--domain",
+        "circle",
+        "--out",
+        dir.join("o.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("expected `disk`, `square`"), "{}", stderr(&out));
+}

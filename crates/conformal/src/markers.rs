@@ -403,6 +403,17 @@ pub fn resolve_markers(
             }
         }
         CenterMarker::Point(p) => {
+            if p.iter()
+                .any(|c| !(c.is_finite() && c.abs() <= shapespace_geometry::topology::MAX_COORDINATE))
+            {
+                return Err(ConformalError::InvalidMarker(format!(
+                    "center point ({:e}, {:e}, {:e}) is not finite or beyond the usable coordinate range (|x| <= {:e})",
+                    p[0],
+                    p[1],
+                    p[2],
+                    shapespace_geometry::topology::MAX_COORDINATE
+                )));
+            }
             let mut best = (f64::INFINITY, 0usize, [1.0, 0.0, 0.0]);
             for f in 0..nf {
                 let [a, b, c] = mesh.face_positions(f);

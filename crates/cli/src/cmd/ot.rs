@@ -115,6 +115,11 @@ fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
         "disk" => SourceMeasure::unit_disk(512)?,
         "square" => SourceMeasure::unit_square()?,
         path => {
+            if !Path::new(path).exists() {
+                anyhow::bail!(
+                    "--domain {path:?}: expected `disk`, `square` or a polygon CSV file (x,y), and no such file exists"
+                );
+            }
             let rows: Vec<XyRow> = read_rows(Path::new(path))?;
             let polygon: Vec<[f64; 2]> = rows.iter().map(|r| [r.x, r.y]).collect();
             SourceMeasure::uniform_polygon(&polygon, 1.0).with_context(|| format!("domain polygon {path}"))?
