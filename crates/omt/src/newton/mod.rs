@@ -597,6 +597,10 @@ fn contracted_voronoi_heights(points: &[[f64; 2]], center: [f64; 2], scale: f64)
         .collect()
 }
 
+/// The end of the crowding diagnoses (no start, stall).
+const CROWDING: &str = "the points are too crowded for double precision (typical of the conformal image of a long \
+     protrusion); spread them or use a less distorted embedding";
+
 /// The error message when no start has all cells non-empty: how many cells were empty at the
 /// Voronoi start (`empty`, indices), the smallest distance from one of their points to another
 /// point, and the likely cause. Points closer than ~1e−9 of Ω's extent get cells whose masses
@@ -606,8 +610,7 @@ fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f
     let extent = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
     let closest = nearest_other_point(points, empty);
     let cause = if closest < 1e-9 * extent {
-        "the points are too crowded for double precision (typical of the conformal image of a long \
-         protrusion); spread them or use a less distorted embedding"
+        CROWDING
     } else {
         "points far outside the domain?"
     };
@@ -660,8 +663,7 @@ fn stall_diagnosis(points: &[[f64; 2]], masses: &[f64], lo: [f64; 2], hi: [f64; 
     if closest < 1e-12 * extent {
         format!(
             "; the smallest cells belong to points {closest:.2e} from another point, against Ω's extent \
-             {extent:.2e}: the points are too crowded for double precision (typical of the conformal image \
-             of a long protrusion); spread them or use a less distorted embedding"
+             {extent:.2e}: {CROWDING}"
         )
     } else {
         String::new()
