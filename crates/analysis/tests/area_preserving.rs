@@ -315,6 +315,39 @@ fn meshes_that_fail_report_why() {
     }
 }
 
+/// The bundled centaur poses: conformal images whose limbs crowd to ~4e-14 spacing (densities
+/// above 1e15). Measured: centaur1 converges in 43 Newton steps, its centroid map folds 1,632
+/// faces and the repair leaves none; centaur0 stalls (cells of mass 4e-26 at the start) and the
+/// error says the points are too crowded. Both failed with "no start" before the heights were
+/// double-double.
+#[test]
+fn centaur_poses_with_crowded_conformal_images() {
+    let (mesh, markers) = load("datasets/poses/centaur/centaur1.off");
+    let map = area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()).unwrap();
+    let densest = map.conformal.face_densities.iter().cloned().fold(0.0, f64::max);
+    assert!(densest > 1e15, "max density {densest:e}");
+    assert!(map.ot.converged && map.ot.max_relative_error <= 1e-6, "{:?}", map.ot);
+    assert!(
+        map.fold_repair.before.num_flipped > 1000,
+        "{}",
+        map.fold_repair.before.num_flipped
+    );
+    assert_eq!(map.fold_repair.after.num_flipped, 0);
+    assert_eq!(map.fold_repair.after.num_degenerate, 0);
+    let (mesh, markers) = load("datasets/poses/centaur/centaur0.off");
+    let err = area_preserving_map(&mesh, &markers, &AreaPreservingParams::default())
+        .map(|m| m.ot)
+        .unwrap_err();
+    let mut msg = err.to_string();
+    let mut source = std::error::Error::source(&err);
+    while let Some(e) = source {
+        msg += &format!(": {e}");
+        source = e.source();
+    }
+    assert!(matches!(err, AnalysisError::Transport(_)), "{msg}");
+    assert!(msg.contains("too crowded for double precision"), "{msg}");
+}
+
 /// A flat, uniformly meshed unit disk maps nearly to itself. Max displacement |uv_i − v_i|
 /// (measured): rings 8: 8.92e-3, 16: 4.55e-3, 32: ≈2.3e-3 — first order in the edge length
 /// (ratio ≈ 1.96 per halving), dominated by the conformal map (same order) and the cell
