@@ -399,7 +399,7 @@ pub fn area_preserving_map(
         max_relative_error: solution.max_relative_error,
         tolerance: solution.tolerance,
         converged: solution.converged(),
-        stop: solution.stop.to_string(),
+        stop: solution.stop_description(),
         start: format!("{:?}", solution.start),
         cost: solution.cost,
         mass_scale: solution.mass_scale,

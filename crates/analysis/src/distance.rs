@@ -131,7 +131,7 @@ pub fn directed_distance(
         Ok(solution) if solution.converged() => (solution, String::new()),
         first => {
             let (first_iterations, first_evaluations, why) = match &first {
-                Ok(s) => (s.iterations, s.evaluations, s.stop.to_string()),
+                Ok(s) => (s.iterations, s.evaluations, s.stop_description()),
                 Err(e) => (0, 0, e.to_string()),
             };
             let fallback_params = NewtonParams {
@@ -153,7 +153,7 @@ pub fn directed_distance(
         iterations: solution.iterations,
         max_mass_error: solution.max_relative_error,
         seconds: start.elapsed().as_secs_f64(),
-        status: format!("{}{note}", solution.stop),
+        status: format!("{}{note}", solution.stop_description()),
         converged,
         evaluations: solution.evaluations,
     };

@@ -78,8 +78,9 @@ fn points_outside_the_domain() {
 /// 40 points 1e−15 apart (a few ulps of their coordinates) beside 200 well-spread ones. With the
 /// heights in double-double form the Voronoi start is exact (all cells non-empty), but the f64
 /// Newton directions cannot resolve heights for cells 10¹⁴ times wider than their sites'
-/// spacing: the solve stalls, and the reason says so (crowding, with the spacing) instead of
-/// only reporting the stall.
+/// spacing: the solve does not converge (it stalls or reaches the iteration cap, depending on
+/// the trial sequence), and the reason says so (crowding, with the spacing) instead of only
+/// reporting how it stopped.
 #[test]
 fn points_crowded_beyond_double_precision_give_a_clear_error() {
     let measure = SourceMeasure::unit_disk(128).unwrap();

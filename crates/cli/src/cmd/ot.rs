@@ -217,7 +217,7 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
             "max_relative_error": solution.max_relative_error,
             "tolerance": solution.tolerance,
             "converged": solution.converged(),
-            "stop_reason": solution.stop.to_string(),
+            "stop_reason": solution.stop_description(),
             "mass_scale": solution.mass_scale,
             "epsilon0": solution.epsilon0,
             "start": format!("{:?}", solution.start),

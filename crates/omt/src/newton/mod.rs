@@ -243,6 +243,9 @@ pub struct OtSolution {
     pub t_assembly: f64,
     pub t_symbolic: f64,
     pub t_numeric: f64,
+    /// When the solve stopped at the iteration cap and the solver can tell why (points too
+    /// crowded for double precision), the explanation; [`OtSolution::into_result`] appends it.
+    pub diagnosis: Option<String>,
 }
 
 impl OtSolution {
@@ -260,8 +263,16 @@ impl OtSolution {
             iterations: self.iterations,
             residual: self.max_relative_error,
             tolerance: self.tolerance,
-            reason: self.stop.to_string(),
+            reason: self.stop_description(),
         })
+    }
+
+    /// The stop reason with the [`OtSolution::diagnosis`], if any, for reports and messages.
+    pub fn stop_description(&self) -> String {
+        match &self.diagnosis {
+            Some(d) => format!("{}{d}", self.stop),
+            None => self.stop.to_string(),
+        }
     }
 
     /// μ-centroids of the cells (#N; `None` for an empty cell).
@@ -1092,6 +1103,12 @@ fn solve_single(
     }
     let weights = heights.weights(points).0;
     let cost = current.cells.transport_cost();
+    let diagnosis = if stop == StopReason::IterationCap {
+        let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+        Some(stall_diagnosis(points, &current.cells.masses, lo, hi)).filter(|d| !d.is_empty())
+    } else {
+        None
+    };
     Ok(OtSolution {
         heights: heights.hi,
         weights,
@@ -1114,5 +1131,6 @@ fn solve_single(
         t_assembly: system.t_assembly,
         t_symbolic: system.t_symbolic,
         t_numeric: system.t_numeric,
+        diagnosis,
     })
 }
