@@ -1,25 +1,14 @@
 //! Probe: Newton iteration logs of one face pair under several solver settings.
-use shapespace_analysis::distance::*;
-use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
+#[path = "common/faces.rs"]
+mod faces;
 use shapespace_omt::NewtonParams;
 
 fn main() {
-    let dir = std::path::Path::new("datasets/faces");
-    let m = Markers {
-        center: CenterMarker::Vertex(4841),
-        boundary: BoundaryMarker::Vertex(8889),
-    };
     let args: Vec<String> = std::env::args().collect();
     let a = args.get(1).cloned().unwrap_or("id00_neutral".into());
     let b = args.get(2).cloned().unwrap_or("id00_happy".into());
     let cont: Option<f64> = args.get(3).and_then(|s| s.parse().ok());
-    let shapes: Vec<_> = [a.as_str(), b.as_str()]
-        .iter()
-        .map(|n| {
-            let mesh = shapespace_geometry::io::read_mesh(&dir.join(format!("{n}.obj"))).unwrap();
-            prepare_shape(n, &mesh, &m, &DiskMapParams::default()).unwrap()
-        })
-        .collect();
+    let shapes = faces::prepared_faces(&[a.as_str(), b.as_str()]);
     let (lo, hi) = shapes[0]
         .measure
         .densities

@@ -4,26 +4,15 @@
 //!
 //! `cargo run --release -p shapespace-analysis --example dump_pair -- A B OUT.json` (from the
 //! repository root; default id00_sad id00_neutral).
-use shapespace_analysis::distance::prepare_shape;
-use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
+#[path = "common/faces.rs"]
+mod faces;
 
 fn main() {
-    let dir = std::path::Path::new("datasets/faces");
-    let m = Markers {
-        center: CenterMarker::Vertex(4841),
-        boundary: BoundaryMarker::Vertex(8889),
-    };
     let args: Vec<String> = std::env::args().collect();
     let a = args.get(1).cloned().unwrap_or("id00_sad".into());
     let b = args.get(2).cloned().unwrap_or("id00_neutral".into());
     let out = args.get(3).cloned().unwrap_or(format!("{a}_{b}.json"));
-    let shapes: Vec<_> = [a.as_str(), b.as_str()]
-        .iter()
-        .map(|n| {
-            let mesh = shapespace_geometry::io::read_mesh(&dir.join(format!("{n}.obj"))).unwrap();
-            prepare_shape(n, &mesh, &m, &DiskMapParams::default()).unwrap()
-        })
-        .collect();
+    let shapes = faces::prepared_faces(&[a.as_str(), b.as_str()]);
     let json = serde_json::json!({
         "vertices": shapes[0].measure.vertices,
         "triangles": shapes[0].measure.triangles,

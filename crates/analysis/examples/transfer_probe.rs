@@ -1,26 +1,16 @@
 //! Probe: starts for s → t from a solved s → t' (same source, another target).
 //! `transfer_probe S T' T` (face names in datasets/faces).
-use shapespace_analysis::distance::*;
-use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
+#[path = "common/faces.rs"]
+mod faces;
+use shapespace_analysis::distance::PreparedShape;
 use shapespace_omt::power_diagram::PowerDiagram;
 use shapespace_omt::restricted::RestrictedIntegrator;
 use shapespace_omt::{newton::weights_from_heights, solve_ot, NewtonParams};
 use std::time::Instant;
 
 fn main() {
-    let dir = std::path::Path::new("datasets/faces");
-    let m = Markers {
-        center: CenterMarker::Vertex(4841),
-        boundary: BoundaryMarker::Vertex(8889),
-    };
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let shapes: Vec<_> = args
-        .iter()
-        .map(|n| {
-            let mesh = shapespace_geometry::io::read_mesh(&dir.join(format!("{n}.obj"))).unwrap();
-            prepare_shape(n, &mesh, &m, &DiskMapParams::default()).unwrap()
-        })
-        .collect();
+    let shapes = faces::prepared_faces(&args);
     let (s, tp, t) = (&shapes[0], &shapes[1], &shapes[2]);
     let base = NewtonParams {
         density_continuation: None,

@@ -1,22 +1,11 @@
 //! Probe: warm starts across sources with a common target.
-use shapespace_analysis::distance::*;
-use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
+#[path = "common/faces.rs"]
+mod faces;
 use shapespace_omt::NewtonParams;
 
 fn main() {
-    let dir = std::path::Path::new("datasets/faces");
-    let m = Markers {
-        center: CenterMarker::Vertex(4841),
-        boundary: BoundaryMarker::Vertex(8889),
-    };
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let shapes: Vec<_> = args
-        .iter()
-        .map(|n| {
-            let mesh = shapespace_geometry::io::read_mesh(&dir.join(format!("{n}.obj"))).unwrap();
-            prepare_shape(n, &mesh, &m, &DiskMapParams::default()).unwrap()
-        })
-        .collect();
+    let shapes = faces::prepared_faces(&args);
     let t = shapes.last().unwrap();
     let mut warm: Option<Vec<f64>> = None;
     for s in &shapes[..shapes.len() - 1] {
