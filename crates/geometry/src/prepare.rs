@@ -423,6 +423,17 @@ pub fn cut_disk(mesh: &TriMesh, center: u32, radius: Radius) -> Result<(TriMesh,
     Ok((out, map))
 }
 
+/// The area-weighted centroid Σ_f A_f g_f / Σ_f A_f (g_f the face centroid) for face areas
+/// `areas` summing to `total`.
+fn area_centroid(mesh: &TriMesh, areas: &[f64], total: f64) -> [f64; 3] {
+    let mut c = [0.0; 3];
+    for (f, &a) in areas.iter().enumerate() {
+        let [p, q, r] = mesh.face_positions(f);
+        c = add(c, scale(add(add(p, q), r), a / 3.0));
+    }
+    scale(c, 1.0 / total)
+}
+
 /// Scales the mesh uniformly about its area-weighted centroid c = Σ_f A_f g_f / Σ_f A_f (g_f the
 /// face centroid) so that its total area becomes `target_area`: p ↦ c + s (p − c),
 /// s = √(target / area). Faces, vertex order and texture coordinates are unchanged. Errors on a
@@ -441,12 +452,7 @@ pub fn scale_to_area(mesh: &TriMesh, target_area: f64) -> Result<TriMesh, Geomet
             "cannot scale a mesh of area {area} to area {target_area}"
         )));
     }
-    let mut c = [0.0; 3];
-    for (f, &a) in areas.iter().enumerate() {
-        let [p, q, r] = mesh.face_positions(f);
-        c = add(c, scale(add(add(p, q), r), a / 3.0));
-    }
-    c = scale(c, 1.0 / area);
+    let c = area_centroid(mesh, &areas, area);
     let s = (target_area / area).sqrt();
     let mut out = mesh.clone();
     for p in &mut out.positions {
@@ -609,13 +615,7 @@ pub fn prepare_disk(
             }
             CutCenter::Auto => {
                 let areas = face_areas(&m);
-                let total: f64 = areas.iter().sum();
-                let mut c = [0.0; 3];
-                for (f, a) in areas.iter().enumerate() {
-                    for p in m.face_positions(f) {
-                        c = add(c, scale(p, a / (3.0 * total)));
-                    }
-                }
+                let c = area_centroid(&m, &areas, areas.iter().sum());
                 (0..m.num_vertices())
                     .min_by(|&a, &b| norm(sub(m.positions[a], c)).total_cmp(&norm(sub(m.positions[b], c))))
                     .ok_or_else(|| GeometryError::Topology("the mesh has no vertices".into()))? as u32
