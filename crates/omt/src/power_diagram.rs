@@ -39,9 +39,8 @@ const NONE: u32 = u32::MAX;
 #[derive(Clone, Debug)]
 pub struct PowerDiagram {
     sites: Vec<[f64; 2]>,
-    weights: Vec<f64>,
-    /// The weights in double-double form (high part = `weights`), as the predicates see them.
-    dd: Vec<Weight>,
+    /// The weights in double-double form, as the predicates see them.
+    weights: Vec<Weight>,
     hidden: Vec<bool>,
     /// CSR offsets into `neighbor_list`, #N + 1.
     neighbor_offsets: Vec<u32>,
@@ -520,14 +519,13 @@ impl PowerDiagram {
 
     fn build(sites: &[[f64; 2]], weights: &[f64], weights_lo: Option<&[f64]>, order: &InsertionOrder) -> Self {
         let n = sites.len();
-        let dd = match weights_lo {
+        let weights = match weights_lo {
             Some(lo) => weights.iter().zip(lo).map(|(&h, &l)| [h, l]).collect(),
             None => weights.iter().map(|&h| [h, 0.0]).collect(),
         };
         let mut diagram = PowerDiagram {
             sites: sites.to_vec(),
-            weights: weights.to_vec(),
-            dd,
+            weights,
             hidden: vec![false; n],
             neighbor_offsets: vec![0; n + 1],
             neighbor_list: Vec::new(),
@@ -552,7 +550,7 @@ impl PowerDiagram {
         let n = self.sites.len();
         self.dimension = 1;
         let s = &self.sites;
-        let w = &self.dd;
+        let w = &self.weights;
         let mut along: Vec<u32> = (0..n as u32).collect();
         along.sort_unstable_by(|&i, &j| {
             let (p, q) = (s[i as usize], s[j as usize]);
@@ -613,7 +611,7 @@ impl PowerDiagram {
         let tn = vec![[2, 3, 1], [3, 2, 0], [1, 3, 0], [2, 1, 0]];
         let mut builder = Builder {
             sites: &self.sites,
-            weights: &self.dd,
+            weights: &self.weights,
             infinite: inf,
             tv,
             tn,
@@ -707,16 +705,10 @@ impl PowerDiagram {
         &self.sites
     }
 
-    /// The power weights the diagram was built from, #N (the high parts of
-    /// [`PowerDiagram::weight`]).
-    pub fn weights(&self) -> &[f64] {
-        &self.weights
-    }
-
     /// Weight `i` in double-double form (low part 0 unless built by
     /// [`PowerDiagram::with_order_dd`]).
     pub fn weight(&self, i: usize) -> Weight {
-        self.dd[i]
+        self.weights[i]
     }
 
     /// 0 (a single site), 1 (all sites on one line: the cells are parallel strips) or 2.
@@ -783,7 +775,7 @@ impl PowerDiagram {
             let mut best = v;
             for &j in self.neighbors(v) {
                 let j = j as usize;
-                if power_compare(x, self.sites[j], self.dd[j], self.sites[best], self.dd[best]) < 0 {
+                if power_compare(x, self.sites[j], self.weights[j], self.sites[best], self.weights[best]) < 0 {
                     best = j;
                 }
             }
@@ -828,7 +820,7 @@ impl PowerDiagram {
     }
 
     fn sanity_check_collinear(&self) -> Result<(), String> {
-        let (s, w) = (&self.sites, &self.dd);
+        let (s, w) = (&self.sites, &self.weights);
         let n = s.len();
         for k in 2..n {
             if orient(s[0], s[1], s[k]) != 0 {
@@ -882,7 +874,7 @@ impl PowerDiagram {
         let tn = &self.triangle_neighbors;
         let builder = Builder {
             sites: &self.sites,
-            weights: &self.dd,
+            weights: &self.weights,
             infinite: inf,
             tv: tv.clone(),
             tn: tn.clone(),
@@ -972,7 +964,7 @@ impl PowerDiagram {
                         return Err(format!("hull not convex at site {b}"));
                     }
                     if b == b2 && o == 0 {
-                        let w = &self.dd;
+                        let w = &self.weights;
                         let ok = power_side_1d(pa, w[a as usize], a, pc, w[c as usize], c, pb, w[b as usize], b);
                         if !ok {
                             return Err(format!("collinear hull site {b} is visible but redundant"));
