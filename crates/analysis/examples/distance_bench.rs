@@ -21,7 +21,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     files.sort();
     files.truncate(n);
     let out = PathBuf::from("out/distance_bench");
-    let run = run_distances(&files, &out, &DistancesOptions::default(), &|_, _, _| {})?;
+    let mut options = DistancesOptions::default();
+    if std::env::var("NO_WARM").is_ok() {
+        options.pairwise.warm_start = false;
+    }
+    let run = run_distances(&files, &out, &options, &|_, _, _| {})?;
     let r = &run.report;
     let ok: Vec<_> = run.pairs.iter().filter(|p| p.distance.is_finite()).collect();
     let seconds: Vec<f64> = ok.iter().map(|p| p.seconds).collect();

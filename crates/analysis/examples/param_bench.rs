@@ -58,7 +58,11 @@ fn main() {
     }
     println!("| mesh | V | F | conformal s | OT s | output s | repair s | total s | OT iterations | max rel. mass error | median abs(Υ) | flips |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let only: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     for (name, mesh) in meshes {
+        if !only.is_empty() && !only.iter().any(|o| name.contains(o.as_str())) {
+            continue;
+        }
         let mesh = match mesh {
             Ok(m) => m,
             Err(e) => {

@@ -22,7 +22,7 @@ use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
-use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
+use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
 
 use crate::error::AnalysisError;
 
@@ -136,6 +136,7 @@ pub fn directed_distance(
             };
             let fallback_params = NewtonParams {
                 initial_heights: None,
+                start_strategy: StartStrategy::Voronoi,
                 density_continuation: params.density_continuation.or(Some(10.0)),
                 ..params.clone()
             };

@@ -13,7 +13,7 @@
 
 use shapespace_omt::newton::IterationRecord;
 use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
-use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
+use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
 
 fn run(name: &str, measure: &SourceMeasure, n: usize, params: &NewtonParams) {
     let points = random_disk_points(n, 2024);
@@ -61,7 +61,11 @@ fn main() {
         sizes = vec![1_000, 10_000, 100_000];
     }
     let params = NewtonParams {
-        coarse_to_fine,
+        start_strategy: if coarse_to_fine {
+            StartStrategy::CoarseToFine
+        } else {
+            StartStrategy::Auto
+        },
         ..NewtonParams::default()
     };
     println!(

@@ -18,4 +18,4 @@ pub mod synthetic;
 pub use cells::CellIntegrals;
 pub use error::OmtError;
 pub use measure::SourceMeasure;
-pub use newton::{solve_ot, NewtonParams, OtSolution, StopReason};
+pub use newton::{solve_ot, NewtonParams, OtSolution, StartStrategy, StopReason};

@@ -6,7 +6,7 @@ mod common;
 
 use common::{disk_measure, sunflower, Rng};
 use shapespace_omt::newton::Start;
-use shapespace_omt::{solve_ot, NewtonParams, OtSolution, SourceMeasure};
+use shapespace_omt::{solve_ot, NewtonParams, OtSolution, SourceMeasure, StartStrategy};
 
 fn check(name: &str, sol: &OtSolution, tolerance: f64) {
     let steps: Vec<(f64, usize)> = sol.log.iter().map(|r| (r.step, r.halvings)).collect();
@@ -199,17 +199,38 @@ fn mass_continuation_reaches_the_direct_solution() {
 /// The ot_bench contrast case at N = 4000 (uniform random points, density 100 on x > 0): the
 /// fixed two-stage schedule of ratio 10 stopped at the iteration cap with max error 8.9e-2; the
 /// adaptive continuation halves the stage that fails and converges with default parameters.
+/// The coarse-to-fine start (the default, `StartStrategy::Auto`, for this contrast) reaches the
+/// same solution with far fewer steps at the finest level.
 #[test]
 fn adaptive_density_continuation_converges_on_random_points_with_contrast() {
     use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
     let half = disk_rings_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 }).unwrap();
     let points = random_disk_points(4000, 2024);
-    let sol = solve_ot(&half, &points, &vec![1.0; points.len()], &NewtonParams::default()).unwrap();
-    check("random points, half-plane ×100", &sol, 1e-6);
-    match sol.start {
+    let masses = vec![1.0; points.len()];
+    let continued = solve_ot(
+        &half,
+        &points,
+        &masses,
+        &NewtonParams {
+            start_strategy: StartStrategy::Voronoi,
+            ..NewtonParams::default()
+        },
+    )
+    .unwrap();
+    check("random points, half-plane ×100, continuation", &continued, 1e-6);
+    match continued.start {
         Start::DensityContinuation { stages, .. } => assert!(stages > 2, "{stages} stages"),
         ref other => panic!("start {other:?}"),
     }
+    let multiscale = solve_ot(&half, &points, &masses, &NewtonParams::default()).unwrap();
+    check("random points, half-plane ×100, coarse-to-fine", &multiscale, 1e-6);
+    assert!(matches!(multiscale.start, Start::CoarseToFine { .. }), "{:?}", multiscale.start);
+    eprintln!(
+        "continuation: {} steps in all; coarse-to-fine: {} steps at the finest level",
+        continued.iterations, multiscale.iterations
+    );
+    assert!(multiscale.iterations * 4 < continued.iterations);
+    assert!((multiscale.cost - continued.cost).abs() <= 1e-6 * continued.cost);
 }
 
 /// A continuation that cannot advance (one Newton step per stage) stops as `Stalled` and says
@@ -221,6 +242,7 @@ fn density_continuation_that_cannot_advance_says_so() {
     let half = disk_measure(30, &|x| if x[0] > 0.0 { 100.0 } else { 1.0 });
     let params = NewtonParams {
         max_iterations: 2,
+        start_strategy: StartStrategy::Voronoi,
         ..NewtonParams::default()
     };
     let sol = solve_ot(&half, &points, &vec![1.0; points.len()], &params).unwrap();

@@ -10,7 +10,15 @@ use anyhow::{bail, Context};
 use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::power_diagram::PowerDiagram;
 use shapespace_omt::restricted::cell_polygons;
-use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
+use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
+
+/// `--start` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum StartArg {
+    Auto,
+    Voronoi,
+    CoarseToFine,
+}
 
 /// Arguments of `shapespace ot`.
 #[derive(clap::Args)]
@@ -37,9 +45,10 @@ pub struct OtArgs {
     /// Maximum number of Newton steps (per continuation stage).
     #[arg(long, default_value_t = 100)]
     pub max_iterations: usize,
-    /// Start from a solution on a subsample (large N).
-    #[arg(long)]
-    pub coarse_to_fine: bool,
+    /// Initial heights: `auto` (coarse-to-fine for a density ratio above 10 or crowded points,
+    /// else Voronoi), `voronoi` or `coarse-to-fine`.
+    #[arg(long, value_enum, default_value_t = StartArg::Auto)]
+    pub start: StartArg,
     /// Solve the Newton systems by Jacobi-preconditioned CG instead of sparse Cholesky.
     #[arg(long)]
     pub cg: bool,
@@ -135,7 +144,11 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
     let params = NewtonParams {
         tolerance: args.tol,
         max_iterations: args.max_iterations,
-        coarse_to_fine: args.coarse_to_fine,
+        start_strategy: match args.start {
+            StartArg::Auto => StartStrategy::Auto,
+            StartArg::Voronoi => StartStrategy::Voronoi,
+            StartArg::CoarseToFine => StartStrategy::CoarseToFine,
+        },
         linear_solver: if args.cg {
             LinearSolver::ConjugateGradient {
                 relative_tolerance: 1e-10,

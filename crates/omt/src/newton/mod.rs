@@ -16,21 +16,24 @@
 //! ## Choices (documented here because they are not in the paper)
 //! - **Target masses** are always rescaled by `mass_scale = μ(Ω)/Σν` (recorded in the solution);
 //!   masses must be finite and > 0.
-//! - **Start.** Warm start if given, else the coarse-to-fine start if asked for (see
-//!   `multiscale`), else the Voronoi diagram $h_i = -|y_i|^2/2$. KMT need every cell non-empty
+//! - **Start.** Warm start if given, else ([`StartStrategy`]) the coarse-to-fine start of
+//!   `multiscale` or the Voronoi diagram $h_i = -|y_i|^2/2$. KMT need every cell non-empty
 //!   at $h_0$ (otherwise ε₀ = 0 and the damping protects nothing). If a start has an empty cell,
 //!   the solver replaces it by the Voronoi diagram of the points contracted toward the
 //!   barycenter $c$ of Ω, $z_i = c + s(y_i - c)$, which is a power diagram of the $y_i$ with
 //!   $h_i = -|z_i|^2/(2s)$ (the common term $(1-s)\langle x, c\rangle$ drops out); $s$ is halved from
 //!   1 until every cell has positive mass (for $s$ small all $z_i$ lie inside Ω, whose cells then
 //!   contain a disk around $z_i$). Thus ε₀ is always positive and the KMT guarantee applies.
-//! - **Coarse-to-fine** (`coarse_to_fine`, see `multiscale`): for N ≥ 1000 the points are
-//!   subsampled by 8 recursively; the coarsest level is solved from the Voronoi start (with the
-//!   density continuation below), every finer level from the level below it. This is what makes
-//!   large displacements cheap: from a Voronoi start the damped steps are limited to about one
-//!   cell width, so a displacement D costs ~D/cell width steps at the finest level, but only a
-//!   few at each level from the coarse solution.
-//! - **Density continuation.** With a strong density contrast the Newton model of the Voronoi
+//! - **Coarse-to-fine** ([`StartStrategy`], module `multiscale`): the points are merged pairwise,
+//!   closest first, into a hierarchy of coarser problems; each level is solved from the
+//!   prolongation of the one below it, which provably leaves no cell empty. From a Voronoi start
+//!   the damped steps are limited to about one cell width, so a large displacement (a density
+//!   contrast, points crowded by a conformal map) costs many steps; from the prolongation the
+//!   finest level needs 8–18 (measured in `ARCHITECTURE.md`). `StartStrategy::Auto` (default)
+//!   takes it when the density ratio exceeds 10 or the Voronoi start has a cell below 1e-8 of its
+//!   target.
+//! - **Density continuation** (with `StartStrategy::Voronoi`, and on the coarsest level of the
+//!   coarse-to-fine start). With a strong density contrast the Newton model of the Voronoi
 //!   start is far off (cells are pushed into regions 100× denser than their edges say) and KMT
 //!   accepts only τ ≈ 2^−10 for tens of steps. When max ρ / min ρ exceeds `density_continuation`
 //!   (default 10), the solver first solves for ρ^t along t = Δt, 2Δt, … (Δt = 1/K initially,
@@ -94,8 +97,14 @@ pub struct NewtonParams {
     pub linear_solver: LinearSolver,
     /// Warm start (#N heights), e.g. the solution of a previous problem with the same target.
     pub initial_heights: Option<Vec<f64>>,
-    /// Start from the solution on a subsample (ignored with `initial_heights`); see `multiscale`.
-    pub coarse_to_fine: bool,
+    /// Low parts of a double-double warm start (#N; with `initial_heights` as the high parts,
+    /// e.g. [`OtSolution::heights_lo`]): the start is then h_i = hi_i + lo_i exactly, which
+    /// matters for points closer together than ~1e-8 of Ω's extent. Ignored without
+    /// `initial_heights`.
+    pub initial_heights_lo: Option<Vec<f64>>,
+    /// How the initial heights are chosen when no warm start is given (default
+    /// [`StartStrategy::Auto`]).
+    pub start_strategy: StartStrategy,
     /// Cell integrator (default `Restricted`).
     pub integrator: CellIntegrator,
     /// Density continuation: when the source's density ratio max/min exceeds this value r
@@ -120,13 +129,35 @@ impl Default for NewtonParams {
             max_halvings: 100,
             linear_solver: LinearSolver::Cholesky,
             initial_heights: None,
-            coarse_to_fine: false,
+            initial_heights_lo: None,
+            start_strategy: StartStrategy::Auto,
             integrator: CellIntegrator::Restricted,
             density_continuation: Some(10.0),
             mass_continuation: None,
         }
     }
 }
+
+/// How [`solve_ot`] chooses its initial heights when no warm start is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StartStrategy {
+    /// The coarse-to-fine start when the source density's max/min exceeds 10 or the Voronoi
+    /// start has a cell below 1e-8 of its target mass (points crowded by a conformal map), the
+    /// Voronoi start otherwise (where it is the faster one: uniform density, spread points).
+    #[default]
+    Auto,
+    /// The Voronoi start (with the density or mass continuation if enabled).
+    Voronoi,
+    /// The coarse-to-fine start of `multiscale` (for N ≥ 1000, or ≥ 16 crowded points; the
+    /// Voronoi start below that).
+    CoarseToFine,
+}
+
+/// [`StartStrategy::Auto`] takes the coarse-to-fine start above this density ratio max/min.
+const AUTO_CONTRAST: f64 = 10.0;
+/// [`StartStrategy::Auto`] takes the coarse-to-fine start when a Voronoi cell has less than this
+/// fraction of its target mass.
+const AUTO_MIN_START: f64 = 1e-8;
 
 /// Why the iteration stopped.
 #[derive(Clone, Debug, PartialEq)]
@@ -203,8 +234,13 @@ pub struct IterationRecord {
 /// The result of [`solve_ot`], converged or not (see [`OtSolution::into_result`]).
 #[derive(Clone, Debug)]
 pub struct OtSolution {
-    /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i.
+    /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i (the high parts of the solver's
+    /// double-double heights).
     pub heights: Vec<f64>,
+    /// Low parts of the heights (#N): the solver's heights are `heights[i] + heights_lo[i]`
+    /// exactly. Pass both back as a warm start ([`NewtonParams::initial_heights_lo`]) to resume
+    /// without rounding.
+    pub heights_lo: Vec<f64>,
     /// Power weights w_i = 2h_i + |y_i|² (#N).
     pub weights: Vec<f64>,
     /// Cell integrals at the final heights.
@@ -333,6 +369,19 @@ fn squared_norm_dd(y: [f64; 2]) -> [f64; 2] {
 impl Heights {
     pub(crate) fn from_f64(hi: Vec<f64>) -> Self {
         let lo = vec![0.0; hi.len()];
+        Heights { hi, lo }
+    }
+
+    /// hi + lo, renormalized (the parts need not be a normalized pair).
+    pub(crate) fn from_parts(hi: &[f64], lo: &[f64]) -> Self {
+        let (hi, lo) = hi
+            .iter()
+            .zip(lo)
+            .map(|(&h, &l)| {
+                let r = renormalize(h, l);
+                (r[0], r[1])
+            })
+            .unzip();
         Heights { hi, lo }
     }
 
@@ -574,6 +623,18 @@ fn validate(
         if let Some(i) = h.iter().position(|v| !v.is_finite()) {
             return Err(OmtError::InvalidInput(format!("initial height {i} is not finite")));
         }
+        if let Some(lo) = &params.initial_heights_lo {
+            if lo.len() != h.len() {
+                return Err(OmtError::InvalidInput(format!(
+                    "{} low parts for {} initial heights",
+                    lo.len(),
+                    h.len()
+                )));
+            }
+            if let Some(i) = lo.iter().position(|v| !v.is_finite()) {
+                return Err(OmtError::InvalidInput(format!("low part {i} of the initial heights is not finite")));
+            }
+        }
     }
     let mut order: Vec<usize> = (0..points.len()).collect();
     order.sort_unstable_by(|&a, &b| {
@@ -712,7 +773,30 @@ pub fn solve_ot(
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
     let contrast = hi / lo;
-    if params.coarse_to_fine && params.initial_heights.is_none() {
+    let cold = params.initial_heights.is_none() && params.mass_continuation.is_none();
+    let mut voronoi_start = None;
+    let multiscale = cold
+        && match params.start_strategy {
+            StartStrategy::Voronoi => false,
+            StartStrategy::CoarseToFine => true,
+            StartStrategy::Auto => {
+                contrast > AUTO_CONTRAST || {
+                    let total = measure.total_mass();
+                    let mass_scale = total / masses.iter().sum::<f64>();
+                    let backend = Backend::new(measure, params.integrator);
+                    let evaluation = evaluate(&backend, points, &Heights::voronoi(points))?;
+                    let poor = evaluation
+                        .cells
+                        .masses
+                        .iter()
+                        .zip(masses)
+                        .any(|(&m, &nu)| !(m >= AUTO_MIN_START * nu * mass_scale));
+                    voronoi_start = Some(evaluation);
+                    poor
+                }
+            }
+        };
+    if multiscale {
         let total = measure.total_mass();
         let mass_scale = total / masses.iter().sum::<f64>();
         let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
@@ -720,10 +804,11 @@ pub fn solve_ot(
             multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
         {
             let fine_params = NewtonParams {
-                initial_heights: Some(heights),
+                initial_heights: Some(heights.hi),
+                initial_heights_lo: Some(heights.lo),
                 ..params.clone()
             };
-            let mut solution = solve_single(measure, points, masses, &fine_params, t_begin)?;
+            let mut solution = solve_single(measure, points, masses, &fine_params, t_begin, None)?;
             if solution.start == Start::Warm {
                 solution.start = Start::CoarseToFine {
                     coarse_points,
@@ -743,7 +828,7 @@ pub fn solve_ot(
         _ => 1,
     };
     if stages == 1 {
-        return solve_single(measure, points, masses, params, t_begin);
+        return solve_single(measure, points, masses, params, t_begin, voronoi_start);
     }
     solve_density_continuation(measure, points, masses, params, stages, t_begin)
 }
@@ -768,7 +853,7 @@ fn solve_density_continuation(
 ) -> Result<OtSolution, OmtError> {
     let stage_cap = (params.max_iterations / 2).max(1);
     let (mut t, mut dt) = (0.0f64, 1.0 / stages as f64);
-    let mut heights: Option<Vec<f64>> = None;
+    let mut heights: Option<(Vec<f64>, Vec<f64>)> = None;
     let mut log = Vec::new();
     let (mut iterations, mut evaluations, mut solved_stages) = (0, 0, 0);
     loop {
@@ -792,11 +877,12 @@ fn solve_density_continuation(
                 params.tolerance.max(1e-3)
             },
             max_iterations: if last { params.max_iterations } else { stage_cap },
-            initial_heights: heights.clone(),
+            initial_heights: heights.as_ref().map(|h| h.0.clone()),
+            initial_heights_lo: heights.as_ref().map(|h| h.1.clone()),
             density_continuation: None,
             ..params.clone()
         };
-        let mut stage = solve_single(stage_source, points, masses, &stage_params, Instant::now())?;
+        let mut stage = solve_single(stage_source, points, masses, &stage_params, Instant::now(), None)?;
         iterations += stage.iterations;
         evaluations += stage.evaluations;
         let converged = stage.converged();
@@ -824,7 +910,7 @@ fn solve_density_continuation(
         log.append(&mut stage.log);
         if converged {
             solved_stages += 1;
-            heights = Some(stage.heights);
+            heights = Some((stage.heights, stage.heights_lo));
             t = t_next;
             if stage.iterations * 4 <= stage_cap {
                 dt *= 2.0;
@@ -865,10 +951,12 @@ fn solve_mass_continuation(
             ..base.clone()
         },
         Instant::now(),
+        None,
     )?;
     let m0 = start.cells.masses.clone();
     let targets = &start.target_masses;
     let mut heights = start.heights;
+    let mut heights_lo = start.heights_lo;
     let (mut t, mut stages, mut iterations, mut log) = (0.0f64, 0usize, 0usize, Vec::new());
     let mut evaluations = start.evaluations;
     loop {
@@ -899,9 +987,10 @@ fn solve_mass_continuation(
                 params.tolerance.max(1e-3)
             },
             initial_heights: Some(heights),
+            initial_heights_lo: Some(heights_lo),
             ..base.clone()
         };
-        let mut stage = solve_single(measure, points, &stage_targets, &stage_params, Instant::now())?;
+        let mut stage = solve_single(measure, points, &stage_targets, &stage_params, Instant::now(), None)?;
         stages += 1;
         if last || !stage.converged() {
             // The final problem, or an intermediate stage that failed (reported as it stopped).
@@ -927,17 +1016,20 @@ fn solve_mass_continuation(
         evaluations += stage.evaluations;
         log.append(&mut stage.log);
         heights = stage.heights;
+        heights_lo = stage.heights_lo;
         t = t_stage;
     }
 }
 
-/// One damped Newton solve (no density continuation).
+/// One damped Newton solve (no density continuation). `voronoi_start`: the evaluation of the
+/// Voronoi start when the caller has it (used without a warm start).
 fn solve_single(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,
     t_begin: Instant,
+    voronoi_start: Option<Evaluation>,
 ) -> Result<OtSolution, OmtError> {
     let n = points.len();
     let total = measure.total_mass();
@@ -946,17 +1038,21 @@ fn solve_single(
 
     // Initial heights and their evaluation; every cell must be non-empty.
     let mut start = Start::Voronoi;
-    let mut heights = None;
-    if let Some(h) = &params.initial_heights {
-        heights = Some(h.clone());
-        start = Start::Warm;
-    }
-    let mut heights = match heights {
-        Some(h) => Heights::from_f64(h),
+    let mut heights = match &params.initial_heights {
+        Some(h) => {
+            start = Start::Warm;
+            match &params.initial_heights_lo {
+                Some(lo) => Heights::from_parts(h, lo),
+                None => Heights::from_f64(h.clone()),
+            }
+        }
         None => Heights::voronoi(points),
     };
     let backend = Backend::new(measure, params.integrator);
-    let mut current = evaluate(&backend, points, &heights)?;
+    let mut current = match (start == Start::Voronoi, voronoi_start) {
+        (true, Some(evaluation)) => evaluation,
+        _ => evaluate(&backend, points, &heights)?,
+    };
     let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = source_barycenter(measure);
@@ -1111,6 +1207,7 @@ fn solve_single(
     };
     Ok(OtSolution {
         heights: heights.hi,
+        heights_lo: heights.lo,
         weights,
         cells: current.cells,
         cost,
