@@ -267,9 +267,13 @@ fn a_non_disk_surface_is_named() {
 }
 
 /// centaur1 → centaur2 (15,757 V; conformal images crowded to ~4e-14, whose OT solves only
-/// start since the heights are double-double). Measured, centaur1 → centaur2: OMT disk flips
-/// 0.13 % (3D 7.3 %), geodesic error mean 0.092; conformal disk flips 15 %, geodesic error mean
-/// 0.231 (register-bench over both directions: 0.07 % and 0.0956 against 16 % and 0.207).
+/// start since the heights are double-double). Measured, centaur1 → centaur2: conformal disk
+/// flips 15 %, geodesic error mean 0.231; OMT disk flips 0.5 % (3D 7.6 %), geodesic error mean
+/// 0.093. The OMT flips depend on the OT solution far below its tolerance: disk maps φ₁, φ₂
+/// that agree to 5e-11 (Voronoi and coarse-to-fine starts, both converged to 1e-6) give 0.008 %
+/// and 0.5 %, and tolerances 1e-8 / 1e-10 give 0.015 % / 0.08 %: the planar cotangent weights of
+/// the repaired centroid map in the crowded limbs make g that sensitive (noted on issue 7). The
+/// bound is set above that spread.
 #[test]
 fn omt_beats_conformal_on_two_centaur_poses() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses/centaur");
@@ -297,7 +301,7 @@ fn omt_beats_conformal_on_two_centaur_poses() {
     }
     let ((omt_flips, omt_geo), (conf_flips, conf_geo)) = (summary[0], summary[1]);
     assert!(
-        omt_flips < 0.005 && conf_flips > 0.05,
+        omt_flips < 0.01 && conf_flips > 0.05,
         "disk flips omt {omt_flips} conformal {conf_flips}"
     );
     assert!(

@@ -175,8 +175,7 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64]) -> Result<Coarsening, OmtError>
     let mut group: Vec<usize> = (0..n).collect();
     let mut closest = f64::INFINITY;
     for round in 0..MAX_ROUNDS {
-        let ratio: usize = std::env::var("MSRATIO").ok().and_then(|v| v.parse().ok()).unwrap_or(RATIO);
-        if round > 0 && reps.len() * ratio <= n {
+        if round > 0 && reps.len() * RATIO <= n {
             break;
         }
         let delaunay = PowerDiagram::new(&reps, &vec![0.0; reps.len()])?;
@@ -316,7 +315,7 @@ pub(crate) fn coarse_to_fine_heights(
         return Ok(None);
     }
     let coarse_params = NewtonParams {
-        tolerance: params.tolerance.max(std::env::var("MSTOL").ok().and_then(|v| v.parse().ok()).unwrap_or(LEVEL_TOLERANCE)),
+        tolerance: params.tolerance.max(LEVEL_TOLERANCE),
         initial_heights: None,
         initial_heights_lo: None,
         start_strategy: super::StartStrategy::CoarseToFine,
@@ -324,12 +323,7 @@ pub(crate) fn coarse_to_fine_heights(
     };
     let solution = match solve_ot(measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
-        other => {
-            if std::env::var("MSDBG").is_ok() {
-                eprintln!("DBG level n {n} coarse {coarse_n}: coarse failed {:?}", other.map(|s| s.stop_description()));
-            }
-            return Ok(None);
-        }
+        _ => return Ok(None),
     };
     let cells = &solution.cells;
     let (hh, hl) = (&solution.heights, &solution.heights_lo);
@@ -340,18 +334,17 @@ pub(crate) fn coarse_to_fine_heights(
         neighbours[i as usize].push(j as usize);
         neighbours[j as usize].push(i as usize);
     }
-    // Candidates for the maximum: the groups within two edges of the regular triangulation of the
-    // coarse solution (not only the cells that meet inside Ω).
+    // Candidates for the maximum: the groups within RINGS edges of the regular triangulation of
+    // the coarse solution (not only the cells that meet inside Ω).
     let candidates: Vec<Vec<usize>> = {
         let (w, wl) = Heights { hi: hh.clone(), lo: hl.clone() }.weights(&coarse.points);
         let order = crate::power_diagram::InsertionOrder::new(&coarse.points)?;
         let regular = PowerDiagram::with_order_dd(&coarse.points, &w, Some(&wl), &order)?;
-        let rings: usize = std::env::var("MSRINGS").ok().and_then(|v| v.parse().ok()).unwrap_or(RINGS);
         (0..coarse_n)
             .map(|g| {
                 let mut set = vec![g];
                 let mut frontier = vec![g];
-                for _ in 0..rings {
+                for _ in 0..RINGS {
                     let mut next = Vec::new();
                     for &a in &frontier {
                         for &b in regular.neighbors(a) {
@@ -388,9 +381,8 @@ pub(crate) fn coarse_to_fine_heights(
                 let along = c[0] * gap[0] + c[1] * gap[1] + height_diff(g, j);
                 d = d.min(along / gap[0].hypot(gap[1]));
             }
-            let spread: f64 = std::env::var("MSSPREAD").ok().and_then(|v| v.parse().ok()).unwrap_or(SPREAD);
             if d.is_finite() && d > 0.0 {
-                spread * d
+                SPREAD * d
             } else {
                 0.0
             }
@@ -403,19 +395,11 @@ pub(crate) fn coarse_to_fine_heights(
     let deltas: Vec<f64> = (0..coarse_n)
         .map(|g| {
             let y = coarse.points[g];
-            let dmode: u32 = std::env::var("MSDELTA").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
-            if dmode == 1 {
-                members[g]
-                    .iter()
-                    .map(|&i| (points[i][0] - y[0]).hypot(points[i][1] - y[1]))
-                    .fold(0.0, f64::max)
-            } else {
-                let sum: f64 = members[g]
-                    .iter()
-                    .map(|&i| (points[i][0] - y[0]).powi(2) + (points[i][1] - y[1]).powi(2))
-                    .sum();
-                (sum / members[g].len() as f64).sqrt()
-            }
+            let sum: f64 = members[g]
+                .iter()
+                .map(|&i| (points[i][0] - y[0]).powi(2) + (points[i][1] - y[1]).powi(2))
+                .sum();
+            (sum / members[g].len() as f64).sqrt()
         })
         .collect();
     // Φ_k(y) − G_g for a point y of group g.
@@ -425,30 +409,33 @@ pub(crate) fn coarse_to_fine_heights(
         let base = if k == g { 0.0 } else { height_diff(g, k) };
         base + centroids[k][0] * o[0] + centroids[k][1] * o[1] + scales[k] * pseudo_huber(o, deltas[k])
     };
+    // h_i = H_g − (Φ(y_i) − G_g), in double-double form.
+    let set = |heights: &mut Heights, i: usize, rel: f64| {
+        let g = coarse.group[i];
+        let (s, e) = crate::predicates::two_sum(hh[g], -rel);
+        let r = crate::predicates::two_sum(s, e + hl[g]);
+        heights.hi[i] = r.0;
+        heights.lo[i] = r.1;
+    };
     let mut heights = Heights {
         hi: vec![0.0; n],
         lo: vec![0.0; n],
     };
     for (i, &g) in coarse.group.iter().enumerate() {
-        let y = points[i];
-        let rel = if std::env::var("MSALL").is_ok() {
-            (0..coarse_n).fold(phi_rel(g, g, y), |best, k| best.max(phi_rel(k, g, y)))
-        } else if members[g].len() == 1 {
+        // A group of one: y_i = Y_g, where every other Φ_k lies below u*(Y_g) = G_g.
+        let rel = if members[g].len() == 1 {
             0.0
         } else {
             candidates[g]
                 .iter()
-                .fold(phi_rel(g, g, y), |best, &k| best.max(phi_rel(k, g, y)))
+                .fold(phi_rel(g, g, points[i]), |best, &k| best.max(phi_rel(k, g, points[i])))
         };
-        let (s, e) = crate::predicates::two_sum(hh[g], -rel);
-        let r = crate::predicates::two_sum(s, e + hl[g]);
-        heights.hi[i] = r.0;
-        heights.lo[i] = r.1;
+        set(&mut heights, i, rel);
     }
     // Check: with the maximum taken over the candidate groups only, a point's value can fall
-    // below Φ(y_i); its cell is then too large and may swallow another. For each empty cell j,
+    // below Φ(y_i); its cell is then too large and may hide another. For each hidden point j,
     // take the exact maximum (over all groups) for j and for the point i whose cell contains
-    // j's anchor ∂Φ(y_j): one of the two was underestimated.
+    // j's anchor p_j ∈ ∂Φ(y_j): one of the two was underestimated.
     let exact = |i: usize| -> (f64, [f64; 2]) {
         let g = coarse.group[i];
         let y = points[i];
@@ -466,17 +453,10 @@ pub(crate) fn coarse_to_fine_heights(
         let grad = if norm > 0.0 { [o[0] / norm, o[1] / norm] } else { [0.0, 0.0] };
         (best.0, [centroids[k][0] + scales[k] * grad[0], centroids[k][1] + scales[k] * grad[1]])
     };
-    let set = |heights: &mut Heights, i: usize, rel: f64| {
-        let g = coarse.group[i];
-        let (s, e) = crate::predicates::two_sum(hh[g], -rel);
-        let r = crate::predicates::two_sum(s, e + hl[g]);
-        heights.hi[i] = r.0;
-        heights.lo[i] = r.1;
-    };
+    let order = crate::power_diagram::InsertionOrder::new(points)?;
     let mut exact_done = vec![false; n];
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
-        let order = crate::power_diagram::InsertionOrder::new(points)?;
         let diagram = PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?;
         let hidden: Vec<usize> = (0..n).filter(|&i| diagram.is_hidden(i)).collect();
         if hidden.is_empty() {
@@ -495,14 +475,6 @@ pub(crate) fn coarse_to_fine_heights(
                 exact_done[i] = true;
             }
         }
-    }
-    if std::env::var("MSDBG").is_ok() {
-        eprintln!("DBG exact recomputations {}", exact_done.iter().filter(|&&e| e).count());
-        let backend = super::Backend::new(measure, super::CellIntegrator::Restricted);
-        let ev = super::evaluate(&backend, points, &heights)?;
-        let empty = ev.cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
-        let ratio = ev.cells.masses.iter().zip(targets).map(|(m, t)| m / t).fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
-        eprintln!("DBG level n {n} coarse {coarse_n} ({} its, {:?}): empties {empty}, mass/target in [{:.2e}, {:.2e}]", solution.iterations, solution.start, ratio.0, ratio.1);
     }
     Ok(Some((heights, coarse_n, solution.iterations)))
 }
