@@ -331,7 +331,7 @@ fn coarse_to_fine_start_reaches_the_same_solution() {
     assert!(plain.converged() && multi.converged());
     // Pairwise merging until at most N/4 groups remain: 3000 → ≤ 750.
     assert!(
-        matches!(multi.start, Start::CoarseToFine { coarse_points, .. } if coarse_points <= 750 && coarse_points >= 375),
+        matches!(multi.start, Start::CoarseToFine { coarse_points, .. } if (375..=750).contains(&coarse_points)),
         "{:?}",
         multi.start
     );
