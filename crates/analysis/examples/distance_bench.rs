@@ -2,7 +2,8 @@
 //! first N bundled faces (default 30, i.e. 435 pairs), printing a table of the stages.
 //!
 //! `cargo run --release -p shapespace-analysis --example distance_bench -- [N] [THREADS]`
-//! (THREADS default 2; run from the repository root). Outputs go to `out/distance_bench/`.
+//! (THREADS default 2; run from the repository root; env WARM=1 warm-starts each pair from the
+//! previous one with the same target). Outputs go to `out/distance_bench/`.
 
 use std::path::PathBuf;
 
@@ -22,8 +23,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     files.truncate(n);
     let out = PathBuf::from("out/distance_bench");
     let mut options = DistancesOptions::default();
-    if std::env::var("NO_WARM").is_ok() {
-        options.pairwise.warm_start = false;
+    if std::env::var("WARM").is_ok() {
+        options.pairwise.warm_start = true;
     }
     let run = run_distances(&files, &out, &options, &|_, _, _| {})?;
     let r = &run.report;

@@ -10,9 +10,12 @@
 //! as an accuracy diagnostic and the mean of both directions is available.
 //!
 //! Per-shape work (conformal map, density, points, masses) is done once per shape
-//! ([`prepare_shape`]); the pairs reuse it. In a pairwise run, the pairs that share a target are
-//! solved in a fixed order, each warm-started from the previous one's heights, so the results do
-//! not depend on the number of threads.
+//! ([`prepare_shape`]); the pairs reuse it. Each pair starts cold by default: the solver's
+//! coarse-to-fine start (taken automatically for these densities) needs 8–18 steps at the finest
+//! level, the previous pair's heights 16–32 (measured on the bundled faces, `ARCHITECTURE.md`).
+//! With [`PairwiseOptions::warm_start`] the pairs that share a target are solved in a fixed order,
+//! each warm-started from the previous one's heights; either way the results do not depend on
+//! the number of threads.
 
 use std::time::Instant;
 
@@ -22,6 +25,7 @@ use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
+use shapespace_omt::newton::Start;
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
 
 use crate::error::AnalysisError;
@@ -88,7 +92,7 @@ pub struct DirectedDistance {
     pub cost: f64,
     /// √cost.
     pub distance: f64,
-    /// Newton iterations.
+    /// Newton iterations (all levels of a coarse-to-fine start, all stages of a continuation).
     pub iterations: usize,
     /// max_i |μ(W_i) − ν_i| / ν_i at the end.
     pub max_mass_error: f64,
@@ -106,11 +110,12 @@ pub struct DirectedDistance {
 /// Returns the directed distance and the final heights (for warm starts).
 ///
 /// Strategy (measured on the bundled faces, density contrast ~6·10⁴): the damped Newton method
-/// straight from the given start (warm heights or Voronoi), without density continuation,
-/// converges in 12–45 steps (0.8–4 s); continuation (`NewtonParams::density_continuation`)
-/// takes 3–5× longer on these inputs, so it is only the fallback when the direct solve does not
-/// converge or cannot start. The fallback restarts from scratch with `params` as given (and
-/// continuation at ratio 10 if `params` has none); its iterations are added to the count.
+/// from the given warm heights or, without them, from the solver's start (`StartStrategy::Auto`
+/// takes the coarse-to-fine start for this contrast: 8–18 steps at the finest level, 0.4–1 s),
+/// without density continuation; continuation (`NewtonParams::density_continuation`) takes 3–5×
+/// longer on these inputs, so it is only the fallback when the direct solve does not converge or
+/// cannot start. The fallback restarts from the Voronoi start with continuation (ratio 10 if
+/// `params` has none); its iterations are added to the count.
 pub fn directed_distance(
     source: &PreparedShape,
     target: &PreparedShape,
@@ -151,7 +156,11 @@ pub fn directed_distance(
     let result = DirectedDistance {
         cost: solution.cost,
         distance: solution.cost.max(0.0).sqrt(),
-        iterations: solution.iterations,
+        iterations: solution.iterations
+            + match solution.start {
+                Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
+                _ => 0,
+            },
         max_mass_error: solution.max_relative_error,
         seconds: start.elapsed().as_secs_f64(),
         status: format!("{}{note}", solution.stop_description()),
@@ -169,7 +178,8 @@ pub struct PairwiseOptions {
     /// Newton parameters (tolerance, caps). Default: `NewtonParams::default()` with
     /// `LinearSolver::CholeskyReusedOrdering` (~30% cheaper linear solves on face pairs).
     pub newton: NewtonParams,
-    /// Warm-start each pair from the previous pair with the same target.
+    /// Warm-start each pair from the previous pair with the same target (default false: slower
+    /// than the solver's coarse-to-fine start on the bundled faces).
     pub warm_start: bool,
 }
 
@@ -181,7 +191,7 @@ impl Default for PairwiseOptions {
                 linear_solver: LinearSolver::CholeskyReusedOrdering,
                 ..NewtonParams::default()
             },
-            warm_start: true,
+            warm_start: false,
         }
     }
 }

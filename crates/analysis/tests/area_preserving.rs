@@ -332,7 +332,11 @@ fn centaur_poses_with_crowded_conformal_images() {
             map.ot.iterations, map.ot.start, map.ot.max_relative_error, map.fold_repair.before.num_flipped
         );
         assert!(densest > 1e15, "{pose}: max density {densest:e}");
-        assert!(map.ot.converged && map.ot.max_relative_error <= 1e-6, "{pose}: {:?}", map.ot);
+        assert!(
+            map.ot.converged && map.ot.max_relative_error <= 1e-6,
+            "{pose}: {:?}",
+            map.ot
+        );
         assert!(map.ot.start.starts_with("CoarseToFine"), "{pose}: {}", map.ot.start);
         assert!(
             map.fold_repair.before.num_flipped > 1000,

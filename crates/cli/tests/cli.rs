@@ -151,6 +151,54 @@ fn ot_on_a_point_file() {
     assert!(report.to_string().contains("onverged"), "{report}");
 }
 
+/// `shapespace ot --start coarse-to-fine` takes the coarse-to-fine start (1,200 points: one
+/// coarse level) and reaches the same masses; `--start voronoi` the Voronoi start; the report says
+/// which.
+#[test]
+fn ot_start_strategies() {
+    let dir = scratch("ot_start");
+    let points = dir.join("points.csv");
+    let mut text = String::from("x,y,mass\n");
+    let n = 1200;
+    for k in 0..n {
+        let r = 0.95 * ((k as f64 + 0.5) / n as f64).sqrt();
+        let t = k as f64 * 2.399_963_229_728_653;
+        text.push_str(&format!("{},{},{}\n", r * t.cos(), r * t.sin(), 1 + k % 3));
+    }
+    std::fs::write(&points, text).unwrap();
+    let mut costs = Vec::new();
+    for (start, expect) in [("coarse-to-fine", "CoarseToFine"), ("voronoi", "Voronoi")] {
+        let result = dir.join(format!("{start}.csv"));
+        let report = dir.join(format!("{start}.json"));
+        let out = shapespace(&[
+            "ot",
+            "--points",
+            points.to_str().unwrap(),
+            "--start",
+            start,
+            "--out",
+            result.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        assert!(report["start"].as_str().unwrap().starts_with(expect), "{report}");
+        let mut rows = csv::Reader::from_path(&result).unwrap();
+        let masses: Vec<f64> = rows.records().map(|r| r.unwrap()[2].parse().unwrap()).collect();
+        let total: f64 = masses.iter().sum();
+        for (k, m) in masses.iter().enumerate() {
+            let target = total * (1 + k % 3) as f64 / (2 * n) as f64;
+            assert!(
+                (m - target).abs() <= 1e-6 * target,
+                "{start}, cell {k}: {m} vs {target}"
+            );
+        }
+        costs.push(report["cost"].as_f64().unwrap());
+    }
+    assert!((costs[0] - costs[1]).abs() <= 1e-9 * costs[1], "{costs:?}");
+}
+
 /// `shapespace param` writes an area-preserving map: one `vt` per vertex, boundary vertices on
 /// the unit circle, and a report whose OT converged and whose map has no flipped face.
 #[test]

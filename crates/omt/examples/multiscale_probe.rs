@@ -19,7 +19,11 @@ fn main() {
             continue;
         }
         let params = NewtonParams {
-            start_strategy: if c2f { StartStrategy::CoarseToFine } else { StartStrategy::Voronoi },
+            start_strategy: if c2f {
+                StartStrategy::CoarseToFine
+            } else {
+                StartStrategy::Voronoi
+            },
             ..Default::default()
         };
         let sol = solve_ot(&measure, &points, &masses, &params).unwrap();

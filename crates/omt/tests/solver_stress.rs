@@ -224,7 +224,11 @@ fn adaptive_density_continuation_converges_on_random_points_with_contrast() {
     }
     let multiscale = solve_ot(&half, &points, &masses, &NewtonParams::default()).unwrap();
     check("random points, half-plane ×100, coarse-to-fine", &multiscale, 1e-6);
-    assert!(matches!(multiscale.start, Start::CoarseToFine { .. }), "{:?}", multiscale.start);
+    assert!(
+        matches!(multiscale.start, Start::CoarseToFine { .. }),
+        "{:?}",
+        multiscale.start
+    );
     eprintln!(
         "continuation: {} steps in all; coarse-to-fine: {} steps at the finest level",
         continued.iterations, multiscale.iterations

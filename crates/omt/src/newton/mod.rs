@@ -187,7 +187,9 @@ pub enum Start {
     Voronoi,
     /// `NewtonParams::initial_heights`.
     Warm,
-    /// The coarse-to-fine initialization from a subsample of `coarse_points` points.
+    /// The coarse-to-fine start (module `multiscale`): the next coarser level has `coarse_points`
+    /// points, and all coarser levels together took `coarse_iterations` Newton steps (the
+    /// solution's own `iterations` count the finest level only).
     CoarseToFine {
         coarse_points: usize,
         coarse_iterations: usize,
@@ -247,7 +249,8 @@ pub struct OtSolution {
     pub cells: CellIntegrals,
     /// Transport cost Σ_i ∫_{W_i} |x − y_i|² dμ.
     pub cost: f64,
-    /// Newton steps taken.
+    /// Newton steps taken (all stages of a continuation; with the coarse-to-fine start the finest
+    /// level only, the coarser ones are in [`Start::CoarseToFine`]).
     pub iterations: usize,
     /// Cell evaluations (power diagram + integration) of all line searches, including the
     /// initial one of each stage.
@@ -632,7 +635,9 @@ fn validate(
                 )));
             }
             if let Some(i) = lo.iter().position(|v| !v.is_finite()) {
-                return Err(OmtError::InvalidInput(format!("low part {i} of the initial heights is not finite")));
+                return Err(OmtError::InvalidInput(format!(
+                    "low part {i} of the initial heights is not finite"
+                )));
             }
         }
     }

@@ -287,8 +287,8 @@ fn pseudo_huber(o: [f64; 2], delta: f64) -> f64 {
     r2 / ((delta * delta + r2).sqrt() + delta)
 }
 
-/// Initial heights (double-double, #N) from a coarse solve, with the coarse size and its iteration
-/// count; `None` when N is too small for a coarse level or the coarse level could not be solved.
+/// Initial heights (double-double, #N) from a coarse solve, with the coarse size and the Newton
+/// steps of all coarser levels; `None` when N is too small for a coarse level or the coarse level could not be solved.
 ///
 /// Prolongation (module docs): with G_g = −H_g the coarse solution, c_g its cell centroids and
 /// Φ_g(y) = G_g + ⟨c_g, y − Y_g⟩ + s_g ψ_{δ_g}(y − Y_g), the fine heights are h_i = −Φ(y_i) with
@@ -337,7 +337,11 @@ pub(crate) fn coarse_to_fine_heights(
     // Candidates for the maximum: the groups within RINGS edges of the regular triangulation of
     // the coarse solution (not only the cells that meet inside Ω).
     let candidates: Vec<Vec<usize>> = {
-        let (w, wl) = Heights { hi: hh.clone(), lo: hl.clone() }.weights(&coarse.points);
+        let (w, wl) = Heights {
+            hi: hh.clone(),
+            lo: hl.clone(),
+        }
+        .weights(&coarse.points);
         let order = crate::power_diagram::InsertionOrder::new(&coarse.points)?;
         let regular = PowerDiagram::with_order_dd(&coarse.points, &w, Some(&wl), &order)?;
         (0..coarse_n)
@@ -450,8 +454,18 @@ pub(crate) fn coarse_to_fine_heights(
         let yk = coarse.points[k];
         let o = [y[0] - yk[0], y[1] - yk[1]];
         let norm = (deltas[k] * deltas[k] + o[0] * o[0] + o[1] * o[1]).sqrt();
-        let grad = if norm > 0.0 { [o[0] / norm, o[1] / norm] } else { [0.0, 0.0] };
-        (best.0, [centroids[k][0] + scales[k] * grad[0], centroids[k][1] + scales[k] * grad[1]])
+        let grad = if norm > 0.0 {
+            [o[0] / norm, o[1] / norm]
+        } else {
+            [0.0, 0.0]
+        };
+        (
+            best.0,
+            [
+                centroids[k][0] + scales[k] * grad[0],
+                centroids[k][1] + scales[k] * grad[1],
+            ],
+        )
     };
     let order = crate::power_diagram::InsertionOrder::new(points)?;
     let mut exact_done = vec![false; n];
@@ -476,7 +490,12 @@ pub(crate) fn coarse_to_fine_heights(
             }
         }
     }
-    Ok(Some((heights, coarse_n, solution.iterations)))
+    // (a continuation's stages are already in `iterations`)
+    let below = match solution.start {
+        super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
+        _ => 0,
+    };
+    Ok(Some((heights, coarse_n, solution.iterations + below)))
 }
 
 #[cfg(test)]
