@@ -283,3 +283,60 @@ fn clusters_below_the_heights_ulp_converge_with_double_double_heights() {
     let sol = solve_ot(&measure, &points, &vec![1.0; points.len()], &params).unwrap();
     check("cluster 2e-9", &sol, 1e-10);
 }
+
+/// The coarse-to-fine prolongation leaves no cell empty (proof in the module docs of
+/// `newton/multiscale.rs`): with `max_iterations = 0` the solution is the start itself,
+/// evaluated. Inputs: random points under a 100× contrast; 40 points 1e-12 apart among 1,200
+/// spread ones (the Voronoi start hides most of them); 1,500 points on one line; 1,500 points of
+/// which a third lie outside Ω. Each start is then solved to the tolerance.
+#[test]
+fn coarse_to_fine_start_has_no_empty_cell() {
+    use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
+    let contrast = disk_rings_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 }).unwrap();
+    let disk = SourceMeasure::unit_disk(256).unwrap();
+    let mut clustered = sunflower(1200, 0.95);
+    for k in 0..40 {
+        let t = k as f64 * 1e-12;
+        clustered.push([0.31 + t, 0.17 - 0.5 * t]);
+    }
+    let line: Vec<[f64; 2]> = (0..1500)
+        .map(|k| {
+            let s = -0.9 + 1.8 * (k as f64 + 0.5) / 1500.0;
+            [s, 0.3 * s + 0.05]
+        })
+        .collect();
+    let mut rng = Rng(77);
+    let outside: Vec<[f64; 2]> = (0..1500).map(|_| rng.in_disk(1.25)).collect();
+    let cases: Vec<(&str, &SourceMeasure, Vec<[f64; 2]>)> = vec![
+        ("contrast", &contrast, random_disk_points(4000, 7)),
+        ("cluster 1e-12", &disk, clustered),
+        ("line", &disk, line),
+        ("partly outside", &disk, outside),
+    ];
+    for (name, measure, points) in cases {
+        let masses: Vec<f64> = (0..points.len()).map(|k| 1.0 + (k % 3) as f64).collect();
+        let params = NewtonParams {
+            start_strategy: StartStrategy::CoarseToFine,
+            ..NewtonParams::default()
+        };
+        let start = solve_ot(
+            measure,
+            &points,
+            &masses,
+            &NewtonParams {
+                max_iterations: 0,
+                ..params.clone()
+            },
+        )
+        .unwrap();
+        assert!(
+            matches!(start.start, Start::CoarseToFine { .. }),
+            "{name}: {:?}",
+            start.start
+        );
+        let empty = start.cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
+        assert_eq!(empty, 0, "{name}: {empty} empty cells at the start");
+        let sol = solve_ot(measure, &points, &masses, &params).unwrap();
+        check(name, &sol, 1e-6);
+    }
+}

@@ -53,6 +53,9 @@ const CROWDED: f64 = 1e-6;
 const RINGS: usize = 3;
 /// Fine-to-coarse ratio: pairwise merging rounds continue until at most N/RATIO groups remain.
 const RATIO: usize = 4;
+/// After the first round of a level, two groups merge only if each group of several points has
+/// a radius ≥ SCALE_MATCH × their distance (see `coarsen`).
+const SCALE_MATCH: f64 = 1e-3;
 /// At most this many merging rounds per level.
 const MAX_ROUNDS: usize = 6;
 /// s_g as a fraction of the distance from the coarse centroid c_g to its cell's boundary.
@@ -166,8 +169,11 @@ struct Coarsening {
 /// Merges the points pairwise along their shortest Delaunay edges (greedy matching, shortest
 /// first), in rounds, until at most N/RATIO groups remain (or a round merges nothing). Closest
 /// pairs merge first, so clusters of near-coincident points become one coarse point before
-/// well-spread points are grouped: each group's members are spread on the scale of their
-/// distance to the other groups, which is what the prolongation needs.
+/// well-spread points are grouped. After the first round, a group of several points whose radius
+/// is below SCALE_MATCH × the distance to its partner does not merge: its members would be
+/// children of one coarse point at two scales at once, and the prolongation would give the inner
+/// ones cells as small as their spread (measured: a pair 5e-12 apart merged with points 1e-2 away
+/// lost both cells to round-off). It merges at a later level, as one point.
 fn coarsen(points: &[[f64; 2]], targets: &[f64]) -> Result<Coarsening, OmtError> {
     let n = points.len();
     let mut reps = points.to_vec();
@@ -193,10 +199,21 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64]) -> Result<Coarsening, OmtError>
         if round == 0 {
             closest = edges.first().map_or(f64::INFINITY, |e| e.0.sqrt());
         }
+        // radius and size of each current group (over the level's points)
+        let mut radius = vec![0.0f64; reps.len()];
+        let mut size = vec![0usize; reps.len()];
+        for (i, &g) in group.iter().enumerate() {
+            radius[g] = radius[g].max((points[i][0] - reps[g][0]).hypot(points[i][1] - reps[g][1]));
+            size[g] += 1;
+        }
         let mut merged_into = vec![usize::MAX; reps.len()];
         let mut count = 0;
-        for &(_, i, j) in &edges {
+        for &(d2, i, j) in &edges {
             let (i, j) = (i as usize, j as usize);
+            let reach = SCALE_MATCH * d2.sqrt();
+            if (size[i] > 1 && radius[i] < reach) || (size[j] > 1 && radius[j] < reach) {
+                continue;
+            }
             if merged_into[i] == usize::MAX && merged_into[j] == usize::MAX {
                 merged_into[i] = count;
                 merged_into[j] = count;
@@ -316,6 +333,8 @@ pub(crate) fn coarse_to_fine_heights(
     }
     let coarse_params = NewtonParams {
         tolerance: params.tolerance.max(LEVEL_TOLERANCE),
+        // (the cap applies to the finest level: with 0 the caller asks for the start itself)
+        max_iterations: params.max_iterations.max(NewtonParams::default().max_iterations),
         initial_heights: None,
         initial_heights_lo: None,
         start_strategy: super::StartStrategy::CoarseToFine,
