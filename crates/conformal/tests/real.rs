@@ -9,6 +9,8 @@
 //! * the 40 ICT faces: 33 without any fold; 7 (happy/sad) fold one sliver of 165°–175° each,
 //!   which the local repair fixes by moving 1–5 vertices (Λ max rises to 5–9 on those slivers).
 //! * face.obj (25,905 V): 13,008 negative weights → 0; Λ 0.029 / 0.063 / 0.200.
+//! * TOSCA michael0 (not bundled; a fixture of 282 vertices): a fold of adjacent slivers that no
+//!   single-vertex move removes; the patch re-embedding moves 92 vertices.
 //! * alligator (flat, long tail): boundary crowding, 1 − |φ| ≈ 1e-15 in the tail → a clear
 //!   `OutOfRange` error instead of 13 folded triangles.
 
@@ -146,4 +148,55 @@ fn shared_ict_template_with_filled_holes_has_no_flips() {
         dm.quality.quasi_conformal_distortion, dm.info.fold_repairs
     );
     assert!(dm.quality.quasi_conformal_distortion.p95 < 0.3);
+}
+
+/// A fold no single-vertex move can remove (TOSCA michael0: adjacent slivers of 147°–165° whose
+/// one-ring kernels are empty; fixture: the 8-ring patch of its disk map after the single-vertex
+/// repair, border fixed). The patch re-embedding (mean value weights on the surface's angles,
+/// 4 rings, measured) unfolds it, and moves no fixed vertex.
+#[test]
+fn a_fold_of_adjacent_slivers_is_repaired_by_a_patch() {
+    use shapespace_conformal::quality::orient_scaled;
+    use shapespace_conformal::repair::repair_folds;
+    let text = include_str!("fixtures/michael0_fold_patch.txt");
+    let (mut uv, mut fixed, mut faces, mut angles) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for line in text.lines().filter(|l| !l.starts_with('#')) {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        match t[0] {
+            "v" => {
+                uv.push([t[1].parse::<f64>().unwrap(), t[2].parse::<f64>().unwrap()]);
+                fixed.push(t[3] == "1");
+            }
+            _ => {
+                faces.push([0, 1, 2].map(|k| t[1 + k].parse::<u32>().unwrap()));
+                angles.push([0, 1, 2].map(|k| t[4 + k].parse::<f64>().unwrap()));
+            }
+        }
+    }
+    let mut vertex_faces = vec![Vec::new(); uv.len()];
+    for (f, face) in faces.iter().enumerate() {
+        for &v in face {
+            vertex_faces[v as usize].push(f as u32);
+        }
+    }
+    let folded = |uv: &[[f64; 2]]| {
+        faces
+            .iter()
+            .filter(|f| {
+                orient_scaled(uv[f[0] as usize], uv[f[1] as usize], uv[f[2] as usize])
+                    != geogram_predicates::Sign::Positive
+            })
+            .count()
+    };
+    assert_eq!(folded(&uv), 1);
+    let before = uv.clone();
+    let moves = repair_folds(&faces, &vertex_faces, &angles, &fixed, &mut uv);
+    assert_eq!(folded(&uv), 0);
+    assert!(moves > 0);
+    for v in 0..uv.len() {
+        if fixed[v] {
+            assert_eq!(uv[v], before[v], "fixed vertex {v} moved");
+        }
+    }
+    eprintln!("michael0 patch: {moves} vertices moved");
 }
