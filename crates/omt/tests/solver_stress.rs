@@ -340,3 +340,26 @@ fn coarse_to_fine_start_has_no_empty_cell() {
         check(name, &sol, 1e-6);
     }
 }
+
+/// `StartStrategy::Auto`: when the coarse-to-fine start it chose does not converge (here: a cap
+/// of 3 steps), the Voronoi path runs as well and the better result comes back with the steps
+/// of both; an explicit `CoarseToFine` returns its own result.
+#[test]
+fn auto_start_falls_back_to_the_voronoi_path() {
+    use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
+    let contrast = disk_rings_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 }).unwrap();
+    let points = random_disk_points(4000, 11);
+    let masses = vec![1.0; points.len()];
+    let capped = |start_strategy| NewtonParams {
+        max_iterations: 3,
+        start_strategy,
+        ..NewtonParams::default()
+    };
+    let own = solve_ot(&contrast, &points, &masses, &capped(StartStrategy::CoarseToFine)).unwrap();
+    assert!(matches!(own.start, Start::CoarseToFine { .. }), "{:?}", own.start);
+    assert_eq!(own.iterations, 3);
+    let auto = solve_ot(&contrast, &points, &masses, &capped(StartStrategy::Auto)).unwrap();
+    assert!(!auto.converged());
+    assert!(auto.iterations > 3, "{} steps", auto.iterations);
+    assert!(auto.max_relative_error <= own.max_relative_error);
+}

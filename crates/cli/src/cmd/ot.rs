@@ -20,6 +20,17 @@ pub enum StartArg {
     CoarseToFine,
 }
 
+impl StartArg {
+    /// The solver's strategy.
+    pub fn strategy(self) -> StartStrategy {
+        match self {
+            StartArg::Auto => StartStrategy::Auto,
+            StartArg::Voronoi => StartStrategy::Voronoi,
+            StartArg::CoarseToFine => StartStrategy::CoarseToFine,
+        }
+    }
+}
+
 /// Arguments of `shapespace ot`.
 #[derive(clap::Args)]
 pub struct OtArgs {
@@ -144,11 +155,7 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
     let params = NewtonParams {
         tolerance: args.tol,
         max_iterations: args.max_iterations,
-        start_strategy: match args.start {
-            StartArg::Auto => StartStrategy::Auto,
-            StartArg::Voronoi => StartStrategy::Voronoi,
-            StartArg::CoarseToFine => StartStrategy::CoarseToFine,
-        },
+        start_strategy: args.start.strategy(),
         linear_solver: if args.cg {
             LinearSolver::ConjugateGradient {
                 relative_tolerance: 1e-10,

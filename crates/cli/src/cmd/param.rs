@@ -53,6 +53,10 @@ pub struct ParamArgs {
     /// Keep the single-shot centroid map (no repair of folded triangles).
     #[arg(long = "no-fold-repair")]
     pub no_fold_repair: bool,
+    /// Initial OT heights: `auto` (coarse-to-fine when the conformal image crowds points so
+    /// that a Voronoi cell has < 1e-8 of its target, else Voronoi), `voronoi`, `coarse-to-fine`.
+    #[arg(long, value_enum, default_value_t = super::ot::StartArg::Auto)]
+    pub start: super::ot::StartArg,
 }
 
 /// Runs `f` on a worker thread; when it takes more than a second, shows a spinner with
@@ -112,6 +116,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         ..Default::default()
     };
     params.newton.tolerance = args.tolerance;
+    params.newton.start_strategy = args.start.strategy();
     params.fold_repair.enabled = !args.no_fold_repair;
     let message = format!(
         "area-preserving map of {} ({} vertices)",

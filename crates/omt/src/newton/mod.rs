@@ -143,7 +143,9 @@ impl Default for NewtonParams {
 pub enum StartStrategy {
     /// The coarse-to-fine start when the source density's max/min exceeds 10 or the Voronoi
     /// start has a cell below 1e-8 of its target mass (points crowded by a conformal map), the
-    /// Voronoi start otherwise (where it is the faster one: uniform density, spread points).
+    /// Voronoi start otherwise (where it is the faster one: uniform density, spread points). If
+    /// the solve from the coarse-to-fine start does not converge, the Voronoi path (with its
+    /// continuations) runs too and the better result is returned, with the steps of both.
     #[default]
     Auto,
     /// The Voronoi start (with the density or mass continuation if enabled).
@@ -820,9 +822,37 @@ pub fn solve_ot(
                     coarse_iterations,
                 };
             }
-            return Ok(solution);
+            if solution.converged() || params.start_strategy != StartStrategy::Auto {
+                return Ok(solution);
+            }
+            // Auto: the start it chose did not work out; the Voronoi path gets its chance, and
+            // the better of the two is returned with the work of both counted.
+            let plain = solve_from_voronoi(measure, points, masses, params, contrast, t_begin, None)?;
+            let (mut better, worse) = if plain.converged() || plain.max_relative_error <= solution.max_relative_error {
+                (plain, solution)
+            } else {
+                (solution, plain)
+            };
+            better.iterations += worse.iterations;
+            better.evaluations += worse.evaluations;
+            better.t_total = t_begin.elapsed().as_secs_f64();
+            return Ok(better);
         }
     }
+    solve_from_voronoi(measure, points, masses, params, contrast, t_begin, voronoi_start)
+}
+
+/// The rest of [`solve_ot`] without the coarse-to-fine start: mass continuation, density
+/// continuation or a single solve from the Voronoi (or warm) start.
+fn solve_from_voronoi(
+    measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    params: &NewtonParams,
+    contrast: f64,
+    t_begin: Instant,
+    voronoi_start: Option<Evaluation>,
+) -> Result<OtSolution, OmtError> {
     if let (Some(ratio), None) = (params.mass_continuation, &params.initial_heights) {
         return solve_mass_continuation(measure, points, masses, params, ratio, t_begin);
     }
