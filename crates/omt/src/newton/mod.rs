@@ -64,8 +64,6 @@ use crate::measure::SourceMeasure;
 use crate::power_diagram::{InsertionOrder, PowerDiagram};
 use crate::restricted::RestrictedIntegrator;
 
-pub use multiscale::nearest_points;
-
 /// The line search of a step starts at min(1, g × the previous accepted τ), with g =
 /// TAU_GROWTH_FREE when that step was accepted at its first trial and TAU_GROWTH otherwise.
 const TAU_GROWTH: f64 = 1.5;
