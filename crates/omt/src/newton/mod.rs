@@ -779,6 +779,7 @@ pub fn solve_ot(
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
     let contrast = hi / lo;
     let cold = params.initial_heights.is_none() && params.mass_continuation.is_none();
+    let mass_scale = measure.total_mass() / masses.iter().sum::<f64>();
     let mut voronoi_start = None;
     let multiscale = cold
         && match params.start_strategy {
@@ -786,8 +787,6 @@ pub fn solve_ot(
             StartStrategy::CoarseToFine => true,
             StartStrategy::Auto => {
                 contrast > AUTO_CONTRAST || {
-                    let total = measure.total_mass();
-                    let mass_scale = total / masses.iter().sum::<f64>();
                     let backend = Backend::new(measure, params.integrator);
                     let evaluation = evaluate(&backend, points, &Heights::voronoi(points))?;
                     let poor = evaluation
@@ -802,8 +801,6 @@ pub fn solve_ot(
             }
         };
     if multiscale {
-        let total = measure.total_mass();
-        let mass_scale = total / masses.iter().sum::<f64>();
         let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
         if let Some((heights, coarse_points, coarse_iterations)) =
             multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
