@@ -634,7 +634,7 @@ impl RestrictedIntegrator {
 
 /// Convex hull (counter-clockwise, no collinear vertices) by Andrew's monotone chain with the
 /// exact orientation predicate.
-fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+pub(crate) fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let mut p: Vec<[f64; 2]> = points.to_vec();
     p.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     p.dedup();

@@ -163,30 +163,11 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64]) -> Result<Coarsening, OmtError>
     })
 }
 
-/// The edges of the convex hull of `points`, counter-clockwise (Andrew's monotone chain).
+/// The edges of the convex hull of `points`, counter-clockwise.
 fn convex_hull(points: &[[f64; 2]]) -> Vec<[[f64; 2]; 2]> {
-    let mut p = points.to_vec();
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    p.dedup();
-    if p.len() < 3 {
+    let hull = crate::restricted::convex_hull(points);
+    if hull.len() < 3 {
         return Vec::new();
-    }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| crate::predicates::orient(o, a, b);
-    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let base = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while hull.len() >= base + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0 {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
     }
     (0..hull.len()).map(|k| [hull[k], hull[(k + 1) % hull.len()]]).collect()
 }
