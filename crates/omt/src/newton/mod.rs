@@ -795,7 +795,7 @@ pub fn solve_ot(
                         .iter()
                         .zip(masses)
                         .any(|(&m, &nu)| !(m >= AUTO_MIN_START * nu * mass_scale));
-                    voronoi_start = Some(evaluation);
+                    voronoi_start = Some((backend, evaluation));
                     poor
                 }
             }
@@ -846,7 +846,7 @@ fn solve_from_voronoi(
     params: &NewtonParams,
     contrast: f64,
     t_begin: Instant,
-    voronoi_start: Option<Evaluation>,
+    voronoi_start: Option<(Backend<'_>, Evaluation)>,
 ) -> Result<OtSolution, OmtError> {
     if let (Some(ratio), None) = (params.mass_continuation, &params.initial_heights) {
         return solve_mass_continuation(measure, points, masses, params, ratio, t_begin);
@@ -1051,15 +1051,16 @@ fn solve_mass_continuation(
     }
 }
 
-/// One damped Newton solve (no density continuation). `voronoi_start`: the evaluation of the
-/// Voronoi start when the caller has it (used without a warm start).
+/// One damped Newton solve (no density continuation). `voronoi_start`: the backend and the
+/// evaluation of the Voronoi start when the caller has them (used without a warm start; the
+/// backend keeps its insertion order and integration seeds).
 fn solve_single(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,
     t_begin: Instant,
-    voronoi_start: Option<Evaluation>,
+    voronoi_start: Option<(Backend<'_>, Evaluation)>,
 ) -> Result<OtSolution, OmtError> {
     let n = points.len();
     let total = measure.total_mass();
@@ -1078,10 +1079,13 @@ fn solve_single(
         }
         None => Heights::voronoi(points),
     };
-    let backend = Backend::new(measure, params.integrator);
-    let mut current = match (start == Start::Voronoi, voronoi_start) {
-        (true, Some(evaluation)) => evaluation,
-        _ => evaluate(&backend, points, &heights)?,
+    let (backend, mut current) = match (start == Start::Voronoi, voronoi_start) {
+        (true, Some((backend, evaluation))) => (backend, evaluation),
+        _ => {
+            let backend = Backend::new(measure, params.integrator);
+            let evaluation = evaluate(&backend, points, &heights)?;
+            (backend, evaluation)
+        }
     };
     let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
