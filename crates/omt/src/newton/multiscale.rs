@@ -213,7 +213,11 @@ pub(crate) fn coarse_to_fine_heights(
     if n < MIN_COARSE {
         return Ok(None);
     }
-    let coarse = coarsen(points, targets)?;
+    // (merged points can coincide in principle, which the Delaunay triangulation of the next
+    // round rejects: then no coarse level, not an error)
+    let Ok(coarse) = coarsen(points, targets) else {
+        return Ok(None);
+    };
     let coarse_n = coarse.points.len();
     let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
     let spacing = ((hi[0] - lo[0]) * (hi[1] - lo[1]) / n as f64).sqrt();
