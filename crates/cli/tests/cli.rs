@@ -110,21 +110,44 @@ fn conformal_with_both_methods() {
     assert!(diff > 0.0 && diff < 2e-2, "green vs bff: max difference {diff:e}");
 }
 
+/// Writes `n` sunflower points in the disk of radius 0.95 as `x,y,mass`, with masses
+/// 1, 2, …, `period` repeating.
+fn write_sunflower_points(path: &Path, n: usize, period: usize) {
+    let mut text = String::from("x,y,mass\n");
+    for k in 0..n {
+        let r = 0.95 * ((k as f64 + 0.5) / n as f64).sqrt();
+        let t = k as f64 * 2.399_963_229_728_653;
+        text.push_str(&format!("{},{},{}\n", r * t.cos(), r * t.sin(), 1 + k % period));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// Checks the `mass` column of an `ot` result against the targets of [`write_sunflower_points`]
+/// (rescaled to the source's total) to a relative 1e-6.
+fn assert_sunflower_masses(result: &Path, n: usize, period: usize, label: &str) {
+    let mut rows = csv::Reader::from_path(result).unwrap();
+    let masses: Vec<f64> = rows.records().map(|r| r.unwrap()[2].parse().unwrap()).collect();
+    assert_eq!(masses.len(), n, "{label}");
+    let total: f64 = masses.iter().sum();
+    let weights: usize = (0..n).map(|k| 1 + k % period).sum();
+    for (k, m) in masses.iter().enumerate() {
+        let target = total * (1 + k % period) as f64 / weights as f64;
+        assert!(
+            (m - target).abs() <= 1e-6 * target,
+            "{label}, cell {k}: {m} vs {target}"
+        );
+    }
+}
+
 /// `shapespace ot` on a small point set: the result CSV has one row per point, the masses match
 /// the targets to the tolerance and the report records convergence.
 #[test]
 fn ot_on_a_point_file() {
     let dir = scratch("ot");
     let points = dir.join("points.csv");
-    let mut text = String::from("x,y,mass\n");
+    // sunflower points, masses 1 and 2 alternating
     let n = 200;
-    for k in 0..n {
-        // sunflower points, masses 1 and 2 alternating
-        let r = 0.95 * ((k as f64 + 0.5) / n as f64).sqrt();
-        let t = k as f64 * 2.399_963_229_728_653;
-        text.push_str(&format!("{},{},{}\n", r * t.cos(), r * t.sin(), 1 + k % 2));
-    }
-    std::fs::write(&points, text).unwrap();
+    write_sunflower_points(&points, n, 2);
     let result = dir.join("result.csv");
     let report = dir.join("report.json");
     let out = shapespace(&[
@@ -139,14 +162,8 @@ fn ot_on_a_point_file() {
     assert!(out.status.success(), "{}", stderr(&out));
     let mut rows = csv::Reader::from_path(&result).unwrap();
     assert_eq!(rows.headers().unwrap(), vec!["i", "height", "mass", "cx", "cy"]);
-    let masses: Vec<f64> = rows.records().map(|r| r.unwrap()[2].parse().unwrap()).collect();
-    assert_eq!(masses.len(), n);
     // masses rescaled to the disk polygon's area, in the ratio 1 : 2
-    let total: f64 = masses.iter().sum();
-    for (k, m) in masses.iter().enumerate() {
-        let target = total * (1 + k % 2) as f64 / (3 * n / 2) as f64;
-        assert!((m - target).abs() <= 1e-6 * target, "cell {k}: {m} vs {target}");
-    }
+    assert_sunflower_masses(&result, n, 2, "ot");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert!(report.to_string().contains("onverged"), "{report}");
 }
@@ -158,14 +175,8 @@ fn ot_on_a_point_file() {
 fn ot_start_strategies() {
     let dir = scratch("ot_start");
     let points = dir.join("points.csv");
-    let mut text = String::from("x,y,mass\n");
     let n = 1200;
-    for k in 0..n {
-        let r = 0.95 * ((k as f64 + 0.5) / n as f64).sqrt();
-        let t = k as f64 * 2.399_963_229_728_653;
-        text.push_str(&format!("{},{},{}\n", r * t.cos(), r * t.sin(), 1 + k % 3));
-    }
-    std::fs::write(&points, text).unwrap();
+    write_sunflower_points(&points, n, 3);
     let mut costs = Vec::new();
     for (start, expect) in [("coarse-to-fine", "CoarseToFine"), ("voronoi", "Voronoi")] {
         let result = dir.join(format!("{start}.csv"));
@@ -184,16 +195,7 @@ fn ot_start_strategies() {
         assert!(out.status.success(), "{}", stderr(&out));
         let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
         assert!(report["start"].as_str().unwrap().starts_with(expect), "{report}");
-        let mut rows = csv::Reader::from_path(&result).unwrap();
-        let masses: Vec<f64> = rows.records().map(|r| r.unwrap()[2].parse().unwrap()).collect();
-        let total: f64 = masses.iter().sum();
-        for (k, m) in masses.iter().enumerate() {
-            let target = total * (1 + k % 3) as f64 / (2 * n) as f64;
-            assert!(
-                (m - target).abs() <= 1e-6 * target,
-                "{start}, cell {k}: {m} vs {target}"
-            );
-        }
+        assert_sunflower_masses(&result, n, 3, start);
         costs.push(report["cost"].as_f64().unwrap());
     }
     assert!((costs[0] - costs[1]).abs() <= 1e-9 * costs[1], "{costs:?}");
