@@ -16,6 +16,24 @@ use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
 
+/// (2^−e, e) with e = ⌊log₂ m⌋ for finite m > 0, read from the bits of m (no libm calls: the
+/// fold checks call this for every face they test). Multiplying by 2^−e is exact and brings m
+/// into [1, 2). Falls back to `log2`/`powi` for subnormal m (and to the same for NaN and ∞,
+/// which callers exclude).
+pub fn power_of_two_scale(m: f64) -> (f64, i32) {
+    let biased = ((m.to_bits() >> 52) & 0x7ff) as i64;
+    if (1..=2045).contains(&biased) {
+        // m = f·2^(biased − 1023), f ∈ [1, 2); 2^(1023 − biased) has biased exponent 2046 − biased
+        (f64::from_bits(((2046 - biased) as u64) << 52), (biased - 1023) as i32)
+    } else if biased == 2046 {
+        // m ≥ 2^1023: 2^−1023 is subnormal (a single mantissa bit)
+        (f64::from_bits(1 << 51), 1023)
+    } else {
+        let e = m.log2().floor() as i32;
+        (2f64.powi(-e), e)
+    }
+}
+
 /// Exact orientation of the image triangle (a, b, c): the points are first scaled by a common
 /// power of two (exact) so that the largest coordinate is about 1, because the adaptive exact
 /// predicate is only valid when its products do not underflow (coordinates ≲ 1e-150 would).
@@ -27,7 +45,7 @@ pub fn orient_scaled(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Sign {
     if !(m > 0.0) || !m.is_finite() {
         return orient_2d(&a, &b, &c);
     }
-    let s = 2f64.powi(-(m.log2().floor() as i32));
+    let (s, _) = power_of_two_scale(m);
     let sc = |p: [f64; 2]| [p[0] * s, p[1] * s];
     orient_2d(&sc(a), &sc(b), &sc(c))
 }
@@ -107,8 +125,7 @@ fn scaled_edges(p: [[f64; 2]; 3]) -> ([f64; 2], [f64; 2], f64) {
         return (d1, d2, 0.0);
     }
     // exact power-of-two scaling
-    let e = m.log2().floor() as i32;
-    let s = 2f64.powi(-e);
+    let (s, e) = power_of_two_scale(m);
     (
         [d1[0] * s, d1[1] * s],
         [d2[0] * s, d2[1] * s],
@@ -249,6 +266,28 @@ pub fn evaluate(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<(FaceDistortions, Qua
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn power_of_two_scale_brings_values_into_one_two() {
+        let mut x = 3.7e-300;
+        while x < 1e300 {
+            let (s, e) = power_of_two_scale(x);
+            let y = x * s;
+            assert!((1.0..2.0).contains(&y), "{x:e} · {s:e} = {y}");
+            assert_eq!(s, 2f64.powi(-e));
+            x *= 7.3;
+        }
+        for k in [-1021, -1, 0, 1, 52, 1022] {
+            let p = 2f64.powi(k);
+            assert_eq!(power_of_two_scale(p), (2f64.powi(-k), k));
+            // just below a power of two, where log2 rounds up to k: the bits give k − 1
+            let below = f64::from_bits(p.to_bits() - 1);
+            assert_eq!(power_of_two_scale(below).1, k - 1);
+        }
+        // the fallback where 2^-e is not normal
+        assert_eq!(power_of_two_scale(f64::MAX), (2f64.powi(-1023), 1023));
+        assert_eq!(power_of_two_scale(2f64.powi(-1030)), (2f64.powi(1030), -1030));
+    }
 
     fn tri(p: [[f64; 3]; 3]) -> TriMesh {
         TriMesh::new(p.to_vec(), vec![[0, 1, 2]]).unwrap()
