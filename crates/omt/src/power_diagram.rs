@@ -35,6 +35,17 @@ use crate::predicates::{orient, power_compare, power_side_1d, power_side_sos, We
 /// Sentinel for "no triangle / dead triangle".
 const NONE: u32 = u32::MAX;
 
+/// A power diagram, or the sites found hidden before its construction was stopped
+/// ([`PowerDiagram::with_order_dd_unless_hidden`]).
+#[derive(Clone, Debug)]
+pub enum Construction {
+    /// The complete diagram; with an early stop requested, no site is hidden.
+    Complete(PowerDiagram),
+    /// Sites hidden among the first `inserted` sites of the insertion order, hence hidden in
+    /// the complete diagram (which may hide more).
+    Hidden { hidden: Vec<u32>, inserted: usize },
+}
+
 /// The power diagram of weighted sites, stored as its dual regular triangulation.
 #[derive(Clone, Debug)]
 pub struct PowerDiagram {
@@ -202,12 +213,13 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// Inserts site q (Bowyer–Watson on the lifted points).
-    fn insert(&mut self, q: u32) {
+    /// Inserts site q (Bowyer–Watson on the lifted points). Returns the number of sites that
+    /// became hidden (q, or the vertices interior to q's cavity).
+    fn insert(&mut self, q: u32) -> usize {
         let t0 = self.locate(q, self.last);
         if !self.conflict(t0, q) {
             self.hidden[q as usize] = true;
-            return;
+            return 1;
         }
         self.stamp += 1;
         let (yes, no) = (2 * self.stamp, 2 * self.stamp + 1);
@@ -280,15 +292,19 @@ impl<'a> Builder<'a> {
             self.tn[s as usize][1] = t;
         }
         // Vertices of the cavity that are not on its boundary disappear: hidden.
+        let mut hid = 0;
         for i in 0..self.cavity_vertices.len() {
             let v = self.cavity_vertices[i];
-            if v != self.infinite && self.vertex_mark[v as usize] != self.stamp {
+            // (a vertex is listed once per cavity triangle it belongs to)
+            if v != self.infinite && self.vertex_mark[v as usize] != self.stamp && !self.hidden[v as usize] {
                 self.hidden[v as usize] = true;
+                hid += 1;
             }
         }
         self.vertex_triangle[q as usize] = self.created[0];
         self.vertex_mark[q as usize] = self.stamp;
         self.last = self.created[self.created.len() - 1];
+        hid
     }
 }
 
@@ -462,7 +478,7 @@ impl PowerDiagram {
     /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
     pub fn new(sites: &[[f64; 2]], weights: &[f64]) -> Result<Self, OmtError> {
         let sorted = validate_and_sort(sites, weights)?;
-        Ok(Self::build(
+        Ok(Self::build_complete(
             sites,
             weights,
             None,
@@ -488,6 +504,23 @@ impl PowerDiagram {
         weights_lo: Option<&[f64]>,
         order: &InsertionOrder,
     ) -> Result<Self, OmtError> {
+        Self::validate(sites, weights, weights_lo, order)?;
+        Ok(Self::build_complete(sites, weights, weights_lo, order))
+    }
+
+    fn build_complete(sites: &[[f64; 2]], weights: &[f64], weights_lo: Option<&[f64]>, order: &InsertionOrder) -> Self {
+        match Self::build(sites, weights, weights_lo, order, usize::MAX) {
+            Construction::Complete(diagram) => diagram,
+            Construction::Hidden { .. } => unreachable!("a construction without early stop is complete"),
+        }
+    }
+
+    fn validate(
+        sites: &[[f64; 2]],
+        weights: &[f64],
+        weights_lo: Option<&[f64]>,
+        order: &InsertionOrder,
+    ) -> Result<(), OmtError> {
         if let Some(lo) = weights_lo {
             if lo.len() != weights.len() {
                 return Err(OmtError::InvalidInput(format!(
@@ -514,10 +547,36 @@ impl PowerDiagram {
                 weights[i]
             )));
         }
-        Ok(Self::build(sites, weights, weights_lo, order))
+        Ok(())
     }
 
-    fn build(sites: &[[f64; 2]], weights: &[f64], weights_lo: Option<&[f64]>, order: &InsertionOrder) -> Self {
+    /// [`PowerDiagram::with_order_dd`] that stops as soon as more than `max_hidden` sites are
+    /// hidden (for the damped Newton step, which rejects any trial with an empty cell and only
+    /// needs to know whether many vanished). A site hidden among the sites inserted so far is
+    /// hidden in the full diagram too: its lifted point lies above the lower hull of a subset of
+    /// the lifted points, hence above the lower hull of all of them. So [`Construction::Hidden`]
+    /// lists more than `max_hidden` sites that are hidden in the diagram `with_order_dd` would
+    /// build, and [`Construction::Complete`] is that diagram, with at most `max_hidden` hidden
+    /// sites when the sites are not collinear (collinear sites are always built completely).
+    /// Same errors as `with_order_dd`.
+    pub fn with_order_dd_unless_hidden(
+        sites: &[[f64; 2]],
+        weights: &[f64],
+        weights_lo: Option<&[f64]>,
+        order: &InsertionOrder,
+        max_hidden: usize,
+    ) -> Result<Construction, OmtError> {
+        Self::validate(sites, weights, weights_lo, order)?;
+        Ok(Self::build(sites, weights, weights_lo, order, max_hidden))
+    }
+
+    fn build(
+        sites: &[[f64; 2]],
+        weights: &[f64],
+        weights_lo: Option<&[f64]>,
+        order: &InsertionOrder,
+        max_hidden: usize,
+    ) -> Construction {
         let n = sites.len();
         let weights = match weights_lo {
             Some(lo) => weights.iter().zip(lo).map(|(&h, &l)| [h, l]).collect(),
@@ -535,14 +594,14 @@ impl PowerDiagram {
             start_site: order.first,
         };
         if n == 1 {
-            return diagram;
+            return Construction::Complete(diagram);
         }
         if order.collinear {
             diagram.build_collinear();
-        } else {
-            diagram.build_2d(&order.order);
+        } else if let Some(stopped) = diagram.build_2d(&order.order, max_hidden) {
+            return stopped;
         }
-        diagram
+        Construction::Complete(diagram)
     }
 
     /// One-dimensional case: all sites on a line. Lower hull of the lifted points along the line.
@@ -597,8 +656,10 @@ impl PowerDiagram {
         self.neighbor_list = flat;
     }
 
-    /// Two-dimensional case; `order[0..3]` is a non-degenerate triangle.
-    fn build_2d(&mut self, order: &[u32]) {
+    /// Two-dimensional case; `order[0..3]` is a non-degenerate triangle. Returns
+    /// [`Construction::Hidden`] after the insertion that hides the (`max_hidden` + 1)-th site
+    /// (`self` is then unfinished).
+    fn build_2d(&mut self, order: &[u32], max_hidden: usize) -> Option<Construction> {
         let n = self.sites.len();
         self.dimension = 2;
         let inf = n as u32;
@@ -637,8 +698,15 @@ impl PowerDiagram {
         builder.tv.reserve(2 * n);
         builder.tn.reserve(2 * n);
         builder.mark.reserve(2 * n);
-        for &q in &order[3..] {
-            builder.insert(q);
+        let mut hidden = 0usize;
+        for (k, &q) in order[3..].iter().enumerate() {
+            hidden += builder.insert(q);
+            if hidden > max_hidden {
+                return Some(Construction::Hidden {
+                    hidden: (0..n as u32).filter(|&i| builder.hidden[i as usize]).collect(),
+                    inserted: k + 4,
+                });
+            }
         }
         let Builder {
             tv,
@@ -693,6 +761,7 @@ impl PowerDiagram {
         self.start_site = (0..n as u32).find(|&v| !self.hidden[v as usize]).unwrap_or(0);
         self.triangle_vertices = tv;
         self.triangle_neighbors = tn;
+        None
     }
 
     /// Number of sites N (hidden ones included).

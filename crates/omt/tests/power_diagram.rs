@@ -421,3 +421,80 @@ fn large_random_input_is_regular() {
     let hidden = (0..sites.len()).filter(|&i| d.is_hidden(i)).count();
     assert!(hidden > 100 && hidden < 15000, "{hidden} hidden");
 }
+
+/// The early-stopping construction: `Hidden` lists more than `max_hidden` sites, each hidden in
+/// the complete diagram; `Complete` is returned exactly when the complete diagram hides at most
+/// `max_hidden` sites, and is that diagram. A site hidden by a later insertion is interior to
+/// several cavity triangles, so this also checks that it is counted once.
+#[test]
+fn early_stop_reports_only_truly_hidden_sites() {
+    use shapespace_omt::power_diagram::Construction;
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut stopped = 0;
+    for round in 0..40 {
+        let n = 30 + 20 * (round % 5);
+        let (sites, weights) = random_input(&mut rng, n, [0.0, 0.01, 0.05, 0.2][round % 4]);
+        let order = InsertionOrder::new(&sites).unwrap();
+        let full = PowerDiagram::with_order_dd(&sites, &weights, None, &order).unwrap();
+        let total = (0..n).filter(|&i| full.is_hidden(i)).count();
+        for max_hidden in [0, 1, 3, total.saturating_sub(1), total, total + 1, usize::MAX] {
+            let c = PowerDiagram::with_order_dd_unless_hidden(&sites, &weights, None, &order, max_hidden).unwrap();
+            match c {
+                Construction::Hidden { hidden, inserted } => {
+                    stopped += 1;
+                    assert!(total > max_hidden, "stopped with {total} ≤ {max_hidden} hidden in all");
+                    assert!(hidden.len() > max_hidden, "{} listed, limit {max_hidden}", hidden.len());
+                    assert!(inserted <= n);
+                    for &i in &hidden {
+                        assert!(full.is_hidden(i as usize), "site {i} listed but visible");
+                    }
+                }
+                Construction::Complete(d) => {
+                    assert!(total <= max_hidden, "complete with {total} > {max_hidden} hidden");
+                    d.sanity_check().unwrap();
+                    assert_eq!(d.neighbor_offsets(), full.neighbor_offsets());
+                    assert_eq!(d.neighbor_list(), full.neighbor_list());
+                    for i in 0..n {
+                        assert_eq!(d.is_hidden(i), full.is_hidden(i));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        stopped > 40,
+        "the inputs must exercise the early stop ({stopped} stops)"
+    );
+}
+
+/// One light site inside three heavy ones, inserted last: hidden on arrival, counted once.
+/// One heavy site inserted after light ones hides each of them when its cavity swallows them.
+#[test]
+fn early_stop_counts_each_hidden_site_once() {
+    use shapespace_omt::power_diagram::Construction;
+    // Heavy centre: the four light sites around it on a small square vanish; the outer
+    // triangle stays. Insert all, compare with the complete diagram's count.
+    let sites = [
+        [0.0, 0.0],
+        [4.0, 0.0],
+        [0.0, 4.0],
+        [1.0, 1.0],
+        [1.2, 1.0],
+        [1.0, 1.2],
+        [1.2, 1.2],
+        [1.1, 1.1],
+    ];
+    let weights = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 5.0];
+    let order = InsertionOrder::new(&sites).unwrap();
+    let full = PowerDiagram::with_order_dd(&sites, &weights, None, &order).unwrap();
+    let hidden_full: Vec<usize> = (0..8).filter(|&i| full.is_hidden(i)).collect();
+    assert_eq!(hidden_full, vec![3, 4, 5, 6]);
+    match PowerDiagram::with_order_dd_unless_hidden(&sites, &weights, None, &order, 4).unwrap() {
+        Construction::Complete(d) => assert_eq!((0..8).filter(|&i| d.is_hidden(i)).count(), 4),
+        Construction::Hidden { hidden, .. } => panic!("4 hidden sites counted as {}", hidden.len()),
+    }
+    match PowerDiagram::with_order_dd_unless_hidden(&sites, &weights, None, &order, 3).unwrap() {
+        Construction::Hidden { hidden, .. } => assert_eq!(hidden, vec![3, 4, 5, 6]),
+        Construction::Complete(_) => panic!("4 hidden sites allowed with a limit of 3"),
+    }
+}

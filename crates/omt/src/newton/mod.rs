@@ -65,7 +65,7 @@ use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 use crate::linear::{LinearSolver, NewtonSystem};
 use crate::measure::SourceMeasure;
-use crate::power_diagram::{InsertionOrder, PowerDiagram};
+use crate::power_diagram::{Construction, InsertionOrder, PowerDiagram};
 use crate::restricted::RestrictedIntegrator;
 
 /// The line search of a step starts at min(1, g × the previous accepted τ), with g =
@@ -536,23 +536,36 @@ pub(crate) fn evaluate_unless_hidden(
                     order.get_or_init(|| computed)
                 }
             };
-            let diagram = PowerDiagram::with_order_dd(points, &weights, Some(&weights_lo), order)?;
+            // A trial that hides a site is rejected whatever the other cells. The line search only
+            // needs to know whether more than a tenth vanished (then it cuts τ tenfold) or else
+            // which ones did, so the construction stops once more than a tenth are hidden (those
+            // are hidden in the full diagram too). On a Voronoi start of a conformal image, where
+            // most sites are hidden at τ = 1, that is a fraction of the insertions.
+            let max_hidden = if skip_if_hidden {
+                line_search::hidden_limit(points.len())
+            } else {
+                usize::MAX
+            };
+            let diagram = match PowerDiagram::with_order_dd_unless_hidden(
+                points,
+                &weights,
+                Some(&weights_lo),
+                order,
+                max_hidden,
+            )? {
+                Construction::Complete(diagram) => diagram,
+                Construction::Hidden { hidden, .. } => {
+                    return Ok(masked_evaluation(points.len(), &hidden, t0.elapsed().as_secs_f64()));
+                }
+            };
             let t_diagram = t0.elapsed().as_secs_f64();
-            if skip_if_hidden && (0..points.len()).any(|i| diagram.is_hidden(i)) {
-                let n = points.len();
-                let cells = CellIntegrals {
-                    masses: (0..n)
-                        .map(|i| if diagram.is_hidden(i) { 0.0 } else { f64::NAN })
-                        .collect(),
-                    first_moments: vec![[f64::NAN; 2]; n],
-                    second_moments: vec![f64::NAN; n],
-                    edge_masses: Vec::new(),
-                };
-                return Ok(Evaluation {
-                    cells,
-                    t_diagram,
-                    t_integration: 0.0,
-                });
+            if skip_if_hidden {
+                let hidden: Vec<u32> = (0..points.len() as u32)
+                    .filter(|&i| diagram.is_hidden(i as usize))
+                    .collect();
+                if !hidden.is_empty() {
+                    return Ok(masked_evaluation(points.len(), &hidden, t_diagram));
+                }
             }
             let t1 = Instant::now();
             let cells = integrator.integrate(&diagram);
@@ -562,6 +575,25 @@ pub(crate) fn evaluate_unless_hidden(
                 t_integration: t1.elapsed().as_secs_f64(),
             })
         }
+    }
+}
+
+/// The evaluation of a rejected trial that hides sites `hidden` among `n`: mass 0 for those,
+/// NaN for the other masses and the moments, no edges.
+fn masked_evaluation(n: usize, hidden: &[u32], t_diagram: f64) -> Evaluation {
+    let mut masses = vec![f64::NAN; n];
+    for &i in hidden {
+        masses[i as usize] = 0.0;
+    }
+    Evaluation {
+        cells: CellIntegrals {
+            masses,
+            first_moments: vec![[f64::NAN; 2]; n],
+            second_moments: vec![f64::NAN; n],
+            edge_masses: Vec::new(),
+        },
+        t_diagram,
+        t_integration: 0.0,
     }
 }
 
