@@ -491,27 +491,44 @@ pub fn boundary_order_violations(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
         .count()
 }
 
-/// Per-vertex importance weights from a CSV file with a header and rows `vertex,weight`
-/// (vertex: 0-based index < `num_vertices`, weight: finite > 0); vertices not listed get 1.
-/// Errors (as `path:line: problem`): unreadable file, malformed row, index out of range,
-/// repeated vertex, bad weight.
+/// Per-vertex importance weights from a CSV file of rows `vertex,weight` (vertex: 0-based index
+/// < `num_vertices`, weight: finite > 0), optionally below the header `vertex,weight`; vertices
+/// not listed get 1. Errors (as `path:line: problem`): unreadable file, a first row that is
+/// neither that header nor a data row, malformed row, index out of range, repeated vertex, bad
+/// weight, no data row at all.
 pub fn read_vertex_weights(path: &Path, num_vertices: usize) -> Result<Vec<f64>, AnalysisError> {
     let mut reader = csv::ReaderBuilder::new()
-        .has_headers(true)
+        .has_headers(false)
+        .flexible(true)
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_path(path)
-        .map_err(|e| csv_error(path, e))?;
+        .map_err(|e| AnalysisError::csv(path, e))?;
     let mut weights = vec![1.0; num_vertices];
     let mut seen = vec![false; num_vertices];
-    for record in reader.records() {
-        let record = record.map_err(|e| csv_error(path, e))?;
+    let mut rows = 0;
+    for (k, record) in reader.records().enumerate() {
+        let record = record.map_err(|e| AnalysisError::csv(path, e))?;
         let line = record.position().map_or(0, |p| p.line());
         if record.len() != 2 {
             return Err(AnalysisError::parse(
                 path,
                 line,
                 format!("expected 2 fields `vertex,weight`, got {}", record.len()),
+            ));
+        }
+        let is_number = record[0].parse::<f64>().is_ok() || record[1].parse::<f64>().is_ok();
+        if k == 0 && !is_number {
+            if record[0].eq_ignore_ascii_case("vertex") && record[1].eq_ignore_ascii_case("weight") {
+                continue;
+            }
+            return Err(AnalysisError::parse(
+                path,
+                line,
+                format!(
+                    "expected the header `vertex,weight` or a row of numbers, got `{},{}`",
+                    &record[0], &record[1]
+                ),
             ));
         }
         let v: usize = record[0]
@@ -539,16 +556,16 @@ pub fn read_vertex_weights(path: &Path, num_vertices: usize) -> Result<Vec<f64>,
         }
         seen[v] = true;
         weights[v] = w;
+        rows += 1;
+    }
+    if rows == 0 {
+        return Err(AnalysisError::parse(
+            path,
+            0,
+            "no `vertex,weight` row (an empty weights file is likely a mistake; omit --weights for none)",
+        ));
     }
     Ok(weights)
-}
-
-fn csv_error(path: &Path, e: csv::Error) -> AnalysisError {
-    let line = e.position().map_or(0, |p| p.line());
-    match e.into_kind() {
-        csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
-        other => AnalysisError::parse(path, line, format!("{other:?}")),
-    }
 }
 
 /// Per-vertex weights (#V): `factor` on the vertices of `region`, 1 elsewhere. Errors on an

@@ -114,6 +114,23 @@ impl AnalysisError {
         }
     }
 
+    /// A CSV reading or writing error of `path`, worded for users: the line, and what is wrong
+    /// with it (not the parser's internal record).
+    pub fn csv(path: impl Into<PathBuf>, err: csv::Error) -> Self {
+        let line = err.position().map_or(0, |p| p.line());
+        let message = match err.kind() {
+            csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
+                format!("{len} fields where the earlier rows have {expected_len}")
+            }
+            csv::ErrorKind::Utf8 { .. } => "not valid UTF-8 text".to_string(),
+            _ => err.to_string(),
+        };
+        match err.into_kind() {
+            csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
+            _ => AnalysisError::parse(path, line, message),
+        }
+    }
+
     /// A parse error at `path:line`.
     pub fn parse(path: impl Into<PathBuf>, line: u64, message: impl Into<String>) -> Self {
         AnalysisError::Parse {

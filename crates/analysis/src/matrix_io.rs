@@ -170,11 +170,7 @@ fn format_distance(v: f64) -> String {
 }
 
 fn csv_error(path: &Path, err: csv::Error) -> AnalysisError {
-    let line = err.position().map(|p| p.line()).unwrap_or(0);
-    match err.into_kind() {
-        csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
-        kind => AnalysisError::parse(path, line, format!("{kind:?}")),
-    }
+    AnalysisError::csv(path, err)
 }
 
 /// Writes `d` as the square CSV described in the module docs (header `name,<names>`, one row

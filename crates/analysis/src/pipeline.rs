@@ -272,6 +272,13 @@ pub fn run_distances(
         progress(k, total_pairs, "pairs");
     });
     let pairs_wall = t_pairs.elapsed().as_secs_f64();
+    // `pairwise_distances` knows only the prepared shapes' names (a failed one is `#i`): use the
+    // file names throughout, as in distances.csv.
+    let mut result = result;
+    for r in &mut result.pairs {
+        r.a.clone_from(&names[r.source]);
+        r.b.clone_from(&names[r.target]);
+    }
 
     let t_write = Instant::now();
     let matrix = DistanceMatrix::new(names.clone(), result.matrix.clone())?;

@@ -174,10 +174,7 @@ pub fn shape_space_stats(
 }
 
 fn write_csv(path: &Path, rows: impl IntoIterator<Item = Vec<String>>) -> Result<(), AnalysisError> {
-    let to_err = |e: csv::Error| match e.into_kind() {
-        csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
-        kind => AnalysisError::parse(path, 0, format!("{kind:?}")),
-    };
+    let to_err = |e: csv::Error| AnalysisError::csv(path, e);
     let mut w = csv::Writer::from_path(path).map_err(to_err)?;
     for row in rows {
         w.write_record(&row).map_err(to_err)?;

@@ -435,6 +435,32 @@ fn weights_csv_reading_and_errors() {
     assert!(e.contains("bad.csv:2:") && e.contains("> 0"), "{e}");
     std::fs::write(&bad, "vertex,weight\n1,2\n1,3\n").unwrap();
     assert!(read_vertex_weights(&bad, 4).unwrap_err().to_string().contains("twice"));
+    // The header is optional: a first row of numbers is data (it used to be dropped as a header).
+    std::fs::write(&ok, "0,50\n3,2\n").unwrap();
+    assert_eq!(read_vertex_weights(&ok, 4).unwrap(), vec![50.0, 1.0, 1.0, 2.0]);
+    std::fs::write(&ok, "Vertex , Weight\n1,4\n").unwrap();
+    assert_eq!(read_vertex_weights(&ok, 4).unwrap(), vec![1.0, 4.0, 1.0, 1.0]);
+    // Any other first row, an empty file or a header alone, and ragged rows are errors.
+    std::fs::write(&bad, "a,b\n1,2\n").unwrap();
+    let e = read_vertex_weights(&bad, 4).unwrap_err().to_string();
+    assert!(e.contains("bad.csv:1:") && e.contains("header `vertex,weight`"), "{e}");
+    for empty in ["", "vertex,weight\n", "# only a comment\n"] {
+        std::fs::write(&bad, empty).unwrap();
+        let e = read_vertex_weights(&bad, 4).unwrap_err().to_string();
+        assert!(
+            e.contains("bad.csv") && e.contains("no `vertex,weight` row"),
+            "{empty:?}: {e}"
+        );
+    }
+    std::fs::write(&bad, "vertex,weight\n1,2,3\n").unwrap();
+    let e = read_vertex_weights(&bad, 4).unwrap_err().to_string();
+    assert!(e.contains("bad.csv:2:") && e.contains("got 3"), "{e}");
+    std::fs::write(&bad, b"vertex,weight\n1,\xff\xfe\n").unwrap();
+    let e = read_vertex_weights(&bad, 4).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.csv:2:") && e.contains("UTF-8") && !e.contains("Utf8Error"),
+        "{e}"
+    );
     assert!(matches!(
         read_vertex_weights(&dir.join("missing.csv"), 4),
         Err(AnalysisError::Io { .. })

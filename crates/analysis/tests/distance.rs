@@ -314,6 +314,16 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         .next()
         .unwrap()
         .starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
+    // The failed shape has its file name in pairs.csv too (it was `#1` there).
+    assert_eq!(
+        pairs
+            .lines()
+            .filter(|l| l.contains("truncated") && l.contains("failed"))
+            .count(),
+        3,
+        "{pairs}"
+    );
+    assert!(!pairs.contains("#1"), "{pairs}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert!(

@@ -81,6 +81,14 @@ fn malformed_matrices_report_path_and_line() {
     assert!(msg.contains("duplicate"), "{msg}");
     let (_, msg) = parse_error("name,a\na,inf\n");
     assert!(msg.contains("finite"), "{msg}");
+    // Bytes that are not UTF-8: said in words, not as the parser's record.
+    let path = tmp("binary.csv");
+    std::fs::write(&path, b"name,a\na,\xff\xfe0\n").unwrap();
+    let text = read_distance_matrix(&path).unwrap_err().to_string();
+    assert!(
+        text.contains("binary.csv:2:") && text.contains("not valid UTF-8"),
+        "{text}"
+    );
 }
 
 #[test]

@@ -468,6 +468,10 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     let out = run(&["--max-iterations", "1"]);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert!(stderr(&out).contains("pair a -> b: "), "{}", stderr(&out));
+    // an absurd thread count is capped (10,000 threads took over a minute to start on 2 cores)
+    let out = run(&["--threads", "100000"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--threads 100000 capped to"), "{}", stderr(&out));
 }
 
 /// The not-a-disk error points to `shapespace prepare`, and that command turns a closed surface
@@ -574,4 +578,42 @@ fn marker_point_and_domain_messages() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("expected `disk`, `square`"), "{}", stderr(&out));
+}
+
+/// A marker problem in `register` says what is wrong and for which surface (the disk map's
+/// reason used to be cut off after "source: conformal disk map").
+#[test]
+fn register_names_the_marker_problem() {
+    let dir = scratch("register-markers");
+    let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
+    std::fs::write(&a, grid_obj(1.0)).unwrap();
+    std::fs::write(&b, grid_obj(1.5)).unwrap();
+    let markers = dir.join("m.json");
+    // vertex 12 is the centre of the 5 × 5 grid: not on the boundary
+    std::fs::write(&markers, r#"{"center": 12, "boundary": 12}"#).unwrap();
+    let pairs = dir.join("pairs.csv");
+    std::fs::write(&pairs, "source,target\n6,6\n").unwrap();
+    for (flag, side) in [("--source-markers", "source"), ("--target-markers", "target")] {
+        for method in ["omt", "conformal"] {
+            let out = shapespace(&[
+                "register",
+                a.to_str().unwrap(),
+                b.to_str().unwrap(),
+                flag,
+                markers.to_str().unwrap(),
+                "--landmarks",
+                pairs.to_str().unwrap(),
+                "--method",
+                method,
+                "--out",
+                dir.join("out").to_str().unwrap(),
+            ]);
+            let msg = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{msg}");
+            assert!(
+                msg.contains(side) && msg.contains("boundary marker 12 is not a boundary vertex"),
+                "{flag} {method}: {msg}"
+            );
+        }
+    }
 }

@@ -295,6 +295,18 @@ fn exp_map(a: &[f64], theta: &[f64], pole: u32, is_boundary: &[bool]) -> Result<
         .filter(|(v, _)| !is_boundary[*v] && *v as u32 != pole)
         .max_by(|p, q| p.1.total_cmp(q.1))
     {
+        if x.is_nan() {
+            return Err(ConformalError::NonFinite {
+                stage: "log-radius of the disk map",
+                vertex: v,
+            });
+        }
+        if x >= 0.0 {
+            return Err(ConformalError::InteriorOutsideDisk {
+                vertex: v,
+                radius: x.exp(),
+            });
+        }
         if -x < CROWDING_LIMIT {
             return Err(ConformalError::OutOfRange {
                 what: "distance of the image to the boundary circle (crowding of a protrusion along the boundary)",

@@ -62,6 +62,11 @@ pub enum ConformalError {
         element: String,
         log10_value: f64,
     },
+    /// An interior vertex's image is on or outside the unit circle. The discrete harmonic
+    /// function log|z| obeys the maximum principle only with non-negative edge weights; folded
+    /// or near-degenerate triangles (angles near π) break it.
+    #[error("interior vertex {vertex} maps on or outside the unit circle (|z| = {radius:.9}): folded or near-degenerate triangles (angles close to 180°) broke the discrete maximum principle")]
+    InteriorOutsideDisk { vertex: usize, radius: f64 },
     /// An iteration (e.g. the boundary scale factors of BFF) did not reach its tolerance.
     #[error("{what} did not converge: residual {residual:.3e} after {iterations} iterations")]
     NoConvergence {

@@ -40,3 +40,41 @@ fn inconsistent_orientation_and_degenerate_faces_are_errors() {
     m.positions.push([9.0, 9.0, 9.0]); // unreferenced vertex
     assert!(matches!(run(&m), Err(ConformalError::NotDisk { .. })));
 }
+
+/// A 5 × 5 grid whose interior vertex 6 is pushed just across the boundary edge y = 0 (a fold):
+/// with plain cotangent weights (some negative) the harmonic log-radius of vertex 6 exceeds the
+/// boundary's 0. That is named as such, not as "crowding ... (log10 = NaN)" as before.
+#[test]
+fn interior_vertex_outside_the_circle_is_named() {
+    let mut positions = Vec::new();
+    for j in 0..5 {
+        for i in 0..5 {
+            positions.push([i as f64 / 4.0, j as f64 / 4.0, 0.0]);
+        }
+    }
+    positions[6] = [0.25, -0.001, 0.0];
+    let mut faces = Vec::new();
+    for j in 0..4u32 {
+        for i in 0..4u32 {
+            let a = j * 5 + i;
+            faces.push([a, a + 1, a + 6]);
+            faces.push([a, a + 6, a + 5]);
+        }
+    }
+    let m = TriMesh::new(positions, faces).unwrap();
+    let markers = Markers {
+        center: shapespace_conformal::CenterMarker::Vertex(12),
+        ..Markers::default()
+    };
+    let params = DiskMapParams {
+        intrinsic_delaunay: false,
+        ..DiskMapParams::default()
+    };
+    match disk_map(&m, &markers, &params) {
+        Err(e @ ConformalError::InteriorOutsideDisk { vertex: 6, radius }) => {
+            assert!(radius > 1.0 && radius < 1.01, "{radius}");
+            assert!(e.to_string().contains("interior vertex 6"), "{e}");
+        }
+        other => panic!("{:?}", other.map(|d| d.quality)),
+    }
+}

@@ -33,7 +33,7 @@ pub struct SolverArgs {
     /// faces.
     #[arg(long)]
     pub warm_start: bool,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
     #[arg(long)]
     pub threads: Option<usize>,
     /// No progress bar.
@@ -68,13 +68,20 @@ pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
     Ok(exit_code(&run))
 }
 
+/// `--threads` is capped to this many threads per core.
+const MAX_THREADS_PER_CORE: usize = 4;
+
 /// Runs the distances with a progress bar; prints a summary to stderr.
 pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) -> anyhow::Result<DistancesRun> {
-    if let Some(t) = solver.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t.max(1))
-            .build_global()
-            .ok();
+    if let Some(requested) = solver.threads {
+        // More threads than a few per core only cost their creation (10,000 threads took over a
+        // minute to start on 2 cores), so the request is capped.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let t = requested.clamp(1, MAX_THREADS_PER_CORE * cores);
+        if t != requested && requested != 0 {
+            eprintln!("shapespace: --threads {requested} capped to {t} ({cores} cores)");
+        }
+        rayon::ThreadPoolBuilder::new().num_threads(t).build_global().ok();
     }
     anyhow::ensure!(
         solver.tol.is_finite() && solver.tol > 0.0,
