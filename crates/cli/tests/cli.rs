@@ -80,8 +80,8 @@ fn conformal_with_both_methods() {
         assert_eq!(report["num_vertices"].as_u64().unwrap() as usize, nv);
         assert_eq!(report["quality"]["num_flipped"].as_u64(), Some(0));
         // the markers of the sidecar landmarks.json: center 4841 -> 0, boundary 8889 -> 1
-        let center = report["info"]["markers"]["center"]["Vertex"].as_u64().unwrap() as usize;
-        let boundary = report["info"]["markers"]["boundary_vertex"].as_u64().unwrap() as usize;
+        let center = report["info"]["markers"]["center"].as_u64().unwrap() as usize;
+        let boundary = report["info"]["markers"]["boundary"].as_u64().unwrap() as usize;
         assert!(
             vt[center][0].hypot(vt[center][1]) < 1e-12,
             "{method}: center at {:?}",
@@ -100,6 +100,22 @@ fn conformal_with_both_methods() {
             n += 1;
         }
         assert_eq!(n, nv);
+        // the report's markers are a marker file: fed back, they give the same map
+        let again = dir.join(format!("{method}-markers.json"));
+        std::fs::write(&again, report["info"]["markers"].to_string()).unwrap();
+        let obj2 = dir.join(format!("{method}-again.obj"));
+        let out = shapespace(&[
+            "conformal",
+            "datasets/faces/id00_neutral.obj",
+            "--method",
+            method,
+            "--landmarks",
+            again.to_str().unwrap(),
+            "--out",
+            obj2.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{method}: {}", stderr(&out));
+        assert_eq!(read_vt(&obj2).0, vt, "{method}: markers fed back");
         maps.push(vt);
     }
     let diff = maps[0]

@@ -74,8 +74,10 @@ pub struct MarkerFile {
     pub landmarks: BTreeMap<String, u32>,
 }
 
-/// The resolved interior marker: a vertex, or a point inside a face.
+/// The resolved interior marker: a vertex, or a point inside a face. Serialized as in a marker
+/// file (`123` or `{"face": f, "bary": [..]}`), so a report's markers can be fed back.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(untagged)]
 pub enum ResolvedCenter {
     /// A mesh vertex.
     Vertex(u32),
@@ -83,12 +85,13 @@ pub enum ResolvedCenter {
     Face { face: u32, bary: [f64; 3] },
 }
 
-/// Markers checked against a mesh.
+/// Markers checked against a mesh. Serialized as a marker file, `{"center": .., "boundary": q}`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ResolvedMarkers {
     /// Interior marker p.
     pub center: ResolvedCenter,
     /// Boundary vertex q.
+    #[serde(rename = "boundary")]
     pub boundary_vertex: u32,
 }
 
@@ -528,6 +531,31 @@ mod tests {
         assert_eq!(BoundaryMarker::parse("AUTO").unwrap(), BoundaryMarker::Auto);
         assert_eq!(BoundaryMarker::parse("5").unwrap(), BoundaryMarker::Vertex(5));
         assert!(BoundaryMarker::parse("x").is_err());
+    }
+
+    /// Resolved markers serialize as a marker file that parses back to the same markers.
+    #[test]
+    fn resolved_markers_round_trip_through_a_marker_file() {
+        for center in [
+            ResolvedCenter::Vertex(17),
+            ResolvedCenter::Face {
+                face: 4,
+                bary: [0.25, 0.125, 0.625],
+            },
+        ] {
+            let resolved = ResolvedMarkers {
+                center,
+                boundary_vertex: 9,
+            };
+            let text = serde_json::to_string(&resolved).unwrap();
+            let f = MarkerFile::from_json_str(&text, "report.json").unwrap();
+            let expected = match center {
+                ResolvedCenter::Vertex(v) => CenterMarker::Vertex(v),
+                ResolvedCenter::Face { face, bary } => CenterMarker::Barycentric { face, bary },
+            };
+            assert_eq!(f.markers.center, expected, "{text}");
+            assert_eq!(f.markers.boundary, BoundaryMarker::Vertex(9), "{text}");
+        }
     }
 
     #[test]
