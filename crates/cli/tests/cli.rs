@@ -474,9 +474,11 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
         args.extend(extra);
         shapespace(&args)
     };
-    let out = run(&["--tol", "nan"]);
-    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
-    assert!(stderr(&out).contains("--tol"), "{}", stderr(&out));
+    for tol in ["nan", "1e300", "1"] {
+        let out = run(&["--tol", tol]);
+        assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+        assert!(stderr(&out).contains("--tol must be in (0, 1)"), "{}", stderr(&out));
+    }
     let out = run(&["--max-iterations", "0"]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("--max-iterations"), "{}", stderr(&out));

@@ -276,6 +276,17 @@ fn invalid_input_is_rejected() {
         solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2], [0.5, 0.5]], &[1.0; 3], &p),
         Err(OmtError::DuplicatePoints { i: 0, j: 2 })
     ));
+    // A relative mass tolerance outside (0, 1) bounds nothing (1e300 "converged" in 0 steps).
+    for tolerance in [0.0, 1.0, 1e300, f64::NAN, f64::INFINITY] {
+        let p = NewtonParams {
+            tolerance,
+            ..Default::default()
+        };
+        match solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0, 1.0], &p) {
+            Err(OmtError::InvalidInput(m)) => assert!(m.contains("(0, 1)"), "{m}"),
+            other => panic!("tolerance {tolerance}: {:?}", other.map(|s| s.stop)),
+        }
+    }
 }
 
 /// The iteration cap is reported, and `into_result` turns it into `NoConvergence`.

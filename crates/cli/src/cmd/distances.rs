@@ -84,8 +84,8 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global().ok();
     }
     anyhow::ensure!(
-        solver.tol.is_finite() && solver.tol > 0.0,
-        "--tol must be a finite number > 0, got {}",
+        solver.tol > 0.0 && solver.tol < 1.0,
+        "--tol must be in (0, 1) (a relative mass error per cell), got {}",
         solver.tol
     );
     anyhow::ensure!(solver.max_iterations >= 1, "--max-iterations must be at least 1");

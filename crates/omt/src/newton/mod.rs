@@ -667,9 +667,9 @@ fn validate(
             "the source measure's total mass is {total} (its triangles' areas times densities must sum to a finite positive number; rescale the density mesh or the densities)"
         )));
     }
-    if !(params.tolerance.is_finite() && params.tolerance > 0.0) {
+    if !(params.tolerance > 0.0 && params.tolerance < 1.0) {
         return Err(OmtError::InvalidInput(format!(
-            "tolerance {} must be finite and > 0",
+            "tolerance {} must be in (0, 1): it bounds every cell's relative mass error",
             params.tolerance
         )));
     }
