@@ -155,7 +155,7 @@ fn intersect(l: &Line, h: &Line, p: [f64; 2], q: [f64; 2], fp: f64, fq: f64) -> 
 #[inline]
 fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> bool {
     let m = src.len;
-    let mut any_out = false;
+    let (mut any_out, mut any_on) = (false, false);
     for (f_out, v) in values[..m].iter_mut().zip(&src.vertices[..m]) {
         let (a, b) = (h.n[0] * v[0], h.n[1] * v[1]);
         let mut f = a + b - h.c;
@@ -164,15 +164,19 @@ fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> b
         // producing a sliver of zero width.
         if f.abs() <= 64.0 * f64::EPSILON * (a.abs() + b.abs() + h.c.abs()) {
             f = 0.0;
+            any_on = true;
         }
         any_out |= f > 0.0;
         *f_out = f;
     }
     let values = &values[..m];
     if !any_out {
-        // Nothing cut; still relabel an edge lying on the line.
-        if let Some(k) = (0..m).find(|&k| values[k] == 0.0 && values[if k + 1 == m { 0 } else { k + 1 }] == 0.0) {
-            src.lines[k] = *h;
+        // Nothing cut; still relabel an edge lying on the line (the common case, no vertex on
+        // it, skips the search).
+        if any_on {
+            if let Some(k) = (0..m).find(|&k| values[k] == 0.0 && values[if k + 1 == m { 0 } else { k + 1 }] == 0.0) {
+                src.lines[k] = *h;
+            }
         }
         return false;
     }
@@ -184,7 +188,7 @@ fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> b
         let (p, q) = (sv[k], sv[k1]);
         let (fp, fq) = (values[k], values[k1]);
         let mut l = sl[k];
-        if fp == 0.0 && fq == 0.0 {
+        if any_on && fp == 0.0 && fq == 0.0 {
             // The edge lies on the clipping line (a power edge along a source-triangle edge):
             // it is the power edge.
             l = *h;
