@@ -169,23 +169,19 @@ fn format_distance(v: f64) -> String {
     }
 }
 
-fn csv_error(path: &Path, err: csv::Error) -> AnalysisError {
-    AnalysisError::csv(path, err)
-}
-
 /// Writes `d` as the square CSV described in the module docs (header `name,<names>`, one row
 /// per shape, missing entries as empty cells). Values round-trip exactly.
 pub fn write_distance_matrix(path: &Path, d: &DistanceMatrix) -> Result<(), AnalysisError> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| csv_error(path, e))?;
+    let mut w = csv::Writer::from_path(path).map_err(|e| AnalysisError::csv(path, e))?;
     let mut header = Vec::with_capacity(d.len() + 1);
     header.push("name".to_string());
     header.extend(d.names.iter().cloned());
-    w.write_record(&header).map_err(|e| csv_error(path, e))?;
+    w.write_record(&header).map_err(|e| AnalysisError::csv(path, e))?;
     for (i, name) in d.names.iter().enumerate() {
         let mut row = Vec::with_capacity(d.len() + 1);
         row.push(name.clone());
         row.extend((0..d.len()).map(|j| format_distance(d.get(i, j))));
-        w.write_record(&row).map_err(|e| csv_error(path, e))?;
+        w.write_record(&row).map_err(|e| AnalysisError::csv(path, e))?;
     }
     w.flush().map_err(|e| AnalysisError::io(path, e))
 }
@@ -208,10 +204,10 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
         .flexible(true)
         .trim(csv::Trim::All)
         .from_path(path)
-        .map_err(|e| csv_error(path, e))?;
+        .map_err(|e| AnalysisError::csv(path, e))?;
     let mut records = reader.records();
     let header = match records.next() {
-        Some(r) => r.map_err(|e| csv_error(path, e))?,
+        Some(r) => r.map_err(|e| AnalysisError::csv(path, e))?,
         None => {
             return Err(AnalysisError::parse(
                 path,
@@ -242,7 +238,7 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
     let mut values = Vec::with_capacity(n * n);
     let mut rows = 0usize;
     for record in records {
-        let record = record.map_err(|e| csv_error(path, e))?;
+        let record = record.map_err(|e| AnalysisError::csv(path, e))?;
         let line = record.position().map(|p| p.line()).unwrap_or(0);
         if record.iter().all(str::is_empty) {
             continue;
@@ -361,10 +357,10 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
         .flexible(true)
         .trim(csv::Trim::All)
         .from_path(path)
-        .map_err(|e| csv_error(path, e))?;
+        .map_err(|e| AnalysisError::csv(path, e))?;
     let mut records = reader.records();
     let header = match records.next() {
-        Some(r) => r.map_err(|e| csv_error(path, e))?,
+        Some(r) => r.map_err(|e| AnalysisError::csv(path, e))?,
         None => {
             return Err(AnalysisError::parse(
                 path,
@@ -400,7 +396,7 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
     }
     let mut rows: Vec<Option<(u64, Vec<String>)>> = vec![None; names.len()];
     for record in records {
-        let record = record.map_err(|e| csv_error(path, e))?;
+        let record = record.map_err(|e| AnalysisError::csv(path, e))?;
         let line = record.position().map(|p| p.line()).unwrap_or(0);
         if record.iter().all(str::is_empty) {
             continue;

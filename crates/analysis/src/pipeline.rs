@@ -267,14 +267,13 @@ pub fn run_distances(
         })
         .sum::<usize>();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let result = pairwise_distances(&shapes, &options.pairwise, &|| {
+    let mut result = pairwise_distances(&shapes, &options.pairwise, &|| {
         let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total_pairs, "pairs");
     });
     let pairs_wall = t_pairs.elapsed().as_secs_f64();
     // `pairwise_distances` knows only the prepared shapes' names (a failed one is `#i`): use the
     // file names throughout, as in distances.csv.
-    let mut result = result;
     for r in &mut result.pairs {
         r.a.clone_from(&names[r.source]);
         r.b.clone_from(&names[r.target]);

@@ -112,11 +112,12 @@ fn next_trial(
     previous: Option<(f64, usize)>,
 ) -> f64 {
     let mut predicted = f64::INFINITY;
+    let hidden = hidden_count(m1);
     // Many cells vanished at two successive trials, fewer at the second: the count is fitted
     // by h(τ) = h₂ (τ/τ₂)^p through both, and the τ where fewer than one is left (h = ½) is a
     // candidate. The per-cell model cannot see this: it takes each vanished cell to vanish just
     // at the trial, so with hundreds of them it creeps down by the factor 0.7 per trial.
-    if let (Some((tau1, h1)), Some(h2)) = (previous, hidden_count(m1)) {
+    if let (Some((tau1, h1)), Some(h2)) = (previous, hidden) {
         if h2 >= TREND_MIN_HIDDEN && h1 > h2 && tau1 > tau {
             let p = (h1 as f64 / h2 as f64).ln() / (tau1 / tau).ln();
             predicted = tau * (0.5 / h2 as f64).powf(1.0 / p);
@@ -139,8 +140,7 @@ fn next_trial(
     // safeguard's lower end. Seen on Voronoi starts of conformal images (camelhead subdivided:
     // 99 %, 87 %, 59 %, 27 % of 45k cells hidden at τ = 1, 0.26, 0.079, 0.030); this cut the
     // first step's trials from 15 to 9 there (OT 2.6 → 2.4 s) and left face pairs as they were.
-    let hidden = m1.iter().filter(|&&m| m == 0.0).count();
-    if hidden > hidden_limit(m1.len()) {
+    if hidden.is_none() {
         return LOWER * tau;
     }
     // NaN (not expected) falls back to halving.
