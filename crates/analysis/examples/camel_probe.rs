@@ -1,6 +1,8 @@
 //! Probe: the Newton log (per step: error, τ, rejections by cause, timings) of the area-preserving
 //! OT on camelhead subdivided 1-to-4 (45k sites, Voronoi start), run twice; `NOSUB=1` for the
 //! original mesh. `cargo run --release -p shapespace-analysis --example camel_probe`.
+#[path = "common/newton_log.rs"]
+mod newton_log;
 use shapespace_analysis::area_preserving::{domain_measure, domain_polygon, weighted_target_masses, Domain};
 use shapespace_conformal::{disk_map, DiskMapParams, Markers};
 use shapespace_geometry::prepare::subdivide_midpoint;
@@ -29,19 +31,7 @@ fn main() {
     let measure = domain_measure(Domain::Disk, &poly).unwrap();
     for _ in 0..2 {
         let sol = shapespace_omt::solve_ot(&measure, &c.uv, &nu, &Default::default()).unwrap();
-        for (k, r) in sol.log.iter().enumerate() {
-            println!(
-                "{k:3} err {:.2e} tau {:.4} rejm {} rejn {} minmass {:.2e} diag {:.3} integ {:.3} solve {:.3}",
-                r.max_relative_error,
-                r.step,
-                r.rejected_min_mass,
-                r.rejected_norm,
-                r.min_cell_mass,
-                r.t_diagram,
-                r.t_integration,
-                r.t_solve
-            );
-        }
+        newton_log::print_newton_log(&sol);
         println!(
             "it {} evals {} start {:?} t_start {:.3} total {:.3} stop {}",
             sol.iterations, sol.evaluations, sol.start, sol.t_start, sol.t_total, sol.stop

@@ -1,6 +1,8 @@
 //! Probe: Newton iteration logs of one face pair under several solver settings.
 #[path = "common/faces.rs"]
 mod faces;
+#[path = "common/newton_log.rs"]
+mod newton_log;
 use shapespace_omt::NewtonParams;
 
 fn main() {
@@ -21,20 +23,7 @@ fn main() {
         ..Default::default()
     };
     let sol = shapespace_omt::solve_ot(&shapes[0].measure, &shapes[1].points, &shapes[1].masses, &params).unwrap();
-    for (k, r) in sol.log.iter().enumerate() {
-        println!(
-            "{k:3} err {:.2e} tau {:.4} halv {} rejm {} rejn {} minmass {:.2e} diag {:.3} integ {:.3} solve {:.3}",
-            r.max_relative_error,
-            r.step,
-            r.halvings,
-            r.rejected_min_mass,
-            r.rejected_norm,
-            r.min_cell_mass,
-            r.t_diagram,
-            r.t_integration,
-            r.t_solve
-        );
-    }
+    newton_log::print_newton_log(&sol);
     let (rm, rn): (usize, usize) = sol
         .log
         .iter()
