@@ -140,3 +140,15 @@ impl AnalysisError {
         }
     }
 }
+
+/// The error and its sources joined by `: ` (for messages that keep the whole cause).
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
+}

@@ -29,11 +29,12 @@ pub struct MarkerOptions {
     pub marker_file: Option<PathBuf>,
 }
 
-/// Where a file's markers came from, for the report.
+/// A file's resolved markers and where they came from, for the report. `center` and `boundary`
+/// serialize as in a marker file (`123` or `{"face": f, "bary": [..]}`, and a vertex index).
 #[derive(Clone, Debug, Serialize)]
 pub struct MarkerChoice {
-    pub center: String,
-    pub boundary: String,
+    pub center: shapespace_conformal::markers::ResolvedCenter,
+    pub boundary: u32,
     pub source: String,
 }
 
@@ -207,8 +208,8 @@ pub fn run_distances(
                         message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
                     })?;
                 let choice = MarkerChoice {
-                    center: format!("{:?}", shape.disk.info.markers.center),
-                    boundary: shape.disk.info.markers.boundary_vertex.to_string(),
+                    center: shape.disk.info.markers.center,
+                    boundary: shape.disk.info.markers.boundary_vertex,
                     source,
                 };
                 Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))

@@ -334,6 +334,17 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
             .any(|f| f.as_str().unwrap().contains("truncated")),
         "{json}"
     );
+    // The report's markers are in marker-file form (the sidecars' center 0) with their source.
+    let a_in = &json["inputs"][0];
+    assert_eq!(a_in["markers"]["center"].as_u64(), Some(0), "{a_in}");
+    assert!(a_in["markers"]["boundary"].as_u64().is_some(), "{a_in}");
+    assert!(
+        a_in["markers"]["source"]
+            .as_str()
+            .unwrap()
+            .ends_with("a.landmarks.json"),
+        "{a_in}"
+    );
     // The good entries agree with a direct computation.
     // the markers of the sidecar files written above
     let markers = Markers {

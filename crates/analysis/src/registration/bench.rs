@@ -553,14 +553,4 @@ fn series_name(method: Method, values: &[f64]) -> String {
     )
 }
 
-/// The error and its sources joined by `: `.
-pub fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut cur = e.source();
-    while let Some(c) = cur {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        cur = c.source();
-    }
-    s
-}
+pub use crate::error::error_chain;

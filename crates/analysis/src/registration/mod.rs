@@ -378,7 +378,7 @@ pub fn register(
         message,
     };
     for (name, mesh) in [("source", source), ("target", target)] {
-        shapespace_geometry::topology::require_disk(mesh).map_err(|e| named(name, bench::error_chain(&e)))?;
+        shapespace_geometry::topology::require_disk(mesh).map_err(|e| named(name, crate::error::error_chain(&e)))?;
     }
     check_landmarks(source, target, landmarks)?;
     // The two disk maps are independent: compute them in parallel.
@@ -386,8 +386,8 @@ pub fn register(
         || disk_image(source, &params.source_markers, params.method, &params.area_preserving),
         || disk_image(target, &params.target_markers, params.method, &params.area_preserving),
     );
-    let phi1 = phi1.map_err(|e| named("source", bench::error_chain(&e)))?;
-    let phi2 = phi2.map_err(|e| named("target", bench::error_chain(&e)))?;
+    let phi1 = phi1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
+    let phi2 = phi2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
     register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
 }
 
