@@ -60,11 +60,12 @@ fn conformal_with_both_methods() {
         let obj = dir.join(format!("{method}.obj"));
         let csv = dir.join(format!("{method}.csv"));
         let json = dir.join(format!("{method}.json"));
-        let out = shapespace(&[
-            "conformal",
-            "datasets/faces/id00_neutral.obj",
-            "--method",
-            method,
+        let conformal = |extra: &[&str]| {
+            let mut args = vec!["conformal", "datasets/faces/id00_neutral.obj", "--method", method];
+            args.extend(extra);
+            shapespace(&args)
+        };
+        let out = conformal(&[
             "--out",
             obj.to_str().unwrap(),
             "--factors",
@@ -104,16 +105,7 @@ fn conformal_with_both_methods() {
         let again = dir.join(format!("{method}-markers.json"));
         std::fs::write(&again, report["info"]["markers"].to_string()).unwrap();
         let obj2 = dir.join(format!("{method}-again.obj"));
-        let out = shapespace(&[
-            "conformal",
-            "datasets/faces/id00_neutral.obj",
-            "--method",
-            method,
-            "--landmarks",
-            again.to_str().unwrap(),
-            "--out",
-            obj2.to_str().unwrap(),
-        ]);
+        let out = conformal(&["--landmarks", again.to_str().unwrap(), "--out", obj2.to_str().unwrap()]);
         assert!(out.status.success(), "{method}: {}", stderr(&out));
         assert_eq!(read_vt(&obj2).0, vt, "{method}: markers fed back");
         maps.push(vt);
