@@ -29,8 +29,8 @@ pub struct SolverArgs {
     #[arg(long, default_value_t = 200)]
     pub max_iterations: usize,
     /// Start each pair from the heights of the previous pair with the same target instead of the
-    /// solver's own start (coarse-to-fine for these densities), which is faster on the bundled
-    /// faces.
+    /// solver's own start. The default start (coarse-to-fine for these densities) is the faster
+    /// one on the bundled faces: 10 against 16 Newton steps at the finest level (median).
     #[arg(long)]
     pub warm_start: bool,
     /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
