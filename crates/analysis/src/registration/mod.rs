@@ -237,11 +237,20 @@ impl Default for RegistrationParams {
 /// iteration cap slightly above its tolerance (cell areas off by ~1e-6 relative) still gives a
 /// usable disk map (up to [`MAX_USABLE_OT_ERROR`]); the reached accuracy is kept in
 /// [`DiskImage::ot_max_relative_error`].
+///
+/// The fold repair skips the kernel untangling ([`crate::fold_repair::FoldRepairParams::untangle_sweeps`] = 0):
+/// measured 2026-12-02 with `shapespace register-bench datasets/poses`, untangling first gave
+/// the wolf a geodesic error of 0.0296 / 0.0232 (mean / median) against 0.0282 / 0.0224 with
+/// the Tutte rounds alone, and the centaur 0.0699 / 0.0510 against 0.0692 / 0.0538; the Tutte
+/// rounds place a repaired vertex by the mean-value weights of its neighbours, which the
+/// planar cotangent weights of g seem to prefer to the kernel centroid.
 pub fn registration_area_params() -> AreaPreservingParams {
-    AreaPreservingParams {
+    let mut params = AreaPreservingParams {
         require_convergence: false,
         ..AreaPreservingParams::default()
-    }
+    };
+    params.fold_repair.untangle_sweeps = 0;
+    params
 }
 
 /// The largest OT mass error (max_i |μ(W_i) − ν_i|/ν_i) at which a non-converged area-preserving

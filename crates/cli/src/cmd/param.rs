@@ -131,7 +131,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
     let ap = &report.maps[1];
     eprintln!(
-        "{}: {} V, {} F; OT {} after {} iterations (max rel. mass error {:.2e}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; fold repair: {} folded before, {} vertices moved in {} rounds; conformal {:.2} s, OT {:.2} s, output {:.2} s, repair {:.2} s",
+        "{}: {} V, {} F; OT {} after {} iterations (max rel. mass error {:.2e}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; {}; conformal {:.2} s, OT {:.2} s, output {:.2} s, repair {:.2} s",
         args.input.display(),
         mesh.num_vertices(),
         mesh.num_faces(),
@@ -144,9 +144,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         report.maps[0].abs_area_distortion.p95,
         ap.quasi_conformal_distortion.median,
         ap.num_flipped,
-        map.fold_repair.info.flipped_before + map.fold_repair.info.degenerate_before,
-        map.fold_repair.info.vertices_moved,
-        map.fold_repair.info.rounds,
+        repair_summary(&map.fold_repair.info),
         map.timings.conformal,
         map.timings.ot,
         map.timings.output,
@@ -187,4 +185,19 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// One line on the fold repair for the stderr summary.
+fn repair_summary(info: &shapespace_analysis::fold_repair::FoldRepairInfo) -> String {
+    let folded = info.flipped_before + info.degenerate_before;
+    if !info.enabled {
+        format!("{folded} folded faces (fold repair off)")
+    } else if folded == 0 {
+        "no folded faces".to_string()
+    } else {
+        format!(
+            "fold repair: {folded} folded before, {} after the untangling, {} vertices moved, {} Tutte rounds",
+            info.untangle.folded_after, info.vertices_moved, info.rounds
+        )
+    }
 }
