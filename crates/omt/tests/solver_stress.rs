@@ -363,3 +363,55 @@ fn auto_start_falls_back_to_the_voronoi_path() {
     assert!(auto.iterations > 3, "{} steps", auto.iterations);
     assert!(auto.max_relative_error <= own.max_relative_error);
 }
+
+/// `StartStrategy::Auto` also takes the coarse-to-fine start when a Voronoi cell is far larger
+/// than its target (here: points in a disk of radius 0.35 whose outer tenth has 1/100 of the
+/// inner targets, so the outer Voronoi cells reach the unit circle with ~1000× their targets).
+/// Both starts converge to the same transport.
+#[test]
+fn auto_start_takes_coarse_to_fine_for_oversized_voronoi_cells() {
+    use shapespace_omt::newton::{integrate_at_heights, CellIntegrator};
+    let disk = disk_measure(30, &|_| 1.0);
+    let n = 3000;
+    let points = sunflower(n, 0.35);
+    let masses: Vec<f64> = (0..n).map(|k| if k >= n * 9 / 10 { 0.01 } else { 1.0 }).collect();
+    // the Voronoi start triggers the upper bound only
+    let voronoi_heights: Vec<f64> = points.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect();
+    let cells = integrate_at_heights(&disk, &points, &voronoi_heights, CellIntegrator::Restricted).unwrap();
+    let scale = disk.total_mass() / masses.iter().sum::<f64>();
+    let ratios: Vec<f64> = cells
+        .masses
+        .iter()
+        .zip(&masses)
+        .map(|(m, nu)| m / (nu * scale))
+        .collect();
+    let (lo, hi) = ratios
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
+    assert!(lo > 1e-8 && hi > 300.0, "Voronoi m/ν in [{lo:.2e}, {hi:.2e}]");
+    let auto = solve_ot(&disk, &points, &masses, &NewtonParams::default()).unwrap();
+    assert!(matches!(auto.start, Start::CoarseToFine { .. }), "{:?}", auto.start);
+    check("oversized cells, auto", &auto, 1e-6);
+    let voronoi = solve_ot(
+        &disk,
+        &points,
+        &masses,
+        &NewtonParams {
+            start_strategy: StartStrategy::Voronoi,
+            ..NewtonParams::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(voronoi.start, Start::Voronoi);
+    check("oversized cells, Voronoi", &voronoi, 1e-6);
+    assert!(
+        (auto.cost - voronoi.cost).abs() <= 1e-9 * voronoi.cost,
+        "{} vs {}",
+        auto.cost,
+        voronoi.cost
+    );
+    eprintln!(
+        "oversized cells: coarse-to-fine {} steps ({:?}), Voronoi {} steps",
+        auto.iterations, auto.start, voronoi.iterations
+    );
+}

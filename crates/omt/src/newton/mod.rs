@@ -30,8 +30,8 @@
 //!   the damped steps are limited to about one cell width, so a large displacement (a density
 //!   contrast, points crowded by a conformal map) costs many steps; from the prolongation the
 //!   finest level needs 8–18 (measured in `ARCHITECTURE.md`). `StartStrategy::Auto` (default)
-//!   takes it when the density ratio exceeds 10 or the Voronoi start has a cell below 1e-8 of its
-//!   target.
+//!   takes it when the density ratio exceeds 10 or the Voronoi start has a cell below 1e-8 or
+//!   above 300 times its target.
 //! - **Density continuation** (with `StartStrategy::Voronoi`, and on the coarsest level of the
 //!   coarse-to-fine start). With a strong density contrast the Newton model of the Voronoi
 //!   start is far off (cells are pushed into regions 100× denser than their edges say) and KMT
@@ -152,7 +152,8 @@ impl Default for NewtonParams {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum StartStrategy {
     /// The coarse-to-fine start when the source density's max/min exceeds 10 or the Voronoi
-    /// start has a cell below 1e-8 of its target mass (points crowded by a conformal map), the
+    /// start has a cell below 1e-8 of its target mass (points crowded by a conformal map) or
+    /// above 300 times its target (points sparse where the targets are large), the
     /// Voronoi start otherwise (where it is the faster one: uniform density, spread points). If
     /// the solve from the coarse-to-fine start does not converge, the Voronoi path (with its
     /// continuations) runs too and the better result is returned, with the steps of both.
@@ -170,6 +171,14 @@ const AUTO_CONTRAST: f64 = 10.0;
 /// [`StartStrategy::Auto`] takes the coarse-to-fine start when a Voronoi cell has less than this
 /// fraction of its target mass.
 const AUTO_MIN_START: f64 = 1e-8;
+/// [`StartStrategy::Auto`] takes the coarse-to-fine start when a Voronoi cell has more than this
+/// multiple of its target mass. Measured 2026-12-02 on area-preserving maps (uniform disk, the
+/// conformal images as targets; `analysis/examples/param_start_probe.rs`): the coarse-to-fine
+/// start was the faster one where the largest Voronoi cell was 2.4e3 (Nefertiti cut open, 50k
+/// points: 15 against 25 steps, OT 5.5 against 8.2 s) and 3.4e3 times its target (Igea, 134k:
+/// 13 against 19 steps, 10.6 against 14.7 s), the slower one at 6.5 … 70 (camelhead and its
+/// 1-to-4 subdivision, the libigl face, lion, woody, cat head, an ICT face, a bump domain).
+const AUTO_MAX_START: f64 = 300.0;
 
 /// Why the iteration stopped.
 #[derive(Clone, Debug, PartialEq)]
@@ -847,12 +856,9 @@ pub fn solve_ot(
                 contrast > AUTO_CONTRAST || {
                     let backend = Backend::new(measure, params.integrator);
                     let evaluation = evaluate(&backend, points, &Heights::voronoi(points))?;
-                    let poor = evaluation
-                        .cells
-                        .masses
-                        .iter()
-                        .zip(masses)
-                        .any(|(&m, &nu)| !(m >= AUTO_MIN_START * nu * mass_scale));
+                    let poor = evaluation.cells.masses.iter().zip(masses).any(|(&m, &nu)| {
+                        !(m >= AUTO_MIN_START * nu * mass_scale && m <= AUTO_MAX_START * nu * mass_scale)
+                    });
                     voronoi_start = Some((backend, evaluation));
                     poor
                 }
