@@ -1,6 +1,7 @@
 //! Probe: the Newton log (per step: error, τ, rejections by cause, timings) of the area-preserving
 //! OT on camelhead subdivided 1-to-4 (45k sites, Voronoi start), run twice; `NOSUB=1` for the
-//! original mesh. `cargo run --release -p shapespace-analysis --example camel_probe`.
+//! original mesh, or a disk mesh given as the argument.
+//! `cargo run --release -p shapespace-analysis --example camel_probe [-- MESH]`.
 #[path = "common/newton_log.rs"]
 mod newton_log;
 use shapespace_analysis::area_preserving::{domain_measure, domain_polygon, weighted_target_masses, Domain};
@@ -9,11 +10,17 @@ use shapespace_geometry::prepare::subdivide_midpoint;
 
 fn main() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let m = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).unwrap();
-    let mesh = if std::env::var("NOSUB").is_ok() {
-        m
-    } else {
-        subdivide_midpoint(&m).unwrap()
+    let mesh = match std::env::args().nth(1) {
+        // any disk mesh (e.g. a TOSCA mesh or Nefertiti cut open by `shapespace prepare`)
+        Some(path) => shapespace_geometry::io::read_mesh(std::path::Path::new(&path)).unwrap(),
+        None => {
+            let m = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).unwrap();
+            if std::env::var("NOSUB").is_ok() {
+                m
+            } else {
+                subdivide_midpoint(&m).unwrap()
+            }
+        }
     };
     let c = disk_map(&mesh, &Markers::default(), &DiskMapParams::default()).unwrap();
     let s2 = c.scale * c.scale;
