@@ -510,6 +510,120 @@ pub fn subdivide_midpoint(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
     Ok(out)
 }
 
+/// The interior edges whose two endpoints both lie on the boundary ("bridges"), each as
+/// `[a, b]` with a < b, sorted. A bridge can cut interior vertices off from the rest of the
+/// interior ([`interior_components`]).
+pub fn boundary_bridges(mesh: &TriMesh) -> Vec<[u32; 2]> {
+    let conn = Connectivity::of(mesh);
+    let on_boundary = conn.boundary_vertices(mesh.num_vertices());
+    let mut count: HashMap<(u32, u32), u32> = HashMap::new();
+    for f in &mesh.faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let mut bridges: Vec<[u32; 2]> = count
+        .into_iter()
+        .filter(|&((a, b), c)| c == 2 && on_boundary[a as usize] && on_boundary[b as usize])
+        .map(|((a, b), _)| [a, b])
+        .collect();
+    bridges.sort_unstable();
+    bridges
+}
+
+/// Component label per vertex of the graph of interior vertices joined by edges between two
+/// interior vertices (`None` for boundary vertices), and the number of components. The
+/// Dirichlet problems of the disk maps (boundary values fixed, a source at one interior
+/// vertex) are zero on every component without the source: with more than one component, an
+/// interior vertex of another component maps onto the boundary circle.
+pub fn interior_components(mesh: &TriMesh) -> (Vec<Option<u32>>, usize) {
+    let n = mesh.num_vertices();
+    let conn = Connectivity::of(mesh);
+    let on_boundary = conn.boundary_vertices(n);
+    let neighbors = conn.vertex_neighbors(n);
+    let mut label: Vec<Option<u32>> = vec![None; n];
+    let mut count = 0u32;
+    for v in 0..n {
+        if on_boundary[v] || label[v].is_some() {
+            continue;
+        }
+        label[v] = Some(count);
+        let mut stack = vec![v];
+        while let Some(x) = stack.pop() {
+            for &y in &neighbors[x] {
+                let y = y as usize;
+                if !on_boundary[y] && label[y].is_none() {
+                    label[y] = Some(count);
+                    stack.push(y);
+                }
+            }
+        }
+        count += 1;
+    }
+    (label, count as usize)
+}
+
+/// Splits each edge of `edges` (interior edges, `[a, b]`) at its midpoint: the two faces at the
+/// edge, (a, b, c) and (b, a, d), become (a, m, c), (m, b, c), (b, m, d), (m, a, d) with the new
+/// vertex m appended (texture coordinates, if any, interpolated). The surface is unchanged.
+/// Errors: an edge that is not shared by exactly two faces.
+pub fn split_edges(mesh: &TriMesh, edges: &[[u32; 2]]) -> Result<TriMesh, GeometryError> {
+    mesh.validate()?;
+    let mut out = mesh.clone();
+    let mut faces_at: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    for (f, t) in out.faces.iter().enumerate() {
+        for k in 0..3 {
+            faces_at.entry(key(t[k], t[(k + 1) % 3])).or_default().push(f);
+        }
+    }
+    for &[a, b] in edges {
+        let at = faces_at.get(&key(a, b)).cloned().unwrap_or_default();
+        if at.len() != 2 {
+            return Err(GeometryError::Topology(format!(
+                "edge {a}-{b} is not an interior edge (it has {} faces), so it cannot be split",
+                at.len()
+            )));
+        }
+        let m = out.positions.len() as u32;
+        out.positions
+            .push(scale(add(out.positions[a as usize], out.positions[b as usize]), 0.5));
+        if let Some(uv) = out.uvs.as_mut() {
+            let (p, q) = (uv[a as usize], uv[b as usize]);
+            uv.push([0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]);
+        }
+        faces_at.remove(&key(a, b));
+        for f in at {
+            let t = out.faces[f];
+            // rotate so the edge is (t[0], t[1]) in the face's own order
+            let k = (0..3)
+                .find(|&k| key(t[k], t[(k + 1) % 3]) == key(a, b))
+                .expect("the face holds the edge");
+            let (u, v, w) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            out.faces[f] = [u, m, w];
+            out.faces.push([m, v, w]);
+            let g = out.faces.len() - 1;
+            // edge bookkeeping: (u, m) and (m, w) belong to f, (m, v) and (m, w) to g, (v, w)
+            // moves from f to g
+            faces_at.entry(key(u, m)).or_default().push(f);
+            faces_at.entry(key(m, w)).or_default().extend([f, g]);
+            faces_at.entry(key(m, v)).or_default().push(g);
+            if let Some(list) = faces_at.get_mut(&key(v, w)) {
+                for x in list.iter_mut() {
+                    if *x == f {
+                        *x = g;
+                    }
+                }
+            }
+        }
+    }
+    if out.positions.len() > u32::MAX as usize {
+        return Err(GeometryError::Invalid("too many vertices after splitting edges".into()));
+    }
+    Ok(out)
+}
+
 /// Scales the mesh to total area π, the area of the unit disk (DESIGN.md, "Normalization of a
 /// surface"; Su et al. 2015 §4.2), about its area-weighted centroid ([`scale_to_area`]).
 pub fn normalize_for_shape_space(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
@@ -559,16 +673,22 @@ pub struct PrepareReport {
     pub faces_cut: usize,
     /// Holes filled (every boundary loop but the longest), one vertex appended per hole.
     pub holes_filled: usize,
+    /// Edges joining two boundary vertices split at their midpoints (one vertex appended per
+    /// edge), done only when such edges cut interior vertices off from the rest of the
+    /// interior ([`interior_components`]), which no harmonic disk map can place inside the disk.
+    pub bridges_split: usize,
 }
 
 /// Makes a disk-topology mesh out of a surface with the explicit operations of this module, in
 /// this order: drop unreferenced vertices, keep the largest component, make the orientation
 /// consistent, cut a disk out of a closed surface ([`cut_disk`] at `options.cut_center`), fill
-/// every boundary loop but the longest ([`fill_holes_except_longest`]), and check the result with
-/// [`topology::require_disk`].
+/// every boundary loop but the longest ([`fill_holes_except_longest`]), check the result with
+/// [`topology::require_disk`], and, when edges joining two boundary vertices cut the interior
+/// into pieces ([`interior_components`]), split those edges ([`boundary_bridges`],
+/// [`split_edges`]).
 ///
 /// Returns the mesh, the map from its vertices to the input's (`None` for vertices added by hole
-/// filling; the others keep their relative order) and what was done. Errors: an invalid mesh, a
+/// filling or edge splits; the others keep their relative order) and what was done. Errors: an invalid mesh, a
 /// non-orientable or non-manifold surface, a cut centre out of range or removed by an earlier
 /// step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1, which a disk
 /// cut leaves with handles: the error names the genus).
@@ -634,5 +754,20 @@ pub fn prepare_disk(
         m = filled;
     }
     topology::require_disk(&m)?;
+    // a disk whose interior falls apart at edges joining two boundary vertices: split them
+    // (the new midpoints are interior and join the pieces); rounds because a split can leave
+    // pieces that only the next bridge joins
+    for _ in 0..4 {
+        if interior_components(&m).1 <= 1 {
+            break;
+        }
+        let bridges = boundary_bridges(&m);
+        if bridges.is_empty() {
+            break;
+        }
+        m = split_edges(&m, &bridges)?;
+        report.bridges_split += bridges.len();
+        origin.resize(m.num_vertices(), None);
+    }
     Ok((m, origin, report))
 }

@@ -235,6 +235,51 @@ pub fn capped_tube(radius: f64, height: f64, cap_rings: usize, along: usize) -> 
     }
 }
 
+/// A flat 4 × 2 strip of unit squares whose middle column has no vertex at y = 1: the edge
+/// (2, 0)–(2, 2) joins two boundary vertices and cuts the interior vertices (1, 1) and (3, 1)
+/// apart (vertices 4 and 9; the others are all on the boundary). A test case for
+/// [`crate::prepare::interior_components`] and for the disk maps' error on such meshes. Two more interior edges join
+/// boundary vertices, (0, 1)–(1, 2) and (3, 0)–(4, 1), without cutting anything.
+pub fn pinched_strip() -> TriMesh {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 2.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [1.0, 2.0, 0.0],
+        [2.0, 0.0, 0.0],
+        [2.0, 2.0, 0.0],
+        [3.0, 0.0, 0.0],
+        [3.0, 1.0, 0.0],
+        [3.0, 2.0, 0.0],
+        [4.0, 0.0, 0.0],
+        [4.0, 1.0, 0.0],
+        [4.0, 2.0, 0.0],
+    ];
+    let faces = vec![
+        [0, 3, 4],
+        [0, 4, 1],
+        [1, 4, 5],
+        [1, 5, 2],
+        [3, 6, 4],
+        [4, 6, 7],
+        [4, 7, 5],
+        [6, 8, 9],
+        [6, 9, 7],
+        [7, 9, 10],
+        [8, 11, 12],
+        [8, 12, 9],
+        [9, 12, 13],
+        [9, 13, 10],
+    ];
+    TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

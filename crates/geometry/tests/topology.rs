@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 
 use shapespace_geometry::connectivity::Connectivity;
 use shapespace_geometry::prepare::{self, Radius};
-use shapespace_geometry::primitives::{grid, icosphere, unit_disk};
+use shapespace_geometry::primitives::{grid, icosphere, pinched_strip, unit_disk};
 use shapespace_geometry::quantities::{face_areas, face_normals, total_area};
 use shapespace_geometry::topology::{classify, inconsistent_edges, mesh_report, require_disk, MeshClass};
 use shapespace_geometry::TriMesh;
@@ -648,4 +648,47 @@ fn prepare_disk_makes_disks_and_reports_its_steps() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("non-disk"), "{err}");
+}
+
+#[test]
+fn bridges_split_joins_the_interior() {
+    let m = pinched_strip();
+    require_disk(&m).unwrap();
+    assert_eq!(prepare::boundary_bridges(&m), vec![[1, 5], [6, 7], [8, 12]]);
+    let (labels, count) = prepare::interior_components(&m);
+    assert_eq!(count, 2);
+    assert_ne!(labels[4], labels[9]);
+    assert!(labels[4].is_some() && labels[9].is_some() && labels[6].is_none());
+    // split by hand: one vertex at (2, 1), four faces instead of two, same area, still a disk
+    let s = prepare::split_edges(&m, &[[6, 7]]).unwrap();
+    assert_eq!((s.num_vertices(), s.num_faces()), (15, 16));
+    assert_eq!(s.positions[14], [2.0, 1.0, 0.0]);
+    assert!((total_area(&s) - total_area(&m)).abs() < 1e-12);
+    assert!(face_areas(&s).iter().all(|&a| a > 0.0));
+    require_disk(&s).unwrap();
+    assert!(inconsistent_edges(&s.faces, &Connectivity::of(&s)).is_empty());
+    assert_eq!(prepare::interior_components(&s).1, 1);
+    assert_eq!(prepare::boundary_bridges(&s), vec![[1, 5], [8, 12]]);
+    // prepare_disk splits every bridge when (and only when) the interior falls apart
+    let (p, origin, report) = prepare::prepare_disk(&m, &Default::default()).unwrap();
+    assert_eq!(report.bridges_split, 3);
+    assert_eq!((p.num_vertices(), p.num_faces()), (17, 20));
+    assert!((total_area(&p) - total_area(&m)).abs() < 1e-12);
+    assert!(prepare::boundary_bridges(&p).is_empty());
+    assert_eq!(prepare::interior_components(&p).1, 1);
+    assert_eq!(origin.len(), 17);
+    assert!(origin[14..].iter().all(|o| o.is_none()));
+    assert!(origin[..14].iter().enumerate().all(|(v, o)| *o == Some(v as u32)));
+    let (_, _, again) = prepare::prepare_disk(&p, &Default::default()).unwrap();
+    assert_eq!(again.bridges_split, 0);
+    // a bridge that does not cut the interior is left alone: the unit disk's interior is
+    // connected whatever its boundary edges
+    let d = unit_disk(4);
+    assert_eq!(prepare::interior_components(&d).1, 1);
+    assert_eq!(
+        prepare::prepare_disk(&d, &Default::default()).unwrap().2.bridges_split,
+        0
+    );
+    // a boundary edge cannot be split
+    assert!(prepare::split_edges(&m, &[[0, 3]]).is_err());
 }

@@ -92,6 +92,12 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
             report.holes_filled
         ));
     }
+    if report.bridges_split > 0 {
+        steps.push(format!(
+            "split {} edges joining two boundary vertices, which cut interior vertices off from the rest (one vertex appended per edge)",
+            report.bridges_split
+        ));
+    }
     if steps.is_empty() {
         steps.push("already a disk, unchanged".into());
     }
