@@ -277,7 +277,13 @@ fn solve_green_map(
 /// z = e^{a + iθ} per vertex (z = 0 at the pole), after the range checks of the module docs:
 /// e^{a} must stay a normal f64 with room for areas, and interior vertices must keep
 /// 1 − |z| ≥ [`CROWDING_LIMIT`].
-fn exp_map(a: &[f64], theta: &[f64], pole: u32, is_boundary: &[bool]) -> Result<Vec<[f64; 2]>, ConformalError> {
+fn exp_map(
+    a: &[f64],
+    theta: &[f64],
+    pole: u32,
+    is_boundary: &[bool],
+    maximum_principle: bool,
+) -> Result<Vec<[f64; 2]>, ConformalError> {
     for (v, &x) in a.iter().enumerate() {
         if v as u32 != pole && x < -690.0 {
             return Err(ConformalError::OutOfRange {
@@ -299,6 +305,18 @@ fn exp_map(a: &[f64], theta: &[f64], pole: u32, is_boundary: &[bool]) -> Result<
             return Err(ConformalError::NonFinite {
                 stage: "log-radius of the disk map",
                 vertex: v,
+            });
+        }
+        if x >= 0.0 && maximum_principle {
+            // non-negative weights and a connected interior: the exact solution is < 0 here,
+            // so the computed value is within the solve's rounding of 0 (about ε·max|a|)
+            let max_abs = a
+                .iter()
+                .fold(0.0f64, |m, &y| if y.is_finite() { m.max(y.abs()) } else { m });
+            return Err(ConformalError::OutOfRange {
+                what: "distance of the image to the boundary circle, below the rounding of the harmonic solve (crowding of a protrusion along the boundary)",
+                element: format!("vertex {v}"),
+                log10_value: (f64::EPSILON * max_abs.max(1.0)).log10(),
             });
         }
         if x >= 0.0 {
@@ -325,6 +343,35 @@ fn exp_map(a: &[f64], theta: &[f64], pole: u32, is_boundary: &[bool]) -> Result<
         .collect();
     z[pole as usize] = [0.0, 0.0];
     Ok(z)
+}
+
+/// Every interior vertex must be reachable from `center` through interior vertices of the
+/// triangulation the Laplacian is built on: the Dirichlet problems of the map are zero on any
+/// other part of the interior ([`ConformalError::CutOffInterior`]). Checked on the input
+/// triangulation and again after the intrinsic Delaunay flips (`flipped`), which join the
+/// two sides of a part a few triangles wide and can cut its interior vertices off too.
+fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: bool) -> Result<(), ConformalError> {
+    let adj = neighbors(tri);
+    let mut seen = vec![false; tri.num_vertices];
+    seen[center as usize] = true;
+    let mut stack = vec![center];
+    while let Some(x) = stack.pop() {
+        for &y in &adj[x as usize] {
+            if !tri.is_boundary[y as usize] && !seen[y as usize] {
+                seen[y as usize] = true;
+                stack.push(y);
+            }
+        }
+    }
+    let mut cut_off = (0..tri.num_vertices).filter(|&v| !tri.is_boundary[v] && !seen[v]);
+    match cut_off.next() {
+        None => Ok(()),
+        Some(vertex) => Err(ConformalError::CutOffInterior {
+            vertex,
+            count: 1 + cut_off.count(),
+            by_flips: flipped,
+        }),
+    }
 }
 
 /// Vertex adjacency from the (unflipped) triangulation.
@@ -520,6 +567,18 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     check_disk(mesh, &tri)?;
     let adj = neighbors(&tri);
     let resolved = resolve_markers(mesh, &tri.is_boundary, &adj, markers)?;
+    let own_pole = match resolved.center {
+        ResolvedCenter::Vertex(v) => v,
+        ResolvedCenter::Face { face, bary } => {
+            let corners = mesh.faces[face as usize];
+            let k = (0..3)
+                .filter(|&k| !tri.is_boundary[corners[k] as usize])
+                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
+                .ok_or_else(|| ConformalError::InvalidMarker(format!("face {face} has no interior corner")))?;
+            corners[k]
+        }
+    };
+    check_interior_connected(&tri, own_pole, false)?;
     let negative_weights_before = count_negative(&tri);
     let t1 = Instant::now();
     if params.intrinsic_delaunay {
@@ -533,17 +592,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     // the circle.
     let central = crate::markers::central_vertex(mesh, &tri.is_boundary, &adj)
         .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?;
-    let own_pole = match resolved.center {
-        ResolvedCenter::Vertex(v) => v,
-        ResolvedCenter::Face { face, bary } => {
-            let corners = mesh.faces[face as usize];
-            let k = (0..3)
-                .filter(|&k| !tri.is_boundary[corners[k] as usize])
-                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
-                .ok_or_else(|| ConformalError::InvalidMarker(format!("face {face} has no interior corner")))?;
-            corners[k]
-        }
-    };
+    check_interior_connected(&tri, own_pole, true)?;
     let image_of_center = |z: &[[f64; 2]]| center_image(mesh, resolved.center, z);
     // smallest image distance from the center's image to the corners around it
     let local_scale = |z: &[[f64; 2]], a: [f64; 2]| -> f64 {
@@ -563,7 +612,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     let mut stage_times = [0.0f64; 2];
     let (mut u, mut theta) = solve_green_map(&tri, pole, resolved.boundary_vertex, &mut stage_times)?;
     let mut linear_solves = 2;
-    let mut z = exp_map(&u, &theta, pole, &tri.is_boundary)?;
+    let mut z = exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0)?;
     let a_img = image_of_center(&z);
     if pole != own_pole
         && (local_scale(&z, a_img) < MOBIUS_MIN_SCALE || 1.0 - a_img[0].hypot(a_img[1]) < MOBIUS_MIN_GAP)
@@ -571,7 +620,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         pole = own_pole;
         (u, theta) = solve_green_map(&tri, pole, resolved.boundary_vertex, &mut stage_times)?;
         linear_solves += 2;
-        z = exp_map(&u, &theta, pole, &tri.is_boundary)?;
+        z = exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0)?;
     }
     let t4 = Instant::now();
     let fin = finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds)?;

@@ -1,7 +1,8 @@
 //! Inputs that are not usable give typed errors, never panics or garbage.
 
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, Markers};
-use shapespace_geometry::primitives::{icosphere, unit_disk};
+use shapespace_geometry::prepare::subdivide_midpoint;
+use shapespace_geometry::primitives::{icosphere, pinched_strip, unit_disk};
 use shapespace_geometry::TriMesh;
 
 fn run(m: &TriMesh) -> Result<shapespace_conformal::DiskMap, ConformalError> {
@@ -77,4 +78,39 @@ fn interior_vertex_outside_the_circle_is_named() {
         }
         other => panic!("{:?}", other.map(|d| d.quality)),
     }
+}
+
+/// Interior vertices that only a path through boundary vertices joins to the centre (an edge
+/// between two boundary vertices cuts the interior): the Dirichlet problem is zero there, so
+/// the map would put them on the circle. Named as such, with the remedy; `prepare_disk` splits
+/// the cutting edges, after which (refined) the map exists and the former pocket is inside the
+/// disk.
+#[test]
+fn interior_cut_off_by_a_boundary_edge_is_named() {
+    let m = pinched_strip();
+    let markers = Markers {
+        center: shapespace_conformal::CenterMarker::Vertex(4),
+        ..Markers::default()
+    };
+    match disk_map(&m, &markers, &DiskMapParams::default()) {
+        Err(
+            e @ ConformalError::CutOffInterior {
+                vertex: 9,
+                count: 1,
+                by_flips: false,
+            },
+        ) => {
+            assert!(e.to_string().contains("shapespace prepare"), "{e}");
+        }
+        other => panic!("{:?}", other.map(|d| d.quality)),
+    }
+    let (prepared, _, report) = shapespace_geometry::prepare::prepare_disk(&m, &Default::default()).unwrap();
+    assert_eq!(report.bridges_split, 3);
+    // (the 17-vertex strip itself is too coarse for an unfolded map: refine it, same surface)
+    let fine = subdivide_midpoint(&subdivide_midpoint(&prepared).unwrap()).unwrap();
+    let map = disk_map(&fine, &markers, &DiskMapParams::default()).unwrap();
+    let r = |v: usize| map.uv[v][0].hypot(map.uv[v][1]);
+    assert!(r(9) < 0.99 && r(9) > 0.1, "|z(9)| = {}", r(9));
+    assert_eq!(r(4), 0.0);
+    assert_eq!(map.quality.num_flipped, 0);
 }
