@@ -665,3 +665,43 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         quality: fin.quality,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An interior log-radius ≥ 0: with non-negative weights (and a connected interior) the
+    /// exact value is < 0, so it is crowding below the rounding of the solve; with negative
+    /// weights the maximum principle itself may fail. Just below 0 (above −1e-10): crowding.
+    #[test]
+    fn interior_log_radius_at_or_above_zero_is_classified() {
+        let theta = [0.0, 0.5, 1.0];
+        let is_boundary = [false, false, true];
+        for (x, maximum_principle, crowding) in [
+            (1e-17, true, true),
+            (0.0, true, true),
+            (1e-17, false, false),
+            (-1e-12, false, true),
+        ] {
+            let a = [-3.0, x, 0.0];
+            match exp_map(&a, &theta, 0, &is_boundary, maximum_principle) {
+                Err(ConformalError::OutOfRange {
+                    element, log10_value, ..
+                }) => {
+                    assert!(crowding, "{x} {maximum_principle}");
+                    assert_eq!(element, "vertex 1");
+                    assert!(log10_value < -10.0, "{log10_value}");
+                }
+                Err(ConformalError::InteriorOutsideDisk { vertex: 1, radius }) => {
+                    assert!(!crowding, "{x} {maximum_principle}");
+                    assert!(radius >= 1.0);
+                }
+                other => panic!("{x} {maximum_principle}: {other:?}"),
+            }
+        }
+        // a regular interior value passes
+        let z = exp_map(&[-3.0, -0.5, 0.0], &theta, 0, &is_boundary, true).unwrap();
+        assert_eq!(z[0], [0.0, 0.0]);
+        assert!(((z[1][0].hypot(z[1][1])) - (-0.5f64).exp()).abs() < 1e-15);
+    }
+}
