@@ -345,6 +345,20 @@ fn exp_map(
     Ok(z)
 }
 
+/// Boundary edges a → b (surface on the left) whose images turn clockwise around the origin
+/// (arg(z_b / z_a) < 0): the boundary is out of order on the circle there, and the face at the
+/// edge folds whatever the interior vertices do.
+fn boundary_out_of_order(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
+    shapespace_geometry::Connectivity::of(mesh)
+        .boundary_halfedges(&mesh.faces)
+        .iter()
+        .filter(|[a, b]| {
+            let (p, q) = (uv[*a as usize], uv[*b as usize]);
+            p[0] * q[1] - p[1] * q[0] < 0.0
+        })
+        .count()
+}
+
 /// Every interior vertex must be reachable from `center` through interior vertices of the
 /// triangulation the Laplacian is built on: the Dirichlet problems of the map are zero on any
 /// other part of the interior ([`ConformalError::CutOffInterior`]). Checked on the input
@@ -501,6 +515,7 @@ pub(crate) fn finish(
             num_flipped: summary.num_flipped + summary.num_degenerate,
             first_face: first,
             flipped_area_fraction: summary.flipped_area_fraction,
+            boundary_out_of_order: boundary_out_of_order(mesh, &uv),
         });
     }
     let mut face_densities = Vec::with_capacity(mesh.num_faces());
@@ -703,5 +718,17 @@ mod tests {
         let z = exp_map(&[-3.0, -0.5, 0.0], &theta, 0, &is_boundary, true).unwrap();
         assert_eq!(z[0], [0.0, 0.0]);
         assert!(((z[1][0].hypot(z[1][1])) - (-0.5f64).exp()).abs() < 1e-15);
+    }
+
+    /// Two neighbouring boundary vertices swapped on the circle: exactly the edge between them
+    /// runs clockwise.
+    #[test]
+    fn boundary_edges_running_clockwise_are_counted() {
+        let mesh = shapespace_geometry::primitives::unit_disk(3);
+        let mut uv: Vec<[f64; 2]> = mesh.positions.iter().map(|p| [p[0], p[1]]).collect();
+        assert_eq!(boundary_out_of_order(&mesh, &uv), 0);
+        let loop0 = shapespace_geometry::Connectivity::of(&mesh).boundary_loops(&mesh.faces)[0].clone();
+        uv.swap(loop0[4] as usize, loop0[5] as usize);
+        assert_eq!(boundary_out_of_order(&mesh, &uv), 1);
     }
 }
