@@ -55,7 +55,7 @@ use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
-use crate::green::{conjugate_angle, green_function};
+use crate::green::{boundary_angles_from_flux, conjugate_angle, green_function};
 use crate::intrinsic::IntrinsicTriangulation;
 use crate::markers::{resolve_markers, Markers, ResolvedCenter, ResolvedMarkers};
 use crate::mobius::Mobius;
@@ -137,6 +137,10 @@ pub struct DiskMapInfo {
     pub negative_weights_after: usize,
     /// Vertices moved by the fold repair (0 when the raw map has no fold).
     pub fold_repairs: usize,
+    /// Whether the boundary angles came from the normal flux of the log-radius
+    /// ([`crate::green::boundary_angles_from_flux`]) because the least-squares conjugate put
+    /// boundary vertices out of order on the circle.
+    pub boundary_from_flux: bool,
     /// Number of sparse linear solves (2, or 4 when the fallback route was needed).
     pub linear_solves: usize,
     /// Stage timings.
@@ -637,6 +641,17 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         linear_solves += 2;
         z = exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0)?;
     }
+    // boundary order: the least-squares conjugate can run backwards along an irregular
+    // boundary (libigl decimated-max cut open); then the boundary angles come from the flux
+    let mut boundary_from_flux = false;
+    if boundary_out_of_order(mesh, &z) > 0 {
+        let loops = shapespace_geometry::Connectivity::of(mesh).boundary_loops(&mesh.faces);
+        if let Some(boundary_loop) = loops.first() {
+            theta = boundary_angles_from_flux(&tri, &u, boundary_loop, &theta);
+            z = exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0)?;
+            boundary_from_flux = true;
+        }
+    }
     let t4 = Instant::now();
     let fin = finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds)?;
     let t5 = Instant::now();
@@ -667,6 +682,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             negative_weights_before,
             negative_weights_after,
             fold_repairs: fin.fold_repairs,
+            boundary_from_flux,
             linear_solves,
             timings: DiskMapTimings {
                 setup: secs(t0, t1),
