@@ -4,8 +4,8 @@
 //! `cargo run --release -p shapespace-analysis --example camel_probe [-- MESH]`.
 #[path = "common/newton_log.rs"]
 mod newton_log;
-use shapespace_analysis::area_preserving::{domain_measure, domain_polygon, weighted_target_masses, Domain};
-use shapespace_conformal::{disk_map, DiskMapParams, Markers};
+use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
+use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::subdivide_midpoint;
 
 fn main() {
@@ -22,22 +22,10 @@ fn main() {
             }
         }
     };
-    let c = disk_map(&mesh, &Markers::default(), &DiskMapParams::default()).unwrap();
-    let s2 = c.scale * c.scale;
-    let thirds: Vec<f64> = shapespace_geometry::quantities::vertex_dual_areas(&mesh)
-        .iter()
-        .map(|a| a * s2)
-        .collect();
-    let nu = weighted_target_masses(&thirds, None).unwrap();
-    let nb = shapespace_geometry::Connectivity::of(&mesh)
-        .boundary_vertices(mesh.num_vertices())
-        .iter()
-        .filter(|&&b| b)
-        .count();
-    let poly = domain_polygon(Domain::Disk, (8 * nb).max(1024)).unwrap();
-    let measure = domain_measure(Domain::Disk, &poly).unwrap();
+    let problem = transport_problem(&mesh, &Markers::default(), &AreaPreservingParams::default()).unwrap();
+    let (measure, c, nu) = (&problem.measure, &problem.conformal, &problem.target_masses);
     for _ in 0..2 {
-        let sol = shapespace_omt::solve_ot(&measure, &c.uv, &nu, &Default::default()).unwrap();
+        let sol = shapespace_omt::solve_ot(measure, &c.uv, nu, &Default::default()).unwrap();
         newton_log::print_newton_log(&sol);
         println!(
             "it {} evals {} start {:?} t_start {:.3} total {:.3} stop {}",

@@ -4,8 +4,8 @@
 //! thresholds t, the clusters (components of the graph of Delaunay edges shorter than
 //! t × spacing): count, largest, their total target mass, and the worst separation ratio
 //! (cluster diameter / distance from the cluster to its nearest outside point).
-use shapespace_analysis::area_preserving::weighted_target_masses;
-use shapespace_conformal::{disk_map, DiskMapParams, Markers};
+use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
+use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
 use shapespace_omt::power_diagram::PowerDiagram;
 
@@ -32,13 +32,8 @@ fn main() {
     for name in std::env::args().skip(1) {
         let mesh = shapespace_geometry::io::read_mesh(&tosca.join(format!("{name}.off"))).unwrap();
         let (mesh, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
-        let c = disk_map(&mesh, &Markers::default(), &DiskMapParams::default()).unwrap();
-        let s2 = c.scale * c.scale;
-        let thirds: Vec<f64> = shapespace_geometry::quantities::vertex_dual_areas(&mesh)
-            .iter()
-            .map(|a| a * s2)
-            .collect();
-        let nu = weighted_target_masses(&thirds, None).unwrap();
+        let problem = transport_problem(&mesh, &Markers::default(), &AreaPreservingParams::default()).unwrap();
+        let (c, nu) = (&problem.conformal, &problem.target_masses);
         let y = &c.uv;
         let n = y.len();
         let spacing = (std::f64::consts::PI / n as f64).sqrt();

@@ -6,8 +6,8 @@
 //! `cargo run --release -p shapespace-analysis --example param_start_probe -- MESH...`
 use std::time::Instant;
 
-use shapespace_analysis::area_preserving::{domain_measure, domain_polygon, weighted_target_masses, Domain};
-use shapespace_conformal::{disk_map, DiskMapParams, Markers};
+use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
+use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::{prepare_disk, subdivide_midpoint, PrepareOptions};
 use shapespace_geometry::Connectivity;
 use shapespace_omt::newton::{integrate_at_heights, CellIntegrator, Start};
@@ -27,29 +27,17 @@ fn main() {
                 prepare_disk(&m, &PrepareOptions::default()).unwrap().0
             }
         };
-        let c = match disk_map(&mesh, &Markers::default(), &DiskMapParams::default()) {
-            Ok(c) => c,
+        let problem = match transport_problem(&mesh, &Markers::default(), &AreaPreservingParams::default()) {
+            Ok(p) => p,
             Err(e) => {
-                println!("{arg}: disk map failed: {e}");
+                println!("{arg}: {e}");
                 continue;
             }
         };
-        let s2 = c.scale * c.scale;
-        let thirds: Vec<f64> = shapespace_geometry::quantities::vertex_dual_areas(&mesh)
-            .iter()
-            .map(|a| a * s2)
-            .collect();
-        let nu = weighted_target_masses(&thirds, None).unwrap();
-        let nb = Connectivity::of(&mesh)
-            .boundary_vertices(mesh.num_vertices())
-            .iter()
-            .filter(|&&b| b)
-            .count();
-        let poly = domain_polygon(Domain::Disk, (8 * nb).max(1024)).unwrap();
-        let measure = domain_measure(Domain::Disk, &poly).unwrap();
+        let (measure, c, nu) = (&problem.measure, &problem.conformal, &problem.target_masses);
         let h0: Vec<f64> = c.uv.iter().map(|y| -0.5 * (y[0] * y[0] + y[1] * y[1])).collect();
-        let cells = integrate_at_heights(&measure, &c.uv, &h0, CellIntegrator::Restricted).unwrap();
-        let ratios: Vec<f64> = cells.masses.iter().zip(&nu).map(|(m, n)| m / n).collect();
+        let cells = integrate_at_heights(measure, &c.uv, &h0, CellIntegrator::Restricted).unwrap();
+        let ratios: Vec<f64> = cells.masses.iter().zip(nu).map(|(m, n)| m / n).collect();
         let (lo, hi) = ratios
             .iter()
             .fold((f64::INFINITY, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
@@ -68,7 +56,7 @@ fn main() {
                 ..Default::default()
             };
             let t = Instant::now();
-            let sol = solve_ot(&measure, &c.uv, &nu, &params).unwrap();
+            let sol = solve_ot(measure, &c.uv, nu, &params).unwrap();
             let coarse = match sol.start {
                 Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
                 _ => 0,

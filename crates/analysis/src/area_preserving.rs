@@ -355,6 +355,53 @@ pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> R
     Ok(raw.iter().map(|m| m * std::f64::consts::PI / total).collect())
 }
 
+/// The OT problem of [`area_preserving_map`] (Su et al. 2015, Algorithm 2, steps 1–2): the
+/// conformal disk map φ, the targets y_i = φ(v_i) with masses ν_i (one third of the one-ring
+/// area of the surface scaled to π, times the weights, renormalized to π), and the source: Ω
+/// with the uniform density (the disk as a K-gon of area π, K = max(1024, 8 × boundary
+/// vertices) unless set, or the square).
+#[derive(Clone, Debug)]
+pub struct TransportProblem {
+    /// The conformal map; its `uv` are the target points.
+    pub conformal: DiskMap,
+    /// ν_i, #V (Σ = π).
+    pub target_masses: Vec<f64>,
+    /// Whether each vertex lies on the mesh boundary, #V.
+    pub is_boundary: Vec<bool>,
+    /// The domain polygon Ω (counter-clockwise).
+    pub polygon: Vec<[f64; 2]>,
+    /// The uniform measure on Ω.
+    pub measure: SourceMeasure,
+}
+
+/// Builds the [`TransportProblem`] of `mesh` (errors of the conformal map, the weights or the
+/// domain).
+pub fn transport_problem(
+    mesh: &TriMesh,
+    markers: &Markers,
+    params: &AreaPreservingParams,
+) -> Result<TransportProblem, AnalysisError> {
+    let conformal = disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?;
+    let scale2 = conformal.scale * conformal.scale;
+    let thirds: Vec<f64> = vertex_dual_areas(mesh).iter().map(|a| a * scale2).collect();
+    let target_masses = weighted_target_masses(&thirds, params.weights.as_deref())?;
+    let is_boundary = Connectivity::of(mesh).boundary_vertices(mesh.num_vertices());
+    let num_boundary = is_boundary.iter().filter(|&&b| b).count();
+    let k = match params.domain {
+        Domain::Disk => params.disk_polygon_vertices.unwrap_or((8 * num_boundary).max(1024)),
+        Domain::Square => 4,
+    };
+    let polygon = domain_polygon(params.domain, k)?;
+    let measure = domain_measure(params.domain, &polygon)?;
+    Ok(TransportProblem {
+        conformal,
+        target_masses,
+        is_boundary,
+        polygon,
+        measure,
+    })
+}
+
 /// The area-preserving map of a disk-type `mesh` (#V positions, #F faces) onto the unit disk or
 /// the square, by composing its conformal disk map with the inverse OT map (module docs;
 /// Su et al. 2015, Alg. 2).
@@ -368,21 +415,14 @@ pub fn area_preserving_map(
     params: &AreaPreservingParams,
 ) -> Result<AreaPreservingMap, AnalysisError> {
     let t0 = Instant::now();
-    let conformal = disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?;
+    let TransportProblem {
+        conformal,
+        target_masses,
+        is_boundary,
+        polygon,
+        measure,
+    } = transport_problem(mesh, markers, params)?;
     let t1 = Instant::now();
-
-    let n = mesh.num_vertices();
-    let scale2 = conformal.scale * conformal.scale;
-    let thirds: Vec<f64> = vertex_dual_areas(mesh).iter().map(|a| a * scale2).collect();
-    let target_masses = weighted_target_masses(&thirds, params.weights.as_deref())?;
-    let is_boundary = Connectivity::of(mesh).boundary_vertices(n);
-    let num_boundary = is_boundary.iter().filter(|&&b| b).count();
-    let k = match params.domain {
-        Domain::Disk => params.disk_polygon_vertices.unwrap_or((8 * num_boundary).max(1024)),
-        Domain::Square => 4,
-    };
-    let polygon = domain_polygon(params.domain, k)?;
-    let measure = domain_measure(params.domain, &polygon)?;
     let solution =
         solve_ot(&measure, &conformal.uv, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
     let solution = if params.require_convergence {

@@ -891,6 +891,19 @@ mod tests {
         (mesh, is_boundary, uv)
     }
 
+    /// `reference` with vertex v pushed past its neighbour `far` by half an edge, so that v's
+    /// star folds, and the number of flipped faces (at least 2).
+    fn pushed_past(mesh: &TriMesh, reference: &[[f64; 2]], v: usize, far: usize) -> (Vec<[f64; 2]>, usize) {
+        let mut uv = reference.to_vec();
+        uv[v] = [
+            reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]),
+            reference[far][1] + 0.5 * (reference[far][1] - reference[v][1]),
+        ];
+        let (flipped, _, _) = folded_faces(&mesh.faces, &uv);
+        assert!(flipped >= 2, "the push should fold faces, got {flipped}");
+        (uv, flipped)
+    }
+
     #[test]
     fn validity_uses_orientation_and_an_area_floor() {
         assert!(face_is_valid([0.0, 0.0], [1.0, 0.0], [0.0, 1.0]));
@@ -1083,14 +1096,7 @@ mod tests {
                 d(a).total_cmp(&d(b))
             })
             .unwrap() as usize;
-        let mut uv = reference.clone();
-        // push v past `far` by half an edge: v's star folds
-        uv[v] = [
-            reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]),
-            reference[far][1] + 0.5 * (reference[far][1] - reference[v][1]),
-        ];
-        let (flipped, _, _) = folded_faces(&mesh.faces, &uv);
-        assert!(flipped >= 2, "the push should fold faces, got {flipped}");
+        let (uv, flipped) = pushed_past(&mesh, &reference, v, far);
         for kind in [RepairWeights::Layout, RepairWeights::Surface] {
             let mut out = uv.clone();
             // the Tutte rounds alone (the kernel untangling would fix this fold by itself: see
@@ -1139,13 +1145,7 @@ mod tests {
         let conn = Connectivity::of(&mesh);
         let neighbors = conn.vertex_neighbors(mesh.num_vertices());
         let far = neighbors[v][0] as usize;
-        let mut uv = reference.clone();
-        uv[v] = [
-            reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]),
-            reference[far][1] + 0.5 * (reference[far][1] - reference[v][1]),
-        ];
-        let (flipped, _, _) = folded_faces(&mesh.faces, &uv);
-        assert!(flipped >= 2, "the push should fold faces, got {flipped}");
+        let (uv, flipped) = pushed_past(&mesh, &reference, v, far);
         let mut out = uv.clone();
         let info = repair_folds(&mesh, &is_boundary, &mut out, &FoldRepairParams::default()).unwrap();
         assert_eq!(folded_faces(&mesh.faces, &out).2.len(), 0, "{info:?}");
@@ -1238,11 +1238,7 @@ mod tests {
             .find(|&v| !is_boundary[v] && (reference[v][0].hypot(reference[v][1]) - 0.5).abs() < 1e-9)
             .unwrap();
         let far = neighbors[v][0] as usize;
-        let mut uv = reference.clone();
-        uv[v] = [
-            reference[far][0] + 0.5 * (reference[far][0] - reference[v][0]),
-            reference[far][1] + 0.5 * (reference[far][1] - reference[v][1]),
-        ];
+        let (mut uv, _) = pushed_past(&mesh, &reference, v, far);
         let mut fixed = is_boundary.clone();
         let pinned = neighbors[v]
             .iter()
