@@ -7,7 +7,7 @@ use shapespace_omt::OtSolution;
 pub fn print_newton_log(sol: &OtSolution) {
     for (k, r) in sol.log.iter().enumerate() {
         println!(
-            "{k:3} err {:.2e} tau {:.4} halv {} rejm {} rejn {} minmass {:.2e} diag {:.3} integ {:.3} solve {:.3}",
+            "{k:3} err {:.2e} tau {:.3e} halv {} rejm {} rejn {} minmass {:.2e} diag {:.3} integ {:.3} solve {:.3}",
             r.max_relative_error,
             r.step,
             r.halvings,
