@@ -1418,7 +1418,7 @@ mod tests {
         // michael0-like: τ oscillating around 1e-14 (some steps accepted at the first trial),
         // the error flat
         let plateau: Vec<_> = (0..21)
-            .map(|k| record(5640.0, 1e-14 * [1.0, 3.0, 0.4, 6.0][k % 4], (k % 3) as usize))
+            .map(|k| record(5640.0, 1e-14 * [1.0, 3.0, 0.4, 6.0][k % 4], k % 3))
             .collect();
         assert!(flat_without_growth(&plateau));
         assert!(!no_progress(&plateau));
