@@ -35,7 +35,7 @@ enum Command {
     Ot(cmd::ot::OtArgs),
     /// Area-preserving parameterization onto the disk or square by optimal mass transport (OBJ with vt, report, plots).
     Param(cmd::param::ParamArgs),
-    /// Make a disk-topology mesh: drop unreferenced vertices and smaller components, orient, cut a disk out of a closed surface, fill all holes but the longest.
+    /// Make a disk-topology mesh: drop unreferenced vertices and smaller components, orient, cut a disk out of a closed surface, fill all holes but the longest, split edges between boundary vertices that cut the interior apart.
     Prepare(cmd::prepare::PrepareArgs),
     /// Register a source disk surface onto a target through disk maps and a landmark-constrained harmonic map (correspondence CSV, metrics, histograms).
     Register(cmd::register::RegisterArgs),

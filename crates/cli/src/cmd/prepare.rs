@@ -2,7 +2,8 @@
 //! a disk-topology mesh for the other commands, by the explicit operations of
 //! [`shapespace_geometry::prepare::prepare_disk`] (drop unreferenced vertices, keep the largest
 //! component, orient consistently, cut a disk out of a closed surface, fill all holes but the
-//! longest). Prints what it did.
+//! longest, split the edges between two boundary vertices when they cut interior vertices off).
+//! Prints what it did.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -28,7 +29,7 @@ pub struct PrepareArgs {
     #[arg(long, default_value_t = 3)]
     pub cut_rings: usize,
     /// Also write CSV `vertex,input_vertex` (input_vertex empty for vertices added by hole
-    /// filling), so per-vertex data and landmarks can follow.
+    /// filling or edge splits), so per-vertex data and landmarks can follow.
     #[arg(long)]
     pub vertex_map: Option<PathBuf>,
 }
