@@ -555,6 +555,58 @@ fn prepare_makes_disks_that_conformal_accepts() {
     );
 }
 
+/// A disk whose interior an edge between two boundary vertices cuts apart: `conformal` names
+/// the cut-off vertex and points to `prepare`, which splits such edges (the vertex map leaves
+/// the new vertices without an input vertex) and says so.
+#[test]
+fn prepare_splits_edges_that_cut_the_interior() {
+    let dir = scratch("bridges");
+    let strip = dir.join("strip.obj");
+    let mesh = shapespace_geometry::primitives::pinched_strip();
+    shapespace_geometry::io::write_mesh(&strip, &mesh).unwrap();
+    let out = shapespace(&[
+        "conformal",
+        strip.to_str().unwrap(),
+        "--center",
+        "4",
+        "--out",
+        dir.join("x.obj").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(
+        err.contains("strip.obj") && err.contains("vertex 9") && err.contains("shapespace prepare"),
+        "{err}"
+    );
+    let disk = dir.join("strip_disk.obj");
+    let map = dir.join("map.csv");
+    let out = shapespace(&[
+        "prepare",
+        strip.to_str().unwrap(),
+        "--out",
+        disk.to_str().unwrap(),
+        "--vertex-map",
+        map.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("split 3 edges joining two boundary vertices"),
+        "{}",
+        stderr(&out)
+    );
+    let prepared = shapespace_geometry::io::read_mesh(&disk).unwrap();
+    assert_eq!(prepared.num_vertices(), 17);
+    assert_eq!(shapespace_geometry::prepare::interior_components(&prepared).1, 1);
+    let rows: Vec<String> = std::fs::read_to_string(&map)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(String::from)
+        .collect();
+    assert_eq!(rows.len(), 17);
+    assert!(rows[14..].iter().all(|r| r.ends_with(',')), "{rows:?}");
+}
+
 /// A center point beyond the coordinate range says so (it said "no face to project the center
 /// onto"), and an unknown `--domain` lists the valid values (it said "reading circle: No such
 /// file").
