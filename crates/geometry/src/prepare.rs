@@ -516,20 +516,13 @@ pub fn subdivide_midpoint(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
 pub fn boundary_bridges(mesh: &TriMesh) -> Vec<[u32; 2]> {
     let conn = Connectivity::of(mesh);
     let on_boundary = conn.boundary_vertices(mesh.num_vertices());
-    let mut count: HashMap<(u32, u32), u32> = HashMap::new();
-    for f in &mesh.faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-        }
-    }
-    let mut bridges: Vec<[u32; 2]> = count
-        .into_iter()
-        .filter(|&((a, b), c)| c == 2 && on_boundary[a as usize] && on_boundary[b as usize])
-        .map(|((a, b), _)| [a, b])
-        .collect();
-    bridges.sort_unstable();
-    bridges
+    // `edges` is sorted and each is (min, max)
+    conn.edges
+        .iter()
+        .zip(&conn.edge_faces)
+        .filter(|(e, f)| f.len() == 2 && on_boundary[e[0] as usize] && on_boundary[e[1] as usize])
+        .map(|(e, _)| *e)
+        .collect()
 }
 
 /// Component label per vertex of the graph of interior vertices joined by edges between two
@@ -599,7 +592,7 @@ pub fn split_edges(mesh: &TriMesh, edges: &[[u32; 2]]) -> Result<TriMesh, Geomet
             // rotate so the edge is (t[0], t[1]) in the face's own order
             let k = (0..3)
                 .find(|&k| key(t[k], t[(k + 1) % 3]) == key(a, b))
-                .expect("the face holds the edge");
+                .ok_or_else(|| GeometryError::Topology(format!("face {f} lost edge {a}-{b} while splitting")))?;
             let (u, v, w) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
             out.faces[f] = [u, m, w];
             out.faces.push([m, v, w]);
@@ -688,10 +681,10 @@ pub struct PrepareReport {
 /// [`split_edges`]).
 ///
 /// Returns the mesh, the map from its vertices to the input's (`None` for vertices added by hole
-/// filling or edge splits; the others keep their relative order) and what was done. Errors: an invalid mesh, a
-/// non-orientable or non-manifold surface, a cut centre out of range or removed by an earlier
-/// step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1, which a disk
-/// cut leaves with handles: the error names the genus).
+/// filling or edge splits; the others keep their relative order) and what was done. Errors: an
+/// invalid mesh, a non-orientable or non-manifold surface, a cut centre out of range or removed
+/// by an earlier step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1,
+/// which a disk cut leaves with handles: the error names the genus).
 pub fn prepare_disk(
     mesh: &TriMesh,
     options: &PrepareOptions,
