@@ -353,9 +353,26 @@ fn exp_map(
 /// (arg(z_b / z_a) < 0): the boundary is out of order on the circle there, and the face at the
 /// edge folds whatever the interior vertices do.
 fn boundary_out_of_order(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
-    shapespace_geometry::Connectivity::of(mesh)
-        .boundary_halfedges(&mesh.faces)
-        .iter()
+    clockwise_edges(
+        shapespace_geometry::Connectivity::of(mesh)
+            .boundary_halfedges(&mesh.faces)
+            .into_iter(),
+        uv,
+    )
+}
+
+/// [`boundary_out_of_order`] from the boundary half-edges of a triangulation (no twin; the
+/// intrinsic flips keep them), without building the mesh connectivity.
+fn boundary_out_of_order_tri(tri: &IntrinsicTriangulation, uv: &[[f64; 2]]) -> usize {
+    let halfedges = (0..tri.tail.len() as u32)
+        .filter(|&h| tri.twin[h as usize] == crate::intrinsic::NONE)
+        .map(|h| [tri.tail[h as usize], tri.head(h)]);
+    clockwise_edges(halfedges, uv)
+}
+
+/// How many of the directed edges a → b turn clockwise around the origin.
+fn clockwise_edges(edges: impl Iterator<Item = [u32; 2]>, uv: &[[f64; 2]]) -> usize {
+    edges
         .filter(|[a, b]| {
             let (p, q) = (uv[*a as usize], uv[*b as usize]);
             p[0] * q[1] - p[1] * q[0] < 0.0
@@ -644,7 +661,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     // boundary order: the least-squares conjugate can run backwards along an irregular
     // boundary (libigl decimated-max cut open); then the boundary angles come from the flux
     let mut boundary_from_flux = false;
-    if boundary_out_of_order(mesh, &z) > 0 {
+    if boundary_out_of_order_tri(&tri, &z) > 0 {
         let loops = shapespace_geometry::Connectivity::of(mesh).boundary_loops(&mesh.faces);
         if let Some(boundary_loop) = loops.first() {
             theta = boundary_angles_from_flux(&tri, &u, boundary_loop, &theta);
@@ -742,9 +759,12 @@ mod tests {
     fn boundary_edges_running_clockwise_are_counted() {
         let mesh = shapespace_geometry::primitives::unit_disk(3);
         let mut uv: Vec<[f64; 2]> = mesh.positions.iter().map(|p| [p[0], p[1]]).collect();
+        let tri = IntrinsicTriangulation::from_mesh(&mesh).unwrap();
         assert_eq!(boundary_out_of_order(&mesh, &uv), 0);
+        assert_eq!(boundary_out_of_order_tri(&tri, &uv), 0);
         let loop0 = shapespace_geometry::Connectivity::of(&mesh).boundary_loops(&mesh.faces)[0].clone();
         uv.swap(loop0[4] as usize, loop0[5] as usize);
         assert_eq!(boundary_out_of_order(&mesh, &uv), 1);
+        assert_eq!(boundary_out_of_order_tri(&tri, &uv), 1);
     }
 }
