@@ -585,12 +585,12 @@ pub fn repair_folds(
     let input = uv.to_vec();
     if params.untangle_sweeps > 0 {
         info.untangle = untangle_kernels(&mesh.faces, &conn.vertex_faces, is_boundary, uv, params.untangle_sweeps);
-        bad = folded_faces(&mesh.faces, uv).2;
-        if bad.is_empty() {
+        if info.untangle.folded_after == 0 {
             info.folded_after = 0;
             count_moves(&input, uv, &mut info);
             return Ok(info);
         }
+        bad = folded_faces(&mesh.faces, uv).2;
     }
     let neighbors = conn.vertex_neighbors(n);
     let mut weights = tutte_weights(mesh, &neighbors, is_boundary, uv, params.weights)?;

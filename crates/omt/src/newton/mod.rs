@@ -78,14 +78,14 @@ const TAU_GROWTH_FREE: f64 = 4.0;
 /// 85 steps at τ ≈ 1e-30 with the error fixed at 20 before the iteration cap; a Voronoi start
 /// that still grows τ from 1e-26 by 4 per step is accepted at first trial and not affected.)
 const STALL_WINDOW: usize = 10;
+const STALL_TAU: f64 = 1e-20;
+const STALL_GAIN: f64 = 1e-3;
 /// The second stall rule ([`flat_without_growth`]): FLAT_WINDOW steps with τ < FLAT_TAU whose
 /// largest τ stopped growing (second half ≤ FLAT_GROWTH × first half) and that lowered the error
 /// by less than STALL_GAIN.
 const FLAT_WINDOW: usize = 20;
 const FLAT_TAU: f64 = 1e-9;
 const FLAT_GROWTH: f64 = 2.0;
-const STALL_TAU: f64 = 1e-20;
-const STALL_GAIN: f64 = 1e-3;
 
 /// Which cell integrator the solver calls.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
