@@ -85,6 +85,18 @@ pub enum ResolvedCenter {
     Face { face: u32, bary: [f64; 3] },
 }
 
+impl std::fmt::Display for ResolvedCenter {
+    /// `vertex 123`, or `face 12 at (0.2, 0.3, 0.5)` (barycentric).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ResolvedCenter::Vertex(v) => write!(f, "vertex {v}"),
+            ResolvedCenter::Face { face, bary } => {
+                write!(f, "face {face} at ({}, {}, {})", bary[0], bary[1], bary[2])
+            }
+        }
+    }
+}
+
 /// Markers checked against a mesh. Serialized as a marker file, `{"center": .., "boundary": q}`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ResolvedMarkers {
@@ -516,6 +528,16 @@ pub fn resolve_markers(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn resolved_center_reads_as_words() {
+        assert_eq!(ResolvedCenter::Vertex(4841).to_string(), "vertex 4841");
+        let face = ResolvedCenter::Face {
+            face: 12,
+            bary: [0.25, 0.25, 0.5],
+        };
+        assert_eq!(face.to_string(), "face 12 at (0.25, 0.25, 0.5)");
+    }
 
     #[test]
     fn parse_cli_strings() {

@@ -95,7 +95,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
         };
         let map = bff_disk_map(&mesh, &markers, &params).with_context(context)?;
         MapOutput {
-            center: format!("{:?}", map.info.markers.center),
+            center: map.info.markers.center.to_string(),
             boundary_vertex: map.info.markers.boundary_vertex,
             intrinsic_flips: map.info.intrinsic_flips,
             fold_repairs: map.info.fold_repairs,
@@ -121,7 +121,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
         };
         let map = disk_map(&mesh, &markers, &params).with_context(context)?;
         MapOutput {
-            center: format!("{:?}", map.info.markers.center),
+            center: map.info.markers.center.to_string(),
             boundary_vertex: map.info.markers.boundary_vertex,
             intrinsic_flips: map.info.intrinsic_flips,
             fold_repairs: map.info.fold_repairs,
