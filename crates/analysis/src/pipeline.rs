@@ -38,23 +38,34 @@ pub struct MarkerChoice {
     pub source: String,
 }
 
-/// The markers of one mesh file: command-line values first, then `marker_file`, then the
-/// sidecar (`NAME.landmarks.json`, else `landmarks.json` beside the mesh), else `auto`.
-pub fn markers_for(path: &Path, options: &MarkerOptions) -> Result<(Markers, String), AnalysisError> {
+/// The markers of one mesh file of `num_vertices` vertices: command-line values first, then
+/// `marker_file`, then the sidecar (`NAME.landmarks.json`, else `landmarks.json` beside the
+/// mesh), else `auto`. A marker file whose named landmarks lie outside the mesh's vertex range
+/// is an error even where the landmarks are not used (the file does not belong to the mesh).
+pub fn markers_for(
+    path: &Path,
+    options: &MarkerOptions,
+    num_vertices: usize,
+) -> Result<(Markers, String), AnalysisError> {
     let file = match &options.marker_file {
         Some(p) => Some(p.clone()),
         None => MarkerFile::sidecar_path(path),
     };
+    let shape_error = |message: String| AnalysisError::Shape {
+        name: path.display().to_string(),
+        message,
+    };
     let (mut markers, source) = match &file {
-        Some(p) => (
-            MarkerFile::from_json_file(p)
-                .map_err(|e| AnalysisError::Shape {
-                    name: path.display().to_string(),
-                    message: e.to_string(),
-                })?
-                .markers,
-            p.display().to_string(),
-        ),
+        Some(p) => {
+            let parsed = MarkerFile::from_json_file(p).map_err(|e| shape_error(e.to_string()))?;
+            if let Some((name, v)) = parsed.landmarks.iter().find(|(_, &v)| v as usize >= num_vertices) {
+                return Err(shape_error(format!(
+                    "marker file {}: landmark \"{name}\" is vertex {v}, out of range for a mesh of {num_vertices} vertices",
+                    p.display()
+                )));
+            }
+            (parsed.markers, p.display().to_string())
+        }
         None => (Markers::default(), "auto".to_string()),
     };
     if let Some(c) = &options.center {
@@ -201,7 +212,7 @@ pub fn run_distances(
                     name: name.clone(),
                     message: e.to_string(),
                 })?;
-                let (markers, source) = markers_for(path, &options.markers)?;
+                let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
                 let shape =
                     prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
                         name: path.display().to_string(),

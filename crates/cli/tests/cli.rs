@@ -607,6 +607,55 @@ fn prepare_splits_edges_that_cut_the_interior() {
     assert!(rows[14..].iter().all(|r| r.ends_with(',')), "{rows:?}");
 }
 
+/// A marker file whose named landmarks lie outside the mesh is an error for `conformal`,
+/// `param` and `distances` too (they do not use the landmarks, but the file does not belong to
+/// the mesh); in range, the same file is accepted.
+#[test]
+fn marker_file_landmarks_out_of_range_are_named() {
+    let dir = scratch("landmarks_range");
+    let mesh = dir.join("grid.obj");
+    std::fs::write(&mesh, grid_obj(1.0)).unwrap();
+    let mesh2 = dir.join("grid2.obj");
+    std::fs::write(&mesh2, grid_obj(2.0)).unwrap();
+    let bad = dir.join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"center": 12, "boundary": 0, "landmarks": {"nose": 12, "chin": 99999}}"#,
+    )
+    .unwrap();
+    let good = dir.join("good.json");
+    std::fs::write(
+        &good,
+        r#"{"center": 12, "boundary": 0, "landmarks": {"nose": 12, "chin": 24}}"#,
+    )
+    .unwrap();
+    for (cmd, out_name) in [("conformal", "c.obj"), ("param", "p.obj"), ("distances", "d")] {
+        let run = |file: &Path| {
+            let mut args = vec![cmd, mesh.to_str().unwrap()];
+            if cmd == "distances" {
+                args.push(mesh2.to_str().unwrap());
+            }
+            let out = dir.join(out_name);
+            args.extend(["--landmarks", file.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+            shapespace(&args)
+        };
+        let out = run(&bad);
+        let err = stderr(&out);
+        if cmd == "distances" {
+            // a failed shape is reported and the run goes on; both inputs fail here
+            assert!(err.contains("\"chin\" is vertex 99999"), "{cmd}: {err}");
+        } else {
+            assert_eq!(out.status.code(), Some(2), "{cmd}: {err}");
+            assert!(
+                err.contains("bad.json") && err.contains("\"chin\" is vertex 99999") && err.contains("25 vertices"),
+                "{cmd}: {err}"
+            );
+        }
+        let out = run(&good);
+        assert_eq!(out.status.code(), Some(0), "{cmd}: {}", stderr(&out));
+    }
+}
+
 /// A center point beyond the coordinate range says so (it said "no face to project the center
 /// onto"), and an unknown `--domain` lists the valid values (it said "reading circle: No such
 /// file").

@@ -86,7 +86,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
-    let (markers, marker_source) = args.markers.resolve(&args.input)?;
+    let (markers, marker_source) = args.markers.resolve(&args.input, mesh.num_vertices())?;
     let context = || format!("mapping {}", args.input.display());
     let map = if args.method == "bff" {
         let params = BffParams {

@@ -33,9 +33,9 @@ impl MarkerArgs {
         })
     }
 
-    /// The markers of the mesh file `path` (flags, then marker file, then sidecar, then auto)
-    /// and where they came from (the marker file's path, or `auto`).
-    pub fn resolve(&self, path: &Path) -> Result<(Markers, String)> {
-        Ok(markers_for(path, &self.options()?)?)
+    /// The markers of the mesh file `path` of `num_vertices` vertices (flags, then marker file,
+    /// then sidecar, then auto) and where they came from (the marker file's path, or `auto`).
+    pub fn resolve(&self, path: &Path, num_vertices: usize) -> Result<(Markers, String)> {
+        Ok(markers_for(path, &self.options()?, num_vertices)?)
     }
 }

@@ -105,7 +105,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk parameterization", args.input.display()))?;
-    let (markers, marker_source) = args.markers.resolve(&args.input)?;
+    let (markers, marker_source) = args.markers.resolve(&args.input, mesh.num_vertices())?;
     let weights = match &args.weights {
         Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),
         None => None,
