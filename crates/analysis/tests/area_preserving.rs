@@ -307,7 +307,7 @@ fn repair_off_reproduces_the_centroid_map() {
 /// coarse-to-fine start of the OT solver.)
 #[test]
 fn meshes_that_fail_report_why() {
-    let (mesh, markers) = load("datasets/disks/alligator.obj");
+    let (mesh, markers) = load("datasets/beyond_f64/alligator.obj");
     match area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()) {
         Err(AnalysisError::DiskMap(_)) => {}
         other => panic!(

@@ -476,7 +476,7 @@ fn main() {
     }
 
     // alligator: what BFF returns when its crowding check is switched off
-    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("disks/alligator.obj")) {
+    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("beyond_f64/alligator.obj")) {
         alligator_without_crowding_check(&mesh);
     }
 

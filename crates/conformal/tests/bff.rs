@@ -280,7 +280,7 @@ fn crowded_alligator_is_a_range_error_and_degrades_without_the_check() {
     // factors span 10^14): with the default crowding limit BFF refuses like the Green's map;
     // without it the map comes back unfolded but the tail's shape is lost in f64
     let Some(d) = datasets_dir() else { return };
-    let m = shapespace_geometry::io::read_mesh(&d.join("disks/alligator.obj")).unwrap();
+    let m = shapespace_geometry::io::read_mesh(&d.join("beyond_f64/alligator.obj")).unwrap();
     match bff_disk_map(&m, &Markers::default(), &BffParams::default()) {
         Err(ConformalError::OutOfRange { log10_value, .. }) => assert!(log10_value < -10.0),
         other => panic!("expected a crowding error, got {:?}", other.map(|d| d.quality)),
