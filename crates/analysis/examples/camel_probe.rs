@@ -31,5 +31,9 @@ fn main() {
             "it {} evals {} start {:?} t_start {:.3} total {:.3} stop {}",
             sol.iterations, sol.evaluations, sol.start, sol.t_start, sol.t_total, sol.stop
         );
+        println!(
+            "linear: assembly {:.3} s, {} symbolic ({} orderings) {:.3} s, numeric + solve {:.3} s",
+            sol.t_assembly, sol.symbolic_factorizations, sol.orderings, sol.t_symbolic, sol.t_numeric
+        );
     }
 }
