@@ -103,7 +103,10 @@ fn bundled_meshes(dir: &std::path::Path) -> Vec<(std::path::PathBuf, Markers)> {
     let mut paths: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| ["obj", "off", "ply"].contains(&x.to_str().unwrap_or(""))))
+        .filter(|p| {
+            p.extension()
+                .is_some_and(|x| ["obj", "off", "ply"].contains(&x.to_str().unwrap_or("")))
+        })
         .collect();
     paths.sort();
     paths
@@ -141,8 +144,7 @@ fn every_bundled_disk_maps_without_flips_and_beyond_f64_ones_are_refused() {
     assert_eq!(meshes.len(), 7 + 6 + 10, "bundled meshes");
     for (path, markers) in &meshes {
         let m = read_mesh(path).unwrap();
-        let dm = disk_map(&m, markers, &DiskMapParams::default())
-            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let dm = disk_map(&m, markers, &DiskMapParams::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let name = path.strip_prefix(&d).unwrap().display();
         assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0, "{name}");
         assert!(dm.face_densities.iter().all(|&x| x > 0.0 && x.is_finite()), "{name}");
@@ -159,7 +161,11 @@ fn every_bundled_disk_maps_without_flips_and_beyond_f64_ones_are_refused() {
         let m = read_mesh(path).unwrap();
         match disk_map(&m, markers, &DiskMapParams::default()) {
             Err(ConformalError::OutOfRange { log10_value, .. }) => assert!(log10_value < -10.0),
-            other => panic!("{}: expected a range error, got {:?}", path.display(), other.map(|d| d.quality)),
+            other => panic!(
+                "{}: expected a range error, got {:?}",
+                path.display(),
+                other.map(|d| d.quality)
+            ),
         }
     }
 }
