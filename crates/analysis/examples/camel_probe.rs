@@ -24,6 +24,10 @@ fn main() {
     };
     let problem = transport_problem(&mesh, &Markers::default(), &AreaPreservingParams::default()).unwrap();
     let (measure, c, nu) = (&problem.measure, &problem.conformal, &problem.target_masses);
+    println!(
+        "conformal: {} linear solves, {} intrinsic flips, {:?}",
+        c.info.linear_solves, c.info.intrinsic_flips, c.info.timings
+    );
     for _ in 0..2 {
         let sol = shapespace_omt::solve_ot(measure, &c.uv, nu, &Default::default()).unwrap();
         newton_log::print_newton_log(&sol);

@@ -55,7 +55,7 @@ use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
-use crate::green::{boundary_angles_from_flux, conjugate_angle, green_function};
+use crate::green::{boundary_angles_from_flux, green_function, ConjugateSystem};
 use crate::intrinsic::IntrinsicTriangulation;
 use crate::markers::{resolve_markers, Markers, ResolvedCenter, ResolvedMarkers};
 use crate::mobius::Mobius;
@@ -261,7 +261,10 @@ pub const MOBIUS_MIN_SCALE: f64 = 1e-8;
 pub const MOBIUS_MIN_GAP: f64 = 1e-6;
 
 /// Green's function u and conjugate angle θ with the given pole; adds the solve times to
-/// `times` = [green, conjugate].
+/// `times` = [green, conjugate]. The conjugate's matrix does not depend on u, so it is
+/// factorized in parallel with the Green's function solve (rayon::join; the two factorizations
+/// are the largest serial steps of the map); "green" is the wall time of that joint stage and
+/// "conjugate" the rest (right-hand side, solve, angles at the pole).
 fn solve_green_map(
     tri: &IntrinsicTriangulation,
     pole: u32,
@@ -269,11 +272,12 @@ fn solve_green_map(
     times: &mut [f64; 2],
 ) -> Result<(Vec<f64>, Vec<f64>), ConformalError> {
     let t = Instant::now();
-    let u = green_function(tri, pole)?;
+    let (u, conjugate) = rayon::join(|| green_function(tri, pole), || ConjugateSystem::new(tri, pole, pin));
+    let (u, conjugate) = (u?, conjugate?);
     times[0] += t.elapsed().as_secs_f64();
     let t = Instant::now();
     let a: Vec<f64> = u.iter().map(|x| -std::f64::consts::TAU * x).collect();
-    let theta = conjugate_angle(tri, pole, &a, pin)?;
+    let theta = conjugate.angle(tri, &a)?;
     times[1] += t.elapsed().as_secs_f64();
     Ok((a, theta))
 }
@@ -626,8 +630,12 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     // φ(p) to 0. Route 2 (fallback): Green's function at p itself, used when p lies where the
     // central map is too small to subtract a = φ(p) accurately (a protrusion) or too close to
     // the circle.
-    let central = crate::markers::central_vertex(mesh, &tri.is_boundary, &adj)
-        .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?;
+    let central = match (&markers.center, resolved.center) {
+        // the automatic center is the central vertex (resolved above by the same function)
+        (crate::markers::CenterMarker::Auto, ResolvedCenter::Vertex(v)) => v,
+        _ => crate::markers::central_vertex(mesh, &tri.is_boundary, &adj)
+            .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?,
+    };
     check_interior_connected(&tri, own_pole, true)?;
     let image_of_center = |z: &[[f64; 2]]| center_image(mesh, resolved.center, z);
     // smallest image distance from the center's image to the corners around it

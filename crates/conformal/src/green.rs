@@ -137,144 +137,199 @@ fn cut_path(
 
 /// The harmonic conjugate angle θ (#V, left-sheet values; θ[pole] = 0) of a = −2πu (#V), see
 /// the module docs; `pin` is the vertex whose angle is set to 0 (any vertex of the annulus).
+/// The same as [`ConjugateSystem::new`] followed by [`ConjugateSystem::angle`].
 pub fn conjugate_angle(
     tri: &IntrinsicTriangulation,
     pole: u32,
     a: &[f64],
     pin: u32,
 ) -> Result<Vec<f64>, ConformalError> {
-    let n = tri.num_vertices;
-    let nf = tri.num_faces();
-    let (start, list) = outgoing(tri);
-    let in_annulus: Vec<bool> = (0..nf).map(|f| !(0..3).any(|k| tri.tail[3 * f + k] == pole)).collect();
-    // corner offsets: 2π on the right side of the cut
-    let path = cut_path(tri, pole, &start, &list)?;
-    let mut offset = vec![0.0; tri.tail.len()];
-    for k in 0..path.len() {
-        let back = tri.twin[path[k] as usize]; // c_k → c_{k−1} (or → p)
-        let fwd = if k + 1 < path.len() { path[k + 1] } else { NONE };
-        let mut g = back;
-        let mut guard = 0;
-        while g != NONE && g != fwd {
-            if in_annulus[g as usize / 3] {
-                offset[g as usize] = TAU;
+    ConjugateSystem::new(tri, pole, pin)?.angle(tri, a)
+}
+
+/// The factorized normal equations K θ = B a − K o of the conjugate (module docs, step 2): K,
+/// the cut offsets o and −K o depend only on the triangulation and the pole, so K can be
+/// factorized while the Green's function is still being solved; [`ConjugateSystem::angle`]
+/// then adds B a and solves.
+pub struct ConjugateSystem {
+    pole: u32,
+    pin: u32,
+    in_annulus: Vec<bool>,
+    /// Unknown index of each vertex (u32::MAX: not an unknown).
+    index: Vec<u32>,
+    /// −K o.
+    offset_rhs: Vec<f64>,
+    solver: SpdSolver,
+}
+
+impl ConjugateSystem {
+    /// Builds and factorizes the annulus Laplacian K of `tri` around `pole`, with `pin` (or,
+    /// if `pin` is not in the annulus, its first vertex) held at 0.
+    pub fn new(tri: &IntrinsicTriangulation, pole: u32, pin: u32) -> Result<Self, ConformalError> {
+        let n = tri.num_vertices;
+        let nf = tri.num_faces();
+        let (start, list) = outgoing(tri);
+        let in_annulus: Vec<bool> = (0..nf).map(|f| !(0..3).any(|k| tri.tail[3 * f + k] == pole)).collect();
+        // corner offsets: 2π on the right side of the cut
+        let path = cut_path(tri, pole, &start, &list)?;
+        let mut offset = vec![0.0; tri.tail.len()];
+        for k in 0..path.len() {
+            let back = tri.twin[path[k] as usize]; // c_k → c_{k−1} (or → p)
+            let fwd = if k + 1 < path.len() { path[k + 1] } else { NONE };
+            let mut g = back;
+            let mut guard = 0;
+            while g != NONE && g != fwd {
+                if in_annulus[g as usize / 3] {
+                    offset[g as usize] = TAU;
+                }
+                g = tri.rotate_ccw(g);
+                guard += 1;
+                if guard > tri.tail.len() {
+                    return Err(ConformalError::NotDisk {
+                        reason: "cut vertex fan does not close".into(),
+                    });
+                }
             }
-            g = tri.rotate_ccw(g);
-            guard += 1;
-            if guard > tri.tail.len() {
-                return Err(ConformalError::NotDisk {
-                    reason: "cut vertex fan does not close".into(),
+        }
+        // unknowns: vertices touched by an annulus face, except the pin
+        let mut touched = vec![false; n];
+        for f in 0..nf {
+            if in_annulus[f] {
+                for k in 0..3 {
+                    touched[tri.tail[3 * f + k] as usize] = true;
+                }
+            }
+        }
+        let pin = if touched[pin as usize] {
+            pin
+        } else {
+            (0..n as u32).find(|&v| touched[v as usize]).unwrap_or(pin)
+        };
+        let mut index = vec![u32::MAX; n];
+        let mut m = 0usize;
+        for v in 0..n {
+            if touched[v] && v as u32 != pin {
+                index[v] = m as u32;
+                m += 1;
+            }
+        }
+        let mut trip = Vec::with_capacity(3 * nf + m);
+        let mut diag = vec![0.0; m];
+        let mut rhs = vec![0.0; m];
+        for f in 0..nf {
+            if !in_annulus[f] {
+                continue;
+            }
+            for k in 0..3 {
+                let h = (3 * f + k) as u32;
+                let (i, j) = (tri.tail[h as usize], tri.head(h));
+                let w = 0.5 * tri.cot_opposite(h); // K_ij = −w, K_ii += w, K_jj += w
+                let (oi, oj) = (offset[h as usize], offset[next(h) as usize]);
+                let (ii, jj) = (index[i as usize], index[j as usize]);
+                // −K o: row i gets −(w o_i − w o_j), row j gets −(w o_j − w o_i)
+                if ii != u32::MAX {
+                    diag[ii as usize] += w;
+                    rhs[ii as usize] -= w * (oi - oj);
+                }
+                if jj != u32::MAX {
+                    diag[jj as usize] += w;
+                    rhs[jj as usize] -= w * (oj - oi);
+                }
+                if ii != u32::MAX && jj != u32::MAX && ii != jj {
+                    let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
+                    trip.push(Triplet::new(r as usize, c as usize, -w));
+                }
+            }
+        }
+        trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
+        let solver = SpdSolver::new(m, &trip, "the annulus Laplacian (harmonic conjugate)")?;
+        Ok(ConjugateSystem {
+            pole,
+            pin,
+            in_annulus,
+            index,
+            offset_rhs: rhs,
+            solver,
+        })
+    }
+
+    /// The conjugate angle θ of a = −2πu (#V) by the factorized system (see [`conjugate_angle`]).
+    pub fn angle(&self, tri: &IntrinsicTriangulation, a: &[f64]) -> Result<Vec<f64>, ConformalError> {
+        let (pole, pin, in_annulus, index) = (self.pole, self.pin, &self.in_annulus, &self.index);
+        let n = tri.num_vertices;
+        let nf = tri.num_faces();
+        if a.len() != n {
+            return Err(ConformalError::LinearAlgebra(format!(
+                "conjugate: {} log-radii for {n} vertices",
+                a.len()
+            )));
+        }
+        let mut rhs = self.offset_rhs.clone();
+        for f in 0..nf {
+            if !in_annulus[f] {
+                continue;
+            }
+            for k in 0..3 {
+                let h = (3 * f + k) as u32;
+                // B a: corner i gets ½(a_prev − a_next), prev = tail(prev h), next = head(h)
+                let ii = index[tri.tail[h as usize] as usize];
+                if ii != u32::MAX {
+                    let pv = tri.tail[prev(h) as usize];
+                    rhs[ii as usize] += 0.5 * (a[pv as usize] - a[tri.head(h) as usize]);
+                }
+            }
+        }
+        let mut cols = vec![rhs];
+        self.solver.solve(&mut cols);
+        let mut theta = vec![0.0; n];
+        let mut known = vec![false; n];
+        known[pin as usize] = true;
+        known[pole as usize] = true;
+        for v in 0..n {
+            if index[v] != u32::MAX {
+                theta[v] = cols[0][index[v] as usize];
+                known[v] = true;
+            }
+        }
+        // vertices whose faces all contain the pole: angle at p from a known neighbour
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for f in 0..nf {
+                if in_annulus[f] {
+                    continue;
+                }
+                let k = (0..3).find(|&k| tri.tail[3 * f + k] == pole).unwrap_or(0);
+                let hp = (3 * f + k) as u32; // p → x
+                let (x, y) = (tri.head(hp), tri.head(next(hp))); // face (p, x, y) ccw
+                let l = [
+                    tri.length[hp as usize],
+                    tri.length[next(hp) as usize],
+                    tri.length[prev(hp) as usize],
+                ];
+                let angle_p = (l[0] * l[0] + l[2] * l[2] - l[1] * l[1]) / (2.0 * l[0] * l[2]);
+                let angle_p = angle_p.clamp(-1.0, 1.0).acos();
+                if known[x as usize] && !known[y as usize] {
+                    theta[y as usize] = theta[x as usize] + angle_p;
+                    known[y as usize] = true;
+                    changed = true;
+                } else if known[y as usize] && !known[x as usize] {
+                    theta[x as usize] = theta[y as usize] - angle_p;
+                    known[x as usize] = true;
+                    changed = true;
+                }
+            }
+        }
+        for v in 0..n {
+            if !theta[v].is_finite() {
+                return Err(ConformalError::NonFinite {
+                    stage: "harmonic conjugate",
+                    vertex: v,
                 });
             }
         }
+        Ok(theta)
     }
-    // unknowns: vertices touched by an annulus face, except the pin
-    let mut touched = vec![false; n];
-    for f in 0..nf {
-        if in_annulus[f] {
-            for k in 0..3 {
-                touched[tri.tail[3 * f + k] as usize] = true;
-            }
-        }
-    }
-    let pin = if touched[pin as usize] {
-        pin
-    } else {
-        (0..n as u32).find(|&v| touched[v as usize]).unwrap_or(pin)
-    };
-    let mut index = vec![u32::MAX; n];
-    let mut m = 0usize;
-    for v in 0..n {
-        if touched[v] && v as u32 != pin {
-            index[v] = m as u32;
-            m += 1;
-        }
-    }
-    let mut trip = Vec::with_capacity(3 * nf + m);
-    let mut diag = vec![0.0; m];
-    let mut rhs = vec![0.0; m];
-    for f in 0..nf {
-        if !in_annulus[f] {
-            continue;
-        }
-        for k in 0..3 {
-            let h = (3 * f + k) as u32;
-            let (i, j) = (tri.tail[h as usize], tri.head(h));
-            let w = 0.5 * tri.cot_opposite(h); // K_ij = −w, K_ii += w, K_jj += w
-            let (oi, oj) = (offset[h as usize], offset[next(h) as usize]);
-            let (ii, jj) = (index[i as usize], index[j as usize]);
-            // −K o: row i gets −(w o_i − w o_j), row j gets −(w o_j − w o_i)
-            if ii != u32::MAX {
-                diag[ii as usize] += w;
-                rhs[ii as usize] -= w * (oi - oj);
-            }
-            if jj != u32::MAX {
-                diag[jj as usize] += w;
-                rhs[jj as usize] -= w * (oj - oi);
-            }
-            if ii != u32::MAX && jj != u32::MAX && ii != jj {
-                let (r, c) = if ii > jj { (ii, jj) } else { (jj, ii) };
-                trip.push(Triplet::new(r as usize, c as usize, -w));
-            }
-            // B a: corner i gets ½(a_prev − a_next), prev = tail(prev h), next = head(h) = j
-            if ii != u32::MAX {
-                let pv = tri.tail[prev(h) as usize];
-                rhs[ii as usize] += 0.5 * (a[pv as usize] - a[j as usize]);
-            }
-        }
-    }
-    trip.extend(diag.iter().enumerate().map(|(i, &d)| Triplet::new(i, i, d)));
-    let solver = SpdSolver::new(m, &trip, "the annulus Laplacian (harmonic conjugate)")?;
-    let mut cols = vec![rhs];
-    solver.solve(&mut cols);
-    let mut theta = vec![0.0; n];
-    let mut known = vec![false; n];
-    known[pin as usize] = true;
-    known[pole as usize] = true;
-    for v in 0..n {
-        if index[v] != u32::MAX {
-            theta[v] = cols[0][index[v] as usize];
-            known[v] = true;
-        }
-    }
-    // vertices whose faces all contain the pole: angle at p from a known neighbour
-    let mut changed = true;
-    while changed {
-        changed = false;
-        for f in 0..nf {
-            if in_annulus[f] {
-                continue;
-            }
-            let k = (0..3).find(|&k| tri.tail[3 * f + k] == pole).unwrap_or(0);
-            let hp = (3 * f + k) as u32; // p → x
-            let (x, y) = (tri.head(hp), tri.head(next(hp))); // face (p, x, y) ccw
-            let l = [
-                tri.length[hp as usize],
-                tri.length[next(hp) as usize],
-                tri.length[prev(hp) as usize],
-            ];
-            let angle_p = (l[0] * l[0] + l[2] * l[2] - l[1] * l[1]) / (2.0 * l[0] * l[2]);
-            let angle_p = angle_p.clamp(-1.0, 1.0).acos();
-            if known[x as usize] && !known[y as usize] {
-                theta[y as usize] = theta[x as usize] + angle_p;
-                known[y as usize] = true;
-                changed = true;
-            } else if known[y as usize] && !known[x as usize] {
-                theta[x as usize] = theta[y as usize] - angle_p;
-                known[x as usize] = true;
-                changed = true;
-            }
-        }
-    }
-    for v in 0..n {
-        if !theta[v].is_finite() {
-            return Err(ConformalError::NonFinite {
-                stage: "harmonic conjugate",
-                vertex: v,
-            });
-        }
-    }
-    Ok(theta)
 }
 
 /// Boundary angles from the discrete normal flux of the log-radius `a` (a = 0 on the
