@@ -80,11 +80,27 @@ pub struct NewtonSystem {
     /// Number of those that computed a new (AMD) ordering (all of them, but with
     /// [`LinearSolver::CholeskyReusedOrdering`]).
     pub orderings: usize,
-    /// Seconds spent in assembly, symbolic factorization and numeric factorization + solve.
+    /// Seconds spent in assembly, symbolic factorization and numeric factorization + solve
+    /// (`t_symbolic` and the counts above include adopted speculative factorizations, whose
+    /// time overlapped an integration).
     pub t_assembly: f64,
     pub t_symbolic: f64,
     pub t_numeric: f64,
 }
+
+/// A symbolic factorization computed ahead of need (see [`NewtonSystem::speculate`]).
+pub struct SpeculativeSymbolic {
+    /// The pattern it was computed for: the system's pattern when speculating, united with the
+    /// power diagram's neighbour pairs (sorted, i < j).
+    pattern: Vec<(u32, u32)>,
+    symbolic: SymbolicCholesky<u32>,
+    /// Seconds it took (on another thread, overlapped with the integration).
+    seconds: f64,
+}
+
+/// From this many unknowns on, [`NewtonSystem::speculate`] computes anything: below, an AMD
+/// ordering costs less than handing it to another thread.
+pub const SPECULATION_MIN: usize = 5000;
 
 /// A new neighbour pattern keeps the previous fill-reducing ordering while its fill ratio
 /// nnz(L)/nnz(A) is at most this factor times the ratio the ordering had on its own pattern.
@@ -122,6 +138,75 @@ impl NewtonSystem {
             t_symbolic: 0.0,
             t_numeric: 0.0,
         }
+    }
+
+    /// The symbolic factorization the next Newton direction would need if the accepted cells'
+    /// pattern were all of `diagram_pairs` (the power diagram's neighbour pairs, i < j, sorted,
+    /// distinct: a superset of the pairs whose common edge meets Ω), computed without changing
+    /// the system, so that it can run on another thread while those cells are integrated
+    /// (`rayon::join` in the Newton loop). None for fewer than [`SPECULATION_MIN`] unknowns,
+    /// for solvers other than [`LinearSolver::Cholesky`] (the kept ordering of
+    /// `CholeskyReusedOrdering` is cheap already), and when the current pattern holds every
+    /// pair (the symbolic factorization is reused then anyway).
+    pub fn speculate(&self, n: usize, diagram_pairs: &[(u32, u32)]) -> Option<Result<SpeculativeSymbolic, OmtError>> {
+        if n < SPECULATION_MIN.max(2) || self.solver != LinearSolver::Cholesky {
+            return None;
+        }
+        let t0 = std::time::Instant::now();
+        let edges: Vec<(u32, u32, f64)> = diagram_pairs.iter().map(|&(i, j)| (i, j, 0.0)).collect();
+        let (merged, added) = merge_patterns(&self.pattern, &edges);
+        if !added && self.symbolic.is_some() {
+            return None;
+        }
+        let hessian = self.assemble(n, &merged);
+        let structure = SymbolicSparseColMat::<u32>::new_checked(
+            n - 1,
+            n - 1,
+            hessian.col_ptr.clone(),
+            None,
+            hessian.row_idx.clone(),
+        );
+        let symbolic = factorize_symbolic_cholesky(
+            structure.as_ref(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            symbolic_params(n - 1, false),
+        )
+        .map_err(|e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}")));
+        Some(symbolic.map(|symbolic| SpeculativeSymbolic {
+            pattern: merged.iter().map(|e| (e.0, e.1)).collect(),
+            symbolic,
+            seconds: t0.elapsed().as_secs_f64(),
+        }))
+    }
+
+    /// Takes `speculative` as the current symbolic factorization when the accepted `cells` have a
+    /// pair outside the current pattern (so the next direction would factorize anew) and
+    /// `speculative` covers them all; otherwise drops it, and nothing changes. Returns whether
+    /// it was taken. Deterministic: the choice depends on the patterns only.
+    pub fn adopt(&mut self, speculative: SpeculativeSymbolic, cells: &CellIntegrals) -> bool {
+        if self.solver != LinearSolver::Cholesky {
+            return false;
+        }
+        let mut pairs: Vec<(u32, u32, f64)> = cells
+            .edge_masses
+            .iter()
+            .filter(|e| e.2 > 0.0 && e.0 != e.1)
+            .map(|&(i, j, _)| if i < j { (i, j, 0.0) } else { (j, i, 0.0) })
+            .collect();
+        pairs.sort_unstable_by_key(|e| (e.0, e.1));
+        pairs.dedup_by_key(|e| (e.0, e.1));
+        let needed = self.symbolic.is_none() || merge_patterns(&self.pattern, &pairs).1;
+        if !needed || merge_patterns(&speculative.pattern, &pairs).1 {
+            return false;
+        }
+        self.factor = vec![0.0; speculative.symbolic.len_val()];
+        self.symbolic = Some(speculative.symbolic);
+        self.pattern = speculative.pattern;
+        self.symbolic_factorizations += 1;
+        self.orderings += 1;
+        self.t_symbolic += speculative.seconds;
+        true
     }
 
     /// Newton direction δ (#N, δ_pinned = 0) solving H δ = −G on the other unknowns, with
@@ -616,6 +701,103 @@ mod tests {
             }
             assert_eq!(system.symbolic_factorizations, factorizations);
         }
+    }
+
+    /// A speculative symbolic factorization on a superset pattern is taken exactly when the
+    /// accepted pattern has a new pair it covers; the direction then needs no new symbolic
+    /// factorization and still solves the system. (75 × 75 grid: above `SPECULATION_MIN`.)
+    #[test]
+    fn speculative_symbolic_is_adopted_only_when_needed_and_covering() {
+        let k = 75u32;
+        let n = (k * k) as usize;
+        assert!(n >= SPECULATION_MIN);
+        let points: Vec<[f64; 2]> = (0..n).map(|v| [(v as u32 % k) as f64, (v as u32 / k) as f64]).collect();
+        let gradient: Vec<f64> = (0..n).map(|v| ((v * 37 % 101) as f64 - 50.0) * 1e-3).collect();
+        let mean = gradient.iter().sum::<f64>() / n as f64;
+        let gradient: Vec<f64> = gradient.iter().map(|g| g - mean).collect();
+        let id = |x: u32, y: u32| y * k + x;
+        let mut grid = Vec::new();
+        let mut diagonals = Vec::new();
+        for y in 0..k {
+            for x in 0..k {
+                if x + 1 < k {
+                    grid.push((id(x, y), id(x + 1, y), 1.0 + 0.01 * ((x + y) % 7) as f64));
+                }
+                if y + 1 < k {
+                    grid.push((id(x, y), id(x, y + 1), 1.0 + 0.02 * ((x * y) % 5) as f64));
+                }
+                if x + 1 < k && y + 1 < k {
+                    diagonals.push((id(x, y), id(x + 1, y + 1), 0.3));
+                }
+            }
+        }
+        let cells_with = |edges: Vec<(u32, u32, f64)>| CellIntegrals {
+            masses: vec![1.0; n],
+            first_moments: vec![[0.0; 2]; n],
+            second_moments: vec![0.0; n],
+            edge_masses: edges,
+        };
+        let residual = |edges: &[(u32, u32, f64)], delta: &[f64]| -> f64 {
+            let mut hd = vec![0.0; n];
+            for &(i, j, m) in edges {
+                let (p, q) = (points[i as usize], points[j as usize]);
+                let a = m / (p[0] - q[0]).hypot(p[1] - q[1]);
+                let d = a * (delta[i as usize] - delta[j as usize]);
+                hd[i as usize] += d;
+                hd[j as usize] -= d;
+            }
+            (0..n).map(|i| (hd[i] + gradient[i]).abs()).fold(0.0, f64::max)
+        };
+        let superset: Vec<(u32, u32)> = {
+            let mut p: Vec<(u32, u32)> = grid.iter().chain(&diagonals).map(|e| (e.0, e.1)).collect();
+            p.sort_unstable();
+            p
+        };
+        let mut system = NewtonSystem::new(0, LinearSolver::Cholesky);
+        let delta = system
+            .newton_direction(&points, &cells_with(grid.clone()), &gradient)
+            .unwrap();
+        assert!(residual(&grid, &delta) < 1e-10);
+        assert_eq!(system.symbolic_factorizations, 1);
+
+        // the accepted cells keep the pattern: the speculation is dropped
+        let spec = system.speculate(n, &superset).unwrap().unwrap();
+        assert!(!system.adopt(spec, &cells_with(grid.clone())));
+        assert_eq!(system.symbolic_factorizations, 1);
+
+        // a new pair outside the speculated pattern (an anti-diagonal): dropped as well
+        let spec = system.speculate(n, &superset).unwrap().unwrap();
+        let mut outside = grid.clone();
+        outside.push((id(1, 0), id(0, 1), 0.2));
+        assert!(!system.adopt(spec, &cells_with(outside)));
+
+        // new pairs inside it: adopted, and the next direction reuses it
+        let spec = system.speculate(n, &superset).unwrap().unwrap();
+        let mut inside = grid.clone();
+        inside.extend(diagonals.iter().step_by(5).copied());
+        assert!(system.adopt(spec, &cells_with(inside.clone())));
+        assert_eq!(system.symbolic_factorizations, 2);
+        let delta = system
+            .newton_direction(&points, &cells_with(inside.clone()), &gradient)
+            .unwrap();
+        assert_eq!(system.symbolic_factorizations, 2);
+        assert!(residual(&inside, &delta) < 1e-10);
+        // the fresh system's direction agrees
+        let fresh = NewtonSystem::new(0, LinearSolver::Cholesky)
+            .newton_direction(&points, &cells_with(inside), &gradient)
+            .unwrap();
+        let diff = delta.iter().zip(&fresh).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(
+            diff < 1e-9 * fresh.iter().map(|x| x.abs()).fold(0.0, f64::max),
+            "{diff}"
+        );
+
+        // nothing new to speculate on now; small systems and other solvers never speculate
+        assert!(system.speculate(n, &superset).is_none());
+        let small = NewtonSystem::new(0, LinearSolver::Cholesky);
+        assert!(small.speculate(SPECULATION_MIN - 1, &superset[..10]).is_none());
+        let reused = NewtonSystem::new(0, LinearSolver::CholeskyReusedOrdering);
+        assert!(reused.speculate(n, &superset).is_none());
     }
 
     /// A new pair recomputes the symbolic factorization, with the kept ordering (no new AMD)

@@ -49,6 +49,7 @@
 use super::{errors, evaluate_unless_hidden, Backend, Evaluation, Heights};
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
+use crate::linear::NewtonSystem;
 
 /// Safeguards of the backtracking: the next trial lies in [LOWER·τ_r, UPPER·τ_r].
 const LOWER: f64 = 0.1;
@@ -167,6 +168,7 @@ pub(crate) fn damped_step(
     epsilon0: f64,
     max_halvings: usize,
     tau_start: f64,
+    speculate: Option<&NewtonSystem>,
 ) -> Result<LineSearchOutcome, OmtError> {
     let mut tau = tau_start.min(1.0);
     let tau_min = 0.5f64.powi(max_halvings.min(1000) as i32);
@@ -180,7 +182,7 @@ pub(crate) fn damped_step(
     let mut previous = None;
     loop {
         let trial = heights.step(delta, tau);
-        let evaluation = evaluate_unless_hidden(backend, points, &trial, true)?;
+        let evaluation = evaluate_unless_hidden(backend, points, &trial, true, speculate)?;
         outcome.t_diagram += evaluation.t_diagram;
         outcome.t_integration += evaluation.t_integration;
         let min_mass = evaluation.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);

@@ -63,7 +63,7 @@ use std::time::Instant;
 
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
-use crate::linear::{LinearSolver, NewtonSystem};
+use crate::linear::{LinearSolver, NewtonSystem, SpeculativeSymbolic, SPECULATION_MIN};
 use crate::measure::SourceMeasure;
 use crate::power_diagram::{Construction, InsertionOrder, PowerDiagram};
 use crate::restricted::RestrictedIntegrator;
@@ -306,6 +306,8 @@ pub struct OtSolution {
     /// Number of those that computed a new fill-reducing ordering (the others reused one).
     pub orderings: usize,
     /// Seconds in Hessian assembly, symbolic factorization, numeric factorization + solve.
+    /// `t_symbolic` includes the symbolic factorizations computed ahead of need and used (from
+    /// 5000 sites on, with `LinearSolver::Cholesky`), which ran alongside an integration.
     pub t_assembly: f64,
     pub t_symbolic: f64,
     pub t_numeric: f64,
@@ -474,6 +476,10 @@ pub(crate) struct Evaluation {
     pub cells: CellIntegrals,
     pub t_diagram: f64,
     pub t_integration: f64,
+    /// The symbolic factorization for the diagram's pattern, computed alongside the
+    /// integration when the evaluation was asked to speculate (see
+    /// [`crate::linear::NewtonSystem::speculate`]).
+    pub speculative: Option<SpeculativeSymbolic>,
 }
 
 /// Integrates the cells of heights `heights` (#N) with the chosen integrator.
@@ -508,17 +514,21 @@ impl<'a> Backend<'a> {
 }
 
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Heights) -> Result<Evaluation, OmtError> {
-    evaluate_unless_hidden(backend, points, heights, false)
+    evaluate_unless_hidden(backend, points, heights, false, None)
 }
 
 /// [`evaluate`]; with `skip_if_hidden`, a diagram with a hidden site (an empty cell: mass 0 < ε₀,
 /// so a line-search trial that must be rejected) is not integrated: the masses are 0 for the
-/// hidden sites and NaN for the others, the moments NaN and the edge list empty.
+/// hidden sites and NaN for the others, the moments NaN and the edge list empty. With
+/// `speculate`, the symbolic factorization the next Newton direction would need if this trial
+/// is accepted is computed on another thread while the cells are integrated (the integration
+/// is parallel too, so on two cores the ordering takes about half of one core's share of it).
 pub(crate) fn evaluate_unless_hidden(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
     heights: &Heights,
     skip_if_hidden: bool,
+    speculate: Option<&NewtonSystem>,
 ) -> Result<Evaluation, OmtError> {
     let (weights, weights_lo) = heights.weights(points);
     if let Some(i) = (0..weights.len()).find(|&i| !(weights[i].is_finite() && weights_lo[i].is_finite())) {
@@ -535,6 +545,7 @@ pub(crate) fn evaluate_unless_hidden(
                 cells,
                 t_diagram: 0.0,
                 t_integration: t0.elapsed().as_secs_f64(),
+                speculative: None,
             })
         }
         Backend::Restricted(integrator, order) => {
@@ -583,14 +594,42 @@ pub(crate) fn evaluate_unless_hidden(
                 }
             }
             let t1 = Instant::now();
-            let cells = integrator.integrate(&diagram);
+            let (cells, speculative) = match speculate.filter(|_| points.len() >= SPECULATION_MIN) {
+                Some(system) => {
+                    let (cells, speculative) = rayon::join(
+                        || integrator.integrate(&diagram),
+                        || system.speculate(points.len(), &diagram_pairs(&diagram)),
+                    );
+                    (cells, speculative.transpose()?)
+                }
+                None => (integrator.integrate(&diagram), None),
+            };
             Ok(Evaluation {
                 cells,
                 t_diagram,
                 t_integration: t1.elapsed().as_secs_f64(),
+                speculative,
             })
         }
     }
+}
+
+/// The power diagram's neighbour pairs (i < j), sorted: a superset of the pairs whose common
+/// edge meets Ω, for [`NewtonSystem::speculate`].
+fn diagram_pairs(diagram: &PowerDiagram) -> Vec<(u32, u32)> {
+    let offsets = diagram.neighbor_offsets();
+    let list = diagram.neighbor_list();
+    let mut pairs = Vec::with_capacity(list.len() / 2);
+    for i in 0..diagram.num_sites() {
+        for &j in &list[offsets[i] as usize..offsets[i + 1] as usize] {
+            if (i as u32) < j {
+                pairs.push((i as u32, j));
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
 }
 
 /// The evaluation of a rejected trial that hides sites `hidden` among `n`: mass 0 for those,
@@ -609,6 +648,7 @@ fn masked_evaluation(n: usize, hidden: &[u32], t_diagram: f64) -> Evaluation {
         },
         t_diagram,
         t_integration: 0.0,
+        speculative: None,
     }
 }
 
@@ -1278,6 +1318,7 @@ fn solve_single(
             epsilon0,
             params.max_halvings,
             tau_start,
+            Some(&system),
         )?;
         iterations += 1;
         let mut record = IterationRecord {
@@ -1297,6 +1338,9 @@ fn solve_single(
             Some(step) => {
                 heights = step.heights;
                 current = step.evaluation;
+                if let Some(speculative) = current.speculative.take() {
+                    system.adopt(speculative, &current.cells);
+                }
                 (max_rel, norm, gradient) = errors(&current.cells, &targets);
                 record.step = step.tau;
                 let growth = if outcome.rejected_min_mass + outcome.rejected_norm == 0 {
