@@ -140,6 +140,13 @@ impl NewtonSystem {
         }
     }
 
+    /// Whether [`Self::speculate`] can compute anything for `n` unknowns: at least
+    /// [`SPECULATION_MIN`] of them and the solver [`LinearSolver::Cholesky`]. The Newton loop
+    /// asks first, so that other solvers' evaluations neither list the diagram's pairs nor join.
+    pub fn speculates(&self, n: usize) -> bool {
+        n >= SPECULATION_MIN.max(2) && self.solver == LinearSolver::Cholesky
+    }
+
     /// The symbolic factorization the next Newton direction would need if the accepted cells'
     /// pattern were all of `diagram_pairs` (the power diagram's neighbour pairs, i < j, sorted,
     /// distinct: a superset of the pairs whose common edge meets Ω), computed without changing
@@ -149,7 +156,7 @@ impl NewtonSystem {
     /// `CholeskyReusedOrdering` is cheap already), and when the current pattern holds every
     /// pair (the symbolic factorization is reused then anyway).
     pub fn speculate(&self, n: usize, diagram_pairs: &[(u32, u32)]) -> Option<Result<SpeculativeSymbolic, OmtError>> {
-        if n < SPECULATION_MIN.max(2) || self.solver != LinearSolver::Cholesky {
+        if !self.speculates(n) {
             return None;
         }
         let t0 = std::time::Instant::now();
@@ -166,18 +173,13 @@ impl NewtonSystem {
             None,
             hessian.row_idx.clone(),
         );
-        let symbolic = factorize_symbolic_cholesky(
-            structure.as_ref(),
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            symbolic_params(n - 1, false),
+        Some(
+            amd_symbolic(structure.as_ref(), false).map(|symbolic| SpeculativeSymbolic {
+                pattern: merged.iter().map(|e| (e.0, e.1)).collect(),
+                symbolic,
+                seconds: t0.elapsed().as_secs_f64(),
+            }),
         )
-        .map_err(|e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}")));
-        Some(symbolic.map(|symbolic| SpeculativeSymbolic {
-            pattern: merged.iter().map(|e| (e.0, e.1)).collect(),
-            symbolic,
-            seconds: t0.elapsed().as_secs_f64(),
-        }))
     }
 
     /// Takes `speculative` as the current symbolic factorization when the accepted `cells` have a
@@ -188,14 +190,7 @@ impl NewtonSystem {
         if self.solver != LinearSolver::Cholesky {
             return false;
         }
-        let mut pairs: Vec<(u32, u32, f64)> = cells
-            .edge_masses
-            .iter()
-            .filter(|e| e.2 > 0.0 && e.0 != e.1)
-            .map(|&(i, j, _)| if i < j { (i, j, 0.0) } else { (j, i, 0.0) })
-            .collect();
-        pairs.sort_unstable_by_key(|e| (e.0, e.1));
-        pairs.dedup_by_key(|e| (e.0, e.1));
+        let pairs = pattern_edges(cells, |_, _, _| 0.0);
         let needed = self.symbolic.is_none() || merge_patterns(&self.pattern, &pairs).1;
         if !needed || merge_patterns(&speculative.pattern, &pairs).1 {
             return false;
@@ -224,24 +219,9 @@ impl NewtonSystem {
             return Ok(vec![0.0; n]);
         }
         let t0 = std::time::Instant::now();
-        let mut edges: Vec<(u32, u32, f64)> = cells
-            .edge_masses
-            .iter()
-            .filter(|e| e.2 > 0.0 && e.0 != e.1)
-            .map(|&(i, j, m)| {
-                let (a, b) = if i < j { (i, j) } else { (j, i) };
-                let (p, q) = (points[a as usize], points[b as usize]);
-                (a, b, m / (p[0] - q[0]).hypot(p[1] - q[1]))
-            })
-            .collect();
-        edges.sort_unstable_by_key(|e| (e.0, e.1));
-        edges.dedup_by(|b, a| {
-            if a.0 == b.0 && a.1 == b.1 {
-                a.2 += b.2;
-                true
-            } else {
-                false
-            }
+        let mut edges = pattern_edges(cells, |a, b, m| {
+            let (p, q) = (points[a as usize], points[b as usize]);
+            m / (p[0] - q[0]).hypot(p[1] - q[1])
         });
         // For Cholesky, assemble on the pattern of the current symbolic factorization (explicit
         // zeros for absent pairs) when it contains every pair of this one, reusing the symbolic
@@ -458,13 +438,7 @@ impl NewtonSystem {
                 .map_err(err);
             }
         }
-        let symbolic = factorize_symbolic_cholesky(
-            structure,
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            symbolic_params(m, reuse),
-        )
-        .map_err(err)?;
+        let symbolic = amd_symbolic(structure, reuse)?;
         self.orderings += 1;
         if reuse {
             let (fwd, inv) = symbolic.perm().expect("AMD gives a permutation").arrays();
@@ -473,6 +447,46 @@ impl NewtonSystem {
         }
         Ok(symbolic)
     }
+}
+
+/// Symbolic Cholesky factorization of the lower pattern `structure` with a new AMD ordering
+/// (`reuse_ordering`: the parameters of [`LinearSolver::CholeskyReusedOrdering`]).
+fn amd_symbolic(
+    structure: faer::sparse::SymbolicSparseColMatRef<'_, u32>,
+    reuse_ordering: bool,
+) -> Result<SymbolicCholesky<u32>, OmtError> {
+    let m = structure.nrows();
+    factorize_symbolic_cholesky(
+        structure,
+        Side::Lower,
+        SymmetricOrdering::Amd,
+        symbolic_params(m, reuse_ordering),
+    )
+    .map_err(|e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}")))
+}
+
+/// The pairs of `cells.edge_masses` with positive mass, each once as (i, j) with i < j, sorted,
+/// with value the sum of `value(i, j, mass)` over its entries.
+fn pattern_edges(cells: &CellIntegrals, value: impl Fn(u32, u32, f64) -> f64) -> Vec<(u32, u32, f64)> {
+    let mut edges: Vec<(u32, u32, f64)> = cells
+        .edge_masses
+        .iter()
+        .filter(|e| e.2 > 0.0 && e.0 != e.1)
+        .map(|&(i, j, m)| {
+            let (a, b) = if i < j { (i, j) } else { (j, i) };
+            (a, b, value(a, b, m))
+        })
+        .collect();
+    edges.sort_unstable_by_key(|e| (e.0, e.1));
+    edges.dedup_by(|b, a| {
+        if a.0 == b.0 && a.1 == b.1 {
+            a.2 += b.2;
+            true
+        } else {
+            false
+        }
+    });
+    edges
 }
 
 /// nnz(L) of the Cholesky factor of the symmetric pattern `hessian` (lower CSC with diagonal)
@@ -798,6 +812,7 @@ mod tests {
         assert!(small.speculate(SPECULATION_MIN - 1, &superset[..10]).is_none());
         let reused = NewtonSystem::new(0, LinearSolver::CholeskyReusedOrdering);
         assert!(reused.speculate(n, &superset).is_none());
+        assert!(system.speculates(n) && !small.speculates(SPECULATION_MIN - 1) && !reused.speculates(n));
     }
 
     /// A new pair recomputes the symbolic factorization, with the kept ordering (no new AMD)

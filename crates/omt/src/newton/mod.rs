@@ -63,7 +63,7 @@ use std::time::Instant;
 
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
-use crate::linear::{LinearSolver, NewtonSystem, SpeculativeSymbolic, SPECULATION_MIN};
+use crate::linear::{LinearSolver, NewtonSystem, SpeculativeSymbolic};
 use crate::measure::SourceMeasure;
 use crate::power_diagram::{Construction, InsertionOrder, PowerDiagram};
 use crate::restricted::RestrictedIntegrator;
@@ -594,7 +594,7 @@ pub(crate) fn evaluate_unless_hidden(
                 }
             }
             let t1 = Instant::now();
-            let (cells, speculative) = match speculate.filter(|_| points.len() >= SPECULATION_MIN) {
+            let (cells, speculative) = match speculate.filter(|system| system.speculates(points.len())) {
                 Some(system) => {
                     let (cells, speculative) = rayon::join(
                         || integrator.integrate(&diagram),
