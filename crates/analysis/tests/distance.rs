@@ -391,3 +391,36 @@ fn a_direct_solve_that_stops_short_falls_back_and_says_so() {
     );
     assert!(d.iterations > 1, "{} steps counted", d.iterations);
 }
+
+/// Intermediate targets (omt `NewtonParams::target_ratio_cap`, on by default) on a real pair:
+/// the coarse-to-fine start of id01_happy → id00_neutral has cells at 1e-3 and 21 times their
+/// targets, which held the plain damped Newton steps to τ ≈ 0.02 at first. Aiming each step at
+/// soft-capped targets gives the same cost with fewer steps and evaluations at the finest level
+/// (measured 2026-12-02: 26 → 23 steps over all levels, 19 → 14 evaluations at the finest
+/// level).
+#[test]
+fn intermediate_targets_give_the_same_face_distance_with_fewer_evaluations() {
+    let (_, source) = face("id01_happy");
+    let (_, target) = face("id00_neutral");
+    let run = |cap| {
+        let params = NewtonParams {
+            target_ratio_cap: cap,
+            ..NewtonParams::default()
+        };
+        let (d, _) = directed_distance(&source, &target, &params).unwrap();
+        assert!(d.converged, "{cap:?}: {}", d.status);
+        d
+    };
+    let (plain, capped) = (run(None), run(Some(shapespace_omt::newton::TARGET_RATIO_CAP)));
+    eprintln!(
+        "plain: {} steps, {} evaluations; intermediate targets: {} steps, {} evaluations; cost {:.12e} vs {:.12e}",
+        plain.iterations, plain.evaluations, capped.iterations, capped.evaluations, plain.cost, capped.cost
+    );
+    assert!(
+        capped.evaluations < plain.evaluations,
+        "{} vs {}",
+        capped.evaluations,
+        plain.evaluations
+    );
+    assert!((capped.cost - plain.cost).abs() <= 1e-9 * plain.cost);
+}
