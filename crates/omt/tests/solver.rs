@@ -287,6 +287,17 @@ fn invalid_input_is_rejected() {
             other => panic!("tolerance {tolerance}: {:?}", other.map(|s| s.stop)),
         }
     }
+    // A cap of the intermediate targets at or below 1 would aim no step anywhere.
+    for cap in [1.0, 0.5, -3.0, f64::NAN, f64::INFINITY] {
+        let p = NewtonParams {
+            target_ratio_cap: Some(cap),
+            ..Default::default()
+        };
+        match solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0, 1.0], &p) {
+            Err(OmtError::InvalidInput(m)) => assert!(m.contains("target ratio cap"), "{m}"),
+            other => panic!("cap {cap}: {:?}", other.map(|s| s.stop)),
+        }
+    }
 }
 
 /// The iteration cap is reported, and `into_result` turns it into `NoConvergence`.

@@ -819,6 +819,13 @@ fn validate(
             params.tolerance
         )));
     }
+    if let Some(cap) = params.target_ratio_cap {
+        if !(cap > 1.0 && cap.is_finite()) {
+            return Err(OmtError::InvalidInput(format!(
+                "target ratio cap {cap} must be finite and > 1 (None turns the intermediate targets off)"
+            )));
+        }
+    }
     if let Some(h) = &params.initial_heights {
         if h.len() != points.len() {
             return Err(OmtError::InvalidInput(format!(
@@ -1351,7 +1358,7 @@ fn solve_single(
     let stop;
     let mut iterations = 0;
     let mut tau_start = 1.0;
-    let mut target_cap = params.target_ratio_cap.filter(|&c| c > 1.0);
+    let mut target_cap = params.target_ratio_cap;
     loop {
         if !(max_rel.is_finite() && norm.is_finite()) {
             stop = StopReason::Stalled {
