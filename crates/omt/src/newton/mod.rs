@@ -54,11 +54,11 @@
 //!   ratio at κ), kept exactly at ν_i where that changes it by less than 0.1 % (cells within
 //!   about −28 % … +39 % of their targets), all rescaled to the total mass; the step solves
 //!   $H\delta = -(m - \nu')$ and takes KMT's damped step for ν'. Every ν'_i lies between m_i and
-//!   ν_i (up to the common rescaling), and once every cell is within that band the step is exactly KMT's, so the
-//!   quadratic phase and the stopping rule are unchanged. If a step with modified targets is
-//!   accepted only below τ = 0.01, or not at all, the solve continues with the plain targets
-//!   (TOSCA horse0, whose crowded cells must grow 1e20-fold, takes 20 steps with it and 18
-//!   without; measured in `ARCHITECTURE.md`).
+//!   ν_i (up to the common rescaling), and once every cell is within that band the step is
+//!   exactly KMT's, so the quadratic phase and the stopping rule are unchanged. If a step with
+//!   modified targets is accepted only below τ = 0.01, or not at all, the solve continues with
+//!   the plain targets (the crowded TOSCA meshes, whose cells must grow 1e20-fold: centaur0
+//!   takes 15 steps with it and 14 without; measured in `ARCHITECTURE.md`).
 //! - **Pinning.** The unknown with the largest target mass (first one on ties) is pinned for the
 //!   whole solve (step 0), so the sparsity pattern only changes when neighbours change.
 //! - **Stops.** `Converged` when $\max_i |G_i|/\nu_i \le$ `tolerance`; `IterationCap`; `Stalled` when
@@ -1377,14 +1377,12 @@ fn solve_single(
         let t_solve = Instant::now();
         // The step's targets: intermediate ones for the cells far from theirs (module docs).
         let step = target_cap.and_then(|cap| intermediate_targets(&current.cells.masses, &targets, cap));
-        let (step_targets, step_norm, step_gradient) = match &step {
-            Some((t, _)) => {
-                let (_, norm, gradient) = errors(&current.cells, t);
-                (t, norm, gradient)
-            }
-            None => (&targets, norm, gradient.clone()),
+        let step_errors = step.as_ref().map(|(t, _)| errors(&current.cells, t));
+        let (step_targets, step_norm, step_gradient) = match (&step, &step_errors) {
+            (Some((t, _)), Some((_, norm, gradient))) => (t, *norm, gradient),
+            _ => (&targets, norm, &gradient),
         };
-        let delta = system.newton_direction(points, &current.cells, &step_gradient)?;
+        let delta = system.newton_direction(points, &current.cells, step_gradient)?;
         let t_solve = t_solve.elapsed().as_secs_f64();
         if delta.iter().any(|d| !d.is_finite()) {
             stop = StopReason::Stalled {

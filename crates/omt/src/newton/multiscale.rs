@@ -10,8 +10,8 @@
 //! the points are crowded (two closer than 1e-6 of the mean spacing).
 //!
 //! **Prolongation.** Let H_g be the coarse heights, G_g = −H_g, c_g the μ-centroid of the coarse
-//! cell W_g (restricted to Ω), s_g 0.9 times the distance from c_g to the boundary of W_g ∩ Ω, δ_g the
-//! RMS distance of the group's members to Y_g, and ψ_δ(o) = √(δ² + |o|²) − δ. With
+//! cell W_g (restricted to Ω), s_g 0.9 times the distance from c_g to the boundary of W_g ∩ Ω,
+//! δ_g the RMS distance of the group's members to Y_g, and ψ_δ(o) = √(δ² + |o|²) − δ. With
 //! $$\Phi_g(y) = G_g + \langle c_g, y - Y_g\rangle + s_g\,\psi_{\delta_g}(y - Y_g), \qquad
 //! \Phi = \max_g \Phi_g,$$
 //! the fine heights are h_i = −Φ(y_i). Φ is strictly convex and, since |∇ψ| < 1, every
