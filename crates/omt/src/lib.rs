@@ -4,6 +4,7 @@
 //! triangulated density, exact cell integrals, and a damped Newton solver on the heights
 //! [Gu, Luo, Sun, Yau 2013; Kitagawa, Mérigot, Thibert 2019]. See `ARCHITECTURE.md`.
 
+pub mod averaging;
 pub mod cells;
 pub mod error;
 pub mod linear;

@@ -1101,11 +1101,11 @@ fn solve_density_continuation(
         let stage_source = if last {
             measure
         } else {
-            stage_measure = SourceMeasure {
-                vertices: measure.vertices.clone(),
-                triangles: measure.triangles.clone(),
-                densities: measure.densities.iter().map(|d| d.powf(t_next)).collect(),
-            };
+            stage_measure = SourceMeasure::from_checked_parts(
+                measure.vertices.clone(),
+                measure.triangles.clone(),
+                measure.densities.iter().map(|d| d.powf(t_next)).collect(),
+            );
             &stage_measure
         };
         let stage_params = NewtonParams {
