@@ -13,9 +13,13 @@ use shapespace_analysis::distance::{directed_distance, PairwiseOptions};
 fn main() {
     let mut pairs: Vec<String> = std::env::args().skip(1).collect();
     if pairs.is_empty() {
-        pairs = ["id00_sad:id01_happy", "id02_neutral:id05_surprise", "id07_happy:id03_sad"]
-            .map(String::from)
-            .to_vec();
+        pairs = [
+            "id00_sad:id01_happy",
+            "id02_neutral:id05_surprise",
+            "id07_happy:id03_sad",
+        ]
+        .map(String::from)
+        .to_vec();
     }
     let params = PairwiseOptions::default().newton;
     let (mut steps, mut evaluations, mut seconds) = (0, 0, 0.0);

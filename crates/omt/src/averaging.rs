@@ -98,7 +98,8 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
         let tri = measure.triangles[t].map(|v| vertices[v as usize]);
         let p = centroid(&measure.triangles[t]);
         current = walk(&coarse, &points, &adjacency, current, p);
-        let area = 0.5 * ((tri[1][0] - tri[0][0]) * (tri[2][1] - tri[0][1]) - (tri[1][1] - tri[0][1]) * (tri[2][0] - tri[0][0]));
+        let area = 0.5
+            * ((tri[1][0] - tri[0][0]) * (tri[2][1] - tri[0][1]) - (tri[1][1] - tri[0][1]) * (tri[2][0] - tri[0][0]));
         let density = measure.densities[t];
         let mut covered = 0.0;
         queue.clear();
@@ -128,7 +129,11 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
         .densities
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), &d| (a.min(d), b.max(d)));
-    let densities: Vec<f64> = mass.iter().zip(&areas).map(|(m, a)| (m / a).clamp(dmin, dmax)).collect();
+    let densities: Vec<f64> = mass
+        .iter()
+        .zip(&areas)
+        .map(|(m, a)| (m / a).clamp(dmin, dmax))
+        .collect();
     SourceMeasure::new(points, coarse, densities).ok()
 }
 

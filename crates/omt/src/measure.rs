@@ -94,7 +94,10 @@ impl SourceMeasure {
     pub fn averaged(&self, sample: usize) -> Option<Arc<SourceMeasure>> {
         let fingerprint = self.fingerprint();
         let mut copies = self.averaged.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        if let Some(c) = copies.iter().find(|c| c.fingerprint == fingerprint && c.sample == sample) {
+        if let Some(c) = copies
+            .iter()
+            .find(|c| c.fingerprint == fingerprint && c.sample == sample)
+        {
             return c.measure.clone();
         }
         copies.retain(|c| c.fingerprint == fingerprint);

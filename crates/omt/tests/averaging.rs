@@ -62,7 +62,11 @@ fn every_coarse_triangle_carries_the_fine_mass_on_it() {
     let fine = disk_measure(24, &contrast);
     let coarse = averaged_measure(&fine, 150).expect("averaging applies");
     // (about 2·sample triangles, plus the hull's)
-    assert!(coarse.triangles.len() < fine.triangles.len() / 4, "{} triangles", coarse.triangles.len());
+    assert!(
+        coarse.triangles.len() < fine.triangles.len() / 4,
+        "{} triangles",
+        coarse.triangles.len()
+    );
     let (mut fine_total, mut coarse_total) = (0.0, 0.0);
     for t in 0..fine.triangles.len() {
         fine_total += fine.densities[t] * area(corners(&fine, t));
@@ -78,7 +82,10 @@ fn every_coarse_triangle_carries_the_fine_mass_on_it() {
             .sum();
         worst = worst.max((mass - exact).abs() / exact);
     }
-    assert!(worst < 1e-10, "worst relative mass error of a coarse triangle {worst:e}");
+    assert!(
+        worst < 1e-10,
+        "worst relative mass error of a coarse triangle {worst:e}"
+    );
     assert!((coarse_total - fine_total).abs() < 1e-12 * fine_total);
     // The averaged densities differ from the fine ones (the test is not vacuous).
     let (lo, hi) = coarse
@@ -86,7 +93,10 @@ fn every_coarse_triangle_carries_the_fine_mass_on_it() {
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), &d| (a.min(d), b.max(d)));
     let fine_max = fine.densities.iter().fold(0.0f64, |a, &d| a.max(d));
-    assert!(hi / lo > 10.0 && hi < 0.99 * fine_max, "coarse densities {lo} .. {hi}, fine max {fine_max}");
+    assert!(
+        hi / lo > 10.0 && hi < 0.99 * fine_max,
+        "coarse densities {lo} .. {hi}, fine max {fine_max}"
+    );
 }
 
 #[test]
@@ -103,7 +113,10 @@ fn averaged_copies_are_kept_and_rebuilt_when_the_fields_change() {
     let b = fine.averaged(100).expect("averaging applies");
     assert!(Arc::ptr_eq(&a, &b), "the second call reuses the copy");
     let mut changed = fine.clone();
-    assert!(Arc::ptr_eq(&a, &changed.averaged(100).unwrap()), "clones share the copies");
+    assert!(
+        Arc::ptr_eq(&a, &changed.averaged(100).unwrap()),
+        "clones share the copies"
+    );
     changed.densities.iter_mut().for_each(|d| *d *= 2.0);
     let c = changed.averaged(100).expect("averaging applies");
     assert!(!Arc::ptr_eq(&a, &c), "changed fields rebuild the copy");
@@ -116,7 +129,9 @@ fn averaged_copies_are_kept_and_rebuilt_when_the_fields_change() {
 /// points) are solved on averaged copies, and the solve reaches the solution of the Voronoi start.
 #[test]
 fn coarse_levels_on_averaged_measures_reach_the_same_solution() {
-    let fine = disk_measure(45, &|x| 0.3 + (x[0] + 0.2).max(0.0) + 2.0 * (-10.0 * (x[0] * x[0] + x[1] * x[1])).exp());
+    let fine = disk_measure(45, &|x| {
+        0.3 + (x[0] + 0.2).max(0.0) + 2.0 * (-10.0 * (x[0] * x[0] + x[1] * x[1])).exp()
+    });
     assert!(fine.triangles.len() > 12_000);
     let mut rng = Rng(7);
     let points: Vec<[f64; 2]> = (0..4000).map(|_| rng.in_disk(0.97)).collect();
