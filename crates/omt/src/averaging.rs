@@ -19,8 +19,8 @@
 //! overlay cannot be trusted (areas that do not add up to |t| within 1e-9, a coarse triangle with
 //! a non-positive area), `averaged_measure` returns `None` and the caller keeps μ.
 
-use crate::measure::{bounding_box, SourceMeasure};
-use crate::power_diagram::{hilbert_index, PowerDiagram};
+use crate::measure::SourceMeasure;
+use crate::power_diagram::{hilbert_order, PowerDiagram};
 use crate::predicates::orient;
 use crate::restricted::convex_hull;
 
@@ -37,23 +37,9 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
         return None;
     }
     // Stratified sample along a Hilbert curve, plus the hull.
-    let (lo, hi) = bounding_box(vertices);
-    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    if !(span > 0.0) {
-        return None;
-    }
-    let scale = 65535.0 / span;
-    let mut keyed: Vec<(u64, u32)> = vertices
-        .iter()
-        .enumerate()
-        .map(|(v, p)| {
-            let q = |c: usize| ((p[c] - lo[c]) * scale).clamp(0.0, 65535.0) as u32;
-            (hilbert_index(q(0), q(1)), v as u32)
-        })
-        .collect();
-    keyed.sort_unstable();
+    let along = hilbert_order(vertices);
     let stride = n.div_ceil(sample);
-    let mut points: Vec<[f64; 2]> = keyed.iter().step_by(stride).map(|k| vertices[k.1 as usize]).collect();
+    let mut points: Vec<[f64; 2]> = along.iter().step_by(stride).map(|&v| vertices[v as usize]).collect();
     points.extend(convex_hull(vertices));
     points.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     points.dedup();
@@ -78,25 +64,15 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
         let [a, b, c] = t.map(|v| vertices[v as usize]);
         [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
     };
-    let mut order: Vec<(u64, u32)> = measure
-        .triangles
-        .iter()
-        .enumerate()
-        .map(|(t, tri)| {
-            let p = centroid(tri);
-            let q = |c: usize| ((p[c] - lo[c]) * scale).clamp(0.0, 65535.0) as u32;
-            (hilbert_index(q(0), q(1)), t as u32)
-        })
-        .collect();
-    order.sort_unstable();
+    let centroids: Vec<[f64; 2]> = measure.triangles.iter().map(centroid).collect();
     let mut mass = vec![0.0; coarse.len()];
     let mut visited = vec![u32::MAX; coarse.len()];
     let mut queue: Vec<u32> = Vec::new();
     let mut current = 0usize;
-    for &(_, t) in &order {
+    for t in hilbert_order(&centroids) {
         let t = t as usize;
         let tri = measure.triangles[t].map(|v| vertices[v as usize]);
-        let p = centroid(&measure.triangles[t]);
+        let p = centroids[t];
         current = walk(&coarse, &points, &adjacency, current, p);
         let area = 0.5
             * ((tri[1][0] - tri[0][0]) * (tri[2][1] - tri[0][1]) - (tri[1][1] - tri[0][1]) * (tri[2][0] - tri[0][0]));

@@ -308,6 +308,25 @@ impl<'a> Builder<'a> {
     }
 }
 
+/// Indices of `points` in the order of the Hilbert curve (order 16) over their bounding box,
+/// ties by index: an order in which consecutive points are close, for short point-location
+/// walks and stratified samples.
+pub(crate) fn hilbert_order(points: &[[f64; 2]]) -> Vec<u32> {
+    let (lo, hi) = crate::measure::bounding_box(points);
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
+    let mut keyed: Vec<(u64, u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = |c: usize| ((p[c] - lo[c]) * scale).clamp(0.0, 65535.0) as u32;
+            (hilbert_index(q(0), q(1)), i as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|k| k.1).collect()
+}
+
 /// Index of (x, y) ∈ [0, 2¹⁶)² along the Hilbert curve of order 16.
 pub(crate) fn hilbert_index(mut x: u32, mut y: u32) -> u64 {
     let n: u32 = 1 << 16;

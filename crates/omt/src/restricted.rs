@@ -39,7 +39,7 @@ use rayon::prelude::*;
 
 use crate::cells::CellIntegrals;
 use crate::measure::SourceMeasure;
-use crate::power_diagram::{hilbert_index, PowerDiagram};
+use crate::power_diagram::{hilbert_order, PowerDiagram};
 use crate::predicates::{orient, two_product, two_sum};
 
 /// Label of a polygon edge that is not a power-diagram edge (source triangle or domain edge).
@@ -344,20 +344,8 @@ impl RestrictedIntegrator {
                 [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
             })
             .collect();
-        let (lo, hi) = crate::measure::bounding_box(&centroids);
-        let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-        let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
-        let mut keyed: Vec<(u64, u32)> = centroids
-            .iter()
-            .enumerate()
-            .map(|(t, p)| {
-                let q = |c: usize| ((p[c] - lo[c]) * scale).clamp(0.0, 65535.0) as u32;
-                (hilbert_index(q(0), q(1)), t as u32)
-            })
-            .collect();
-        keyed.sort_unstable();
         RestrictedIntegrator {
-            order: keyed.into_iter().map(|k| k.1).collect(),
+            order: hilbert_order(&centroids),
             vertices: measure.vertices.clone(),
             triangles: measure.triangles.clone(),
             densities: measure.densities.clone(),
