@@ -424,3 +424,34 @@ fn intermediate_targets_give_the_same_face_distance_with_fewer_evaluations() {
     );
     assert!((capped.cost - plain.cost).abs() <= 1e-9 * plain.cost);
 }
+
+/// The coarse levels of a face pair integrate an averaged copy of the source face's measure
+/// (omt `averaging.rs`: 18.6k triangles averaged to ~4.7k for a level of ~1.3k points), built on
+/// the first pair and kept in the prepared shape; the distance is the one the Voronoi start,
+/// which has no coarse levels, reaches.
+#[test]
+fn coarse_levels_integrate_an_averaged_face_measure_and_give_the_same_distance() {
+    let (_, source) = face("id02_sad");
+    let (_, target) = face("id02_neutral");
+    assert!(source.measure.averaged_samples().is_empty());
+    let (multiscale, _) = directed_distance(&source, &target, &NewtonParams::default()).unwrap();
+    assert!(multiscale.converged, "{}", multiscale.status);
+    let samples = source.measure.averaged_samples();
+    let v = source.measure.vertices.len();
+    assert!(!samples.is_empty(), "no averaged copy was built");
+    assert!(
+        samples.iter().all(|&s| (1..20).any(|k| s == v >> k)),
+        "{samples:?} of {v}"
+    );
+    let voronoi = NewtonParams {
+        start_strategy: shapespace_omt::StartStrategy::Voronoi,
+        ..NewtonParams::default()
+    };
+    let (plain, _) = directed_distance(&source, &target, &voronoi).unwrap();
+    assert!(plain.converged, "{}", plain.status);
+    eprintln!(
+        "averaged coarse levels: {} steps, cost {:.12e}; Voronoi start: {} steps, cost {:.12e}",
+        multiscale.iterations, multiscale.cost, plain.iterations, plain.cost
+    );
+    assert!((multiscale.cost - plain.cost).abs() <= 1e-9 * plain.cost);
+}
