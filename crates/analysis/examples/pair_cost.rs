@@ -4,7 +4,8 @@
 //! `cargo run --release -p shapespace-analysis --example pair_cost -- A:B [A:B ...]` (from the
 //! repository root; default id00_sad:id01_happy id02_neutral:id05_surprise id07_happy:id03_sad).
 //! Prints per pair the Newton steps over all levels, finest-level evaluations, seconds and the
-//! distance to full precision.
+//! distance to full precision. With env `PREPARE_ONLY` it only prepares the faces: the count to
+//! subtract from a run's instructions.
 #[path = "common/faces.rs"]
 mod faces;
 

@@ -24,7 +24,7 @@ use crate::power_diagram::{hilbert_order, PowerDiagram};
 use crate::predicates::orient;
 use crate::restricted::convex_hull;
 
-/// No neighbour across a coarse edge (a hull edge).
+/// No neighbour across a coarse edge (a hull edge; [`PowerDiagram::triangle_neighbors`]).
 const NONE: u32 = u32::MAX;
 
 /// The measure averaged over the Delaunay triangulation of about `sample` of its vertices (and
@@ -58,7 +58,7 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
     if areas.iter().any(|&a| !(a > 0.0)) {
         return None;
     }
-    let adjacency = adjacency(&coarse);
+    let adjacency = delaunay.triangle_neighbors();
     // Source triangles along a Hilbert curve of their centroids: short walks.
     let centroid = |t: &[u32; 3]| {
         let [a, b, c] = t.map(|v| vertices[v as usize]);
@@ -111,26 +111,6 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
         .map(|(m, a)| (m / a).clamp(dmin, dmax))
         .collect();
     SourceMeasure::new(points, coarse, densities).ok()
-}
-
-/// Per coarse triangle, the neighbour across the edge opposite each corner (`NONE` on the hull).
-fn adjacency(triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    let mut edges: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(3 * triangles.len());
-    for (c, t) in triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            edges.push((a.min(b), a.max(b), c as u32, k as u8));
-        }
-    }
-    edges.sort_unstable();
-    let mut adjacency = vec![[NONE; 3]; triangles.len()];
-    for w in edges.windows(2) {
-        if w[0].0 == w[1].0 && w[0].1 == w[1].1 {
-            adjacency[w[0].2 as usize][w[0].3 as usize] = w[1].2;
-            adjacency[w[1].2 as usize][w[1].3 as usize] = w[0].2;
-        }
-    }
-    adjacency
 }
 
 /// Visibility walk from coarse triangle `start` to one containing p (or the hull triangle where

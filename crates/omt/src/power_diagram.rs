@@ -844,6 +844,27 @@ impl PowerDiagram {
             .collect()
     }
 
+    /// Per triangle of [`Self::triangles`] (same order), the index in that list of the triangle
+    /// across the edge opposite each of its vertices; `u32::MAX` across a hull edge.
+    pub fn triangle_neighbors(&self) -> Vec<[u32; 3]> {
+        let inf = self.sites.len() as u32;
+        let finite = |t: &[u32; 3]| t[0] != NONE && !t.contains(&inf);
+        let mut index = vec![NONE; self.triangle_vertices.len()];
+        let mut count = 0;
+        for (t, v) in self.triangle_vertices.iter().enumerate() {
+            if finite(v) {
+                index[t] = count;
+                count += 1;
+            }
+        }
+        self.triangle_vertices
+            .iter()
+            .zip(&self.triangle_neighbors)
+            .filter(|(v, _)| finite(v))
+            .map(|(_, across)| across.map(|u| if u == NONE { NONE } else { index[u as usize] }))
+            .collect()
+    }
+
     /// Index of a site whose (closed) power cell contains x: greedy descent of the power
     /// distance π_j(x) = |x − y_j|² − w_j over the neighbour graph, starting at `hint` (or a
     /// fixed site). Every comparison is exact ([`power_compare`]); it stops at the first site no

@@ -498,3 +498,36 @@ fn early_stop_counts_each_hidden_site_once() {
         Construction::Complete(_) => panic!("4 hidden sites allowed with a limit of 3"),
     }
 }
+
+/// `triangle_neighbors`: across the edge opposite vertex k of a finite triangle lies the triangle
+/// holding that edge in the other direction, and the triangles with no neighbour on an edge are
+/// exactly the hull's (each hull edge of the regular triangulation once).
+#[test]
+fn triangle_neighbors_share_the_opposite_edge() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (sites, weights) = random_input(&mut rng, 300, 1e-3);
+    let diagram = PowerDiagram::new(&sites, &weights).unwrap();
+    let triangles = diagram.triangles();
+    let across = diagram.triangle_neighbors();
+    assert_eq!(triangles.len(), across.len());
+    let mut open_edges = 0;
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            let u = across[t][k];
+            if u == u32::MAX {
+                open_edges += 1;
+                continue;
+            }
+            let other = triangles[u as usize];
+            let j = (0..3).find(|&j| other[j] == b).expect("the neighbour holds the edge");
+            assert_eq!(other[(j + 1) % 3], a, "triangle {t} edge {k}: {tri:?} vs {other:?}");
+            assert_eq!(across[u as usize][(j + 2) % 3], t as u32, "neighbours are mutual");
+        }
+    }
+    // Euler for a triangulated convex polygon: T = 2V − 2 − h, and h open edges (hidden sites are
+    // not vertices).
+    let v = (0..sites.len()).filter(|&i| !diagram.is_hidden(i)).count();
+    assert_eq!(triangles.len(), 2 * v - 2 - open_edges);
+    assert!(open_edges >= 3);
+}

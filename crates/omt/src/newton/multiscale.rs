@@ -84,7 +84,8 @@ const AVERAGING_MIN_SAMPLE: f64 = 1.5;
 
 /// The sample size of the averaged measure for a coarse level of `coarse_n` points (see
 /// [`AVERAGING_MIN_SAMPLE`]), `None` when averaging would not pay.
-fn averaging_sample(measure: &SourceMeasure, coarse_n: usize) -> Option<usize> {
+/// `hull_size` is the number of vertices of the convex hull of the measure's vertices.
+fn averaging_sample(measure: &SourceMeasure, coarse_n: usize, hull_size: usize) -> Option<usize> {
     let floor = AVERAGING_MIN_SAMPLE * coarse_n as f64;
     let mut sample = measure.vertices.len() / 2;
     if (sample as f64) < floor {
@@ -94,12 +95,7 @@ fn averaging_sample(measure: &SourceMeasure, coarse_n: usize) -> Option<usize> {
         sample /= 2;
     }
     // The averaged triangulation has about 2·sample triangles plus one per hull vertex.
-    (4 * sample + 2 * boundary_size(measure) <= measure.triangles.len()).then_some(sample)
-}
-
-/// Number of vertices on the convex hull of the measure's vertices.
-fn boundary_size(measure: &SourceMeasure) -> usize {
-    crate::restricted::convex_hull(&measure.vertices).len()
+    (4 * sample + 2 * hull_size <= measure.triangles.len()).then_some(sample)
 }
 /// Rounds of the check for hidden points after the prolongation.
 const REPAIR_ROUNDS: usize = 8;
@@ -275,7 +271,9 @@ pub(crate) fn coarse_to_fine_heights(
         start_strategy: super::StartStrategy::CoarseToFine,
         ..params.clone()
     };
-    let averaged = averaging_sample(measure, coarse_n).and_then(|sample| measure.averaged(sample));
+    // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
+    let boundary = convex_hull(&measure.vertices);
+    let averaged = averaging_sample(measure, coarse_n, boundary.len()).and_then(|sample| measure.averaged(sample));
     let level_measure = averaged.as_deref().unwrap_or(measure);
     let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
@@ -321,7 +319,6 @@ pub(crate) fn coarse_to_fine_heights(
             })
             .collect()
     };
-    let boundary = convex_hull(&measure.vertices);
     let centroids: Vec<[f64; 2]> = (0..coarse_n)
         .map(|g| {
             let m = cells.masses[g];
