@@ -188,11 +188,29 @@ pub(super) struct Crossing {
     entry: bool,
 }
 
-/// Per-worker buffers of the boundary form.
-#[derive(Default)]
+/// Largest cell polygon the boundary form takes (more vertices: the clipping path). Cells of
+/// face pairs have ~6.5.
+const MAX_VERTICES: usize = 64;
+
+/// Per-worker buffers of the boundary form (fixed size: no bounds growth in the inner loops).
 pub(super) struct BoundaryScratch {
-    values: Vec<[f64; 3]>,
-    crossings: Vec<Crossing>,
+    values: [[f64; 3]; MAX_VERTICES],
+    crossings: [Crossing; 2 * MAX_VERTICES],
+}
+
+impl Default for BoundaryScratch {
+    fn default() -> Self {
+        let none = Crossing {
+            edge: 0,
+            position: 0.0,
+            point: [0.0; 2],
+            entry: false,
+        };
+        BoundaryScratch {
+            values: [[0.0; 3]; MAX_VERTICES],
+            crossings: [none; 2 * MAX_VERTICES],
+        }
+    }
 }
 
 /// Running integrals of one piece: area, ∫ z, ∫ |z|² (unit density, relative to the site).
@@ -300,8 +318,9 @@ impl RestrictedIntegrator {
             out.edges.truncate(edges_before);
             return false;
         }
-        let pieces = &mut out.pieces[pieces_before..];
-        pieces.sort_unstable_by_key(|p| p.cell);
+        // (No sort of the pieces by cell: each cell has at most one piece per triangle, so the
+        // per-cell sums do not depend on the walk's order.)
+        let pieces = &out.pieces[pieces_before..];
         if let Some(largest) = pieces.iter().max_by(|a, b| a.area.total_cmp(&b.area)) {
             self.seeds[t].store(largest.cell, std::sync::atomic::Ordering::Relaxed);
             s.hint = Some(largest.cell as usize);
@@ -328,33 +347,43 @@ impl RestrictedIntegrator {
         let c = triangle.corners;
         // t's corners and edge lines relative to y_i (offsets in compensated arithmetic).
         let corners = c.map(|p| [p[0] - y[0], p[1] - y[1]]);
+        let (vertices, lines, extent) = polygons.cell(i);
+        // The offsets c = n·(p − y) in plain arithmetic are accurate to ~3ε|n| max|p − y|, i.e.
+        // to 2e-14 of the cell's size when t's corners are within 64 cell sizes of the site;
+        // farther (a tiny cell in a large triangle) they are compensated as in the clipping path.
+        let reach = corners.iter().fold(0.0f64, |r, p| r.max(p[0].abs()).max(p[1].abs()));
+        let compensated = reach > 64.0 * extent;
         let tri_lines: [Line; 3] = std::array::from_fn(|m| {
             let (p, q) = (c[m], c[(m + 1) % 3]);
+            let n = [q[1] - p[1], p[0] - q[0]];
+            let a = corners[m];
             Line {
-                n: [q[1] - p[1], p[0] - q[0]],
-                c: edge_offset(p, q, y),
+                n,
+                c: if compensated {
+                    edge_offset(p, q, y)
+                } else {
+                    n[0] * a[0] + n[1] * a[1]
+                },
                 label: NO_LABEL,
             }
         });
-        let (vertices, lines, extent) = polygons.cell(i);
         let len = vertices.len();
-        if len < 3 {
+        if !(3..=MAX_VERTICES).contains(&len) {
             return Err(Declined);
         }
         // |n·v − c| below ON_LINE × (|n₀| + |n₁|) max|v| + |c| (a bound on the terms) counts as
         // on the line.
         let on_line = tri_lines.map(|l| ON_LINE * ((l.n[0].abs() + l.n[1].abs()) * extent + l.c.abs()));
-        let b = &mut s.boundary;
-        b.values.clear();
-        for v in vertices {
+        let b = &mut *s.boundary;
+        for (v, slot) in vertices.iter().zip(&mut b.values) {
             let g: [f64; 3] =
                 std::array::from_fn(|m| tri_lines[m].n[0] * v[0] + tri_lines[m].n[1] * v[1] - tri_lines[m].c);
             if !(g[0].abs() > on_line[0] && g[1].abs() > on_line[1] && g[2].abs() > on_line[2]) {
                 return Err(Declined);
             }
-            b.values.push(g);
+            *slot = g;
         }
-        b.crossings.clear();
+        let mut count = 0;
         let list = diagram.neighbor_list();
         let density = triangle.density;
         let mut sums = Sums::default();
@@ -418,12 +447,23 @@ impl RestrictedIntegrator {
                     if !(position > TIE && position < 1.0 - TIE) {
                         return Err(Declined);
                     }
-                    b.crossings.push(Crossing {
+                    // Insertion sort by (edge, position): counter-clockwise along ∂t.
+                    let crossing = Crossing {
                         edge: m,
                         position,
                         point,
                         entry,
-                    });
+                    };
+                    let mut at = count;
+                    while at > 0 && {
+                        let c = &b.crossings[at - 1];
+                        c.edge > m || (c.edge == m && c.position > position)
+                    } {
+                        b.crossings[at] = b.crossings[at - 1];
+                        at -= 1;
+                    }
+                    b.crossings[at] = crossing;
+                    count += 1;
                 }
             }
             sums.fan(p, q);
@@ -436,7 +476,7 @@ impl RestrictedIntegrator {
                 s.queue.push(j as u32);
             }
         }
-        if b.crossings.is_empty() {
+        if count == 0 {
             if !any_segment {
                 // No edge of the cell meets t: t lies inside the cell or misses it, which only
                 // the walk's first cell (a guess) may do. Decided by t's centroid.
@@ -464,9 +504,7 @@ impl RestrictedIntegrator {
             }
             // Otherwise the polygon lies inside t and its edges already close the piece.
         } else {
-            let crossings = &mut b.crossings;
-            crossings.sort_unstable_by(|a, b| a.edge.cmp(&b.edge).then(a.position.total_cmp(&b.position)));
-            let count = crossings.len();
+            let crossings = &b.crossings[..count];
             for k in 0..count {
                 let (a, next) = (crossings[k], crossings[(k + 1) % count]);
                 // Entries and exits alternate along ∂t, at distinct places.

@@ -275,7 +275,7 @@ struct Scratch {
     b: Polygon,
     values: Vec<f64>,
     hint: Option<usize>,
-    boundary: BoundaryScratch,
+    boundary: Box<BoundaryScratch>,
 }
 
 impl Scratch {
@@ -288,7 +288,7 @@ impl Scratch {
             b: Polygon::default(),
             values: Vec::new(),
             hint: None,
-            boundary: BoundaryScratch::default(),
+            boundary: Box::default(),
         }
     }
 }
