@@ -172,6 +172,7 @@ impl CellPolygons {
         true
     }
 
+    #[inline]
     fn cell(&self, i: usize) -> (&[[f64; 2]], &[Line], f64) {
         let (a, b) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
         (&self.vertices[a..b], &self.lines[a..b], self.extents[i])
@@ -248,6 +249,9 @@ struct Triangle {
     corners: [[f64; 2]; 3],
     density: f64,
 }
+
+/// The next corner (or edge) of a triangle, counter-clockwise.
+const NEXT: [usize; 3] = [1, 2, 0];
 
 /// A close decision: the triangle must go through the clipping path.
 struct Declined;
@@ -354,7 +358,7 @@ impl RestrictedIntegrator {
         let reach = corners.iter().fold(0.0f64, |r, p| r.max(p[0].abs()).max(p[1].abs()));
         let compensated = reach > 64.0 * extent;
         let tri_lines: [Line; 3] = std::array::from_fn(|m| {
-            let (p, q) = (c[m], c[(m + 1) % 3]);
+            let (p, q) = (c[m], c[NEXT[m]]);
             let n = [q[1] - p[1], p[0] - q[0]];
             let a = corners[m];
             Line {
@@ -388,9 +392,11 @@ impl RestrictedIntegrator {
         let density = triangle.density;
         let mut sums = Sums::default();
         let mut any_segment = false;
+        let mut gb = b.values[0];
         for k in 0..len {
             let k1 = if k + 1 == len { 0 } else { k + 1 };
-            let (ga, gb) = (b.values[k], b.values[k1]);
+            let ga = gb;
+            gb = b.values[k1];
             // Liang–Barsky: the parameter interval of the edge inside t.
             let (mut t0, mut t1) = (0.0f64, 1.0f64);
             let (mut enter, mut exit) = (usize::MAX, usize::MAX);
@@ -441,7 +447,7 @@ impl RestrictedIntegrator {
             };
             for (m, point, entry) in [(enter, p, true), (exit, q, false)] {
                 if m != usize::MAX {
-                    let (a, e) = (corners[m], corners[(m + 1) % 3]);
+                    let (a, e) = (corners[m], corners[NEXT[m]]);
                     let d = [e[0] - a[0], e[1] - a[1]];
                     let position = ((point[0] - a[0]) * d[0] + (point[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]);
                     if !(position > TIE && position < 1.0 - TIE) {
