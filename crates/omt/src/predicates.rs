@@ -59,6 +59,7 @@ pub fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> i8 {
 /// conflict (its lifted point is strictly below the lifted plane of the triangle), `-1` when it is
 /// strictly above, `0` exactly on it. No perturbation.
 #[allow(clippy::too_many_arguments)] // the four weighted points of the determinant
+#[inline]
 pub fn power_side_exact_sign(
     a: [f64; 2],
     wa: Weight,
@@ -90,7 +91,24 @@ pub fn power_side_exact_sign(
             return -1;
         }
     }
-    // Exact evaluation with expansions.
+    power_side_expansion(a, wa, b, wb, c, wc, p, wp)
+}
+
+/// The exact evaluation of [`power_side_exact_sign`] with expansions, out of line: the filter
+/// decides almost every call.
+#[cold]
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn power_side_expansion(
+    a: [f64; 2],
+    wa: Weight,
+    b: [f64; 2],
+    wb: Weight,
+    c: [f64; 2],
+    wc: Weight,
+    p: [f64; 2],
+    wp: Weight,
+) -> i8 {
     let row = |q: [f64; 2], wq: Weight| -> [Expansion; 3] {
         let x = Expansion::diff(q[0], p[0]);
         let y = Expansion::diff(q[1], p[1]);
@@ -114,6 +132,7 @@ pub fn power_side_exact_sign(
 /// coefficients are δ_a: orient(p,b,c), δ_b: orient(p,c,a), δ_c: orient(p,a,b),
 /// δ_p: −orient(a,b,c) (nonzero), and the smallest key present decides first.
 #[allow(clippy::too_many_arguments)]
+#[inline]
 pub fn power_side_sos(
     a: [f64; 2],
     wa: Weight,

@@ -671,7 +671,10 @@ fn boundary_form_matches_clipping() {
     let d = PowerDiagram::new(&sites, &weights).unwrap();
     let (a, stats) = boundary.integrate_with_stats(&d);
     let b = clipping.integrate(&d);
-    eprintln!("cluster: boundary form declined {} of {} triangles", stats.declined, stats.triangles);
+    eprintln!(
+        "cluster: boundary form declined {} of {} triangles",
+        stats.declined, stats.triangles
+    );
     let mut tiny = 0;
     let worst = (1500..sites.len())
         .filter(|&i| b.masses[i] > 0.0)
@@ -695,5 +698,8 @@ fn boundary_form_matches_clipping() {
             b.second_moments[i]
         );
     }
-    assert!(tiny >= 5, "only {tiny} tiny cells: the cluster does not test what it should");
+    assert!(
+        tiny >= 5,
+        "only {tiny} tiny cells: the cluster does not test what it should"
+    );
 }
