@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod prepare;
 pub mod primitives;
 pub mod quantities;
+pub mod seam;
 pub mod topology;
 pub mod vec3;
 

@@ -640,6 +640,11 @@ pub struct PrepareOptions {
     pub cut_center: CutCenter,
     /// Size of the removed disk (default: 3 rings).
     pub cut_radius: Radius,
+    /// After the disk is made, cut it open along shortest edge paths from this many extremities
+    /// to the boundary ([`crate::seam`]; default 0: no seam). One is the measured choice for
+    /// bodies: the slit through the farthest tip keeps their conformal images from crowding
+    /// beyond f64 (see `crates/omt/ARCHITECTURE.md`, session 14).
+    pub seam_extremities: usize,
 }
 
 impl Default for PrepareOptions {
@@ -647,6 +652,7 @@ impl Default for PrepareOptions {
         PrepareOptions {
             cut_center: CutCenter::Auto,
             cut_radius: Radius::Rings(3),
+            seam_extremities: 0,
         }
     }
 }
@@ -666,6 +672,12 @@ pub struct PrepareReport {
     pub faces_cut: usize,
     /// Holes filled (every boundary loop but the longest), one vertex appended per hole.
     pub holes_filled: usize,
+    /// Input vertices of the seam's extremities (empty without a seam).
+    pub seam_extremities: Vec<u32>,
+    /// Edges of the seam.
+    pub seam_edges: usize,
+    /// Vertices appended by the seam cut (copies of seam vertices, one per extra wedge).
+    pub seam_vertices_added: usize,
     /// Edges joining two boundary vertices split at their midpoints (one vertex appended per
     /// edge), done only when such edges cut interior vertices off from the rest of the
     /// interior ([`interior_components`]), which no harmonic disk map can place inside the disk.
@@ -676,12 +688,15 @@ pub struct PrepareReport {
 /// this order: drop unreferenced vertices, keep the largest component, make the orientation
 /// consistent, cut a disk out of a closed surface ([`cut_disk`] at `options.cut_center`), fill
 /// every boundary loop but the longest ([`fill_holes_except_longest`]), check the result with
-/// [`topology::require_disk`], and, when edges joining two boundary vertices cut the interior
-/// into pieces ([`interior_components`]), split those edges ([`boundary_bridges`],
-/// [`split_edges`]).
+/// [`topology::require_disk`], optionally cut it open along a seam from its extremities to the
+/// boundary (`options.seam_extremities`, [`crate::seam`]), and, when edges joining two boundary
+/// vertices cut the interior into pieces ([`interior_components`]), split those edges
+/// ([`boundary_bridges`], [`split_edges`]).
 ///
 /// Returns the mesh, the map from its vertices to the input's (`None` for vertices added by hole
-/// filling or edge splits; the others keep their relative order) and what was done. Errors: an
+/// filling or edge splits; a copy made by the seam cut maps to the input vertex it copies, so
+/// seam vertices appear more than once; the others keep their relative order) and what was
+/// done. Errors: an
 /// invalid mesh, a non-orientable or non-manifold surface, a cut centre out of range or removed
 /// by an earlier step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1,
 /// which a disk cut leaves with handles: the error names the genus).
@@ -747,6 +762,18 @@ pub fn prepare_disk(
         m = filled;
     }
     topology::require_disk(&m)?;
+    if options.seam_extremities > 0 {
+        let terminals = crate::seam::extremities(&m, options.seam_extremities)?;
+        let seam = crate::seam::seam_tree(&m, &terminals)?;
+        if !seam.is_empty() {
+            let (cut, copies) = crate::seam::cut_along_seam(&m, &seam)?;
+            report.seam_extremities = terminals.iter().filter_map(|&t| origin[t as usize]).collect();
+            report.seam_edges = seam.len();
+            report.seam_vertices_added = cut.num_vertices() - m.num_vertices();
+            origin = copies.iter().map(|&v| origin[v as usize]).collect();
+            m = cut;
+        }
+    }
     // a disk whose interior falls apart at edges joining two boundary vertices: split them
     // (the new midpoints are interior and join the pieces); rounds because a split can leave
     // pieces that only the next bridge joins

@@ -619,6 +619,7 @@ fn prepare_disk_makes_disks_and_reports_its_steps() {
         &prepare::PrepareOptions {
             cut_center: prepare::CutCenter::Vertex(7),
             cut_radius: Radius::Rings(1),
+            ..Default::default()
         },
     )
     .unwrap();

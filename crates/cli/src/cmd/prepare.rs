@@ -1,8 +1,9 @@
-//! `shapespace prepare IN --out OUT [--cut-center V|auto] [--cut-rings K] [--vertex-map MAP.csv]`:
-//! a disk-topology mesh for the other commands, by the explicit operations of
-//! [`shapespace_geometry::prepare::prepare_disk`] (drop unreferenced vertices, keep the largest
-//! component, orient consistently, cut a disk out of a closed surface, fill all holes but the
-//! longest, split the edges between two boundary vertices when they cut interior vertices off).
+//! `shapespace prepare IN --out OUT [--cut-center V|auto] [--cut-rings K] [--seam N]
+//! [--vertex-map MAP.csv]`: a disk-topology mesh for the other commands, by the explicit
+//! operations of [`shapespace_geometry::prepare::prepare_disk`] (drop unreferenced vertices, keep
+//! the largest component, orient consistently, cut a disk out of a closed surface, fill all holes
+//! but the longest, optionally slit the disk from N extremities to its boundary, split the edges
+//! between two boundary vertices when they cut interior vertices off).
 //! Prints what it did.
 
 use std::io::Write;
@@ -28,8 +29,14 @@ pub struct PrepareArgs {
     /// Size of that disk, in edge rings around the centre.
     #[arg(long, default_value_t = 3)]
     pub cut_rings: usize,
+    /// Then slit the disk open along shortest edge paths from this many extremities (geodesic
+    /// farthest points from the boundary) to the boundary. `--seam 1` is what whole bodies need:
+    /// without it a limb's conformal image shrinks exponentially and its points crowd beyond
+    /// f64 (README, "Bodies").
+    #[arg(long, default_value_t = 0)]
+    pub seam: usize,
     /// Also write CSV `vertex,input_vertex` (input_vertex empty for vertices added by hole
-    /// filling or edge splits), so per-vertex data and landmarks can follow.
+    /// filling or edge splits; a seam vertex's copies all name it), so per-vertex data and landmarks can follow.
     #[arg(long)]
     pub vertex_map: Option<PathBuf>,
 }
@@ -49,6 +56,7 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
     let options = PrepareOptions {
         cut_center,
         cut_radius: Radius::Rings(args.cut_rings),
+        seam_extremities: args.seam,
     };
     let (disk, origin, report) =
         prepare_disk(&mesh, &options).with_context(|| format!("{}: cannot make a disk", args.input.display()))?;
@@ -91,6 +99,12 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
         steps.push(format!(
             "filled {} holes (one vertex appended per hole)",
             report.holes_filled
+        ));
+    }
+    if report.seam_edges > 0 {
+        steps.push(format!(
+            "slit it along {} edges from input vertices {:?} to the boundary ({} vertices appended)",
+            report.seam_edges, report.seam_extremities, report.seam_vertices_added
         ));
     }
     if report.bridges_split > 0 {

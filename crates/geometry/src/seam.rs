@@ -1,0 +1,345 @@
+//! Cutting a closed genus-0 surface open along a tree of edge paths (a *seam*) through its
+//! extremities, instead of removing a small disk.
+//!
+//! Why: a conformal map of a disk shrinks a protrusion exponentially in its length over its
+//! width (Su et al. 2015, Fig. 1). A body cut open by a small disk on the torso keeps every limb
+//! as an interior protrusion, and its conformal image puts whole fingers, paws and tails into
+//! regions a few ulps wide (the TOSCA meshes, `omt/ARCHITECTURE.md`, session 8). A seam that runs
+//! through the limbs' tips turns each limb into a strip along the boundary, which the conformal
+//! map opens instead of collapsing — the usual remedy in surface parameterization (cut graphs
+//! through points of extreme conformal scale, as in Ben-Chen, Gotsman & Bunin 2008 and Sharp &
+//! Crane 2018).
+//!
+//! The seam is the union of shortest edge paths (Dijkstra on edge lengths) joining the terminals
+//! one after another to the tree built so far, so it is a tree. Cutting a closed genus-0 surface
+//! along a tree gives a disk whose boundary walks around the tree: a tree vertex of degree d
+//! becomes d vertices (one per wedge of its faces between consecutive seam edges), a leaf stays
+//! one vertex.
+
+use std::collections::BinaryHeap;
+
+use crate::connectivity::Connectivity;
+use crate::error::GeometryError;
+use crate::mesh::TriMesh;
+use crate::topology;
+use crate::vec3::{norm, sub};
+
+/// Min-heap entry of the Dijkstra searches (distance, vertex).
+#[derive(PartialEq)]
+struct Item(f64, u32);
+impl Eq for Item {}
+impl PartialOrd for Item {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Item {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
+    }
+}
+
+/// Edge-path distances from a set of sources (Dijkstra on Euclidean edge lengths) and each
+/// vertex's predecessor on its shortest path (`u32::MAX` for the sources and unreachable
+/// vertices). Stops early when `stop(v)` holds for a settled vertex v ≠ source and returns it.
+fn dijkstra(
+    mesh: &TriMesh,
+    adjacency: &[Vec<u32>],
+    sources: &[u32],
+    mut stop: impl FnMut(u32) -> bool,
+) -> (Vec<f64>, Vec<u32>, Option<u32>) {
+    let n = mesh.num_vertices();
+    let mut dist = vec![f64::INFINITY; n];
+    let mut previous = vec![u32::MAX; n];
+    let mut heap = BinaryHeap::new();
+    for &s in sources {
+        dist[s as usize] = 0.0;
+        heap.push(Item(0.0, s));
+    }
+    while let Some(Item(d, v)) = heap.pop() {
+        if d > dist[v as usize] {
+            continue;
+        }
+        if previous[v as usize] != u32::MAX && stop(v) {
+            return (dist, previous, Some(v));
+        }
+        for &w in &adjacency[v as usize] {
+            let nd = d + norm(sub(mesh.positions[w as usize], mesh.positions[v as usize]));
+            if nd < dist[w as usize] {
+                dist[w as usize] = nd;
+                previous[w as usize] = v;
+                heap.push(Item(nd, w));
+            }
+        }
+    }
+    (dist, previous, None)
+}
+
+/// `count` extremities of a connected surface by geodesic farthest-point sampling (edge-path
+/// distances). On a surface with boundary the first is the vertex farthest from the boundary,
+/// each next one the vertex farthest from the boundary and the ones chosen so far; on a closed
+/// surface the first is the vertex farthest from vertex 0. On a body the first ones are the tips
+/// of the limbs, the tail and the head. Ties go to the smaller index; fewer are returned when
+/// every vertex is chosen or on the boundary.
+pub fn extremities(mesh: &TriMesh, count: usize) -> Result<Vec<u32>, GeometryError> {
+    mesh.validate()?;
+    let n = mesh.num_vertices();
+    if n == 0 || count == 0 {
+        return Ok(Vec::new());
+    }
+    let conn = Connectivity::of(mesh);
+    let adjacency = conn.vertex_neighbors(n);
+    let farthest = |dist: &[f64]| -> Option<u32> {
+        let mut best: Option<(f64, u32)> = None;
+        for (v, &d) in dist.iter().enumerate() {
+            if d.is_finite() && d > 0.0 && best.is_none_or(|(b, _)| d > b) {
+                best = Some((d, v as u32));
+            }
+        }
+        best.map(|(_, v)| v)
+    };
+    let on_boundary = conn.boundary_vertices(n);
+    let boundary: Vec<u32> = (0..n as u32).filter(|&v| on_boundary[v as usize]).collect();
+    let mut nearest = if boundary.is_empty() {
+        let start = farthest(&dijkstra(mesh, &adjacency, &[0], |_| false).0).unwrap_or(0);
+        dijkstra(mesh, &adjacency, &[start], |_| false).0
+    } else {
+        dijkstra(mesh, &adjacency, &boundary, |_| false).0
+    };
+    let mut chosen = Vec::new();
+    if boundary.is_empty() {
+        chosen.push(nearest.iter().position(|&d| d == 0.0).unwrap_or(0) as u32);
+    }
+    while chosen.len() < count {
+        let Some(v) = farthest(&nearest) else { break };
+        chosen.push(v);
+        let d = dijkstra(mesh, &adjacency, &[v], |_| false).0;
+        for (a, b) in nearest.iter_mut().zip(d) {
+            *a = a.min(b);
+        }
+    }
+    Ok(chosen)
+}
+
+/// The seam through `terminals`: on a closed surface each terminal after the first is joined by
+/// a shortest edge path to the nearest vertex of the tree built so far; on a surface with
+/// boundary each terminal is joined to the nearest vertex of the boundary or of the paths built
+/// so far (so every component of the seam meets the boundary at one vertex). Returns the seam's
+/// edges as (min, max) pairs. Errors when a terminal is out of range or cannot be reached.
+pub fn seam_tree(mesh: &TriMesh, terminals: &[u32]) -> Result<Vec<[u32; 2]>, GeometryError> {
+    mesh.validate()?;
+    let n = mesh.num_vertices();
+    if let Some(&t) = terminals.iter().find(|&&t| t as usize >= n) {
+        return Err(GeometryError::Invalid(format!(
+            "seam terminal {t} is out of range ({n} vertices)"
+        )));
+    }
+    let conn = Connectivity::of(mesh);
+    let adjacency = conn.vertex_neighbors(n);
+    let mut in_tree = conn.boundary_vertices(n);
+    let mut edges = Vec::new();
+    let mut rest = terminals;
+    if !in_tree.iter().any(|&b| b) {
+        let Some((&first, others)) = terminals.split_first() else {
+            return Ok(edges);
+        };
+        in_tree[first as usize] = true;
+        rest = others;
+    }
+    for &t in rest {
+        if in_tree[t as usize] {
+            continue;
+        }
+        let (_, previous, reached) = dijkstra(mesh, &adjacency, &[t], |v| in_tree[v as usize]);
+        let Some(mut v) = reached else {
+            return Err(GeometryError::Topology(format!(
+                "seam terminal {t} cannot be reached from the boundary or the other terminals"
+            )));
+        };
+        while v != t {
+            let p = previous[v as usize];
+            edges.push([v.min(p), v.max(p)]);
+            in_tree[v as usize] = true;
+            v = p;
+        }
+        in_tree[t as usize] = true;
+    }
+    Ok(edges)
+}
+
+/// Cuts a surface open along `seam` (edges as vertex pairs). On a closed surface the seam must be
+/// a tree; on a surface with boundary, a forest each of whose trees meets the boundary at one
+/// vertex (with the boundary contracted to a point, the seam is a tree through it). At every
+/// vertex the seam edges split its faces into wedges (between consecutive seam edges, and the
+/// boundary for a boundary vertex); each wedge gets its own copy of the vertex (the first keeps
+/// the index, the others are appended at the end). Faces and their order are kept. Returns the
+/// cut mesh and, for each of its vertices, the input vertex it copies. Cutting a sphere or a disk
+/// this way gives a disk (checked with [`topology::require_disk`]).
+///
+/// Errors when the surface is not edge-manifold, not consistently oriented or has a
+/// non-manifold vertex, when a seam edge is not an edge of the mesh, when the seam is empty or
+/// not a tree as above, or when the result is not a disk.
+pub fn cut_along_seam(mesh: &TriMesh, seam: &[[u32; 2]]) -> Result<(TriMesh, Vec<u32>), GeometryError> {
+    mesh.validate()?;
+    let n = mesh.num_vertices();
+    let conn = Connectivity::of(mesh);
+    if let Some(e) = conn.edge_faces.iter().position(|f| f.len() > 2) {
+        let [a, b] = conn.edges[e];
+        return Err(GeometryError::Topology(format!(
+            "a seam cut needs an edge-manifold surface; edge ({a}, {b}) has {} faces",
+            conn.edge_faces[e].len()
+        )));
+    }
+    let mut directed: Vec<[u32; 2]> = mesh
+        .faces
+        .iter()
+        .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]])
+        .collect();
+    directed.sort_unstable();
+    if let Some(w) = directed.windows(2).find(|w| w[0] == w[1]) {
+        return Err(GeometryError::Topology(format!(
+            "a seam cut needs a consistently oriented surface; two faces run along edge {} → {} in the same direction",
+            w[0][0], w[0][1]
+        )));
+    }
+    if seam.is_empty() {
+        return Err(GeometryError::Invalid("the seam has no edges".into()));
+    }
+    let on_boundary = conn.boundary_vertices(n);
+    let mut is_seam = vec![false; conn.num_edges()];
+    let mut degree = vec![0u32; n];
+    // Tree check with the boundary contracted to one node (index n): union–find over the nodes.
+    let mut parent: Vec<usize> = (0..=n).collect();
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let node = |v: u32| if on_boundary[v as usize] { n } else { v as usize };
+    for &[a, b] in seam {
+        let key = [a.min(b), a.max(b)];
+        let Ok(e) = conn.edges.binary_search(&key) else {
+            return Err(GeometryError::Invalid(format!(
+                "seam edge ({a}, {b}) is not an edge of the mesh"
+            )));
+        };
+        if is_seam[e] {
+            continue;
+        }
+        if conn.edge_faces[e].len() != 2 {
+            return Err(GeometryError::Invalid(format!(
+                "seam edge ({a}, {b}) lies on the boundary"
+            )));
+        }
+        let (ra, rb) = (find(&mut parent, node(a)), find(&mut parent, node(b)));
+        if ra == rb {
+            return Err(GeometryError::Invalid(format!(
+                "the seam is not a tree: edge ({a}, {b}) closes a cycle (the boundary counts as one vertex)"
+            )));
+        }
+        parent[ra] = rb;
+        is_seam[e] = true;
+        degree[a as usize] += 1;
+        degree[b as usize] += 1;
+    }
+    let has_boundary = on_boundary.iter().any(|&b| b);
+    let root = |parent: &mut [usize]| {
+        if has_boundary {
+            find(parent, n)
+        } else {
+            let first = seam[0][0] as usize;
+            find(parent, first)
+        }
+    };
+    let r = root(&mut parent);
+    if let Some(v) = (0..n).find(|&v| degree[v] > 0 && find(&mut parent, node(v as u32)) != r) {
+        return Err(GeometryError::Invalid(format!(
+            "the seam is not connected{}: vertex {v} is not joined to the rest",
+            if has_boundary { " to the boundary" } else { "" }
+        )));
+    }
+    let edge_of = |a: u32, b: u32| conn.edges.binary_search(&[a.min(b), a.max(b)]).ok();
+    let mut faces = mesh.faces.clone();
+    let mut origin: Vec<u32> = (0..n as u32).collect();
+    let mut positions = mesh.positions.clone();
+    for v in 0..n as u32 {
+        let boundary = on_boundary[v as usize];
+        if degree[v as usize] == 0 || (!boundary && degree[v as usize] < 2) {
+            continue;
+        }
+        // Walk the fan around v counter-clockwise: face (v, a, b) is followed, across edge
+        // {v, b}, by the face holding the directed edge v → b. An interior vertex starts right
+        // after a seam edge, a boundary vertex at the face after its boundary edge {v, a}.
+        let fan = &conn.vertex_faces[v as usize];
+        let rotate = |f: u32| -> [u32; 3] {
+            let face = mesh.faces[f as usize];
+            let k = face.iter().position(|&x| x == v).unwrap_or(0);
+            [face[k], face[(k + 1) % 3], face[(k + 2) % 3]]
+        };
+        let next = |f: u32| -> Option<(u32, bool)> {
+            let [_, _, b] = rotate(f);
+            let e = edge_of(v, b)?;
+            let g = *conn.edge_faces[e].iter().find(|&&g| g != f)?;
+            Some((g, is_seam[e]))
+        };
+        let start = fan.iter().copied().find(|&f| {
+            let [_, a, b] = rotate(f);
+            if boundary {
+                edge_of(v, a).is_some_and(|e| conn.edge_faces[e].len() == 1)
+            } else {
+                edge_of(v, b).is_some_and(|e| is_seam[e])
+            }
+        });
+        let start = match (start, boundary) {
+            (Some(f), true) => Some(f),
+            (Some(f), false) => next(f).map(|(g, _)| g),
+            (None, _) => None,
+        };
+        let Some(start) = start else {
+            return Err(GeometryError::Topology(format!(
+                "vertex {v}: no start for the walk around it"
+            )));
+        };
+        let (mut f, mut copy, mut visited) = (start, v, 0);
+        loop {
+            let k = mesh.faces[f as usize].iter().position(|&x| x == v).unwrap_or(0);
+            faces[f as usize][k] = copy;
+            visited += 1;
+            if visited > fan.len() {
+                return Err(GeometryError::Topology(format!("vertex {v} is not manifold")));
+            }
+            let Some((g, crosses_seam)) = next(f) else {
+                if boundary {
+                    break;
+                }
+                return Err(GeometryError::Topology(format!("vertex {v}: its fan is not closed")));
+            };
+            if g == start {
+                break;
+            }
+            if crosses_seam {
+                copy = positions.len() as u32;
+                positions.push(mesh.positions[v as usize]);
+                origin.push(v);
+            }
+            f = g;
+        }
+        if visited != fan.len() {
+            return Err(GeometryError::Topology(format!(
+                "vertex {v} is not manifold: its faces form more than one fan"
+            )));
+        }
+    }
+    if positions.len() > u32::MAX as usize {
+        return Err(GeometryError::Invalid("too many vertices after the seam cut".into()));
+    }
+    let out = TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    };
+    topology::require_disk(&out)?;
+    Ok((out, origin))
+}
