@@ -100,6 +100,9 @@ pub struct ShapeReport {
     pub density_range: Option<[f64; 2]>,
     /// Flipped image triangles of the conformal map.
     pub flipped_faces: Option<usize>,
+    /// Faces the Green's-function map folded when the conformal map is BFF's instead
+    /// (`DiskMapParams::bff_fallback`); None for the Green's-function map.
+    pub bff_fallback_after_green_folds: Option<usize>,
 }
 
 /// Timing of the stages, seconds (wall clock, except `pairs_cpu`: the sum over pairs).
@@ -246,6 +249,7 @@ pub fn run_distances(
                         seconds,
                         density_range: Some([lo, hi]),
                         flipped_faces: Some(shape.disk.quality.num_flipped),
+                        bff_fallback_after_green_folds: shape.disk.info.bff_fallback.as_ref().map(|f| f.green_folds),
                     };
                     (Some(shape), report)
                 }
@@ -262,6 +266,7 @@ pub fn run_distances(
                         seconds,
                         density_range: None,
                         flipped_faces: None,
+                        bff_fallback_after_green_folds: None,
                     },
                 ),
             }

@@ -24,7 +24,9 @@
 //!    Domain f(D), f(z) = z/(1 − z/2), p = f(0) symmetric, rings 10 → 40: 5.4e-3 → 4.3e-4 at
 //!    p, 1.3e-2 → 5.9e-3 central (irregular pole). Neither wins in general; `Central` is
 //!    the safer choice when p is close to the boundary;
-//! 4. a local repair of the rare folded original faces (slivers; [`crate::repair`]);
+//! 4. a local repair of the rare folded original faces (slivers; [`crate::repair`]); when folds
+//!    remain, Boundary First Flattening ([`crate::bff`]) is tried and its map returned if it has
+//!    none ([`DiskMapParams::bff_fallback`], recorded in [`DiskMapInfo::bff_fallback`]);
 //! 5. the pushed-forward densities μ_f = area₃(f)/area₂(φ(f)) (surface scaled to area π) and
 //!    per-vertex conformal factors e^{2λ_i} = Σ_{f∋i} area₃ / Σ_{f∋i} area₂, evaluated on the
 //!    ORIGINAL faces (the intrinsic triangulation shares the vertex set).
@@ -88,6 +90,14 @@ pub struct DiskMapParams {
     /// Repair the few folded original faces by moving one free corner each into the kernel of
     /// its image one-ring ([`crate::repair`]; default true). Without it a fold is an error.
     pub repair_folds: bool,
+    /// When folds remain after the repair, try Boundary First Flattening ([`crate::bff`]) and
+    /// return its map if it has none (default true; only with `repair_folds`).
+    /// [`DiskMapInfo::bff_fallback`] then says so. Measured (2026-12-03): the slits of
+    /// `prepare --seam 1` through the limbs of TOSCA bodies run along zigzag edge paths whose
+    /// reflex boundary corners fold 11–254 faces of the Green's-function map (cat1, dog1, dog3,
+    /// michael0, wolf2); BFF, which places the boundary by its own scale-factor iteration, maps
+    /// those five without a fold.
+    pub bff_fallback: bool,
 }
 
 impl Default for DiskMapParams {
@@ -96,6 +106,7 @@ impl Default for DiskMapParams {
             intrinsic_delaunay: true,
             pole: PolePlacement::AtCenter,
             repair_folds: true,
+            bff_fallback: true,
         }
     }
 }
@@ -143,8 +154,22 @@ pub struct DiskMapInfo {
     pub boundary_from_flux: bool,
     /// Number of sparse linear solves (2, or 4 when the fallback route was needed).
     pub linear_solves: usize,
-    /// Stage timings.
+    /// Stage timings (of the Green's-function route; `total` includes a BFF fallback).
     pub timings: DiskMapTimings,
+    /// When the Green's-function map still folded after the repair and BFF's map was returned
+    /// instead ([`DiskMapParams::bff_fallback`]): the folds it had and what BFF did. The
+    /// `markers`, `mobius`, `intrinsic_flips`, `negative_weights_after` and `fold_repairs`
+    /// fields above are then BFF's.
+    pub bff_fallback: Option<BffFallback>,
+}
+
+/// Why and how [`disk_map`] returned a BFF map ([`DiskMapParams::bff_fallback`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BffFallback {
+    /// Faces the Green's-function map folded after its repair.
+    pub green_folds: usize,
+    /// BFF's record.
+    pub bff: crate::bff::BffInfo,
 }
 
 /// A conformal map onto the unit disk with its densities.
@@ -678,7 +703,54 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         }
     }
     let t4 = Instant::now();
-    let fin = finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds)?;
+    let fin = match finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds) {
+        Err(folded @ ConformalError::FoldedImage { num_flipped, .. }) if params.repair_folds && params.bff_fallback => {
+            let bff_params = crate::bff::BffParams {
+                intrinsic_delaunay: params.intrinsic_delaunay,
+                ..Default::default()
+            };
+            let Ok(b) = crate::bff::bff_disk_map(mesh, markers, &bff_params) else {
+                // BFF fails too: report the Green's-function map's folds
+                return Err(folded);
+            };
+            let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
+            return Ok(DiskMap {
+                uv: b.uv,
+                conformal_factor: b.conformal_factor,
+                face_densities: b.face_densities,
+                scale: b.scale,
+                quality: b.quality,
+                info: DiskMapInfo {
+                    method: format!(
+                        "{} (fallback: the Green's-function map folded {num_flipped} faces after repair)",
+                        b.info.method
+                    ),
+                    markers: b.info.markers,
+                    pole,
+                    mobius: b.info.mobius,
+                    intrinsic_flips: b.info.intrinsic_flips,
+                    negative_weights_before,
+                    negative_weights_after: b.info.negative_weights_after,
+                    fold_repairs: b.info.fold_repairs,
+                    boundary_from_flux,
+                    linear_solves,
+                    timings: DiskMapTimings {
+                        setup: secs(t0, t1),
+                        delaunay: secs(t1, t2),
+                        green: stage_times[0],
+                        conjugate: stage_times[1],
+                        finish: secs(t4, Instant::now()),
+                        total: secs(t0, Instant::now()),
+                    },
+                    bff_fallback: Some(BffFallback {
+                        green_folds: num_flipped,
+                        bff: b.info,
+                    }),
+                },
+            });
+        }
+        other => other?,
+    };
     let t5 = Instant::now();
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     Ok(DiskMap {
@@ -717,6 +789,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                 finish: secs(t4, t5),
                 total: secs(t0, t5),
             },
+            bff_fallback: None,
         },
         quality: fin.quality,
     })

@@ -263,3 +263,46 @@ fn a_fold_of_adjacent_slivers_is_repaired_by_a_patch() {
     }
     eprintln!("michael0 patch: {moves} vertices moved");
 }
+
+/// The bundled TOSCA centaur0 slit from two extremities (`prepare_disk` with
+/// `seam_extremities: 2`): the zigzag edge path of the second slit has reflex boundary corners
+/// at which the Green's-function map folds 39 faces that its repair cannot fix; BFF maps the
+/// same mesh without a fold, so `disk_map` returns BFF's map and says so. Without the fallback
+/// the fold is the error it was.
+#[test]
+fn folds_of_the_green_map_fall_back_to_bff() {
+    let Some(d) = datasets_dir() else { return };
+    let m = read_mesh(&d.join("poses/centaur/centaur0.off")).unwrap();
+    let options = shapespace_geometry::prepare::PrepareOptions {
+        seam_extremities: 2,
+        ..Default::default()
+    };
+    let (slit, _, report) = shapespace_geometry::prepare::prepare_disk(&m, &options).unwrap();
+    assert_eq!(report.seam_extremities.len(), 2);
+    let dm = map(&slit, &Markers::default());
+    let fallback = dm
+        .info
+        .bff_fallback
+        .as_ref()
+        .expect("the Green's-function map folds here");
+    assert!(fallback.green_folds > 10, "{}", fallback.green_folds);
+    assert!(dm.info.method.contains("fallback"), "{}", dm.info.method);
+    assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0);
+    let q = &dm.quality.quasi_conformal_distortion;
+    assert!(q.mean < 0.3 && q.p95 < 0.7, "{q:?}");
+    assert!(dm.face_densities.iter().all(|&x| x.is_finite() && x > 0.0));
+    match disk_map(
+        &slit,
+        &Markers::default(),
+        &DiskMapParams {
+            bff_fallback: false,
+            ..Default::default()
+        },
+    ) {
+        Err(ConformalError::FoldedImage { num_flipped, .. }) => assert_eq!(num_flipped, fallback.green_folds),
+        other => panic!(
+            "expected the Green's-function folds, got {:?}",
+            other.map(|d| d.quality)
+        ),
+    }
+}

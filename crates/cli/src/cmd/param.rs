@@ -151,6 +151,13 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         map.timings.output,
         map.timings.repair,
     );
+    if let Some(fallback) = &map.conformal.info.bff_fallback {
+        eprintln!(
+            "{}: the conformal map is BFF's: the Green's-function map folded {} faces that its repair could not fix",
+            args.input.display(),
+            fallback.green_folds
+        );
+    }
     if let Some(dir) = &args.plots {
         write_distortion_histograms(&report, dir, 60)
             .with_context(|| format!("writing plots into {}", dir.display()))?;
@@ -161,6 +168,8 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "output": args.out.display().to_string(),
             "marker_file": marker_source,
             "markers": map.conformal.info.markers,
+            "conformal_method": map.conformal.info.method,
+            "conformal_bff_fallback": map.conformal.info.bff_fallback,
             "domain": map.domain,
             "weights": args.weights.as_ref().map(|p| p.display().to_string()),
             "num_vertices": mesh.num_vertices(),
