@@ -94,7 +94,9 @@ impl CellPolygons {
     pub(super) fn new(diagram: &PowerDiagram, frame: &[[f64; 2]]) -> Self {
         let n = diagram.num_sites();
         let chunk = n.div_ceil(64).max(1);
-        let parts: Vec<(Vec<u32>, Vec<[f64; 2]>, Vec<Line>)> = (0..n.div_ceil(chunk))
+        // per chunk: polygon sizes, vertices, edge lines
+        type Part = (Vec<u32>, Vec<[f64; 2]>, Vec<Line>);
+        let parts: Vec<Part> = (0..n.div_ceil(chunk))
             .into_par_iter()
             .map_init(
                 || Scratch::new(0),
