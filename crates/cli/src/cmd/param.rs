@@ -192,6 +192,11 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             args.input.display(),
             map.ot.stop
         );
+        if map.ot.stop.contains("crowded") {
+            eprintln!(
+                "shapespace: hint: a body whose limbs crowd the conformal image maps when it is slit from its farthest tip to the boundary: `shapespace prepare IN --out OUT --seam 1` (README, \"Your own meshes\")"
+            );
+        }
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
