@@ -555,6 +555,52 @@ fn prepare_makes_disks_that_conformal_accepts() {
     );
 }
 
+/// `prepare --seam 1` on a capped tube: the slit runs from the cap centre (its farthest tip) to
+/// the open end, the summary says so, the vertex map names the input vertex of every copy, and
+/// `param` maps the result.
+#[test]
+fn prepare_slits_a_tube_from_its_tip() {
+    let dir = scratch("seam");
+    let tube = dir.join("tube.obj");
+    let mesh = shapespace_geometry::primitives::capped_tube(1.0, 3.0, 4, 9);
+    shapespace_geometry::io::write_mesh(&tube, &mesh).unwrap();
+    let (disk, map) = (dir.join("tube_disk.obj"), dir.join("map.csv"));
+    let out = shapespace(&[
+        "prepare",
+        tube.to_str().unwrap(),
+        "--out",
+        disk.to_str().unwrap(),
+        "--seam",
+        "1",
+        "--vertex-map",
+        map.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("slit it along 13 edges from input vertices [0]"),
+        "{}",
+        stderr(&out)
+    );
+    let prepared = shapespace_geometry::io::read_mesh(&disk).unwrap();
+    assert_eq!(prepared.num_vertices(), mesh.num_vertices() + 13);
+    let rows = std::fs::read_to_string(&map).unwrap();
+    let mut copies = vec![0; mesh.num_vertices()];
+    for row in rows.lines().skip(1) {
+        let (v, o) = row.split_once(',').unwrap();
+        let (v, o): (usize, usize) = (v.parse().unwrap(), o.parse().unwrap());
+        assert_eq!(prepared.positions[v], mesh.positions[o]);
+        copies[o] += 1;
+    }
+    assert_eq!(copies.iter().filter(|&&c| c == 2).count(), 13, "12 path vertices and the open end's");
+    let out = shapespace(&[
+        "param",
+        disk.to_str().unwrap(),
+        "--out",
+        dir.join("ap.obj").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+}
+
 /// A disk whose interior an edge between two boundary vertices cuts apart: `conformal` names
 /// the cut-off vertex and points to `prepare`, which splits such edges (the vertex map leaves
 /// the new vertices without an input vertex) and says so.
