@@ -236,9 +236,13 @@ pub struct PairwiseResult {
 /// prepare; their rows and columns are NaN).
 ///
 /// Without `symmetrize`, the pair {i, j} (i < j) is computed as i → j (source i, target j);
-/// with it, both directions. Pairs are grouped by target and each group runs sequentially in
-/// a fixed order (warm-started from the previous pair), groups in parallel: the result is the
-/// same for any number of threads. `progress` is called once per finished directed pair.
+/// with it, both directions. Every pair is independent (cold start) and the pairs run in
+/// parallel one by one, so the two threads stay busy to the end (grouped by target, the groups
+/// hold 1 … n − 1 pairs and the last large group ran alone); with `warm_start` the pairs of a
+/// target run sequentially in a fixed order (each warm-started from the previous one), the
+/// groups in parallel, largest first. Either way the result is the same for any number of
+/// threads, and `pairs` is in the fixed order by target, then source. `progress` is called once
+/// per finished directed pair.
 pub fn pairwise_distances(
     shapes: &[Option<PreparedShape>],
     options: &PairwiseOptions,
@@ -257,48 +261,73 @@ pub fn pairwise_distances(
         })
         .filter(|(_, s)| !s.is_empty())
         .collect();
-    let records: Vec<Vec<PairRecord>> = groups
-        .par_iter()
-        .map(|(t, sources)| {
-            let mut out = Vec::with_capacity(sources.len());
-            let mut warm: Option<Vec<f64>> = None;
-            for &s in sources {
-                let record = match (&shapes[s], &shapes[*t]) {
-                    (Some(src), Some(tgt)) => {
-                        let mut params = options.newton.clone();
-                        if options.warm_start {
-                            params.initial_heights = warm.clone();
-                        }
-                        match directed_distance(src, tgt, &params) {
-                            Ok((d, heights)) => {
-                                if d.converged {
-                                    warm = Some(heights);
-                                }
-                                PairRecord {
-                                    a: names[s].clone(),
-                                    b: names[*t].clone(),
-                                    source: s,
-                                    target: *t,
-                                    distance: if d.converged { d.distance } else { f64::NAN },
-                                    cost: d.cost,
-                                    iterations: d.iterations,
-                                    max_mass_error: d.max_mass_error,
-                                    seconds: d.seconds,
-                                    status: d.status,
-                                    evaluations: d.evaluations,
-                                }
-                            }
-                            Err(e) => failed_record(&names, s, *t, e.to_string()),
-                        }
-                    }
-                    _ => failed_record(&names, s, *t, "shape failed to prepare".into()),
-                };
-                progress();
-                out.push(record);
+    // One directed pair, optionally warm-started; returns the record and the heights to pass on.
+    let run = |s: usize, t: usize, warm: Option<Vec<f64>>| -> (PairRecord, Option<Vec<f64>>) {
+        let out = match (&shapes[s], &shapes[t]) {
+            (Some(src), Some(tgt)) => {
+                let mut params = options.newton.clone();
+                params.initial_heights = warm;
+                match directed_distance(src, tgt, &params) {
+                    Ok((d, heights)) => (
+                        PairRecord {
+                            a: names[s].clone(),
+                            b: names[t].clone(),
+                            source: s,
+                            target: t,
+                            distance: if d.converged { d.distance } else { f64::NAN },
+                            cost: d.cost,
+                            iterations: d.iterations,
+                            max_mass_error: d.max_mass_error,
+                            seconds: d.seconds,
+                            status: d.status,
+                            evaluations: d.evaluations,
+                        },
+                        d.converged.then_some(heights),
+                    ),
+                    Err(e) => (failed_record(&names, s, t, e.to_string()), None),
+                }
             }
-            out
-        })
-        .collect();
+            _ => (failed_record(&names, s, t, "shape failed to prepare".into()), None),
+        };
+        progress();
+        out
+    };
+    let records: Vec<Vec<PairRecord>> = if options.warm_start {
+        let mut order: Vec<usize> = (0..groups.len()).collect();
+        order.sort_by_key(|&g| std::cmp::Reverse(groups[g].1.len()));
+        let mut done: Vec<(usize, Vec<PairRecord>)> = order
+            .par_iter()
+            .with_max_len(1)
+            .map(|&g| {
+                let (t, sources) = &groups[g];
+                let mut warm: Option<Vec<f64>> = None;
+                let records = sources
+                    .iter()
+                    .map(|&s| {
+                        let (record, heights) = run(s, *t, warm.clone());
+                        // a pair that did not converge passes on the last converged heights
+                        if heights.is_some() {
+                            warm = heights;
+                        }
+                        record
+                    })
+                    .collect();
+                (g, records)
+            })
+            .collect();
+        done.sort_by_key(|(g, _)| *g);
+        done.into_iter().map(|(_, r)| r).collect()
+    } else {
+        let flat: Vec<(usize, usize)> = groups
+            .iter()
+            .flat_map(|(t, sources)| sources.iter().map(move |&s| (s, *t)))
+            .collect();
+        vec![flat
+            .par_iter()
+            .with_max_len(1)
+            .map(|&(s, t)| run(s, t, None).0)
+            .collect()]
+    };
     let pairs: Vec<PairRecord> = records.into_iter().flatten().collect();
     let mut directed = vec![f64::NAN; n * n];
     for p in &pairs {

@@ -245,18 +245,36 @@ fn pairwise_result_does_not_depend_on_the_thread_count() {
             Some(prepared(&format!("cap{alpha}"), &cap, &pole_markers(&cap)))
         })
         .collect();
-    let options = PairwiseOptions {
-        symmetrize: true,
-        ..PairwiseOptions::default()
-    };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| pairwise_distances(&shapes, &options, &|| {}))
-    };
-    let (one, two) = (run(1), run(2));
-    assert_eq!(
-        one.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-        two.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    // pairs scheduled one by one (cold starts), and groups chained by warm starts
+    for warm_start in [true, false] {
+        let options = PairwiseOptions {
+            symmetrize: true,
+            warm_start,
+            ..PairwiseOptions::default()
+        };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| pairwise_distances(&shapes, &options, &|| {}))
+        };
+        let (one, two) = (run(1), run(2));
+        assert_eq!(
+            one.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            two.matrix.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        );
+        // the records come in the fixed order: by target, then source
+        let order: Vec<(usize, usize)> = two.pairs.iter().map(|p| (p.target, p.source)).collect();
+        let mut sorted = order.clone();
+        sorted.sort();
+        assert_eq!(order, sorted);
+        assert_eq!(order.len(), 12);
+    }
+    let one = pairwise_distances(
+        &shapes,
+        &PairwiseOptions {
+            symmetrize: true,
+            ..PairwiseOptions::default()
+        },
+        &|| {},
     );
     // Caps of growing angle move away from the flattest one.
     assert!(
