@@ -703,6 +703,15 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         }
     }
     let t4 = Instant::now();
+    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
+    let timings_until = |t5: Instant| DiskMapTimings {
+        setup: secs(t0, t1),
+        delaunay: secs(t1, t2),
+        green: stage_times[0],
+        conjugate: stage_times[1],
+        finish: secs(t4, t5),
+        total: secs(t0, t5),
+    };
     let fin = match finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds) {
         Err(folded @ ConformalError::FoldedImage { num_flipped, .. }) if params.repair_folds && params.bff_fallback => {
             let bff_params = crate::bff::BffParams {
@@ -713,7 +722,6 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                 // BFF fails too: report the Green's-function map's folds
                 return Err(folded);
             };
-            let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
             return Ok(DiskMap {
                 uv: b.uv,
                 conformal_factor: b.conformal_factor,
@@ -734,14 +742,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                     fold_repairs: b.info.fold_repairs,
                     boundary_from_flux,
                     linear_solves,
-                    timings: DiskMapTimings {
-                        setup: secs(t0, t1),
-                        delaunay: secs(t1, t2),
-                        green: stage_times[0],
-                        conjugate: stage_times[1],
-                        finish: secs(t4, Instant::now()),
-                        total: secs(t0, Instant::now()),
-                    },
+                    timings: timings_until(Instant::now()),
                     bff_fallback: Some(BffFallback {
                         green_folds: num_flipped,
                         bff: b.info,
@@ -752,7 +753,6 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         other => other?,
     };
     let t5 = Instant::now();
-    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     Ok(DiskMap {
         uv: fin.uv,
         conformal_factor: fin.conformal_factor,
@@ -781,14 +781,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             fold_repairs: fin.fold_repairs,
             boundary_from_flux,
             linear_solves,
-            timings: DiskMapTimings {
-                setup: secs(t0, t1),
-                delaunay: secs(t1, t2),
-                green: stage_times[0],
-                conjugate: stage_times[1],
-                finish: secs(t4, t5),
-                total: secs(t0, t5),
-            },
+            timings: timings_until(t5),
             bff_fallback: None,
         },
         quality: fin.quality,
