@@ -591,7 +591,11 @@ fn prepare_slits_a_tube_from_its_tip() {
         assert_eq!(prepared.positions[v], mesh.positions[o]);
         copies[o] += 1;
     }
-    assert_eq!(copies.iter().filter(|&&c| c == 2).count(), 13, "12 path vertices and the open end's");
+    assert_eq!(
+        copies.iter().filter(|&&c| c == 2).count(),
+        13,
+        "12 path vertices and the open end's"
+    );
     let out = shapespace(&[
         "param",
         disk.to_str().unwrap(),
@@ -599,6 +603,40 @@ fn prepare_slits_a_tube_from_its_tip() {
         dir.join("ap.obj").to_str().unwrap(),
     ]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+}
+
+/// The bundled centaur0 slit from two tips: `conformal` falls back to BFF and says so;
+/// `--no-bff-fallback` reports the Green's-function folds instead.
+#[test]
+fn conformal_reports_its_bff_fallback() {
+    let dir = scratch("fallback");
+    let disk = dir.join("centaur0_slit.obj");
+    let out = shapespace(&[
+        "prepare",
+        "datasets/poses/centaur/centaur0.off",
+        "--out",
+        disk.to_str().unwrap(),
+        "--seam",
+        "2",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let map = dir.join("map.obj");
+    let out = shapespace(&["conformal", disk.to_str().unwrap(), "--out", map.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("fallback: the Green's-function map folded"),
+        "{}",
+        stderr(&out)
+    );
+    let out = shapespace(&[
+        "conformal",
+        disk.to_str().unwrap(),
+        "--out",
+        map.to_str().unwrap(),
+        "--no-bff-fallback",
+    ]);
+    assert_ne!(out.status.code(), Some(0));
+    assert!(stderr(&out).contains("flipped or degenerate"), "{}", stderr(&out));
 }
 
 /// A disk whose interior an edge between two boundary vertices cuts apart: `conformal` names

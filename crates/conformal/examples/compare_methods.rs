@@ -95,6 +95,8 @@ fn run(method: Method, mesh: &TriMesh, markers: &Markers, repair: bool) -> Resul
         Method::Green => {
             let params = DiskMapParams {
                 repair_folds: repair,
+                // the Green's-function construction itself, not its BFF fallback
+                bff_fallback: false,
                 ..Default::default()
             };
             let dm = disk_map(mesh, markers, &params)?;

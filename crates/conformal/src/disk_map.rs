@@ -566,6 +566,7 @@ pub(crate) fn finish(
             first_face: first,
             flipped_area_fraction: summary.flipped_area_fraction,
             boundary_out_of_order: boundary_out_of_order(mesh, &uv),
+            bff_fallback_error: None,
         });
     }
     let mut face_densities = Vec::with_capacity(mesh.num_faces());
@@ -713,14 +714,29 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         total: secs(t0, t5),
     };
     let fin = match finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds) {
-        Err(folded @ ConformalError::FoldedImage { num_flipped, .. }) if params.repair_folds && params.bff_fallback => {
+        Err(ConformalError::FoldedImage {
+            num_flipped,
+            first_face,
+            flipped_area_fraction,
+            boundary_out_of_order,
+            ..
+        }) if params.repair_folds && params.bff_fallback => {
             let bff_params = crate::bff::BffParams {
                 intrinsic_delaunay: params.intrinsic_delaunay,
                 ..Default::default()
             };
-            let Ok(b) = crate::bff::bff_disk_map(mesh, markers, &bff_params) else {
-                // BFF fails too: report the Green's-function map's folds
-                return Err(folded);
+            let b = match crate::bff::bff_disk_map(mesh, markers, &bff_params) {
+                Ok(b) => b,
+                // BFF fails too: report the Green's-function map's folds, and why BFF failed
+                Err(e) => {
+                    return Err(ConformalError::FoldedImage {
+                        num_flipped,
+                        first_face,
+                        flipped_area_fraction,
+                        boundary_out_of_order,
+                        bff_fallback_error: Some(e.to_string()),
+                    })
+                }
             };
             return Ok(DiskMap {
                 uv: b.uv,

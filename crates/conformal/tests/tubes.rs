@@ -72,7 +72,7 @@ fn a_slit_along_the_tube_halves_the_decay() {
         },
     )
     .unwrap();
-    assert_eq!(report.seam_extremities, vec![0]);
+    assert_eq!(report.seam_extremities, vec![Some(0)]);
     assert_eq!(report.seam_edges, 6 + 90, "straight up the tube from the cap centre");
     let dm = disk_map(&slit, &Default::default(), &DiskMapParams::default()).unwrap();
     assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0);

@@ -672,8 +672,9 @@ pub struct PrepareReport {
     pub faces_cut: usize,
     /// Holes filled (every boundary loop but the longest), one vertex appended per hole.
     pub holes_filled: usize,
-    /// Input vertices of the seam's extremities (empty without a seam).
-    pub seam_extremities: Vec<u32>,
+    /// Input vertices of the seam's extremities (empty without a seam; `None` for an extremity
+    /// that is a vertex added by hole filling).
+    pub seam_extremities: Vec<Option<u32>>,
     /// Edges of the seam.
     pub seam_edges: usize,
     /// Vertices appended by the seam cut (copies of seam vertices, one per extra wedge).
@@ -767,7 +768,7 @@ pub fn prepare_disk(
         let seam = crate::seam::seam_tree(&m, &terminals)?;
         if !seam.is_empty() {
             let (cut, copies) = crate::seam::cut_along_seam(&m, &seam)?;
-            report.seam_extremities = terminals.iter().filter_map(|&t| origin[t as usize]).collect();
+            report.seam_extremities = terminals.iter().map(|&t| origin[t as usize]).collect();
             report.seam_edges = seam.len();
             report.seam_vertices_added = cut.num_vertices() - m.num_vertices();
             origin = copies.iter().map(|&v| origin[v as usize]).collect();

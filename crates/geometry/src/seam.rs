@@ -78,9 +78,10 @@ fn dijkstra(
 /// `count` extremities of a connected surface by geodesic farthest-point sampling (edge-path
 /// distances). On a surface with boundary the first is the vertex farthest from the boundary,
 /// each next one the vertex farthest from the boundary and the ones chosen so far; on a closed
-/// surface the first is the vertex farthest from vertex 0. On a body the first ones are the tips
-/// of the limbs, the tail and the head. Ties go to the smaller index; fewer are returned when
-/// every vertex is chosen or on the boundary.
+/// surface the first is the vertex farthest from the first face's first vertex. On a body the
+/// first ones are the tips of the limbs, the tail and the head. Ties go to the smaller index;
+/// fewer are returned when every vertex is chosen or on the boundary. Errors when the surface is
+/// not connected.
 pub fn extremities(mesh: &TriMesh, count: usize) -> Result<Vec<u32>, GeometryError> {
     mesh.validate()?;
     let n = mesh.num_vertices();
@@ -100,19 +101,36 @@ pub fn extremities(mesh: &TriMesh, count: usize) -> Result<Vec<u32>, GeometryErr
     };
     let on_boundary = conn.boundary_vertices(n);
     let boundary: Vec<u32> = (0..n as u32).filter(|&v| on_boundary[v as usize]).collect();
+    // start from a referenced vertex (an unreferenced one reaches nothing)
+    let Some(first) = mesh.faces.first().map(|f| f[0]) else {
+        return Ok(Vec::new());
+    };
+    let mut chosen = Vec::new();
     let mut nearest = if boundary.is_empty() {
-        let start = farthest(&dijkstra(mesh, &adjacency, &[0], |_| false).0).unwrap_or(0);
+        let start = farthest(&dijkstra(mesh, &adjacency, &[first], |_| false).0).unwrap_or(first);
+        chosen.push(start);
         dijkstra(mesh, &adjacency, &[start], |_| false).0
     } else {
         dijkstra(mesh, &adjacency, &boundary, |_| false).0
     };
-    let mut chosen = Vec::new();
-    if boundary.is_empty() {
-        chosen.push(nearest.iter().position(|&d| d == 0.0).unwrap_or(0) as u32);
+    // every referenced vertex must be reachable: one component
+    let referenced = crate::topology::referenced_vertices(mesh);
+    if let Some(v) = (0..n).find(|&v| referenced[v] && !nearest[v].is_finite()) {
+        return Err(GeometryError::Topology(format!(
+            "extremities need a connected surface; vertex {v} is not connected to {}",
+            if boundary.is_empty() {
+                "the rest"
+            } else {
+                "the boundary"
+            }
+        )));
     }
     while chosen.len() < count {
         let Some(v) = farthest(&nearest) else { break };
         chosen.push(v);
+        if chosen.len() == count {
+            break;
+        }
         let d = dijkstra(mesh, &adjacency, &[v], |_| false).0;
         for (a, b) in nearest.iter_mut().zip(d) {
             *a = a.min(b);
@@ -176,12 +194,23 @@ pub fn seam_tree(mesh: &TriMesh, terminals: &[u32]) -> Result<Vec<[u32; 2]>, Geo
 /// cut mesh and, for each of its vertices, the input vertex it copies. Cutting a sphere or a disk
 /// this way gives a disk (checked with [`topology::require_disk`]).
 ///
-/// Errors when the surface is not edge-manifold, not consistently oriented or has a
-/// non-manifold vertex, when a seam edge is not an edge of the mesh, when the seam is empty or
-/// not a tree as above, or when the result is not a disk.
+/// Errors when the surface is not edge-manifold, not consistently oriented, has a face with a
+/// repeated vertex or more than one boundary loop, when a seam vertex is not manifold, when a
+/// seam edge is not an edge of the mesh or lies on the boundary, when the seam is empty or not a
+/// tree as above, or when the result is not a disk (which also catches non-manifold vertices
+/// off the seam and surfaces of higher genus).
 pub fn cut_along_seam(mesh: &TriMesh, seam: &[[u32; 2]]) -> Result<(TriMesh, Vec<u32>), GeometryError> {
     mesh.validate()?;
     let n = mesh.num_vertices();
+    if let Some(f) = mesh
+        .faces
+        .iter()
+        .position(|f| f[0] == f[1] || f[1] == f[2] || f[2] == f[0])
+    {
+        return Err(GeometryError::Topology(format!(
+            "a seam cut needs faces with three distinct vertices; face {f} repeats one"
+        )));
+    }
     let conn = Connectivity::of(mesh);
     if let Some(e) = conn.edge_faces.iter().position(|f| f.len() > 2) {
         let [a, b] = conn.edges[e];
@@ -200,6 +229,12 @@ pub fn cut_along_seam(mesh: &TriMesh, seam: &[[u32; 2]]) -> Result<(TriMesh, Vec
         return Err(GeometryError::Topology(format!(
             "a seam cut needs a consistently oriented surface; two faces run along edge {} → {} in the same direction",
             w[0][0], w[0][1]
+        )));
+    }
+    let loops = conn.boundary_loops(&mesh.faces).len();
+    if loops > 1 {
+        return Err(GeometryError::Topology(format!(
+            "a seam cut needs a closed surface or a disk; this surface has {loops} boundary loops (fill all but one first: `prepare::fill_holes_except_longest`)"
         )));
     }
     if seam.is_empty() {

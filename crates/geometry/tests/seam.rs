@@ -110,7 +110,7 @@ fn prepare_disk_with_a_seam() {
     )
     .unwrap();
     require_disk(&disk).unwrap();
-    assert_eq!(report.seam_extremities, vec![0]);
+    assert_eq!(report.seam_extremities, vec![Some(0)]);
     assert_eq!(report.seam_edges, 4 + 24, "4 cap rings and 24 tube segments");
     assert_eq!(report.seam_vertices_added, 4 + 24);
     assert_eq!(disk.num_vertices(), tube.num_vertices() + report.seam_vertices_added);
@@ -174,4 +174,29 @@ fn seam_errors() {
         .unwrap_err()
         .to_string()
         .contains("10000"));
+    // two boundary loops (a disk with a face removed): the message names them
+    let mut holed = unit_disk(3);
+    holed.faces.remove(0);
+    let inner = holed.faces[0][0];
+    let e = err(&holed, &[[inner, holed.faces[0][1]]]);
+    assert!(e.contains("2 boundary loops"), "{e}");
+    // a face with a repeated vertex
+    let mut degenerate = sphere.clone();
+    degenerate.faces.push([a, a, b]);
+    assert!(err(&degenerate, &[[a, b]]).contains("repeats"));
+    // extremities: an unreferenced vertex 0 is skipped, two components are an error
+    let mut shifted = icosphere(1);
+    shifted.positions.insert(0, [9.0, 9.0, 9.0]);
+    for f in &mut shifted.faces {
+        *f = f.map(|v| v + 1);
+    }
+    let tips = extremities(&shifted, 2).unwrap();
+    assert_eq!(tips.len(), 2);
+    assert!(!tips.contains(&0), "{tips:?}");
+    let mut two = icosphere(1);
+    let off = two.num_vertices() as u32;
+    two.positions
+        .extend(icosphere(1).positions.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+    two.faces.extend(icosphere(1).faces.iter().map(|f| f.map(|v| v + off)));
+    assert!(extremities(&two, 2).unwrap_err().to_string().contains("connected"));
 }

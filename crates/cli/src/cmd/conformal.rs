@@ -51,6 +51,10 @@ pub struct ConformalArgs {
     /// compared in crates/conformal/ARCHITECTURE.md). `--pole` applies to `green` only.
     #[arg(long, default_value = "green", value_parser = ["green", "bff"])]
     pub method: String,
+    /// With `green`: report folds that survive the repair as an error instead of falling back to
+    /// BFF's map (the Green's-function construction alone, for comparisons).
+    #[arg(long)]
+    pub no_bff_fallback: bool,
 }
 
 /// What the command writes, from either construction.
@@ -117,6 +121,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
         let params = DiskMapParams {
             intrinsic_delaunay: !args.no_intrinsic_delaunay,
             pole,
+            bff_fallback: !args.no_bff_fallback,
             ..Default::default()
         };
         let map = disk_map(&mesh, &markers, &params).with_context(context)?;

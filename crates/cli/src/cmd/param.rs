@@ -124,8 +124,15 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         args.input.display(),
         mesh.num_vertices()
     );
-    let map = with_spinner(message, || area_preserving_map(&mesh, &markers, &params))
-        .with_context(|| format!("parameterizing {}", args.input.display()))?;
+    let map = match with_spinner(message, || area_preserving_map(&mesh, &markers, &params)) {
+        Ok(map) => map,
+        Err(e) => {
+            if mentions_crowding(&e) {
+                print_seam_hint();
+            }
+            return Err(e).with_context(|| format!("parameterizing {}", args.input.display()));
+        }
+    };
     mesh.uvs = Some(map.uv.clone());
     write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
 
@@ -193,13 +200,28 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             map.ot.stop
         );
         if map.ot.stop.contains("crowded") {
-            eprintln!(
-                "shapespace: hint: a body whose limbs crowd the conformal image maps when it is slit from its farthest tip to the boundary: `shapespace prepare IN --out OUT --seam 1` (README, \"Your own meshes\")"
-            );
+            print_seam_hint();
         }
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Whether an error (or one of its sources) is about interior protrusions crowded beyond f64:
+/// the OT's crowding failures and the conformal map's range errors, but not crowding along the
+/// boundary (a flat tail on the boundary, which no slit helps).
+fn mentions_crowding(e: &(dyn std::error::Error + 'static)) -> bool {
+    std::iter::successors(Some(e), |e| e.source()).any(|e| {
+        let text = e.to_string();
+        (text.contains("crowded") || text.contains("f64 range")) && !text.contains("along the boundary")
+    })
+}
+
+/// The remedy for bodies whose limbs crowd the conformal image.
+fn print_seam_hint() {
+    eprintln!(
+        "shapespace: hint: if this is a body whose limbs crowd the conformal image, slit it from its farthest tip to the boundary first: `shapespace prepare IN --out OUT --seam 1` (README, \"Your own meshes\")"
+    );
 }
 
 /// One line on the fold repair for the stderr summary.

@@ -32,7 +32,7 @@ pub struct PrepareArgs {
     /// Then slit the disk open along shortest edge paths from this many extremities (geodesic
     /// farthest points from the boundary) to the boundary. `--seam 1` is what whole bodies need:
     /// without it a limb's conformal image shrinks exponentially and its points crowd beyond
-    /// f64 (README, "Bodies").
+    /// f64 (README, "Your own meshes").
     #[arg(long, default_value_t = 0)]
     pub seam: usize,
     /// Also write CSV `vertex,input_vertex` (input_vertex empty for vertices added by hole
@@ -103,8 +103,15 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
     }
     if report.seam_edges > 0 {
         steps.push(format!(
-            "slit it along {} edges from input vertices {:?} to the boundary ({} vertices appended)",
-            report.seam_edges, report.seam_extremities, report.seam_vertices_added
+            "slit it along {} edges from input vertices [{}] to the boundary ({} vertices appended)",
+            report.seam_edges,
+            report
+                .seam_extremities
+                .iter()
+                .map(|e| e.map_or("a hole-filling vertex".to_string(), |v| v.to_string()))
+                .collect::<Vec<_>>()
+                .join(", "),
+            report.seam_vertices_added
         ));
     }
     if report.bridges_split > 0 {
