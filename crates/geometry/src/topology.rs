@@ -670,7 +670,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
     check_coordinate_range(mesh)?;
     if r.classification.class == MeshClass::Sphere {
         problems.push(
-            "closed surface (sphere): cut a disk first (`prepare::cut_disk`, or `shapespace prepare` on the command line)".into(),
+            "closed surface (sphere): cut a disk first (`prepare::cut_disk`, or `shapespace prepare` on the command line; for bodies with limbs `shapespace prepare --seam 1`)".into(),
         );
     } else if r.classification.class == MeshClass::Other {
         if r.num_components > 1 {
