@@ -388,7 +388,7 @@ fn auto_start_takes_coarse_to_fine_for_oversized_voronoi_cells() {
     let (lo, hi) = ratios
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
-    assert!(lo > 1e-8 && hi > 300.0, "Voronoi m/ν in [{lo:.2e}, {hi:.2e}]");
+    assert!(lo > 1e-8 && hi > 100.0, "Voronoi m/ν in [{lo:.2e}, {hi:.2e}]");
     let auto = solve_ot(&disk, &points, &masses, &NewtonParams::default()).unwrap();
     assert!(matches!(auto.start, Start::CoarseToFine { .. }), "{:?}", auto.start);
     check("oversized cells, auto", &auto, 1e-6);

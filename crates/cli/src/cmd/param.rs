@@ -54,7 +54,7 @@ pub struct ParamArgs {
     #[arg(long = "no-fold-repair")]
     pub no_fold_repair: bool,
     /// Initial OT heights: `auto` (coarse-to-fine when a Voronoi cell has < 1e-8 of its target,
-    /// as where the conformal image crowds points, or > 300 times it, else Voronoi), `voronoi`,
+    /// as where the conformal image crowds points, or > 100 times it, else Voronoi), `voronoi`,
     /// `coarse-to-fine`.
     #[arg(long, value_enum, default_value_t = super::ot::StartArg::Auto)]
     pub start: super::ot::StartArg,

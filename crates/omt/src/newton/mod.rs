@@ -31,7 +31,7 @@
 //!   contrast, points crowded by a conformal map) costs many steps; from the prolongation the
 //!   finest level needs 8–18 (measured in `ARCHITECTURE.md`). `StartStrategy::Auto` (default)
 //!   takes it when the density ratio exceeds 10 or the Voronoi start has a cell below 1e-8 or
-//!   above 300 times its target.
+//!   above 100 times its target.
 //! - **Density continuation** (with `StartStrategy::Voronoi`, and on the coarsest level of the
 //!   coarse-to-fine start). With a strong density contrast the Newton model of the Voronoi
 //!   start is far off (cells are pushed into regions 100× denser than their edges say) and KMT
@@ -224,7 +224,7 @@ pub(crate) fn intermediate_targets(masses: &[f64], targets: &[f64], cap: f64) ->
 pub enum StartStrategy {
     /// The coarse-to-fine start when the source density's max/min exceeds 10 or the Voronoi
     /// start has a cell below 1e-8 of its target mass (points crowded by a conformal map) or
-    /// above 300 times its target (points sparse where the targets are large), the
+    /// above 100 times its target (points sparse where the targets are large), the
     /// Voronoi start otherwise (where it is the faster one: uniform density, spread points). If
     /// the solve from the coarse-to-fine start does not converge, the Voronoi path (with its
     /// continuations) runs too and the better result is returned, with the steps of both.
@@ -249,7 +249,11 @@ const AUTO_MIN_START: f64 = 1e-8;
 /// points: 15 against 25 steps, OT 5.5 against 8.2 s) and 3.4e3 times its target (Igea, 134k:
 /// 13 against 19 steps, 10.6 against 14.7 s), the slower one at 6.5 … 70 (camelhead and its
 /// 1-to-4 subdivision, the libigl face, lion, woody, cat head, an ICT face, a bump domain).
-const AUTO_MAX_START: f64 = 300.0;
+/// Lowered from 300 to 100 on 2026-12-03: Nefertiti cut open and slit twice (`prepare --seam
+/// 2`, 50k points) has its largest Voronoi cell at 130 times its target, and the coarse-to-fine
+/// start took 6 steps / 2.4 s against 25 steps / 8.5 s from the Voronoi start; camelhead
+/// subdivided (70) stays on the Voronoi start (8 steps, 2.3 s, against 9 steps, 3.2 s).
+const AUTO_MAX_START: f64 = 100.0;
 
 /// Why the iteration stopped.
 #[derive(Clone, Debug, PartialEq)]
