@@ -319,23 +319,44 @@ impl Ord for Item {
 /// unreachable vertices get +∞.
 pub fn edge_path_distances(mesh: &TriMesh, conn: &Connectivity, source: u32) -> Vec<f64> {
     let adj = conn.vertex_neighbors(mesh.num_vertices());
-    let mut dist = vec![f64::INFINITY; mesh.num_vertices()];
+    shortest_edge_paths(mesh, &adj, &[source], |_| false).0
+}
+
+/// Edge-path distances from a set of sources (Dijkstra on Euclidean edge lengths, `adjacency`
+/// as [`Connectivity::vertex_neighbors`]) and each vertex's predecessor on its shortest path
+/// (`u32::MAX` for the sources and unreachable vertices; unreachable distances are +∞). Stops
+/// early when `stop(v)` holds for a settled vertex v that is not a source, and returns it.
+pub(crate) fn shortest_edge_paths(
+    mesh: &TriMesh,
+    adjacency: &[Vec<u32>],
+    sources: &[u32],
+    mut stop: impl FnMut(u32) -> bool,
+) -> (Vec<f64>, Vec<u32>, Option<u32>) {
+    let n = mesh.num_vertices();
+    let mut dist = vec![f64::INFINITY; n];
+    let mut previous = vec![u32::MAX; n];
     let mut heap = BinaryHeap::new();
-    dist[source as usize] = 0.0;
-    heap.push(Item(0.0, source));
+    for &s in sources {
+        dist[s as usize] = 0.0;
+        heap.push(Item(0.0, s));
+    }
     while let Some(Item(d, v)) = heap.pop() {
         if d > dist[v as usize] {
             continue;
         }
-        for &w in &adj[v as usize] {
+        if previous[v as usize] != u32::MAX && stop(v) {
+            return (dist, previous, Some(v));
+        }
+        for &w in &adjacency[v as usize] {
             let nd = d + norm(sub(mesh.positions[w as usize], mesh.positions[v as usize]));
             if nd < dist[w as usize] {
                 dist[w as usize] = nd;
+                previous[w as usize] = v;
                 heap.push(Item(nd, w));
             }
         }
     }
-    dist
+    (dist, previous, None)
 }
 
 /// Cuts a disk out of a closed surface: removes the faces whose three vertices all lie in the
@@ -764,12 +785,10 @@ pub fn prepare_disk(
     }
     topology::require_disk(&m)?;
     if options.seam_extremities > 0 {
-        let terminals = crate::seam::extremities(&m, options.seam_extremities)?;
-        let seam = crate::seam::seam_tree(&m, &terminals)?;
-        if !seam.is_empty() {
-            let (cut, copies) = crate::seam::cut_along_seam(&m, &seam)?;
-            report.seam_extremities = terminals.iter().map(|&t| origin[t as usize]).collect();
-            report.seam_edges = seam.len();
+        if let Some(slit) = crate::seam::slit_from_extremities(&m, options.seam_extremities)? {
+            let (cut, copies) = (slit.mesh, slit.copies);
+            report.seam_extremities = slit.extremities.iter().map(|&t| origin[t as usize]).collect();
+            report.seam_edges = slit.seam_edges;
             report.seam_vertices_added = cut.num_vertices() - m.num_vertices();
             origin = copies.iter().map(|&v| origin[v as usize]).collect();
             m = cut;

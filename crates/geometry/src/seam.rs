@@ -16,64 +16,11 @@
 //! becomes d vertices (one per wedge of its faces between consecutive seam edges), a leaf stays
 //! one vertex.
 
-use std::collections::BinaryHeap;
-
 use crate::connectivity::Connectivity;
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
+use crate::prepare::shortest_edge_paths as dijkstra;
 use crate::topology;
-use crate::vec3::{norm, sub};
-
-/// Min-heap entry of the Dijkstra searches (distance, vertex).
-#[derive(PartialEq)]
-struct Item(f64, u32);
-impl Eq for Item {}
-impl PartialOrd for Item {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Item {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
-    }
-}
-
-/// Edge-path distances from a set of sources (Dijkstra on Euclidean edge lengths) and each
-/// vertex's predecessor on its shortest path (`u32::MAX` for the sources and unreachable
-/// vertices). Stops early when `stop(v)` holds for a settled vertex v ≠ source and returns it.
-fn dijkstra(
-    mesh: &TriMesh,
-    adjacency: &[Vec<u32>],
-    sources: &[u32],
-    mut stop: impl FnMut(u32) -> bool,
-) -> (Vec<f64>, Vec<u32>, Option<u32>) {
-    let n = mesh.num_vertices();
-    let mut dist = vec![f64::INFINITY; n];
-    let mut previous = vec![u32::MAX; n];
-    let mut heap = BinaryHeap::new();
-    for &s in sources {
-        dist[s as usize] = 0.0;
-        heap.push(Item(0.0, s));
-    }
-    while let Some(Item(d, v)) = heap.pop() {
-        if d > dist[v as usize] {
-            continue;
-        }
-        if previous[v as usize] != u32::MAX && stop(v) {
-            return (dist, previous, Some(v));
-        }
-        for &w in &adjacency[v as usize] {
-            let nd = d + norm(sub(mesh.positions[w as usize], mesh.positions[v as usize]));
-            if nd < dist[w as usize] {
-                dist[w as usize] = nd;
-                previous[w as usize] = v;
-                heap.push(Item(nd, w));
-            }
-        }
-    }
-    (dist, previous, None)
-}
 
 /// `count` extremities of a connected surface by geodesic farthest-point sampling (edge-path
 /// distances). On a surface with boundary the first is the vertex farthest from the boundary,
@@ -84,12 +31,21 @@ fn dijkstra(
 /// not connected.
 pub fn extremities(mesh: &TriMesh, count: usize) -> Result<Vec<u32>, GeometryError> {
     mesh.validate()?;
+    let conn = Connectivity::of(mesh);
+    extremities_in(mesh, &conn, &conn.vertex_neighbors(mesh.num_vertices()), count)
+}
+
+/// [`extremities`] on a validated mesh with its connectivity and vertex adjacency.
+fn extremities_in(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    adjacency: &[Vec<u32>],
+    count: usize,
+) -> Result<Vec<u32>, GeometryError> {
     let n = mesh.num_vertices();
     if n == 0 || count == 0 {
         return Ok(Vec::new());
     }
-    let conn = Connectivity::of(mesh);
-    let adjacency = conn.vertex_neighbors(n);
     let farthest = |dist: &[f64]| -> Option<u32> {
         let mut best: Option<(f64, u32)> = None;
         for (v, &d) in dist.iter().enumerate() {
@@ -146,14 +102,23 @@ pub fn extremities(mesh: &TriMesh, count: usize) -> Result<Vec<u32>, GeometryErr
 /// edges as (min, max) pairs. Errors when a terminal is out of range or cannot be reached.
 pub fn seam_tree(mesh: &TriMesh, terminals: &[u32]) -> Result<Vec<[u32; 2]>, GeometryError> {
     mesh.validate()?;
+    let conn = Connectivity::of(mesh);
+    seam_tree_in(mesh, &conn, &conn.vertex_neighbors(mesh.num_vertices()), terminals)
+}
+
+/// [`seam_tree`] on a validated mesh with its connectivity and vertex adjacency.
+fn seam_tree_in(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    adjacency: &[Vec<u32>],
+    terminals: &[u32],
+) -> Result<Vec<[u32; 2]>, GeometryError> {
     let n = mesh.num_vertices();
     if let Some(&t) = terminals.iter().find(|&&t| t as usize >= n) {
         return Err(GeometryError::Invalid(format!(
             "seam terminal {t} is out of range ({n} vertices)"
         )));
     }
-    let conn = Connectivity::of(mesh);
-    let adjacency = conn.vertex_neighbors(n);
     let mut in_tree = conn.boundary_vertices(n);
     let mut edges = Vec::new();
     let mut rest = terminals;
@@ -201,6 +166,48 @@ pub fn seam_tree(mesh: &TriMesh, terminals: &[u32]) -> Result<Vec<[u32; 2]>, Geo
 /// off the seam and surfaces of higher genus).
 pub fn cut_along_seam(mesh: &TriMesh, seam: &[[u32; 2]]) -> Result<(TriMesh, Vec<u32>), GeometryError> {
     mesh.validate()?;
+    cut_along_seam_in(mesh, &Connectivity::of(mesh), seam)
+}
+
+/// A mesh slit from its extremities ([`slit_from_extremities`]).
+pub(crate) struct Slit {
+    /// The cut mesh.
+    pub mesh: TriMesh,
+    /// For each vertex of the cut mesh, the vertex of the input it copies.
+    pub copies: Vec<u32>,
+    /// The extremities (input vertices).
+    pub extremities: Vec<u32>,
+    /// Edges of the seam.
+    pub seam_edges: usize,
+}
+
+/// The slit of [`crate::prepare::prepare_disk`]: the mesh cut along the seam from its `count`
+/// extremities to the boundary ([`extremities`], [`seam_tree`], [`cut_along_seam`] on one
+/// connectivity); `None` when the seam is empty.
+pub(crate) fn slit_from_extremities(mesh: &TriMesh, count: usize) -> Result<Option<Slit>, GeometryError> {
+    mesh.validate()?;
+    let conn = Connectivity::of(mesh);
+    let adjacency = conn.vertex_neighbors(mesh.num_vertices());
+    let terminals = extremities_in(mesh, &conn, &adjacency, count)?;
+    let seam = seam_tree_in(mesh, &conn, &adjacency, &terminals)?;
+    if seam.is_empty() {
+        return Ok(None);
+    }
+    let (cut, copies) = cut_along_seam_in(mesh, &conn, &seam)?;
+    Ok(Some(Slit {
+        mesh: cut,
+        copies,
+        extremities: terminals,
+        seam_edges: seam.len(),
+    }))
+}
+
+/// [`cut_along_seam`] on a validated mesh with its connectivity.
+fn cut_along_seam_in(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    seam: &[[u32; 2]],
+) -> Result<(TriMesh, Vec<u32>), GeometryError> {
     let n = mesh.num_vertices();
     if let Some(f) = mesh
         .faces
@@ -211,7 +218,6 @@ pub fn cut_along_seam(mesh: &TriMesh, seam: &[[u32; 2]]) -> Result<(TriMesh, Vec
             "a seam cut needs faces with three distinct vertices; face {f} repeats one"
         )));
     }
-    let conn = Connectivity::of(mesh);
     if let Some(e) = conn.edge_faces.iter().position(|f| f.len() > 2) {
         let [a, b] = conn.edges[e];
         return Err(GeometryError::Topology(format!(
@@ -219,16 +225,9 @@ pub fn cut_along_seam(mesh: &TriMesh, seam: &[[u32; 2]]) -> Result<(TriMesh, Vec
             conn.edge_faces[e].len()
         )));
     }
-    let mut directed: Vec<[u32; 2]> = mesh
-        .faces
-        .iter()
-        .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]])
-        .collect();
-    directed.sort_unstable();
-    if let Some(w) = directed.windows(2).find(|w| w[0] == w[1]) {
+    if let Some([a, b]) = topology::inconsistent_edges(&mesh.faces, conn).first() {
         return Err(GeometryError::Topology(format!(
-            "a seam cut needs a consistently oriented surface; two faces run along edge {} → {} in the same direction",
-            w[0][0], w[0][1]
+            "a seam cut needs a consistently oriented surface; the two faces at edge ({a}, {b}) run along it in the same direction"
         )));
     }
     let loops = conn.boundary_loops(&mesh.faces).len();
