@@ -63,11 +63,11 @@ fn extremities_in(
     };
     let mut chosen = Vec::new();
     let mut nearest = if boundary.is_empty() {
-        let start = farthest(&dijkstra(mesh, &adjacency, &[first], |_| false).0).unwrap_or(first);
+        let start = farthest(&dijkstra(mesh, adjacency, &[first], |_| false).0).unwrap_or(first);
         chosen.push(start);
-        dijkstra(mesh, &adjacency, &[start], |_| false).0
+        dijkstra(mesh, adjacency, &[start], |_| false).0
     } else {
-        dijkstra(mesh, &adjacency, &boundary, |_| false).0
+        dijkstra(mesh, adjacency, &boundary, |_| false).0
     };
     // every referenced vertex must be reachable: one component
     let referenced = crate::topology::referenced_vertices(mesh);
@@ -87,7 +87,7 @@ fn extremities_in(
         if chosen.len() == count {
             break;
         }
-        let d = dijkstra(mesh, &adjacency, &[v], |_| false).0;
+        let d = dijkstra(mesh, adjacency, &[v], |_| false).0;
         for (a, b) in nearest.iter_mut().zip(d) {
             *a = a.min(b);
         }
@@ -133,7 +133,7 @@ fn seam_tree_in(
         if in_tree[t as usize] {
             continue;
         }
-        let (_, previous, reached) = dijkstra(mesh, &adjacency, &[t], |v| in_tree[v as usize]);
+        let (_, previous, reached) = dijkstra(mesh, adjacency, &[t], |v| in_tree[v as usize]);
         let Some(mut v) = reached else {
             return Err(GeometryError::Topology(format!(
                 "seam terminal {t} cannot be reached from the boundary or the other terminals"
