@@ -266,7 +266,9 @@ pub fn pairwise_distances(
         let out = match (&shapes[s], &shapes[t]) {
             (Some(src), Some(tgt)) => {
                 let mut params = options.newton.clone();
-                params.initial_heights = warm;
+                if options.warm_start {
+                    params.initial_heights = warm;
+                }
                 match directed_distance(src, tgt, &params) {
                     Ok((d, heights)) => (
                         PairRecord {
