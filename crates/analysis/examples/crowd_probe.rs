@@ -4,10 +4,12 @@
 //! thresholds t, the clusters (components of the graph of Delaunay edges shorter than
 //! t × spacing): count, largest, their total target mass, and the worst separation ratio
 //! (cluster diameter / distance from the cluster to its nearest outside point).
+#[path = "common/crowding.rs"]
+mod crowding;
+
 use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
 use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
-use shapespace_omt::power_diagram::PowerDiagram;
 
 fn find(p: &mut [usize], i: usize) -> usize {
     let mut r = i;
@@ -37,13 +39,7 @@ fn main() {
         let y = &c.uv;
         let n = y.len();
         let spacing = (std::f64::consts::PI / n as f64).sqrt();
-        let pd = PowerDiagram::new(y, &vec![0.0; n]).unwrap();
-        let mut nn = vec![f64::INFINITY; n];
-        for (i, d) in nn.iter_mut().enumerate() {
-            for &j in pd.neighbors(i) {
-                *d = d.min(dist(y[i], y[j as usize]));
-            }
-        }
+        let (nn, pd) = crowding::nearest_neighbour_distances(y);
         let mut hist = std::collections::BTreeMap::new();
         for &d in &nn {
             let k = (d / spacing).log10().floor() as i64;

@@ -2,6 +2,9 @@
 //! extremities (`geometry::seam`), against the small-disk cut alone: crowding of the conformal
 //! image (points within 1e-9 / 1e-12 mean spacings of another) and the area-preserving map.
 //! `cargo run --release -p shapespace-analysis --example seam_probe -- K dog0 victoria0 ...`
+#[path = "common/crowding.rs"]
+mod crowding;
+
 use std::time::Instant;
 
 use shapespace_analysis::area_preserving::{area_preserving_map, transport_problem, AreaPreservingParams};
@@ -9,7 +12,6 @@ use shapespace_analysis::distortion::map_distortion;
 use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
 use shapespace_geometry::seam::{cut_along_seam, extremities, seam_tree};
-use shapespace_omt::power_diagram::PowerDiagram;
 
 fn crowding(mesh: &shapespace_geometry::TriMesh) -> String {
     crowding_with(mesh, &Markers::default())
@@ -21,14 +23,11 @@ fn crowding_with(mesh: &shapespace_geometry::TriMesh, markers: &Markers) -> Stri
             let y = &problem.conformal.uv;
             let n = y.len();
             let spacing = (std::f64::consts::PI / n as f64).sqrt();
-            let pd = PowerDiagram::new(y, &vec![0.0; n]).unwrap();
-            let mut nn = vec![f64::INFINITY; n];
-            for (i, d) in nn.iter_mut().enumerate() {
-                for &j in pd.neighbors(i) {
-                    let j = j as usize;
-                    *d = d.min((y[i][0] - y[j][0]).hypot(y[i][1] - y[j][1]) / spacing);
-                }
-            }
+            let nn: Vec<f64> = crowding::nearest_neighbour_distances(y)
+                .0
+                .iter()
+                .map(|d| d / spacing)
+                .collect();
             let below = |t: f64| nn.iter().filter(|&&d| d < t).count();
             format!(
                 "min nn/spacing {:.1e}, < 1e-3: {}, < 1e-6: {}, < 1e-9: {}, < 1e-12: {}",
