@@ -898,7 +898,14 @@ const CROWDING: &str = "the points are too crowded for double precision (typical
 /// point, and the likely cause. Points closer than ~1e−9 of Ω's extent get cells whose masses
 /// (areas ~ spacing²) and bisector offsets (height differences ~ spacing × cell size) are below
 /// what f64 heights of order one resolve: typical of conformal images of long protrusions.
-fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f64; 2], scale: f64) -> String {
+fn no_start_diagnosis(
+    points: &[[f64; 2]],
+    empty: &[usize],
+    start: Start,
+    lo: [f64; 2],
+    hi: [f64; 2],
+    scale: f64,
+) -> String {
     let extent = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
     let closest = nearest_other_point(points, empty);
     let cause = if closest < 1e-9 * extent {
@@ -907,11 +914,17 @@ fn no_start_diagnosis(points: &[[f64; 2]], empty: &[usize], lo: [f64; 2], hi: [f
         "points far outside the domain?"
     };
     format!(
-        "no start with all cells non-empty was found: {} of {} cells are empty at the Voronoi start and \
-         contracting the points toward Ω's barycenter (down to scale {scale:.1e}) did not fill them; the \
-         nearest other point of one of these is {closest:.2e} away, against Ω's extent {extent:.2e}: {cause}",
+        "no start with all cells non-empty was found: {} of {} cells are empty at the {} start, and neither \
+         the Voronoi start nor contracting the points toward Ω's barycenter (down to scale {scale:.1e}) \
+         filled them; the nearest other point of one of these is {closest:.2e} away, against Ω's extent \
+         {extent:.2e}: {cause}",
         empty.len(),
-        points.len()
+        points.len(),
+        if start == Start::Voronoi {
+            "Voronoi"
+        } else {
+            "given (warm or coarse-to-fine)"
+        }
     )
 }
 
@@ -1306,6 +1319,7 @@ fn solve_single(
         let empty_at = |cells: &CellIntegrals| cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
         let mut fewest_empty = empty_at(&current.cells);
         let first_empty: Vec<usize> = (0..n).filter(|&i| !(current.cells.masses[i] > 0.0)).collect();
+        let first_start = start.clone();
         // Plain Voronoi first (if that was not the start), then contracted ones. Contraction
         // brings points from outside Ω in; once every contracted point lies in Ω's bounding box
         // and four more halvings empty no fewer cells, the empty cells come from points too close
@@ -1337,6 +1351,7 @@ fn solve_single(
                 return Err(OmtError::InvalidInput(no_start_diagnosis(
                     points,
                     &first_empty,
+                    first_start,
                     lo,
                     hi,
                     scale,

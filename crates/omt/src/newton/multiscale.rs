@@ -32,8 +32,11 @@
 //! the measure itself.
 //!
 //! The maximum is taken over the groups within [`RINGS`] edges of the coarse regular
-//! triangulation; the prolongation is then checked (hidden points in the fine diagram) and, for
-//! each hidden point and for the point whose cell holds its anchor, recomputed over all groups.
+//! triangulation; the prolongation is then checked (every point's anchor in its own cell of the
+//! fine diagram) and, for each point that fails and for the point whose cell holds its anchor,
+//! recomputed over all groups. (Until 2026-12-03 (15) the check looked for hidden points only;
+//! a point whose cell exists but lies outside Ω passed it: two slit copies on the unit circle
+//! of the bundled wolf0 slit three times started empty and the solve failed.)
 //! Heights are kept in double-double form throughout (children of a crowded group differ by
 //! less than an ulp of the heights).
 //!
@@ -97,7 +100,7 @@ fn averaging_sample(measure: &SourceMeasure, coarse_n: usize, hull_size: usize) 
     // The averaged triangulation has about 2·sample triangles plus one per hull vertex.
     (4 * sample + 2 * hull_size <= measure.triangles.len()).then_some(sample)
 }
-/// Rounds of the check for hidden points after the prolongation.
+/// Rounds of the check of the anchors after the prolongation.
 const REPAIR_ROUNDS: usize = 8;
 /// Tolerance of the coarse levels (or the final tolerance if looser).
 const LEVEL_TOLERANCE: f64 = 1e-3;
@@ -378,21 +381,45 @@ pub(crate) fn coarse_to_fine_heights(
         hi: vec![0.0; n],
         lo: vec![0.0; n],
     };
+    // ∂Φ(y) at a point y where Φ_k attains the maximum: c_k + s_k ∇ψ_δk(y − Y_k).
+    let anchor = |k: usize, y: [f64; 2]| -> [f64; 2] {
+        let yk = coarse.points[k];
+        let o = [y[0] - yk[0], y[1] - yk[1]];
+        let norm = (deltas[k] * deltas[k] + o[0] * o[0] + o[1] * o[1]).sqrt();
+        let grad = if norm > 0.0 {
+            [o[0] / norm, o[1] / norm]
+        } else {
+            [0.0, 0.0]
+        };
+        [
+            centroids[k][0] + scales[k] * grad[0],
+            centroids[k][1] + scales[k] * grad[1],
+        ]
+    };
+    let mut anchors = vec![[0.0; 2]; n];
     for (i, &g) in coarse.group.iter().enumerate() {
         // A group of one: y_i = Y_g, where every other Φ_k lies below u*(Y_g) = G_g.
-        let rel = if members[g].len() == 1 {
-            0.0
+        let (rel, k) = if members[g].len() == 1 {
+            (0.0, g)
         } else {
-            candidates[g]
-                .iter()
-                .fold(phi_rel(g, g, points[i]), |best, &k| best.max(phi_rel(k, g, points[i])))
+            candidates[g].iter().fold((phi_rel(g, g, points[i]), g), |best, &k| {
+                let v = phi_rel(k, g, points[i]);
+                if v > best.0 {
+                    (v, k)
+                } else {
+                    best
+                }
+            })
         };
         set(&mut heights, i, rel);
+        anchors[i] = anchor(k, points[i]);
     }
     // Check: with the maximum taken over the candidate groups only, a point's value can fall
-    // below Φ(y_i); its cell is then too large and may hide another. For each hidden point j,
-    // take the exact maximum (over all groups) for j and for the point i whose cell contains
-    // j's anchor p_j ∈ ∂Φ(y_j): one of the two was underestimated.
+    // below Φ(y_i); its cell is then too large and may squeeze another's out of Ω or hide it.
+    // Every point j must hold its anchor p_j ∈ ∂Φ(y_j) ⊂ Ω in its own cell (then its cell
+    // meets Ω in an open set); for each j that does not (hidden or not), take the exact
+    // maximum (over all groups) for j and for the point i whose cell contains p_j: one of the
+    // two was underestimated.
     let exact = |i: usize| -> (f64, [f64; 2]) {
         let g = coarse.group[i];
         let y = points[i];
@@ -403,42 +430,43 @@ pub(crate) fn coarse_to_fine_heights(
                 best = (v, k);
             }
         }
-        let k = best.1;
-        let yk = coarse.points[k];
-        let o = [y[0] - yk[0], y[1] - yk[1]];
-        let norm = (deltas[k] * deltas[k] + o[0] * o[0] + o[1] * o[1]).sqrt();
-        let grad = if norm > 0.0 {
-            [o[0] / norm, o[1] / norm]
-        } else {
-            [0.0, 0.0]
-        };
-        (
-            best.0,
-            [
-                centroids[k][0] + scales[k] * grad[0],
-                centroids[k][1] + scales[k] * grad[1],
-            ],
-        )
+        (best.0, anchor(best.1, y))
     };
     let order = crate::power_diagram::InsertionOrder::new(points)?;
     let mut exact_done = vec![false; n];
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?;
-        let hidden: Vec<usize> = (0..n).filter(|&i| diagram.is_hidden(i)).collect();
-        if hidden.is_empty() {
+        let outside: Vec<usize> = (0..n)
+            .filter(|&j| {
+                diagram.is_hidden(j)
+                    || diagram.neighbors(j).iter().any(|&k| {
+                        let k = k as usize;
+                        crate::predicates::power_compare(
+                            anchors[j],
+                            points[k],
+                            diagram.weight(k),
+                            points[j],
+                            diagram.weight(j),
+                        ) < 0
+                    })
+            })
+            .collect();
+        if outside.is_empty() {
             break;
         }
-        for j in hidden {
-            let (rel, anchor) = exact(j);
+        for j in outside {
+            let i = diagram.locate(anchors[j], Some(j));
             if !exact_done[j] {
+                let (rel, a) = exact(j);
                 set(&mut heights, j, rel);
+                anchors[j] = a;
                 exact_done[j] = true;
             }
-            let i = diagram.locate(anchor, None);
             if i != j && !exact_done[i] {
-                let (rel_i, _) = exact(i);
+                let (rel_i, a) = exact(i);
                 set(&mut heights, i, rel_i);
+                anchors[i] = a;
                 exact_done[i] = true;
             }
         }
