@@ -37,10 +37,15 @@
 //! - **Boundary vertices.** Their cell centroids lie strictly inside Ω. Each one is projected
 //!   radially from the origin onto ∂D (the unit circle, for both `Disk`) or onto ∂Ω (`Square`):
 //!   $c \mapsto c / |c|$, resp. $c \mapsto c\,\frac{\sqrt\pi/2}{\max(|c_x|, |c_y|)}$. Radial
-//!   projection preserves the angular order of the centroids; the boundary cells meet ∂Ω in the
-//!   same cyclic order as the boundary vertices (the OT map is monotone), so the boundary order
-//!   is preserved; the result counts violations in
-//!   [`AreaPreservingMap::boundary_order_violations`] instead of assuming it.
+//!   projection preserves the angular order of the centroids, and the boundary cells meet ∂Ω in
+//!   the same cyclic order as the boundary vertices (the OT map is monotone), but a cell's
+//!   centroid need not lie at the angle where the cell meets ∂Ω: two thin neighbouring boundary
+//!   cells can have their centroids in the opposite angular order (TOSCA centaur0 slit twice:
+//!   two cut-boundary vertices 5e-5 rad apart, swapped). No interior re-embedding can repair
+//!   that, so [`order_boundary`] restores the order first: it keeps a longest run of
+//!   boundary vertices whose angles increase and spaces the others evenly between them. The
+//!   result counts the violations ([`AreaPreservingMap::boundary_order_violations`]) and the
+//!   vertices moved ([`AreaPreservingMap::boundary_vertices_reordered`]).
 //!
 //! # Importance weights (Zhao et al. 2013, §4; Su et al. 2015, §5.2)
 //! Per-vertex weights $w_i > 0$ give $\nu_i \leftarrow \pi\, w_i \nu_i / \sum_j w_j \nu_j$: a region
@@ -208,9 +213,12 @@ pub struct AreaPreservingMap {
     pub is_boundary: Vec<bool>,
     /// Largest distance a boundary centroid moved in the projection onto ∂Ω.
     pub max_boundary_projection: f64,
-    /// Boundary edges whose image turns the wrong way around the origin (0 = the boundary
-    /// order is preserved).
+    /// Boundary edges whose projected centroids turn the wrong way around the origin (0 = the
+    /// boundary order is preserved), before [`order_boundary`].
     pub boundary_order_violations: usize,
+    /// Boundary vertices that [`order_boundary`] moved to restore the order (0 when there was
+    /// no violation).
+    pub boundary_vertices_reordered: usize,
     /// OT solver summary.
     pub ot: OtSummary,
     /// The fold repair step.
@@ -434,6 +442,11 @@ pub fn area_preserving_map(
 
     let (mut uv, max_boundary_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
     let boundary_order_violations = boundary_order_violations(mesh, &uv);
+    let boundary_vertices_reordered = if boundary_order_violations > 0 {
+        order_boundary(mesh, params.domain, &mut uv)
+    } else {
+        0
+    };
     let ot = OtSummary {
         iterations: solution.iterations,
         max_relative_error: solution.max_relative_error,
@@ -467,6 +480,7 @@ pub fn area_preserving_map(
         is_boundary,
         max_boundary_projection,
         boundary_order_violations,
+        boundary_vertices_reordered,
         ot,
         fold_repair,
         timings: Timings {
@@ -529,6 +543,89 @@ pub fn boundary_order_violations(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
             p[0] * q[1] - p[1] * q[0] <= 0.0
         })
         .count()
+}
+
+/// Puts the boundary images back in counter-clockwise order along each boundary loop of `mesh`
+/// (module docs, "Boundary vertices"), in place; returns the number of boundary vertices moved.
+///
+/// Per loop, with the angles θ_k of the images in loop order: the loop is read from the vertex
+/// after its largest angular gap, a longest subsequence whose unwrapped angles increase
+/// strictly is kept, and every other vertex is put on ∂Ω at evenly spaced angles between the
+/// kept vertices before and after it. A loop whose images do not wind once around the origin
+/// is left as it is (nothing local can order it; the fold repair then reports it).
+pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> usize {
+    let conn = Connectivity::of(mesh);
+    let mut moved = 0;
+    for lp in conn.boundary_loops(&mesh.faces) {
+        let n = lp.len();
+        if n < 3 {
+            continue;
+        }
+        let theta: Vec<f64> = lp.iter().map(|&v| uv[v as usize][1].atan2(uv[v as usize][0])).collect();
+        let tau = std::f64::consts::TAU;
+        let wrap = |d: f64| d - tau * (d / tau).round();
+        let gaps: Vec<f64> = (0..n).map(|k| wrap(theta[(k + 1) % n] - theta[k])).collect();
+        let winding: f64 = gaps.iter().sum();
+        if (winding - tau).abs() > 1e-6 || gaps.iter().all(|&d| d > 0.0) {
+            continue;
+        }
+        // start after the largest gap; u: unwrapped angles in that order
+        let start = (0..n)
+            .max_by(|&a, &b| gaps[a].total_cmp(&gaps[b]))
+            .map_or(0, |k| (k + 1) % n);
+        let mut u = Vec::with_capacity(n);
+        let mut acc = theta[start];
+        for j in 0..n {
+            u.push(acc);
+            acc += gaps[(start + j) % n];
+        }
+        let kept = longest_increasing(&u);
+        if kept.len() < 2 {
+            continue;
+        }
+        // spread the others between consecutive kept vertices (cyclically: the last kept one
+        // and the first kept one plus a turn)
+        for (w, &a) in kept.iter().enumerate() {
+            let (b, ub) = if w + 1 < kept.len() {
+                (kept[w + 1], u[kept[w + 1]])
+            } else {
+                (kept[0] + n, u[kept[0]] + tau)
+            };
+            for j in a + 1..b {
+                let t = u[a] + (ub - u[a]) * (j - a) as f64 / (b - a) as f64;
+                let v = lp[(start + j) % n] as usize;
+                uv[v] = project_to_boundary(domain, [t.cos(), t.sin()]);
+                moved += 1;
+            }
+        }
+    }
+    moved
+}
+
+/// Indices of a longest strictly increasing subsequence of `x` (patience sorting, O(n log n)).
+fn longest_increasing(x: &[f64]) -> Vec<usize> {
+    // tails[l]: index of the smallest last element of an increasing subsequence of length l + 1
+    let mut tails: Vec<usize> = Vec::new();
+    let mut prev = vec![usize::MAX; x.len()];
+    for i in 0..x.len() {
+        let l = tails.partition_point(|&t| x[t] < x[i]);
+        if l > 0 {
+            prev[i] = tails[l - 1];
+        }
+        if l == tails.len() {
+            tails.push(i);
+        } else {
+            tails[l] = i;
+        }
+    }
+    let mut out = Vec::with_capacity(tails.len());
+    let mut k = tails.last().copied().unwrap_or(usize::MAX);
+    while k != usize::MAX {
+        out.push(k);
+        k = prev[k];
+    }
+    out.reverse();
+    out
 }
 
 /// Per-vertex importance weights from a CSV file of rows `vertex,weight` (vertex: 0-based index
@@ -714,5 +811,62 @@ mod tests {
         assert_eq!("Disk".parse::<Domain>().unwrap(), Domain::Disk);
         assert_eq!("square".parse::<Domain>().unwrap(), Domain::Square);
         assert!("circle".parse::<Domain>().is_err());
+    }
+
+    #[test]
+    fn longest_increasing_subsequence() {
+        assert_eq!(longest_increasing(&[1.0, 2.0, 3.0]), vec![0, 1, 2]);
+        assert_eq!(longest_increasing(&[1.0, 3.0, 2.0, 4.0]).len(), 3);
+        assert_eq!(longest_increasing(&[0.0, 5.0, 1.0, 2.0, 3.0, 4.0]), vec![0, 2, 3, 4, 5]);
+        // strictly increasing: ties are not kept together
+        assert_eq!(longest_increasing(&[1.0, 1.0, 1.0]).len(), 1);
+        assert!(longest_increasing(&[]).is_empty());
+    }
+
+    /// The unit disk mesh with its boundary images on the circle at their own angles, then two
+    /// neighbours swapped (the case of TOSCA centaur0 slit twice): `order_boundary` moves one
+    /// of them, between its neighbours, and the order is restored; an ordered boundary, and a
+    /// boundary that winds twice, are left as they are.
+    #[test]
+    fn order_boundary_restores_a_swapped_pair() {
+        let mesh = shapespace_geometry::primitives::unit_disk(6);
+        let conn = Connectivity::of(&mesh);
+        let lp = conn.boundary_loops(&mesh.faces).remove(0);
+        let base: Vec<[f64; 2]> = mesh.positions.iter().map(|p| [p[0], p[1]]).collect();
+        for domain in [Domain::Disk, Domain::Square] {
+            let mut uv = base.clone();
+            for &v in &lp {
+                uv[v as usize] = project_to_boundary(domain, uv[v as usize]);
+            }
+            let ordered = uv.clone();
+            assert_eq!(boundary_order_violations(&mesh, &uv), 0);
+            assert_eq!(order_boundary(&mesh, domain, &mut uv), 0);
+            assert_eq!(uv, ordered);
+            let (a, b) = (lp[5] as usize, lp[6] as usize);
+            uv.swap(a, b);
+            assert!(boundary_order_violations(&mesh, &uv) > 0);
+            assert_eq!(order_boundary(&mesh, domain, &mut uv), 1, "{domain:?}");
+            assert_eq!(boundary_order_violations(&mesh, &uv), 0, "{domain:?}");
+            let angle = |p: [f64; 2]| p[1].atan2(p[0]);
+            let (before, after) = (angle(uv[lp[4] as usize]), angle(uv[lp[7] as usize]));
+            for v in [a, b] {
+                let t = angle(uv[v]);
+                assert!(before < t && t < after, "{domain:?}: {before} < {t} < {after}");
+                let on = project_to_boundary(domain, uv[v]);
+                assert!((on[0] - uv[v][0]).abs() < 1e-15 && (on[1] - uv[v][1]).abs() < 1e-15);
+            }
+            // only one of the pair moved; every other vertex is where it was
+            let moved = (0..uv.len()).filter(|&v| uv[v] != ordered[v]).count();
+            assert!(moved <= 2, "{moved}");
+        }
+        // twice around: nothing local can order it
+        let mut uv = base.clone();
+        for &v in &lp {
+            let t = 2.0 * uv[v as usize][1].atan2(uv[v as usize][0]);
+            uv[v as usize] = [t.cos(), t.sin()];
+        }
+        let twice = uv.clone();
+        assert_eq!(order_boundary(&mesh, Domain::Disk, &mut uv), 0);
+        assert_eq!(uv, twice);
     }
 }

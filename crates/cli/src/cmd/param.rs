@@ -165,6 +165,14 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             fallback.green_folds
         );
     }
+    if map.boundary_vertices_reordered > 0 {
+        eprintln!(
+            "{}: {} boundary edges of the centroid map turned backwards around the origin; {} boundary vertices were moved on the circle to restore their order",
+            args.input.display(),
+            map.boundary_order_violations,
+            map.boundary_vertices_reordered
+        );
+    }
     if let Some(dir) = &args.plots {
         write_distortion_histograms(&report, dir, 60)
             .with_context(|| format!("writing plots into {}", dir.display()))?;
@@ -185,6 +193,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "ot": map.ot,
             "max_boundary_projection": map.max_boundary_projection,
             "boundary_order_violations": map.boundary_order_violations,
+            "boundary_vertices_reordered": map.boundary_vertices_reordered,
             "fold_repair": map.fold_repair,
             "timings": map.timings,
             "wall_seconds": t0.elapsed().as_secs_f64(),
