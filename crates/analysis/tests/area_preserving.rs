@@ -581,3 +581,69 @@ fn a_seam_through_the_farthest_tip_lowers_the_distortion() {
         assert!(slit.2 < plain.2, "{pose}: folds {medians:?}");
     }
 }
+
+/// Bodies slit more than once (`prepare --seam 2`/`3`) used to fail in two ways, both fixed on
+/// 2026-12-03 (15) and checked here on the bundled poses:
+/// - the coarse-to-fine start left cells empty (wolf0 slit three times, centaur2 twice: two
+///   slit copies on the unit circle whose cells existed but lay outside Ω; the prolongation's
+///   check only looked for hidden sites). The start itself (`max_iterations = 0`) must now have
+///   every cell non-empty, and the map must converge.
+/// - the projected centroids of two neighbouring boundary cells came out in reversed angular
+///   order (centaur0 slit twice: 2 reversed edges), which no interior re-embedding can repair
+///   ("the whole-disk Tutte map still folds"). `order_boundary` now restores the order: the
+///   final boundary is in order and nothing is folded.
+#[test]
+fn bodies_slit_several_times_map_without_empty_starts_or_reversed_boundaries() {
+    use shapespace_analysis::area_preserving::{boundary_order_violations, transport_problem};
+    use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
+    use shapespace_omt::{solve_ot, NewtonParams, StartStrategy};
+    let mut reordered = 0;
+    for (path, seams) in [
+        ("datasets/poses/wolf/wolf0.off", 3),
+        ("datasets/poses/centaur/centaur2.off", 2),
+        ("datasets/poses/centaur/centaur0.off", 2),
+    ] {
+        let (mesh, _) = load(path);
+        let options = PrepareOptions {
+            seam_extremities: seams,
+            ..Default::default()
+        };
+        let (slit, _, _) = prepare_disk(&mesh, &options).unwrap();
+        let params = AreaPreservingParams::default();
+        let problem = transport_problem(&slit, &Markers::default(), &params).unwrap();
+        let start = solve_ot(
+            &problem.measure,
+            &problem.conformal.uv,
+            &problem.target_masses,
+            &NewtonParams {
+                max_iterations: 0,
+                start_strategy: StartStrategy::CoarseToFine,
+                ..params.newton.clone()
+            },
+        )
+        .unwrap_or_else(|e| panic!("{path} seam {seams}: {e}"));
+        let empty = start.cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
+        assert_eq!(empty, 0, "{path} seam {seams}: empty cells at the coarse-to-fine start");
+        let map = area_preserving_map(&slit, &Markers::default(), &params)
+            .unwrap_or_else(|e| panic!("{path} seam {seams}: {e}"));
+        assert!(map.ot.converged, "{path}: {:?}", map.ot);
+        assert_eq!(boundary_order_violations(&slit, &map.uv), 0, "{path} seam {seams}");
+        assert_eq!(
+            map.fold_repair.after.num_flipped + map.fold_repair.after.num_degenerate,
+            0
+        );
+        eprintln!(
+            "{path} seam {seams}: {} steps, {} reversed boundary edges, {} boundary vertices reordered, |Υ| median {:.3}",
+            map.ot.iterations,
+            map.boundary_order_violations,
+            map.boundary_vertices_reordered,
+            map.fold_repair.after.abs_area_distortion.median
+        );
+        if map.boundary_order_violations > 0 {
+            assert!(map.boundary_vertices_reordered > 0);
+            reordered += 1;
+        }
+    }
+    // centaur0 slit twice is the case that reverses boundary edges
+    assert!(reordered >= 1);
+}
