@@ -1,5 +1,6 @@
 //! Probe: the Newton log of the area-preserving OT of a TOSCA body slit as `shapespace prepare
-//! --seam K` makes it. `body_ot_log NAME [K]` (default victoria0, 1).
+//! --seam K` makes it. `body_ot_log NAME [K]` (default victoria0, 1), or `body_ot_log PATH` for a
+//! mesh that is already a disk (e.g. written by `shapespace prepare`).
 #[path = "common/newton_log.rs"]
 mod newton_log;
 
@@ -11,13 +12,17 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let name = args.get(1).cloned().unwrap_or("victoria0".into());
     let k: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
-    let path = format!("/work/shared/datasets/tosca/{name}.off");
-    let mesh = shapespace_geometry::io::read_mesh(std::path::Path::new(&path)).unwrap();
-    let options = PrepareOptions {
-        seam_extremities: k,
-        ..Default::default()
+    let disk = if name.contains('/') {
+        shapespace_geometry::io::read_mesh(std::path::Path::new(&name)).unwrap()
+    } else {
+        let path = format!("/work/shared/datasets/tosca/{name}.off");
+        let mesh = shapespace_geometry::io::read_mesh(std::path::Path::new(&path)).unwrap();
+        let options = PrepareOptions {
+            seam_extremities: k,
+            ..Default::default()
+        };
+        prepare_disk(&mesh, &options).unwrap().0
     };
-    let (disk, _, _) = prepare_disk(&mesh, &options).unwrap();
     let params = AreaPreservingParams::default();
     let problem = transport_problem(&disk, &Markers::default(), &params).unwrap();
     let t = std::time::Instant::now();
