@@ -1,8 +1,9 @@
-//! Probe: the empty cells of the Voronoi start of an area-preserving OT problem.
-//! `empty_start_probe MESH` (a disk).
+//! Probe: the empty cells of the starts of an area-preserving OT problem (Voronoi, and the
+//! coarse-to-fine start evaluated with `max_iterations = 0`), then the solve.
+//! `empty_start_probe MESH` (a disk, e.g. written by `shapespace prepare --seam 3`).
 use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
 use shapespace_conformal::Markers;
-use shapespace_omt::power_diagram::PowerDiagram;
+use shapespace_omt::{solve_ot, NewtonParams, StartStrategy};
 
 fn main() {
     let path = std::env::args().nth(1).expect("mesh path");
@@ -10,80 +11,39 @@ fn main() {
     let params = AreaPreservingParams::default();
     let p = transport_problem(&disk, &Markers::default(), &params).unwrap();
     let y = &p.conformal.uv;
-    let w: Vec<f64> = y.iter().map(|q| q[0] * q[0] + q[1] * q[1]).collect();
-    let d = PowerDiagram::new(y, &vec![0.0; y.len()]).unwrap();
-    let hidden: Vec<usize> = (0..y.len()).filter(|&i| d.is_hidden(i)).collect();
-    println!("{} points, hidden in the Voronoi diagram: {:?}", y.len(), hidden);
-    let _ = w;
-    let cells = shapespace_omt::restricted::RestrictedIntegrator::new(&p.measure).integrate(&d);
-    let empty: Vec<usize> = (0..y.len()).filter(|&i| !(cells.masses[i] > 0.0)).collect();
-    println!("empty: {empty:?}");
-    for &i in &empty {
-        let r = y[i][0].hypot(y[i][1]);
-        println!(
-            "  {i}: y {:?} r-1 {:.3e} boundary {} neighbours {:?}",
-            y[i],
-            r - 1.0,
-            p.is_boundary[i],
-            d.neighbors(i)
-                .iter()
-                .map(|&j| (j, y[j as usize], y[j as usize][0].hypot(y[j as usize][1]) - 1.0))
-                .collect::<Vec<_>>()
-        );
-    }
-    println!("sanity: {:?}", d.sanity_check());
-    let order = shapespace_omt::power_diagram::InsertionOrder::new(y).unwrap();
-    let zeros = vec![0.0; y.len()];
-    let d2 = PowerDiagram::with_order_dd(y, &zeros, Some(&zeros), &order).unwrap();
-    let c2 = shapespace_omt::restricted::RestrictedIntegrator::new(&p.measure).integrate(&d2);
-    println!(
-        "with order: hidden {} empty {}",
-        (0..y.len()).filter(|&i| d2.is_hidden(i)).count(),
-        c2.masses.iter().filter(|&&m| !(m > 0.0)).count()
-    );
+    let describe = |label: &str, masses: &[f64]| {
+        let empty: Vec<usize> = (0..y.len()).filter(|&i| !(masses[i] > 0.0)).collect();
+        println!("{label}: {} of {} cells empty", empty.len(), y.len());
+        for &i in empty.iter().take(8) {
+            let nearest = (0..y.len())
+                .filter(|&j| j != i)
+                .map(|j| (y[j][0] - y[i][0]).hypot(y[j][1] - y[i][1]))
+                .fold(f64::INFINITY, f64::min);
+            println!(
+                "  {i}: y {:?}, |y| − 1 = {:.3e}, boundary {}, ν {:.3e}, nearest other point {nearest:.3e}",
+                y[i],
+                y[i][0].hypot(y[i][1]) - 1.0,
+                p.is_boundary[i],
+                p.target_masses[i]
+            );
+        }
+    };
     let h: Vec<f64> = y.iter().map(|q| -0.5 * (q[0] * q[0] + q[1] * q[1])).collect();
-    let c3 = shapespace_omt::newton::integrate_at_heights(&p.measure, y, &h, Default::default()).unwrap();
-    println!(
-        "integrate_at_heights: empty {}",
-        c3.masses.iter().filter(|&&m| !(m > 0.0)).count()
-    );
-    for i in (0..y.len()).filter(|&i| !(c3.masses[i] > 0.0)).take(8) {
-        println!(
-            "  {i}: y {:?} r-1 {:.3e} boundary {} mass {} voronoi mass {}",
-            y[i],
-            y[i][0].hypot(y[i][1]) - 1.0,
-            p.is_boundary[i],
-            c3.masses[i],
-            c2.masses[i]
-        );
+    match shapespace_omt::newton::integrate_at_heights(&p.measure, y, &h, Default::default()) {
+        Ok(cells) => describe("Voronoi start", &cells.masses),
+        Err(e) => println!("Voronoi start: {e}"),
     }
-    let w = shapespace_omt::newton::weights_from_heights(y, &h);
-    let d4 = PowerDiagram::with_order(y, &w, &order).unwrap();
-    let c4 = shapespace_omt::restricted::RestrictedIntegrator::new(&p.measure).integrate(&d4);
-    println!(
-        "f64 weights: hidden {} empty {} max |w| {:e}",
-        (0..y.len()).filter(|&i| d4.is_hidden(i)).count(),
-        c4.masses.iter().filter(|&&m| !(m > 0.0)).count(),
-        w.iter().fold(0.0f64, |a, b| a.max(b.abs()))
-    );
-    for i in [4396usize, 4398] {
-        let mut near: Vec<(f64, usize)> = (0..y.len())
-            .filter(|&j| j != i)
-            .map(|j| ((y[j][0] - y[i][0]).hypot(y[j][1] - y[i][1]), j))
-            .collect();
-        near.sort_by(|a, b| a.0.total_cmp(&b.0));
-        println!(
-            "  {i}: y {:?} r-1 {:.3e} boundary {} nu {:.3e} nearest {:?}",
-            y[i],
-            y[i][0].hypot(y[i][1]) - 1.0,
-            p.is_boundary[i],
-            p.target_masses[i],
-            &near[..4]
-                .iter()
-                .map(|&(d, j)| (d, j, p.is_boundary[j], y[j][0].hypot(y[j][1]) - 1.0))
-                .collect::<Vec<_>>()
-        );
+    let start_only = NewtonParams {
+        max_iterations: 0,
+        start_strategy: StartStrategy::CoarseToFine,
+        ..params.newton.clone()
+    };
+    match solve_ot(&p.measure, y, &p.target_masses, &start_only) {
+        Ok(s) => describe(&format!("{:?} start", s.start), &s.cells.masses),
+        Err(e) => println!("coarse-to-fine start: {e}"),
     }
-    let r = shapespace_omt::solve_ot(&p.measure, y, &p.target_masses, &params.newton);
-    println!("solve: {:?}", r.map(|s| (s.iterations, s.stop)));
+    match solve_ot(&p.measure, y, &p.target_masses, &params.newton) {
+        Ok(s) => println!("solve: {} steps, {}", s.iterations, s.stop),
+        Err(e) => println!("solve: {e}"),
+    }
 }
