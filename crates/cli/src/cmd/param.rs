@@ -217,19 +217,29 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
 }
 
 /// Whether an error (or one of its sources) is about interior protrusions crowded beyond f64:
-/// the OT's crowding failures and the conformal map's range errors, but not crowding along the
-/// boundary (a flat tail on the boundary, which no slit helps).
+/// the OT's crowding failures, the conformal map's range errors, and a conformal image that
+/// still folds with its boundary in order (TOSCA david0/1: the fingers, until slit two or three
+/// times); but not crowding along the boundary (a flat tail on the boundary, which no slit
+/// helps).
 fn mentions_crowding(e: &(dyn std::error::Error + 'static)) -> bool {
     std::iter::successors(Some(e), |e| e.source()).any(|e| {
         let text = e.to_string();
-        (text.contains("crowded") || text.contains("f64 range")) && !text.contains("along the boundary")
+        let folded_inside = matches!(
+            e.downcast_ref::<shapespace_conformal::ConformalError>(),
+            Some(shapespace_conformal::ConformalError::FoldedImage {
+                boundary_out_of_order: 0,
+                ..
+            })
+        );
+        folded_inside
+            || ((text.contains("crowded") || text.contains("f64 range")) && !text.contains("along the boundary"))
     })
 }
 
 /// The remedy for bodies whose limbs crowd the conformal image.
 fn print_seam_hint() {
     eprintln!(
-        "shapespace: hint: if this is a body whose limbs crowd the conformal image, slit it from its farthest tip to the boundary first: `shapespace prepare IN --out OUT --seam 1` (README, \"Your own meshes\")"
+        "shapespace: hint: if this is a body whose limbs crowd the conformal image, slit it from its farthest tips to the boundary first: `shapespace prepare IN --out OUT --seam 1`, and if that still fails `--seam 2` or `3` (each slit frees one more protrusion; README, \"Your own meshes\")"
     );
 }
 
@@ -245,5 +255,37 @@ fn repair_summary(info: &shapespace_analysis::fold_repair::FoldRepairInfo) -> St
             "fold repair: {folded} folded before, {} after the untangling, {} vertices moved, {} Tutte rounds",
             info.untangle.folded_after, info.vertices_moved, info.rounds
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::mentions_crowding;
+    use shapespace_analysis::AnalysisError;
+    use shapespace_conformal::ConformalError;
+
+    fn folded(boundary_out_of_order: usize) -> AnalysisError {
+        AnalysisError::DiskMap(ConformalError::FoldedImage {
+            num_flipped: 66,
+            first_face: 12634,
+            flipped_area_fraction: 8.4e-4,
+            boundary_out_of_order,
+            bff_fallback_error: None,
+        })
+    }
+
+    /// The slit hint follows a conformal image folded inside (TOSCA david1 slit once) and the
+    /// crowding messages, but not a boundary out of order or crowding along the boundary.
+    #[test]
+    fn slit_hint_follows_interior_folds_and_crowding() {
+        assert!(mentions_crowding(&folded(0)));
+        assert!(!mentions_crowding(&folded(3)));
+        let crowded = AnalysisError::InvalidInput("the points are too crowded for double precision".into());
+        assert!(mentions_crowding(&crowded));
+        let boundary = AnalysisError::InvalidInput("points crowded along the boundary".into());
+        assert!(!mentions_crowding(&boundary));
+        assert!(!mentions_crowding(&AnalysisError::InvalidInput(
+            "weights: bad row".into()
+        )));
     }
 }

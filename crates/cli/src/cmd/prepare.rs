@@ -30,9 +30,10 @@ pub struct PrepareArgs {
     #[arg(long, default_value_t = 3)]
     pub cut_rings: usize,
     /// Then slit the disk open along shortest edge paths from this many extremities (geodesic
-    /// farthest points from the boundary) to the boundary. `--seam 1` is what whole bodies need:
-    /// without it a limb's conformal image shrinks exponentially and its points crowd beyond
-    /// f64 (README, "Your own meshes").
+    /// farthest points from the boundary) to the boundary. Whole bodies need it: without it a
+    /// limb's conformal image shrinks exponentially and its points crowd beyond f64. `--seam 1`
+    /// maps 24 of the 26 TOSCA meshes; the two David poses need `2` or `3` (their fingers)
+    /// (README, "Your own meshes").
     #[arg(long, default_value_t = 0)]
     pub seam: usize,
     /// Also write CSV `vertex,input_vertex` (input_vertex empty for vertices added by hole
