@@ -341,6 +341,41 @@ fn coarse_to_fine_start_has_no_empty_cell() {
     }
 }
 
+/// The coarse-to-fine start's first evaluation integrates the power diagram its last check built
+/// (not a second construction); its cells must be those of a fresh evaluation of the same
+/// heights. With `max_iterations = 0` the solution's cells are that first evaluation.
+#[test]
+fn coarse_to_fine_start_evaluation_matches_a_fresh_one() {
+    use shapespace_omt::newton::integrate_at_heights;
+    use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
+    let contrast = disk_rings_measure(30, |x| if x[0] > 0.0 { 100.0 } else { 1.0 }).unwrap();
+    let points = random_disk_points(4000, 7);
+    let masses: Vec<f64> = (0..points.len()).map(|k| 1.0 + (k % 3) as f64).collect();
+    let start = solve_ot(
+        &contrast,
+        &points,
+        &masses,
+        &NewtonParams {
+            max_iterations: 0,
+            start_strategy: StartStrategy::CoarseToFine,
+            ..NewtonParams::default()
+        },
+    )
+    .unwrap();
+    assert!(matches!(start.start, Start::CoarseToFine { .. }), "{:?}", start.start);
+    // (the fresh evaluation sees the heights' high parts only: agreement to round-off)
+    let fresh = integrate_at_heights(&contrast, &points, &start.heights, Default::default()).unwrap();
+    let worst = start
+        .cells
+        .masses
+        .iter()
+        .zip(&fresh.masses)
+        .map(|(a, b)| (a - b).abs() / b)
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "largest relative mass difference {worst:e}");
+    assert_eq!(start.cells.edge_masses.len(), fresh.edge_masses.len());
+}
+
 /// `StartStrategy::Auto`: when the coarse-to-fine start it chose does not converge (here: a cap
 /// of 3 steps), the Voronoi path runs as well and the better result comes back with the steps
 /// of both; an explicit `CoarseToFine` returns its own result.

@@ -585,6 +585,34 @@ impl<'a> Backend<'a> {
     }
 }
 
+/// The evaluation of `heights` from their power diagram `diagram` (built by the caller, e.g. the
+/// coarse-to-fine start's last check), with that diagram's insertion `order` kept for the
+/// later evaluations when the backend has none yet.
+pub(crate) fn evaluate_diagram(
+    backend: &Backend<'_>,
+    points: &[[f64; 2]],
+    heights: &Heights,
+    diagram: &PowerDiagram,
+    order: InsertionOrder,
+) -> Evaluation {
+    let t0 = Instant::now();
+    let cells = match backend {
+        Backend::Restricted(integrator, cached) => {
+            let _ = cached.set(order);
+            integrator.integrate(diagram)
+        }
+        Backend::BruteForce(measure) => {
+            crate::reference::integrate_cells_bruteforce(points, &heights.weights(points).0, measure)
+        }
+    };
+    Evaluation {
+        cells,
+        t_diagram: 0.0,
+        t_integration: t0.elapsed().as_secs_f64(),
+        speculative: None,
+    }
+}
+
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Heights) -> Result<Evaluation, OmtError> {
     evaluate_unless_hidden(backend, points, heights, false, None)
 }
@@ -1027,15 +1055,25 @@ pub fn solve_ot(
         };
     if multiscale {
         let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
-        if let Some((heights, coarse_points, coarse_iterations)) =
+        if let Some((heights, coarse_points, coarse_iterations, checked)) =
             multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
         {
+            // The start's last check built the power diagram of these heights: integrate it
+            // instead of building it again, with the backend of the Voronoi test if there was one.
+            let prepared = checked.map(|(diagram, order)| {
+                let backend = voronoi_start
+                    .take()
+                    .map(|(backend, _)| backend)
+                    .unwrap_or_else(|| Backend::new(measure, params.integrator));
+                let evaluation = evaluate_diagram(&backend, points, &heights, &diagram, order);
+                (backend, evaluation)
+            });
             let fine_params = NewtonParams {
                 initial_heights: Some(heights.hi),
                 initial_heights_lo: Some(heights.lo),
                 ..params.clone()
             };
-            let mut solution = solve_single(measure, points, masses, &fine_params, t_begin, None)?;
+            let mut solution = solve_single(measure, points, masses, &fine_params, t_begin, prepared)?;
             if solution.start == Start::Warm {
                 solution.start = Start::CoarseToFine {
                     coarse_points,
@@ -1276,16 +1314,17 @@ fn solve_mass_continuation(
     }
 }
 
-/// One damped Newton solve (no density continuation). `voronoi_start`: the backend and the
-/// evaluation of the Voronoi start when the caller has them (used without a warm start; the
-/// backend keeps its insertion order and integration seeds).
+/// One damped Newton solve (no density continuation). `prepared`: the backend and the
+/// evaluation of the start heights when the caller has them: of the Voronoi heights without a
+/// warm start, of `params.initial_heights` with one (the backend keeps its insertion order and
+/// integration seeds).
 fn solve_single(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,
     t_begin: Instant,
-    voronoi_start: Option<(Backend<'_>, Evaluation)>,
+    prepared: Option<(Backend<'_>, Evaluation)>,
 ) -> Result<OtSolution, OmtError> {
     let n = points.len();
     let total = measure.total_mass();
@@ -1304,9 +1343,9 @@ fn solve_single(
         }
         None => Heights::voronoi(points),
     };
-    let (backend, mut current) = match (start == Start::Voronoi, voronoi_start) {
-        (true, Some((backend, evaluation))) => (backend, evaluation),
-        _ => {
+    let (backend, mut current) = match prepared {
+        Some((backend, evaluation)) => (backend, evaluation),
+        None => {
             let backend = Backend::new(measure, params.integrator);
             let evaluation = evaluate(&backend, points, &heights)?;
             (backend, evaluation)

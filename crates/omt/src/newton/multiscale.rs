@@ -257,7 +257,15 @@ pub(crate) fn coarse_to_fine_heights(
     points: &[[f64; 2]],
     targets: &[f64],
     params: &NewtonParams,
-) -> Result<Option<(Heights, usize, usize)>, OmtError> {
+) -> Result<
+    Option<(
+        Heights,
+        usize,
+        usize,
+        Option<(PowerDiagram, crate::power_diagram::InsertionOrder)>,
+    )>,
+    OmtError,
+> {
     let n = points.len();
     if n < MIN_COARSE {
         return Ok(None);
@@ -453,6 +461,8 @@ pub(crate) fn coarse_to_fine_heights(
     };
     let order = crate::power_diagram::InsertionOrder::new(points)?;
     let mut exact_done = vec![false; n];
+    // the diagram of the final heights, if the last round changed none
+    let mut checked = None;
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?;
@@ -473,6 +483,7 @@ pub(crate) fn coarse_to_fine_heights(
             })
             .collect();
         if outside.is_empty() {
+            checked = Some(diagram);
             break;
         }
         let mut changed = false;
@@ -497,6 +508,7 @@ pub(crate) fn coarse_to_fine_heights(
         // is left is rounding in the crowded spots (the anchor falls just outside a cell that
         // is not empty); another diagram would find the same.
         if !changed {
+            checked = Some(diagram);
             break;
         }
     }
@@ -505,5 +517,10 @@ pub(crate) fn coarse_to_fine_heights(
         super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
         _ => 0,
     };
-    Ok(Some((heights, coarse_n, solution.iterations + below)))
+    Ok(Some((
+        heights,
+        coarse_n,
+        solution.iterations + below,
+        checked.map(|diagram| (diagram, order)),
+    )))
 }
