@@ -1055,8 +1055,12 @@ pub fn solve_ot(
         };
     if multiscale {
         let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
-        if let Some((heights, coarse_points, coarse_iterations, checked)) =
-            multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
+        if let Some(multiscale::CoarseStart {
+            heights,
+            coarse_points,
+            coarse_iterations,
+            checked,
+        }) = multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
         {
             // The start's last check built the power diagram of these heights: integrate it
             // instead of building it again, with the backend of the Voronoi test if there was one.

@@ -50,7 +50,7 @@
 use super::{solve_ot, Heights, NewtonParams};
 use crate::error::OmtError;
 use crate::measure::SourceMeasure;
-use crate::power_diagram::PowerDiagram;
+use crate::power_diagram::{InsertionOrder, PowerDiagram};
 use rayon::prelude::*;
 
 /// Points below which no coarse level is used unless they are crowded.
@@ -243,8 +243,22 @@ fn pseudo_huber(o: [f64; 2], delta: f64) -> f64 {
     r2 / ((delta * delta + r2).sqrt() + delta)
 }
 
-/// Initial heights (double-double, #N) from a coarse solve, with the coarse size and the Newton
-/// steps of all coarser levels; `None` when N is too small for a coarse level or the coarse level could not be solved.
+/// The coarse-to-fine start of [`coarse_to_fine_heights`].
+pub(crate) struct CoarseStart {
+    /// The fine heights.
+    pub heights: Heights,
+    /// Points of the next coarser level.
+    pub coarse_points: usize,
+    /// Newton steps of all coarser levels.
+    pub coarse_iterations: usize,
+    /// The power diagram of `heights` built by the last check, with its insertion order (the
+    /// first evaluation integrates it instead of building it again); `None` when the last check
+    /// round still changed heights.
+    pub checked: Option<(PowerDiagram, InsertionOrder)>,
+}
+
+/// Initial heights (double-double, #N) from a coarse solve ([`CoarseStart`]); `None` when N is
+/// too small for a coarse level or the coarse level could not be solved.
 ///
 /// Prolongation (module docs): with G_g = −H_g the coarse solution, c_g its cell centroids and
 /// Φ_g(y) = G_g + ⟨c_g, y − Y_g⟩ + s_g ψ_{δ_g}(y − Y_g), the fine heights are h_i = −Φ(y_i) with
@@ -257,15 +271,7 @@ pub(crate) fn coarse_to_fine_heights(
     points: &[[f64; 2]],
     targets: &[f64],
     params: &NewtonParams,
-) -> Result<
-    Option<(
-        Heights,
-        usize,
-        usize,
-        Option<(PowerDiagram, crate::power_diagram::InsertionOrder)>,
-    )>,
-    OmtError,
-> {
+) -> Result<Option<CoarseStart>, OmtError> {
     let n = points.len();
     if n < MIN_COARSE {
         return Ok(None);
@@ -316,7 +322,7 @@ pub(crate) fn coarse_to_fine_heights(
             lo: hl.clone(),
         }
         .weights(&coarse.points);
-        let order = crate::power_diagram::InsertionOrder::new(&coarse.points)?;
+        let order = InsertionOrder::new(&coarse.points)?;
         let regular = PowerDiagram::with_order_dd(&coarse.points, &w, Some(&wl), &order)?;
         (0..coarse_n)
             .into_par_iter()
@@ -459,7 +465,7 @@ pub(crate) fn coarse_to_fine_heights(
         }
         (best.0, anchor(best.1, y))
     };
-    let order = crate::power_diagram::InsertionOrder::new(points)?;
+    let order = InsertionOrder::new(points)?;
     let mut exact_done = vec![false; n];
     // the diagram of the final heights, if the last round changed none
     let mut checked = None;
@@ -517,10 +523,10 @@ pub(crate) fn coarse_to_fine_heights(
         super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
         _ => 0,
     };
-    Ok(Some((
+    Ok(Some(CoarseStart {
         heights,
-        coarse_n,
-        solution.iterations + below,
-        checked.map(|diagram| (diagram, order)),
-    )))
+        coarse_points: coarse_n,
+        coarse_iterations: solution.iterations + below,
+        checked: checked.map(|diagram| (diagram, order)),
+    }))
 }
