@@ -550,9 +550,11 @@ pub fn boundary_order_violations(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
 ///
 /// Per loop, with the angles θ_k of the images in loop order: the loop is read from the vertex
 /// after its largest angular gap, a longest subsequence whose unwrapped angles increase
-/// strictly is kept, and every other vertex is put on ∂Ω at evenly spaced angles between the
-/// kept vertices before and after it. A loop whose images do not wind once around the origin
-/// is left as it is (nothing local can order it; the fold repair then reports it).
+/// strictly and span less than a turn is kept, and every other vertex is put on ∂Ω at evenly
+/// spaced angles between the kept vertices before and after it. A loop whose images do not
+/// wind once around the origin (gaps are taken in (−π, π], so this includes a correctly
+/// ordered loop with a gap of π or more) is left as it is (nothing local can order it; the
+/// fold repair then reports it).
 pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> usize {
     let conn = Connectivity::of(mesh);
     let mut moved = 0;
@@ -566,7 +568,8 @@ pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> us
         let wrap = |d: f64| d - tau * (d / tau).round();
         let gaps: Vec<f64> = (0..n).map(|k| wrap(theta[(k + 1) % n] - theta[k])).collect();
         let winding: f64 = gaps.iter().sum();
-        if (winding - tau).abs() > 1e-6 || gaps.iter().all(|&d| d > 0.0) {
+        // (also skips NaN images: the comparison is false for them)
+        if !((winding - tau).abs() <= 1e-6) || gaps.iter().all(|&d| d > 0.0) {
             continue;
         }
         // start after the largest gap; u: unwrapped angles in that order
@@ -579,7 +582,13 @@ pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> us
             u.push(acc);
             acc += gaps[(start + j) % n];
         }
-        let kept = longest_increasing(&u);
+        let mut kept = longest_increasing(&u);
+        // The unwrapped angles are bounded only at the loop's end (u_n = u_0 + 2π): on a
+        // boundary that folds back on itself the kept run can span a turn or more, and the
+        // vertices after its last kept one would then be spread backwards. Keep less than a turn.
+        while kept.len() > 1 && u[kept[kept.len() - 1]] >= u[kept[0]] + tau {
+            kept.pop();
+        }
         if kept.len() < 2 {
             continue;
         }
@@ -858,6 +867,29 @@ mod tests {
             // only one of the pair moved; every other vertex is where it was
             let moved = (0..uv.len()).filter(|&v| uv[v] != ordered[v]).count();
             assert!(moved <= 2, "{moved}");
+        }
+        // A boundary that folds back on itself (a Z, still winding once): read from after its
+        // largest gap, the longest increasing run of unwrapped angles would span more than a
+        // turn and spread the rest backwards; kept below a turn, the order comes out right.
+        {
+            let n = lp.len();
+            // the largest gap is 0.7 → 1.5 (the steps below are shorter), the Z goes back to
+            // 0.5, and the loop closes at 2π + 0.7: the increasing run 0.5 … 2π + 0.7 spans
+            // 2π + 0.2
+            let mut theta = vec![0.7, 1.5, 1.6, 1.2, 0.8, 0.5];
+            let step = (std::f64::consts::TAU + 0.2) / (n - 5) as f64;
+            assert!(step < 0.8);
+            while theta.len() < n {
+                let t = theta[theta.len() - 1] + step;
+                theta.push(t);
+            }
+            let mut uv = base.clone();
+            for (k, &v) in lp.iter().enumerate() {
+                uv[v as usize] = [theta[k].cos(), theta[k].sin()];
+            }
+            assert!(boundary_order_violations(&mesh, &uv) > 0);
+            assert!(order_boundary(&mesh, Domain::Disk, &mut uv) > 0);
+            assert_eq!(boundary_order_violations(&mesh, &uv), 0);
         }
         // twice around: nothing local can order it
         let mut uv = base.clone();

@@ -167,7 +167,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     }
     if map.boundary_vertices_reordered > 0 {
         eprintln!(
-            "{}: {} boundary edges of the centroid map turned backwards around the origin; {} boundary vertices were moved on the circle to restore their order",
+            "{}: {} boundary edges of the centroid map turned backwards around the origin; {} boundary vertices were moved along the domain's boundary to restore their order",
             args.input.display(),
             map.boundary_order_violations,
             map.boundary_vertices_reordered

@@ -1089,7 +1089,8 @@ pub fn solve_ot(
             }
             // Auto: the start it chose did not work out; the Voronoi path gets its chance, and
             // the better of the two is returned with the work of both counted.
-            let plain = solve_from_voronoi(measure, points, masses, params, contrast, t_begin, None)?;
+            // (the Voronoi test's evaluation, unless its backend went to the coarse-to-fine solve)
+            let plain = solve_from_voronoi(measure, points, masses, params, contrast, t_begin, voronoi_start.take())?;
             let (mut better, worse) = if plain.converged() || plain.max_relative_error <= solution.max_relative_error {
                 (plain, solution)
             } else {
@@ -1321,7 +1322,8 @@ fn solve_mass_continuation(
 /// One damped Newton solve (no density continuation). `prepared`: the backend and the
 /// evaluation of the start heights when the caller has them: of the Voronoi heights without a
 /// warm start, of `params.initial_heights` with one (the backend keeps its insertion order and
-/// integration seeds).
+/// integration seeds). The caller guarantees that the evaluation is of those heights: a
+/// mismatched one would be taken as the start.
 fn solve_single(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
