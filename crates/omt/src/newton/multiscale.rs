@@ -421,25 +421,30 @@ pub(crate) fn coarse_to_fine_heights(
             centroids[k][1] + scales[k] * grad[1],
         ]
     };
+    // max_k Φ_k(y_i) − G_g over the groups `ks` and i's own group g, with its anchor (ties: the
+    // first maximum, g before `ks`).
+    let maximum = |i: usize, ks: &mut dyn Iterator<Item = usize>| -> (f64, [f64; 2]) {
+        let (g, y) = (coarse.group[i], points[i]);
+        let mut best = (phi_rel(g, g, y), g);
+        for k in ks {
+            let v = phi_rel(k, g, y);
+            if v > best.0 {
+                best = (v, k);
+            }
+        }
+        (best.0, anchor(best.1, y))
+    };
     let prolonged: Vec<(f64, [f64; 2])> = coarse
         .group
         .par_iter()
         .enumerate()
         .map(|(i, &g)| {
             // A group of one: y_i = Y_g, where every other Φ_k lies below u*(Y_g) = G_g.
-            let (rel, k) = if members[g].len() == 1 {
-                (0.0, g)
+            if members[g].len() == 1 {
+                (0.0, anchor(g, points[i]))
             } else {
-                candidates[g].iter().fold((phi_rel(g, g, points[i]), g), |best, &k| {
-                    let v = phi_rel(k, g, points[i]);
-                    if v > best.0 {
-                        (v, k)
-                    } else {
-                        best
-                    }
-                })
-            };
-            (rel, anchor(k, points[i]))
+                maximum(i, &mut candidates[g].iter().copied())
+            }
         })
         .collect();
     let mut anchors = vec![[0.0; 2]; n];
@@ -453,18 +458,7 @@ pub(crate) fn coarse_to_fine_heights(
     // meets Ω in an open set); for each j that does not (hidden or not), take the exact
     // maximum (over all groups) for j and for the point i whose cell contains p_j: one of the
     // two was underestimated.
-    let exact = |i: usize| -> (f64, [f64; 2]) {
-        let g = coarse.group[i];
-        let y = points[i];
-        let mut best = (phi_rel(g, g, y), g);
-        for k in 0..coarse_n {
-            let v = phi_rel(k, g, y);
-            if v > best.0 {
-                best = (v, k);
-            }
-        }
-        (best.0, anchor(best.1, y))
-    };
+    let exact = |i: usize| maximum(i, &mut (0..coarse_n));
     let order = InsertionOrder::new(points)?;
     let mut exact_done = vec![false; n];
     // the diagram of the final heights, if the last round changed none
@@ -472,21 +466,10 @@ pub(crate) fn coarse_to_fine_heights(
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?;
+        // (a walk from j stops at j unless j is hidden or a neighbour is strictly closer)
         let outside: Vec<usize> = (0..n)
             .into_par_iter()
-            .filter(|&j| {
-                diagram.is_hidden(j)
-                    || diagram.neighbors(j).iter().any(|&k| {
-                        let k = k as usize;
-                        crate::predicates::power_compare(
-                            anchors[j],
-                            points[k],
-                            diagram.weight(k),
-                            points[j],
-                            diagram.weight(j),
-                        ) < 0
-                    })
-            })
+            .filter(|&j| diagram.locate(anchors[j], Some(j)) != j)
             .collect();
         if outside.is_empty() {
             checked = Some(diagram);
