@@ -243,15 +243,10 @@ fn cut_along_seam_in(
     let mut is_seam = vec![false; conn.num_edges()];
     let mut degree = vec![0u32; n];
     // Tree check with the boundary contracted to one node (index n): union–find over the nodes.
-    let mut parent: Vec<usize> = (0..=n).collect();
-    fn find(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    let node = |v: u32| if on_boundary[v as usize] { n } else { v as usize };
+    let boundary_node = n as u32;
+    let mut parent: Vec<u32> = (0..=boundary_node).collect();
+    let find = topology::find;
+    let node = |v: u32| if on_boundary[v as usize] { boundary_node } else { v };
     for &[a, b] in seam {
         let key = [a.min(b), a.max(b)];
         let Ok(e) = conn.edges.binary_search(&key) else {
@@ -273,21 +268,13 @@ fn cut_along_seam_in(
                 "the seam is not a tree: edge ({a}, {b}) closes a cycle (the boundary counts as one vertex)"
             )));
         }
-        parent[ra] = rb;
+        parent[ra as usize] = rb;
         is_seam[e] = true;
         degree[a as usize] += 1;
         degree[b as usize] += 1;
     }
     let has_boundary = on_boundary.iter().any(|&b| b);
-    let root = |parent: &mut [usize]| {
-        if has_boundary {
-            find(parent, n)
-        } else {
-            let first = seam[0][0] as usize;
-            find(parent, first)
-        }
-    };
-    let r = root(&mut parent);
+    let r = find(&mut parent, if has_boundary { boundary_node } else { seam[0][0] });
     if let Some(v) = (0..n).find(|&v| degree[v] > 0 && find(&mut parent, node(v as u32)) != r) {
         return Err(GeometryError::Invalid(format!(
             "the seam is not connected{}: vertex {v} is not joined to the rest",
