@@ -22,32 +22,55 @@ impl Connectivity {
     /// Builds the connectivity of `faces` on `num_vertices` vertices. Faces with repeated indices
     /// still contribute their (possibly degenerate) edges.
     pub fn new(num_vertices: usize, faces: &[[u32; 3]]) -> Self {
-        let mut keyed: Vec<([u32; 2], u32, u8)> = Vec::with_capacity(3 * faces.len());
+        // One key per (face, corner): the edge (min, max) in the high 64 bits, 3f + k in the low
+        // ones, so a plain integer sort orders by edge, then face, then corner.
+        let mut keyed: Vec<u128> = Vec::with_capacity(3 * faces.len());
         for (f, face) in faces.iter().enumerate() {
             for k in 0..3 {
                 let a = face[(k + 1) % 3];
                 let b = face[(k + 2) % 3];
-                keyed.push(([a.min(b), a.max(b)], f as u32, k as u8));
+                let edge = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
+                keyed.push((u128::from(edge) << 64) | (3 * f + k) as u128);
             }
         }
         keyed.sort_unstable();
-        let mut edges = Vec::new();
+        let mut edges: Vec<[u32; 2]> = Vec::new();
         let mut edge_faces: Vec<Vec<u32>> = Vec::new();
         let mut face_edges = vec![[u32::MAX; 3]; faces.len()];
-        for (key, f, k) in keyed {
-            if edges.last() != Some(&key) {
-                edges.push(key);
-                edge_faces.push(Vec::with_capacity(2));
+        let mut run = 0;
+        while run < keyed.len() {
+            let edge = (keyed[run] >> 64) as u64;
+            let end = run + keyed[run..].iter().take_while(|&&x| (x >> 64) as u64 == edge).count();
+            let e = edges.len() as u32;
+            edges.push([(edge >> 32) as u32, edge as u32]);
+            let mut list = Vec::with_capacity(end - run);
+            for &x in &keyed[run..end] {
+                let corner = x as u64 as usize;
+                let (f, k) = (corner / 3, corner % 3);
+                list.push(f as u32);
+                face_edges[f][k] = e;
             }
-            let e = edges.len() - 1;
-            edge_faces[e].push(f);
-            face_edges[f as usize][k as usize] = e as u32;
+            edge_faces.push(list);
+            run = end;
         }
-        let mut vertex_faces = vec![Vec::new(); num_vertices];
+        // vertex–face lists allocated once at their final length (a face repeating a vertex is
+        // listed once for it)
+        let mut degree = vec![0u32; num_vertices];
+        let distinct = |face: &[u32; 3], k: usize| (0..k).all(|j| face[j] != face[k]);
+        for face in faces {
+            for k in 0..3 {
+                if distinct(face, k) {
+                    if let Some(d) = degree.get_mut(face[k] as usize) {
+                        *d += 1;
+                    }
+                }
+            }
+        }
+        let mut vertex_faces: Vec<Vec<u32>> = degree.iter().map(|&d| Vec::with_capacity(d as usize)).collect();
         for (f, face) in faces.iter().enumerate() {
-            for &v in face {
-                if let Some(list) = vertex_faces.get_mut(v as usize) {
-                    if list.last() != Some(&(f as u32)) {
+            for k in 0..3 {
+                if distinct(face, k) {
+                    if let Some(list) = vertex_faces.get_mut(face[k] as usize) {
                         list.push(f as u32);
                     }
                 }
@@ -176,5 +199,54 @@ mod tests {
         assert_eq!(c.boundary_vertices(4), vec![true; 4]);
         let interior = c.edges.iter().position(|e| *e == [0, 2]).unwrap();
         assert_eq!(c.edge_faces[interior].len(), 2);
+    }
+
+    #[test]
+    fn matches_a_brute_force_construction_with_degenerate_and_non_manifold_faces() {
+        // a fan, a fin on edge 0-1 (three faces there), a face repeating a vertex, vertex 9 unused
+        let faces: Vec<[u32; 3]> = vec![
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 3, 4],
+            [1, 0, 5],
+            [0, 1, 6],
+            [7, 7, 8],
+            [4, 3, 8],
+        ];
+        let n = 10;
+        let c = Connectivity::new(n, &faces);
+        let mut expected: Vec<[u32; 2]> = faces
+            .iter()
+            .flat_map(|f| (0..3).map(move |k| [f[(k + 1) % 3].min(f[(k + 2) % 3]), f[(k + 1) % 3].max(f[(k + 2) % 3])]))
+            .collect();
+        expected.sort_unstable();
+        expected.dedup();
+        assert_eq!(c.edges, expected);
+        for (e, edge) in c.edges.iter().enumerate() {
+            let mut holders: Vec<u32> = Vec::new();
+            for (f, face) in faces.iter().enumerate() {
+                for k in 0..3 {
+                    let (a, b) = (face[(k + 1) % 3], face[(k + 2) % 3]);
+                    if [a.min(b), a.max(b)] == *edge {
+                        holders.push(f as u32);
+                        assert_eq!(c.face_edges[f][k], e as u32);
+                    }
+                }
+            }
+            assert_eq!(c.edge_faces[e], holders, "edge {edge:?}");
+        }
+        assert_eq!(
+            c.edge_faces[c.edges.iter().position(|e| *e == [0, 1]).unwrap()],
+            vec![0, 3, 4]
+        );
+        for v in 0..n as u32 {
+            let around: Vec<u32> = (0..faces.len() as u32)
+                .filter(|&f| faces[f as usize].contains(&v))
+                .collect();
+            assert_eq!(c.vertex_faces[v as usize], around, "vertex {v}");
+        }
+        // out-of-range indices are skipped in the vertex lists, not a panic
+        let short = Connectivity::new(3, &faces[..2]);
+        assert_eq!(short.vertex_faces, vec![vec![0, 1], vec![0], vec![0, 1]]);
     }
 }
