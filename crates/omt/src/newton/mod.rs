@@ -613,6 +613,30 @@ pub(crate) fn evaluate_diagram(
     }
 }
 
+/// [`evaluate`], also returning the power diagram it built and its insertion order (none with
+/// the brute-force backend): Auto's Voronoi test hands them to the coarse-to-fine start, whose
+/// coarsening needs that Delaunay triangulation first and whose check needs the order.
+fn evaluate_keeping_diagram(
+    backend: &Backend<'_>,
+    points: &[[f64; 2]],
+    heights: &Heights,
+) -> Result<(Evaluation, Option<(PowerDiagram, InsertionOrder)>), OmtError> {
+    let Backend::Restricted(_, cached) = backend else {
+        return Ok((evaluate(backend, points, heights)?, None));
+    };
+    let t0 = Instant::now();
+    let order = match cached.get() {
+        Some(order) if order.len() == points.len() => order.clone(),
+        _ => InsertionOrder::new(points)?,
+    };
+    let (weights, weights_lo) = heights.weights(points);
+    let diagram = PowerDiagram::with_order_dd(points, &weights, Some(&weights_lo), &order)?;
+    let t_diagram = t0.elapsed().as_secs_f64();
+    let mut evaluation = evaluate_diagram(backend, points, heights, &diagram, order.clone());
+    evaluation.t_diagram = t_diagram;
+    Ok((evaluation, Some((diagram, order))))
+}
+
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Heights) -> Result<Evaluation, OmtError> {
     evaluate_unless_hidden(backend, points, heights, false, None)
 }
@@ -1037,6 +1061,9 @@ pub fn solve_ot(
     let cold = params.initial_heights.is_none() && params.mass_continuation.is_none();
     let mass_scale = measure.total_mass() / masses.iter().sum::<f64>();
     let mut voronoi_start = None;
+    // The Voronoi test's diagram (all weights 0: the Delaunay triangulation of the points) and
+    // insertion order, for the coarse-to-fine start.
+    let mut delaunay = None;
     let multiscale = cold
         && match params.start_strategy {
             StartStrategy::Voronoi => false,
@@ -1044,7 +1071,8 @@ pub fn solve_ot(
             StartStrategy::Auto => {
                 contrast > AUTO_CONTRAST || {
                     let backend = Backend::new(measure, params.integrator);
-                    let evaluation = evaluate(&backend, points, &Heights::voronoi(points))?;
+                    let (evaluation, diagram) = evaluate_keeping_diagram(&backend, points, &Heights::voronoi(points))?;
+                    delaunay = diagram;
                     let poor = evaluation.cells.masses.iter().zip(masses).any(|(&m, &nu)| {
                         !(m >= AUTO_MIN_START * nu * mass_scale && m <= AUTO_MAX_START * nu * mass_scale)
                     });
@@ -1060,7 +1088,7 @@ pub fn solve_ot(
             coarse_points,
             coarse_iterations,
             checked,
-        }) = multiscale::coarse_to_fine_heights(measure, points, &targets, params)?
+        }) = multiscale::coarse_to_fine_heights(measure, points, &targets, params, delaunay.take())?
         {
             // The start's last check built the power diagram of these heights: integrate it
             // instead of building it again, with the backend of the Voronoi test if there was one.

@@ -124,7 +124,12 @@ struct Coarsening {
 /// children of one coarse point at two scales at once, and the prolongation would give the inner
 /// ones cells as small as their spread (measured: a pair 5e-12 apart merged with points 1e-2 away
 /// lost both cells to round-off). It merges at a later level, as one point.
-fn coarsen(points: &[[f64; 2]], targets: &[f64]) -> Result<Coarsening, OmtError> {
+///
+/// `delaunay`, when given, is the Delaunay triangulation of `points` (a power diagram with all
+/// weights 0) and replaces the first round's own: the regular triangulation of a point set
+/// under the exact predicates with symbolic perturbation is unique, and the round sorts its
+/// edges completely, so the result is the same.
+fn coarsen(points: &[[f64; 2]], targets: &[f64], mut delaunay: Option<PowerDiagram>) -> Result<Coarsening, OmtError> {
     let n = points.len();
     let mut reps = points.to_vec();
     let mut masses = targets.to_vec();
@@ -134,7 +139,10 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64]) -> Result<Coarsening, OmtError>
         if round > 0 && reps.len() * RATIO <= n {
             break;
         }
-        let delaunay = PowerDiagram::new(&reps, &vec![0.0; reps.len()])?;
+        let delaunay = match delaunay.take().filter(|d| round == 0 && d.num_sites() == reps.len()) {
+            Some(d) => d,
+            None => PowerDiagram::new(&reps, &vec![0.0; reps.len()])?,
+        };
         let mut edges: Vec<(f64, u32, u32)> = Vec::new();
         for i in 0..reps.len() {
             for &j in delaunay.neighbors(i) {
@@ -266,11 +274,16 @@ pub(crate) struct CoarseStart {
 /// border it. Φ is strictly convex and its subgradients lie in the balls B(c_g, s_g) ⊂ W_g ∩ Ω,
 /// so the point x = ∂Φ(y_i) satisfies ⟨x, y_i⟩ + h_i > ⟨x, y_j⟩ + h_j for every j ≠ i: every
 /// fine cell contains a neighbourhood of a point of Ω, i.e. none is empty.
+///
+/// `voronoi`: the Delaunay triangulation of `points` and its insertion order when the caller
+/// built them already (Auto's Voronoi test); they save the coarsening's first triangulation and
+/// the check's order, and change nothing else.
 pub(crate) fn coarse_to_fine_heights(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
     targets: &[f64],
     params: &NewtonParams,
+    voronoi: Option<(PowerDiagram, InsertionOrder)>,
 ) -> Result<Option<CoarseStart>, OmtError> {
     let n = points.len();
     if n < MIN_COARSE {
@@ -278,7 +291,8 @@ pub(crate) fn coarse_to_fine_heights(
     }
     // (merged points can coincide in principle, which the Delaunay triangulation of the next
     // round rejects: then no coarse level, not an error)
-    let Ok(coarse) = coarsen(points, targets) else {
+    let (delaunay, fine_order) = voronoi.unzip();
+    let Ok(coarse) = coarsen(points, targets, delaunay) else {
         return Ok(None);
     };
     let coarse_n = coarse.points.len();
@@ -459,7 +473,10 @@ pub(crate) fn coarse_to_fine_heights(
     // maximum (over all groups) for j and for the point i whose cell contains p_j: one of the
     // two was underestimated.
     let exact = |i: usize| maximum(i, &mut (0..coarse_n));
-    let order = InsertionOrder::new(points)?;
+    let order = match fine_order {
+        Some(order) if order.len() == n => order,
+        _ => InsertionOrder::new(points)?,
+    };
     let mut exact_done = vec![false; n];
     // the diagram of the final heights, if the last round changed none
     let mut checked = None;
