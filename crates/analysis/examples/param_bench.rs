@@ -12,7 +12,8 @@
 //! Also Nefertiti (common-3d-test-models, 99.9k faces, closed: cut the same way, and also slit
 //! with `--seam 1`) when
 //! `/work/shared/datasets/common_3d_test_models` is there.
-//! Failures are printed as table rows, not hidden.
+//! Failures are printed as table rows, not hidden. Arguments select cases by name substring
+//! (`param_bench nefertiti camelhead`); only the selected meshes are loaded and prepared.
 
 use std::path::Path;
 use std::time::Instant;
@@ -37,30 +38,35 @@ fn tosca_disk(path: &Path, seam_extremities: usize) -> Result<TriMesh, String> {
         .map_err(|e| e.to_string())
 }
 
+/// A bench case: its name and how to load it (run only when the case is selected).
+type Case = (String, Box<dyn Fn() -> Result<TriMesh, String>>);
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let tosca = Path::new("/work/shared/datasets/tosca");
-    let mut meshes: Vec<(String, Result<TriMesh, String>)> = vec![
+    let read = |path: std::path::PathBuf| -> Box<dyn Fn() -> Result<TriMesh, String>> {
+        Box::new(move || shapespace_geometry::io::read_mesh(&path).map_err(|e| e.to_string()))
+    };
+    let camel_path = root.join("datasets/disks/camelhead.off");
+    let mut meshes: Vec<Case> = vec![
+        ("disks/face.obj".into(), read(root.join("datasets/disks/face.obj"))),
+        ("disks/camelhead.off".into(), read(camel_path.clone())),
         (
-            "disks/face.obj".into(),
-            shapespace_geometry::io::read_mesh(&root.join("datasets/disks/face.obj")).map_err(|e| e.to_string()),
-        ),
-        (
-            "disks/camelhead.off".into(),
-            shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string()),
+            "camelhead 1-to-4 subdivided".into(),
+            Box::new(move || {
+                let camel = shapespace_geometry::io::read_mesh(&camel_path).map_err(|e| e.to_string())?;
+                subdivide_midpoint(&camel).map_err(|e| e.to_string())
+            }),
         ),
     ];
-    let camel =
-        shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).map_err(|e| e.to_string());
-    meshes.push((
-        "camelhead 1-to-4 subdivided".into(),
-        camel.and_then(|m| subdivide_midpoint(&m).map_err(|e| e.to_string())),
-    ));
+    let body = |path: std::path::PathBuf, seam: usize| -> Box<dyn Fn() -> Result<TriMesh, String>> {
+        Box::new(move || tosca_disk(&path, seam))
+    };
     if tosca.is_dir() {
         for name in ["victoria0", "dog0", "horse0", "centaur0"] {
             meshes.push((
                 format!("tosca/{name} (cut)"),
-                tosca_disk(&tosca.join(format!("{name}.off")), 0),
+                body(tosca.join(format!("{name}.off")), 0),
             ));
         }
         // the bodies as `shapespace prepare --seam 1` makes them (victoria0 and michael0: the
@@ -68,7 +74,7 @@ fn main() {
         for name in ["victoria0", "michael1", "dog0"] {
             meshes.push((
                 format!("tosca/{name} (cut, seam 1)"),
-                tosca_disk(&tosca.join(format!("{name}.off")), 1),
+                body(tosca.join(format!("{name}.off")), 1),
             ));
         }
     } else {
@@ -78,17 +84,17 @@ fn main() {
     // the issue whose conformal image does not crowd beyond f64 (the large TOSCA meshes do)
     let nefertiti = Path::new("/work/shared/datasets/common_3d_test_models/nefertiti.obj");
     if nefertiti.is_file() {
-        meshes.push(("nefertiti (cut)".into(), tosca_disk(nefertiti, 0)));
-        meshes.push(("nefertiti (cut, seam 1)".into(), tosca_disk(nefertiti, 1)));
+        meshes.push(("nefertiti (cut)".into(), body(nefertiti.to_path_buf(), 0)));
+        meshes.push(("nefertiti (cut, seam 1)".into(), body(nefertiti.to_path_buf(), 1)));
     }
     println!("| mesh | V | F | conformal s | OT s | output s | repair s | total s | OT iterations | max rel. mass error | median abs(Υ) | flips |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let only: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
-    for (name, mesh) in meshes {
+    for (name, load) in meshes {
         if !only.is_empty() && !only.iter().any(|o| name.contains(o.as_str())) {
             continue;
         }
-        let mesh = match mesh {
+        let mesh = match load() {
             Ok(m) => m,
             Err(e) => {
                 println!("| {name} | | | | | | | load/cut failed: {e} | | | |");
