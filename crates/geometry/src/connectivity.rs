@@ -203,7 +203,8 @@ mod tests {
 
     #[test]
     fn matches_a_brute_force_construction_with_degenerate_and_non_manifold_faces() {
-        // a fan, a fin on edge 0-1 (three faces there), a face repeating a vertex, vertex 9 unused
+        // a fan, a fin on edge 0-1 (three faces there), faces repeating a vertex (corners 0 and 1,
+        // corners 0 and 2), vertex 9 unused
         let faces: Vec<[u32; 3]> = vec![
             [0, 1, 2],
             [0, 2, 3],
@@ -212,6 +213,7 @@ mod tests {
             [0, 1, 6],
             [7, 7, 8],
             [4, 3, 8],
+            [4, 8, 4],
         ];
         let n = 10;
         let c = Connectivity::new(n, &faces);

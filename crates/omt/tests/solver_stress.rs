@@ -389,7 +389,10 @@ fn auto_start_reusing_the_voronoi_diagram_equals_the_explicit_coarse_to_fine_sta
     // Auto's test finds the Voronoi start poor on this uniform density
     for k in 0..40 {
         let t = k as f64 * 0.157;
-        points.push([0.3 + 1e-7 * t.cos() * (1.0 + k as f64), -0.2 + 1e-7 * t.sin() * (1.0 + k as f64)]);
+        points.push([
+            0.3 + 1e-7 * t.cos() * (1.0 + k as f64),
+            -0.2 + 1e-7 * t.sin() * (1.0 + k as f64),
+        ]);
         masses.push(1e-4);
     }
     let start = |start_strategy| {

@@ -613,8 +613,8 @@ pub(crate) fn evaluate_diagram(
     }
 }
 
-/// [`evaluate`], also returning the power diagram it built and its insertion order (none with
-/// the brute-force backend): Auto's Voronoi test hands them to the coarse-to-fine start, whose
+/// [`evaluate`], also returning the power diagram it built and its insertion order when all
+/// weights are exactly 0 (none with the brute-force backend): Auto's Voronoi test hands them to the coarse-to-fine start, whose
 /// coarsening needs that Delaunay triangulation first and whose check needs the order.
 fn evaluate_keeping_diagram(
     backend: &Backend<'_>,
@@ -632,9 +632,12 @@ fn evaluate_keeping_diagram(
     let (weights, weights_lo) = heights.weights(points);
     let diagram = PowerDiagram::with_order_dd(points, &weights, Some(&weights_lo), &order)?;
     let t_diagram = t0.elapsed().as_secs_f64();
+    // The Voronoi heights give weights exactly 0 except for points within ~1e-146 of the origin
+    // (subnormal |y|²); only an exact Delaunay triangulation is handed on.
+    let delaunay = weights.iter().chain(&weights_lo).all(|&w| w == 0.0);
     let mut evaluation = evaluate_diagram(backend, points, heights, &diagram, order.clone());
     evaluation.t_diagram = t_diagram;
-    Ok((evaluation, Some((diagram, order))))
+    Ok((evaluation, delaunay.then_some((diagram, order))))
 }
 
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Heights) -> Result<Evaluation, OmtError> {
@@ -1072,11 +1075,14 @@ pub fn solve_ot(
                 contrast > AUTO_CONTRAST || {
                     let backend = Backend::new(measure, params.integrator);
                     let (evaluation, diagram) = evaluate_keeping_diagram(&backend, points, &Heights::voronoi(points))?;
-                    delaunay = diagram;
                     let poor = evaluation.cells.masses.iter().zip(masses).any(|(&m, &nu)| {
                         !(m >= AUTO_MIN_START * nu * mass_scale && m <= AUTO_MAX_START * nu * mass_scale)
                     });
                     voronoi_start = Some((backend, evaluation));
+                    // (kept only for the coarse-to-fine start, not through a Voronoi-start solve)
+                    if poor {
+                        delaunay = diagram;
+                    }
                     poor
                 }
             }
