@@ -613,9 +613,27 @@ pub(crate) fn evaluate_diagram(
     }
 }
 
+/// The backend's insertion order of `points`: the cached one, computed and cached on first use,
+/// or (for a point set of another size than the cached one) computed without caching.
+fn cached_order<'b>(
+    cached: &'b OnceLock<InsertionOrder>,
+    points: &[[f64; 2]],
+) -> Result<std::borrow::Cow<'b, InsertionOrder>, OmtError> {
+    use std::borrow::Cow;
+    Ok(match cached.get() {
+        Some(order) if order.len() == points.len() => Cow::Borrowed(order),
+        Some(_) => Cow::Owned(InsertionOrder::new(points)?),
+        None => {
+            let computed = InsertionOrder::new(points)?;
+            Cow::Borrowed(cached.get_or_init(|| computed))
+        }
+    })
+}
+
 /// [`evaluate`], also returning the power diagram it built and its insertion order when all
-/// weights are exactly 0 (none with the brute-force backend): Auto's Voronoi test hands them to the coarse-to-fine start, whose
-/// coarsening needs that Delaunay triangulation first and whose check needs the order.
+/// weights are exactly 0 (none with the brute-force backend): Auto's Voronoi test hands them to
+/// the coarse-to-fine start, whose coarsening needs that Delaunay triangulation first and whose
+/// check needs the order.
 fn evaluate_keeping_diagram(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
@@ -625,10 +643,7 @@ fn evaluate_keeping_diagram(
         return Ok((evaluate(backend, points, heights)?, None));
     };
     let t0 = Instant::now();
-    let order = match cached.get() {
-        Some(order) if order.len() == points.len() => order.clone(),
-        _ => InsertionOrder::new(points)?,
-    };
+    let order = cached_order(cached, points)?.into_owned();
     let (weights, weights_lo) = heights.weights(points);
     let diagram = PowerDiagram::with_order_dd(points, &weights, Some(&weights_lo), &order)?;
     let t_diagram = t0.elapsed().as_secs_f64();
@@ -677,18 +692,8 @@ pub(crate) fn evaluate_unless_hidden(
         }
         Backend::Restricted(integrator, order) => {
             let t0 = Instant::now();
-            let other;
-            let order = match order.get() {
-                Some(order) if order.len() == points.len() => order,
-                Some(_) => {
-                    other = InsertionOrder::new(points)?;
-                    &other
-                }
-                None => {
-                    let computed = InsertionOrder::new(points)?;
-                    order.get_or_init(|| computed)
-                }
-            };
+            let order = cached_order(order, points)?;
+            let order = &*order;
             // A trial that hides a site is rejected whatever the other cells. The line search only
             // needs to know whether more than a tenth vanished (then it cuts τ tenfold) or else
             // which ones did, so the construction stops once more than a tenth are hidden (those

@@ -139,7 +139,8 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64], mut delaunay: Option<PowerDiagr
         if round > 0 && reps.len() * RATIO <= n {
             break;
         }
-        let delaunay = match delaunay.take().filter(|d| round == 0 && d.num_sites() == reps.len()) {
+        // (taken in the first round: later rounds triangulate the merged points)
+        let delaunay = match delaunay.take().filter(|d| d.num_sites() == reps.len()) {
             Some(d) => d,
             None => PowerDiagram::new(&reps, &vec![0.0; reps.len()])?,
         };
