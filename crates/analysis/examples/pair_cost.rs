@@ -5,7 +5,8 @@
 //! repository root; default id00_sad:id01_happy id02_neutral:id05_surprise id07_happy:id03_sad).
 //! Prints per pair the Newton steps over all levels, finest-level evaluations, seconds and the
 //! distance to full precision. With env `PREPARE_ONLY` it only prepares the faces: the count to
-//! subtract from a run's instructions.
+//! subtract from a run's instructions. With env `NO_FLIPS` every power diagram is built by
+//! insertion (`NewtonParams::flip_updates` off).
 #[path = "common/faces.rs"]
 mod faces;
 
@@ -22,7 +23,8 @@ fn main() {
         .map(String::from)
         .to_vec();
     }
-    let params = PairwiseOptions::default().newton;
+    let mut params = PairwiseOptions::default().newton;
+    params.flip_updates = std::env::var("NO_FLIPS").is_err();
     let (mut steps, mut evaluations, mut seconds) = (0, 0, 0.0);
     for p in &pairs {
         let (a, b) = p.split_once(':').expect("pairs are A:B");

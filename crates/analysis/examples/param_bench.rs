@@ -13,7 +13,8 @@
 //! with `--seam 1`) when
 //! `/work/shared/datasets/common_3d_test_models` is there.
 //! Failures are printed as table rows, not hidden. Arguments select cases by name substring
-//! (`param_bench nefertiti camelhead`); only the selected meshes are loaded and prepared.
+//! (`param_bench nefertiti camelhead`); only the selected meshes are loaded and prepared. With
+//! env `NO_FLIPS` every power diagram is built by insertion (`NewtonParams::flip_updates` off).
 
 use std::path::Path;
 use std::time::Instant;
@@ -102,7 +103,9 @@ fn main() {
             }
         };
         let t = Instant::now();
-        match area_preserving_map(&mesh, &Markers::default(), &AreaPreservingParams::default()) {
+        let mut params = AreaPreservingParams::default();
+        params.newton.flip_updates = std::env::var("NO_FLIPS").is_err();
+        match area_preserving_map(&mesh, &Markers::default(), &params) {
             Ok(map) => {
                 let wall = t.elapsed().as_secs_f64();
                 let d = map_distortion("ap", &mesh, &map.uv).expect("distortion");

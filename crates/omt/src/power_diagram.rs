@@ -308,6 +308,167 @@ impl<'a> Builder<'a> {
     }
 }
 
+/// What [`Builder::restore_edge`] did with one edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum EdgeRepair {
+    /// The edge is locally regular (or its slot is dead).
+    Regular,
+    /// A 2-2 flip, or a 3-1 flip that hid a site.
+    Flipped,
+    /// Not regular, but its reflex vertex has more than three neighbours, or the quad has three
+    /// collinear corners: try again later.
+    Blocked,
+    /// A case the flips do not handle (collinear points, the infinite vertex reflex).
+    Degenerate,
+}
+
+impl Builder<'_> {
+    /// Makes edge k of triangle t locally regular if one flip can: with t = (x, u, v) (x its
+    /// vertex k) and s = (y, v, u) across the edge, the edge is regular unless y is in conflict
+    /// with t (x with s when y is the infinite vertex). A non-regular edge of a convex quad
+    /// (x, u, y, v) is flipped to (x, y) (2-2 flip); of a quad reflex at u (or v), the reflex
+    /// vertex lies inside the triangle of the other three and above their lifted plane, so when
+    /// it has exactly three neighbours it is removed (3-1 flip) and becomes hidden. The edges
+    /// that may have become non-regular are pushed on `stack`, a hidden site on `hidden_now`.
+    fn restore_edge(&mut self, t: u32, k: usize, stack: &mut Vec<(u32, u8)>, hidden_now: &mut Vec<u32>) -> EdgeRepair {
+        let inf = self.infinite;
+        let tri = self.tv[t as usize];
+        if tri[0] == NONE {
+            return EdgeRepair::Regular;
+        }
+        let s = self.tn[t as usize][k];
+        let Some(j) = (0..3).find(|&j| self.tn[s as usize][j] == t) else {
+            return EdgeRepair::Degenerate;
+        };
+        let (x, u, v) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+        let y = self.tv[s as usize][j];
+        let regular = if y != inf {
+            !self.conflict(t, y)
+        } else if x != inf {
+            !self.conflict(s, x)
+        } else {
+            return EdgeRepair::Degenerate;
+        };
+        if regular {
+            return EdgeRepair::Regular;
+        }
+        if x == inf || y == inf {
+            return EdgeRepair::Degenerate;
+        }
+        // Orientation of the new triangles (x, u, y) and (y, v, x); one containing the infinite
+        // vertex is valid exactly when the other one is.
+        let o1 = if u == inf {
+            1
+        } else {
+            orient(self.p(x), self.p(u), self.p(y))
+        };
+        let o2 = if v == inf {
+            1
+        } else {
+            orient(self.p(y), self.p(v), self.p(x))
+        };
+        if o1 > 0 && o2 > 0 {
+            self.flip(t, k, s, j);
+            stack.extend_from_slice(&[(t, 0), (t, 2), (s, 0), (s, 2)]);
+            return EdgeRepair::Flipped;
+        }
+        if o1 == 0 || o2 == 0 {
+            // (x, u, y) or (y, v, x) collinear: neither flip applies now; other flips may
+            // change the quad.
+            return EdgeRepair::Blocked;
+        }
+        let reflex = if o1 < 0 { u } else { v };
+        if reflex == inf {
+            return EdgeRepair::Degenerate;
+        }
+        match self.remove_degree3(t, reflex) {
+            Some(Ok(r)) => {
+                self.hidden[reflex as usize] = true;
+                hidden_now.push(reflex);
+                stack.extend_from_slice(&[(r, 0), (r, 1), (r, 2)]);
+                EdgeRepair::Flipped
+            }
+            Some(Err(())) => EdgeRepair::Degenerate,
+            None => EdgeRepair::Blocked,
+        }
+    }
+
+    /// 2-2 flip of the edge shared by t = (x, u, v) (x at index k) and s = (y, v, u) (y at
+    /// index j): t becomes (x, u, y) and s becomes (y, v, x).
+    fn flip(&mut self, t: u32, k: usize, s: u32, j: usize) {
+        let (ti, si) = (t as usize, s as usize);
+        let [x, u, v] = [self.tv[ti][k], self.tv[ti][(k + 1) % 3], self.tv[ti][(k + 2) % 3]];
+        let y = self.tv[si][j];
+        let n_vx = self.tn[ti][(k + 1) % 3];
+        let n_xu = self.tn[ti][(k + 2) % 3];
+        let n_uy = self.tn[si][(j + 1) % 3];
+        let n_yv = self.tn[si][(j + 2) % 3];
+        self.tv[ti] = [x, u, y];
+        self.tn[ti] = [n_uy, s, n_xu];
+        self.tv[si] = [y, v, x];
+        self.tn[si] = [n_vx, t, n_yv];
+        self.relink(n_uy, s, t);
+        self.relink(n_vx, t, s);
+    }
+
+    /// In triangle `t`, the neighbour pointer to `from` now points to `to`.
+    fn relink(&mut self, t: u32, from: u32, to: u32) {
+        if let Some(slot) = self.tn[t as usize].iter_mut().find(|n| **n == from) {
+            *slot = to;
+        }
+    }
+
+    /// 3-1 flip: replaces the three triangles around vertex w (one of them `t0`) by the triangle
+    /// of w's three neighbours, in t0's slot (returned). None when w has more than three
+    /// neighbours; Some(Err) when a neighbour is the infinite vertex or the new triangle would
+    /// not be counter-clockwise.
+    fn remove_degree3(&mut self, t0: u32, w: u32) -> Option<Result<u32, ()>> {
+        let mut ts = [NONE; 3];
+        let mut link = [NONE; 3];
+        let mut t = t0;
+        for i in 0..3 {
+            let tri = self.tv[t as usize];
+            let kw = tri.iter().position(|&v| v == w)?;
+            ts[i] = t;
+            link[i] = tri[(kw + 1) % 3];
+            t = self.tn[t as usize][(kw + 1) % 3];
+        }
+        if t != t0 {
+            return None;
+        }
+        if link.contains(&self.infinite) || orient(self.p(link[0]), self.p(link[1]), self.p(link[2])) <= 0 {
+            return Some(Err(()));
+        }
+        // The outer neighbour of each triangle (w, link[i], link[i + 1]) is across w.
+        let outer = |b: &Self, i: usize| {
+            let tri = b.tv[ts[i] as usize];
+            let kw = tri.iter().position(|&v| v == w).unwrap_or(0);
+            b.tn[ts[i] as usize][kw]
+        };
+        let (o0, o1, o2) = (outer(self, 0), outer(self, 1), outer(self, 2));
+        // New triangle (link[0], link[1], link[2]): across link[0] is edge (link[1], link[2]),
+        // the outer edge of ts[1]; across link[1] that of ts[2]; across link[2] that of ts[0].
+        self.tv[t0 as usize] = link;
+        self.tn[t0 as usize] = [o1, o2, o0];
+        self.relink(o1, ts[1], t0);
+        self.relink(o2, ts[2], t0);
+        for &dead in &ts[1..] {
+            self.tv[dead as usize] = [NONE; 3];
+            self.tn[dead as usize] = [NONE; 3];
+            self.free.push(dead);
+        }
+        Some(Ok(t0))
+    }
+}
+
+/// Weights as the predicates see them: (high, low) pairs, low 0 without `weights_lo`.
+fn dd_weights(weights: &[f64], weights_lo: Option<&[f64]>) -> Vec<Weight> {
+    match weights_lo {
+        Some(lo) => weights.iter().zip(lo).map(|(&h, &l)| [h, l]).collect(),
+        None => weights.iter().map(|&h| [h, 0.0]).collect(),
+    }
+}
+
 /// Indices of `points` in the order of the Hilbert curve (order 16) over their bounding box,
 /// ties by index: an order in which consecutive points are close, for short point-location
 /// walks and stratified samples.
@@ -589,6 +750,168 @@ impl PowerDiagram {
         Ok(Self::build(sites, weights, weights_lo, order, max_hidden))
     }
 
+    /// [`PowerDiagram::with_order_dd_unless_hidden`], starting from `previous`, a diagram of the
+    /// same sites with other weights: its triangulation is repaired by flips instead of built
+    /// by insertion when it can be (Lawson's flip algorithm lifted to regular triangulations;
+    /// Edelsbrunner & Shah 1996). Every non-regular edge is flipped (2-2), or its reflex vertex
+    /// removed when it has three neighbours (3-1: that site is hidden); the sites hidden in
+    /// `previous` are then inserted as by the construction, and become visible when they are in
+    /// conflict. A triangulation that is locally regular everywhere, with every hidden site above
+    /// it, is the regular one, so the result is the diagram `with_order_dd_unless_hidden` builds
+    /// (with the same neighbour lists: [`PowerDiagram::neighbors`] depends on the triangulation
+    /// only). Flips can get stuck on a non-regular edge whose reflex vertex has more than three
+    /// neighbours, and collinear quads are not flipped; the construction by insertion is the
+    /// fallback then, and when `previous` is not a 2-D diagram of `sites`.
+    ///
+    /// Returns the construction and whether the flips reached it (false: built by insertion).
+    /// Cost: one predicate per edge plus the flips; between close weights (the Newton steps of an
+    /// OT solve) a fraction of the construction's. Same errors as `with_order_dd`.
+    pub fn with_order_dd_unless_hidden_from(
+        previous: &PowerDiagram,
+        sites: &[[f64; 2]],
+        weights: &[f64],
+        weights_lo: Option<&[f64]>,
+        order: &InsertionOrder,
+        max_hidden: usize,
+    ) -> Result<(Construction, bool), OmtError> {
+        Self::validate(sites, weights, weights_lo, order)?;
+        let visible = previous.hidden.iter().filter(|&&h| !h).count();
+        if previous.dimension == 2 && visible >= 4 && previous.sites.as_slice() == sites {
+            let w = dd_weights(weights, weights_lo);
+            if let Some(updated) = previous.by_flips(w, order, max_hidden) {
+                return Ok((updated, true));
+            }
+        }
+        Ok((Self::build(sites, weights, weights_lo, order, max_hidden), false))
+    }
+
+    /// The flip update of [`PowerDiagram::with_order_dd_unless_hidden_from`]; None when stuck.
+    fn by_flips(&self, weights: Vec<Weight>, order: &InsertionOrder, max_hidden: usize) -> Option<Construction> {
+        let n = self.sites.len();
+        let inf = n as u32;
+        let tv = self.triangle_vertices.clone();
+        let tn = self.triangle_neighbors.clone();
+        let free: Vec<u32> = (0..tv.len() as u32).filter(|&t| tv[t as usize][0] == NONE).collect();
+        let last = (0..tv.len() as u32).find(|&t| tv[t as usize][0] != NONE)?;
+        let slots = tv.len();
+        let mut builder = Builder {
+            sites: &self.sites,
+            weights: &weights,
+            infinite: inf,
+            tv,
+            tn,
+            free,
+            mark: vec![0; slots],
+            vertex_mark: vec![0; n + 1],
+            star_link: vec![NONE; n + 1],
+            hidden: self.hidden.clone(),
+            vertex_triangle: vec![NONE; n],
+            last,
+            stamp: 0,
+            rng: 0x2545_F491_4F6C_DD1D,
+            cavity: Vec::new(),
+            boundary: Vec::new(),
+            stack: Vec::new(),
+            cavity_vertices: Vec::new(),
+            edges: Vec::new(),
+            created: Vec::new(),
+        };
+        let mut stack: Vec<(u32, u8)> = Vec::with_capacity(3 * n);
+        for t in 0..slots {
+            let tri = builder.tv[t];
+            if tri[0] == NONE {
+                continue;
+            }
+            for k in 0..3u8 {
+                if (t as u32) < builder.tn[t][k as usize] {
+                    stack.push((t as u32, k));
+                }
+            }
+        }
+        let mut hidden_now = Vec::new();
+        let mut deferred = Vec::new();
+        // Each flip lowers the lifted surface, so none repeats; the cap only bounds the work
+        // before falling back to the construction.
+        let flip_cap = 8 * n + 64;
+        let mut flips = 0usize;
+        loop {
+            let before = flips;
+            while let Some((t, k)) = stack.pop() {
+                match builder.restore_edge(t, k as usize, &mut stack, &mut hidden_now) {
+                    EdgeRepair::Regular => {}
+                    EdgeRepair::Flipped => {
+                        flips += 1;
+                        if flips > flip_cap {
+                            return None;
+                        }
+                    }
+                    EdgeRepair::Blocked => deferred.push((t, k)),
+                    EdgeRepair::Degenerate => return None,
+                }
+                if hidden_now.len() > max_hidden {
+                    // Hidden by a 3-1 flip means above the lifted plane of three sites around
+                    // it: hidden in the regular triangulation too.
+                    return Some(Construction::Hidden {
+                        hidden: hidden_now,
+                        inserted: n,
+                    });
+                }
+            }
+            if deferred.is_empty() {
+                break;
+            }
+            if flips == before {
+                return None;
+            }
+            stack.append(&mut deferred);
+        }
+        // The triangulation is now the regular one of its vertices; the previously hidden sites
+        // are inserted (in insertion order, for short walks) and stay hidden unless in conflict.
+        builder.last = (0..builder.tv.len() as u32).find(|&t| builder.tv[t as usize][0] != NONE)?;
+        for &q in &order.order {
+            if self.hidden[q as usize] {
+                builder.hidden[q as usize] = false;
+                builder.insert(q);
+            }
+        }
+        let hidden_count = builder.hidden.iter().filter(|&&h| h).count();
+        if hidden_count > max_hidden {
+            return Some(Construction::Hidden {
+                hidden: (0..n as u32).filter(|&i| builder.hidden[i as usize]).collect(),
+                inserted: n,
+            });
+        }
+        let Builder { tv, tn, hidden, .. } = builder;
+        let mut vertex_triangle = vec![NONE; n];
+        for (t, tri) in tv.iter().enumerate() {
+            if tri[0] == NONE {
+                continue;
+            }
+            for &v in tri {
+                if v != inf {
+                    vertex_triangle[v as usize] = t as u32;
+                }
+            }
+        }
+        // A visible site has a triangle and a hidden one none (else: a bug; rebuild).
+        if (0..n).any(|v| hidden[v] != (vertex_triangle[v] == NONE)) {
+            return None;
+        }
+        let mut diagram = PowerDiagram {
+            sites: self.sites.clone(),
+            weights,
+            hidden: Vec::new(),
+            neighbor_offsets: Vec::new(),
+            neighbor_list: Vec::new(),
+            dimension: 2,
+            triangle_vertices: Vec::new(),
+            triangle_neighbors: Vec::new(),
+            start_site: 0,
+        };
+        diagram.set_triangulation(&order.order, tv, tn, hidden, vertex_triangle);
+        Some(Construction::Complete(diagram))
+    }
+
     fn build(
         sites: &[[f64; 2]],
         weights: &[f64],
@@ -597,10 +920,7 @@ impl PowerDiagram {
         max_hidden: usize,
     ) -> Construction {
         let n = sites.len();
-        let weights = match weights_lo {
-            Some(lo) => weights.iter().zip(lo).map(|(&h, &l)| [h, l]).collect(),
-            None => weights.iter().map(|&h| [h, 0.0]).collect(),
-        };
+        let weights = dd_weights(weights, weights_lo);
         let mut diagram = PowerDiagram {
             sites: sites.to_vec(),
             weights,
@@ -734,8 +1054,28 @@ impl PowerDiagram {
             vertex_triangle,
             ..
         } = builder;
-        // Neighbours: rotate counter-clockwise around every visible vertex, in insertion
-        // (spatially coherent) order for memory locality, then scatter into CSR by index.
+        self.set_triangulation(order, tv, tn, hidden, vertex_triangle);
+        None
+    }
+
+    /// Stores a finished 2-D triangulation and derives the neighbour lists from it.
+    /// `vertex_triangle[v]` is a triangle incident to every visible site v.
+    ///
+    /// Neighbours: rotate counter-clockwise around every visible vertex, in insertion (spatially
+    /// coherent) order for memory locality, then scatter into CSR by index. Each ring starts
+    /// after the infinite vertex (hull sites) or at its smallest index (interior sites), so the
+    /// lists depend on the triangulation only, not on how it was reached (built by insertion or
+    /// updated by flips, [`PowerDiagram::with_order_dd_unless_hidden_from`]).
+    fn set_triangulation(
+        &mut self,
+        order: &[u32],
+        tv: Vec<[u32; 3]>,
+        tn: Vec<[u32; 3]>,
+        hidden: Vec<bool>,
+        vertex_triangle: Vec<u32>,
+    ) {
+        let n = self.sites.len();
+        let inf = n as u32;
         let mut rings: Vec<u32> = Vec::with_capacity(6 * n);
         let mut ring_range = vec![(0u32, 0u32); n];
         for &v in order {
@@ -764,6 +1104,9 @@ impl PowerDiagram {
             if let Some(pos) = ring.iter().position(|&u| u == inf) {
                 ring.rotate_left(pos + 1);
                 rings.pop();
+            } else {
+                let smallest = (0..ring.len()).min_by_key(|&k| ring[k]).unwrap_or(0);
+                ring.rotate_left(smallest);
             }
             ring_range[v as usize] = (first as u32, rings.len() as u32);
         }
@@ -780,7 +1123,6 @@ impl PowerDiagram {
         self.start_site = (0..n as u32).find(|&v| !self.hidden[v as usize]).unwrap_or(0);
         self.triangle_vertices = tv;
         self.triangle_neighbors = tn;
-        None
     }
 
     /// Number of sites N (hidden ones included).
@@ -1110,5 +1452,123 @@ impl PowerDiagram {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Uniform numbers in [0, 1) from a fixed xorshift sequence.
+    fn uniform(state: &mut u64) -> f64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn complete(c: Construction) -> PowerDiagram {
+        match c {
+            Construction::Complete(d) => d,
+            Construction::Hidden { .. } => panic!("stopped early"),
+        }
+    }
+
+    /// From a diagram with random weights, the flip update to perturbed weights (small steps
+    /// keep the triangulation nearly unchanged, large ones hide and reveal many sites) is the
+    /// diagram built by insertion: same hidden sites and neighbour lists, and it passes the
+    /// exact sanity check. On random sites (and hull sites on a circle) the flips succeed (no
+    /// fallback) up to perturbations of the order of the squared spacing; with a grid patch
+    /// (collinear triples, which the flips leave to the construction) the result is the same.
+    #[test]
+    fn flip_updates_give_the_constructed_diagram() {
+        let mut rng = 0x1234_5678_9ABC_DEF1u64;
+        let mut sites: Vec<[f64; 2]> = (0..3000)
+            .map(|_| [2.0 * uniform(&mut rng) - 1.0, 2.0 * uniform(&mut rng) - 1.0])
+            .collect();
+        for k in 0..64 {
+            let a = k as f64 * std::f64::consts::TAU / 64.0;
+            sites.push([1.5 * a.cos(), 1.5 * a.sin()]);
+        }
+        let mut with_grid = sites.clone();
+        for i in 0..10 {
+            for j in 0..10 {
+                with_grid.push([1.2 + 0.01 * i as f64, 0.01 * j as f64]);
+            }
+        }
+        let mut flipped_cases = 0;
+        for (sites, random) in [(sites, true), (with_grid, false)] {
+            let n = sites.len();
+            let order = InsertionOrder::new(&sites).unwrap();
+            let w0: Vec<f64> = (0..n).map(|_| 1e-3 * uniform(&mut rng)).collect();
+            let d0 = PowerDiagram::with_order(&sites, &w0, &order).unwrap();
+            let hidden0 = (0..n).filter(|&i| d0.is_hidden(i)).count();
+            assert!(hidden0 > 10, "{hidden0} hidden sites at the start");
+            for scale in [1e-9, 1e-6, 1e-4, 1e-3, 1e-2] {
+                let w1: Vec<f64> = w0.iter().map(|w| w + scale * (2.0 * uniform(&mut rng) - 1.0)).collect();
+                let lo = vec![0.0; n];
+                let built = PowerDiagram::with_order_dd(&sites, &w1, Some(&lo), &order).unwrap();
+                let flipped = d0.by_flips(dd_weights(&w1, Some(&lo)), &order, usize::MAX);
+                if random && scale <= 1e-3 {
+                    assert!(flipped.is_some(), "scale {scale}: the flips got stuck");
+                }
+                flipped_cases += usize::from(flipped.is_some());
+                let (via, by_flips) =
+                    PowerDiagram::with_order_dd_unless_hidden_from(&d0, &sites, &w1, Some(&lo), &order, usize::MAX)
+                        .unwrap();
+                assert_eq!(by_flips, flipped.is_some());
+                let via = complete(via);
+                for d in flipped.into_iter().map(complete).chain([via]) {
+                    d.sanity_check().unwrap();
+                    assert_eq!(d.hidden, built.hidden, "scale {scale}");
+                    assert_eq!(d.neighbor_offsets, built.neighbor_offsets, "scale {scale}");
+                    assert_eq!(d.neighbor_list, built.neighbor_list, "scale {scale}");
+                    assert_eq!(d.start_site, built.start_site);
+                }
+                let changed = (0..n).filter(|&i| built.is_hidden(i) != d0.is_hidden(i)).count();
+                if scale >= 1e-4 {
+                    assert!(changed > 0, "scale {scale}: no site changed visibility");
+                }
+            }
+        }
+        assert!(flipped_cases >= 6, "{flipped_cases}");
+    }
+
+    /// With an early stop, the flip update stops exactly when the construction does (more than
+    /// `max_hidden` hidden sites), and a complete result is the constructed diagram.
+    #[test]
+    fn flip_updates_stop_early_like_the_construction() {
+        let mut rng = 0x0F0F_1234_4321_F0F0u64;
+        let n = 2000;
+        let sites: Vec<[f64; 2]> = (0..n).map(|_| [uniform(&mut rng), uniform(&mut rng)]).collect();
+        let order = InsertionOrder::new(&sites).unwrap();
+        let d0 = PowerDiagram::with_order(&sites, &vec![0.0; n], &order).unwrap();
+        for scale in [1e-5, 1e-4, 3e-4, 1e-3] {
+            let w1: Vec<f64> = (0..n).map(|_| scale * uniform(&mut rng)).collect();
+            let built = PowerDiagram::with_order(&sites, &w1, &order).unwrap();
+            let hidden = (0..n).filter(|&i| built.is_hidden(i)).count();
+            for max_hidden in [0, hidden / 2, hidden, hidden + 1] {
+                let (via, _) =
+                    PowerDiagram::with_order_dd_unless_hidden_from(&d0, &sites, &w1, None, &order, max_hidden).unwrap();
+                match via {
+                    Construction::Complete(d) => {
+                        assert!(
+                            hidden <= max_hidden,
+                            "scale {scale}: complete with {hidden} > {max_hidden} hidden"
+                        );
+                        assert_eq!(d.neighbor_list, built.neighbor_list);
+                        assert_eq!(d.hidden, built.hidden);
+                    }
+                    Construction::Hidden { hidden: listed, .. } => {
+                        assert!(
+                            hidden > max_hidden,
+                            "scale {scale}: stopped with {hidden} ≤ {max_hidden} hidden"
+                        );
+                        assert!(listed.len() > max_hidden);
+                        assert!(listed.iter().all(|&i| built.is_hidden(i as usize)));
+                    }
+                }
+            }
+        }
     }
 }

@@ -554,3 +554,52 @@ fn intermediate_targets_that_do_not_pay_are_switched_off() {
     assert!(capped.log[1..].iter().all(|r| r.intermediate_targets == 0));
     assert!((capped.cost - plain.cost).abs() <= 1e-9 * plain.cost);
 }
+
+/// Line-search trials whose power diagrams are updated by flips from the step's start
+/// (`NewtonParams::flip_updates`, the default) give the diagrams a construction gives, so the
+/// solve is the same to the last bit: here from the coarse-to-fine start (×100 contrast) and
+/// from the Voronoi start without continuation (×3 contrast, a damped phase whose rejected
+/// trials hide sites). Most trials are flip updates.
+#[test]
+fn flip_updates_give_the_same_solve_as_constructions() {
+    use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
+    let points = random_disk_points(4000, 77);
+    let masses = vec![1.0; points.len()];
+    for (contrast, start) in [(100.0, StartStrategy::Auto), (3.0, StartStrategy::Voronoi)] {
+        let measure = disk_rings_measure(30, |x| if x[0] > 0.0 { contrast } else { 1.0 }).unwrap();
+        let params = NewtonParams {
+            start_strategy: start,
+            density_continuation: None,
+            ..NewtonParams::default()
+        };
+        let flipped = solve_ot(&measure, &points, &masses, &params).unwrap();
+        let built = solve_ot(
+            &measure,
+            &points,
+            &masses,
+            &NewtonParams {
+                flip_updates: false,
+                ..params.clone()
+            },
+        )
+        .unwrap();
+        let name = format!("×{contrast}, {start:?}");
+        check(&name, &flipped, 1e-6);
+        assert_eq!(flipped.heights, built.heights, "{name}");
+        assert_eq!(flipped.heights_lo, built.heights_lo, "{name}");
+        assert_eq!(flipped.cost.to_bits(), built.cost.to_bits(), "{name}");
+        assert_eq!(flipped.evaluations, built.evaluations, "{name}");
+        let trials: usize = flipped.log.iter().map(|r| r.evaluations).sum();
+        let updates: usize = flipped.log.iter().map(|r| r.flip_updates).sum();
+        let rejected: usize = flipped.log.iter().map(|r| r.rejected_min_mass).sum();
+        eprintln!(
+            "{name}: {} steps, {trials} trials ({rejected} with an empty cell), {updates} by flips",
+            flipped.iterations
+        );
+        assert_eq!(built.log.iter().map(|r| r.flip_updates).sum::<usize>(), 0);
+        assert!(2 * updates > trials, "{name}: {updates} of {trials} trials by flips");
+        if start == StartStrategy::Voronoi {
+            assert!(rejected > 0, "{name}: no trial hid a site");
+        }
+    }
+}

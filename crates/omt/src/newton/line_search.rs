@@ -50,6 +50,7 @@ use super::{errors, evaluate_unless_hidden, Backend, Evaluation, Heights};
 use crate::cells::CellIntegrals;
 use crate::error::OmtError;
 use crate::linear::NewtonSystem;
+use crate::power_diagram::PowerDiagram;
 
 /// Safeguards of the backtracking: the next trial lies in [LOWER·τ_r, UPPER·τ_r].
 const LOWER: f64 = 0.1;
@@ -75,6 +76,8 @@ pub(crate) struct LineSearchOutcome {
     pub rejected_min_mass: usize,
     /// Trials rejected (with every mass ≥ ε₀) by the gradient-norm test.
     pub rejected_norm: usize,
+    /// Trials whose diagram was updated by flips.
+    pub flip_updates: usize,
     pub t_diagram: f64,
     pub t_integration: f64,
 }
@@ -155,7 +158,8 @@ fn next_trial(
 
 /// Searches τ from `tau_start` down (see `next_trial`) to 2^−max_halvings for the KMT
 /// conditions from heights `heights` (cells `current`) along `delta` (both #N), with current
-/// gradient norm `gradient_norm`.
+/// gradient norm `gradient_norm`. Each trial's diagram is updated by flips from `diagram`, the
+/// diagram of `heights`, when given.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn damped_step(
     backend: &Backend<'_>,
@@ -169,6 +173,7 @@ pub(crate) fn damped_step(
     max_halvings: usize,
     tau_start: f64,
     speculate: Option<&NewtonSystem>,
+    diagram: Option<&PowerDiagram>,
 ) -> Result<LineSearchOutcome, OmtError> {
     let mut tau = tau_start.min(1.0);
     let tau_min = 0.5f64.powi(max_halvings.min(1000) as i32);
@@ -176,14 +181,16 @@ pub(crate) fn damped_step(
         accepted: None,
         rejected_min_mass: 0,
         rejected_norm: 0,
+        flip_updates: 0,
         t_diagram: 0.0,
         t_integration: 0.0,
     };
     let mut previous = None;
     loop {
         let trial = heights.step(delta, tau);
-        let evaluation = evaluate_unless_hidden(backend, points, &trial, true, speculate)?;
+        let evaluation = evaluate_unless_hidden(backend, points, &trial, true, speculate, diagram)?;
         outcome.t_diagram += evaluation.t_diagram;
+        outcome.flip_updates += usize::from(evaluation.by_flips);
         outcome.t_integration += evaluation.t_integration;
         let min_mass = evaluation.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
         let (_, norm, _) = errors(&evaluation.cells, targets);

@@ -153,6 +153,11 @@ pub struct NewtonParams {
     /// aims at ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln κ, instead of ν_i (module docs,
     /// "Intermediate targets"). `None`: every step aims at ν (KMT's algorithm as published).
     pub target_ratio_cap: Option<f64>,
+    /// Build each line-search trial's power diagram from the current one by flips
+    /// ([`PowerDiagram::with_order_dd_unless_hidden_from`]) instead of by insertion (default
+    /// `true`). The diagrams, hence every result, are the same either way; `false` is for
+    /// comparisons.
+    pub flip_updates: bool,
 }
 
 impl Default for NewtonParams {
@@ -169,6 +174,7 @@ impl Default for NewtonParams {
             density_continuation: Some(10.0),
             mass_continuation: None,
             target_ratio_cap: Some(TARGET_RATIO_CAP),
+            flip_updates: true,
         }
     }
 }
@@ -319,6 +325,9 @@ pub struct IterationRecord {
     pub rejected_min_mass: usize,
     /// Rejected trials with every mass ≥ ε₀ but ‖G(h + τδ)‖ > (1 − τ/2)‖G(h)‖.
     pub rejected_norm: usize,
+    /// Trials whose power diagram was updated by flips from the step's start (the others were
+    /// built by insertion; [`NewtonParams::flip_updates`]).
+    pub flip_updates: usize,
     /// min_i μ(W_i) after the step.
     pub min_cell_mass: f64,
     /// Seconds building power diagrams (all line-search trials).
@@ -552,6 +561,11 @@ pub(crate) struct Evaluation {
     /// integration when the evaluation was asked to speculate (see
     /// [`crate::linear::NewtonSystem::speculate`]).
     pub speculative: Option<SpeculativeSymbolic>,
+    /// The power diagram that was integrated (restricted backend), from which the next
+    /// line search's trials are updated by flips.
+    pub diagram: Option<PowerDiagram>,
+    /// Whether that diagram (or the sites found hidden) came from flips of the previous one.
+    pub by_flips: bool,
 }
 
 /// Integrates the cells of heights `heights` (#N) with the chosen integrator.
@@ -592,24 +606,27 @@ pub(crate) fn evaluate_diagram(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
     heights: &Heights,
-    diagram: &PowerDiagram,
+    diagram: PowerDiagram,
     order: InsertionOrder,
 ) -> Evaluation {
     let t0 = Instant::now();
-    let cells = match backend {
+    let (cells, diagram) = match backend {
         Backend::Restricted(integrator, cached) => {
             let _ = cached.set(order);
-            integrator.integrate(diagram)
+            (integrator.integrate(&diagram), Some(diagram))
         }
-        Backend::BruteForce(measure) => {
-            crate::reference::integrate_cells_bruteforce(points, &heights.weights(points).0, measure)
-        }
+        Backend::BruteForce(measure) => (
+            crate::reference::integrate_cells_bruteforce(points, &heights.weights(points).0, measure),
+            None,
+        ),
     };
     Evaluation {
         cells,
         t_diagram: 0.0,
         t_integration: t0.elapsed().as_secs_f64(),
         speculative: None,
+        diagram,
+        by_flips: false,
     }
 }
 
@@ -650,13 +667,14 @@ fn evaluate_keeping_diagram(
     // The Voronoi heights give weights exactly 0 except for points within ~1e-146 of the origin
     // (subnormal |y|²); only an exact Delaunay triangulation is handed on.
     let delaunay = weights.iter().chain(&weights_lo).all(|&w| w == 0.0);
-    let mut evaluation = evaluate_diagram(backend, points, heights, &diagram, order.clone());
+    let kept = delaunay.then(|| (diagram.clone(), order.clone()));
+    let mut evaluation = evaluate_diagram(backend, points, heights, diagram, order);
     evaluation.t_diagram = t_diagram;
-    Ok((evaluation, delaunay.then_some((diagram, order))))
+    Ok((evaluation, kept))
 }
 
 pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Heights) -> Result<Evaluation, OmtError> {
-    evaluate_unless_hidden(backend, points, heights, false, None)
+    evaluate_unless_hidden(backend, points, heights, false, None, None)
 }
 
 /// [`evaluate`]; with `skip_if_hidden`, a diagram with a hidden site (an empty cell: mass 0 < ε₀,
@@ -665,12 +683,15 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Hei
 /// `speculate`, the symbolic factorization the next Newton direction would need if this trial
 /// is accepted is computed on another thread while the cells are integrated (the integration
 /// is parallel too, so on two cores the ordering takes about half of one core's share of it).
+/// With `previous` (a diagram of the same points), the power diagram is updated from it by
+/// flips ([`PowerDiagram::with_order_dd_unless_hidden_from`]; the same diagram as built anew).
 pub(crate) fn evaluate_unless_hidden(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
     heights: &Heights,
     skip_if_hidden: bool,
     speculate: Option<&NewtonSystem>,
+    previous: Option<&PowerDiagram>,
 ) -> Result<Evaluation, OmtError> {
     let (weights, weights_lo) = heights.weights(points);
     if let Some(i) = (0..weights.len()).find(|&i| !(weights[i].is_finite() && weights_lo[i].is_finite())) {
@@ -688,6 +709,8 @@ pub(crate) fn evaluate_unless_hidden(
                 t_diagram: 0.0,
                 t_integration: t0.elapsed().as_secs_f64(),
                 speculative: None,
+                diagram: None,
+                by_flips: false,
             })
         }
         Backend::Restricted(integrator, order) => {
@@ -704,16 +727,26 @@ pub(crate) fn evaluate_unless_hidden(
             } else {
                 usize::MAX
             };
-            let diagram = match PowerDiagram::with_order_dd_unless_hidden(
-                points,
-                &weights,
-                Some(&weights_lo),
-                order,
-                max_hidden,
-            )? {
+            let (construction, by_flips) = match previous {
+                Some(previous) => PowerDiagram::with_order_dd_unless_hidden_from(
+                    previous,
+                    points,
+                    &weights,
+                    Some(&weights_lo),
+                    order,
+                    max_hidden,
+                )?,
+                None => (
+                    PowerDiagram::with_order_dd_unless_hidden(points, &weights, Some(&weights_lo), order, max_hidden)?,
+                    false,
+                ),
+            };
+            let diagram = match construction {
                 Construction::Complete(diagram) => diagram,
                 Construction::Hidden { hidden, .. } => {
-                    return Ok(masked_evaluation(points.len(), &hidden, t0.elapsed().as_secs_f64()));
+                    let mut masked = masked_evaluation(points.len(), &hidden, t0.elapsed().as_secs_f64());
+                    masked.by_flips = by_flips;
+                    return Ok(masked);
                 }
             };
             let t_diagram = t0.elapsed().as_secs_f64();
@@ -722,7 +755,9 @@ pub(crate) fn evaluate_unless_hidden(
                     .filter(|&i| diagram.is_hidden(i as usize))
                     .collect();
                 if !hidden.is_empty() {
-                    return Ok(masked_evaluation(points.len(), &hidden, t_diagram));
+                    let mut masked = masked_evaluation(points.len(), &hidden, t_diagram);
+                    masked.by_flips = by_flips;
+                    return Ok(masked);
                 }
             }
             let t1 = Instant::now();
@@ -741,6 +776,8 @@ pub(crate) fn evaluate_unless_hidden(
                 t_diagram,
                 t_integration: t1.elapsed().as_secs_f64(),
                 speculative,
+                diagram: Some(diagram),
+                by_flips,
             })
         }
     }
@@ -781,6 +818,8 @@ fn masked_evaluation(n: usize, hidden: &[u32], t_diagram: f64) -> Evaluation {
         t_diagram,
         t_integration: 0.0,
         speculative: None,
+        diagram: None,
+        by_flips: false,
     }
 }
 
@@ -1108,7 +1147,7 @@ pub fn solve_ot(
                     .take()
                     .map(|(backend, _)| backend)
                     .unwrap_or_else(|| Backend::new(measure, params.integrator));
-                let evaluation = evaluate_diagram(&backend, points, &heights, &diagram, order);
+                let evaluation = evaluate_diagram(&backend, points, &heights, diagram, order);
                 (backend, evaluation)
             });
             let fine_params = NewtonParams {
@@ -1505,6 +1544,7 @@ fn solve_single(
             params.max_halvings,
             tau_start,
             Some(&system),
+            current.diagram.as_ref().filter(|_| params.flip_updates),
         )?;
         iterations += 1;
         let mut record = IterationRecord {
@@ -1515,6 +1555,7 @@ fn solve_single(
             evaluations: outcome.rejections() + usize::from(outcome.accepted.is_some()),
             rejected_min_mass: outcome.rejected_min_mass,
             rejected_norm: outcome.rejected_norm,
+            flip_updates: outcome.flip_updates,
             min_cell_mass: current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min),
             t_diagram: outcome.t_diagram,
             t_integration: outcome.t_integration,
