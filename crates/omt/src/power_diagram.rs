@@ -31,6 +31,7 @@
 
 use crate::error::OmtError;
 use crate::predicates::{orient, power_compare, power_side_1d, power_side_sos, Weight};
+use rayon::prelude::*;
 
 /// Sentinel for "no triangle / dead triangle".
 const NONE: u32 = u32::MAX;
@@ -332,26 +333,18 @@ impl Builder<'_> {
     /// that may have become non-regular are pushed on `stack`, a hidden site on `hidden_now`.
     fn restore_edge(&mut self, t: u32, k: usize, stack: &mut Vec<(u32, u8)>, hidden_now: &mut Vec<u32>) -> EdgeRepair {
         let inf = self.infinite;
-        let tri = self.tv[t as usize];
-        if tri[0] == NONE {
-            return EdgeRepair::Regular;
+        match self.edge_is_regular(t, k) {
+            Some(true) => return EdgeRepair::Regular,
+            Some(false) => {}
+            None => return EdgeRepair::Degenerate,
         }
+        let tri = self.tv[t as usize];
         let s = self.tn[t as usize][k];
         let Some(j) = (0..3).find(|&j| self.tn[s as usize][j] == t) else {
             return EdgeRepair::Degenerate;
         };
         let (x, u, v) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
         let y = self.tv[s as usize][j];
-        let regular = if y != inf {
-            !self.conflict(t, y)
-        } else if x != inf {
-            !self.conflict(s, x)
-        } else {
-            return EdgeRepair::Degenerate;
-        };
-        if regular {
-            return EdgeRepair::Regular;
-        }
         if x == inf || y == inf {
             return EdgeRepair::Degenerate;
         }
@@ -390,6 +383,27 @@ impl Builder<'_> {
             }
             Some(Err(())) => EdgeRepair::Degenerate,
             None => EdgeRepair::Blocked,
+        }
+    }
+
+    /// Whether edge k of triangle t = (x, u, v) is locally regular: the vertex y across it is
+    /// not in conflict with t (x not with the triangle across when y is the infinite vertex).
+    /// A dead slot counts as regular; None for an inconsistent adjacency.
+    fn edge_is_regular(&self, t: u32, k: usize) -> Option<bool> {
+        let inf = self.infinite;
+        let tri = self.tv[t as usize];
+        if tri[0] == NONE {
+            return Some(true);
+        }
+        let s = self.tn[t as usize][k];
+        let j = (0..3).find(|&j| self.tn[s as usize][j] == t)?;
+        let (x, y) = (tri[k], self.tv[s as usize][j]);
+        if y != inf {
+            Some(!self.conflict(t, y))
+        } else if x != inf {
+            Some(!self.conflict(s, x))
+        } else {
+            None
         }
     }
 
@@ -816,18 +830,26 @@ impl PowerDiagram {
             edges: Vec::new(),
             created: Vec::new(),
         };
-        let mut stack: Vec<(u32, u8)> = Vec::with_capacity(3 * n);
-        for t in 0..slots {
-            let tri = builder.tv[t];
-            if tri[0] == NONE {
-                continue;
-            }
-            for k in 0..3u8 {
-                if (t as u32) < builder.tn[t][k as usize] {
-                    stack.push((t as u32, k));
-                }
-            }
-        }
+        // The edges that are not locally regular now (each edge once, from its triangle of
+        // smaller index; read-only, so in parallel). Every flip pushes the edges whose
+        // triangles it changed, so every non-regular edge is on the stack until repaired.
+        let mut stack: Vec<(u32, u8)> = {
+            let b = &builder;
+            (0..slots as u32)
+                .into_par_iter()
+                .with_min_len(4096)
+                .flat_map_iter(|t| {
+                    let tri = b.tv[t as usize];
+                    (0..3u8)
+                        .filter(move |&k| {
+                            tri[0] != NONE
+                                && t < b.tn[t as usize][k as usize]
+                                && b.edge_is_regular(t, k as usize) != Some(true)
+                        })
+                        .map(move |k| (t, k))
+                })
+                .collect()
+        };
         let mut hidden_now = Vec::new();
         let mut deferred = Vec::new();
         // Each flip lowers the lifted surface, so none repeats; the cap only bounds the work

@@ -50,7 +50,7 @@
 use super::{solve_ot, Heights, NewtonParams};
 use crate::error::OmtError;
 use crate::measure::SourceMeasure;
-use crate::power_diagram::{InsertionOrder, PowerDiagram};
+use crate::power_diagram::{Construction, InsertionOrder, PowerDiagram};
 use rayon::prelude::*;
 
 /// Points below which no coarse level is used unless they are crowded.
@@ -481,9 +481,29 @@ pub(crate) fn coarse_to_fine_heights(
     let mut exact_done = vec![false; n];
     // the diagram of the final heights, if the last round changed none
     let mut checked = None;
+    // the previous round's diagram: a later round changed few heights, so its diagram is
+    // updated by flips (the same diagram as built anew)
+    let mut previous: Option<PowerDiagram> = None;
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
-        let diagram = PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?;
+        let diagram = match previous.take().filter(|_| params.flip_updates) {
+            Some(previous) => {
+                match PowerDiagram::with_order_dd_unless_hidden_from(
+                    &previous,
+                    points,
+                    &w,
+                    Some(&wl),
+                    &order,
+                    usize::MAX,
+                )?
+                .0
+                {
+                    Construction::Complete(diagram) => diagram,
+                    Construction::Hidden { .. } => unreachable!("no early stop without a limit"),
+                }
+            }
+            None => PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?,
+        };
         // (a walk from j stops at j unless j is hidden or a neighbour is strictly closer)
         let outside: Vec<usize> = (0..n)
             .into_par_iter()
@@ -518,6 +538,7 @@ pub(crate) fn coarse_to_fine_heights(
             checked = Some(diagram);
             break;
         }
+        previous = Some(diagram);
     }
     // (a continuation's stages are already in `iterations`)
     let below = match solution.start {
