@@ -20,6 +20,18 @@
 //! sites only ([`InsertionOrder`]); the Newton solver computes it once per set of points and
 //! rebuilds only the triangulation for every new set of weights ([`PowerDiagram::with_order`]).
 //!
+//! # Update by flips
+//! Between close weights (the line-search trials of a Newton step, all from the step's start)
+//! [`PowerDiagram::with_order_dd_unless_hidden_from`] repairs the previous triangulation instead:
+//! Lawson's flips lifted to regular triangulations (2-2 flips of non-regular edges of convex
+//! quads, 3-1 flips that remove a reflex vertex of degree three, which is then hidden), then the
+//! previously hidden sites are inserted as above. A triangulation that is locally regular
+//! everywhere, with every hidden site above it, is the regular one, so the result is the same as
+//! the construction's; in the weighted case flips can get stuck (a reflex vertex of higher
+//! degree, three collinear corners), and the construction is the fallback. Neighbour rings start
+//! at a canonical place (after the infinite vertex, or at the smallest index), so both paths
+//! give the same neighbour lists, hence the same integrals to the last bit.
+//!
 //! All combinatorial decisions use exact predicates with symbolic perturbation, so the result is
 //! the regular triangulation of the input (for ties: of the consistently perturbed input).
 //! When all sites are collinear the diagram is one-dimensional (cells are parallel strips); it is
@@ -43,7 +55,8 @@ pub enum Construction {
     /// The complete diagram; with an early stop requested, no site is hidden.
     Complete(PowerDiagram),
     /// Sites hidden among the first `inserted` sites of the insertion order, hence hidden in
-    /// the complete diagram (which may hide more).
+    /// the complete diagram (which may hide more). (From a flip update: sites its 3-1 flips or
+    /// insertions hid, `inserted` = N.)
     Hidden { hidden: Vec<u32>, inserted: usize },
 }
 
