@@ -55,8 +55,9 @@ pub enum Construction {
     /// The complete diagram; with an early stop requested, no site is hidden.
     Complete(PowerDiagram),
     /// Sites hidden among the first `inserted` sites of the insertion order, hence hidden in
-    /// the complete diagram (which may hide more). (From a flip update: sites its 3-1 flips or
-    /// insertions hid, `inserted` = N.)
+    /// the complete diagram (which may hide more). (From a flip update, `inserted` = N: the
+    /// sites its 3-1 flips hid, or, after the re-insertion of the previously hidden sites, all
+    /// hidden sites.)
     Hidden { hidden: Vec<u32>, inserted: usize },
 }
 
@@ -110,6 +111,43 @@ struct Builder<'a> {
 }
 
 impl<'a> Builder<'a> {
+    /// A builder over the triangulation `tv`/`tn` of `sites` (dead slots `[NONE; 3]` become
+    /// free slots) with hidden flags `hidden`, ready for insertions and flips.
+    fn new(
+        sites: &'a [[f64; 2]],
+        weights: &'a [Weight],
+        tv: Vec<[u32; 3]>,
+        tn: Vec<[u32; 3]>,
+        hidden: Vec<bool>,
+    ) -> Self {
+        let n = sites.len();
+        let free = (0..tv.len() as u32).filter(|&t| tv[t as usize][0] == NONE).collect();
+        let last = (0..tv.len() as u32).find(|&t| tv[t as usize][0] != NONE).unwrap_or(0);
+        let mark = vec![0; tv.len()];
+        Builder {
+            sites,
+            weights,
+            infinite: n as u32,
+            tv,
+            tn,
+            free,
+            mark,
+            vertex_mark: vec![0; n + 1],
+            star_link: vec![NONE; n + 1],
+            hidden,
+            vertex_triangle: vec![NONE; n],
+            last,
+            stamp: 0,
+            rng: 0x2545_F491_4F6C_DD1D,
+            cavity: Vec::new(),
+            boundary: Vec::new(),
+            stack: Vec::new(),
+            cavity_vertices: Vec::new(),
+            edges: Vec::new(),
+            created: Vec::new(),
+        }
+    }
+
     #[inline]
     fn p(&self, v: u32) -> [f64; 2] {
         self.sites[v as usize]
@@ -332,7 +370,8 @@ enum EdgeRepair {
     /// Not regular, but its reflex vertex has more than three neighbours, or the quad has three
     /// collinear corners: try again later.
     Blocked,
-    /// A case the flips do not handle (collinear points, the infinite vertex reflex).
+    /// A case the flips do not handle: an inconsistent adjacency, a 3-1 flip whose new
+    /// triangle would contain the infinite vertex or not be counter-clockwise.
     Degenerate,
 }
 
@@ -788,7 +827,9 @@ impl PowerDiagram {
     /// (with the same neighbour lists: [`PowerDiagram::neighbors`] depends on the triangulation
     /// only). Flips can get stuck on a non-regular edge whose reflex vertex has more than three
     /// neighbours, and collinear quads are not flipped; the construction by insertion is the
-    /// fallback then, and when `previous` is not a 2-D diagram of `sites`.
+    /// fallback then, and when `previous` is not a 2-D diagram of `sites` with at least four
+    /// visible sites. (The triangle slots, hence the order of [`PowerDiagram::triangles`], do
+    /// depend on the path.)
     ///
     /// Returns the construction and whether the flips reached it (false: built by insertion).
     /// Cost: one predicate per edge plus the flips; between close weights (the Newton steps of an
@@ -816,33 +857,14 @@ impl PowerDiagram {
     fn by_flips(&self, weights: Vec<Weight>, order: &InsertionOrder, max_hidden: usize) -> Option<Construction> {
         let n = self.sites.len();
         let inf = n as u32;
-        let tv = self.triangle_vertices.clone();
-        let tn = self.triangle_neighbors.clone();
-        let free: Vec<u32> = (0..tv.len() as u32).filter(|&t| tv[t as usize][0] == NONE).collect();
-        let last = (0..tv.len() as u32).find(|&t| tv[t as usize][0] != NONE)?;
-        let slots = tv.len();
-        let mut builder = Builder {
-            sites: &self.sites,
-            weights: &weights,
-            infinite: inf,
-            tv,
-            tn,
-            free,
-            mark: vec![0; slots],
-            vertex_mark: vec![0; n + 1],
-            star_link: vec![NONE; n + 1],
-            hidden: self.hidden.clone(),
-            vertex_triangle: vec![NONE; n],
-            last,
-            stamp: 0,
-            rng: 0x2545_F491_4F6C_DD1D,
-            cavity: Vec::new(),
-            boundary: Vec::new(),
-            stack: Vec::new(),
-            cavity_vertices: Vec::new(),
-            edges: Vec::new(),
-            created: Vec::new(),
-        };
+        let mut builder = Builder::new(
+            &self.sites,
+            &weights,
+            self.triangle_vertices.clone(),
+            self.triangle_neighbors.clone(),
+            self.hidden.clone(),
+        );
+        let slots = builder.tv.len();
         // The edges that are not locally regular now (each edge once, from its triangle of
         // smaller index; read-only, so in parallel). Every flip pushes the edges whose
         // triangles it changed, so every non-regular edge is on the stack until repaired.
@@ -1044,28 +1066,8 @@ impl PowerDiagram {
         // Triangle 0 = (a, b, c); infinite triangles 1 = (b, a, ∞), 2 = (c, b, ∞), 3 = (a, c, ∞).
         let tv = vec![[a, b, c], [b, a, inf], [c, b, inf], [a, c, inf]];
         let tn = vec![[2, 3, 1], [3, 2, 0], [1, 3, 0], [2, 1, 0]];
-        let mut builder = Builder {
-            sites: &self.sites,
-            weights: &self.weights,
-            infinite: inf,
-            tv,
-            tn,
-            free: Vec::new(),
-            mark: vec![0; 4],
-            vertex_mark: vec![0; n + 1],
-            star_link: vec![NONE; n + 1],
-            hidden: vec![false; n],
-            vertex_triangle: vec![NONE; n],
-            last: 0,
-            stamp: 0,
-            rng: 0x2545_F491_4F6C_DD1D,
-            cavity: Vec::new(),
-            boundary: Vec::new(),
-            stack: Vec::new(),
-            cavity_vertices: Vec::new(),
-            edges: Vec::new(),
-            created: Vec::new(),
-        };
+        let mut builder = Builder::new(&self.sites, &self.weights, tv, tn, vec![false; n]);
+        builder.last = 0;
         for v in [a, b, c] {
             builder.vertex_triangle[v as usize] = 0;
         }
@@ -1212,6 +1214,8 @@ impl PowerDiagram {
 
     /// The finite triangles of the regular triangulation, counter-clockwise (#T). Empty when the
     /// sites are collinear or N = 1. Their power centres are the vertices of the power diagram.
+    /// Their order (and each one's first vertex) depends on how the triangulation was reached
+    /// (construction or flip update), unlike the neighbour lists.
     pub fn triangles(&self) -> Vec<[u32; 3]> {
         let inf = self.sites.len() as u32;
         self.triangle_vertices
@@ -1358,29 +1362,8 @@ impl PowerDiagram {
         let inf = n as u32;
         let tv = &self.triangle_vertices;
         let tn = &self.triangle_neighbors;
-        let builder = Builder {
-            sites: &self.sites,
-            weights: &self.weights,
-            infinite: inf,
-            tv: tv.clone(),
-            tn: tn.clone(),
-            free: Vec::new(),
-            mark: Vec::new(),
-            vertex_mark: Vec::new(),
-            star_link: Vec::new(),
-            hidden: Vec::new(),
-            vertex_triangle: Vec::new(),
-            last: 0,
-            stamp: 0,
-            rng: 0x9E37_79B9,
-            cavity: Vec::new(),
-            boundary: Vec::new(),
-            stack: Vec::new(),
-            cavity_vertices: Vec::new(),
-            edges: Vec::new(),
-            created: Vec::new(),
-        };
-        let mut builder = builder;
+        let mut builder = Builder::new(&self.sites, &self.weights, tv.clone(), tn.clone(), self.hidden.clone());
+        builder.rng = 0x9E37_79B9;
         let mut in_triangle = vec![false; n];
         let mut alive = 0usize;
         let mut any_alive = NONE;
