@@ -34,7 +34,10 @@
 //! The maximum is taken over the groups within [`RINGS`] edges of the coarse regular
 //! triangulation; the prolongation is then checked (every point's anchor in its own cell of the
 //! fine diagram) and, for each point that fails and for the point whose cell holds its anchor,
-//! recomputed over all groups. (Until 2026-12-03 (15) the check looked for hidden points only;
+//! recomputed over all groups. Each check round's fine diagram is updated by flips from the
+//! previous round's, the first from the Delaunay triangulation of the first coarsening round
+//! (the same diagrams as built anew, [`PowerDiagram::with_order_dd_unless_hidden_from`]).
+//! (Until 2026-12-03 (15) the check looked for hidden points only;
 //! a point whose cell exists but lies outside Ω passed it: two slit copies on the unit circle
 //! of the bundled wolf0 slit three times started empty and the solve failed.)
 //! Heights are kept in double-double form throughout (children of a crowded group differ by
@@ -114,6 +117,8 @@ struct Coarsening {
     group: Vec<usize>,
     /// The shortest Delaunay edge of the fine points.
     closest: f64,
+    /// The Delaunay triangulation of the fine points (the first round's).
+    delaunay: Option<PowerDiagram>,
 }
 
 /// Merges the points pairwise along their shortest Delaunay edges (greedy matching, shortest
@@ -135,6 +140,7 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64], mut delaunay: Option<PowerDiagr
     let mut masses = targets.to_vec();
     let mut group: Vec<usize> = (0..n).collect();
     let mut closest = f64::INFINITY;
+    let mut fine_delaunay = None;
     for round in 0..MAX_ROUNDS {
         if round > 0 && reps.len() * RATIO <= n {
             break;
@@ -204,12 +210,16 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64], mut delaunay: Option<PowerDiagr
         }
         reps = next;
         masses = next_masses;
+        if round == 0 {
+            fine_delaunay = Some(delaunay);
+        }
     }
     Ok(Coarsening {
         points: reps,
         masses,
         group,
         closest,
+        delaunay: fine_delaunay,
     })
 }
 
@@ -293,7 +303,7 @@ pub(crate) fn coarse_to_fine_heights(
     // (merged points can coincide in principle, which the Delaunay triangulation of the next
     // round rejects: then no coarse level, not an error)
     let (delaunay, fine_order) = voronoi.unzip();
-    let Ok(coarse) = coarsen(points, targets, delaunay) else {
+    let Ok(mut coarse) = coarsen(points, targets, delaunay) else {
         return Ok(None);
     };
     let coarse_n = coarse.points.len();
@@ -483,7 +493,8 @@ pub(crate) fn coarse_to_fine_heights(
     let mut checked = None;
     // the previous round's diagram: a later round changed few heights, so its diagram is
     // updated by flips (the same diagram as built anew)
-    let mut previous: Option<PowerDiagram> = None;
+    // (the first round starts from the Delaunay triangulation of the coarsening)
+    let mut previous: Option<PowerDiagram> = coarse.delaunay.take();
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = match previous.take().filter(|_| params.flip_updates) {
