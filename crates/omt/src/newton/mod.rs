@@ -647,15 +647,15 @@ fn cached_order<'b>(
     })
 }
 
-/// [`evaluate`], also returning the power diagram it built and its insertion order when all
-/// weights are exactly 0 (none with the brute-force backend): Auto's Voronoi test hands them to
-/// the coarse-to-fine start, whose coarsening needs that Delaunay triangulation first and whose
-/// check needs the order.
+/// [`evaluate`], also returning the insertion order when all weights are exactly 0 (none with
+/// the brute-force backend): the evaluation's diagram is then the Delaunay triangulation, which
+/// Auto's Voronoi test hands with the order to the coarse-to-fine start (its coarsening needs
+/// that triangulation first, its check the order).
 fn evaluate_keeping_diagram(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
     heights: &Heights,
-) -> Result<(Evaluation, Option<(PowerDiagram, InsertionOrder)>), OmtError> {
+) -> Result<(Evaluation, Option<InsertionOrder>), OmtError> {
     let Backend::Restricted(_, cached) = backend else {
         return Ok((evaluate(backend, points, heights)?, None));
     };
@@ -667,7 +667,7 @@ fn evaluate_keeping_diagram(
     // The Voronoi heights give weights exactly 0 except for points within ~1e-146 of the origin
     // (subnormal |y|²); only an exact Delaunay triangulation is handed on.
     let delaunay = weights.iter().chain(&weights_lo).all(|&w| w == 0.0);
-    let kept = delaunay.then(|| (diagram.clone(), order.clone()));
+    let kept = delaunay.then(|| order.clone());
     let mut evaluation = evaluate_diagram(backend, points, heights, diagram, order);
     evaluation.t_diagram = t_diagram;
     Ok((evaluation, kept))
@@ -744,9 +744,12 @@ pub(crate) fn evaluate_unless_hidden(
             let diagram = match construction {
                 Construction::Complete(diagram) => diagram,
                 Construction::Hidden { hidden, .. } => {
-                    let mut masked = masked_evaluation(points.len(), &hidden, t0.elapsed().as_secs_f64());
-                    masked.by_flips = by_flips;
-                    return Ok(masked);
+                    return Ok(masked_evaluation(
+                        points.len(),
+                        &hidden,
+                        t0.elapsed().as_secs_f64(),
+                        by_flips,
+                    ));
                 }
             };
             let t_diagram = t0.elapsed().as_secs_f64();
@@ -755,9 +758,7 @@ pub(crate) fn evaluate_unless_hidden(
                     .filter(|&i| diagram.is_hidden(i as usize))
                     .collect();
                 if !hidden.is_empty() {
-                    let mut masked = masked_evaluation(points.len(), &hidden, t_diagram);
-                    masked.by_flips = by_flips;
-                    return Ok(masked);
+                    return Ok(masked_evaluation(points.len(), &hidden, t_diagram, by_flips));
                 }
             }
             let t1 = Instant::now();
@@ -803,7 +804,7 @@ fn diagram_pairs(diagram: &PowerDiagram) -> Vec<(u32, u32)> {
 
 /// The evaluation of a rejected trial that hides sites `hidden` among `n`: mass 0 for those,
 /// NaN for the other masses and the moments, no edges.
-fn masked_evaluation(n: usize, hidden: &[u32], t_diagram: f64) -> Evaluation {
+fn masked_evaluation(n: usize, hidden: &[u32], t_diagram: f64, by_flips: bool) -> Evaluation {
     let mut masses = vec![f64::NAN; n];
     for &i in hidden {
         masses[i as usize] = 0.0;
@@ -819,7 +820,7 @@ fn masked_evaluation(n: usize, hidden: &[u32], t_diagram: f64) -> Evaluation {
         t_integration: 0.0,
         speculative: None,
         diagram: None,
-        by_flips: false,
+        by_flips,
     }
 }
 
@@ -1118,15 +1119,17 @@ pub fn solve_ot(
             StartStrategy::Auto => {
                 contrast > AUTO_CONTRAST || {
                     let backend = Backend::new(measure, params.integrator);
-                    let (evaluation, diagram) = evaluate_keeping_diagram(&backend, points, &Heights::voronoi(points))?;
+                    let (mut evaluation, order) =
+                        evaluate_keeping_diagram(&backend, points, &Heights::voronoi(points))?;
                     let poor = evaluation.cells.masses.iter().zip(masses).any(|(&m, &nu)| {
                         !(m >= AUTO_MIN_START * nu * mass_scale && m <= AUTO_MAX_START * nu * mass_scale)
                     });
-                    voronoi_start = Some((backend, evaluation));
-                    // (kept only for the coarse-to-fine start, not through a Voronoi-start solve)
-                    if poor {
-                        delaunay = diagram;
+                    // (the diagram goes to the coarse-to-fine start; a Voronoi-start solve keeps
+                    // it in its first evaluation, for the first step's flip updates)
+                    if let Some(order) = order.filter(|_| poor) {
+                        delaunay = evaluation.diagram.take().map(|diagram| (diagram, order));
                     }
+                    voronoi_start = Some((backend, evaluation));
                     poor
                 }
             }

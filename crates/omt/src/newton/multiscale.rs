@@ -491,9 +491,8 @@ pub(crate) fn coarse_to_fine_heights(
     let mut exact_done = vec![false; n];
     // the diagram of the final heights, if the last round changed none
     let mut checked = None;
-    // the previous round's diagram: a later round changed few heights, so its diagram is
-    // updated by flips (the same diagram as built anew)
-    // (the first round starts from the Delaunay triangulation of the coarsening)
+    // each round's diagram is updated by flips (the same diagram as built anew) from the
+    // previous round's, the first from the coarsening's Delaunay triangulation
     let mut previous: Option<PowerDiagram> = coarse.delaunay.take();
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
