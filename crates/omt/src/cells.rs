@@ -28,6 +28,12 @@ impl CellIntegrals {
             .collect()
     }
 
+    /// Whether the moments were computed (the flux form of a Newton evaluation leaves them
+    /// empty: [`crate::restricted::RestrictedIntegrator::integrate_masses`]).
+    pub fn has_moments(&self) -> bool {
+        self.first_moments.len() == self.masses.len() && self.second_moments.len() == self.masses.len()
+    }
+
     /// Total transport cost Σ_i ∫_{W_i} |x − y_i|² dμ.
     pub fn transport_cost(&self) -> f64 {
         self.second_moments.iter().sum()

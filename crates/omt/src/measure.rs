@@ -21,7 +21,14 @@ pub struct SourceMeasure {
     pub triangles: Vec<[u32; 3]>,
     pub densities: Vec<f64>,
     averaged: Arc<Mutex<Vec<AveragedCopy>>>,
+    /// The flux form's field ([`crate::restricted`]), built by the first integrator that needs
+    /// it, with the fingerprint of the fields it was built from.
+    pub(crate) flux: FluxSlot,
 }
+
+/// Shared slot of a measure's flux field: (fingerprint, field or `None` where the form
+/// declines the measure).
+pub(crate) type FluxSlot = Arc<Mutex<Option<(u64, Option<Arc<crate::restricted::FluxField>>)>>>;
 
 /// An averaged copy of a measure: the fingerprint of the fields it was built from, the sample
 /// size asked for, and the copy (`None`: averaging declined, see [`crate::averaging`]).
@@ -74,6 +81,7 @@ impl SourceMeasure {
             triangles,
             densities,
             averaged: Arc::default(),
+            flux: Arc::default(),
         })
     }
 
@@ -85,6 +93,7 @@ impl SourceMeasure {
             triangles,
             densities,
             averaged: Arc::default(),
+            flux: Arc::default(),
         }
     }
 
@@ -124,7 +133,7 @@ impl SourceMeasure {
 
     /// A 64-bit hash of the bits of all fields (FxHash-style multiply–rotate), to recognise a
     /// measure whose fields were changed after an averaged copy was built.
-    fn fingerprint(&self) -> u64 {
+    pub(crate) fn fingerprint(&self) -> u64 {
         let mut h = 0u64;
         let mut mix = |x: u64| h = (h.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
         mix(self.vertices.len() as u64);

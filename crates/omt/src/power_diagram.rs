@@ -1225,6 +1225,13 @@ impl PowerDiagram {
             .collect()
     }
 
+    /// The triangulation as stored (2-D case; empty otherwise): triangles counter-clockwise
+    /// including the infinite ones (vertex N is the infinite vertex), dead slots `[u32::MAX; 3]`,
+    /// and per triangle the triangle across the edge opposite each of its vertices.
+    pub(crate) fn raw_triangulation(&self) -> (&[[u32; 3]], &[[u32; 3]]) {
+        (&self.triangle_vertices, &self.triangle_neighbors)
+    }
+
     /// Per triangle of [`Self::triangles`] (same order), the index in that list of the triangle
     /// across the edge opposite each of its vertices; `u32::MAX` across a hull edge.
     pub fn triangle_neighbors(&self) -> Vec<[u32; 3]> {

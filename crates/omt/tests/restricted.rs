@@ -338,6 +338,28 @@ fn result_is_independent_of_thread_count() {
     assert_eq!(a.second_moments, b.second_moments);
     assert_eq!(a.first_moments, b.first_moments);
     assert_eq!(a.edge_masses, b.edge_masses);
+    // The flux form too, its field built anew in each pool (a measure rebuilt from the same
+    // fields has its own slot): the field's Cholesky solve and every sum run in a fixed order.
+    let rings = shapespace_omt::synthetic::disk_rings_measure(60, |p| 1.0 + 3.0 * p[0] * p[0]).unwrap();
+    let sites = shapespace_omt::synthetic::random_disk_points(n, 31);
+    let d = PowerDiagram::new(&sites, &weights).unwrap();
+    let run_flux = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let m = SourceMeasure::new(rings.vertices.clone(), rings.triangles.clone(), rings.densities.clone())
+                    .unwrap();
+                RestrictedIntegrator::new(&m)
+                    .try_integrate_masses(&d, 1e-8)
+                    .expect("the flux form declined")
+            })
+    };
+    let (a, b) = (run_flux(1), run_flux(3));
+    assert!(rings.triangles.len() > 20_000, "{} triangles", rings.triangles.len());
+    assert_eq!(a.masses, b.masses);
+    assert_eq!(a.edge_masses, b.edge_masses);
 }
 
 /// The integrator remembers one cell per source triangle from its last call as the start of
@@ -702,4 +724,86 @@ fn boundary_form_matches_clipping() {
         tiny >= 5,
         "only {tiny} tiny cells: the cluster does not test what it should"
     );
+}
+
+/// The flux form's masses and edge masses against the full integration: relative differences
+/// (masses relative to the cell's mass + total/N, edges as in `compare`).
+fn compare_masses(flux: &CellIntegrals, full: &CellIntegrals, total: f64) -> (f64, f64) {
+    assert!(!flux.has_moments() && full.has_moments());
+    let n = full.masses.len();
+    let floor = total / n as f64;
+    let worst_mass = (0..n)
+        .map(|i| (flux.masses[i] - full.masses[i]).abs() / (full.masses[i] + floor))
+        .fold(0.0f64, f64::max);
+    let edge_floor = total.sqrt() / (n as f64).sqrt();
+    let find = |list: &[(u32, u32, f64)], i: u32, j: u32| {
+        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j)))
+            .ok()
+            .map(|k| list[k].2)
+            .unwrap_or(0.0)
+    };
+    let mut worst_edge: f64 = 0.0;
+    for &(i, j, v) in &full.edge_masses {
+        worst_edge = worst_edge.max((v - find(&flux.edge_masses, i, j)).abs() / (v + edge_floor));
+    }
+    for &(i, j, v) in &flux.edge_masses {
+        assert!(i < j);
+        worst_edge = worst_edge.max((v - find(&full.edge_masses, i, j)).abs() / (v + edge_floor));
+    }
+    (worst_mass, worst_edge)
+}
+
+#[test]
+fn flux_form_matches_the_full_integration() {
+    let rings =
+        shapespace_omt::synthetic::disk_rings_measure(26, |p| 1.2 + 5.0 * (3.0 * p[0]).sin().powi(2) + p[1]).unwrap();
+    let measures = [("rings", rings), ("fan", varied_measure())];
+    let mut rng = ChaCha8Rng::seed_from_u64(77);
+    for (name, measure) in &measures {
+        let integrator = RestrictedIntegrator::new(measure);
+        let total = measure.total_mass();
+        let (lo, hi) = measure
+            .vertices
+            .iter()
+            .fold(([f64::MAX; 2], [f64::MIN; 2]), |(l, h), p| {
+                ([l[0].min(p[0]), l[1].min(p[1])], [h[0].max(p[0]), h[1].max(p[1])])
+            });
+        let (centre, half) = (
+            [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])],
+            [0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1])],
+        );
+        for &(n, weight_scale) in &[(3usize, 0.3), (50, 0.01), (1500, 1e-3), (6000, 2e-4)] {
+            // The rings measure is a polygon inscribed in the unit circle and the sites are drawn
+            // from the unit disk, as the conformal images of a face pair's targets: those near
+            // the circle lie outside Ω. For the fan, sites in the inner 90 % of Ω's box, some
+            // outside Ω. Hull sites have unbounded cells crossing ∂Ω either way; with random
+            // weights of the size of the squared spacing, some cells lie far from their sites.
+            let sites: Vec<[f64; 2]> = if *name == "rings" {
+                shapespace_omt::synthetic::random_disk_points(n, 5 + n as u64)
+            } else {
+                (0..n)
+                    .map(|_| {
+                        [
+                            centre[0] + 0.9 * half[0] * (2.0 * rng.random::<f64>() - 1.0),
+                            centre[1] + 0.9 * half[1] * (2.0 * rng.random::<f64>() - 1.0),
+                        ]
+                    })
+                    .collect()
+            };
+            let weights: Vec<f64> = (0..n).map(|_| weight_scale * (rng.random::<f64>() - 0.5)).collect();
+            let d = PowerDiagram::new(&sites, &weights).unwrap();
+            let full = integrator.integrate(&d);
+            let flux = integrator
+                .try_integrate_masses(&d, 1e-8)
+                .unwrap_or_else(|| panic!("{name}, N = {n}: the flux form declined"));
+            let (dm, de) = compare_masses(&flux, &full, total);
+            eprintln!("{name}, N = {n}: masses {dm:.1e}, edge masses {de:.1e}");
+            assert!(dm < 1e-11 && de < 1e-11, "{name}, N = {n}: {dm:.1e} {de:.1e}");
+            let sum: f64 = flux.masses.iter().sum();
+            assert!(
+                (sum - total).abs() <= 1e-12 * total,
+                "{name}: Σ masses {sum} vs {total}"
+            );
+        }
+    }
 }

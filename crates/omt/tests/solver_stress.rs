@@ -358,6 +358,11 @@ fn coarse_to_fine_start_evaluation_matches_a_fresh_one() {
         &NewtonParams {
             max_iterations: 0,
             start_strategy: StartStrategy::CoarseToFine,
+            // (The coarse levels' flux-form masses move the start heights in their last bits;
+            // with those, one cell of 7.7e-7 differs by 1.8e-9 between the heights with and
+            // without their low parts (1.2e-17), which is what the fresh evaluation below drops.
+            // The hand-over under test is the same either way.)
+            flux_masses: false,
             ..NewtonParams::default()
         },
     )
