@@ -3,7 +3,8 @@
 //!
 //! `cargo run --release -p shapespace-analysis --example distance_bench -- [N] [THREADS]`
 //! (THREADS default 2; run from the repository root; env WARM=1 warm-starts each pair from the
-//! previous one with the same target). Outputs go to `out/distance_bench/`.
+//! previous one with the same target; env NO_FLUX integrates every Newton evaluation in full).
+//! Outputs go to `out/distance_bench/`.
 
 use std::path::PathBuf;
 
@@ -26,6 +27,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if std::env::var("WARM").is_ok() {
         options.pairwise.warm_start = true;
     }
+    // (comparisons: env NO_FLUX integrates every Newton evaluation in full)
+    options.pairwise.newton.flux_masses = std::env::var("NO_FLUX").is_err();
     let run = run_distances(&files, &out, &options, &|_, _, _| {})?;
     let r = &run.report;
     let ok: Vec<_> = run.pairs.iter().filter(|p| p.distance.is_finite()).collect();

@@ -473,3 +473,33 @@ fn coarse_levels_integrate_an_averaged_face_measure_and_give_the_same_distance()
     );
     assert!((multiscale.cost - plain.cost).abs() <= 1e-9 * plain.cost);
 }
+
+/// The Newton evaluations of a face pair take the flux form of the masses (omt
+/// `restricted/flux.rs`), the moments come from the full integration at the end: the same steps
+/// and the same distance as with every evaluation integrated in full, to round-off.
+#[test]
+fn flux_form_evaluations_give_the_same_face_distance() {
+    let (_, source) = face("id03_sad");
+    let (_, target) = face("id02_surprise");
+    let run = |flux_masses| {
+        let params = NewtonParams {
+            flux_masses,
+            ..PairwiseOptions::default().newton
+        };
+        let (d, _) = directed_distance(&source, &target, &params).unwrap();
+        assert!(d.converged, "flux {flux_masses}: {}", d.status);
+        d
+    };
+    let (full, flux) = (run(false), run(true));
+    eprintln!(
+        "full: {} steps, error {:.2e}, cost {:.15e}; flux: {} steps, error {:.2e}, cost {:.15e}",
+        full.iterations, full.max_mass_error, full.cost, flux.iterations, flux.max_mass_error, flux.cost
+    );
+    assert_eq!(full.iterations, flux.iterations);
+    assert!((flux.cost - full.cost).abs() <= 1e-10 * full.cost);
+    // (the reported error comes from the full integrals in both)
+    assert!(
+        flux.max_mass_error <= 1e-6
+            && (flux.max_mass_error - full.max_mass_error).abs() <= 1e-3 * full.max_mass_error + 1e-12
+    );
+}
