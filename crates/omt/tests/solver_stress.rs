@@ -575,6 +575,8 @@ fn flip_updates_give_the_same_solve_as_constructions() {
         let params = NewtonParams {
             start_strategy: start,
             density_continuation: None,
+            // (the flux form too: its sums must not depend on how the triangulation is stored)
+            flux_masses: true,
             ..NewtonParams::default()
         };
         let flipped = solve_ot(&measure, &points, &masses, &params).unwrap();

@@ -159,10 +159,12 @@ pub struct NewtonParams {
     /// comparisons.
     pub flip_updates: bool,
     /// Integrate the masses and edge masses of the Newton evaluations by the flux form
-    /// ([`RestrictedIntegrator::integrate_masses`]: about a fifth of the work of the full
-    /// integration on face pairs; where it declines, the full integration), and the moments only
-    /// once at the end (default `true`). The convergence test always uses the full integrals;
-    /// `false` is for comparisons.
+    /// ([`RestrictedIntegrator::integrate_masses`]; where it declines, the full integration), and
+    /// the moments only once at the end; the convergence test always uses the full integrals.
+    /// Default `false`: it pays where one source measure serves many solves whose diagrams are
+    /// coarser than it (the pairwise distances turn it on: −7 % instructions on 15 face pairs,
+    /// its field built once per face), not on the area-preserving maps (Nefertiti: +9 %, several
+    /// measures of a few thousand triangles each solved once; `ARCHITECTURE.md`, session 18).
     pub flux_masses: bool,
 }
 
@@ -181,7 +183,7 @@ impl Default for NewtonParams {
             mass_continuation: None,
             target_ratio_cap: Some(TARGET_RATIO_CAP),
             flip_updates: true,
-            flux_masses: true,
+            flux_masses: false,
         }
     }
 }

@@ -27,8 +27,9 @@
 //! not two-dimensional, go through the clipping path described here, so the rules below for
 //! degenerate cases hold for both.
 //!
-//! Since 2026-12-03 (18) the Newton evaluations take the masses and edge masses only, by the
-//! flux form (module `flux`, [`RestrictedIntegrator::integrate_masses`]): a Raviart–Thomas
+//! Since 2026-12-03 (18) the Newton evaluations can take the masses and edge masses only, by the
+//! flux form (module `flux`, [`RestrictedIntegrator::integrate_masses`]; `NewtonParams::flux_masses`,
+//! on in the pairwise distances): a Raviart–Thomas
 //! field with divergence ρ, built once per measure, turns every cell mass into a sum over its
 //! power edges, traced through the source triangles; the moments (centroids, transport cost)
 //! come from the full integration of the final diagram.
@@ -716,14 +717,21 @@ impl RestrictedIntegrator {
     /// The masses μ(W_i ∩ Ω) and edge masses of [`Self::integrate`], without the moments
     /// (`first_moments` and `second_moments` empty, see [`CellIntegrals::has_moments`]) when
     /// the flux form (module `flux`) takes the diagram, else all of [`Self::integrate`]. The
+    /// flux form is tried when the measure has at least as many triangles as the diagram has
+    /// sites (where it pays). The
     /// flux form declines where it cannot bound a cell's error by the integrator's bound
     /// ([`Self::with_flux_form`]) relative to its mass;
     /// on face pairs the masses agree with those of [`Self::integrate`] to ~1e-12. What a Newton
     /// evaluation needs, at about two thirds of the cost on face pairs.
     pub fn integrate_masses(&self, diagram: &PowerDiagram) -> CellIntegrals {
+        // The flux form pays where the source is finer than the diagram (its work grows with
+        // the power edges, the boundary form's with the pieces, ~ N + M): face pairs, 18.8k
+        // triangles for 9.4k sites, −12 %; the area-preserving map of Nefertiti, 7.3k triangles
+        // for 50k sites, +14 % (ARCHITECTURE.md, session 18).
+        let pays = self.triangles.len() >= diagram.num_sites();
         if let Some(bound) = self
             .flux_bound
-            .filter(|_| self.flux_declines.load(Relaxed) < MAX_FLUX_DECLINES)
+            .filter(|_| pays && self.flux_declines.load(Relaxed) < MAX_FLUX_DECLINES)
         {
             if let Some(cells) = self.try_integrate_masses(diagram, bound) {
                 self.flux_declines.store(0, Relaxed);
