@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release -p shapespace-analysis --example distance_bench -- [N] [THREADS]`
 //! (THREADS default 2; run from the repository root; env WARM=1 warm-starts each pair from the
-//! previous one with the same target; env NO_FLUX integrates every Newton evaluation in full).
+//! previous one with the same target; env FLUX takes the Newton evaluations' masses by the flux form).
 //! Outputs go to `out/distance_bench/`.
 
 use std::path::PathBuf;
@@ -27,8 +27,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if std::env::var("WARM").is_ok() {
         options.pairwise.warm_start = true;
     }
-    // (comparisons: env NO_FLUX integrates every Newton evaluation in full)
-    options.pairwise.newton.flux_masses = std::env::var("NO_FLUX").is_err();
+    // (comparisons: env FLUX takes the Newton evaluations' masses by the flux form)
+    options.pairwise.newton.flux_masses = std::env::var("FLUX").is_ok();
     let run = run_distances(&files, &out, &options, &|_, _, _| {})?;
     let r = &run.report;
     let ok: Vec<_> = run.pairs.iter().filter(|p| p.distance.is_finite()).collect();

@@ -1,5 +1,5 @@
-//! Probe: Newton iteration logs of one face pair under several solver settings (env `NO_FLUX`:
-//! every Newton evaluation integrated in full).
+//! Probe: Newton iteration logs of one face pair under several solver settings (env `FLUX`:
+//! the Newton evaluations' masses by the flux form).
 #[path = "common/faces.rs"]
 mod faces;
 #[path = "common/newton_log.rs"]
@@ -21,7 +21,7 @@ fn main() {
     let params = NewtonParams {
         density_continuation: cont,
         max_iterations: 300,
-        flux_masses: std::env::var("NO_FLUX").is_err(),
+        flux_masses: std::env::var("FLUX").is_ok(),
         ..Default::default()
     };
     let sol = shapespace_omt::solve_ot(&shapes[0].measure, &shapes[1].points, &shapes[1].masses, &params).unwrap();

@@ -6,8 +6,8 @@
 //! Prints per pair the Newton steps over all levels, finest-level evaluations, seconds and the
 //! distance to full precision. With env `PREPARE_ONLY` it only prepares the faces: the count to
 //! subtract from a run's instructions. With env `NO_FLIPS` every power diagram is built by
-//! insertion (`NewtonParams::flip_updates` off); with env `NO_FLUX` every Newton evaluation is
-//! integrated in full (`NewtonParams::flux_masses` off).
+//! insertion (`NewtonParams::flip_updates` off); with env `FLUX` the Newton evaluations' masses
+//! come from the flux form (`NewtonParams::flux_masses` on).
 #[path = "common/faces.rs"]
 mod faces;
 
@@ -26,7 +26,7 @@ fn main() {
     }
     let mut params = PairwiseOptions::default().newton;
     params.flip_updates = std::env::var("NO_FLIPS").is_err();
-    params.flux_masses = std::env::var("NO_FLUX").is_err();
+    params.flux_masses = std::env::var("FLUX").is_ok();
     let (mut steps, mut evaluations, mut seconds) = (0, 0, 0.0);
     for p in &pairs {
         let (a, b) = p.split_once(':').expect("pairs are A:B");

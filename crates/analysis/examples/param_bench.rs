@@ -15,8 +15,8 @@
 //! Failures are printed as table rows, not hidden. Arguments select cases by name substring
 //! (`param_bench nefertiti camelhead`); only the selected meshes are loaded and prepared. With
 //! env `NO_FLIPS` every power diagram is built by insertion (`NewtonParams::flip_updates` off);
-//! with env `NO_FLUX` every Newton evaluation is integrated in full (`NewtonParams::flux_masses`
-//! off).
+//! with env `FLUX` the Newton evaluations' masses come from the flux form
+//! (`NewtonParams::flux_masses` on).
 
 use std::path::Path;
 use std::time::Instant;
@@ -107,7 +107,7 @@ fn main() {
         let t = Instant::now();
         let mut params = AreaPreservingParams::default();
         params.newton.flip_updates = std::env::var("NO_FLIPS").is_err();
-        params.newton.flux_masses = std::env::var("NO_FLUX").is_err();
+        params.newton.flux_masses = std::env::var("FLUX").is_ok();
         match area_preserving_map(&mesh, &Markers::default(), &params) {
             Ok(map) => {
                 let wall = t.elapsed().as_secs_f64();

@@ -176,9 +176,9 @@ pub struct PairwiseOptions {
     /// Compute both directions and report their mean (and the asymmetry).
     pub symmetrize: bool,
     /// Newton parameters (tolerance, caps). Default: `NewtonParams::default()` with
-    /// `LinearSolver::CholeskyReusedOrdering` (~30% cheaper linear solves on face pairs) and
-    /// `flux_masses` (the flux form of the evaluations' masses, its field built once per source
-    /// face: −7 % instructions on 15 face pairs).
+    /// `LinearSolver::CholeskyReusedOrdering` (~30% cheaper linear solves on face pairs).
+    /// (`flux_masses` stays off: 7 % fewer instructions on face pairs, but slower in wall time,
+    /// omt `ARCHITECTURE.md`, session 18.)
     pub newton: NewtonParams,
     /// Warm-start each pair from the previous pair with the same target (default false: slower
     /// than the solver's coarse-to-fine start on the bundled faces).
@@ -191,7 +191,6 @@ impl Default for PairwiseOptions {
             symmetrize: false,
             newton: NewtonParams {
                 linear_solver: LinearSolver::CholeskyReusedOrdering,
-                flux_masses: true,
                 ..NewtonParams::default()
             },
             warm_start: false,

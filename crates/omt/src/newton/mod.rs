@@ -161,10 +161,10 @@ pub struct NewtonParams {
     /// Integrate the masses and edge masses of the Newton evaluations by the flux form
     /// ([`RestrictedIntegrator::integrate_masses`]; where it declines, the full integration), and
     /// the moments only once at the end; the convergence test always uses the full integrals.
-    /// Default `false`: it pays where one source measure serves many solves whose diagrams are
-    /// coarser than it (the pairwise distances turn it on: −7 % instructions on 15 face pairs,
-    /// its field built once per face), not on the area-preserving maps (Nefertiti: +9 %, several
-    /// measures of a few thousand triangles each solved once; `ARCHITECTURE.md`, session 18).
+    /// Default `false`: on face pairs it saves 7 % of the instructions (its field built once per
+    /// source face) but was slower in wall time (30 faces, 2 threads: 134 and 149 s against 129
+    /// and 118 s, interleaved), and on the area-preserving maps it costs 9 % more instructions
+    /// (Nefertiti: several measures solved once each); `ARCHITECTURE.md`, session 18.
     pub flux_masses: bool,
 }
 

@@ -96,6 +96,12 @@ struct Crossing {
     error: f64,
 }
 
+/// A power centre, the source triangle holding it (NONE: outside Ω) and its error estimate.
+type LocatedCentre = ([f64; 2], u32, f64);
+
+/// The edges traced by one chunk of triangles and their crossings with ∂Ω (`None`: declined).
+type TracedChunk = Option<(Vec<EdgeTerms>, Vec<Crossing>)>;
+
 /// One traced power edge: its two cells, their mass terms and error estimates, and the edge mass.
 #[derive(Clone, Copy, Debug)]
 struct EdgeTerms {
@@ -502,7 +508,7 @@ impl FluxField {
         // Pass 1: the power centres of the finite triangles and the source triangle holding each
         // (NONE: outside Ω).
         let chunk = tv.len().div_ceil(64).max(1);
-        let located: Vec<Option<Vec<([f64; 2], u32, f64)>>> = tv
+        let located: Vec<Option<Vec<LocatedCentre>>> = tv
             .par_chunks(chunk)
             .map(|part| {
                 let mut out = Vec::with_capacity(part.len());
@@ -554,7 +560,7 @@ impl FluxField {
             .collect();
         // Pass 2: trace every power edge once (from the finite triangle whose sorted vertices
         // come first, or from its only finite triangle for a ray).
-        let traced: Vec<Option<(Vec<EdgeTerms>, Vec<Crossing>)>> = (0..tv.len())
+        let traced: Vec<TracedChunk> = (0..tv.len())
             .collect::<Vec<_>>()
             .par_chunks(chunk)
             .map(|part| {

@@ -28,8 +28,8 @@
 //! degenerate cases hold for both.
 //!
 //! Since 2026-12-03 (18) the Newton evaluations can take the masses and edge masses only, by the
-//! flux form (module `flux`, [`RestrictedIntegrator::integrate_masses`]; `NewtonParams::flux_masses`,
-//! on in the pairwise distances): a Raviart–Thomas
+//! flux form (module `flux`, [`RestrictedIntegrator::integrate_masses`]; opt-in,
+//! `NewtonParams::flux_masses`: fewer instructions on face pairs, but not faster in wall time): a Raviart–Thomas
 //! field with divergence ρ, built once per measure, turns every cell mass into a sum over its
 //! power edges, traced through the source triangles; the moments (centroids, transport cost)
 //! come from the full integration of the final diagram.
