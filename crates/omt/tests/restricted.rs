@@ -40,6 +40,27 @@ fn varied_measure() -> SourceMeasure {
     SourceMeasure::new(vertices, triangles, densities).unwrap()
 }
 
+/// Largest relative difference of the edge masses of two integrations (relative to the value +
+/// √(total/N); an edge missing from one side counts as 0 there); `ours` must list i < j.
+fn edge_difference(ours: &CellIntegrals, reference: &CellIntegrals, total: f64, label: &str) -> f64 {
+    let edge_floor = total.sqrt() / (ours.masses.len() as f64).sqrt();
+    let find = |list: &[(u32, u32, f64)], i: u32, j: u32| {
+        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j)))
+            .ok()
+            .map(|k| list[k].2)
+            .unwrap_or(0.0)
+    };
+    let mut worst: f64 = 0.0;
+    for &(i, j, v) in &reference.edge_masses {
+        worst = worst.max((v - find(&ours.edge_masses, i, j)).abs() / (v + edge_floor));
+    }
+    for &(i, j, v) in &ours.edge_masses {
+        assert!(i < j, "{label}: edge ({i}, {j}) not ordered");
+        worst = worst.max((v - find(&reference.edge_masses, i, j)).abs() / (v + edge_floor));
+    }
+    worst
+}
+
 fn compare(ours: &CellIntegrals, reference: &CellIntegrals, total: f64, label: &str) -> (f64, f64) {
     let n = ours.masses.len();
     let mut worst_mass: f64 = 0.0;
@@ -57,22 +78,7 @@ fn compare(ours: &CellIntegrals, reference: &CellIntegrals, total: f64, label: &
         worst_mass = worst_mass.max(d2);
     }
     // Edges: same set up to edges of negligible μ-length, same values.
-    let edge_floor = total.sqrt() / (n as f64).sqrt();
-    let find = |list: &[(u32, u32, f64)], i: u32, j: u32| {
-        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j)))
-            .ok()
-            .map(|k| list[k].2)
-            .unwrap_or(0.0)
-    };
-    for &(i, j, v) in &reference.edge_masses {
-        let w = find(&ours.edge_masses, i, j);
-        worst_edge = worst_edge.max((v - w).abs() / (v + edge_floor));
-    }
-    for &(i, j, v) in &ours.edge_masses {
-        assert!(i < j, "{label}: edge ({i}, {j}) not ordered");
-        let r = find(&reference.edge_masses, i, j);
-        worst_edge = worst_edge.max((v - r).abs() / (v + edge_floor));
-    }
+    worst_edge = worst_edge.max(edge_difference(ours, reference, total, label));
     assert!(
         worst_mass < 1e-11,
         "{label}: mass/moment relative difference {worst_mass:e}"
@@ -735,21 +741,7 @@ fn compare_masses(flux: &CellIntegrals, full: &CellIntegrals, total: f64) -> (f6
     let worst_mass = (0..n)
         .map(|i| (flux.masses[i] - full.masses[i]).abs() / (full.masses[i] + floor))
         .fold(0.0f64, f64::max);
-    let edge_floor = total.sqrt() / (n as f64).sqrt();
-    let find = |list: &[(u32, u32, f64)], i: u32, j: u32| {
-        list.binary_search_by(|e| (e.0, e.1).cmp(&(i, j)))
-            .ok()
-            .map(|k| list[k].2)
-            .unwrap_or(0.0)
-    };
-    let mut worst_edge: f64 = 0.0;
-    for &(i, j, v) in &full.edge_masses {
-        worst_edge = worst_edge.max((v - find(&flux.edge_masses, i, j)).abs() / (v + edge_floor));
-    }
-    for &(i, j, v) in &flux.edge_masses {
-        assert!(i < j);
-        worst_edge = worst_edge.max((v - find(&full.edge_masses, i, j)).abs() / (v + edge_floor));
-    }
+    let worst_edge = edge_difference(flux, full, total, "flux form");
     (worst_mass, worst_edge)
 }
 

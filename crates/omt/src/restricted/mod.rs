@@ -355,7 +355,7 @@ pub struct RestrictedIntegrator {
     /// The measure's slot and the fingerprint of its fields when this integrator was built.
     flux_slot: (crate::measure::FluxSlot, u64),
     /// The sites of the last flux-form integration and a source triangle at or near each.
-    site_triangles: Mutex<Option<(Vec<[f64; 2]>, Arc<Vec<u32>>)>>,
+    site_triangles: Mutex<Option<SiteTriangles>>,
     /// The error bound relative to each cell's mass under which [`Self::integrate_masses`]
     /// takes the flux form (default 1e-8; `None`: never).
     flux_bound: Option<f64>,
@@ -363,6 +363,9 @@ pub struct RestrictedIntegrator {
     /// through the full integration directly.
     flux_declines: AtomicUsize,
 }
+
+/// Sites and, per site, a source triangle at or near it (see `flux::FluxField::locate_sites`).
+type SiteTriangles = (Vec<[f64; 2]>, Arc<Vec<u32>>);
 
 /// After this many declined flux-form integrations an integrator stops trying it (crowded
 /// points, whose cells are too small for it, stay crowded for the whole solve).
