@@ -133,23 +133,8 @@ impl SourceMeasure {
 
     /// A 64-bit hash of the bits of all fields (FxHash-style multiply–rotate), to recognise a
     /// measure whose fields were changed after an averaged copy was built.
-    pub(crate) fn fingerprint(&self) -> u64 {
-        let mut h = 0u64;
-        let mut mix = |x: u64| h = (h.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-        mix(self.vertices.len() as u64);
-        mix(self.triangles.len() as u64);
-        for p in &self.vertices {
-            mix(p[0].to_bits());
-            mix(p[1].to_bits());
-        }
-        for t in &self.triangles {
-            mix(u64::from(t[0]) | u64::from(t[1]) << 32);
-            mix(u64::from(t[2]));
-        }
-        for d in &self.densities {
-            mix(d.to_bits());
-        }
-        h
+    fn fingerprint(&self) -> u64 {
+        fingerprint(&self.vertices, &self.triangles, &self.densities)
     }
 
     /// Uniform density `density` on a convex polygon given counter-clockwise, triangulated as a
@@ -199,6 +184,26 @@ impl SourceMeasure {
             })
             .sum()
     }
+}
+
+/// [`SourceMeasure::fingerprint`] of these fields (also for integrators, which keep copies).
+pub(crate) fn fingerprint(vertices: &[[f64; 2]], triangles: &[[u32; 3]], densities: &[f64]) -> u64 {
+    let mut h = 0u64;
+    let mut mix = |x: u64| h = (h.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    mix(vertices.len() as u64);
+    mix(triangles.len() as u64);
+    for p in vertices {
+        mix(p[0].to_bits());
+        mix(p[1].to_bits());
+    }
+    for t in triangles {
+        mix(u64::from(t[0]) | u64::from(t[1]) << 32);
+        mix(u64::from(t[2]));
+    }
+    for d in densities {
+        mix(d.to_bits());
+    }
+    h
 }
 
 /// Componentwise minimum and maximum of `points` (([∞, ∞], [−∞, −∞]) when empty).

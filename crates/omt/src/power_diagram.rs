@@ -61,6 +61,17 @@ pub enum Construction {
     Hidden { hidden: Vec<u32>, inserted: usize },
 }
 
+impl Construction {
+    /// The diagram of a construction that ran without an early stop (`max_hidden` =
+    /// `usize::MAX`), which is always complete.
+    fn complete(self) -> PowerDiagram {
+        match self {
+            Construction::Complete(diagram) => diagram,
+            Construction::Hidden { .. } => unreachable!("a construction without early stop is complete"),
+        }
+    }
+}
+
 /// The power diagram of weighted sites, stored as its dual regular triangulation.
 #[derive(Clone, Debug)]
 pub struct PowerDiagram {
@@ -755,10 +766,24 @@ impl PowerDiagram {
     }
 
     fn build_complete(sites: &[[f64; 2]], weights: &[f64], weights_lo: Option<&[f64]>, order: &InsertionOrder) -> Self {
-        match Self::build(sites, weights, weights_lo, order, usize::MAX) {
-            Construction::Complete(diagram) => diagram,
-            Construction::Hidden { .. } => unreachable!("a construction without early stop is complete"),
-        }
+        Self::build(sites, weights, weights_lo, order, usize::MAX).complete()
+    }
+
+    /// [`PowerDiagram::with_order_dd`], updated by flips from `previous` (a diagram of the same
+    /// sites) where it can be: [`PowerDiagram::with_order_dd_unless_hidden_from`] without an
+    /// early stop. The same diagram either way.
+    pub fn with_order_dd_from(
+        previous: &PowerDiagram,
+        sites: &[[f64; 2]],
+        weights: &[f64],
+        weights_lo: Option<&[f64]>,
+        order: &InsertionOrder,
+    ) -> Result<Self, OmtError> {
+        Ok(
+            Self::with_order_dd_unless_hidden_from(previous, sites, weights, weights_lo, order, usize::MAX)?
+                .0
+                .complete(),
+        )
     }
 
     fn validate(
@@ -1492,13 +1517,6 @@ mod tests {
         (*state >> 11) as f64 / (1u64 << 53) as f64
     }
 
-    fn complete(c: Construction) -> PowerDiagram {
-        match c {
-            Construction::Complete(d) => d,
-            Construction::Hidden { .. } => panic!("stopped early"),
-        }
-    }
-
     /// From a diagram with random weights, the flip update to perturbed weights (small steps
     /// keep the triangulation nearly unchanged, large ones hide and reveal many sites) is the
     /// diagram built by insertion: same hidden sites and neighbour lists, and it passes the
@@ -1542,8 +1560,7 @@ mod tests {
                     PowerDiagram::with_order_dd_unless_hidden_from(&d0, &sites, &w1, Some(&lo), &order, usize::MAX)
                         .unwrap();
                 assert_eq!(by_flips, flipped.is_some());
-                let via = complete(via);
-                for d in flipped.into_iter().map(complete).chain([via]) {
+                for d in flipped.into_iter().map(Construction::complete).chain([via.complete()]) {
                     d.sanity_check().unwrap();
                     assert_eq!(d.hidden, built.hidden, "scale {scale}");
                     assert_eq!(d.neighbor_offsets, built.neighbor_offsets, "scale {scale}");

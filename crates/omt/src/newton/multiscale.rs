@@ -53,7 +53,7 @@
 use super::{solve_ot, Heights, NewtonParams};
 use crate::error::OmtError;
 use crate::measure::SourceMeasure;
-use crate::power_diagram::{Construction, InsertionOrder, PowerDiagram};
+use crate::power_diagram::{InsertionOrder, PowerDiagram};
 use rayon::prelude::*;
 
 /// Points below which no coarse level is used unless they are crowded.
@@ -497,21 +497,7 @@ pub(crate) fn coarse_to_fine_heights(
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = match previous.take().filter(|_| params.flip_updates) {
-            Some(previous) => {
-                match PowerDiagram::with_order_dd_unless_hidden_from(
-                    &previous,
-                    points,
-                    &w,
-                    Some(&wl),
-                    &order,
-                    usize::MAX,
-                )?
-                .0
-                {
-                    Construction::Complete(diagram) => diagram,
-                    Construction::Hidden { .. } => unreachable!("no early stop without a limit"),
-                }
-            }
+            Some(previous) => PowerDiagram::with_order_dd_from(&previous, points, &w, Some(&wl), &order)?,
             None => PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?,
         };
         // (a walk from j stops at j unless j is hidden or a neighbour is strictly closer)

@@ -33,7 +33,9 @@
 
 use rayon::prelude::*;
 
-use super::{edge_offset, ChunkResult, Line, Piece, RestrictedIntegrator, Scratch, NO_LABEL, NO_SEED};
+use super::{
+    edge_offset, power_line_between, ChunkResult, Line, Piece, RestrictedIntegrator, Scratch, NO_LABEL, NO_SEED,
+};
 use crate::power_diagram::PowerDiagram;
 use crate::predicates::orient;
 
@@ -73,14 +75,10 @@ fn meet(l: &Line, h: &Line) -> Option<[f64; 2]> {
 /// The power line of neighbour slot `slot` of cell i, relative to y_i (as in `clip_to_cell`).
 #[inline]
 fn power_line(diagram: &PowerDiagram, i: usize, slot: usize) -> Line {
-    let sites = diagram.sites();
-    let y = sites[i];
-    let j = diagram.neighbor_list()[slot] as usize;
-    let d = [sites[j][0] - y[0], sites[j][1] - y[1]];
-    let (wi, wj) = (diagram.weight(i), diagram.weight(j));
+    let (n, c) = power_line_between(diagram, i, diagram.neighbor_list()[slot] as usize);
     Line {
-        n: d,
-        c: 0.5 * ((d[0] * d[0] + d[1] * d[1]) + ((wi[0] - wj[0]) + (wi[1] - wj[1]))),
+        n,
+        c,
         label: slot as u32,
     }
 }

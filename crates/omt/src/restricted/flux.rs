@@ -43,6 +43,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Conj, MatMut, Par, Side};
 use rayon::prelude::*;
 
+use super::power_line_between;
 use crate::cells::CellIntegrals;
 use crate::power_diagram::PowerDiagram;
 use crate::predicates::orient;
@@ -112,6 +113,12 @@ struct EdgeTerms {
     error_i: f64,
     error_j: f64,
     edge_mass: f64,
+}
+
+/// max(|x₀|, |x₁|).
+#[inline]
+fn magnitude(x: [f64; 2]) -> f64 {
+    x[0].abs().max(x[1].abs())
 }
 
 #[inline]
@@ -330,7 +337,7 @@ impl FluxField {
                 weight(t, k) * lambda[t]
             })
             .collect();
-        let extent = vertices.iter().fold(0.0f64, |r, p| r.max(p[0].abs()).max(p[1].abs()));
+        let extent = vertices.iter().fold(0.0f64, |r, &p| r.max(magnitude(p)));
         Some(FluxField {
             a,
             b,
@@ -593,13 +600,9 @@ impl FluxField {
                         let normal = [dij[0] / norm, dij[1] / norm];
                         // The power line of (i, j), x·d = c relative to y_i: its point x0 nearest
                         // to y_i and its direction τ (to the right of y_i → y_j, away from t).
-                        let c = {
-                            let (wi, wj) = (diagram.weight(i as usize), diagram.weight(j as usize));
-                            0.5 * ((dij[0] * dij[0] + dij[1] * dij[1]) + ((wi[0] - wj[0]) + (wi[1] - wj[1])))
-                        };
+                        let (_, c) = power_line_between(diagram, i as usize, j as usize);
                         let x0 = [yi[0] + c / norm * normal[0], yi[1] + c / norm * normal[1]];
                         let tau = [normal[1], -normal[0]];
-                        let magnitude = |x: [f64; 2]| x[0].abs().max(x[1].abs());
                         // Points of Ω on the line have |s| ≤ |x0| + √2 extent along τ from x0.
                         let reach = ((x0[0] * x0[0] + x0[1] * x0[1]).sqrt() + std::f64::consts::SQRT_2 * self.extent)
                             * (1.0 + 1e-12);
@@ -835,18 +838,8 @@ fn canonical(t: [u32; 3]) -> [u32; 3] {
 /// relative to y_a and κ the conditioning of its 2 × 2 system (large for nearly collinear
 /// sites); `None` when they are too nearly collinear.
 fn power_centre(diagram: &PowerDiagram, t: [u32; 3]) -> Option<([f64; 2], f64)> {
-    let sites = diagram.sites();
-    let y = sites[t[0] as usize];
-    let w = diagram.weight(t[0] as usize);
-    let line = |v: u32| {
-        let s = sites[v as usize];
-        let wv = diagram.weight(v as usize);
-        let d = sub(s, y);
-        (
-            d,
-            0.5 * ((d[0] * d[0] + d[1] * d[1]) + ((w[0] - wv[0]) + (w[1] - wv[1]))),
-        )
-    };
+    let y = diagram.sites()[t[0] as usize];
+    let line = |v: u32| power_line_between(diagram, t[0] as usize, v as usize);
     let ((d1, c1), (d2, c2)) = (line(t[1]), line(t[2]));
     let det = cross(d1, d2);
     let scale = (d1[0].abs() + d1[1].abs()) * (d2[0].abs() + d2[1].abs());
@@ -854,7 +847,6 @@ fn power_centre(diagram: &PowerDiagram, t: [u32; 3]) -> Option<([f64; 2], f64)> 
         return None;
     }
     let z = [(c1 * d2[1] - c2 * d1[1]) / det, (d1[0] * c2 - d2[0] * c1) / det];
-    let magnitude = |x: [f64; 2]| x[0].abs().max(x[1].abs());
     let error = 4.0 * f64::EPSILON * (magnitude(y) + scale / det * magnitude(z));
     Some(([y[0] + z[0], y[1] + z[1]], error))
 }

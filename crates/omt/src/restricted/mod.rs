@@ -125,6 +125,21 @@ impl Polygon {
     }
 }
 
+/// The power line between the cells of sites i and j, relative to y_i: {z : z·d = c} with
+/// d = y_j − y_i and c = ½(|d|² + w_i − w_j) (the weights in double-double form), W_i on the side
+/// z·d ≤ c (module docs). Shared by the boundary and flux forms, so both see the same line.
+#[inline]
+pub(super) fn power_line_between(diagram: &PowerDiagram, i: usize, j: usize) -> ([f64; 2], f64) {
+    let sites = diagram.sites();
+    let (y, yj) = (sites[i], sites[j]);
+    let d = [yj[0] - y[0], yj[1] - y[1]];
+    let (wi, wj) = (diagram.weight(i), diagram.weight(j));
+    (
+        d,
+        0.5 * ((d[0] * d[0] + d[1] * d[1]) + ((wi[0] - wj[0]) + (wi[1] - wj[1]))),
+    )
+}
+
 /// The offset c = n·(p − y) of the line through p and q (normal n = (q_y − p_y, p_x − q_x)),
 /// relative to y, in compensated arithmetic: the line's distance from y is accurate to
 /// ~ε² |q − p| |p − y| instead of ε |q − p| |p − y|. This matters when the edge of a large source
@@ -352,8 +367,9 @@ pub struct RestrictedIntegrator {
     /// the measure's slot (built there if the slot holds none for these fields: once per
     /// measure, shared by all its solves); `None` inside when the measure is not a convex disk.
     flux: OnceLock<Option<Arc<FluxField>>>,
-    /// The measure's slot and the fingerprint of its fields when this integrator was built.
-    flux_slot: (crate::measure::FluxSlot, u64),
+    /// The measure's slot (checked against the fingerprint of this integrator's copies of its
+    /// fields, computed at the first use).
+    flux_slot: crate::measure::FluxSlot,
     /// The sites of the last flux-form integration and a source triangle at or near each.
     site_triangles: Mutex<Option<SiteTriangles>>,
     /// The error bound relative to each cell's mass under which [`Self::integrate_masses`]
@@ -426,7 +442,7 @@ impl RestrictedIntegrator {
             boundary: convex_hull(&measure.vertices),
             seeds: (0..measure.triangles.len()).map(|_| AtomicU32::new(NO_SEED)).collect(),
             flux: OnceLock::new(),
-            flux_slot: (measure.flux.clone(), measure.fingerprint()),
+            flux_slot: measure.flux.clone(),
             flux_bound: Some(1e-8),
             site_triangles: Mutex::new(None),
             flux_declines: AtomicUsize::new(0),
@@ -752,15 +768,15 @@ impl RestrictedIntegrator {
         let field = self
             .flux
             .get_or_init(|| {
-                let (slot, fingerprint) = &self.flux_slot;
-                let mut slot = slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+                let fingerprint = crate::measure::fingerprint(&self.vertices, &self.triangles, &self.densities);
+                let mut slot = self.flux_slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
                 match slot.as_ref() {
-                    Some((f, field)) if f == fingerprint => field.clone(),
+                    Some((f, field)) if *f == fingerprint => field.clone(),
                     _ => {
                         let field =
                             FluxField::new(&self.vertices, &self.triangles, &self.densities, &self.triangle_areas)
                                 .map(Arc::new);
-                        *slot = Some((*fingerprint, field.clone()));
+                        *slot = Some((fingerprint, field.clone()));
                         field
                     }
                 }
