@@ -415,19 +415,26 @@ fn clockwise_edges(edges: impl Iterator<Item = [u32; 2]>, uv: &[[f64; 2]]) -> us
 /// triangulation and again after the intrinsic Delaunay flips (`flipped`), which join the
 /// two sides of a part a few triangles wide and can cut its interior vertices off too.
 fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: bool) -> Result<(), ConformalError> {
-    let adj = neighbors(tri);
-    let mut seen = vec![false; tri.num_vertices];
-    seen[center as usize] = true;
-    let mut stack = vec![center];
-    while let Some(x) = stack.pop() {
-        for &y in &adj[x as usize] {
-            if !tri.is_boundary[y as usize] && !seen[y as usize] {
-                seen[y as usize] = true;
-                stack.push(y);
+    // components of the graph of interior–interior edges, by union–find over the half-edges
+    let mut parent: Vec<u32> = (0..tri.num_vertices as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    for h in 0..tri.tail.len() as u32 {
+        let (a, b) = (tri.tail[h as usize], tri.head(h));
+        if !tri.is_boundary[a as usize] && !tri.is_boundary[b as usize] {
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            if ra != rb {
+                parent[ra as usize] = rb;
             }
         }
     }
-    let mut cut_off = (0..tri.num_vertices).filter(|&v| !tri.is_boundary[v] && !seen[v]);
+    let root = find(&mut parent, center);
+    let mut cut_off = (0..tri.num_vertices).filter(|&v| !tri.is_boundary[v] && find(&mut parent, v as u32) != root);
     match cut_off.next() {
         None => Ok(()),
         Some(vertex) => Err(ConformalError::CutOffInterior {
@@ -438,13 +445,23 @@ fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: 
     }
 }
 
-/// Vertex adjacency from the (unflipped) triangulation.
+/// Vertex adjacency from the (unflipped) triangulation, each list sorted. Every edge is listed
+/// from its half-edge whose twin comes later (or is missing, on the boundary), in both lists.
 pub(crate) fn neighbors(tri: &IntrinsicTriangulation) -> Vec<Vec<u32>> {
-    let mut adj = vec![Vec::new(); tri.num_vertices];
-    for h in 0..tri.tail.len() as u32 {
-        let (a, b) = (tri.tail[h as usize], tri.head(h));
-        adj[a as usize].push(b);
-        adj[b as usize].push(a);
+    let mut degree = vec![0u32; tri.num_vertices];
+    for h in 0..tri.tail.len() {
+        if tri.twin[h] == crate::intrinsic::NONE || tri.twin[h] as usize > h {
+            degree[tri.tail[h] as usize] += 1;
+            degree[tri.head(h as u32) as usize] += 1;
+        }
+    }
+    let mut adj: Vec<Vec<u32>> = degree.iter().map(|&d| Vec::with_capacity(d as usize)).collect();
+    for h in 0..tri.tail.len() {
+        if tri.twin[h] == crate::intrinsic::NONE || tri.twin[h] as usize > h {
+            let (a, b) = (tri.tail[h], tri.head(h as u32));
+            adj[a as usize].push(b);
+            adj[b as usize].push(a);
+        }
     }
     for l in &mut adj {
         l.sort_unstable();
