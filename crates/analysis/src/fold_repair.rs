@@ -66,6 +66,8 @@
 
 use std::collections::VecDeque;
 
+use rayon::prelude::*;
+
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuSymbolicParams, NumericLu};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -165,20 +167,20 @@ pub struct FoldRepairInfo {
 /// Whether the image of face (a, b, c) is counter-clockwise with doubled area ≥
 /// [`MIN_DOUBLED_AREA`] (module docs).
 pub fn face_is_valid(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> bool {
-    log_doubled_area(a, b, c).is_some()
+    doubled_area(a, b, c).is_some()
 }
 
-/// ln of the doubled area of a valid face (a, b, c) ([`face_is_valid`]), `None` for a folded
-/// one. The edge vectors are scaled by a power of two first, so tiny faces keep their
-/// relative precision.
-fn log_doubled_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<f64> {
+/// The doubled area of a valid face (a, b, c) ([`face_is_valid`]), `None` for a folded one.
+/// The edge vectors are scaled by a power of two first, so tiny faces keep their relative
+/// precision (a valid face's doubled area, at least 1e-300, is a normal f64).
+fn doubled_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<f64> {
     let d1 = [b[0] - a[0], b[1] - a[1]];
     let d2 = [c[0] - a[0], c[1] - a[1]];
     let m = d1.iter().chain(d2.iter()).fold(0.0f64, |acc, x| acc.max(x.abs()));
     if !(m > 0.0 && m.is_finite()) {
         return None;
     }
-    let (s, e) = power_of_two_scale(m);
+    let (s, _) = power_of_two_scale(m);
     let (t1, t2) = ((d1[0] * s) * (d2[1] * s), (d1[1] * s) * (d2[0] * s));
     let cross = t1 - t2;
     // Shewchuk's orient2d filter [Shewchuk 1997, ccwerrboundA] on the exactly scaled edge
@@ -189,9 +191,11 @@ fn log_doubled_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<f64> {
     if !certified && orient_scaled(a, b, c) != Sign::Positive {
         return None;
     }
-    // doubled area = cross · 4^e ≥ MIN_DOUBLED_AREA, compared in logs (no underflow)
-    let log = cross.ln() + 2.0 * e as f64 * std::f64::consts::LN_2;
-    (cross > 0.0 && log >= MIN_DOUBLED_AREA.ln()).then_some(log)
+    // doubled area = cross · 4^e (exact scaling by 2^e twice; below 1e-300 it may round or
+    // underflow, which only makes it smaller)
+    let inv = 1.0 / s;
+    let area = (cross * inv) * inv;
+    (cross > 0.0 && area >= MIN_DOUBLED_AREA).then_some(area)
 }
 
 /// Counts (flipped, degenerate) faces of `uv` and lists the folded ones.
@@ -247,15 +251,11 @@ fn half_angle_tan<const D: usize>(a: [f64; D], b: [f64; D]) -> f64 {
 /// Entries may be 0, ∞ or NaN on degenerate layouts; rows are not normalized.
 fn mean_value_weights<const D: usize>(
     faces: &[[u32; 3]],
+    vertex_faces: &[Vec<u32>],
     neighbors: &[Vec<u32>],
     is_boundary: &[bool],
     p: &[[f64; D]],
 ) -> Vec<Vec<f64>> {
-    let mut w: Vec<Vec<f64>> = neighbors
-        .iter()
-        .zip(is_boundary)
-        .map(|(n, &b)| if b { Vec::new() } else { vec![0.0; n.len()] })
-        .collect();
     let sub = |x: [f64; D], y: [f64; D]| -> [f64; D] { std::array::from_fn(|k| x[k] - y[k]) };
     let norm = |x: [f64; D]| -> f64 {
         // hypot-style scaling to avoid underflow of tiny edges
@@ -265,22 +265,31 @@ fn mean_value_weights<const D: usize>(
         }
         m * x.iter().map(|v| (v / m) * (v / m)).sum::<f64>().sqrt()
     };
-    for face in faces {
-        for c in 0..3 {
-            let (i, j, k) = (face[c] as usize, face[(c + 1) % 3] as usize, face[(c + 2) % 3] as usize);
+    // per vertex, its faces in increasing order (the same sums in the same order as a loop
+    // over all faces), in parallel
+    (0..neighbors.len())
+        .into_par_iter()
+        .map(|i| {
             if is_boundary[i] {
-                continue;
+                return Vec::new();
             }
-            let (a, b) = (sub(p[j], p[i]), sub(p[k], p[i]));
-            let t = half_angle_tan(a, b);
-            for (other, e) in [(j, a), (k, b)] {
-                if let Ok(slot) = neighbors[i].binary_search(&(other as u32)) {
-                    w[i][slot] += t / norm(e);
+            let mut row = vec![0.0; neighbors[i].len()];
+            for &f in &vertex_faces[i] {
+                let face = faces[f as usize];
+                for c in (0..3).filter(|&c| face[c] as usize == i) {
+                    let (j, k) = (face[(c + 1) % 3] as usize, face[(c + 2) % 3] as usize);
+                    let (a, b) = (sub(p[j], p[i]), sub(p[k], p[i]));
+                    let t = half_angle_tan(a, b);
+                    for (other, e) in [(j, a), (k, b)] {
+                        if let Ok(slot) = neighbors[i].binary_search(&(other as u32)) {
+                            row[slot] += t / norm(e);
+                        }
+                    }
                 }
             }
-        }
-    }
-    w
+            row
+        })
+        .collect()
 }
 
 /// Normalizes every interior row to sum 1 with entries ≥ 1e-12 of the row maximum; returns
@@ -306,12 +315,19 @@ fn normalize_row(row: &mut [f64]) -> bool {
 /// row is degenerate (a zero-area 3D face).
 fn tutte_weights(
     mesh: &TriMesh,
+    vertex_faces: &[Vec<u32>],
     neighbors: &[Vec<u32>],
     is_boundary: &[bool],
     uv: &[[f64; 2]],
     kind: RepairWeights,
 ) -> Result<Vec<Vec<f64>>, AnalysisError> {
-    let mut surface = mean_value_weights(&mesh.faces, neighbors, is_boundary, &mesh.positions);
+    let (mut surface, layout) = rayon::join(
+        || mean_value_weights(&mesh.faces, vertex_faces, neighbors, is_boundary, &mesh.positions),
+        || {
+            (kind == RepairWeights::Layout)
+                .then(|| mean_value_weights(&mesh.faces, vertex_faces, neighbors, is_boundary, uv))
+        },
+    );
     for (i, row) in surface.iter_mut().enumerate() {
         if !is_boundary[i] && !normalize_row(row) {
             return Err(AnalysisError::InvalidInput(format!(
@@ -319,10 +335,9 @@ fn tutte_weights(
             )));
         }
     }
-    if kind == RepairWeights::Surface {
+    let Some(mut layout) = layout else {
         return Ok(surface);
-    }
-    let mut layout = mean_value_weights(&mesh.faces, neighbors, is_boundary, uv);
+    };
     for (i, row) in layout.iter_mut().enumerate() {
         if !is_boundary[i] && !normalize_row(row) {
             row.clone_from(&surface[i]);
@@ -456,15 +471,15 @@ fn lu_solve_in_place(a: SparseColMatRef<'_, usize, f64>, rhs: faer::MatMut<'_, f
     Ok(())
 }
 
-/// ln doubled area of face `f` with vertex `v` at `p` (`None`: folded).
-fn log_doubled_area_with(faces: &[[u32; 3]], uv: &[[f64; 2]], f: usize, v: usize, p: [f64; 2]) -> Option<f64> {
+/// Doubled area of face `f` with vertex `v` at `p` (`None`: folded).
+fn doubled_area_with(faces: &[[u32; 3]], uv: &[[f64; 2]], f: usize, v: usize, p: [f64; 2]) -> Option<f64> {
     let [a, b, c] = faces[f].map(|u| if u as usize == v { p } else { uv[u as usize] });
-    log_doubled_area(a, b, c)
+    doubled_area(a, b, c)
 }
 
 /// Retraction towards `target` (the input map): Gauss–Seidel sweeps over `movable` moving
 /// each vertex along the segment to its target by the largest step 2^{-s} (s = 0..5) after
-/// which every face around it is valid and has ln doubled area ≥ min(its current value,
+/// which every face around it is valid and has doubled area ≥ min(its current value,
 /// `floors[f]`), so an embedding stays one and no face is squeezed below its floor. Stops
 /// after `max_sweeps` or when a sweep moves nothing. Returns the sweeps run.
 fn retract(
@@ -476,19 +491,19 @@ fn retract(
     uv: &mut [[f64; 2]],
     max_sweeps: usize,
 ) -> usize {
-    // ln doubled area of every face at the current positions (None: folded), kept up to date
+    // doubled area of every face at the current positions (None: folded), kept up to date
     // as vertices move.
     let mut current: Vec<Option<f64>> = vec![None; faces.len()];
     for &v in movable {
         for &f in &vertex_faces[v] {
             let f = f as usize;
-            current[f] = log_doubled_area_with(faces, uv, f, v, uv[v]);
+            current[f] = doubled_area_with(faces, uv, f, v, uv[v]);
         }
     }
     let star_ok = |uv: &[[f64; 2]], current: &[Option<f64>], v: usize, p: [f64; 2]| {
         vertex_faces[v].iter().all(|&f| {
             let f = f as usize;
-            match (log_doubled_area_with(faces, uv, f, v, p), current[f]) {
+            match (doubled_area_with(faces, uv, f, v, p), current[f]) {
                 (Some(new), Some(old)) => new >= old.min(floors[f]),
                 (Some(_), None) => true,
                 (None, _) => false,
@@ -522,7 +537,7 @@ fn retract(
                     uv[v] = p;
                     for &f in &vertex_faces[v] {
                         let f = f as usize;
-                        current[f] = log_doubled_area_with(faces, uv, f, v, p);
+                        current[f] = doubled_area_with(faces, uv, f, v, p);
                         for &u in &faces[f] {
                             dirty[u as usize] = true;
                         }
@@ -633,7 +648,7 @@ pub fn repair_folds(
         bad = folded_faces(&mesh.faces, uv).2;
     }
     let neighbors = conn.vertex_neighbors(n);
-    let mut weights = tutte_weights(mesh, &neighbors, is_boundary, uv, params.weights)?;
+    let mut weights = tutte_weights(mesh, &conn.vertex_faces, &neighbors, is_boundary, uv, params.weights)?;
     let original = uv.to_vec();
     let num_interior = is_boundary.iter().filter(|&&b| !b).count();
     let mut in_region = vec![false; n];
@@ -657,7 +672,14 @@ pub fn repair_folds(
             info.whole_disk = true;
             if info.weights == RepairWeights::Layout && !info.surface_fallback {
                 info.surface_fallback = true;
-                weights = tutte_weights(mesh, &neighbors, is_boundary, uv, RepairWeights::Surface)?;
+                weights = tutte_weights(
+                    mesh,
+                    &conn.vertex_faces,
+                    &neighbors,
+                    is_boundary,
+                    uv,
+                    RepairWeights::Surface,
+                )?;
                 let candidate = solve_region(&neighbors, &weights, &in_region, &original)?;
                 bad = folded_faces(&mesh.faces, &candidate).2;
                 if bad.is_empty() {
@@ -673,7 +695,7 @@ pub fn repair_folds(
     };
     info.region_vertices = region_size;
     let movable: Vec<usize> = (0..n).filter(|&v| in_region[v]).collect();
-    // floors: ln(2 · e^{-τ} · A3D_f · A2D_total / A3D_total), lowered to the input's valid area
+    // floors: 2 · e^{-τ} · A3D_f · A2D_total / A3D_total, lowered to the input's valid area
     let areas3 = face_areas(mesh);
     let total3: f64 = areas3.iter().sum();
     let total2: f64 = mesh
@@ -689,9 +711,9 @@ pub fn repair_folds(
         .iter()
         .zip(&areas3)
         .map(|(f, a3)| {
-            let share = (2.0 * a3 * total2 / total3).ln() - params.retraction_log_floor;
+            let share = 2.0 * a3 * total2 / total3 * (-params.retraction_log_floor).exp();
             let [a, b, c] = f.map(|v| original[v as usize]);
-            log_doubled_area(a, b, c).map_or(share, |l| l.min(share))
+            doubled_area(a, b, c).map_or(share, |l| l.min(share))
         })
         .collect();
     info.retraction_sweeps = retract(
@@ -753,7 +775,14 @@ pub fn mean_value_tutte_map(
     }
     let neighbors = conn.vertex_neighbors(n);
     let is_fixed: Vec<bool> = fixed.iter().map(Option::is_some).collect();
-    let weights = tutte_weights(mesh, &neighbors, &is_fixed, layout, RepairWeights::Layout)?;
+    let weights = tutte_weights(
+        mesh,
+        &conn.vertex_faces,
+        &neighbors,
+        &is_fixed,
+        layout,
+        RepairWeights::Layout,
+    )?;
     let positions: Vec<[f64; 2]> = fixed.iter().zip(layout).map(|(f, p)| f.unwrap_or(*p)).collect();
     let free: Vec<bool> = is_fixed.iter().map(|f| !f).collect();
     solve_region(&neighbors, &weights, &free, &positions)
@@ -955,7 +984,7 @@ mod tests {
         assert!(!face_is_valid([0.0, 0.0], [1e-151, 0.0], [0.0, 1e-151]));
     }
 
-    /// The float filter in `log_doubled_area` never decides differently from the exact
+    /// The float filter in `doubled_area` never decides differently from the exact
     /// predicate: random and nearly collinear triangles at scales 1e-140 … 1e3.
     #[test]
     fn filtered_validity_agrees_with_the_exact_predicate() {
@@ -983,7 +1012,7 @@ mod tests {
                 ]
             };
             let exact_positive = orient_scaled(a, b, c) == Sign::Positive;
-            let got = log_doubled_area(a, b, c);
+            let got = doubled_area(a, b, c);
             if !exact_positive {
                 assert!(got.is_none(), "{a:?} {b:?} {c:?}");
             } else {
@@ -992,12 +1021,8 @@ mod tests {
                 let d2 = [c[0] - a[0], c[1] - a[1]];
                 let cross = d1[0] * d2[1] - d1[1] * d2[0];
                 if cross > 1e-250 {
-                    let l = got.expect("a positive face of area > 1e-250 is valid");
-                    assert!(
-                        (l - cross.ln()).abs() < 1e-9 * (1.0 + cross.ln().abs()),
-                        "{l} vs {}",
-                        cross.ln()
-                    );
+                    let area = got.expect("a positive face of area > 1e-250 is valid");
+                    assert!((area - cross).abs() <= 1e-9 * cross, "{area} vs {cross}");
                 }
             }
         }
@@ -1027,7 +1052,7 @@ mod tests {
             .iter()
             .map(|f| {
                 let [a, b, c] = f.map(|v| reference[v as usize]);
-                log_doubled_area(a, b, c).unwrap() - 0.3
+                doubled_area(a, b, c).unwrap() * (-0.3f64).exp()
             })
             .collect();
         let mut fast = start.clone();
@@ -1046,8 +1071,8 @@ mod tests {
             conn.vertex_faces[v].iter().all(|&f| {
                 let f = f as usize;
                 match (
-                    log_doubled_area_with(&mesh.faces, uv, f, v, p),
-                    log_doubled_area_with(&mesh.faces, uv, f, v, uv[v]),
+                    doubled_area_with(&mesh.faces, uv, f, v, p),
+                    doubled_area_with(&mesh.faces, uv, f, v, uv[v]),
                 ) {
                     (Some(new), Some(old)) => new >= old.min(floors[f]),
                     (Some(_), None) => true,
@@ -1107,7 +1132,15 @@ mod tests {
             let (mesh, is_boundary, uv) = disk_layout(rings);
             let n = mesh.num_vertices();
             let neighbors = Connectivity::of(&mesh).vertex_neighbors(n);
-            let w = tutte_weights(&mesh, &neighbors, &is_boundary, &uv, RepairWeights::Layout).unwrap();
+            let w = tutte_weights(
+                &mesh,
+                &Connectivity::of(&mesh).vertex_faces,
+                &neighbors,
+                &is_boundary,
+                &uv,
+                RepairWeights::Layout,
+            )
+            .unwrap();
             let all_interior: Vec<bool> = is_boundary.iter().map(|b| !b).collect();
             let interior = all_interior.iter().filter(|&&b| b).count();
             assert_eq!(interior >= SUPERNODAL_LU_MIN, rings == 30, "{interior} unknowns");
