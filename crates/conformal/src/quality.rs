@@ -11,6 +11,7 @@
 //! triangles of size 1e-150 keep full relative precision.
 
 use geogram_predicates::{orient_2d, Sign};
+use rayon::prelude::*;
 use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
@@ -149,68 +150,82 @@ pub fn face_distortions(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<FaceDistortio
     let total: f64 = areas.iter().sum();
     let ln_scale2 = (std::f64::consts::PI / total).ln(); // ln s²
     let nf = mesh.num_faces();
+    // per face (Υ, ln K, mean angle error, orientation), in parallel; the first degenerate face
+    // (lowest index) is the one reported
+    let per_face: Vec<Option<(f64, f64, f64, i8)>> = (0..nf)
+        .into_par_iter()
+        .map(|f| {
+            let [a, b, c] = mesh.face_positions(f);
+            let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+            let l1 = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).sqrt();
+            let cr = [
+                e1[1] * e2[2] - e1[2] * e2[1],
+                e1[2] * e2[0] - e1[0] * e2[2],
+                e1[0] * e2[1] - e1[1] * e2[0],
+            ];
+            let twice_area = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+            if !(twice_area > 0.0) || !(l1 > 0.0) {
+                return None;
+            }
+            // local frame of the 3D triangle: E1 = (l1, 0), E2 = (x, y)
+            let x = (e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]) / l1;
+            let y = twice_area / l1;
+            let face = mesh.faces[f];
+            let p = face.map(|v| uv[v as usize]);
+            let orientation = match orient_scaled(p[0], p[1], p[2]) {
+                Sign::Positive => 1,
+                Sign::Negative => -1,
+                Sign::Zero => 0,
+            };
+            let (d1, d2, ln_s) = scaled_edges(p);
+            // J = [d1 d2] E⁻¹, E⁻¹ = 1/(l1 y) [[y, −x], [0, l1]]
+            let inv = 1.0 / (l1 * y);
+            let j = [
+                [d1[0] * y * inv, (d2[0] * l1 - d1[0] * x) * inv],
+                [d1[1] * y * inv, (d2[1] * l1 - d1[1] * x) * inv],
+            ];
+            let (ja, jb, jc, jd) = (j[0][0], j[0][1], j[1][0], j[1][1]);
+            let sp = ((ja + jd).powi(2) + (jc - jb).powi(2)).sqrt();
+            let sm = ((ja - jd).powi(2) + (jb + jc).powi(2)).sqrt();
+            let (gmax, gmin) = (0.5 * (sp + sm), 0.5 * (sp - sm).abs());
+            let det = (ja * jd - jb * jc).abs();
+            // Υ = ln det(J_true) − ln s², J_true = J·2^e
+            let area_distortion = det.ln() + 2.0 * ln_s - ln_scale2;
+            let quasi_conformal = if gmin > 0.0 { (gmax / gmin).ln() } else { f64::INFINITY };
+            // corner angles
+            let p3 = [a, b, c];
+            let q2 = [[0.0, 0.0], d1, d2];
+            let mut sum = 0.0;
+            for k in 0..3 {
+                let (u3, v3) = (sub3(p3[(k + 1) % 3], p3[k]), sub3(p3[(k + 2) % 3], p3[k]));
+                let t3 = norm3(cross3(u3, v3)).atan2(dot3(u3, v3));
+                let (u2, v2) = (sub2(q2[(k + 1) % 3], q2[k]), sub2(q2[(k + 2) % 3], q2[k]));
+                let t2 = (u2[0] * v2[1] - u2[1] * v2[0])
+                    .abs()
+                    .atan2(u2[0] * v2[0] + u2[1] * v2[1]);
+                sum += (t3 - t2).abs();
+            }
+            Some((area_distortion, quasi_conformal, sum / 3.0, orientation))
+        })
+        .collect();
     let mut out = FaceDistortions {
-        area_distortion: vec![0.0; nf],
-        quasi_conformal_distortion: vec![0.0; nf],
-        angle_distortion: vec![0.0; nf],
-        orientation: vec![0; nf],
+        area_distortion: Vec::with_capacity(nf),
+        quasi_conformal_distortion: Vec::with_capacity(nf),
+        angle_distortion: Vec::with_capacity(nf),
+        orientation: Vec::with_capacity(nf),
     };
-    for f in 0..nf {
-        let [a, b, c] = mesh.face_positions(f);
-        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let l1 = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).sqrt();
-        let cr = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
-        let twice_area = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
-        if !(twice_area > 0.0) || !(l1 > 0.0) {
+    for (f, values) in per_face.into_iter().enumerate() {
+        let Some((area, quasi_conformal, angle, orientation)) = values else {
             return Err(ConformalError::DegenerateFace {
                 face: f,
                 reason: "zero 3D area".into(),
             });
-        }
-        // local frame of the 3D triangle: E1 = (l1, 0), E2 = (x, y)
-        let x = (e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]) / l1;
-        let y = twice_area / l1;
-        let face = mesh.faces[f];
-        let p = face.map(|v| uv[v as usize]);
-        out.orientation[f] = match orient_scaled(p[0], p[1], p[2]) {
-            Sign::Positive => 1,
-            Sign::Negative => -1,
-            Sign::Zero => 0,
         };
-        let (d1, d2, ln_s) = scaled_edges(p);
-        // J = [d1 d2] E⁻¹, E⁻¹ = 1/(l1 y) [[y, −x], [0, l1]]
-        let inv = 1.0 / (l1 * y);
-        let j = [
-            [d1[0] * y * inv, (d2[0] * l1 - d1[0] * x) * inv],
-            [d1[1] * y * inv, (d2[1] * l1 - d1[1] * x) * inv],
-        ];
-        let (ja, jb, jc, jd) = (j[0][0], j[0][1], j[1][0], j[1][1]);
-        let sp = ((ja + jd).powi(2) + (jc - jb).powi(2)).sqrt();
-        let sm = ((ja - jd).powi(2) + (jb + jc).powi(2)).sqrt();
-        let (gmax, gmin) = (0.5 * (sp + sm), 0.5 * (sp - sm).abs());
-        let det = (ja * jd - jb * jc).abs();
-        // Υ = ln det(J_true) − ln s², J_true = J·2^e
-        out.area_distortion[f] = det.ln() + 2.0 * ln_s - ln_scale2;
-        out.quasi_conformal_distortion[f] = if gmin > 0.0 { (gmax / gmin).ln() } else { f64::INFINITY };
-        // corner angles
-        let p3 = [a, b, c];
-        let q2 = [[0.0, 0.0], d1, d2];
-        let mut sum = 0.0;
-        for k in 0..3 {
-            let (u3, v3) = (sub3(p3[(k + 1) % 3], p3[k]), sub3(p3[(k + 2) % 3], p3[k]));
-            let t3 = norm3(cross3(u3, v3)).atan2(dot3(u3, v3));
-            let (u2, v2) = (sub2(q2[(k + 1) % 3], q2[k]), sub2(q2[(k + 2) % 3], q2[k]));
-            let t2 = (u2[0] * v2[1] - u2[1] * v2[0])
-                .abs()
-                .atan2(u2[0] * v2[0] + u2[1] * v2[1]);
-            sum += (t3 - t2).abs();
-        }
-        out.angle_distortion[f] = sum / 3.0;
+        out.area_distortion.push(area);
+        out.quasi_conformal_distortion.push(quasi_conformal);
+        out.angle_distortion.push(angle);
+        out.orientation.push(orientation);
     }
     Ok(out)
 }
