@@ -43,4 +43,8 @@ fn main() {
         t.elapsed().as_secs_f64(),
         sol.stop
     );
+    println!(
+        "linear algebra (finest level): assembly {:.3} s, symbolic {:.3} s ({} factorizations, {} orderings), numeric + solve {:.3} s",
+        sol.t_assembly, sol.t_symbolic, sol.symbolic_factorizations, sol.orderings, sol.t_numeric
+    );
 }
