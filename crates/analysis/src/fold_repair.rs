@@ -172,7 +172,9 @@ pub fn face_is_valid(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> bool {
 
 /// The doubled area of a valid face (a, b, c) ([`face_is_valid`]), `None` for a folded one.
 /// The edge vectors are scaled by a power of two first, so tiny faces keep their relative
-/// precision (a valid face's doubled area, at least 1e-300, is a normal f64).
+/// precision (a valid face's doubled area, at least 1e-300, is a normal f64; it is +∞ only for
+/// edges beyond ~1e154, far outside the unit domains of the maps). Subnormal edge vectors
+/// (scale 2^−e overflowing to ∞) give no finite area: folded.
 fn doubled_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<f64> {
     let d1 = [b[0] - a[0], b[1] - a[1]];
     let d2 = [c[0] - a[0], c[1] - a[1]];
@@ -982,6 +984,54 @@ mod tests {
         assert!(face_is_valid([1e-140, 1e-140], [2e-140, 1e-140], [1e-140, 2e-140]));
         assert!(face_is_valid([0.0, 0.0], [1e-150, 0.0], [0.0, 1e-150]));
         assert!(!face_is_valid([0.0, 0.0], [1e-151, 0.0], [0.0, 1e-151]));
+        // subnormal edge vectors (their power-of-two scale overflows): area ~1e-646, folded
+        let (a, h) = (2f64.powi(-1023), 2f64.powi(-1073));
+        assert!(!face_is_valid([a, a], [a + h, a - h], [a + h, a + h]));
+    }
+
+    /// The per-vertex weights sum each vertex's faces in increasing order: the same bits as the
+    /// loop over all faces they replaced, on a jittered disk.
+    #[test]
+    fn per_vertex_mean_value_weights_equal_the_loop_over_faces() {
+        let (mesh, is_boundary, mut uv) = disk_layout(12);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for (v, p) in uv.iter_mut().enumerate() {
+            if !is_boundary[v] {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                p[0] += 0.02 * ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+                p[1] += 0.02 * ((state & 0xffff) as f64 / 65536.0 - 0.5);
+            }
+        }
+        let conn = Connectivity::of(&mesh);
+        let neighbors = conn.vertex_neighbors(mesh.num_vertices());
+        let got = mean_value_weights(&mesh.faces, &conn.vertex_faces, &neighbors, &is_boundary, &uv);
+        let mut want: Vec<Vec<f64>> = neighbors
+            .iter()
+            .zip(&is_boundary)
+            .map(|(n, &b)| if b { Vec::new() } else { vec![0.0; n.len()] })
+            .collect();
+        for face in &mesh.faces {
+            for c in 0..3 {
+                let (i, j, k) = (face[c] as usize, face[(c + 1) % 3] as usize, face[(c + 2) % 3] as usize);
+                if is_boundary[i] {
+                    continue;
+                }
+                let (a, b) = (
+                    [uv[j][0] - uv[i][0], uv[j][1] - uv[i][1]],
+                    [uv[k][0] - uv[i][0], uv[k][1] - uv[i][1]],
+                );
+                let t = half_angle_tan(a, b);
+                for (other, e) in [(j, a), (k, b)] {
+                    let slot = neighbors[i].binary_search(&(other as u32)).unwrap();
+                    let m = e[0].abs().max(e[1].abs());
+                    want[i][slot] += t / (m * ((e[0] / m) * (e[0] / m) + (e[1] / m) * (e[1] / m)).sqrt());
+                }
+            }
+        }
+        assert_eq!(got, want);
+        assert!(got.iter().any(|row| row.len() > 4));
     }
 
     /// The float filter in `doubled_area` never decides differently from the exact

@@ -414,7 +414,12 @@ fn clockwise_edges(edges: impl Iterator<Item = [u32; 2]>, uv: &[[f64; 2]]) -> us
 /// other part of the interior ([`ConformalError::CutOffInterior`]). Checked on the input
 /// triangulation and again after the intrinsic Delaunay flips (`flipped`), which join the
 /// two sides of a part a few triangles wide and can cut its interior vertices off too.
+/// `center` is an interior vertex (the markers' resolution rejects a boundary center).
 fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: bool) -> Result<(), ConformalError> {
+    debug_assert!(
+        !tri.is_boundary[center as usize],
+        "the center {center} is on the boundary"
+    );
     // components of the graph of interior–interior edges, by union–find over the half-edges
     let mut parent: Vec<u32> = (0..tri.num_vertices as u32).collect();
     fn find(p: &mut [u32], mut x: u32) -> u32 {

@@ -14,7 +14,9 @@ pub struct Connectivity {
     pub edge_faces: Vec<Vec<u32>>,
     /// For each face, the edge opposite each corner: `face_edges[f][k]` joins corners k+1 and k+2.
     pub face_edges: Vec<[u32; 3]>,
-    /// For each vertex, the faces around it (unordered), #V.
+    /// For each vertex, the faces around it in increasing face order, each once (a face that
+    /// repeats the vertex is listed for its first corner only), #V. (Not in rotation order;
+    /// the fold repair's per-vertex sums rely on the increasing order.)
     pub vertex_faces: Vec<Vec<u32>>,
 }
 
