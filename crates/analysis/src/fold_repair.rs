@@ -962,6 +962,22 @@ mod tests {
         (mesh, is_boundary, uv)
     }
 
+    /// max_v |a_v − b_v|.
+    fn max_distance(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max)
+    }
+
+    /// The next state of a xorshift64 generator (the tests' reproducible random numbers).
+    fn xorshift(state: &mut u64) -> u64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    }
+
     /// `reference` with vertex v pushed past its neighbour `far` by half an edge, so that v's
     /// star folds, and the number of flipped faces (at least 2).
     fn pushed_past(mesh: &TriMesh, reference: &[[f64; 2]], v: usize, far: usize) -> (Vec<[f64; 2]>, usize) {
@@ -997,9 +1013,7 @@ mod tests {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         for (v, p) in uv.iter_mut().enumerate() {
             if !is_boundary[v] {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
+                let state = xorshift(&mut state);
                 p[0] += 0.02 * ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
                 p[1] += 0.02 * ((state & 0xffff) as f64 / 65536.0 - 0.5);
             }
@@ -1039,12 +1053,7 @@ mod tests {
     #[test]
     fn filtered_validity_agrees_with_the_exact_predicate() {
         let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = || (xorshift(&mut state) >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
         let mut decided_by_filter = 0;
         for k in 0..20_000 {
             let scale = [1e-140, 1e-20, 1.0, 1e3][k % 4];
@@ -1195,11 +1204,7 @@ mod tests {
             let interior = all_interior.iter().filter(|&&b| b).count();
             assert_eq!(interior >= SUPERNODAL_LU_MIN, rings == 30, "{interior} unknowns");
             let out = solve_region(&neighbors, &w, &all_interior, &uv).unwrap();
-            let d = out
-                .iter()
-                .zip(&uv)
-                .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-                .fold(0.0, f64::max);
+            let d = max_distance(&out, &uv);
             assert!(d < 1e-14, "{rings} rings: max displacement {d:e}");
         }
     }
@@ -1310,9 +1315,7 @@ mod tests {
         let mut state = 0x2545_f491_4f6c_dd1du64;
         for (v, p) in uv.iter_mut().enumerate() {
             if !is_boundary[v] {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
+                let state = xorshift(&mut state);
                 let r = 0.9 * ((state >> 11) as f64 / (1u64 << 53) as f64).sqrt();
                 let t = (state & 0xffff) as f64 / 65536.0 * std::f64::consts::TAU;
                 *p = [r * t.cos(), r * t.sin()];
@@ -1401,11 +1404,7 @@ mod tests {
             .map(|v| (is_boundary[v] || v == landmark).then_some(reference[v]))
             .collect();
         let out = mean_value_tutte_map(&mesh, &reference, &fixed).unwrap();
-        let d = out
-            .iter()
-            .zip(&reference)
-            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-            .fold(0.0, f64::max);
+        let d = max_distance(&out, &reference);
         assert!(d < 1e-12, "max displacement {d:e}");
         let warped: Vec<[f64; 2]> = reference
             .iter()
