@@ -54,6 +54,7 @@
 use std::time::Instant;
 
 use serde::Serialize;
+use shapespace_geometry::topology::find;
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
@@ -226,13 +227,6 @@ pub(crate) fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result
     let chi = n as i64 - ne as i64 + nf as i64;
     // components via union-find over vertices
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(p: &mut [u32], mut x: u32) -> u32 {
-        while p[x as usize] != x {
-            p[x as usize] = p[p[x as usize] as usize];
-            x = p[x as usize];
-        }
-        x
-    }
     for h in 0..nh as u32 {
         let (a, b) = (find(&mut parent, tri.tail[h as usize]), find(&mut parent, tri.head(h)));
         if a != b {
@@ -422,13 +416,6 @@ fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: 
     );
     // components of the graph of interior–interior edges, by union–find over the half-edges
     let mut parent: Vec<u32> = (0..tri.num_vertices as u32).collect();
-    fn find(p: &mut [u32], mut x: u32) -> u32 {
-        while p[x as usize] != x {
-            p[x as usize] = p[p[x as usize] as usize];
-            x = p[x as usize];
-        }
-        x
-    }
     for h in 0..tri.tail.len() as u32 {
         let (a, b) = (tri.tail[h as usize], tri.head(h));
         if !tri.is_boundary[a as usize] && !tri.is_boundary[b as usize] {

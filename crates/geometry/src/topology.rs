@@ -166,8 +166,8 @@ pub fn unreferenced_vertices(mesh: &TriMesh) -> Vec<u32> {
         .collect()
 }
 
-/// Root of `x` in the union–find forest `parent` (path halving).
-pub(crate) fn find(parent: &mut [u32], mut x: u32) -> u32 {
+/// Root of `x` in the union–find forest `parent` (path halving; a root is its own parent).
+pub fn find(parent: &mut [u32], mut x: u32) -> u32 {
     while parent[x as usize] != x {
         let p = parent[x as usize];
         parent[x as usize] = parent[p as usize];
