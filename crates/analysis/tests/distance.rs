@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use shapespace_analysis::distance::{
-    directed_distance, pairwise_distances, prepare_shape, PairwiseOptions, PreparedShape,
+    directed_distance, pairwise_distances, prepare_shape, DirectedDistance, PairwiseOptions, PreparedShape,
 };
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
@@ -51,10 +51,19 @@ fn face(name: &str) -> (TriMesh, PreparedShape) {
     (mesh, shape)
 }
 
+/// The directed distance with `params`, which must converge.
+fn converged(source: &PreparedShape, target: &PreparedShape, params: &NewtonParams) -> DirectedDistance {
+    let (d, _) = directed_distance(source, target, params).unwrap();
+    assert!(
+        d.converged,
+        "{} -> {} ({params:?}): {}",
+        source.name, target.name, d.status
+    );
+    d
+}
+
 fn cost(source: &PreparedShape, target: &PreparedShape) -> f64 {
-    let (d, _) = directed_distance(source, target, &NewtonParams::default()).unwrap();
-    assert!(d.converged, "{} -> {}: {}", source.name, target.name, d.status);
-    d.cost
+    converged(source, target, &NewtonParams::default()).cost
 }
 
 /// W₂² between the pushed-forward area of a spherical cap of angle α (scaled to area π,
@@ -425,9 +434,7 @@ fn intermediate_targets_give_the_same_face_distance_with_fewer_evaluations() {
             target_ratio_cap: cap,
             ..NewtonParams::default()
         };
-        let (d, _) = directed_distance(&source, &target, &params).unwrap();
-        assert!(d.converged, "{cap:?}: {}", d.status);
-        d
+        converged(&source, &target, &params)
     };
     let (plain, capped) = (run(None), run(Some(shapespace_omt::newton::TARGET_RATIO_CAP)));
     eprintln!(
@@ -452,8 +459,7 @@ fn coarse_levels_integrate_an_averaged_face_measure_and_give_the_same_distance()
     let (_, source) = face("id02_sad");
     let (_, target) = face("id02_neutral");
     assert!(source.measure.averaged_samples().is_empty());
-    let (multiscale, _) = directed_distance(&source, &target, &NewtonParams::default()).unwrap();
-    assert!(multiscale.converged, "{}", multiscale.status);
+    let multiscale = converged(&source, &target, &NewtonParams::default());
     let samples = source.measure.averaged_samples();
     let v = source.measure.vertices.len();
     assert!(!samples.is_empty(), "no averaged copy was built");
@@ -465,8 +471,7 @@ fn coarse_levels_integrate_an_averaged_face_measure_and_give_the_same_distance()
         start_strategy: shapespace_omt::StartStrategy::Voronoi,
         ..NewtonParams::default()
     };
-    let (plain, _) = directed_distance(&source, &target, &voronoi).unwrap();
-    assert!(plain.converged, "{}", plain.status);
+    let plain = converged(&source, &target, &voronoi);
     eprintln!(
         "averaged coarse levels: {} steps, cost {:.12e}; Voronoi start: {} steps, cost {:.12e}",
         multiscale.iterations, multiscale.cost, plain.iterations, plain.cost
@@ -486,9 +491,7 @@ fn flux_form_evaluations_give_the_same_face_distance() {
             flux_masses,
             ..PairwiseOptions::default().newton
         };
-        let (d, _) = directed_distance(&source, &target, &params).unwrap();
-        assert!(d.converged, "flux {flux_masses}: {}", d.status);
-        d
+        converged(&source, &target, &params)
     };
     let (full, flux) = (run(false), run(true));
     eprintln!(
