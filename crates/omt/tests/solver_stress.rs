@@ -421,6 +421,70 @@ fn auto_start_reusing_the_voronoi_diagram_equals_the_explicit_coarse_to_fine_sta
     assert_eq!(auto.cells.masses, own.cells.masses);
 }
 
+/// A target's coarsening hierarchy built once (`TargetCoarsening`, what the pairwise distances
+/// pass to every solve with that target) gives the solves the coarsening each solve computes
+/// itself gives, up to rounding (the hierarchy coarsens the masses as given, a solve the masses
+/// rescaled to its source): on a density contrast (two coarse levels) and on the uniform density
+/// with a crowded cluster (Auto's Voronoi test hands its Delaunay triangulation over). A
+/// hierarchy of other masses is ignored: that solve is the solver's own, bit for bit.
+#[test]
+fn a_target_coarsening_built_once_gives_the_same_solves_up_to_rounding() {
+    use shapespace_omt::newton::TargetCoarsening;
+    use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};
+    use std::sync::Arc;
+    let contrast = disk_rings_measure(40, |x| if x[0] > 0.0 { 100.0 } else { 1.0 }).unwrap();
+    let uniform = disk_rings_measure(30, |_| 1.0).unwrap();
+    let mut points = random_disk_points(8000, 17);
+    let mut masses: Vec<f64> = (0..points.len()).map(|i| 1.0 + 0.5 * ((i % 7) as f64)).collect();
+    for k in 0..40 {
+        let t = k as f64 * 0.157;
+        points.push([
+            0.3 + 1e-7 * t.cos() * (1.0 + k as f64),
+            -0.2 + 1e-7 * t.sin() * (1.0 + k as f64),
+        ]);
+        masses.push(1e-4);
+    }
+    let hierarchy = Arc::new(TargetCoarsening::new(&points, &masses));
+    let sizes = hierarchy.level_sizes();
+    assert!(sizes.len() >= 3 && sizes[1] >= 1000, "levels {sizes:?}");
+    let doubled: Vec<f64> = masses.iter().map(|m| 2.0 * m).collect();
+    let other = Arc::new(TargetCoarsening::new(&points, &doubled));
+    for measure in [&contrast, &uniform] {
+        let solve = |coarsening: Option<Arc<TargetCoarsening>>| {
+            solve_ot(
+                measure,
+                &points,
+                &masses,
+                &NewtonParams {
+                    target_coarsening: coarsening,
+                    ..NewtonParams::default()
+                },
+            )
+            .unwrap()
+        };
+        let own = solve(None);
+        assert!(own.converged(), "{}", own.stop_description());
+        let Start::CoarseToFine { coarse_points, .. } = own.start else {
+            panic!("start {:?}", own.start)
+        };
+        assert_eq!(coarse_points, sizes[1]);
+        let ignored = solve(Some(other.clone()));
+        assert_eq!(ignored.start, own.start);
+        assert_eq!(
+            (ignored.iterations, ignored.evaluations),
+            (own.iterations, own.evaluations)
+        );
+        assert_eq!((&ignored.heights, &ignored.heights_lo), (&own.heights, &own.heights_lo));
+        assert_eq!(ignored.cost.to_bits(), own.cost.to_bits());
+        let shared = solve(Some(hierarchy.clone()));
+        assert!(shared.converged(), "{}", shared.stop_description());
+        assert!(matches!(shared.start, Start::CoarseToFine { coarse_points: c, .. } if c == coarse_points));
+        // both meet the 1e-6 mass tolerance: the costs agree far below it
+        let gap = (shared.cost - own.cost).abs() / own.cost;
+        assert!(gap < 1e-9, "cost {} against {}", shared.cost, own.cost);
+    }
+}
+
 /// `StartStrategy::Auto`: when the coarse-to-fine start it chose does not converge (here: a cap
 /// of 3 steps), the Voronoi path runs as well and the better result comes back with the steps
 /// of both; an explicit `CoarseToFine` returns its own result.

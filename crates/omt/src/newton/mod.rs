@@ -72,7 +72,9 @@
 mod line_search;
 mod multiscale;
 
-use std::sync::OnceLock;
+pub use multiscale::TargetCoarsening;
+
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use crate::cells::CellIntegrals;
@@ -166,6 +168,19 @@ pub struct NewtonParams {
     /// and 118 s, interleaved), and on the area-preserving maps it costs 9 % more instructions
     /// (Nefertiti: several measures solved once each); `ARCHITECTURE.md`, session 18.
     pub flux_masses: bool,
+    /// Tolerance of the coarser levels of the coarse-to-fine start (default 1e-3; the finest
+    /// level's `tolerance` where that is looser). Their solutions only shape the start (its
+    /// guarantee that no cell is empty holds for any coarse heights), so a looser value trades
+    /// coarse steps against the start's quality: on face pairs 1e-1 gives the same finest-level
+    /// steps with ~4 fewer coarse ones, on the TOSCA bodies it costs 1–3 finest steps
+    /// (`ARCHITECTURE.md`, session 20).
+    pub coarse_tolerance: f64,
+    /// The target's coarsening hierarchy ([`TargetCoarsening`], built once per target) for the
+    /// coarse-to-fine start; ignored when it is not that of this solve's points and masses.
+    /// `None` (default): the start coarsens the target itself, from the masses rescaled to the
+    /// source's mass; the hierarchy is built from the masses as given, so the two starts differ
+    /// by rounding (the solves converge to the same solution within the tolerance).
+    pub target_coarsening: Option<Arc<TargetCoarsening>>,
 }
 
 impl Default for NewtonParams {
@@ -184,6 +199,8 @@ impl Default for NewtonParams {
             target_ratio_cap: Some(TARGET_RATIO_CAP),
             flip_updates: true,
             flux_masses: false,
+            coarse_tolerance: 1e-3,
+            target_coarsening: None,
         }
     }
 }
@@ -1196,7 +1213,7 @@ pub fn solve_ot(
             coarse_points,
             coarse_iterations,
             checked,
-        }) = multiscale::coarse_to_fine_heights(measure, points, &targets, params, delaunay.take())?
+        }) = multiscale::coarse_to_fine_heights(measure, points, masses, &targets, params, delaunay.take())?
         {
             // The start's last check built the power diagram of these heights: integrate it
             // instead of building it again, with the backend of the Voronoi test if there was one.

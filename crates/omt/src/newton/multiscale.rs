@@ -6,8 +6,12 @@
 //! point at its members' mass-weighted mean, with their total mass. Closest pairs merge first,
 //! so a cluster of near-coincident points (the conformal image of a long protrusion) becomes one
 //! coarse point before well-spread points are grouped. The coarse problem is solved the same
-//! way, recursively, at tolerance max(tol, 1e-3); levels stop below 1000 points, or below 16 when
-//! the points are crowded (two closer than 1e-6 of the mean spacing).
+//! way, recursively, at tolerance max(tol, [`NewtonParams::coarse_tolerance`]) (default 1e-3);
+//! levels stop below 1000 points, or below 16 when the points are crowded (two closer than 1e-6
+//! of the mean spacing). The coarsening depends on the target alone (its masses rescaled to the
+//! source's mass only change the coarse masses and means by rounding): [`TargetCoarsening`]
+//! holds it, computed from the masses as given, for runs that solve many problems with one
+//! target.
 //!
 //! **Prolongation.** Let H_g be the coarse heights, G_g = −H_g, c_g the μ-centroid of the coarse
 //! cell W_g (restricted to Ω), s_g 0.9 times the distance from c_g to the boundary of W_g ∩ Ω,
@@ -55,6 +59,8 @@ use crate::error::OmtError;
 use crate::measure::SourceMeasure;
 use crate::power_diagram::{InsertionOrder, PowerDiagram};
 use rayon::prelude::*;
+use std::borrow::Cow;
+use std::sync::Arc;
 
 /// Points below which no coarse level is used unless they are crowded.
 const MIN_FINE: usize = 1000;
@@ -106,19 +112,108 @@ fn averaging_sample(measure: &SourceMeasure, coarse_n: usize, hull_size: usize) 
 }
 /// Rounds of the check of the anchors after the prolongation.
 const REPAIR_ROUNDS: usize = 8;
-/// Tolerance of the coarse levels (or the final tolerance if looser).
-const LEVEL_TOLERANCE: f64 = 1e-3;
 
 /// The coarse problem of one level: representatives (mass-weighted means of their groups), their
-/// masses (sums of the group's targets), and each fine point's group.
-struct Coarsening {
-    points: Vec<[f64; 2]>,
-    masses: Vec<f64>,
-    group: Vec<usize>,
+/// masses (sums of the group's masses), and each fine point's group; computed by [`coarsen`] or
+/// borrowed from a [`TargetCoarsening`].
+struct Coarsening<'a> {
+    points: Cow<'a, [[f64; 2]]>,
+    masses: Cow<'a, [f64]>,
+    group: Cow<'a, [usize]>,
     /// The shortest Delaunay edge of the fine points.
     closest: f64,
     /// The Delaunay triangulation of the fine points (the first round's).
+    delaunay: Option<Cow<'a, PowerDiagram>>,
+}
+
+/// The coarsening hierarchy of one target (points and masses) for the coarse-to-fine start:
+/// every level's groups, coarse points and masses, the fine points' Delaunay triangulation and
+/// the insertion orders. All of it depends on the target only (module docs: the points merge by
+/// geometry, the masses only add up), so a run that solves many problems with one target (the
+/// pairwise distances: n − 1 sources per target) builds it once and hands it to each solve
+/// through [`NewtonParams::target_coarsening`]. Without it a solve coarsens the masses rescaled
+/// to its source's mass (μ(Ω)/Σν, 1 up to rounding on face pairs), so the two starts differ by
+/// rounding only (not bitwise: the rounding already decides an extra step on TOSCA victoria0,
+/// which is why the solver's own path keeps the rescaled masses). A solve whose points or masses
+/// differ from the hierarchy's (bitwise) ignores it.
+pub struct TargetCoarsening {
+    points: Vec<[f64; 2]>,
+    masses: Vec<f64>,
+    /// The points' insertion order (`None`: the points cannot be triangulated).
+    order: Option<InsertionOrder>,
+    /// The next coarser level (`None` where the solve would take no coarse level whatever the
+    /// measure: fewer than [`MIN_COARSE`] points, a failed coarsening, or one that merges too
+    /// little).
+    coarse: Option<CoarseLevel>,
+}
+
+/// One step down a [`TargetCoarsening`].
+struct CoarseLevel {
+    group: Vec<usize>,
+    closest: f64,
     delaunay: Option<PowerDiagram>,
+    /// The hierarchy below, for the coarse points and masses.
+    next: Arc<TargetCoarsening>,
+}
+
+impl TargetCoarsening {
+    /// The hierarchy of the target (`points`, `masses`), as the coarse-to-fine start would
+    /// compute it level by level (down to [`MIN_COARSE`] points; the start decides per solve
+    /// how many levels it uses). Invalid input gives a hierarchy without levels.
+    pub fn new(points: &[[f64; 2]], masses: &[f64]) -> Self {
+        let order = InsertionOrder::new(points).ok();
+        let n = points.len();
+        let coarse = if n >= MIN_COARSE && masses.len() == n && order.is_some() {
+            coarsen(points, masses, None)
+                .ok()
+                .filter(|c| c.points.len() * 4 <= n * 3)
+                .map(|c| CoarseLevel {
+                    next: Arc::new(Self::new(&c.points, &c.masses)),
+                    group: c.group.into_owned(),
+                    closest: c.closest,
+                    delaunay: c.delaunay.map(Cow::into_owned),
+                })
+        } else {
+            None
+        };
+        TargetCoarsening {
+            points: points.to_vec(),
+            masses: masses.to_vec(),
+            order,
+            coarse,
+        }
+    }
+
+    /// Points per level, finest first.
+    pub fn level_sizes(&self) -> Vec<usize> {
+        let mut sizes = vec![self.points.len()];
+        let mut level = self;
+        while let Some(c) = &level.coarse {
+            level = &c.next;
+            sizes.push(level.points.len());
+        }
+        sizes
+    }
+
+    /// Whether this is the hierarchy of exactly these points and masses (bitwise).
+    fn matches(&self, points: &[[f64; 2]], masses: &[f64]) -> bool {
+        self.points.len() == points.len()
+            && self.masses.len() == masses.len()
+            && self
+                .points
+                .iter()
+                .zip(points)
+                .all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits())
+            && self.masses.iter().zip(masses).all(|(a, b)| a.to_bits() == b.to_bits())
+    }
+}
+
+impl std::fmt::Debug for TargetCoarsening {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TargetCoarsening")
+            .field("level_sizes", &self.level_sizes())
+            .finish()
+    }
 }
 
 /// Merges the points pairwise along their shortest Delaunay edges (greedy matching, shortest
@@ -134,10 +229,14 @@ struct Coarsening {
 /// weights 0) and replaces the first round's own: the regular triangulation of a point set
 /// under the exact predicates with symbolic perturbation is unique, and the round sorts its
 /// edges completely, so the result is the same.
-fn coarsen(points: &[[f64; 2]], targets: &[f64], mut delaunay: Option<PowerDiagram>) -> Result<Coarsening, OmtError> {
+fn coarsen(
+    points: &[[f64; 2]],
+    point_masses: &[f64],
+    mut delaunay: Option<PowerDiagram>,
+) -> Result<Coarsening<'static>, OmtError> {
     let n = points.len();
     let mut reps = points.to_vec();
-    let mut masses = targets.to_vec();
+    let mut masses = point_masses.to_vec();
     let mut group: Vec<usize> = (0..n).collect();
     let mut closest = f64::INFINITY;
     let mut fine_delaunay = None;
@@ -215,11 +314,11 @@ fn coarsen(points: &[[f64; 2]], targets: &[f64], mut delaunay: Option<PowerDiagr
         }
     }
     Ok(Coarsening {
-        points: reps,
-        masses,
-        group,
+        points: Cow::Owned(reps),
+        masses: Cow::Owned(masses),
+        group: Cow::Owned(group),
         closest,
-        delaunay: fine_delaunay,
+        delaunay: fine_delaunay.map(Cow::Owned),
     })
 }
 
@@ -292,6 +391,7 @@ pub(crate) struct CoarseStart {
 pub(crate) fn coarse_to_fine_heights(
     measure: &SourceMeasure,
     points: &[[f64; 2]],
+    masses: &[f64],
     targets: &[f64],
     params: &NewtonParams,
     voronoi: Option<(PowerDiagram, InsertionOrder)>,
@@ -300,11 +400,31 @@ pub(crate) fn coarse_to_fine_heights(
     if n < MIN_COARSE {
         return Ok(None);
     }
+    let (delaunay, fine_order) = voronoi.unzip();
+    let cached = params
+        .target_coarsening
+        .as_deref()
+        .filter(|c| c.matches(points, masses));
     // (merged points can coincide in principle, which the Delaunay triangulation of the next
     // round rejects: then no coarse level, not an error)
-    let (delaunay, fine_order) = voronoi.unzip();
-    let Ok(mut coarse) = coarsen(points, targets, delaunay) else {
-        return Ok(None);
+    let (mut coarse, below) = match cached {
+        Some(TargetCoarsening { coarse: None, .. }) => return Ok(None),
+        Some(TargetCoarsening {
+            coarse: Some(level), ..
+        }) => (
+            Coarsening {
+                points: Cow::Borrowed(&level.next.points),
+                masses: Cow::Borrowed(&level.next.masses),
+                group: Cow::Borrowed(&level.group),
+                closest: level.closest,
+                delaunay: level.delaunay.as_ref().map(Cow::Borrowed),
+            },
+            Some(&level.next),
+        ),
+        None => match coarsen(points, targets, delaunay) {
+            Ok(coarse) => (coarse, None),
+            Err(_) => return Ok(None),
+        },
     };
     let coarse_n = coarse.points.len();
     let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
@@ -314,7 +434,8 @@ pub(crate) fn coarse_to_fine_heights(
         return Ok(None);
     }
     let coarse_params = NewtonParams {
-        tolerance: params.tolerance.max(LEVEL_TOLERANCE),
+        tolerance: params.tolerance.max(params.coarse_tolerance),
+        target_coarsening: below.cloned(),
         // (the cap applies to the finest level: with 0 the caller asks for the start itself)
         max_iterations: params.max_iterations.max(NewtonParams::default().max_iterations),
         initial_heights: None,
@@ -347,8 +468,15 @@ pub(crate) fn coarse_to_fine_heights(
             lo: hl.clone(),
         }
         .weights(&coarse.points);
-        let order = InsertionOrder::new(&coarse.points)?;
-        let regular = PowerDiagram::with_order_dd(&coarse.points, &w, Some(&wl), &order)?;
+        let built;
+        let order = match below.and_then(|b| b.order.as_ref()) {
+            Some(order) => order,
+            None => {
+                built = InsertionOrder::new(&coarse.points)?;
+                &built
+            }
+        };
+        let regular = PowerDiagram::with_order_dd(&coarse.points, &w, Some(&wl), order)?;
         (0..coarse_n)
             .into_par_iter()
             .map(|g| {
@@ -484,8 +612,9 @@ pub(crate) fn coarse_to_fine_heights(
     // maximum (over all groups) for j and for the point i whose cell contains p_j: one of the
     // two was underestimated.
     let exact = |i: usize| maximum(i, &mut (0..coarse_n));
-    let order = match fine_order {
-        Some(order) if order.len() == n => order,
+    let order = match (fine_order, cached.and_then(|c| c.order.as_ref())) {
+        (Some(order), _) if order.len() == n => order,
+        (_, Some(order)) => order.clone(),
         _ => InsertionOrder::new(points)?,
     };
     let mut exact_done = vec![false; n];
@@ -493,7 +622,7 @@ pub(crate) fn coarse_to_fine_heights(
     let mut checked = None;
     // each round's diagram is updated by flips (the same diagram as built anew) from the
     // previous round's, the first from the coarsening's Delaunay triangulation
-    let mut previous: Option<PowerDiagram> = coarse.delaunay.take();
+    let mut previous: Option<Cow<PowerDiagram>> = coarse.delaunay.take();
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = match previous.take().filter(|_| params.flip_updates) {
@@ -534,7 +663,7 @@ pub(crate) fn coarse_to_fine_heights(
             checked = Some(diagram);
             break;
         }
-        previous = Some(diagram);
+        previous = Some(Cow::Owned(diagram));
     }
     // (a continuation's stages are already in `iterations`)
     let below = match solution.start {
@@ -547,4 +676,53 @@ pub(crate) fn coarse_to_fine_heights(
         coarse_iterations: solution.iterations + below,
         checked: checked.map(|diagram| (diagram, order)),
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{disk_rings_measure, random_disk_points};
+    use crate::OtSolution;
+
+    /// The start takes a matching [`TargetCoarsening`]'s levels instead of coarsening itself:
+    /// a hierarchy whose first level was swapped for that of other masses (the same groups, other
+    /// coarse points and masses) changes the start by 2 % of the heights' size, the true one by
+    /// rounding (1.7e-15: it coarsens the masses as given, the solve the rescaled ones).
+    #[test]
+    fn a_matching_hierarchy_is_used() {
+        let measure = disk_rings_measure(30, |x| if x[1] > 0.0 { 20.0 } else { 1.0 }).unwrap();
+        let points = random_disk_points(3000, 3);
+        let masses: Vec<f64> = (0..points.len()).map(|i| 1.0 + (i % 5) as f64).collect();
+        let reversed: Vec<f64> = masses.iter().rev().copied().collect();
+        let start = |coarsening: Option<TargetCoarsening>| {
+            let params = NewtonParams {
+                max_iterations: 0,
+                start_strategy: crate::StartStrategy::CoarseToFine,
+                target_coarsening: coarsening.map(Arc::new),
+                ..NewtonParams::default()
+            };
+            solve_ot(&measure, &points, &masses, &params).unwrap()
+        };
+        // (start heights up to a constant, relative to their spread)
+        let gap = |a: &OtSolution, b: &OtSolution| {
+            let d: Vec<f64> = (0..a.heights.len())
+                .map(|i| (a.heights[i] + a.heights_lo[i]) - (b.heights[i] + b.heights_lo[i]))
+                .collect();
+            let mean = d.iter().sum::<f64>() / d.len() as f64;
+            let spread = b.heights.iter().fold(0.0f64, |m, h| m.max(h.abs()));
+            d.iter().fold(0.0f64, |m, x| m.max((x - mean).abs())) / spread
+        };
+        let own = start(None);
+        let same = start(Some(TargetCoarsening::new(&points, &masses)));
+        // the hierarchy coarsens the masses as given, the solve's own path the rescaled ones
+        assert!(gap(&same, &own) < 1e-12, "{:e}", gap(&same, &own));
+        let swapped = TargetCoarsening {
+            coarse: TargetCoarsening::new(&points, &reversed).coarse,
+            ..TargetCoarsening::new(&points, &masses)
+        };
+        assert!(swapped.matches(&points, &masses));
+        let other = start(Some(swapped));
+        assert!(matches!(other.start, crate::newton::Start::CoarseToFine { .. }));
+        assert!(gap(&other, &own) > 1e-4, "{:e}", gap(&other, &own));
+    }
 }
