@@ -287,6 +287,18 @@ fn invalid_input_is_rejected() {
             other => panic!("tolerance {tolerance}: {:?}", other.map(|s| s.stop)),
         }
     }
+    // So does a coarse levels' tolerance outside (0, 1) (the coarse solves would fail and the
+    // coarse-to-fine start vanish silently).
+    for coarse_tolerance in [0.0, 1.0, f64::NAN, -1e-3] {
+        let p = NewtonParams {
+            coarse_tolerance,
+            ..Default::default()
+        };
+        match solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0, 1.0], &p) {
+            Err(OmtError::InvalidInput(m)) => assert!(m.contains("coarse tolerance"), "{m}"),
+            other => panic!("coarse tolerance {coarse_tolerance}: {:?}", other.map(|s| s.stop)),
+        }
+    }
     // A cap of the intermediate targets at or below 1 would aim no step anywhere.
     for cap in [1.0, 0.5, -3.0, f64::NAN, f64::INFINITY] {
         let p = NewtonParams {

@@ -425,8 +425,9 @@ fn auto_start_reusing_the_voronoi_diagram_equals_the_explicit_coarse_to_fine_sta
 /// pass to every solve with that target) gives the solves the coarsening each solve computes
 /// itself gives, up to rounding (the hierarchy coarsens the masses as given, a solve the masses
 /// rescaled to its source): on a density contrast (two coarse levels) and on the uniform density
-/// with a crowded cluster (Auto's Voronoi test hands its Delaunay triangulation over). A
-/// hierarchy of other masses is ignored: that solve is the solver's own, bit for bit.
+/// with a crowded cluster (Auto's Voronoi test runs first). A hierarchy of other masses is
+/// ignored: that solve is the solver's own, bit for bit. (That the hierarchy is used on every
+/// level is the unit test `a_matching_hierarchy_is_used_on_every_level`.)
 #[test]
 fn a_target_coarsening_built_once_gives_the_same_solves_up_to_rounding() {
     use shapespace_omt::newton::TargetCoarsening;

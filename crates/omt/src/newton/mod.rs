@@ -173,13 +173,14 @@ pub struct NewtonParams {
     /// guarantee that no cell is empty holds for any coarse heights), so a looser value trades
     /// coarse steps against the start's quality: on face pairs 1e-1 gives the same finest-level
     /// steps with ~4 fewer coarse ones, on the TOSCA bodies it costs 1–3 finest steps
-    /// (`ARCHITECTURE.md`, session 20).
+    /// (`ARCHITECTURE.md`, session 20). Must be in (0, 1).
     pub coarse_tolerance: f64,
     /// The target's coarsening hierarchy ([`TargetCoarsening`], built once per target) for the
     /// coarse-to-fine start; ignored when it is not that of this solve's points and masses.
     /// `None` (default): the start coarsens the target itself, from the masses rescaled to the
     /// source's mass; the hierarchy is built from the masses as given, so the two starts differ
-    /// by rounding (the solves converge to the same solution within the tolerance).
+    /// in rounding (which can also flip a discrete choice of a later merging round) and the
+    /// solves agree within their tolerance.
     pub target_coarsening: Option<Arc<TargetCoarsening>>,
 }
 
@@ -987,6 +988,12 @@ fn validate(
     if !(total.is_finite() && total > 0.0) {
         return Err(OmtError::InvalidInput(format!(
             "the source measure's total mass is {total} (its triangles' areas times densities must sum to a finite positive number; rescale the density mesh or the densities)"
+        )));
+    }
+    if !(params.coarse_tolerance > 0.0 && params.coarse_tolerance < 1.0) {
+        return Err(OmtError::InvalidInput(format!(
+            "coarse tolerance {} must be in (0, 1): it bounds the coarse levels' relative mass errors",
+            params.coarse_tolerance
         )));
     }
     if !(params.tolerance > 0.0 && params.tolerance < 1.0) {
