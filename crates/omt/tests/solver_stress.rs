@@ -381,6 +381,19 @@ fn coarse_to_fine_start_evaluation_matches_a_fresh_one() {
     assert_eq!(start.cells.edge_masses.len(), fresh.edge_masses.len());
 }
 
+/// Adds 40 points within ~4e-6 of (0.3, −0.2) with targets 1e-4: a crowded cluster whose Voronoi
+/// cells are far above their targets.
+fn add_crowded_cluster(points: &mut Vec<[f64; 2]>, masses: &mut Vec<f64>) {
+    for k in 0..40 {
+        let t = k as f64 * 0.157;
+        points.push([
+            0.3 + 1e-7 * t.cos() * (1.0 + k as f64),
+            -0.2 + 1e-7 * t.sin() * (1.0 + k as f64),
+        ]);
+        masses.push(1e-4);
+    }
+}
+
 /// Auto's Voronoi test hands its diagram (the Delaunay triangulation of the points) and insertion
 /// order to the coarse-to-fine start, which then skips its own first triangulation: the start
 /// must be the same, to the last bit, as the one an explicit `CoarseToFine` builds itself.
@@ -392,14 +405,7 @@ fn auto_start_reusing_the_voronoi_diagram_equals_the_explicit_coarse_to_fine_sta
     let mut masses = vec![1.0; points.len()];
     // a crowded cluster with small targets: its Voronoi cells are far above their targets, so
     // Auto's test finds the Voronoi start poor on this uniform density
-    for k in 0..40 {
-        let t = k as f64 * 0.157;
-        points.push([
-            0.3 + 1e-7 * t.cos() * (1.0 + k as f64),
-            -0.2 + 1e-7 * t.sin() * (1.0 + k as f64),
-        ]);
-        masses.push(1e-4);
-    }
+    add_crowded_cluster(&mut points, &mut masses);
     let start = |start_strategy| {
         solve_ot(
             &uniform,
@@ -437,14 +443,7 @@ fn a_target_coarsening_built_once_gives_the_same_solves_up_to_rounding() {
     let uniform = disk_rings_measure(30, |_| 1.0).unwrap();
     let mut points = random_disk_points(8000, 17);
     let mut masses: Vec<f64> = (0..points.len()).map(|i| 1.0 + 0.5 * ((i % 7) as f64)).collect();
-    for k in 0..40 {
-        let t = k as f64 * 0.157;
-        points.push([
-            0.3 + 1e-7 * t.cos() * (1.0 + k as f64),
-            -0.2 + 1e-7 * t.sin() * (1.0 + k as f64),
-        ]);
-        masses.push(1e-4);
-    }
+    add_crowded_cluster(&mut points, &mut masses);
     let hierarchy = Arc::new(TargetCoarsening::new(&points, &masses));
     let sizes = hierarchy.level_sizes();
     assert!(sizes.len() >= 3 && sizes[1] >= 1000, "levels {sizes:?}");
