@@ -9,9 +9,9 @@
 //! way, recursively, at tolerance max(tol, [`NewtonParams::coarse_tolerance`]) (default 1e-3);
 //! levels stop below 1000 points, or below 16 when the points are crowded (two closer than 1e-6
 //! of the mean spacing). The coarsening depends on the target alone (its masses rescaled to the
-//! source's mass only change the coarse masses and means by rounding): [`TargetCoarsening`]
-//! holds it, computed from the masses as given, for runs that solve many problems with one
-//! target.
+//! source's mass change the coarse masses and means by rounding, and at most rarely a merge):
+//! [`TargetCoarsening`] holds it, computed from the masses as given, for runs that solve many
+//! problems with one target.
 //!
 //! **Prolongation.** Let H_g be the coarse heights, G_g = −H_g, c_g the μ-centroid of the coarse
 //! cell W_g (restricted to Ω), s_g 0.9 times the distance from c_g to the boundary of W_g ∩ Ω,
@@ -128,15 +128,16 @@ struct Coarsening<'a> {
 
 /// The coarsening hierarchy of one target (points and masses) for the coarse-to-fine start:
 /// every level's groups, coarse points and masses, the fine points' Delaunay triangulation and
-/// the insertion orders. All of it depends on the target only (module docs: the points merge by
-/// geometry, the masses only add up), so a run that solves many problems with one target (the
-/// pairwise distances: n − 1 sources per target) builds it once and hands it to each solve
-/// through [`NewtonParams::target_coarsening`]. Without it a solve coarsens the masses rescaled
-/// to its source's mass (μ(Ω)/Σν, 1 up to rounding on face pairs), so the two starts differ in
-/// rounding (which can also flip a discrete choice of a later merging round; the solves agree
-/// within their tolerance, not bitwise: such rounding already decides an extra step on TOSCA
-/// victoria0, which is why the solver's own path keeps the rescaled masses). A solve whose points or masses
-/// differ from the hierarchy's (bitwise) ignores it.
+/// the insertion orders. All of it depends on the target only (the merges follow the Delaunay
+/// edges and the groups' radii about their mass-weighted means), so a run that solves many
+/// problems with one target (the pairwise distances: n − 1 sources per target) builds it once
+/// and hands it to each solve through [`NewtonParams::target_coarsening`]. Without it a solve
+/// coarsens the masses rescaled to its source's mass (μ(Ω)/Σν, 1 up to rounding on face pairs),
+/// so the two starts differ in rounding (which can also flip a discrete choice of a later
+/// merging round). The solves agree within their tolerance, not bitwise: such rounding already
+/// decides an extra step on TOSCA victoria0, which is why the solver's own path keeps the
+/// rescaled masses. A solve whose points or masses differ from the hierarchy's (bitwise)
+/// ignores it.
 pub struct TargetCoarsening {
     points: Vec<[f64; 2]>,
     masses: Vec<f64>,
