@@ -54,7 +54,7 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use shapespace_geometry::topology::find;
+use shapespace_geometry::topology::{find, union};
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
@@ -228,10 +228,7 @@ pub(crate) fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result
     // components via union-find over vertices
     let mut parent: Vec<u32> = (0..n as u32).collect();
     for h in 0..nh as u32 {
-        let (a, b) = (find(&mut parent, tri.tail[h as usize]), find(&mut parent, tri.head(h)));
-        if a != b {
-            parent[a as usize] = b;
-        }
+        union(&mut parent, tri.tail[h as usize], tri.head(h));
     }
     let comps = (0..n as u32).filter(|&v| find(&mut parent, v) == v).count();
     // boundary loops: a boundary vertex with two boundary half-edges out of it would be
@@ -419,10 +416,7 @@ fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: 
     for h in 0..tri.tail.len() as u32 {
         let (a, b) = (tri.tail[h as usize], tri.head(h));
         if !tri.is_boundary[a as usize] && !tri.is_boundary[b as usize] {
-            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
-            if ra != rb {
-                parent[ra as usize] = rb;
-            }
+            union(&mut parent, a, b);
         }
     }
     let root = find(&mut parent, center);

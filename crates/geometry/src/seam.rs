@@ -245,7 +245,7 @@ fn cut_along_seam_in(
     // Tree check with the boundary contracted to one node (index n): union–find over the nodes.
     let boundary_node = n as u32;
     let mut parent: Vec<u32> = (0..=boundary_node).collect();
-    let find = topology::find;
+    let (find, union) = (topology::find, topology::union);
     let node = |v: u32| if on_boundary[v as usize] { boundary_node } else { v };
     for &[a, b] in seam {
         let key = [a.min(b), a.max(b)];
@@ -262,13 +262,11 @@ fn cut_along_seam_in(
                 "seam edge ({a}, {b}) lies on the boundary"
             )));
         }
-        let (ra, rb) = (find(&mut parent, node(a)), find(&mut parent, node(b)));
-        if ra == rb {
+        if !union(&mut parent, node(a), node(b)) {
             return Err(GeometryError::Invalid(format!(
                 "the seam is not a tree: edge ({a}, {b}) closes a cycle (the boundary counts as one vertex)"
             )));
         }
-        parent[ra as usize] = rb;
         is_seam[e] = true;
         degree[a as usize] += 1;
         degree[b as usize] += 1;

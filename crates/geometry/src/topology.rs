@@ -176,6 +176,16 @@ pub fn find(parent: &mut [u32], mut x: u32) -> u32 {
     x
 }
 
+/// Joins the sets of `a` and `b` in the union–find forest `parent` (the root of `a`'s set is
+/// attached to the root of `b`'s); false when they were one set already.
+pub fn union(parent: &mut [u32], a: u32, b: u32) -> bool {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra as usize] = rb;
+    }
+    ra != rb
+}
+
 /// Connected components of the faces through shared edges (edges with any number of faces).
 ///
 /// Returns (per-face component label, #F; number of components). Labels are numbered by their
