@@ -1190,10 +1190,11 @@ mod tests {
         for rings in [6, 30] {
             let (mesh, is_boundary, uv) = disk_layout(rings);
             let n = mesh.num_vertices();
-            let neighbors = Connectivity::of(&mesh).vertex_neighbors(n);
+            let conn = Connectivity::of(&mesh);
+            let neighbors = conn.vertex_neighbors(n);
             let w = tutte_weights(
                 &mesh,
-                &Connectivity::of(&mesh).vertex_faces,
+                &conn.vertex_faces,
                 &neighbors,
                 &is_boundary,
                 &uv,
