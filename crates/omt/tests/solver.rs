@@ -276,16 +276,23 @@ fn invalid_input_is_rejected() {
         solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2], [0.5, 0.5]], &[1.0; 3], &p),
         Err(OmtError::DuplicatePoints { i: 0, j: 2 })
     ));
+    // Parameters `p` must be rejected as invalid input whose message contains `needle`.
+    let rejected = |p: NewtonParams, needle: &str, case: String| match solve_ot(
+        &measure,
+        &[[0.5, 0.5], [0.2, 0.2]],
+        &[1.0, 1.0],
+        &p,
+    ) {
+        Err(OmtError::InvalidInput(m)) => assert!(m.contains(needle), "{m}"),
+        other => panic!("{case}: {:?}", other.map(|s| s.stop)),
+    };
     // A relative mass tolerance outside (0, 1) bounds nothing (1e300 "converged" in 0 steps).
     for tolerance in [0.0, 1.0, 1e300, f64::NAN, f64::INFINITY] {
         let p = NewtonParams {
             tolerance,
             ..Default::default()
         };
-        match solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0, 1.0], &p) {
-            Err(OmtError::InvalidInput(m)) => assert!(m.contains("(0, 1)"), "{m}"),
-            other => panic!("tolerance {tolerance}: {:?}", other.map(|s| s.stop)),
-        }
+        rejected(p, "(0, 1)", format!("tolerance {tolerance}"));
     }
     // So does a coarse levels' tolerance outside (0, 1) (the coarse solves would fail and the
     // coarse-to-fine start vanish silently).
@@ -294,10 +301,7 @@ fn invalid_input_is_rejected() {
             coarse_tolerance,
             ..Default::default()
         };
-        match solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0, 1.0], &p) {
-            Err(OmtError::InvalidInput(m)) => assert!(m.contains("coarse tolerance"), "{m}"),
-            other => panic!("coarse tolerance {coarse_tolerance}: {:?}", other.map(|s| s.stop)),
-        }
+        rejected(p, "coarse tolerance", format!("coarse tolerance {coarse_tolerance}"));
     }
     // A cap of the intermediate targets at or below 1 would aim no step anywhere.
     for cap in [1.0, 0.5, -3.0, f64::NAN, f64::INFINITY] {
@@ -305,10 +309,7 @@ fn invalid_input_is_rejected() {
             target_ratio_cap: Some(cap),
             ..Default::default()
         };
-        match solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2]], &[1.0, 1.0], &p) {
-            Err(OmtError::InvalidInput(m)) => assert!(m.contains("target ratio cap"), "{m}"),
-            other => panic!("cap {cap}: {:?}", other.map(|s| s.stop)),
-        }
+        rejected(p, "target ratio cap", format!("cap {cap}"));
     }
 }
 
