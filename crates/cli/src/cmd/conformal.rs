@@ -20,14 +20,14 @@ use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
 use shapespace_conformal::quality::QualitySummary;
 use shapespace_conformal::{bff_disk_map, disk_map, BffParams, DiskMapParams, PolePlacement};
-use shapespace_geometry::io::{read_mesh, write_obj};
+use shapespace_geometry::io::{read_mesh, write_mesh};
 
 /// Arguments of `shapespace conformal`.
 #[derive(clap::Args)]
 pub struct ConformalArgs {
     /// Input mesh (OBJ, OFF, PLY) with disk topology.
     pub input: PathBuf,
-    /// Output OBJ: the input mesh with per-vertex texture coordinates (the disk map).
+    /// Output mesh (.obj or .ply): the input mesh with per-vertex texture coordinates (the disk map).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -87,6 +87,7 @@ fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
 /// Runs the subcommand.
 pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
+    super::check_map_output(&args.out)?;
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
@@ -141,7 +142,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
         }
     };
     mesh.uvs = Some(map.uv.clone());
-    write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
+    write_mesh(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
     if let Some(p) = &args.factors {
         write_factors(p, &map)?;
     }

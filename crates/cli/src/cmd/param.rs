@@ -23,14 +23,14 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
 use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
-use shapespace_geometry::io::{read_mesh, write_obj};
+use shapespace_geometry::io::{read_mesh, write_mesh};
 
 /// Arguments of `shapespace param`.
 #[derive(clap::Args)]
 pub struct ParamArgs {
     /// Input mesh (OBJ, OFF, PLY) with disk topology.
     pub input: PathBuf,
-    /// Output OBJ: the input mesh with per-vertex texture coordinates (the area-preserving map).
+    /// Output mesh (.obj or .ply): the input mesh with per-vertex texture coordinates (the area-preserving map).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -101,6 +101,7 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 /// Runs the subcommand.
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
+    super::check_map_output(&args.out)?;
     let domain: Domain = args.domain.parse()?;
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
@@ -134,7 +135,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         }
     };
     mesh.uvs = Some(map.uv.clone());
-    write_obj(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
+    write_mesh(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
 
     let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
     let ap = &report.maps[1];
