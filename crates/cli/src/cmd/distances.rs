@@ -55,12 +55,17 @@ pub struct DistancesArgs {
     /// Also run MDS and statistics on the result (as `shapespace mds`).
     #[arg(long)]
     pub mds: bool,
-    /// Labels CSV for --mds (file,label columns...).
-    #[arg(long)]
+    /// Labels CSV for --mds (file,label columns...); read and matched to the files before the
+    /// distances are computed, so a bad labels file fails at once.
+    #[arg(long, requires = "mds")]
     pub labels: Option<PathBuf>,
 }
 
 pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
+    if let Some(labels) = &args.labels {
+        shapespace_analysis::matrix_io::read_labels(labels, &shapespace_analysis::pipeline::shape_names(&args.files))
+            .context("mds")?;
+    }
     let run = compute(&args.files, &args.out, &args.solver)?;
     if args.mds {
         mds(&args.out, args.labels.as_deref())?;
