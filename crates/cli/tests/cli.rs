@@ -482,6 +482,23 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     let out = run(&["--threads", "100000"]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(stderr(&out).contains("--threads 100000 capped to"), "{}", stderr(&out));
+    // a labels file that is missing or does not match the files fails before any distance is
+    // computed (no new distances.csv); --labels without --mds is refused
+    let labels = dir.join("labels.csv");
+    std::fs::write(&labels, "file,person\na,p1\n").unwrap();
+    for (path, expected) in [
+        (dir.join("missing.csv"), "missing.csv"),
+        (labels.clone(), "no label row"),
+    ] {
+        std::fs::remove_dir_all(&out_dir).ok();
+        let out = run(&["--mds", "--labels", path.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+        assert!(stderr(&out).contains(expected), "{}", stderr(&out));
+        assert!(!out_dir.join("distances.csv").exists());
+    }
+    let out = run(&["--labels", labels.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--mds"), "{}", stderr(&out));
 }
 
 /// The not-a-disk error points to `shapespace prepare`, and that command turns a closed surface
@@ -809,6 +826,42 @@ fn register_names_the_marker_problem() {
                 msg.contains(side) && msg.contains("boundary marker 12 is not a boundary vertex"),
                 "{flag} {method}: {msg}"
             );
+        }
+    }
+}
+
+/// `conformal` and `param` write the map in the format the output's extension names: `.ply`
+/// carries the same texture coordinates as `.obj`; `.off` (no texture coordinates) and unknown
+/// extensions are refused before any work, with exit status 2, naming the file, writing nothing.
+#[test]
+fn map_outputs_follow_the_extension() {
+    let dir = scratch("map-formats");
+    let input = "datasets/disks/cat_head.obj";
+    for cmd in ["conformal", "param"] {
+        let obj = dir.join(format!("{cmd}.obj"));
+        let ply = dir.join(format!("{cmd}.ply"));
+        for path in [&obj, &ply] {
+            let out = shapespace(&[cmd, input, "--out", path.to_str().unwrap()]);
+            assert!(out.status.success(), "{cmd} {}: {}", path.display(), stderr(&out));
+        }
+        let from_obj = shapespace_geometry::io::read_mesh(&obj).unwrap();
+        let from_ply = shapespace_geometry::io::read_mesh(&ply).unwrap();
+        let (a, b) = (from_obj.uvs.unwrap(), from_ply.uvs.expect("the PLY has u, v"));
+        assert_eq!(a.len(), b.len());
+        // (OBJ writes decimal text, PLY binary doubles: equal to the text's precision)
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(p, q)| (p[0] - q[0]).abs().max((p[1] - q[1]).abs()))
+            .fold(0.0f64, f64::max);
+        assert!(worst < 1e-12, "{cmd}: .obj and .ply maps differ by {worst:e}");
+        for (name, expected) in [("map.off", "cannot store"), ("map.stl", "unknown extension")] {
+            let path = dir.join(format!("{cmd}-{name}"));
+            let out = shapespace(&[cmd, input, "--out", path.to_str().unwrap()]);
+            let err = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{cmd} {name}: {err}");
+            assert!(err.contains(expected) && err.contains(name), "{cmd} {name}: {err}");
+            assert!(!path.exists(), "{cmd} {name}: a file was written");
         }
     }
 }
