@@ -466,16 +466,24 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
     let closed = conn.edge_faces.iter().all(|ef| ef.len() != 1);
     let mut area: f64 = face_areas(mesh).iter().sum();
     if !area.is_finite() {
-        // coordinates near f64::MAX: the cross products overflow (inf − inf = NaN); with the
-        // positions scaled to at most 1 the sum is finite and the true area is s² times it
+        // Coordinates near f64::MAX: the cross products overflow (inf − inf = NaN). With the
+        // positions scaled by s (the largest magnitude) nothing overflows, and each edge vector
+        // is scaled again to its own largest component, so that a short edge next to a huge one
+        // does not underflow in the cross product; a triangle's area is then
+        // ½ |û × v̂| (m₁ s)(m₂ s), and the sum is inf when the true area exceeds f64.
         let s = mesh.positions.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
-        let scaled: f64 = (0..nf)
+        area = (0..nf)
             .map(|f| {
                 let [a, b, c] = mesh.face_positions(f).map(|p| p.map(|x| x / s));
-                crate::quantities::triangle_area(a, b, c)
+                let (e1, e2) = (sub(b, a), sub(c, a));
+                let (m1, m2) = (max_abs(e1), max_abs(e2));
+                if !(m1 > 0.0 && m2 > 0.0) {
+                    return 0.0;
+                }
+                let (u, v) = (e1.map(|x| x / m1), e2.map(|x| x / m2));
+                0.5 * norm2(cross(u, v)).sqrt() * (m1 * s) * (m2 * s)
             })
             .sum();
-        area = scaled * s * s;
     }
 
     let mut bbox = [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]];
@@ -662,6 +670,10 @@ pub fn check_coordinate_range(mesh: &TriMesh) -> Result<(), GeometryError> {
         )));
     }
     Ok(())
+}
+
+fn max_abs(v: [f64; 3]) -> f64 {
+    v[0].abs().max(v[1].abs()).max(v[2].abs())
 }
 
 /// Largest coordinate magnitude [`require_disk`] accepts (squares stay below f64::MAX).

@@ -693,3 +693,35 @@ fn bridges_split_joins_the_interior() {
     // a boundary edge cannot be split
     assert!(prepare::split_edges(&m, &[[0, 3]]).is_err());
 }
+
+/// The report's area with coordinates near f64::MAX, where the direct cross products overflow:
+/// a square of side 1 with a far vertex at (1e308, 1e308, 0) fanned to it (area ½·1e308 plus
+/// the square's 1) is reported to 1e-12, not 0 (the short edges next to the huge one must not
+/// underflow); a mesh whose true area exceeds f64 is reported as inf, never 0 or NaN.
+#[test]
+fn report_area_with_coordinates_near_the_f64_limit() {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1e308, 1e308, 0.0],
+    ];
+    // square (0, 1, 2, 3) and the triangle (1, 4, 2) beside its edge 1–2
+    let faces = vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]];
+    let m = TriMesh::new(positions, faces).unwrap();
+    let far = 0.5 * ((1e308f64 - 1.0) * 1.0); // ½ |(1e308 − 1, 1e308, 0) × (0, 1, 0)|
+    let r = mesh_report(&m).unwrap();
+    assert!(
+        ((r.area - (far + 1.0)) / far).abs() < 1e-12,
+        "area {:e}, expected {:e}",
+        r.area,
+        far + 1.0
+    );
+    let huge = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1e300, 0.0, 0.0], [0.0, 1e300, 0.0]],
+        vec![[0, 1, 2]],
+    )
+    .unwrap();
+    assert_eq!(mesh_report(&huge).unwrap().area, f64::INFINITY);
+}
