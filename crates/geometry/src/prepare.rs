@@ -721,7 +721,8 @@ pub struct PrepareReport {
 /// done. Errors: an
 /// invalid mesh, a non-orientable or non-manifold surface, a cut centre out of range or removed
 /// by an earlier step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1,
-/// which a disk cut leaves with handles: the error names the genus).
+/// which a disk cut leaves with handles: the error names the genus), or one without an interior
+/// vertex (a seam through every vertex).
 pub fn prepare_disk(
     mesh: &TriMesh,
     options: &PrepareOptions,
@@ -808,6 +809,18 @@ pub fn prepare_disk(
         m = split_edges(&m, &bridges)?;
         report.bridges_split += bridges.len();
         origin.resize(m.num_vertices(), None);
+    }
+    if interior_components(&m).1 == 0 {
+        return Err(GeometryError::Topology(format!(
+            "the prepared disk has no interior vertex (all {} vertices lie on its boundary{}); \
+             a disk map needs one: use fewer seam extremities or a finer mesh",
+            m.num_vertices(),
+            if report.seam_edges > 0 {
+                ", after the seam cut"
+            } else {
+                ""
+            }
+        )));
     }
     Ok((m, origin, report))
 }

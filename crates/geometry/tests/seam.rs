@@ -200,3 +200,20 @@ fn seam_errors() {
     two.faces.extend(icosphere(1).faces.iter().map(|f| f.map(|v| v + off)));
     assert!(extremities(&two, 2).unwrap_err().to_string().contains("connected"));
 }
+
+/// A seam request that slits a closed surface along every vertex (an icosahedron subdivided
+/// once, 1,000 extremities asked for) is an error naming the cause, not a "disk" whose vertices
+/// all lie on the boundary (which every disk map then refuses); a few extremities still work.
+#[test]
+fn a_seam_through_every_vertex_is_an_error() {
+    let sphere = icosphere(1);
+    let options = |k| PrepareOptions {
+        seam_extremities: k,
+        ..Default::default()
+    };
+    let e = prepare::prepare_disk(&sphere, &options(1000)).unwrap_err().to_string();
+    assert!(e.contains("no interior vertex") && e.contains("seam"), "{e}");
+    let (disk, _, report) = prepare::prepare_disk(&sphere, &options(1)).unwrap();
+    assert!(report.seam_edges > 0);
+    require_disk(&disk).unwrap();
+}
