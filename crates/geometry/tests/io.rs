@@ -271,3 +271,59 @@ fn shared_corpus_matches_mesh_stats() {
         .sum();
     assert_eq!(checked, entries.len());
 }
+
+/// A non-convex quad whose fan from its first corner overlaps itself is an error naming the
+/// polygon (and its line in text files) in all three formats; the same quad listed from a corner
+/// that sees all of it reads as two triangles of its true area, as does a convex pentagon with
+/// three collinear corners (a zero-area fan triangle is left to the degenerate-face checks).
+#[test]
+fn polygons_whose_fan_overlaps_are_errors() {
+    let dir = temp_dir("fans");
+    // A(0,0) B(2,0) C(0.5,0.5) D(0,2): counter-clockwise, reflex at C, area 1
+    let v = "v 0 0 0\nv 2 0 0\nv 0.5 0.5 0\nv 0 2 0\n";
+    let bad = dir.join("bad.obj");
+    std::fs::write(&bad, format!("{v}f 2 3 4 1\n")).unwrap();
+    let e = read_mesh(&bad).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.obj:5:") && e.contains("face 0") && e.contains("not convex"),
+        "{e}"
+    );
+    let ok = dir.join("ok.obj");
+    std::fs::write(&ok, format!("{v}f 1 2 3 4\n")).unwrap();
+    let m = read_mesh(&ok).unwrap();
+    assert_eq!(m.faces.len(), 2);
+    assert!((shapespace_geometry::quantities::total_area(&m) - 1.0).abs() < 1e-15);
+    let off = dir.join("bad.off");
+    std::fs::write(&off, "OFF\n4 2 0\n0 0 0\n2 0 0\n0.5 0.5 0\n0 2 0\n3 0 1 3\n4 1 2 3 0\n").unwrap();
+    let e = read_mesh(&off).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.off:8:") && e.contains("face 1") && e.contains("not convex"),
+        "{e}"
+    );
+    let ply = dir.join("bad.ply");
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty double x\nproperty double y\nproperty double z\n\
+         element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         0 0 0\n2 0 0\n0.5 0.5 0\n0 2 0\n4 1 2 3 0\n",
+    )
+    .unwrap();
+    let e = read_mesh(&ply).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.ply") && e.contains("face 0") && e.contains("not convex"),
+        "{e}"
+    );
+    // a convex pentagon (unit square with a corner on its bottom edge) listed from that corner:
+    // the fan's triangles are all proper; listed from (0,0) one fan triangle has zero area
+    let pentagon = dir.join("pentagon.obj");
+    let v5 = "v 0 0 0\nv 0.5 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+    for face in ["f 2 3 4 5 1\n", "f 1 2 3 4 5\n"] {
+        std::fs::write(&pentagon, format!("{v5}{face}")).unwrap();
+        let m = read_mesh(&pentagon).unwrap();
+        assert_eq!(m.faces.len(), 3);
+        assert!(
+            (shapespace_geometry::quantities::total_area(&m) - 1.0).abs() < 1e-15,
+            "{face}"
+        );
+    }
+}

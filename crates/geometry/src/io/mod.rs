@@ -3,7 +3,11 @@
 //! All readers return a [`TriMesh`] whose vertex `i` is the `i`-th vertex of the file: indices
 //! are never renumbered and unreferenced vertices are kept, so files sharing a connectivity
 //! (pose sets, morphable-model samples) correspond by index. Polygons are fan-triangulated,
-//! $(v_0, v_{k}, v_{k+1})$ for $k = 1, \dots, n-2$, which keeps the polygon's orientation.
+//! $(v_0, v_{k}, v_{k+1})$ for $k = 1, \dots, n-2$, which keeps the polygon's orientation. A
+//! polygon whose fan would overlap itself (a fan triangle facing the opposite way of the
+//! polygon's vector area: a nearly planar polygon, not convex and not star-shaped from its first
+//! corner) is an error naming the polygon, since its triangles would cover the wrong area
+//! ([`check_fans`]).
 //!
 //! Readers only reject syntactic and numeric problems: truncated files, counts that disagree
 //! with the data, non-numeric tokens, NaN or infinite coordinates, vertex indices out of range,
@@ -202,6 +206,75 @@ pub(crate) fn fan_triangulate(polygon: &[u32], faces: &mut Vec<[u32; 3]>) {
     for k in 1..polygon.len().saturating_sub(1) {
         faces.push([polygon[0], polygon[k], polygon[k + 1]]);
     }
+}
+
+/// A polygon of more than three corners as a reader fan-triangulated it: its index among the
+/// file's faces, its first triangle in the face list, its corner count and its line (text files).
+pub(crate) struct Fan {
+    pub polygon: usize,
+    pub first: usize,
+    pub corners: usize,
+    pub line: Option<usize>,
+}
+
+impl Fan {
+    /// The record of `polygon` (`corners` indices) about to be fan-triangulated into `faces`, or
+    /// None for a triangle.
+    pub fn of(polygon: usize, corners: usize, faces: &[[u32; 3]], line: Option<usize>) -> Option<Fan> {
+        (corners > 3).then_some(Fan {
+            polygon,
+            first: faces.len(),
+            corners,
+            line,
+        })
+    }
+}
+
+/// Checks that no fan triangle of a polygon faces the opposite way of the polygon's vector area
+/// A (the sum of its fan triangles' cross products n_k, the same for any triangulation of a
+/// planar polygon): n_k · A < −0.9 |n_k| |A|. In a planar polygon that is a fan that overlaps
+/// itself (the first corner does not see the whole polygon), whose triangles cover more than
+/// the polygon without any other sign. Non-planar polygons whose triangles merely bend (the
+/// ICT FaceKit neutral mesh has one quad of 25,836 folded by 115°, cos −0.36 against A) are
+/// left alone: any triangulation of them is a choice. Triangles of zero area up to rounding
+/// (collinear corners) are left to the degenerate-face checks of [`crate::topology`].
+pub(crate) fn check_fans(
+    path: &Path,
+    positions: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    fans: &[Fan],
+) -> Result<(), GeometryError> {
+    use crate::vec3::{cross, dot, norm, sub};
+    for fan in fans {
+        let triangles = &faces[fan.first..fan.first + fan.corners - 2];
+        let normal = |t: &[u32; 3]| {
+            let [a, b, c] = t.map(|v| positions[v as usize]);
+            (cross(sub(b, a), sub(c, a)), norm(sub(b, a)) * norm(sub(c, a)))
+        };
+        let area = triangles.iter().fold([0.0; 3], |s, t| {
+            let n = normal(t).0;
+            [s[0] + n[0], s[1] + n[1], s[2] + n[2]]
+        });
+        for (k, t) in triangles.iter().enumerate() {
+            let (n, scale) = normal(t);
+            if norm(n) > 1e-10 * scale && dot(n, area) < -0.9 * norm(n) * norm(area) {
+                let message = format!(
+                    "face {} (a polygon of {} corners) is not convex: its fan triangle {k} from the \
+                     first corner faces against the polygon, so the triangles would overlap; \
+                     triangulate it first",
+                    fan.polygon, fan.corners
+                );
+                return Err(match fan.line {
+                    Some(line) => parse_error(path, line, message),
+                    None => GeometryError::WithPath {
+                        path: path.to_path_buf(),
+                        error: Box::new(GeometryError::Invalid(message)),
+                    },
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

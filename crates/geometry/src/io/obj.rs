@@ -24,7 +24,10 @@
 use std::io::Write;
 use std::path::Path;
 
-use super::{check_text_line, fan_triangulate, lines, parse_error, parse_f64, parse_i64, read_bytes, show, tokens};
+use super::{
+    check_fans, check_text_line, fan_triangulate, lines, parse_error, parse_f64, parse_i64, read_bytes, show, tokens,
+    Fan,
+};
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
 
@@ -67,6 +70,7 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
     let mut max_v = MaxIndex::default();
     let mut max_vt = MaxIndex::default();
     let mut polygon: Vec<u32> = Vec::new();
+    let mut fans: Vec<Fan> = Vec::new();
     let mut polygon_vt: Vec<u32> = Vec::new();
     let mut tri_vt: Vec<[u32; 3]> = Vec::new();
     let mut last_line = 0usize;
@@ -188,6 +192,7 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                         format!("face {num_polygons} has {corner_count} vertices (need at least 3)"),
                     ));
                 }
+                fans.extend(Fan::of(num_polygons, polygon.len(), &faces, Some(line_no)));
                 fan_triangulate(&polygon, &mut faces);
                 num_polygons += 1;
                 if all_corners_have_vt {
@@ -243,6 +248,7 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
     if faces.is_empty() {
         return Err(parse_error(path, last_line.max(1), "no faces ('f' lines)"));
     }
+    check_fans(path, &positions, &faces, &fans)?;
     let uvs = if all_corners_have_vt && !texcoords.is_empty() {
         per_vertex_uvs(positions.len(), &faces, &face_texcoords, &texcoords)
     } else {

@@ -21,8 +21,8 @@ use std::io::Write;
 use std::path::Path;
 
 use super::{
-    capped_capacity, check_text_line, fan_triangulate, is_blank, lines, parse_error, parse_f64, parse_i64, read_bytes,
-    show, tokens,
+    capped_capacity, check_fans, check_text_line, fan_triangulate, is_blank, lines, parse_error, parse_f64, parse_i64,
+    read_bytes, show, tokens, Fan,
 };
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
@@ -188,6 +188,7 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
 
     let mut faces = Vec::with_capacity(capped_capacity(num_polygons, data.len(), 8));
     let mut polygon: Vec<u32> = Vec::new();
+    let mut fans: Vec<Fan> = Vec::new();
     for face in 0..num_polygons {
         let Some((line_no, line)) = src.next_line()? else {
             return Err(parse_error(
@@ -238,6 +239,7 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             polygon.push(i as u32);
         }
         // Values after the indices (a face colour) are ignored.
+        fans.extend(Fan::of(face, polygon.len(), &faces, Some(line_no)));
         fan_triangulate(&polygon, &mut faces);
     }
     if let Some((line_no, line)) = src.next_line()? {
@@ -250,6 +252,7 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             ),
         ));
     }
+    check_fans(path, &positions, &faces, &fans)?;
     Ok(TriMesh {
         positions,
         faces,

@@ -32,8 +32,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::{
-    capped_capacity, check_text_line, fan_triangulate, is_blank, parse_error, parse_f64, parse_i64, read_bytes, show,
-    tokens,
+    capped_capacity, check_fans, check_text_line, fan_triangulate, is_blank, parse_error, parse_f64, parse_i64,
+    read_bytes, show, tokens, Fan,
 };
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
@@ -647,6 +647,7 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut items: Vec<i64> = Vec::new();
     let mut polygon: Vec<u32> = Vec::new();
+    let mut fans: Vec<Fan> = Vec::new();
 
     for element in &header.elements {
         if element.properties.is_empty() {
@@ -747,6 +748,7 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
                                     }
                                     polygon.push(v as u32);
                                 }
+                                fans.extend(Fan::of(i, polygon.len(), &faces, None));
                                 fan_triangulate(&polygon, &mut faces);
                             }
                         }
@@ -776,6 +778,7 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
             "the file has no faces (all face elements empty or degenerate)".to_string(),
         ));
     }
+    check_fans(path, &positions, &faces, &fans)?;
     Ok(TriMesh { positions, faces, uvs })
 }
 
