@@ -151,31 +151,47 @@ pub struct DistancesRun {
     pub report: DistancesReport,
 }
 
-/// Shape name of a file: its stem (made unique by the parent folder name when stems repeat).
+/// Shape name of a file: its stem, or, when stems repeat, the shortest suffix of its path
+/// (folders and stem, joined by `/`) that no other file shares: `a/cat` and `b/cat` for
+/// `data/a/cat.obj` and `data/b/cat.obj`, `x/cat` and `y/x/cat` when the folder names repeat
+/// too. The same file given twice keeps one name (which [`run_distances`] refuses as a
+/// duplicate).
 pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
-    let stems: Vec<String> = paths
+    use std::path::Component;
+    let parts: Vec<Vec<String>> = paths
         .iter()
         .map(|p| {
-            p.file_stem()
-                .map(|s| s.to_string_lossy().to_string())
-                .unwrap_or_default()
+            let mut parts: Vec<String> = p
+                .parent()
+                .map(|d| {
+                    d.components()
+                        .filter_map(|c| match c {
+                            Component::Normal(s) => Some(s.to_string_lossy().into_owned()),
+                            Component::ParentDir => Some("..".to_string()),
+                            _ => None,
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
+            parts.push(
+                p.file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+            );
+            parts
         })
         .collect();
-    stems
-        .iter()
-        .zip(paths)
-        .map(|(s, p)| {
-            if stems.iter().filter(|t| *t == s).count() > 1 {
-                format!(
-                    "{}/{}",
-                    p.parent()
-                        .and_then(|d| d.file_name())
-                        .map(|d| d.to_string_lossy().to_string())
-                        .unwrap_or_default(),
-                    s
-                )
-            } else {
-                s.clone()
+    let suffix = |i: usize, k: usize| parts[i][parts[i].len().saturating_sub(k)..].join("/");
+    (0..paths.len())
+        .map(|i| {
+            let mut k = 1;
+            loop {
+                let name = suffix(i, k);
+                let clash = (0..paths.len()).any(|j| j != i && suffix(j, k) == name);
+                if !clash || k >= parts[i].len() {
+                    break name;
+                }
+                k += 1;
             }
         })
         .collect()

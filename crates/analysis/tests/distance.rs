@@ -506,3 +506,20 @@ fn flux_form_evaluations_give_the_same_face_distance() {
             && (flux.max_mass_error - full.max_mass_error).abs() <= 1e-3 * full.max_mass_error + 1e-12
     );
 }
+
+/// Shape names: stems, made unique by the shortest path suffix when stems repeat (also when the
+/// folder names repeat), never an empty folder part; the same file twice keeps one name.
+#[test]
+fn shape_names_are_the_shortest_distinguishing_suffixes() {
+    use shapespace_analysis::pipeline::shape_names;
+    let names = |paths: &[&str]| shape_names(&paths.iter().map(std::path::PathBuf::from).collect::<Vec<_>>());
+    assert_eq!(names(&["d/a/cat.obj", "d/dog.obj"]), ["cat", "dog"]);
+    assert_eq!(names(&["d/a/cat.obj", "d/b/cat.off"]), ["a/cat", "b/cat"]);
+    assert_eq!(names(&["cat.obj", "x/cat.obj"]), ["cat", "x/cat"]);
+    assert_eq!(
+        names(&["p/x/cat.obj", "q/x/cat.obj", "y/cat.ply"]),
+        ["p/x/cat", "q/x/cat", "y/cat"]
+    );
+    assert_eq!(names(&["../x/cat.obj", "x/cat.obj"]), ["../x/cat", "x/cat"]);
+    assert_eq!(names(&["a/cat.obj", "a/cat.obj"]), ["a/cat", "a/cat"]);
+}
