@@ -46,6 +46,17 @@
 //!   boundary vertices whose angles increase and spaces the others evenly between them. The
 //!   result counts the violations ([`AreaPreservingMap::boundary_order_violations`]) and the
 //!   vertices moved ([`AreaPreservingMap::boundary_vertices_reordered`]).
+//! - **Square corners.** A face with all three corners on the boundary (an ear: boundary
+//!   vertices a, m, b consecutive along a loop) whose images land on one side of the square is
+//!   flat, and no interior re-embedding can repair it: a corner of the square must lie between
+//!   a's and b's images. When some ears are flat after the OT (a square plate, whose corner
+//!   triangles are ears, maps its corners to the middles of the square's sides), the targets
+//!   are turned about the origin by the angle that puts a corner inside the most ears
+//!   ([`corner_rotation`], from the first map's boundary angles), the OT is solved again, and
+//!   the turned map is kept when it has fewer flat ears
+//!   ([`AreaPreservingMap::square_rotation`]). The OT map is not exactly equivariant under
+//!   turns of the targets alone (the square is not round), so this is a best effort; flat ears
+//!   that remain are reported by the fold repair.
 //!
 //! # Importance weights (Zhao et al. 2013, §4; Su et al. 2015, §5.2)
 //! Per-vertex weights $w_i > 0$ give $\nu_i \leftarrow \pi\, w_i \nu_i / \sum_j w_j \nu_j$: a region
@@ -219,6 +230,10 @@ pub struct AreaPreservingMap {
     /// Boundary vertices that [`order_boundary`] moved to restore the order (0 when there was
     /// no violation).
     pub boundary_vertices_reordered: usize,
+    /// The angle (radians) by which the conformal image was turned about the origin before the
+    /// OT, so that the square's corners fall inside the boundary's ears (module docs, "Square
+    /// corners"); 0 for the disk and when no ear needed it.
+    pub square_rotation: f64,
     /// OT solver summary.
     pub ot: OtSummary,
     /// The fold repair step.
@@ -431,22 +446,55 @@ pub fn area_preserving_map(
         measure,
     } = transport_problem(mesh, markers, params)?;
     let t1 = Instant::now();
-    let solution =
-        solve_ot(&measure, &conformal.uv, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
-    let solution = if params.require_convergence {
-        solution.into_result().map_err(AnalysisError::Transport)?
-    } else {
-        solution
+    // OT from Ω to the targets (the conformal image turned by `rotation`), the centroid map and
+    // the boundary order: (solution, uv, max projection, order violations, vertices reordered)
+    let place = |rotation: f64| -> Result<_, AnalysisError> {
+        let (sin, cos) = rotation.sin_cos();
+        let targets: Vec<[f64; 2]> = if rotation == 0.0 {
+            conformal.uv.clone()
+        } else {
+            conformal
+                .uv
+                .iter()
+                .map(|p| [cos * p[0] - sin * p[1], sin * p[0] + cos * p[1]])
+                .collect()
+        };
+        let solution =
+            solve_ot(&measure, &targets, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
+        let solution = if params.require_convergence {
+            solution.into_result().map_err(AnalysisError::Transport)?
+        } else {
+            solution
+        };
+        let (mut uv, max_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
+        let violations = boundary_order_violations(mesh, &uv);
+        let reordered = if violations > 0 {
+            order_boundary(mesh, params.domain, &mut uv)
+        } else {
+            0
+        };
+        Ok((solution, uv, max_projection, violations, reordered))
     };
+    let mut placed = place(0.0)?;
+    // The square: ears flat on one side (module docs, "Square corners") are avoided by turning
+    // the targets so that a corner falls inside each ear, when a turn does better.
+    let mut square_rotation = 0.0;
+    if params.domain == Domain::Square {
+        let ears = boundary_ears(mesh);
+        let flat = |uv: &[[f64; 2]]| ears.iter().filter(|e| !ear_is_proper(uv, e)).count();
+        let flat_before = flat(&placed.1);
+        if flat_before > 0 {
+            if let Some(rotation) = corner_rotation(&ears, &placed.1) {
+                let turned = place(rotation)?;
+                if flat(&turned.1) < flat_before {
+                    placed = turned;
+                    square_rotation = rotation;
+                }
+            }
+        }
+    }
+    let (solution, mut uv, max_boundary_projection, boundary_order_violations, boundary_vertices_reordered) = placed;
     let t2 = Instant::now();
-
-    let (mut uv, max_boundary_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
-    let boundary_order_violations = boundary_order_violations(mesh, &uv);
-    let boundary_vertices_reordered = if boundary_order_violations > 0 {
-        order_boundary(mesh, params.domain, &mut uv)
-    } else {
-        0
-    };
     let ot = OtSummary {
         iterations: solution.iterations,
         max_relative_error: solution.max_relative_error,
@@ -481,6 +529,7 @@ pub fn area_preserving_map(
         max_boundary_projection,
         boundary_order_violations,
         boundary_vertices_reordered,
+        square_rotation,
         ot,
         fold_repair,
         timings: Timings {
@@ -609,6 +658,78 @@ pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> us
         }
     }
     moved
+}
+
+/// The ears of `mesh`: faces whose three corners are consecutive along a boundary loop, as
+/// (a, m, b) with a → m → b the loop's order.
+pub fn boundary_ears(mesh: &TriMesh) -> Vec<[u32; 3]> {
+    let conn = Connectivity::of(mesh);
+    let mut next: Vec<Option<u32>> = vec![None; mesh.num_vertices()];
+    for [a, b] in conn.boundary_halfedges(&mesh.faces) {
+        next[a as usize] = Some(b);
+    }
+    let mut ears = Vec::new();
+    for f in &mesh.faces {
+        for k in 0..3 {
+            let a = f[k];
+            if let Some(m) = next[a as usize] {
+                if let Some(b) = next[m as usize] {
+                    if b != a && f.contains(&m) && f.contains(&b) {
+                        ears.push([a, m, b]);
+                    }
+                }
+            }
+        }
+    }
+    ears
+}
+
+/// Whether the ear (a, m, b) has a proper image: positive area above rounding (a flat ear has
+/// its three corners on one side of the square).
+fn ear_is_proper(uv: &[[f64; 2]], ear: &[u32; 3]) -> bool {
+    let [pa, pm, pb] = ear.map(|v| uv[v as usize]);
+    let area = (pm[0] - pa[0]) * (pb[1] - pa[1]) - (pm[1] - pa[1]) * (pb[0] - pa[0]);
+    let scale = (pm[0] - pa[0]).hypot(pm[1] - pa[1]) * (pb[0] - pa[0]).hypot(pb[1] - pa[1]);
+    area.abs() > 1e-9 * scale
+}
+
+/// The turn ρ ∈ (−π/4, π/4] of the targets that puts a corner of the square (at angles
+/// π/4 + kπ/2) inside the most `ears`, judged on the boundary angles of the map `uv` (a corner
+/// is inside an ear when it lies in the middle 80 % of the arc from a's image to b's); candidates
+/// are the turns that centre a corner on one ear. `None` when no candidate does better than no
+/// turn.
+pub fn corner_rotation(ears: &[[u32; 3]], uv: &[[f64; 2]]) -> Option<f64> {
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
+    let angle = |v: u32| uv[v as usize][1].atan2(uv[v as usize][0]);
+    let arcs: Vec<(f64, f64)> = ears
+        .iter()
+        .map(|&[a, _, b]| (angle(a), (angle(b) - angle(a)).rem_euclid(TAU)))
+        .filter(|&(_, width)| width < FRAC_PI_2)
+        .collect();
+    // corners inside the ears after a turn by rho
+    let score = |rho: f64| {
+        arcs.iter()
+            .filter(|&&(start, width)| {
+                let offset = (FRAC_PI_4 - rho - start).rem_euclid(FRAC_PI_2);
+                offset > 0.1 * width && offset < 0.9 * width
+            })
+            .count()
+    };
+    let wrap = |r: f64| {
+        let r = r.rem_euclid(FRAC_PI_2);
+        if r > FRAC_PI_4 {
+            r - FRAC_PI_2
+        } else {
+            r
+        }
+    };
+    let base = score(0.0);
+    arcs.iter()
+        .map(|&(start, width)| wrap(FRAC_PI_4 - (start + 0.5 * width)))
+        .map(|rho| (score(rho), rho))
+        .filter(|&(s, _)| s > base)
+        .max_by(|x, y| x.0.cmp(&y.0).then(y.1.abs().total_cmp(&x.1.abs())))
+        .map(|(_, rho)| rho)
 }
 
 /// Indices of a longest strictly increasing subsequence of `x` (patience sorting, O(n log n)).

@@ -174,6 +174,13 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             map.boundary_vertices_reordered
         );
     }
+    if map.square_rotation != 0.0 {
+        eprintln!(
+            "{}: boundary ears (faces with three boundary corners) fell flat on a side of the square; the conformal image was turned by {:.4} rad before the OT so that the square's corners fall inside them",
+            args.input.display(),
+            map.square_rotation
+        );
+    }
     if let Some(dir) = &args.plots {
         write_distortion_histograms(&report, dir, 60)
             .with_context(|| format!("writing plots into {}", dir.display()))?;
@@ -195,6 +202,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "max_boundary_projection": map.max_boundary_projection,
             "boundary_order_violations": map.boundary_order_violations,
             "boundary_vertices_reordered": map.boundary_vertices_reordered,
+            "square_rotation": map.square_rotation,
             "fold_repair": map.fold_repair,
             "timings": map.timings,
             "wall_seconds": t0.elapsed().as_secs_f64(),
