@@ -164,11 +164,77 @@ fn json_u32(v: &serde_json::Value, src: &str, what: &str) -> Result<u32, Conform
         .ok_or_else(|| parse_err(src, format!("`{what}` must be a vertex index, got {v}")))
 }
 
+/// A JSON document read only to find an object with a repeated key (at any depth): JSON
+/// readers, `serde_json::Value` included, keep the last value silently, so a marker file naming
+/// a landmark twice would lose one without notice.
+struct NoRepeatedKeys;
+
+impl<'de> serde::Deserialize<'de> for NoRepeatedKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_any(NoRepeatedKeysVisitor)
+    }
+}
+
+struct NoRepeatedKeysVisitor;
+
+impl<'de> serde::de::Visitor<'de> for NoRepeatedKeysVisitor {
+    type Value = NoRepeatedKeys;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("any JSON value")
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<NoRepeatedKeys, A::Error> {
+        let mut seen = std::collections::HashSet::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if !seen.insert(key.clone()) {
+                return Err(serde::de::Error::custom(format!(
+                    "the key `{key}` appears twice in one object"
+                )));
+            }
+            map.next_value::<NoRepeatedKeys>()?;
+        }
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<NoRepeatedKeys, A::Error> {
+        while seq.next_element::<NoRepeatedKeys>()?.is_some() {}
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_bool<E>(self, _: bool) -> Result<NoRepeatedKeys, E> {
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_i64<E>(self, _: i64) -> Result<NoRepeatedKeys, E> {
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_u64<E>(self, _: u64) -> Result<NoRepeatedKeys, E> {
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_f64<E>(self, _: f64) -> Result<NoRepeatedKeys, E> {
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_str<E>(self, _: &str) -> Result<NoRepeatedKeys, E> {
+        Ok(NoRepeatedKeys)
+    }
+
+    fn visit_unit<E>(self) -> Result<NoRepeatedKeys, E> {
+        Ok(NoRepeatedKeys)
+    }
+}
+
 impl MarkerFile {
-    /// Parses the JSON text of a marker file; `source_name` names it in errors.
+    /// Parses the JSON text of a marker file; `source_name` names it in errors. A key repeated
+    /// within one object (e.g. a landmark named twice) is an error.
     pub fn from_json_str(text: &str, source_name: &str) -> Result<Self, ConformalError> {
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| parse_err(source_name, format!("line {}: {e}", e.line())))?;
+        serde_json::from_str::<NoRepeatedKeys>(text)
+            .map_err(|e| parse_err(source_name, format!("line {}: {e}", e.line())))?;
         let obj = value
             .as_object()
             .ok_or_else(|| parse_err(source_name, "expected a JSON object"))?;
@@ -607,6 +673,24 @@ mod tests {
         assert!(e.starts_with("x.json: "), "{e}");
         assert!(MarkerFile::from_json_str("{", "x.json").is_err());
         assert!(MarkerFile::from_json_str(r#"{"landmarks": {"a": 1.5}}"#, "x.json").is_err());
+        // a key named twice in one object, at the top or among the landmarks
+        for text in [
+            "{\"landmarks\": {\"a\": 1,\n \"a\": 2}}",
+            "{\"center\": 1,\n \"center\": 2}",
+        ] {
+            let e = MarkerFile::from_json_str(text, "x.json").unwrap_err().to_string();
+            assert!(
+                e.contains("x.json") && e.contains("appears twice") && e.contains("line 2"),
+                "{e}"
+            );
+        }
+        // the same name in two different objects is fine
+        let f = MarkerFile::from_json_str(
+            r#"{"center": {"face": 1, "bary": [0.2, 0.3, 0.5]}, "landmarks": {"face": 3}}"#,
+            "x.json",
+        )
+        .unwrap();
+        assert_eq!(f.landmarks.get("face"), Some(&3));
         // a misspelt key is an error naming it, not a silent fallback to automatic markers
         let e = MarkerFile::from_json_str(r#"{"centre": 40}"#, "x.json")
             .unwrap_err()
