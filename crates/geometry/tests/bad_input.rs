@@ -25,6 +25,16 @@ const fn err(at: &'static str, problem: &'static [&'static str]) -> Expect {
 /// Every file in the corpus and what reading it must give.
 const CORPUS: &[(&str, Expect)] = &[
     ("binary_garbage.obj", err(":1:", &["binary data"])),
+    ("concave_quad.obj", err(":6:", &["face 0", "not convex"])),
+    ("self_crossing_quad.obj", err(":6:", &["face 0", "crosses itself"])),
+    (
+        "ply_vertex_without_properties.ply",
+        err(":6:", &["vertex element has no properties"]),
+    ),
+    (
+        "ply_vertex_without_properties_triangle.ply",
+        err(":6:", &["vertex element has no properties"]),
+    ),
     ("binary_garbage.off", err(":1:", &["binary data"])),
     ("binary_garbage.ply", err(":1:", &["not a PLY file"])),
     ("empty.obj", err(":1:", &["empty file"])),

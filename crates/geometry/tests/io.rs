@@ -326,4 +326,20 @@ fn polygons_whose_fan_overlaps_are_errors() {
             "{face}"
         );
     }
+    // The same pentagon moved and turned by an angle where the rounded corner on the edge (at
+    // 0.3 of it) makes the collinear fan
+    // triangle (A, M, B) slightly reversed: rounding, not a fold, so it still reads.
+    let turned = (1..90).find_map(|deg| {
+        let (sin, cos) = (deg as f64).to_radians().sin_cos();
+        let r = |p: [f64; 2]| [0.1 + cos * p[0] - sin * p[1], 0.3 + sin * p[0] + cos * p[1]];
+        let (a, b) = (r([0.0, 0.0]), r([1.0, 0.0]));
+        let m = [a[0] + 0.3 * (b[0] - a[0]), a[1] + 0.3 * (b[1] - a[1])];
+        let z = (m[0] - a[0]) * (b[1] - a[1]) - (m[1] - a[1]) * (b[0] - a[0]);
+        (z < 0.0).then(|| [a, m, b, r([1.0, 1.0]), r([0.0, 1.0])])
+    });
+    let corners = turned.expect("an angle whose rounding reverses the collinear fan triangle");
+    let text: String = corners.iter().map(|p| format!("v {:?} {:?} 0\n", p[0], p[1])).collect();
+    std::fs::write(&pentagon, format!("{text}f 1 2 3 4 5\n")).unwrap();
+    let m = read_mesh(&pentagon).unwrap();
+    assert!((shapespace_geometry::quantities::total_area(&m) - 1.0).abs() < 1e-14);
 }

@@ -236,8 +236,10 @@ impl Fan {
 /// itself (the first corner does not see the whole polygon), whose triangles cover more than
 /// the polygon without any other sign. Non-planar polygons whose triangles merely bend (the
 /// ICT FaceKit neutral mesh has one quad of 25,836 folded by 115°, cos −0.36 against A) are
-/// left alone: any triangulation of them is a choice. Triangles of zero area up to rounding
-/// (collinear corners) are left to the degenerate-face checks of [`crate::topology`].
+/// left alone: any triangulation of them is a choice. A polygon whose fan triangles cancel
+/// (|A| ≤ 1e-10 Σ|n_k| with some n_k ≠ 0: a self-crossing bow tie) is an error too. Triangles of
+/// zero area up to rounding (collinear corners) are left to the degenerate-face checks of
+/// [`crate::topology`].
 pub(crate) fn check_fans(
     path: &Path,
     positions: &[[f64; 3]],
@@ -255,22 +257,31 @@ pub(crate) fn check_fans(
             let n = normal(t).0;
             [s[0] + n[0], s[1] + n[1], s[2] + n[2]]
         });
+        let total: f64 = triangles.iter().map(|t| norm(normal(t).0)).sum();
+        let at = |message: String| match fan.line {
+            Some(line) => parse_error(path, line, message),
+            None => GeometryError::WithPath {
+                path: path.to_path_buf(),
+                error: Box::new(GeometryError::Invalid(message)),
+            },
+        };
+        // triangles that cancel (a bow tie): no vector area to compare with
+        if total > 0.0 && !(norm(area) > 1e-10 * total) {
+            return Err(at(format!(
+                "face {} (a polygon of {} corners) crosses itself: its fan triangles cancel; \
+                 split it into simple polygons first",
+                fan.polygon, fan.corners
+            )));
+        }
         for (k, t) in triangles.iter().enumerate() {
             let (n, scale) = normal(t);
             if norm(n) > 1e-10 * scale && dot(n, area) < -0.9 * norm(n) * norm(area) {
-                let message = format!(
+                return Err(at(format!(
                     "face {} (a polygon of {} corners) is not convex: its fan triangle {k} from the \
                      first corner faces against the polygon, so the triangles would overlap; \
                      triangulate it first",
                     fan.polygon, fan.corners
-                );
-                return Err(match fan.line {
-                    Some(line) => parse_error(path, line, message),
-                    None => GeometryError::WithPath {
-                        path: path.to_path_buf(),
-                        error: Box::new(GeometryError::Invalid(message)),
-                    },
-                });
+                )));
             }
         }
     }

@@ -618,6 +618,13 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
     let at_header = |message: String| parse_error(path, header.end_line, message);
     let vertex_elements: Vec<&Element> = header.elements.iter().filter(|e| e.name == "vertex").collect();
     let num_vertices = match vertex_elements.as_slice() {
+        // (an element without properties is skipped by the loop below, so the coordinates'
+        // check there would never run)
+        [e] if e.properties.is_empty() => {
+            return Err(at_header(
+                "the vertex element has no properties (no 'x', 'y', 'z')".to_string(),
+            ))
+        }
         [e] => e.count,
         [] => return Err(at_header("the header declares no 'vertex' element".to_string())),
         _ => {
