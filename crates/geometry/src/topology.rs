@@ -466,22 +466,34 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
     let closed = conn.edge_faces.iter().all(|ef| ef.len() != 1);
     let mut area: f64 = face_areas(mesh).iter().sum();
     if !area.is_finite() {
-        // Coordinates near f64::MAX: the cross products overflow (inf − inf = NaN). With the
-        // positions scaled by s (the largest magnitude) nothing overflows, and each edge vector
-        // is scaled again to its own largest component, so that a short edge next to a huge one
-        // does not underflow in the cross product; a triangle's area is then
-        // ½ |û × v̂| (m₁ s)(m₂ s), and the sum is inf when the true area exceeds f64.
-        let s = mesh.positions.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+        // Coordinates near f64::MAX: the cross products overflow (inf − inf = NaN). Per
+        // triangle, the half edges h = (b − a)/2 (computed as b/2 − a/2: never overflows) are
+        // scaled to their largest component m, and so is the cross product c of the scaled
+        // edges before its length is taken, so nothing under- or overflows on the way; the area
+        // ½|2h₁ × 2h₂| = 2 |c| m₁ m₂ is multiplied from the smallest factor up, so it is inf
+        // only when the true area exceeds f64 (and 0 for collinear corners, never NaN).
         area = (0..nf)
             .map(|f| {
-                let [a, b, c] = mesh.face_positions(f).map(|p| p.map(|x| x / s));
-                let (e1, e2) = (sub(b, a), sub(c, a));
-                let (m1, m2) = (max_abs(e1), max_abs(e2));
+                let [a, b, c] = mesh.face_positions(f);
+                let half = |p: [f64; 3], q: [f64; 3]| {
+                    [
+                        0.5 * p[0] - 0.5 * q[0],
+                        0.5 * p[1] - 0.5 * q[1],
+                        0.5 * p[2] - 0.5 * q[2],
+                    ]
+                };
+                let (h1, h2) = (half(b, a), half(c, a));
+                let (m1, m2) = (max_abs(h1), max_abs(h2));
                 if !(m1 > 0.0 && m2 > 0.0) {
                     return 0.0;
                 }
-                let (u, v) = (e1.map(|x| x / m1), e2.map(|x| x / m2));
-                0.5 * norm2(cross(u, v)).sqrt() * (m1 * s) * (m2 * s)
+                let n = cross(h1.map(|x| x / m1), h2.map(|x| x / m2));
+                let mn = max_abs(n);
+                if !(mn > 0.0) {
+                    return 0.0;
+                }
+                let length = mn * norm2(n.map(|x| x / mn)).sqrt();
+                2.0 * length * m1.min(m2) * m1.max(m2)
             })
             .sum();
     }

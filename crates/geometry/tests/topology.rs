@@ -695,33 +695,47 @@ fn bridges_split_joins_the_interior() {
 }
 
 /// The report's area with coordinates near f64::MAX, where the direct cross products overflow:
-/// a square of side 1 with a far vertex at (1e308, 1e308, 0) fanned to it (area ½·1e308 plus
-/// the square's 1) is reported to 1e-12, not 0 (the short edges next to the huge one must not
-/// underflow); a mesh whose true area exceeds f64 is reported as inf, never 0 or NaN.
+/// triangles whose true areas are finite are reported to 1e-12 (a short edge beside a huge one
+/// must not underflow, an edge spanning more than f64::MAX must not overflow), collinear corners
+/// give 0 (not NaN), and a true area beyond f64 gives inf.
 #[test]
 fn report_area_with_coordinates_near_the_f64_limit() {
-    let positions = vec![
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [1e308, 1e308, 0.0],
-    ];
-    // square (0, 1, 2, 3) and the triangle (1, 4, 2) beside its edge 1–2
-    let faces = vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]];
-    let m = TriMesh::new(positions, faces).unwrap();
-    let far = 0.5 * ((1e308f64 - 1.0) * 1.0); // ½ |(1e308 − 1, 1e308, 0) × (0, 1, 0)|
-    let r = mesh_report(&m).unwrap();
-    assert!(
-        ((r.area - (far + 1.0)) / far).abs() < 1e-12,
-        "area {:e}, expected {:e}",
-        r.area,
-        far + 1.0
+    let area = |positions: Vec<[f64; 3]>| {
+        let m = TriMesh::new(positions, vec![[0, 1, 2]]).unwrap();
+        mesh_report(&m).unwrap().area
+    };
+    let close = |got: f64, expected: f64| {
+        assert!(
+            ((got - expected) / expected).abs() < 1e-12,
+            "area {got:e}, expected {expected:e}"
+        );
+    };
+    // ½ |(1e308, 0, 0) × (1e308, 1, 0)| = 5e307 (sine of the angle 1e-308)
+    close(area(vec![[0.0, 0.0, 0.0], [1e308, 0.0, 0.0], [1e308, 1.0, 0.0]]), 5e307);
+    // ½ · 3.4e308 · 1: the edge's length exceeds f64, the area does not
+    close(
+        area(vec![[-1.7e308, 0.0, 0.0], [1.7e308, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+        1.7e308,
     );
-    let huge = TriMesh::new(
-        vec![[0.0, 0.0, 0.0], [1e300, 0.0, 0.0], [0.0, 1e300, 0.0]],
-        vec![[0, 1, 2]],
+    // ½ |(1e308 − 1, 1e308, 0) × (0, 1, 0)| beside a unit square
+    let m = TriMesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1e308, 1e308, 0.0],
+        ],
+        vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]],
     )
     .unwrap();
-    assert_eq!(mesh_report(&huge).unwrap().area, f64::INFINITY);
+    close(mesh_report(&m).unwrap().area, 0.5 * (1e308 - 1.0));
+    assert_eq!(
+        area(vec![[-1.7e308, 0.0, 0.0], [1.7e308, 0.0, 0.0], [0.0, 0.0, 0.0]]),
+        0.0
+    );
+    assert_eq!(
+        area(vec![[0.0, 0.0, 0.0], [1e300, 0.0, 0.0], [0.0, 1e300, 0.0]]),
+        f64::INFINITY
+    );
 }
