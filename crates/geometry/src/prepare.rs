@@ -798,8 +798,10 @@ pub fn prepare_disk(
     // a disk whose interior falls apart at edges joining two boundary vertices: split them
     // (the new midpoints are interior and join the pieces); rounds because a split can leave
     // pieces that only the next bridge joins
+    // (also when there is no interior vertex at all: a split bridge gives one, as in a square
+    // of two triangles)
     for _ in 0..4 {
-        if interior_components(&m).1 <= 1 {
+        if interior_components(&m).1 == 1 {
             break;
         }
         let bridges = boundary_bridges(&m);
@@ -811,15 +813,15 @@ pub fn prepare_disk(
         origin.resize(m.num_vertices(), None);
     }
     if interior_components(&m).1 == 0 {
+        let (after, advice) = if report.seam_edges > 0 {
+            (", after the seam cut", "use fewer seam extremities or a finer mesh")
+        } else {
+            ("", "use a finer mesh")
+        };
         return Err(GeometryError::Topology(format!(
-            "the prepared disk has no interior vertex (all {} vertices lie on its boundary{}); \
-             a disk map needs one: use fewer seam extremities or a finer mesh",
-            m.num_vertices(),
-            if report.seam_edges > 0 {
-                ", after the seam cut"
-            } else {
-                ""
-            }
+            "the prepared disk has no interior vertex (all {} vertices lie on its boundary{after}); \
+             a disk map needs one: {advice}",
+            m.num_vertices()
         )));
     }
     Ok((m, origin, report))

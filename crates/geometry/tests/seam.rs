@@ -202,18 +202,44 @@ fn seam_errors() {
 }
 
 /// A seam request that slits a closed surface along every vertex (an icosahedron subdivided
-/// once, 1,000 extremities asked for) is an error naming the cause, not a "disk" whose vertices
-/// all lie on the boundary (which every disk map then refuses); a few extremities still work.
+/// once, 1,000 extremities asked for) leaves no interior vertex; the bridges (interior edges
+/// joining two boundary vertices) are then split, which gives the disk interior vertices again.
+/// A disk with no interior vertex and no bridge to split (one triangle) is an error naming the
+/// cause.
 #[test]
-fn a_seam_through_every_vertex_is_an_error() {
+fn a_seam_through_every_vertex_gets_interior_vertices_back() {
     let sphere = icosphere(1);
-    let options = |k| PrepareOptions {
-        seam_extremities: k,
+    let options = PrepareOptions {
+        seam_extremities: 1000,
         ..Default::default()
     };
-    let e = prepare::prepare_disk(&sphere, &options(1000)).unwrap_err().to_string();
-    assert!(e.contains("no interior vertex") && e.contains("seam"), "{e}");
-    let (disk, _, report) = prepare::prepare_disk(&sphere, &options(1)).unwrap();
-    assert!(report.seam_edges > 0);
+    let (disk, _, report) = prepare::prepare_disk(&sphere, &options).unwrap();
+    assert!(report.seam_edges > 0 && report.bridges_split > 0, "{report:?}");
     require_disk(&disk).unwrap();
+    assert_eq!(prepare::interior_components(&disk).1, 1);
+    let triangle = TriMesh::new(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]).unwrap();
+    let e = prepare::prepare_disk(&triangle, &PrepareOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("no interior vertex") && e.contains("finer mesh") && !e.contains("seam"),
+        "{e}"
+    );
+}
+
+/// A disk without interior vertex whose bridge (an interior edge joining two boundary vertices)
+/// can be split: the square of two triangles gets its diagonal split, one interior vertex.
+#[test]
+fn a_disk_without_interior_vertex_gets_its_bridge_split() {
+    let square = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2], [0, 2, 3]],
+    )
+    .unwrap();
+    let (disk, origin, report) = prepare::prepare_disk(&square, &PrepareOptions::default()).unwrap();
+    assert_eq!(report.bridges_split, 1);
+    assert_eq!(disk.num_vertices(), 5);
+    assert_eq!(origin[4], None);
+    assert_eq!(prepare::interior_components(&disk).1, 1);
+    assert!((total_area(&disk) - 1.0).abs() < 1e-15);
 }
