@@ -154,45 +154,49 @@ pub struct DistancesRun {
 /// Shape name of a file: its stem, or, when stems repeat, the shortest suffix of its path
 /// (folders and stem, joined by `/`) that no other file shares: `a/cat` and `b/cat` for
 /// `data/a/cat.obj` and `data/b/cat.obj`, `x/cat` and `y/x/cat` when the folder names repeat
-/// too. The same file given twice keeps one name (which [`run_distances`] refuses as a
-/// duplicate).
+/// too; files that differ only in their extension (`cat.obj`, `cat.off`) keep it (`cat.obj`).
+/// The same path given twice keeps one name (which [`run_distances`] refuses as a duplicate).
 pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
     use std::path::Component;
-    let parts: Vec<Vec<String>> = paths
-        .iter()
-        .map(|p| {
-            let mut parts: Vec<String> = p
-                .parent()
-                .map(|d| {
-                    d.components()
-                        .filter_map(|c| match c {
-                            Component::Normal(s) => Some(s.to_string_lossy().into_owned()),
-                            Component::ParentDir => Some("..".to_string()),
-                            _ => None,
-                        })
-                        .collect()
-                })
-                .unwrap_or_default();
-            parts.push(
-                p.file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-            );
-            parts
+    // the path's folders and its stem, or (`with_extension`) its file name
+    let split = |p: &PathBuf, with_extension: bool| {
+        let mut parts: Vec<String> = p
+            .parent()
+            .map(|d| {
+                d.components()
+                    .filter_map(|c| match c {
+                        Component::Normal(s) => Some(s.to_string_lossy().into_owned()),
+                        Component::ParentDir => Some("..".to_string()),
+                        _ => None,
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let last = if with_extension { p.file_name() } else { p.file_stem() };
+        parts.push(last.map(|s| s.to_string_lossy().into_owned()).unwrap_or_default());
+        parts
+    };
+    let stems: Vec<Vec<String>> = paths.iter().map(|p| split(p, false)).collect();
+    let files: Vec<Vec<String>> = paths.iter().map(|p| split(p, true)).collect();
+    let suffix = |parts: &[Vec<String>], i: usize, k: usize| parts[i][parts[i].len().saturating_sub(k)..].join("/");
+    // the shortest suffix of `parts[i]` no other path shares, or None when all of it is shared
+    // by a different path; all of `parts[i]` may equal a suffix of a longer path (that one then
+    // takes a longer name)
+    let shortest = |parts: &[Vec<String>], i: usize| {
+        let len = parts[i].len();
+        (1..=len).find_map(|k| {
+            let name = suffix(parts, i, k);
+            let clash = (0..paths.len()).any(|j| {
+                j != i && paths[j] != paths[i] && suffix(parts, j, k) == name && !(k == len && parts[j].len() > len)
+            });
+            (!clash).then_some(name)
         })
-        .collect();
-    let suffix = |i: usize, k: usize| parts[i][parts[i].len().saturating_sub(k)..].join("/");
+    };
     (0..paths.len())
         .map(|i| {
-            let mut k = 1;
-            loop {
-                let name = suffix(i, k);
-                let clash = (0..paths.len()).any(|j| j != i && suffix(j, k) == name);
-                if !clash || k >= parts[i].len() {
-                    break name;
-                }
-                k += 1;
-            }
+            shortest(&stems, i)
+                .or_else(|| shortest(&files, i))
+                .unwrap_or_else(|| files[i].join("/"))
         })
         .collect()
 }
@@ -215,8 +219,21 @@ pub fn run_distances(
             paths.len()
         )));
     }
-    std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
     let names = shape_names(paths);
+    // (the same file given twice, also under two spellings: refused before any work, not
+    // after all pairs)
+    let canonical: Vec<Option<PathBuf>> = paths.iter().map(|p| std::fs::canonicalize(p).ok()).collect();
+    for (i, name) in names.iter().enumerate() {
+        let same_file = |j: usize| canonical[i].is_some() && canonical[j] == canonical[i];
+        if let Some(j) = (0..i).find(|&j| names[j] == *name || same_file(j)) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "{} and {} are the same file or have the same shape name \"{name}\"",
+                paths[j].display(),
+                paths[i].display()
+            )));
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
     let n = paths.len();
 
     let t_prepare = Instant::now();

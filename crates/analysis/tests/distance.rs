@@ -521,5 +521,21 @@ fn shape_names_are_the_shortest_distinguishing_suffixes() {
         ["p/x/cat", "q/x/cat", "y/cat"]
     );
     assert_eq!(names(&["../x/cat.obj", "x/cat.obj"]), ["../x/cat", "x/cat"]);
-    assert_eq!(names(&["a/cat.obj", "a/cat.obj"]), ["a/cat", "a/cat"]);
+    assert_eq!(names(&["a/cat.obj", "a/cat.obj"]), ["cat", "cat"]);
+    assert_eq!(names(&["d/cat.obj", "d/cat.off"]), ["cat.obj", "cat.off"]);
+    assert_eq!(
+        names(&["a/cat.obj", "b/cat.obj", "a/cat.off"]),
+        ["a/cat.obj", "b/cat", "cat.off"]
+    );
+    // the same file twice, also spelt differently, is refused before anything is written
+    let out = std::env::temp_dir().join(format!("shapespace_same_file_twice_{}", std::process::id()));
+    let face = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_sad.obj");
+    let spelt = face.parent().unwrap().join("../faces/id00_sad.obj");
+    for pair in [[face.clone(), face.clone()], [face.clone(), spelt]] {
+        let e = run_distances(&pair, &out, &DistancesOptions::default(), &|_, _, _| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("same file"), "{e}");
+        assert!(!out.exists());
+    }
 }
