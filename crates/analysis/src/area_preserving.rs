@@ -165,9 +165,9 @@ pub struct OtSummary {
 pub struct Timings {
     /// Conformal disk map.
     pub conformal: f64,
-    /// Optimal transport (domain setup and Newton solve).
+    /// Optimal transport: the Newton solve (both, when the square was turned).
     pub ot: f64,
-    /// Centroids, boundary projection and checks.
+    /// Centroids, boundary projection and checks (for the square also the ears' test).
     pub output: f64,
     /// Fold repair, with the distortion measured before and after it.
     pub repair: f64,
@@ -232,7 +232,8 @@ pub struct AreaPreservingMap {
     pub boundary_vertices_reordered: usize,
     /// The angle (radians) by which the conformal image was turned about the origin before the
     /// OT, so that the square's corners fall inside the boundary's ears (module docs, "Square
-    /// corners"); 0 for the disk and when no ear needed it.
+    /// corners"); 0 for the disk and when no ear needed it. When it is not 0 the OT was solved
+    /// twice: `ot` describes the second solve, `timings.ot` counts both.
     pub square_rotation: f64,
     /// OT solver summary.
     pub ot: OtSummary,
@@ -459,8 +460,10 @@ pub fn area_preserving_map(
                 .map(|p| [cos * p[0] - sin * p[1], sin * p[0] + cos * p[1]])
                 .collect()
         };
+        let t_solve = Instant::now();
         let solution =
             solve_ot(&measure, &targets, &target_masses, &params.newton).map_err(AnalysisError::Transport)?;
+        let ot_seconds = t_solve.elapsed().as_secs_f64();
         let solution = if params.require_convergence {
             solution.into_result().map_err(AnalysisError::Transport)?
         } else {
@@ -473,9 +476,10 @@ pub fn area_preserving_map(
         } else {
             0
         };
-        Ok((solution, uv, max_projection, violations, reordered))
+        Ok((solution, uv, max_projection, violations, reordered, ot_seconds))
     };
     let mut placed = place(0.0)?;
+    let mut ot_seconds = placed.5;
     // The square: ears flat on one side (module docs, "Square corners") are avoided by turning
     // the targets so that a corner falls inside each ear, when a turn does better.
     let mut square_rotation = 0.0;
@@ -485,16 +489,19 @@ pub fn area_preserving_map(
         let flat_before = flat(&placed.1);
         if flat_before > 0 {
             if let Some(rotation) = corner_rotation(&ears, &placed.1) {
-                let turned = place(rotation)?;
-                if flat(&turned.1) < flat_before {
-                    placed = turned;
-                    square_rotation = rotation;
+                // (a turned solve that fails keeps the first map: its flat ears are then the fold
+                // repair's report)
+                if let Ok(turned) = place(rotation) {
+                    ot_seconds += turned.5;
+                    if flat(&turned.1) < flat_before {
+                        placed = turned;
+                        square_rotation = rotation;
+                    }
                 }
             }
         }
     }
-    let (solution, mut uv, max_boundary_projection, boundary_order_violations, boundary_vertices_reordered) = placed;
-    let t2 = Instant::now();
+    let (solution, mut uv, max_boundary_projection, boundary_order_violations, boundary_vertices_reordered, _) = placed;
     let ot = OtSummary {
         iterations: solution.iterations,
         max_relative_error: solution.max_relative_error,
@@ -534,8 +541,8 @@ pub fn area_preserving_map(
         fold_repair,
         timings: Timings {
             conformal: secs(t0, t1),
-            ot: secs(t1, t2),
-            output: secs(t2, t3),
+            ot: ot_seconds,
+            output: secs(t1, t3) - ot_seconds,
             repair: secs(t3, t4),
             total: secs(t0, t4),
         },
@@ -684,8 +691,9 @@ pub fn boundary_ears(mesh: &TriMesh) -> Vec<[u32; 3]> {
     ears
 }
 
-/// Whether the ear (a, m, b) has a proper image: positive area above rounding (a flat ear has
-/// its three corners on one side of the square).
+/// Whether the ear (a, m, b) has an image of non-zero area above rounding (a flat ear has its
+/// three corners on one side of the square; a flipped one counts as proper here, it is the fold
+/// repair's business).
 fn ear_is_proper(uv: &[[f64; 2]], ear: &[u32; 3]) -> bool {
     let [pa, pm, pb] = ear.map(|v| uv[v as usize]);
     let area = (pm[0] - pa[0]) * (pb[1] - pa[1]) - (pm[1] - pa[1]) * (pb[0] - pa[0]);
