@@ -860,3 +860,28 @@ fn map_outputs_follow_the_extension() {
         }
     }
 }
+
+/// `demo` checks its folder's labels against the faces before computing anything.
+#[test]
+fn demo_refuses_labels_that_do_not_match_before_any_distance() {
+    let dir = scratch("demo-labels");
+    for name in ["id00_happy.obj", "id00_sad.obj", "landmarks.json"] {
+        std::fs::copy(root().join("datasets/faces").join(name), dir.join(name)).unwrap();
+    }
+    std::fs::write(dir.join("labels.csv"), "file,person\nid00_happy,p0\n").unwrap();
+    let out_dir = dir.join("out");
+    let out = shapespace(&[
+        "demo",
+        "--data",
+        dir.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("no label row") && stderr(&out).contains("id00_sad"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!out_dir.join("distances.csv").exists());
+}

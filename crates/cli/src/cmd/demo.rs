@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::Context;
+
 use super::distances::{compute, exit_code, mds, SolverArgs};
 
 /// Arguments of `shapespace demo`.
@@ -39,8 +41,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         args.data.display(),
         args.out.display()
     );
-    let run = compute(&files, &args.out, &args.solver)?;
+    // (a labels file that does not match the faces fails now, not after the distances)
     let labels = args.data.join("labels.csv");
-    mds(&args.out, labels.is_file().then_some(labels.as_path()))?;
+    let labels = labels.is_file().then_some(labels);
+    if let Some(labels) = &labels {
+        shapespace_analysis::matrix_io::read_labels(labels, &shapespace_analysis::pipeline::shape_names(&files))
+            .context("mds")?;
+    }
+    let run = compute(&files, &args.out, &args.solver)?;
+    mds(&args.out, labels.as_deref())?;
     Ok(exit_code(&run))
 }
