@@ -246,18 +246,19 @@ pub(crate) fn check_fans(
     faces: &[[u32; 3]],
     fans: &[Fan],
 ) -> Result<(), GeometryError> {
-    use crate::vec3::{cross, dot, norm, sub};
+    use crate::vec3::{add, cross, dot, norm, sub};
     for fan in fans {
         let triangles = &faces[fan.first..fan.first + fan.corners - 2];
-        let normal = |t: &[u32; 3]| {
-            let [a, b, c] = t.map(|v| positions[v as usize]);
-            (cross(sub(b, a), sub(c, a)), norm(sub(b, a)) * norm(sub(c, a)))
-        };
-        let area = triangles.iter().fold([0.0; 3], |s, t| {
-            let n = normal(t).0;
-            [s[0] + n[0], s[1] + n[1], s[2] + n[2]]
-        });
-        let total: f64 = triangles.iter().map(|t| norm(normal(t).0)).sum();
+        // per fan triangle: its cross product n_k and the product of its two edge lengths
+        let normals: Vec<([f64; 3], f64)> = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| positions[v as usize]);
+                (cross(sub(b, a), sub(c, a)), norm(sub(b, a)) * norm(sub(c, a)))
+            })
+            .collect();
+        let area = normals.iter().fold([0.0; 3], |s, (n, _)| add(s, *n));
+        let total: f64 = normals.iter().map(|(n, _)| norm(*n)).sum();
         let at = |message: String| match fan.line {
             Some(line) => parse_error(path, line, message),
             None => GeometryError::WithPath {
@@ -273,8 +274,7 @@ pub(crate) fn check_fans(
                 fan.polygon, fan.corners
             )));
         }
-        for (k, t) in triangles.iter().enumerate() {
-            let (n, scale) = normal(t);
+        for (k, &(n, scale)) in normals.iter().enumerate() {
             if norm(n) > 1e-10 * scale && dot(n, area) < -0.9 * norm(n) * norm(area) {
                 return Err(at(format!(
                     "face {} (a polygon of {} corners) is not convex: its fan triangle {k} from the \
