@@ -33,7 +33,7 @@ use crate::connectivity::Connectivity;
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
 use crate::quantities::face_areas;
-use crate::vec3::{cross, norm2, sub};
+use crate::vec3::{cross, max_abs, norm2, scale, sub};
 
 /// How many offending elements a [`MeshReport`] lists (the counts are always complete).
 pub const MAX_LISTED: usize = 10;
@@ -474,15 +474,8 @@ pub fn mesh_report(mesh: &TriMesh) -> Result<MeshReport, GeometryError> {
         // only when the true area exceeds f64 (and 0 for collinear corners, never NaN).
         area = (0..nf)
             .map(|f| {
-                let [a, b, c] = mesh.face_positions(f);
-                let half = |p: [f64; 3], q: [f64; 3]| {
-                    [
-                        0.5 * p[0] - 0.5 * q[0],
-                        0.5 * p[1] - 0.5 * q[1],
-                        0.5 * p[2] - 0.5 * q[2],
-                    ]
-                };
-                let (h1, h2) = (half(b, a), half(c, a));
+                let [a, b, c] = mesh.face_positions(f).map(|p| scale(p, 0.5));
+                let (h1, h2) = (sub(b, a), sub(c, a));
                 let (m1, m2) = (max_abs(h1), max_abs(h2));
                 if !(m1 > 0.0 && m2 > 0.0) {
                     return 0.0;
@@ -682,10 +675,6 @@ pub fn check_coordinate_range(mesh: &TriMesh) -> Result<(), GeometryError> {
         )));
     }
     Ok(())
-}
-
-fn max_abs(v: [f64; 3]) -> f64 {
-    v[0].abs().max(v[1].abs()).max(v[2].abs())
 }
 
 /// Largest coordinate magnitude [`require_disk`] accepts (squares stay below f64::MAX).

@@ -32,3 +32,8 @@ pub fn norm(a: [f64; 3]) -> f64 {
 pub fn norm2(a: [f64; 3]) -> f64 {
     dot(a, a)
 }
+/// The largest absolute component (the ∞-norm).
+#[inline]
+pub fn max_abs(a: [f64; 3]) -> f64 {
+    a[0].abs().max(a[1].abs()).max(a[2].abs())
+}
