@@ -3,9 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
-
-use super::distances::{compute, exit_code, mds, SolverArgs};
+use super::distances::{check_labels, compute, exit_code, mds, SolverArgs};
 
 /// Arguments of `shapespace demo`.
 #[derive(clap::Args)]
@@ -45,8 +43,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     let labels = args.data.join("labels.csv");
     let labels = labels.is_file().then_some(labels);
     if let Some(labels) = &labels {
-        shapespace_analysis::matrix_io::read_labels(labels, &shapespace_analysis::pipeline::shape_names(&files))
-            .context("mds")?;
+        check_labels(labels, &files)?;
     }
     let run = compute(&files, &args.out, &args.solver)?;
     mds(&args.out, labels.as_deref())?;

@@ -63,14 +63,21 @@ pub struct DistancesArgs {
 
 pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
     if let Some(labels) = &args.labels {
-        shapespace_analysis::matrix_io::read_labels(labels, &shapespace_analysis::pipeline::shape_names(&args.files))
-            .context("mds")?;
+        check_labels(labels, &args.files)?;
     }
     let run = compute(&args.files, &args.out, &args.solver)?;
     if args.mds {
         mds(&args.out, args.labels.as_deref())?;
     }
     Ok(exit_code(&run))
+}
+
+/// Reads the labels file and matches it to the shapes of `files` (the names the distances will
+/// carry), so that a labels file the MDS would refuse fails before any distance is computed.
+pub fn check_labels(labels: &std::path::Path, files: &[PathBuf]) -> anyhow::Result<()> {
+    shapespace_analysis::matrix_io::read_labels(labels, &shapespace_analysis::pipeline::shape_names(files))
+        .context("mds")?;
+    Ok(())
 }
 
 /// `--threads` is capped to this many threads per core.
