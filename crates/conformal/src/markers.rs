@@ -164,66 +164,70 @@ fn json_u32(v: &serde_json::Value, src: &str, what: &str) -> Result<u32, Conform
         .ok_or_else(|| parse_err(src, format!("`{what}` must be a vertex index, got {v}")))
 }
 
-/// A JSON document read only to find an object with a repeated key (at any depth): JSON
+/// A JSON value read with a repeated key in any object (at any depth) as an error: JSON
 /// readers, `serde_json::Value` included, keep the last value silently, so a marker file naming
 /// a landmark twice would lose one without notice.
-struct NoRepeatedKeys;
+struct StrictValue(serde_json::Value);
 
-impl<'de> serde::Deserialize<'de> for NoRepeatedKeys {
+impl<'de> serde::Deserialize<'de> for StrictValue {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        deserializer.deserialize_any(NoRepeatedKeysVisitor)
+        deserializer.deserialize_any(StrictValueVisitor)
     }
 }
 
-struct NoRepeatedKeysVisitor;
+struct StrictValueVisitor;
 
-impl<'de> serde::de::Visitor<'de> for NoRepeatedKeysVisitor {
-    type Value = NoRepeatedKeys;
+impl<'de> serde::de::Visitor<'de> for StrictValueVisitor {
+    type Value = StrictValue;
 
     fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
         f.write_str("any JSON value")
     }
 
-    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<NoRepeatedKeys, A::Error> {
-        let mut seen = std::collections::HashSet::new();
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<StrictValue, A::Error> {
+        let mut object = serde_json::Map::new();
         while let Some(key) = map.next_key::<String>()? {
-            if !seen.insert(key.clone()) {
+            if object.contains_key(&key) {
                 return Err(serde::de::Error::custom(format!(
                     "the key `{key}` appears twice in one object"
                 )));
             }
-            map.next_value::<NoRepeatedKeys>()?;
+            let StrictValue(value) = map.next_value()?;
+            object.insert(key, value);
         }
-        Ok(NoRepeatedKeys)
+        Ok(StrictValue(serde_json::Value::Object(object)))
     }
 
-    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<NoRepeatedKeys, A::Error> {
-        while seq.next_element::<NoRepeatedKeys>()?.is_some() {}
-        Ok(NoRepeatedKeys)
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<StrictValue, A::Error> {
+        let mut array = Vec::new();
+        while let Some(StrictValue(value)) = seq.next_element()? {
+            array.push(value);
+        }
+        Ok(StrictValue(serde_json::Value::Array(array)))
     }
 
-    fn visit_bool<E>(self, _: bool) -> Result<NoRepeatedKeys, E> {
-        Ok(NoRepeatedKeys)
+    fn visit_bool<E>(self, v: bool) -> Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
     }
 
-    fn visit_i64<E>(self, _: i64) -> Result<NoRepeatedKeys, E> {
-        Ok(NoRepeatedKeys)
+    fn visit_i64<E>(self, v: i64) -> Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
     }
 
-    fn visit_u64<E>(self, _: u64) -> Result<NoRepeatedKeys, E> {
-        Ok(NoRepeatedKeys)
+    fn visit_u64<E>(self, v: u64) -> Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
     }
 
-    fn visit_f64<E>(self, _: f64) -> Result<NoRepeatedKeys, E> {
-        Ok(NoRepeatedKeys)
+    fn visit_f64<E>(self, v: f64) -> Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
     }
 
-    fn visit_str<E>(self, _: &str) -> Result<NoRepeatedKeys, E> {
-        Ok(NoRepeatedKeys)
+    fn visit_str<E>(self, v: &str) -> Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
     }
 
-    fn visit_unit<E>(self) -> Result<NoRepeatedKeys, E> {
-        Ok(NoRepeatedKeys)
+    fn visit_unit<E>(self) -> Result<StrictValue, E> {
+        Ok(StrictValue(serde_json::Value::Null))
     }
 }
 
@@ -231,10 +235,8 @@ impl MarkerFile {
     /// Parses the JSON text of a marker file; `source_name` names it in errors. A key repeated
     /// within one object (e.g. a landmark named twice) is an error.
     pub fn from_json_str(text: &str, source_name: &str) -> Result<Self, ConformalError> {
-        let value: serde_json::Value =
+        let StrictValue(value) =
             serde_json::from_str(text).map_err(|e| parse_err(source_name, format!("line {}: {e}", e.line())))?;
-        serde_json::from_str::<NoRepeatedKeys>(text)
-            .map_err(|e| parse_err(source_name, format!("line {}: {e}", e.line())))?;
         let obj = value
             .as_object()
             .ok_or_else(|| parse_err(source_name, "expected a JSON object"))?;
