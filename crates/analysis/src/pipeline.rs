@@ -11,7 +11,6 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
-use shapespace_omt::NewtonParams;
 
 use crate::distance::{pairwise_distances, prepare_shape, PairRecord, PairwiseOptions, PreparedShape};
 use crate::error::AnalysisError;
@@ -137,7 +136,12 @@ pub struct DistancesReport {
 #[derive(Clone, Debug, Serialize)]
 pub struct ReportOptions {
     pub symmetrize: bool,
+    /// Relative mass tolerance of the finest level (the distances' accuracy).
     pub tolerance: f64,
+    /// Relative mass tolerance of the coarse levels of the coarse-to-fine start.
+    pub coarse_tolerance: f64,
+    /// Linear solver of the Newton directions (`LinearSolver`'s debug form).
+    pub linear_solver: String,
     pub max_iterations: usize,
     pub warm_start: bool,
     pub intrinsic_delaunay: bool,
@@ -361,6 +365,8 @@ pub fn run_distances(
         options: ReportOptions {
             symmetrize: options.pairwise.symmetrize,
             tolerance: options.pairwise.newton.tolerance,
+            coarse_tolerance: options.pairwise.newton.coarse_tolerance,
+            linear_solver: format!("{:?}", options.pairwise.newton.linear_solver),
             max_iterations: options.pairwise.newton.max_iterations,
             warm_start: options.pairwise.warm_start,
             intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
@@ -403,9 +409,4 @@ pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), Analysis
         w.serialize(p).map_err(to_err)?;
     }
     w.flush().map_err(|e| AnalysisError::io(path, e))
-}
-
-/// Default Newton parameters for distances (tolerance 1e-6 on the relative mass error).
-pub fn default_newton() -> NewtonParams {
-    NewtonParams::default()
 }

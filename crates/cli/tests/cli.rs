@@ -482,6 +482,24 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     let out = run(&["--threads", "100000"]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(stderr(&out).contains("--threads 100000 capped to"), "{}", stderr(&out));
+    // the command runs the library's pairwise solver settings (those the benchmark measures;
+    // it used to leave the coarse levels at the generic 1e-3) and records them
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap()).unwrap();
+    let expected = shapespace_analysis::distance::PairwiseOptions::default().newton;
+    let options = &report["options"];
+    assert_eq!(options["tolerance"].as_f64(), Some(1e-6), "{options}");
+    assert_eq!(
+        options["coarse_tolerance"].as_f64(),
+        Some(expected.coarse_tolerance),
+        "{options}"
+    );
+    assert_eq!(options["coarse_tolerance"].as_f64(), Some(0.1), "{options}");
+    assert_eq!(
+        options["linear_solver"].as_str(),
+        Some(format!("{:?}", expected.linear_solver).as_str()),
+        "{options}"
+    );
     // a labels file that is missing or does not match the files fails before any distance is
     // computed (no new distances.csv); --labels without --mds is refused
     let labels = dir.join("labels.csv");

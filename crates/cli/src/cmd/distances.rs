@@ -11,7 +11,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use shapespace_analysis::distance::PairwiseOptions;
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun};
 use shapespace_analysis::shape_space::{run_mds, MdsParams};
-use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::NewtonParams;
 
 /// Arguments shared by `distances` and `demo`.
@@ -102,6 +101,9 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
     );
     anyhow::ensure!(solver.max_iterations >= 1, "--max-iterations must be at least 1");
     let markers = solver.markers.options()?;
+    // The library's pairwise defaults (linear solver, coarse-level tolerance), which the
+    // benchmark measures, with the user's tolerance and cap.
+    let defaults = PairwiseOptions::default().newton;
     let options = DistancesOptions {
         markers,
         pairwise: PairwiseOptions {
@@ -109,8 +111,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             newton: NewtonParams {
                 tolerance: solver.tol,
                 max_iterations: solver.max_iterations,
-                linear_solver: LinearSolver::CholeskyReusedOrdering,
-                ..NewtonParams::default()
+                ..defaults
             },
             warm_start: solver.warm_start,
         },
