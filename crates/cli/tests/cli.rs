@@ -450,8 +450,8 @@ fn ot_rejects_a_directory_for_a_csv() {
     assert!(msg.contains("points.csv") && msg.contains("directory"), "{msg}");
 }
 
-/// `distances`: an invalid `--tol` is a usage error (status 2), and a pair that fails prints
-/// why (it was only in report.json).
+/// `distances`: an invalid `--tol` is a usage error (status 2), a pair that fails prints why (it
+/// was only in report.json), and a run records the library's pairwise solver settings.
 #[test]
 fn distances_report_failed_pairs_and_bad_tolerances() {
     let dir = scratch("distances-fail");
