@@ -490,6 +490,11 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     let options = &report["options"];
     assert_eq!(options["tolerance"].as_f64(), Some(1e-6), "{options}");
     assert_eq!(
+        options["max_iterations"].as_u64(),
+        Some(expected.max_iterations as u64),
+        "{options}"
+    );
+    assert_eq!(
         options["coarse_tolerance"].as_f64(),
         Some(expected.coarse_tolerance),
         "{options}"

@@ -24,8 +24,10 @@ pub struct SolverArgs {
     /// Relative mass tolerance of the OT solver.
     #[arg(long, default_value_t = 1e-6)]
     pub tol: f64,
-    /// Iteration cap of the OT solver.
-    #[arg(long, default_value_t = 200)]
+    /// Iteration cap of the OT solver, per level of its coarse-to-fine start and per
+    /// continuation stage (a pair whose direct solve stops is solved again from the Voronoi
+    /// start with density continuation).
+    #[arg(long, default_value_t = PairwiseOptions::default().newton.max_iterations)]
     pub max_iterations: usize,
     /// Start each pair from the heights of the previous pair with the same target instead of the
     /// solver's own start. The default start (coarse-to-fine for these densities) is the faster
