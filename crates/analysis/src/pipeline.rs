@@ -129,6 +129,9 @@ pub struct DistancesReport {
     pub iterations: Option<Summary>,
     /// Relative asymmetry |d(a→b) − d(b→a)| / mean over the unordered pairs (with symmetrize).
     pub asymmetry: Option<Summary>,
+    /// |cost − dual cost| / cost over the computed pairs: the a-posteriori check of the costs
+    /// (first order in the mass residual; the dual cost is a lower bound on the exact one).
+    pub cost_dual_gap: Option<Summary>,
     pub files: Vec<PathBuf>,
 }
 
@@ -357,6 +360,12 @@ pub fn run_distances(
         .filter(|p| p.distance.is_finite())
         .map(|p| p.iterations as f64)
         .collect();
+    let gaps: Vec<f64> = result
+        .pairs
+        .iter()
+        .filter(|p| p.distance.is_finite() && p.cost > 0.0)
+        .map(|p| (p.cost - p.dual_cost).abs() / p.cost)
+        .collect();
     let report_path = out.join("report.json");
     files.push(report_path.clone());
     let mut report = DistancesReport {
@@ -384,6 +393,7 @@ pub fn run_distances(
         failures,
         iterations: (!iterations.is_empty()).then(|| summarize(&iterations)),
         asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
+        cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
         files,
     };
     report.timings.write = t_write.elapsed().as_secs_f64();
@@ -400,7 +410,7 @@ pub fn run_distances(
     })
 }
 
-/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations` (a is the
+/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations,dual_cost` (a is the
 /// source density side, b the target points side).
 pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), AnalysisError> {
     let to_err = |e: csv::Error| AnalysisError::parse(path, 0, e.to_string());

@@ -341,6 +341,18 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         .next()
         .unwrap()
         .starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
+    // Each converged pair's cost is checked by its dual (Kantorovich) value, a lower bound on the
+    // exact cost that is second-order accurate: at the 1e-6 mass tolerance both agree closely.
+    assert!(pairs.lines().next().unwrap().ends_with(",dual_cost"), "{pairs}");
+    for p in run.pairs.iter().filter(|p| p.status == "converged") {
+        let gap = (p.cost - p.dual_cost).abs() / p.cost;
+        assert!(gap < 1e-8, "{} -> {}: cost {} dual {}", p.a, p.b, p.cost, p.dual_cost);
+    }
+    assert!(run
+        .pairs
+        .iter()
+        .filter(|p| p.status != "converged")
+        .all(|p| p.dual_cost.is_nan()));
     // The failed shape has its file name in pairs.csv too (it was `#1` there).
     assert_eq!(
         pairs
@@ -353,6 +365,9 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     assert!(!pairs.contains("#1"), "{pairs}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let gap = &json["cost_dual_gap"];
+    assert_eq!(gap["count"].as_f64(), Some(3.0), "{gap}");
+    assert!(gap["max"].as_f64().unwrap() < 1e-8, "{gap}");
     assert!(
         json["failures"]
             .as_array()

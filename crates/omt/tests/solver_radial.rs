@@ -84,3 +84,66 @@ fn quadratic_radial_density_to_uniform_points_converges_to_the_radial_cost() {
     let measure = disk_measure(120, &|x| c * (1.0 + a * (x[0] * x[0] + x[1] * x[1])));
     check_convergence("1 + 3r²", &costs(&measure), exact);
 }
+
+/// The dual value F = cost + Σ w_i (ν_i − μ(W_i)) (`OtSolution::dual_value`) is a lower bound on
+/// W² at any heights and second-order accurate in the mass residual: stopped at a loose
+/// tolerance it matches the cost of a tight solve far better than the cost C of the same
+/// loose solve, which is off at first order; at a tight solve F and C coincide.
+#[test]
+fn dual_value_is_a_second_order_lower_bound() {
+    let measure = disk_measure(60, &|x| {
+        let r2 = x[0] * x[0] + x[1] * x[1];
+        2.0 / ((1.0 + r2) * (1.0 + r2))
+    });
+    let n = 2000;
+    let points = sunflower(n, 1.0);
+    let solve = |tolerance: f64| {
+        let params = NewtonParams {
+            tolerance,
+            ..NewtonParams::default()
+        };
+        solve_ot(&measure, &points, &vec![1.0; n], &params)
+            .unwrap()
+            .into_result()
+            .unwrap()
+    };
+    let tight = solve(1e-10);
+    let w2 = tight.cost;
+    assert!(
+        (tight.dual_value() - w2).abs() <= 1e-12 * w2,
+        "{} {w2}",
+        tight.dual_value()
+    );
+    // Stop the loose solves before convergence: every iterate of the tight solve's log is a
+    // candidate; take the solves at tolerances just above the errors of its steps.
+    let mut checked = 0;
+    for record in &tight.log {
+        let e = record.max_relative_error;
+        if !(1e-8..=1e-2).contains(&e) {
+            continue;
+        }
+        let loose = solve(e * 1.01);
+        let (c, f) = (loose.cost, loose.dual_value());
+        eprintln!(
+            "mass error {:.1e}: |C − W²|/W² = {:.1e}, |F − W²|/W² = {:.1e}",
+            loose.max_relative_error,
+            (c - w2).abs() / w2,
+            (f - w2).abs() / w2
+        );
+        assert!(f <= w2 * (1.0 + 1e-12), "dual value {f} above W² {w2}");
+        // second order: F's error is below the square of the mass error (times a modest
+        // constant), C's is not bound by it
+        let e = loose.max_relative_error;
+        assert!(
+            (f - w2).abs() <= (10.0 * e * e).max(1e-12) * w2,
+            "F {f} W² {w2} at {e:e}"
+        );
+        assert!((f - w2).abs() <= (c - w2).abs(), "F {f} C {c} W² {w2} at {e:e}");
+        checked += 1;
+    }
+    assert!(
+        checked >= 1,
+        "no iterate between 1e-8 and 1e-2: {:?}",
+        tight.log.iter().map(|r| r.max_relative_error).collect::<Vec<_>>()
+    );
+}
