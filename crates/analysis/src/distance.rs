@@ -235,7 +235,9 @@ pub struct PairRecord {
     pub status: String,
     /// Cell evaluations (diagram + integration) of the solve, line-search trials included.
     pub evaluations: usize,
-    /// The Kantorovich dual value at the solution ([`DirectedDistance::dual_cost`]).
+    /// The Kantorovich dual value at the solution ([`DirectedDistance::dual_cost`]); NaN where
+    /// the pair did not converge (like `distance`: the last iterate of a density continuation
+    /// that gave up belongs to another density).
     pub dual_cost: f64,
 }
 
@@ -306,7 +308,7 @@ pub fn pairwise_distances(
                             seconds: d.seconds,
                             status: d.status,
                             evaluations: d.evaluations,
-                            dual_cost: d.dual_cost,
+                            dual_cost: if d.converged { d.dual_cost } else { f64::NAN },
                         },
                         d.converged.then_some(heights),
                     ),

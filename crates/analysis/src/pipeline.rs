@@ -129,7 +129,7 @@ pub struct DistancesReport {
     pub iterations: Option<Summary>,
     /// Relative asymmetry |d(a→b) − d(b→a)| / mean over the unordered pairs (with symmetrize).
     pub asymmetry: Option<Summary>,
-    /// |cost − dual cost| / cost over the computed pairs: the a-posteriori check of the costs
+    /// |cost − dual cost| / cost over the converged pairs: the a-posteriori check of the costs
     /// (first order in the mass residual; the dual cost is a lower bound on the exact one).
     pub cost_dual_gap: Option<Summary>,
     pub files: Vec<PathBuf>,

@@ -342,17 +342,14 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         .unwrap()
         .starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
     // Each converged pair's cost is checked by its dual (Kantorovich) value, a lower bound on the
-    // exact cost that is second-order accurate: at the 1e-6 mass tolerance both agree closely.
+    // exact cost that is second-order accurate. Their gap is first order in the final mass
+    // residual, which Newton's last step leaves far below the 1e-6 tolerance here.
     assert!(pairs.lines().next().unwrap().ends_with(",dual_cost"), "{pairs}");
     for p in run.pairs.iter().filter(|p| p.status == "converged") {
         let gap = (p.cost - p.dual_cost).abs() / p.cost;
         assert!(gap < 1e-8, "{} -> {}: cost {} dual {}", p.a, p.b, p.cost, p.dual_cost);
     }
-    assert!(run
-        .pairs
-        .iter()
-        .filter(|p| p.status != "converged")
-        .all(|p| p.dual_cost.is_nan()));
+    assert!(run.pairs.iter().all(|p| p.distance.is_nan() == p.dual_cost.is_nan()));
     // The failed shape has its file name in pairs.csv too (it was `#1` there).
     assert_eq!(
         pairs

@@ -458,8 +458,10 @@ impl OtSolution {
     /// and ν the rescaled targets. By weak duality F ≤ W²(μ, ν) for any heights; F − W² is
     /// second order in the mass residual G = μ(W) − ν (≈ −GᵀH⁻¹G with the Newton Hessian
     /// H = ∂μ(W)/∂h), while [`OtSolution::cost`], the exact cost towards the masses μ(W_i)
-    /// instead of ν, is off at first order (Σ_i w_i G_i). At a converged solution they agree to
-    /// about the tolerance squared; their gap is an a-posteriori check of the reported cost.
+    /// instead of ν, is off at first order (C − F = Σ_i w_i G_i). So F is within about GᵀH⁻¹G
+    /// of W², and the gap C − F measures the cost's first-order error a posteriori (as long as
+    /// the residual is not smooth over the whole domain, where GᵀH⁻¹G can reach
+    /// ~e²·μ(Ω)·diam(Ω)² for a max relative mass error e).
     pub fn dual_value(&self) -> f64 {
         let correction: f64 = self
             .weights
