@@ -4,7 +4,7 @@
 
 use shapespace_geometry::connectivity::Connectivity;
 use shapespace_geometry::prepare::{self, PrepareOptions};
-use shapespace_geometry::primitives::{capped_tube, icosphere, unit_disk};
+use shapespace_geometry::primitives::{capped_tube, grid, icosphere, unit_disk};
 use shapespace_geometry::quantities::total_area;
 use shapespace_geometry::seam::{cut_along_seam, extremities, seam_tree};
 use shapespace_geometry::topology::require_disk;
@@ -231,11 +231,7 @@ fn a_seam_through_every_vertex_gets_interior_vertices_back() {
 /// can be split: the square of two triangles gets its diagonal split, one interior vertex.
 #[test]
 fn a_disk_without_interior_vertex_gets_its_bridge_split() {
-    let square = TriMesh::new(
-        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
-        vec![[0, 1, 2], [0, 2, 3]],
-    )
-    .unwrap();
+    let square = grid(1, 1);
     let (disk, origin, report) = prepare::prepare_disk(&square, &PrepareOptions::default()).unwrap();
     assert_eq!(report.bridges_split, 1);
     assert_eq!(disk.num_vertices(), 5);
