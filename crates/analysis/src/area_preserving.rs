@@ -448,8 +448,8 @@ pub fn area_preserving_map(
     } = transport_problem(mesh, markers, params)?;
     let t1 = Instant::now();
     // OT from Ω to the targets (the conformal image turned by `rotation`), the centroid map and
-    // the boundary order: (solution, uv, max projection, order violations, vertices reordered)
-    let place = |rotation: f64| -> Result<_, AnalysisError> {
+    // the boundary order
+    let place = |rotation: f64| -> Result<Placement, AnalysisError> {
         let (sin, cos) = rotation.sin_cos();
         let targets: Vec<[f64; 2]> = if rotation == 0.0 {
             conformal.uv.clone()
@@ -476,24 +476,31 @@ pub fn area_preserving_map(
         } else {
             0
         };
-        Ok((solution, uv, max_projection, violations, reordered, ot_seconds))
+        Ok(Placement {
+            solution,
+            uv,
+            max_projection,
+            violations,
+            reordered,
+            ot_seconds,
+        })
     };
     let mut placed = place(0.0)?;
-    let mut ot_seconds = placed.5;
+    let mut ot_seconds = placed.ot_seconds;
     // The square: ears flat on one side (module docs, "Square corners") are avoided by turning
     // the targets so that a corner falls inside each ear, when a turn does better.
     let mut square_rotation = 0.0;
     if params.domain == Domain::Square {
         let ears = boundary_ears(mesh);
         let flat = |uv: &[[f64; 2]]| ears.iter().filter(|e| !ear_is_proper(uv, e)).count();
-        let flat_before = flat(&placed.1);
+        let flat_before = flat(&placed.uv);
         if flat_before > 0 {
-            if let Some(rotation) = corner_rotation(&ears, &placed.1) {
+            if let Some(rotation) = corner_rotation(&ears, &placed.uv) {
                 // (a turned solve that fails keeps the first map: its flat ears are then the fold
                 // repair's report)
                 if let Ok(turned) = place(rotation) {
-                    ot_seconds += turned.5;
-                    if flat(&turned.1) < flat_before {
+                    ot_seconds += turned.ot_seconds;
+                    if flat(&turned.uv) < flat_before {
                         placed = turned;
                         square_rotation = rotation;
                     }
@@ -501,7 +508,14 @@ pub fn area_preserving_map(
             }
         }
     }
-    let (solution, mut uv, max_boundary_projection, boundary_order_violations, boundary_vertices_reordered, _) = placed;
+    let Placement {
+        solution,
+        mut uv,
+        max_projection: max_boundary_projection,
+        violations: boundary_order_violations,
+        reordered: boundary_vertices_reordered,
+        ..
+    } = placed;
     let ot = OtSummary {
         iterations: solution.iterations,
         max_relative_error: solution.max_relative_error,
@@ -665,6 +679,19 @@ pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> us
         }
     }
     moved
+}
+
+/// One placement of the vertices by [`area_preserving_map`]: the OT solution towards the
+/// (possibly turned) targets, the centroid map with its largest boundary projection, the
+/// boundary order violations found and the vertices [`order_boundary`] moved, and the seconds
+/// of the OT solve.
+struct Placement {
+    solution: OtSolution,
+    uv: Vec<[f64; 2]>,
+    max_projection: f64,
+    violations: usize,
+    reordered: usize,
+    ot_seconds: f64,
 }
 
 /// The ears of `mesh`: faces whose three corners are consecutive along a boundary loop, as
