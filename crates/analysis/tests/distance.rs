@@ -342,12 +342,21 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         .unwrap()
         .starts_with("a,b,distance,cost,iterations,max_mass_error,seconds,status"));
     // Each converged pair's cost is checked by its dual (Kantorovich) value, a lower bound on the
-    // exact cost that is second-order accurate. Their gap is first order in the final mass
-    // residual, which Newton's last step leaves far below the 1e-6 tolerance here.
+    // exact cost that is second-order accurate. Their gap C − F = Σ_i w_i (m_i − ν_i) is first
+    // order in the final mass residual (here 1.6e-6 and 2.4e-5 at the default tolerance 1e-4,
+    // gaps 4.4e-9 and 9.4e-7 relative: 3e-3 and 4e-2 times the residual).
     assert!(pairs.lines().next().unwrap().ends_with(",dual_cost"), "{pairs}");
     for p in run.pairs.iter().filter(|p| p.status == "converged") {
         let gap = (p.cost - p.dual_cost).abs() / p.cost;
-        assert!(gap < 1e-8, "{} -> {}: cost {} dual {}", p.a, p.b, p.cost, p.dual_cost);
+        assert!(
+            gap <= 0.1 * p.max_mass_error && p.max_mass_error <= 1e-4,
+            "{} -> {}: cost {} dual {} mass error {}",
+            p.a,
+            p.b,
+            p.cost,
+            p.dual_cost,
+            p.max_mass_error
+        );
     }
     assert!(run.pairs.iter().all(|p| p.distance.is_nan() == p.dual_cost.is_nan()));
     // The failed shape has its file name in pairs.csv too (it was `#1` there).
@@ -364,7 +373,17 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let gap = &json["cost_dual_gap"];
     assert_eq!(gap["count"].as_f64(), Some(3.0), "{gap}");
-    assert!(gap["max"].as_f64().unwrap() < 1e-8, "{gap}");
+    // the summary is that of the rows
+    let max_gap = run
+        .pairs
+        .iter()
+        .filter(|p| p.status == "converged")
+        .map(|p| (p.cost - p.dual_cost).abs() / p.cost)
+        .fold(0.0, f64::max);
+    assert!(
+        (gap["max"].as_f64().unwrap() - max_gap).abs() <= 1e-12 * max_gap,
+        "{gap} vs {max_gap}"
+    );
     assert!(
         json["failures"]
             .as_array()
@@ -392,7 +411,9 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     };
     let a = prepared("a", &spherical_cap(1.0, 10), &markers);
     let c = prepared("c", &spherical_cap(2.0, 10), &markers);
-    let direct = cost(&a, &c).sqrt();
+    // (with the pipeline's solver settings: at the solver's own tolerance 1e-6 the distance
+    // would differ by 4.7e-7 relative here, the cost by 9.4e-7, the dual gap above)
+    let direct = converged(&a, &c, &PairwiseOptions::default().newton).distance;
     let ac = run.matrix.get(0, 3);
     assert!((ac - direct).abs() <= 1e-9 * direct, "{ac} vs {direct}");
 }
@@ -514,9 +535,79 @@ fn flux_form_evaluations_give_the_same_face_distance() {
     assert!((flux.cost - full.cost).abs() <= 1e-10 * full.cost);
     // (the reported error comes from the full integrals in both)
     assert!(
-        flux.max_mass_error <= 1e-6
+        flux.max_mass_error <= PairwiseOptions::default().newton.tolerance
             && (flux.max_mass_error - full.max_mass_error).abs() <= 1e-3 * full.max_mass_error + 1e-12
     );
+}
+
+/// The pairwise default tolerance (1e-4 on the relative cell-mass error, looser than the
+/// solver's 1e-6) keeps face distances exact far below anything the discretization resolves,
+/// and each pair's dual gap |C − F|/C measures the cost's remaining error. id03_sad →
+/// id04_neutral was the worst of 30 ordered pairs among six faces (cost off by 7.6e-9 relative
+/// after its sixth finest step, where it stops at a mass error of 4.1e-5 instead of going on to
+/// 4.7e-10); id01_happy → id00_neutral stops at 4.5e-5.
+#[test]
+fn default_pairwise_tolerance_keeps_face_distances_exact() {
+    let faces: Vec<PreparedShape> = ["id03_sad", "id04_neutral", "id01_happy", "id00_neutral"]
+        .iter()
+        .map(|n| face(n).1)
+        .collect();
+    let defaults = PairwiseOptions::default().newton;
+    assert!(
+        defaults.tolerance >= 1e-4,
+        "the test is about a looser tolerance than the solver's"
+    );
+    for pair in faces.chunks(2) {
+        let (source, target) = (&pair[0], &pair[1]);
+        let loose = converged(source, target, &defaults);
+        let strict = converged(
+            source,
+            target,
+            &NewtonParams {
+                tolerance: 1e-6,
+                ..defaults.clone()
+            },
+        );
+        let tight = converged(
+            source,
+            target,
+            &NewtonParams {
+                tolerance: 1e-11,
+                ..defaults.clone()
+            },
+        );
+        // The reference W²: the dual value of the tight solve (its own gap is ~1e-16).
+        let exact = tight.dual_cost;
+        let error = (loose.cost - exact).abs() / exact;
+        let gap = (loose.cost - loose.dual_cost).abs() / loose.cost;
+        eprintln!(
+            "{} -> {}: steps {} (1e-6: {}, 1e-11: {}), mass error {:.1e}, cost error {error:.2e}, \
+             dual gap {gap:.2e}, distance error {:.2e}",
+            source.name,
+            target.name,
+            loose.iterations,
+            strict.iterations,
+            tight.iterations,
+            loose.max_mass_error,
+            (loose.distance - exact.sqrt()).abs() / exact.sqrt()
+        );
+        assert!(loose.max_mass_error > 1e-6, "the pair stops before 1e-6");
+        assert!(
+            loose.iterations < strict.iterations,
+            "the looser tolerance saves a step"
+        );
+        assert!(error < 2e-8, "cost error {error:e}");
+        assert!((loose.distance - exact.sqrt()).abs() < 1e-8 * exact.sqrt());
+        // The dual value is second order: the gap is the cost's error up to its own ~1e-13.
+        assert!(
+            (gap - error).abs() <= 1e-2 * error + 1e-12,
+            "gap {gap:e} against error {error:e}"
+        );
+        assert!(
+            loose.dual_cost <= exact * (1.0 + 1e-13),
+            "the dual value is a lower bound"
+        );
+    }
 }
 
 /// Shape names: stems, made unique by the shortest path suffix when stems repeat (also when the

@@ -483,12 +483,13 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(stderr(&out).contains("--threads 100000 capped to"), "{}", stderr(&out));
     // the command runs the library's pairwise solver settings (those the benchmark measures;
-    // it used to leave the coarse levels at the generic 1e-3) and records them
+    // it used to leave the coarse levels at the generic 1e-3, and its --tol default was a
+    // literal) and records them
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap()).unwrap();
     let expected = shapespace_analysis::distance::PairwiseOptions::default().newton;
     let options = &report["options"];
-    assert_eq!(options["tolerance"].as_f64(), Some(1e-6), "{options}");
+    assert_eq!(options["tolerance"].as_f64(), Some(expected.tolerance), "{options}");
     assert_eq!(
         options["max_iterations"].as_u64(),
         Some(expected.max_iterations as u64),
