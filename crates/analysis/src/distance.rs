@@ -202,6 +202,7 @@ pub struct PairwiseOptions {
     ///   663 evaluations as with 1e-3, and 1,314 coarse steps instead of 1,590; on 435 pairs
     ///   8,990 steps over all levels instead of 10,102, distances equal to 1e-10 relative: both
     ///   solutions met the 1e-6 mass tolerance then in force).
+    ///
     /// (`flux_masses` stays off: 7 % fewer instructions on face pairs, but slower in wall time,
     /// omt `ARCHITECTURE.md`, session 18.)
     pub newton: NewtonParams,
