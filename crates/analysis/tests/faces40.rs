@@ -4,12 +4,11 @@
 
 use std::path::{Path, PathBuf};
 
-use shapespace_analysis::distance::{directed_distance, prepare_shape};
+use shapespace_analysis::distance::{directed_distance, prepare_shape, PairwiseOptions};
 use shapespace_analysis::matrix_io::read_distance_matrix;
 use shapespace_analysis::shape_space::{run_mds, MdsParams};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::read_mesh;
-use shapespace_omt::NewtonParams;
 
 fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(path)
@@ -91,7 +90,7 @@ fn committed_matrix_agrees_with_a_recomputation() {
     // The run computes the pair {a, b} with a < b (file order) as source a → target b.
     for (a, b) in [("id00_happy", "id00_neutral"), ("id03_sad", "id07_surprise")] {
         let (sa, sb) = (shape(a), shape(b));
-        let (d, _) = directed_distance(&sa, &sb, &NewtonParams::default()).unwrap();
+        let (d, _) = directed_distance(&sa, &sb, &PairwiseOptions::default().newton).unwrap();
         assert!(d.converged, "{}", d.status);
         let i = matrix.names.iter().position(|n| n == a).unwrap();
         let j = matrix.names.iter().position(|n| n == b).unwrap();
@@ -101,9 +100,11 @@ fn committed_matrix_agrees_with_a_recomputation() {
             d.distance,
             (d.distance - stored).abs() / stored
         );
-        // Both solves stop at a relative cell-mass error ≤ 1e-6 from different starts.
+        // The file's solves stopped at a relative cell-mass error ≤ 1e-6 (warm starts), the
+        // recomputation at the pipeline's defaults (≤ 1e-4, coarse-to-fine start): the costs of
+        // Eq. 19 differ at first order in those residuals, by 2.1e-8 at most over the 780 pairs.
         assert!(
-            (d.distance - stored).abs() <= 1e-5 * stored,
+            (d.distance - stored).abs() <= 1e-7 * stored,
             "{a} -> {b}: {} vs stored {stored}",
             d.distance
         );
