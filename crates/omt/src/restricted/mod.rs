@@ -186,7 +186,9 @@ fn intersect(l: &Line, h: &Line, p: [f64; 2], q: [f64; 2], fp: f64, fq: f64) -> 
 /// Keeps the part of `src` where n·z ≤ c, writing it to `dst` (Sutherland–Hodgman; new edges
 /// get the line `h`). Returns false when nothing is cut (`dst` untouched), after relabelling in
 /// place an edge of `src` lying on the line. `values` must hold at least `src.len` entries and
-/// `dst` room for `src.len + 1` vertices.
+/// `dst` room for `2 src.len` vertices: a convex `src` gives at most `src.len + 1`, but one made
+/// slightly non-convex by the rounding of earlier cuts (cells ~1e-14 wide among crowded sites)
+/// can cross the line more than twice, and each edge emits at most two vertices.
 #[inline]
 fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> bool {
     let m = src.len;
@@ -216,7 +218,7 @@ fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> b
         return false;
     }
     let (sv, sl) = (&src.vertices[..m], &src.lines[..m]);
-    let (dv, dl) = (&mut dst.vertices[..m + 1], &mut dst.lines[..m + 1]);
+    let (dv, dl) = (&mut dst.vertices[..2 * m], &mut dst.lines[..2 * m]);
     let mut n = 0;
     for k in 0..m {
         let k1 = if k + 1 == m { 0 } else { k + 1 };
@@ -476,8 +478,9 @@ impl RestrictedIntegrator {
         let offsets = diagram.neighbor_offsets();
         let list = diagram.neighbor_list();
         let (start, end) = (offsets[i] as usize, offsets[i + 1] as usize);
-        // Every clip adds at most one vertex.
-        let capacity = poly.len() + (end - start) + 1;
+        // Every clip of a convex polygon adds at most one vertex (more room is made below if
+        // rounding made it non-convex).
+        let capacity = 2 * (poly.len() + (end - start) + 1);
         s.b.reserve(capacity);
         if s.values.len() < capacity {
             s.values.resize(capacity, 0.0);
@@ -498,6 +501,12 @@ impl RestrictedIntegrator {
                 c,
                 label: slot as u32,
             };
+            // (room for what `clip` may emit; beyond the convex bound only after rounding)
+            let m = s.a.len;
+            s.b.reserve(2 * m);
+            if s.values.len() < m {
+                s.values.resize(m, 0.0);
+            }
             if clip(&mut s.a, &mut s.b, &h, &mut s.values) {
                 std::mem::swap(&mut s.a, &mut s.b);
                 if s.a.len == 0 {
@@ -881,4 +890,63 @@ pub fn cell_polygons(
 ) -> Vec<Vec<[f64; 2]>> {
     let _ = (sites, weights);
     RestrictedIntegrator::new(measure).cell_polygons(diagram)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A polygon made non-convex (here by construction; in a solve by the rounding of earlier
+    /// cuts in cells ~1e-14 wide) can cross the clipping line more than twice: two spikes above
+    /// y = 1 give m + 2 vertices. `clip` wrote past its m + 1 slots and panicked on the TOSCA
+    /// centaurs' distance pairs (2026-12-04); it now has room for 2m.
+    #[test]
+    fn clip_keeps_every_crossing_of_a_non_convex_polygon() {
+        let spikes = [[0.0, 0.0], [4.0, 0.0], [3.0, 2.0], [2.0, 0.5], [1.0, 2.0]];
+        let mut src = Polygon {
+            len: 0,
+            vertices: Vec::new(),
+            lines: Vec::new(),
+        };
+        src.set_convex(&spikes, [0.0, 0.0]);
+        let mut dst = Polygon {
+            len: 0,
+            vertices: Vec::new(),
+            lines: Vec::new(),
+        };
+        dst.reserve(2 * spikes.len());
+        let mut values = vec![0.0; spikes.len()];
+        let below = Line {
+            n: [0.0, 1.0],
+            c: 1.0,
+            label: 7,
+        };
+        assert!(clip(&mut src, &mut dst, &below, &mut values));
+        let expected = [
+            [0.0, 0.0],
+            [4.0, 0.0],
+            [3.5, 1.0],
+            [2.0 + 1.0 / 3.0, 1.0],
+            [2.0, 0.5],
+            [2.0 - 1.0 / 3.0, 1.0],
+            [0.5, 1.0],
+        ];
+        assert_eq!(dst.len, expected.len());
+        for (v, e) in dst.vertices().iter().zip(&expected) {
+            assert!(
+                (v[0] - e[0]).abs() < 1e-15 && (v[1] - e[1]).abs() < 1e-15,
+                "{v:?} vs {e:?}"
+            );
+        }
+        // the new edges lie on the clipping line, the others keep theirs
+        let labels: Vec<u32> = dst.lines[..dst.len].iter().map(|l| l.label).collect();
+        assert_eq!(labels, [NO_LABEL, NO_LABEL, 7, NO_LABEL, NO_LABEL, 7, NO_LABEL]);
+        // area of the part below y = 1: the rectangle 4 × 1 minus its two corner triangles (1/4
+        // each) and the notch between the spikes, (5/3, 1), (2, 0.5), (7/3, 1) (1/6)
+        let (area, _, _) = polygon_integrals(dst.vertices());
+        assert!(
+            (area - (4.0 - 0.5 * (2.0 / 3.0) * 0.5 - 0.5 * 0.5 - 0.5 * 0.5)).abs() < 1e-14,
+            "{area}"
+        );
+    }
 }
