@@ -303,7 +303,7 @@ pub fn pairwise_distances(
                 if options.warm_start {
                     params.initial_heights = warm;
                 }
-                match directed_distance(src, tgt, &params) {
+                match guarded(|| directed_distance(src, tgt, &params)) {
                     Ok((d, heights)) => (
                         PairRecord {
                             a: names[s].clone(),
@@ -321,7 +321,7 @@ pub fn pairwise_distances(
                         },
                         d.converged.then_some(heights),
                     ),
-                    Err(e) => (failed_record(&names, s, t, e.to_string()), None),
+                    Err(e) => (failed_record(&names, s, t, e), None),
                 }
             }
             _ => (failed_record(&names, s, t, "shape failed to prepare".into()), None),
@@ -401,6 +401,26 @@ pub fn pairwise_distances(
     }
 }
 
+/// Runs one pair's computation so that a panic (a bug, e.g. the index overrun in the clipping
+/// of crowded cells found on 2026-12-04) fails that pair with its message instead of taking the
+/// whole run down after every other pair has been computed. The shared per-shape caches are
+/// safe to use after it: their locks recover from poisoning.
+fn guarded<T>(pair: impl FnOnce() -> Result<T, AnalysisError>) -> Result<T, String> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(pair)) {
+        Ok(result) => result.map_err(|e| e.to_string()),
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "no message".into());
+            Err(format!(
+                "internal error (a bug in shapespace; please report it with the two meshes): {what}"
+            ))
+        }
+    }
+}
+
 fn failed_record(names: &[String], s: usize, t: usize, status: String) -> PairRecord {
     PairRecord {
         a: names[s].clone(),
@@ -415,5 +435,36 @@ fn failed_record(names: &[String], s: usize, t: usize, status: String) -> PairRe
         status: format!("failed: {status}"),
         evaluations: 0,
         dual_cost: f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panicking_pair_fails_with_its_message() {
+        let ok: Result<u32, String> = guarded(|| Ok(3));
+        assert_eq!(ok, Ok(3));
+        let err = guarded::<u32>(|| {
+            Err(AnalysisError::Pair {
+                a: "a".into(),
+                b: "b".into(),
+                message: "no convergence".into(),
+            })
+        });
+        assert!(err.unwrap_err().contains("no convergence"));
+        let index = 12;
+        let panicked = guarded::<u32>(|| {
+            let v = vec![0u32; 12];
+            Ok(v[index])
+        })
+        .unwrap_err();
+        assert!(
+            panicked.starts_with("internal error") && panicked.contains("the len is 12 but the index is 12"),
+            "{panicked}"
+        );
+        let literal = guarded::<u32>(|| panic!("plain")).unwrap_err();
+        assert!(literal.ends_with(": plain"), "{literal}");
     }
 }
