@@ -456,7 +456,7 @@ mod tests {
         assert!(err.unwrap_err().contains("no convergence"));
         let index = 12;
         let panicked = guarded::<u32>(|| {
-            let v = vec![0u32; 12];
+            let v = [0u32; 12];
             Ok(v[index])
         })
         .unwrap_err();
