@@ -11,8 +11,9 @@
 //!
 //! Per-shape work (conformal map, density, points, masses) is done once per shape
 //! ([`prepare_shape`]); the pairs reuse it. Each pair starts cold by default: the solver's
-//! coarse-to-fine start (taken automatically for these densities) needs 8–18 steps at the finest
-//! level, the previous pair's heights 16–32 (measured on the bundled faces, `ARCHITECTURE.md`).
+//! coarse-to-fine start (taken automatically for these densities) needs 6–10 steps at the finest
+//! level (30 pairs, 2026-12-04; 8–18 when first measured), the previous pair's heights 16–32
+//! (measured on the bundled faces, `ARCHITECTURE.md`).
 //! With [`PairwiseOptions::warm_start`] the pairs that share a target are solved in a fixed order,
 //! each warm-started from the previous one's heights; either way the results do not depend on
 //! the number of threads.
@@ -123,7 +124,7 @@ pub struct DirectedDistance {
 ///
 /// Strategy (measured on the bundled faces, density contrast ~6·10⁴): the damped Newton method
 /// from the given warm heights or, without them, from the solver's start (`StartStrategy::Auto`
-/// takes the coarse-to-fine start for this contrast: 8–18 steps at the finest level, 0.4–1 s),
+/// takes the coarse-to-fine start for this contrast: 6–10 steps at the finest level, 0.3–0.9 s),
 /// without density continuation; continuation (`NewtonParams::density_continuation`) takes 3–5×
 /// longer on these inputs, so it is only the fallback when the direct solve does not converge or
 /// cannot start. The fallback restarts from the Voronoi start with continuation (ratio 10 if

@@ -136,6 +136,8 @@ fn walk(triangles: &[[u32; 3]], points: &[[f64; 2]], adjacency: &[[u32; 3]], sta
 /// counter-clockwise), computed in coordinates relative to `origin`.
 fn clipped_area(tri: [[f64; 2]; 3], coarse: [[f64; 2]; 3], origin: [f64; 2]) -> f64 {
     let rel = |p: [f64; 2]| [p[0] - origin[0], p[1] - origin[1]];
+    // (a cut emits at most m + min(kept, m − kept) vertices even when rounding has made the
+    // polygon non-convex: 3 → 4 → 6 → 9, so nine slots always suffice)
     let mut poly = [[0.0; 2]; 9];
     let mut next = [[0.0; 2]; 9];
     let mut len = 3;

@@ -77,9 +77,9 @@ struct Line {
     label: u32,
 }
 
-/// A convex polygon: vertex k and the line of the edge from vertex k to vertex k + 1, the
-/// first `len` entries of the buffers (which are kept at least one longer than any polygon
-/// clipped so far, so that clipping writes by index without growing them).
+/// A convex polygon (up to rounding): vertex k and the line of the edge from vertex k to vertex
+/// k + 1, the first `len` entries of the buffers (which `clip_to_cell` keeps at least twice as
+/// long as the polygon being clipped, so that `clip` writes by index without growing them).
 #[derive(Clone, Debug, Default)]
 struct Polygon {
     len: usize,
