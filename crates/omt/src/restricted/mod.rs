@@ -898,8 +898,9 @@ mod tests {
 
     /// A polygon made non-convex (here by construction; in a solve by the rounding of earlier
     /// cuts in cells ~1e-14 wide) can cross the clipping line more than twice: two spikes above
-    /// y = 1 give m + 2 vertices. `clip` wrote past its m + 1 slots and panicked on the TOSCA
-    /// centaurs' distance pairs (2026-12-04); it now has room for 2m.
+    /// y = 1 give m + 2 vertices. `clip` wrote past its m + 1 slots and panicked in
+    /// `shapespace distances` on the bundled TOSCA wolves and centaurs together (2026-12-04;
+    /// which pair was not recorded); it now has room for 2m.
     #[test]
     fn clip_keeps_every_crossing_of_a_non_convex_polygon() {
         let spikes = [[0.0, 0.0], [4.0, 0.0], [3.0, 2.0], [2.0, 0.5], [1.0, 2.0]];
