@@ -277,11 +277,12 @@ pub struct PairwiseResult {
 /// target run sequentially in a fixed order (each warm-started from the previous one), the
 /// groups in parallel, largest first. Either way the result is the same for any number of
 /// threads, and `pairs` is in the fixed order by target, then source. `progress` is called once
-/// per finished directed pair.
+/// per finished directed pair, with its record, as it finishes (the order of completion, which
+/// depends on the threads).
 pub fn pairwise_distances(
     shapes: &[Option<PreparedShape>],
     options: &PairwiseOptions,
-    progress: &(dyn Fn() + Sync),
+    progress: &(dyn Fn(&PairRecord) + Sync),
 ) -> PairwiseResult {
     let n = shapes.len();
     let names: Vec<String> = shapes
@@ -327,7 +328,7 @@ pub fn pairwise_distances(
             }
             _ => (failed_record(&names, s, t, "shape failed to prepare".into()), None),
         };
-        progress();
+        progress(&out.0);
         out
     };
     let records: Vec<Vec<PairRecord>> = if options.warm_start {

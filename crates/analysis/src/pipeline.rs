@@ -132,6 +132,10 @@ pub struct DistancesReport {
     /// |cost − dual cost| / cost over the converged pairs: the a-posteriori check of the costs
     /// (first order in the mass residual; the dual cost is a lower bound on the exact one).
     pub cost_dual_gap: Option<Summary>,
+    /// Why [`PARTIAL_PAIRS`] could not be kept up to date during the run, if it could not (the
+    /// final files are unaffected).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub partial_pairs_error: Option<String>,
     pub files: Vec<PathBuf>,
 }
 
@@ -208,8 +212,59 @@ pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
         .collect()
 }
 
+/// The file in the output folder that holds the pairs finished so far while a run is going on,
+/// one `pairs.csv` row each, in the order they finish, flushed row by row: what a run that is
+/// killed or crashes leaves behind. Removed once `pairs.csv` and `report.json` are written.
+pub const PARTIAL_PAIRS: &str = "pairs.partial.csv";
+
+/// [`PARTIAL_PAIRS`], appended to from the worker threads.
+struct PartialPairs {
+    path: PathBuf,
+    writer: std::sync::Mutex<(Option<csv::Writer<std::fs::File>>, Option<String>)>,
+}
+
+impl PartialPairs {
+    /// Creates (truncates) the file; an error here is an output error of the run.
+    fn create(path: PathBuf) -> Result<Self, AnalysisError> {
+        let writer = csv::Writer::from_path(&path).map_err(|e| AnalysisError::parse(&path, 0, e.to_string()))?;
+        Ok(Self {
+            path,
+            writer: std::sync::Mutex::new((Some(writer), None)),
+        })
+    }
+
+    /// Appends one row and flushes it. The first failure stops the appending and is kept for
+    /// the report: the run itself goes on (its final files do not depend on this one).
+    fn append(&self, record: &PairRecord) {
+        let mut guard = self.writer.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let (writer, error) = &mut *guard;
+        if let Some(w) = writer {
+            let written = w
+                .serialize(record)
+                .map_err(|e| e.to_string())
+                .and_then(|()| w.flush().map_err(|e| e.to_string()));
+            if let Err(e) = written {
+                *error = Some(format!("{}: {e}", self.path.display()));
+                *writer = None;
+            }
+        }
+    }
+
+    /// Closes the file and returns the first append failure, if any.
+    fn finish(self) -> Option<String> {
+        let (writer, error) = self
+            .writer
+            .into_inner()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        drop(writer);
+        error
+    }
+}
+
 /// Reads, maps and compares all `paths`; writes `out/distances.csv`, `out/pairs.csv` and
-/// `out/report.json`. `progress(done, total, stage)` is called as work finishes.
+/// `out/report.json`. `progress(done, total, stage)` is called as work finishes. While the pairs
+/// run, each finished one is also appended to `out/`[`PARTIAL_PAIRS`] before its progress call,
+/// so that a run killed before the end keeps the pairs it finished.
 ///
 /// Only output failures are errors: per-file and per-pair failures are recorded in the
 /// report, the pair list and as empty matrix cells.
@@ -324,10 +379,18 @@ pub fn run_distances(
         })
         .sum::<usize>();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let mut result = pairwise_distances(&shapes, &options.pairwise, &|| {
+    let partial = PartialPairs::create(out.join(PARTIAL_PAIRS))?;
+    let mut result = pairwise_distances(&shapes, &options.pairwise, &|record| {
+        // (the file names, as below)
+        partial.append(&PairRecord {
+            a: names[record.source].clone(),
+            b: names[record.target].clone(),
+            ..record.clone()
+        });
         let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total_pairs, "pairs");
     });
+    let partial_pairs_error = partial.finish();
     let pairs_wall = t_pairs.elapsed().as_secs_f64();
     // `pairwise_distances` knows only the prepared shapes' names (a failed one is `#i`): use the
     // file names throughout, as in distances.csv.
@@ -394,6 +457,7 @@ pub fn run_distances(
         iterations: (!iterations.is_empty()).then(|| summarize(&iterations)),
         asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
         cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
+        partial_pairs_error,
         files,
     };
     report.timings.write = t_write.elapsed().as_secs_f64();
@@ -403,6 +467,9 @@ pub fn run_distances(
         message: e.to_string(),
     })?;
     std::fs::write(&report_path, json).map_err(|e| AnalysisError::io(&report_path, e))?;
+    // Everything it held is in pairs.csv now. (A file that cannot be removed only repeats
+    // pairs.csv's rows, so that is not an error.)
+    let _ = std::fs::remove_file(out.join(PARTIAL_PAIRS));
     Ok(DistancesRun {
         matrix,
         pairs: result.pairs,
@@ -419,4 +486,56 @@ pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), Analysis
         w.serialize(p).map_err(to_err)?;
     }
     w.flush().map_err(|e| AnalysisError::io(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(a: &str) -> PairRecord {
+        PairRecord {
+            a: a.into(),
+            b: "b".into(),
+            source: 0,
+            target: 1,
+            distance: 0.5,
+            cost: 0.25,
+            iterations: 3,
+            max_mass_error: 1e-5,
+            seconds: 0.1,
+            status: "converged".into(),
+            evaluations: 4,
+            dual_cost: 0.25,
+        }
+    }
+
+    /// Rows reach the disk as they are appended (another reader sees them before the file is
+    /// closed).
+    #[test]
+    fn partial_pairs_are_flushed_row_by_row() {
+        let dir = std::env::temp_dir().join(format!("shapespace-partial-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(PARTIAL_PAIRS);
+        let partial = PartialPairs::create(path.clone()).unwrap();
+        partial.append(&record("x"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().count(), 2, "{text}");
+        assert!(text.lines().nth(1).unwrap().starts_with("x,b,0.5,0.25,3,"), "{text}");
+        partial.append(&record("y"));
+        assert_eq!(std::fs::read_to_string(&path).unwrap().lines().count(), 3);
+        assert_eq!(partial.finish(), None);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A device that refuses every write: the failure is kept for the report with the path, and
+    /// later rows are not attempted (no panic, no error for the run).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_partial_pairs_write_failure_is_reported_not_fatal() {
+        let partial = PartialPairs::create(PathBuf::from("/dev/full")).unwrap();
+        partial.append(&record("x"));
+        partial.append(&record("y"));
+        let error = partial.finish().expect("writing to /dev/full fails");
+        assert!(error.starts_with("/dev/full: "), "{error}");
+    }
 }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use shapespace_analysis::distance::{
     directed_distance, pairwise_distances, prepare_shape, DirectedDistance, PairwiseOptions, PreparedShape,
 };
-use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions, PARTIAL_PAIRS};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::{read_mesh, write_mesh};
 use shapespace_geometry::prepare::subdivide_midpoint;
@@ -212,7 +212,7 @@ fn symmetric_run_on_four_faces_bounds_asymmetry_and_triangle_violations() {
         symmetrize: true,
         ..PairwiseOptions::default()
     };
-    let result = pairwise_distances(&shapes, &options, &|| {});
+    let result = pairwise_distances(&shapes, &options, &|_| {});
     assert_eq!(result.pairs.len(), 12);
     assert!(
         result.pairs.iter().all(|p| p.status.starts_with("converged")),
@@ -263,7 +263,7 @@ fn pairwise_result_does_not_depend_on_the_thread_count() {
         };
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| pairwise_distances(&shapes, &options, &|| {}))
+            pool.install(|| pairwise_distances(&shapes, &options, &|_| {}))
         };
         let (one, two) = (run(1), run(2));
         assert_eq!(
@@ -283,7 +283,7 @@ fn pairwise_result_does_not_depend_on_the_thread_count() {
             symmetrize: true,
             ..PairwiseOptions::default()
         },
-        &|| {},
+        &|_| {},
     );
     // Caps of growing angle move away from the flattest one.
     assert!(
@@ -313,8 +313,38 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap();
     files.insert(1, bad);
     let out = dir.join("out");
-    let run = run_distances(&files, &out, &DistancesOptions::default(), &|_, _, _| {}).unwrap();
+    // A partial file left by an earlier run that was stopped is replaced, not appended to.
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join(PARTIAL_PAIRS), "stale\n").unwrap();
+    // At each finished pair, the partial file holds at least the pairs finished so far (the
+    // other thread may have added one since), each a complete row.
+    let seen = std::sync::Mutex::new(Vec::new());
+    let run = run_distances(&files, &out, &DistancesOptions::default(), &|done, _, stage| {
+        if stage == "pairs" {
+            let text = std::fs::read_to_string(out.join(PARTIAL_PAIRS)).unwrap();
+            seen.lock().unwrap().push((done, text));
+        }
+    })
+    .unwrap();
+    let seen = seen.into_inner().unwrap();
+    assert_eq!(seen.len(), 6);
+    let final_rows: std::collections::BTreeSet<String> = std::fs::read_to_string(out.join("pairs.csv"))
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    for (done, text) in &seen {
+        let mut lines = text.lines();
+        assert!(lines.next().unwrap().starts_with("a,b,distance,cost,"), "{text}");
+        let rows: Vec<&str> = lines.collect();
+        assert!(rows.len() >= *done && rows.len() <= 6, "{done}: {text}");
+        // the rows are pairs.csv's (file names, not `#1`)
+        assert!(rows.iter().all(|r| final_rows.contains(*r)), "{text}");
+    }
+    assert!(seen.iter().any(|(_, text)| text.lines().count() == 7));
+    assert!(!out.join(PARTIAL_PAIRS).exists(), "removed once pairs.csv is written");
     let report = &run.report;
+    assert!(report.partial_pairs_error.is_none());
     assert_eq!(report.inputs.len(), 4);
     let failed: Vec<_> = report.inputs.iter().filter(|i| !i.ok).collect();
     assert_eq!(failed.len(), 1);

@@ -51,6 +51,8 @@ pub struct DistancesArgs {
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Output directory (distances.csv, pairs.csv, report.json; with --mds also the MDS files).
+    /// While the pairs run, pairs.partial.csv there holds those finished so far (pairs.csv's
+    /// columns, in the order they finish): what a run that is stopped early leaves behind.
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -178,6 +180,9 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             a.median.unwrap_or(f64::NAN),
             a.max.unwrap_or(f64::NAN)
         );
+    }
+    if let Some(e) = &r.partial_pairs_error {
+        eprintln!("shapespace: warning: the finished pairs could not be kept in {e} during the run (the files below are complete)");
     }
     for f in &r.files {
         eprintln!("distances: wrote {}", f.display());
