@@ -8,7 +8,10 @@
 //! coarse point before well-spread points are grouped. The coarse problem is solved the same
 //! way, recursively, at tolerance max(tol, [`NewtonParams::coarse_tolerance`]) (default 1e-3);
 //! levels stop below 1000 points, or below 16 when the points are crowded (two closer than 1e-6
-//! of the mean spacing). The coarsening depends on the target alone (its masses rescaled to the
+//! of the mean spacing). A coarse level that its own coarse-to-fine start does not solve is
+//! solved again from the Voronoi start with density continuation, at its own small size (since
+//! 2026-12-04 (24); the TOSCA wolves as distance pairs, whose direct solves had fallen to the
+//! Voronoi start and the iteration cap). The coarsening depends on the target alone (its masses rescaled to the
 //! source's mass change the coarse masses and means by rounding, and at most rarely a merge):
 //! [`TargetCoarsening`] holds it, computed from the masses as given, for runs that solve many
 //! problems with one target.
@@ -72,6 +75,9 @@ const CROWDED: f64 = 1e-6;
 /// Groups within this many edges of the coarse regular triangulation compete for the maximum
 /// that defines Φ; the start is then checked and the maximum taken over all groups where needed.
 const RINGS: usize = 3;
+/// Density-continuation ratio of the retry of a coarse level that its own coarse-to-fine start
+/// did not solve (when the caller's parameters have none; the distances' fallback uses the same).
+const RETRY_CONTINUATION: f64 = 10.0;
 /// Fine-to-coarse ratio: pairwise merging rounds continue until at most N/RATIO groups remain.
 const RATIO: usize = 4;
 /// After the first round of a level, two groups merge only if each group of several points has
@@ -378,7 +384,9 @@ pub(crate) struct CoarseStart {
 }
 
 /// Initial heights (double-double, #N) from a coarse solve ([`CoarseStart`]); `None` when N is
-/// too small for a coarse level or the coarse level could not be solved.
+/// too small for a coarse level or the coarse level could not be solved, neither from its own
+/// coarse-to-fine start nor, retried, from the Voronoi start with density continuation (ratio
+/// [`RETRY_CONTINUATION`] unless `params` has one).
 ///
 /// Prolongation (module docs): with G_g = −H_g the coarse solution, c_g its cell centroids and
 /// Φ_g(y) = G_g + ⟨c_g, y − Y_g⟩ + s_g ψ_{δ_g}(y − Y_g), the fine heights are h_i = −Φ(y_i) with
@@ -452,7 +460,32 @@ pub(crate) fn coarse_to_fine_heights(
     let level_measure = averaged.as_deref().unwrap_or(measure);
     let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
-        _ => return Ok(None),
+        first => {
+            // A coarse level that its own coarse-to-fine start does not solve (TOSCA wolves as
+            // distance pairs: density contrast ~8e13, the 603-point level stops at the cap) gets
+            // the robust path at its own small size: the Voronoi start with density
+            // continuation. Its cost is bounded by the level's size, and a solved level still
+            // gives the finest level its start.
+            let first_iterations = first.as_ref().map_or(0, |s| {
+                s.iterations
+                    + match s.start {
+                        super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
+                        _ => 0,
+                    }
+            });
+            let retry = NewtonParams {
+                start_strategy: super::StartStrategy::Voronoi,
+                density_continuation: Some(params.density_continuation.unwrap_or(RETRY_CONTINUATION)),
+                ..coarse_params.clone()
+            };
+            match solve_ot(level_measure, &coarse.points, &coarse.masses, &retry) {
+                Ok(mut s) if s.converged() => {
+                    s.iterations += first_iterations;
+                    s
+                }
+                _ => return Ok(None),
+            }
+        }
     };
     let cells = &solution.cells;
     let (hh, hl) = (&solution.heights, &solution.heights_lo);
