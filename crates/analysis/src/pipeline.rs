@@ -217,6 +217,10 @@ pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
 /// killed or crashes leaves behind. Removed once `pairs.csv` and `report.json` are written.
 pub const PARTIAL_PAIRS: &str = "pairs.partial.csv";
 
+/// Where a run moves a [`PARTIAL_PAIRS`] file it finds (left by a run that was stopped), so that
+/// starting again in the same folder does not erase those pairs (an older one is replaced).
+pub const PREVIOUS_PARTIAL_PAIRS: &str = "pairs.partial.prev.csv";
+
 /// [`PARTIAL_PAIRS`], appended to from the worker threads.
 struct PartialPairs {
     path: PathBuf,
@@ -224,9 +228,9 @@ struct PartialPairs {
 }
 
 impl PartialPairs {
-    /// Creates (truncates) the file; an error here is an output error of the run.
+    /// Creates the file; an error here is an output error of the run.
     fn create(path: PathBuf) -> Result<Self, AnalysisError> {
-        let writer = csv::Writer::from_path(&path).map_err(|e| AnalysisError::parse(&path, 0, e.to_string()))?;
+        let writer = csv::Writer::from_path(&path).map_err(|e| AnalysisError::csv(&path, e))?;
         Ok(Self {
             path,
             writer: std::sync::Mutex::new((Some(writer), None)),
@@ -264,7 +268,8 @@ impl PartialPairs {
 /// Reads, maps and compares all `paths`; writes `out/distances.csv`, `out/pairs.csv` and
 /// `out/report.json`. `progress(done, total, stage)` is called as work finishes. While the pairs
 /// run, each finished one is also appended to `out/`[`PARTIAL_PAIRS`] before its progress call,
-/// so that a run killed before the end keeps the pairs it finished.
+/// so that a run killed before the end keeps the pairs it finished; such a file found at the
+/// start is moved to `out/`[`PREVIOUS_PARTIAL_PAIRS`] first.
 ///
 /// Only output failures are errors: per-file and per-pair failures are recorded in the
 /// report, the pair list and as empty matrix cells.
@@ -379,7 +384,12 @@ pub fn run_distances(
         })
         .sum::<usize>();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let partial = PartialPairs::create(out.join(PARTIAL_PAIRS))?;
+    let partial_path = out.join(PARTIAL_PAIRS);
+    if partial_path.exists() {
+        let previous = out.join(PREVIOUS_PARTIAL_PAIRS);
+        std::fs::rename(&partial_path, &previous).map_err(|e| AnalysisError::io(&previous, e))?;
+    }
+    let partial = PartialPairs::create(partial_path)?;
     let mut result = pairwise_distances(&shapes, &options.pairwise, &|record| {
         // (the file names, as below)
         partial.append(&PairRecord {
@@ -527,8 +537,8 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
-    /// A device that refuses every write: the failure is kept for the report with the path, and
-    /// later rows are not attempted (no panic, no error for the run).
+    /// A device that refuses every write: the first failure is kept for the report with the
+    /// path (no panic, no error for the run).
     #[cfg(target_os = "linux")]
     #[test]
     fn a_partial_pairs_write_failure_is_reported_not_fatal() {

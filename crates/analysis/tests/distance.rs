@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use shapespace_analysis::distance::{
     directed_distance, pairwise_distances, prepare_shape, DirectedDistance, PairwiseOptions, PreparedShape,
 };
-use shapespace_analysis::pipeline::{run_distances, DistancesOptions, PARTIAL_PAIRS};
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions, PARTIAL_PAIRS, PREVIOUS_PARTIAL_PAIRS};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::{read_mesh, write_mesh};
 use shapespace_geometry::prepare::subdivide_midpoint;
@@ -313,7 +313,8 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap();
     files.insert(1, bad);
     let out = dir.join("out");
-    // A partial file left by an earlier run that was stopped is replaced, not appended to.
+    // A partial file left by an earlier run that was stopped is kept aside (a restart does not
+    // erase its pairs), and the new one starts empty.
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join(PARTIAL_PAIRS), "stale\n").unwrap();
     // At each finished pair, the partial file holds at least the pairs finished so far (the
@@ -343,6 +344,10 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     }
     assert!(seen.iter().any(|(_, text)| text.lines().count() == 7));
     assert!(!out.join(PARTIAL_PAIRS).exists(), "removed once pairs.csv is written");
+    assert_eq!(
+        std::fs::read_to_string(out.join(PREVIOUS_PARTIAL_PAIRS)).unwrap(),
+        "stale\n"
+    );
     let report = &run.report;
     assert!(report.partial_pairs_error.is_none());
     assert_eq!(report.inputs.len(), 4);
@@ -716,7 +721,7 @@ fn pose(path: &str) -> PreparedShape {
 /// (iteration cap); retried there with density continuation, it gives the finest level a start
 /// from which the direct solve converges (14 steps). Before, the direct solve fell to the
 /// Voronoi start, stopped at the cap (100 steps at τ ~ 1e-3) and the pair went to the fallback,
-/// 6–7 times slower. The direct solve's distance agrees with the fallback path's (Voronoi start,
+/// 5–8 times slower. The direct solve's distance agrees with the fallback path's (Voronoi start,
 /// density continuation) computed on its own.
 #[test]
 fn wolf_pair_converges_from_the_coarse_start_and_agrees_with_the_continuation() {
@@ -725,6 +730,24 @@ fn wolf_pair_converges_from_the_coarse_start_and_agrees_with_the_continuation() 
     let params = PairwiseOptions::default().newton;
     let direct = converged(&a, &b, &params);
     assert_eq!(direct.status, "converged", "no fallback");
+    // and the direct solve is the one from the coarse start (not Auto's Voronoi path)
+    let solve = shapespace_omt::solve_ot(
+        &a.measure,
+        &b.points,
+        &b.masses,
+        &NewtonParams {
+            density_continuation: None,
+            target_coarsening: Some(b.coarsening.clone()),
+            ..params.clone()
+        },
+    )
+    .unwrap();
+    assert!(
+        solve.converged() && matches!(solve.start, shapespace_omt::newton::Start::CoarseToFine { .. }),
+        "{:?}: {}",
+        solve.start,
+        solve.stop_description()
+    );
     let continuation = shapespace_omt::solve_ot(
         &a.measure,
         &b.points,

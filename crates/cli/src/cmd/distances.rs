@@ -52,7 +52,8 @@ pub struct DistancesArgs {
     pub files: Vec<PathBuf>,
     /// Output directory (distances.csv, pairs.csv, report.json; with --mds also the MDS files).
     /// While the pairs run, pairs.partial.csv there holds those finished so far (pairs.csv's
-    /// columns, in the order they finish): what a run that is stopped early leaves behind.
+    /// columns, in the order they finish): what a run that is stopped early leaves behind (a new
+    /// run moves such a file to pairs.partial.prev.csv first).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]

@@ -385,8 +385,8 @@ pub(crate) struct CoarseStart {
 
 /// Initial heights (double-double, #N) from a coarse solve ([`CoarseStart`]); `None` when N is
 /// too small for a coarse level or the coarse level could not be solved, neither from its own
-/// coarse-to-fine start nor, retried, from the Voronoi start with density continuation (ratio
-/// [`RETRY_CONTINUATION`] unless `params` has one).
+/// coarse-to-fine start nor, retried after that start, from the Voronoi start with density
+/// continuation (ratio [`RETRY_CONTINUATION`] unless `params` has one).
 ///
 /// Prolongation (module docs): with G_g = −H_g the coarse solution, c_g its cell centroids and
 /// Φ_g(y) = G_g + ⟨c_g, y − Y_g⟩ + s_g ψ_{δ_g}(y − Y_g), the fine heights are h_i = −Φ(y_i) with
@@ -460,19 +460,19 @@ pub(crate) fn coarse_to_fine_heights(
     let level_measure = averaged.as_deref().unwrap_or(measure);
     let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
-        first => {
-            // A coarse level that its own coarse-to-fine start does not solve (TOSCA wolves as
-            // distance pairs: density contrast ~8e13, the 603-point level stops at the cap) gets
-            // the robust path at its own small size: the Voronoi start with density
-            // continuation. Its cost is bounded by the level's size, and a solved level still
-            // gives the finest level its start.
-            let first_iterations = first.as_ref().map_or(0, |s| {
-                s.iterations
-                    + match s.start {
-                        super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
-                        _ => 0,
-                    }
-            });
+        // A coarse level that its own coarse-to-fine start does not solve (TOSCA wolves as
+        // distance pairs: density contrast ~8e13, the 603-point level stops at the cap) gets
+        // the robust path at its own small size: the Voronoi start with density continuation.
+        // Its cost is bounded by the level's size, and a solved level still gives the finest
+        // level its start. Only after a coarse start: without one, `solve_ot` has already run
+        // the Voronoi path with the caller's continuation (and a level below that failed has
+        // had its own retry). The failed attempt's steps are counted when the retry succeeds.
+        Ok(first) if matches!(first.start, super::Start::CoarseToFine { .. }) => {
+            let first_iterations = first.iterations
+                + match first.start {
+                    super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
+                    _ => 0,
+                };
             let retry = NewtonParams {
                 start_strategy: super::StartStrategy::Voronoi,
                 density_continuation: Some(params.density_continuation.unwrap_or(RETRY_CONTINUATION)),
@@ -486,6 +486,7 @@ pub(crate) fn coarse_to_fine_heights(
                 _ => return Ok(None),
             }
         }
+        _ => return Ok(None),
     };
     let cells = &solution.cells;
     let (hh, hl) = (&solution.heights, &solution.heights_lo);
