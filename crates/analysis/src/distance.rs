@@ -27,7 +27,7 @@ use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
-use shapespace_omt::newton::{Start, TargetCoarsening};
+use shapespace_omt::newton::TargetCoarsening;
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
 
 use crate::error::AnalysisError;
@@ -171,11 +171,7 @@ pub fn directed_distance(
         cost: solution.cost,
         dual_cost: solution.dual_value(),
         distance: solution.cost.max(0.0).sqrt(),
-        iterations: solution.iterations
-            + match solution.start {
-                Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
-                _ => 0,
-            },
+        iterations: solution.all_iterations(),
         max_mass_error: solution.max_relative_error,
         seconds: start.elapsed().as_secs_f64(),
         status: format!("{}{note}", solution.stop_description()),

@@ -444,6 +444,16 @@ impl OtSolution {
         })
     }
 
+    /// Newton steps on every level: [`OtSolution::iterations`] (the finest level, with a
+    /// continuation's stages) plus, after a coarse-to-fine start, the coarser levels' steps.
+    pub fn all_iterations(&self) -> usize {
+        self.iterations
+            + match self.start {
+                Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
+                _ => 0,
+            }
+    }
+
     /// The stop reason with the [`OtSolution::diagnosis`], if any, for reports and messages.
     pub fn stop_description(&self) -> String {
         match &self.diagnosis {
@@ -520,13 +530,27 @@ fn renormalize(a: f64, b: f64) -> [f64; 2] {
     [s, e]
 }
 
+/// ⟨u, v⟩ as a double-double pair (exact up to the last renormalization).
+#[inline]
+fn dot_dd(u: [f64; 2], v: [f64; 2]) -> [f64; 2] {
+    let (p1, e1) = crate::predicates::two_product(u[0], v[0]);
+    let (p2, e2) = crate::predicates::two_product(u[1], v[1]);
+    let (s, e) = crate::predicates::two_sum(p1, p2);
+    renormalize(s, e + e1 + e2)
+}
+
 /// |y|² as a double-double pair (exact up to the last renormalization).
 #[inline]
 fn squared_norm_dd(y: [f64; 2]) -> [f64; 2] {
-    let (p1, e1) = crate::predicates::two_product(y[0], y[0]);
-    let (p2, e2) = crate::predicates::two_product(y[1], y[1]);
-    let (s, e) = crate::predicates::two_sum(p1, p2);
-    renormalize(s, e + e1 + e2)
+    dot_dd(y, y)
+}
+
+/// k·d for a double-double d, as (high part, low part): the high product exact, the low part
+/// rounded once (not renormalized).
+#[inline]
+fn times_dd(k: f64, d: [f64; 2]) -> (f64, f64) {
+    let (p, e) = crate::predicates::two_product(k, d[0]);
+    (p, e + k * d[1])
 }
 
 impl Heights {
@@ -571,23 +595,13 @@ impl Heights {
     /// toward the μ-barycenter, against none in the Voronoi diagram of the z_i; the solve then
     /// reported "no start" and guessed points far outside Ω).
     pub(crate) fn contracted(points: &[[f64; 2]], center: [f64; 2], scale: f64) -> Self {
-        use crate::predicates::{two_product, two_sum};
-        let keep = 1.0 - scale;
         let (hi, lo) = points
             .iter()
             .map(|&y| {
-                // ⟨c, y⟩ as a double-double pair, then times (1 − s)
-                let (p1, e1) = two_product(center[0], y[0]);
-                let (p2, e2) = two_product(center[1], y[1]);
-                let (d, e) = two_sum(p1, p2);
-                let dot = renormalize(d, e + e1 + e2);
-                let (a, ea) = two_product(keep, dot[0]);
-                let a_lo = ea + keep * dot[1];
-                // s|y|²/2
-                let q = squared_norm_dd(y);
-                let (b, eb) = two_product(0.5 * scale, q[0]);
-                let b_lo = eb + 0.5 * scale * q[1];
-                let (sum, es) = two_sum(a, b);
+                // (1 − s)⟨c, y⟩ and s|y|²/2 (1 − s and s/2 exact for the halved scales)
+                let (a, a_lo) = times_dd(1.0 - scale, dot_dd(center, y));
+                let (b, b_lo) = times_dd(0.5 * scale, squared_norm_dd(y));
+                let (sum, es) = crate::predicates::two_sum(a, b);
                 let r = renormalize(sum, es + a_lo + b_lo);
                 (-r[0], -r[1])
             })

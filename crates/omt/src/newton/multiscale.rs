@@ -468,11 +468,7 @@ pub(crate) fn coarse_to_fine_heights(
         // the Voronoi path with the caller's continuation (and a level below that failed has
         // had its own retry). The failed attempt's steps are counted when the retry succeeds.
         Ok(first) if matches!(first.start, super::Start::CoarseToFine { .. }) => {
-            let first_iterations = first.iterations
-                + match first.start {
-                    super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
-                    _ => 0,
-                };
+            let first_iterations = first.all_iterations();
             let retry = NewtonParams {
                 start_strategy: super::StartStrategy::Voronoi,
                 density_continuation: Some(params.density_continuation.unwrap_or(RETRY_CONTINUATION)),
@@ -702,15 +698,10 @@ pub(crate) fn coarse_to_fine_heights(
         }
         previous = Some(Cow::Owned(diagram));
     }
-    // (a continuation's stages are already in `iterations`)
-    let below = match solution.start {
-        super::Start::CoarseToFine { coarse_iterations, .. } => coarse_iterations,
-        _ => 0,
-    };
     Ok(Some(CoarseStart {
         heights,
         coarse_points: coarse_n,
-        coarse_iterations: solution.iterations + below,
+        coarse_iterations: solution.all_iterations(),
         checked: checked.map(|diagram| (diagram, order)),
     }))
 }
