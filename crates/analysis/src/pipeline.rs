@@ -221,10 +221,11 @@ pub const PARTIAL_PAIRS: &str = "pairs.partial.csv";
 /// starting again in the same folder does not erase those pairs (an older one is replaced).
 pub const PREVIOUS_PARTIAL_PAIRS: &str = "pairs.partial.prev.csv";
 
-/// [`PARTIAL_PAIRS`], appended to from the worker threads.
+/// [`PARTIAL_PAIRS`], appended to from the worker threads: its writer, or after the first
+/// failed write, that failure.
 struct PartialPairs {
     path: PathBuf,
-    writer: std::sync::Mutex<(Option<csv::Writer<std::fs::File>>, Option<String>)>,
+    writer: std::sync::Mutex<Result<csv::Writer<std::fs::File>, String>>,
 }
 
 impl PartialPairs {
@@ -233,35 +234,32 @@ impl PartialPairs {
         let writer = csv::Writer::from_path(&path).map_err(|e| AnalysisError::csv(&path, e))?;
         Ok(Self {
             path,
-            writer: std::sync::Mutex::new((Some(writer), None)),
+            writer: std::sync::Mutex::new(Ok(writer)),
         })
     }
 
     /// Appends one row and flushes it. The first failure stops the appending and is kept for
     /// the report: the run itself goes on (its final files do not depend on this one).
     fn append(&self, record: &PairRecord) {
-        let mut guard = self.writer.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        let (writer, error) = &mut *guard;
-        if let Some(w) = writer {
+        let mut state = self.writer.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        if let Ok(w) = &mut *state {
             let written = w
                 .serialize(record)
                 .map_err(|e| e.to_string())
                 .and_then(|()| w.flush().map_err(|e| e.to_string()));
             if let Err(e) = written {
-                *error = Some(format!("{}: {e}", self.path.display()));
-                *writer = None;
+                *state = Err(format!("{}: {e}", self.path.display()));
             }
         }
     }
 
     /// Closes the file and returns the first append failure, if any.
     fn finish(self) -> Option<String> {
-        let (writer, error) = self
+        let state = self
             .writer
             .into_inner()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        drop(writer);
-        error
+        state.err()
     }
 }
 
