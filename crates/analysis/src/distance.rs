@@ -18,11 +18,12 @@
 //! each warm-started from the previous one's heights; either way the results do not depend on
 //! the number of threads.
 
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
@@ -223,8 +224,9 @@ impl Default for PairwiseOptions {
     }
 }
 
-/// One row of `pairs.csv`.
-#[derive(Clone, Debug, Serialize)]
+/// One row of `pairs.csv` (read back by `pipeline::run_distances`' `resume`; the index fields
+/// are not in the file).
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PairRecord {
     pub a: String,
     pub b: String,
@@ -259,7 +261,8 @@ pub struct PairwiseResult {
     pub pairs: Vec<PairRecord>,
     /// Relative asymmetry |d(a→b) − d(b→a)| / mean, per unordered pair (only with `symmetrize`).
     pub asymmetries: Vec<f64>,
-    /// Seconds spent in the pairs (sum over pairs, not wall time).
+    /// Seconds spent in the pairs computed (sum over pairs, not wall time; known pairs of
+    /// [`pairwise_distances_resuming`] not included).
     pub pair_seconds: f64,
 }
 
@@ -280,6 +283,21 @@ pub fn pairwise_distances(
     options: &PairwiseOptions,
     progress: &(dyn Fn(&PairRecord) + Sync),
 ) -> PairwiseResult {
+    pairwise_distances_resuming(shapes, options, &HashMap::new(), progress)
+}
+
+/// [`pairwise_distances`], taking the directed pairs (source, target) in `known` from there
+/// instead of computing them (the records of an earlier run, see `pipeline::run_distances`'
+/// `resume`): their records are used as they are (index fields set to the pair), `progress` is
+/// not called for them and their seconds are not in [`PairwiseResult::pair_seconds`]. With
+/// `warm_start` a known pair passes no heights on, so the pairs after it start as a group's
+/// first does.
+pub fn pairwise_distances_resuming(
+    shapes: &[Option<PreparedShape>],
+    options: &PairwiseOptions,
+    known: &HashMap<(usize, usize), PairRecord>,
+    progress: &(dyn Fn(&PairRecord) + Sync),
+) -> PairwiseResult {
     let n = shapes.len();
     let names: Vec<String> = shapes
         .iter()
@@ -295,6 +313,14 @@ pub fn pairwise_distances(
         .collect();
     // One directed pair, optionally warm-started; returns the record and the heights to pass on.
     let run = |s: usize, t: usize, warm: Option<Vec<f64>>| -> (PairRecord, Option<Vec<f64>>) {
+        if let Some(record) = known.get(&(s, t)) {
+            let record = PairRecord {
+                source: s,
+                target: t,
+                ..record.clone()
+            };
+            return (record, None);
+        }
         let out = match (&shapes[s], &shapes[t]) {
             (Some(src), Some(tgt)) => {
                 let mut params = options.newton.clone();
@@ -389,7 +415,11 @@ pub fn pairwise_distances(
             matrix[j * n + i] = d;
         }
     }
-    let pair_seconds = pairs.iter().map(|p| p.seconds).sum();
+    let pair_seconds = pairs
+        .iter()
+        .filter(|p| !known.contains_key(&(p.source, p.target)))
+        .map(|p| p.seconds)
+        .sum();
     PairwiseResult {
         names,
         matrix,

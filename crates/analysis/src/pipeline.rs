@@ -8,11 +8,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use std::collections::HashMap;
+
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
 
-use crate::distance::{pairwise_distances, prepare_shape, PairRecord, PairwiseOptions, PreparedShape};
+use crate::distance::{pairwise_distances_resuming, prepare_shape, PairRecord, PairwiseOptions, PreparedShape};
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
 use crate::stats::{summarize, Summary};
@@ -82,6 +84,11 @@ pub struct DistancesOptions {
     pub markers: MarkerOptions,
     pub pairwise: PairwiseOptions,
     pub disk_map: DiskMapParams,
+    /// Take the directed pairs that earlier runs in the output folder computed from the same
+    /// files, markers and solver settings from their files instead of computing them again
+    /// (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
+    /// the pairs solved before it).
+    pub resume: bool,
 }
 
 /// Per-file outcome of the preparation stage.
@@ -89,6 +96,8 @@ pub struct DistancesOptions {
 pub struct ShapeReport {
     pub name: String,
     pub path: PathBuf,
+    /// SHA-256 of the file's bytes (hex, as `sha256sum` prints it); None when it cannot be read.
+    pub sha256: Option<String>,
     pub ok: bool,
     pub error: Option<String>,
     pub vertices: Option<usize>,
@@ -136,7 +145,53 @@ pub struct DistancesReport {
     /// final files are unaffected).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub partial_pairs_error: Option<String>,
+    /// With [`DistancesOptions::resume`]: the pairs taken from earlier runs, and what each
+    /// earlier file gave or why it was not used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resumed: Option<ResumeReport>,
+    /// What the pairs depend on, for a later `resume`.
+    pub resume_key: RunIdentity,
     pub files: Vec<PathBuf>,
+}
+
+/// The pairs a resumed run took from earlier runs.
+#[derive(Clone, Debug, Serialize)]
+pub struct ResumeReport {
+    /// Directed pairs taken from earlier files (not computed by this run).
+    pub pairs: usize,
+    /// One line per earlier pairs file found in the output folder: how many of its rows were
+    /// taken, or why none were.
+    pub sources: Vec<String>,
+}
+
+/// What a run's pairs depend on: the version, the solver and conformal-map settings, and per
+/// input the file's content and resolved markers. Written before the first pair beside
+/// [`PARTIAL_PAIRS`] (as [`PARTIAL_IDENTITY`]) and into `report.json` (`resume_key`), so that a
+/// resumed run reuses exactly the rows whose two shapes and settings are unchanged (a directed
+/// pair's result depends on nothing else: not on the other files, the thread count or
+/// `symmetrize`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunIdentity {
+    pub shapespace_version: String,
+    /// SHA-256 (hex) of the debug form of the solver parameters, `warm_start` and the conformal
+    /// map's parameters.
+    pub settings: String,
+    pub inputs: Vec<InputIdentity>,
+}
+
+/// One input of a [`RunIdentity`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InputIdentity {
+    pub name: String,
+    /// The file's SHA-256 and its resolved markers (`SHA:CENTER:BOUNDARY`, the markers as in a
+    /// marker file); None for a file that failed to prepare.
+    pub key: Option<String>,
+}
+
+/// SHA-256 of `bytes`, lower-case hex.
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The options as recorded in the report.
@@ -221,6 +276,125 @@ pub const PARTIAL_PAIRS: &str = "pairs.partial.csv";
 /// starting again in the same folder does not erase those pairs (an older one is replaced).
 pub const PREVIOUS_PARTIAL_PAIRS: &str = "pairs.partial.prev.csv";
 
+/// The [`RunIdentity`] of the run writing [`PARTIAL_PAIRS`], written before its first row.
+pub const PARTIAL_IDENTITY: &str = "pairs.partial.json";
+
+/// Where [`PARTIAL_IDENTITY`] goes with [`PREVIOUS_PARTIAL_PAIRS`].
+pub const PREVIOUS_PARTIAL_IDENTITY: &str = "pairs.partial.prev.json";
+
+/// An earlier run's pairs file in the output folder and where its [`RunIdentity`] is: a
+/// finished run's `pairs.csv` (`report.json`'s `resume_key`), a stopped run's
+/// [`PARTIAL_PAIRS`], and one moved aside by a restart ([`PREVIOUS_PARTIAL_PAIRS`]).
+const EARLIER_PAIRS: [(&str, &str, bool); 3] = [
+    ("pairs.csv", "report.json", true),
+    (PARTIAL_PAIRS, PARTIAL_IDENTITY, false),
+    (PREVIOUS_PARTIAL_PAIRS, PREVIOUS_PARTIAL_IDENTITY, false),
+];
+
+/// The rows of the earlier runs' pairs files in `out` ([`EARLIER_PAIRS`]) that this run can
+/// take: those whose version and settings equal `identity`'s and whose two shapes have the key
+/// of a current input (the same file content and markers, whatever its name now), keyed by the
+/// current (source, target) among `needed` (a row serves every current pair of files with those
+/// keys). The first file to give a pair wins (all of them give the same record). Also returns
+/// one line per file found: how many rows it gave, or why it gave none. A last line without its
+/// newline (a run killed in the middle of a row) is not read.
+fn earlier_pairs(
+    out: &Path,
+    identity: &RunIdentity,
+    needed: &std::collections::HashSet<(usize, usize)>,
+) -> (HashMap<(usize, usize), PairRecord>, Vec<String>) {
+    #[derive(Deserialize)]
+    struct Report {
+        resume_key: Option<RunIdentity>,
+    }
+    let mut by_key: HashMap<&str, Vec<usize>> = HashMap::new();
+    for (i, input) in identity.inputs.iter().enumerate() {
+        if let Some(key) = &input.key {
+            by_key.entry(key).or_default().push(i);
+        }
+    }
+    let mut known = HashMap::new();
+    let mut notes = Vec::new();
+    for (pairs_name, identity_name, in_report) in EARLIER_PAIRS {
+        let pairs_path = out.join(pairs_name);
+        let Ok(mut text) = std::fs::read_to_string(&pairs_path) else {
+            continue;
+        };
+        let identity_path = out.join(identity_name);
+        let earlier = std::fs::read_to_string(&identity_path)
+            .map_err(|e| e.to_string())
+            .and_then(|json| {
+                if in_report {
+                    serde_json::from_str::<Report>(&json).map(|r| r.resume_key)
+                } else {
+                    serde_json::from_str::<RunIdentity>(&json).map(Some)
+                }
+                .map_err(|e| e.to_string())
+            });
+        let not_used = |why: String| format!("{}: not used: {why}", pairs_path.display());
+        let earlier = match earlier {
+            Ok(Some(earlier)) => earlier,
+            Ok(None) => {
+                notes.push(not_used(format!("{} has no resume_key", identity_path.display())));
+                continue;
+            }
+            Err(e) => {
+                notes.push(not_used(format!("{}: {e}", identity_path.display())));
+                continue;
+            }
+        };
+        if earlier.shapespace_version != identity.shapespace_version {
+            notes.push(not_used(format!(
+                "written by shapespace {} (this is {})",
+                earlier.shapespace_version, identity.shapespace_version
+            )));
+            continue;
+        }
+        if earlier.settings != identity.settings {
+            notes.push(not_used(
+                "computed with other solver or conformal-map settings (tolerance, iteration cap, ...)".into(),
+            ));
+            continue;
+        }
+        let earlier_key: HashMap<&str, &str> = earlier
+            .inputs
+            .iter()
+            .filter_map(|input| input.key.as_deref().map(|k| (input.name.as_str(), k)))
+            .collect();
+        let incomplete = !text.is_empty() && !text.ends_with('\n');
+        if incomplete {
+            text.truncate(text.rfind('\n').map_or(0, |k| k + 1));
+        }
+        let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
+        for row in csv::Reader::from_reader(text.as_bytes()).deserialize::<PairRecord>() {
+            let Ok(record) = row else {
+                unreadable += 1;
+                continue;
+            };
+            rows += 1;
+            let current = |name: &str| earlier_key.get(name).and_then(|k| by_key.get(k)).map_or(&[][..], |v| v);
+            for &s in current(&record.a) {
+                for &t in current(&record.b) {
+                    if s != t && needed.contains(&(s, t)) && !known.contains_key(&(s, t)) {
+                        known.insert((s, t), record.clone());
+                        taken += 1;
+                    }
+                }
+            }
+        }
+        let skipped = if unreadable > 0 {
+            format!(", {unreadable} unreadable or incomplete skipped")
+        } else {
+            String::new()
+        };
+        notes.push(format!(
+            "{}: {taken} pairs taken from {rows} rows{skipped}",
+            pairs_path.display()
+        ));
+    }
+    (known, notes)
+}
+
 /// [`PARTIAL_PAIRS`], appended to from the worker threads: its writer, or after the first
 /// failed write, that failure.
 struct PartialPairs {
@@ -267,7 +441,15 @@ impl PartialPairs {
 /// `out/report.json`. `progress(done, total, stage)` is called as work finishes. While the pairs
 /// run, each finished one is also appended to `out/`[`PARTIAL_PAIRS`] before its progress call,
 /// so that a run killed before the end keeps the pairs it finished; such a file found at the
-/// start is moved to `out/`[`PREVIOUS_PARTIAL_PAIRS`] first.
+/// start is moved to `out/`[`PREVIOUS_PARTIAL_PAIRS`] first (with its [`PARTIAL_IDENTITY`]).
+///
+/// With [`DistancesOptions::resume`], the directed pairs found in those files or in an earlier
+/// `out/pairs.csv` ([`earlier_pairs`]) are taken from there when their two files (by content,
+/// [`RunIdentity`]), markers, the version and the solver settings are the same: a stopped run
+/// goes on where it stopped, and a finished one extended by more files computes only the new
+/// pairs. The results are those of a run from scratch (every pair is computed on its own, from
+/// its two shapes), except for `seconds`, which is the earlier run's; the taken pairs are
+/// written to the new [`PARTIAL_PAIRS`] first and counted in `report.json`'s `resumed`.
 ///
 /// Only output failures are errors: per-file and per-pair failures are recorded in the
 /// report, the pair list and as empty matrix cells.
@@ -278,6 +460,12 @@ pub fn run_distances(
     progress: &(dyn Fn(usize, usize, &str) + Sync),
 ) -> Result<DistancesRun, AnalysisError> {
     let t_total = Instant::now();
+    if options.resume && options.pairwise.warm_start {
+        return Err(AnalysisError::InvalidInput(
+            "resume cannot be combined with warm start (a warm-started pair depends on the pairs solved before it)"
+                .into(),
+        ));
+    }
     if paths.len() < 2 {
         return Err(AnalysisError::InvalidInput(format!(
             "distances need at least 2 mesh files, got {}",
@@ -308,6 +496,7 @@ pub fn run_distances(
         .zip(&names)
         .map(|(path, name)| {
             let t = Instant::now();
+            let sha256 = std::fs::read(path).ok().map(|bytes| sha256_hex(&bytes));
             let outcome = (|| -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
                 let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| AnalysisError::Shape {
                     name: name.clone(),
@@ -339,6 +528,7 @@ pub fn run_distances(
                     let report = ShapeReport {
                         name: name.clone(),
                         path: path.clone(),
+                        sha256,
                         ok: true,
                         error: None,
                         vertices: Some(v),
@@ -356,6 +546,7 @@ pub fn run_distances(
                     ShapeReport {
                         name: name.clone(),
                         path: path.clone(),
+                        sha256,
                         ok: false,
                         error: Some(e.to_string()),
                         vertices: None,
@@ -374,21 +565,46 @@ pub fn run_distances(
     let (shapes, inputs): (Vec<Option<PreparedShape>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
 
     let t_pairs = Instant::now();
-    let total_pairs = (0..n)
-        .map(|t| {
-            (0..n)
-                .filter(|&s| s != t && (options.pairwise.symmetrize || s < t))
-                .count()
-        })
-        .sum::<usize>();
+    let identity = run_identity(options, &inputs);
+    let needed: std::collections::HashSet<(usize, usize)> = (0..n)
+        .flat_map(|t| (0..n).map(move |s| (s, t)))
+        .filter(|&(s, t)| s != t && (options.pairwise.symmetrize || s < t))
+        .collect();
+    let (known, resume_notes) = if options.resume {
+        earlier_pairs(out, &identity, &needed)
+    } else {
+        (HashMap::new(), Vec::new())
+    };
+    let total_pairs = needed.len() - known.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let partial_path = out.join(PARTIAL_PAIRS);
+    let identity_path = out.join(PARTIAL_IDENTITY);
     if partial_path.exists() {
+        // the moved pairs file keeps its own identity file (or none)
         let previous = out.join(PREVIOUS_PARTIAL_PAIRS);
         std::fs::rename(&partial_path, &previous).map_err(|e| AnalysisError::io(&previous, e))?;
+        let previous = out.join(PREVIOUS_PARTIAL_IDENTITY);
+        remove_if_present(&previous)?;
+        if identity_path.exists() {
+            std::fs::rename(&identity_path, &previous).map_err(|e| AnalysisError::io(&previous, e))?;
+        }
     }
+    let json = serde_json::to_string_pretty(&identity).map_err(|e| AnalysisError::Serialize {
+        path: identity_path.clone(),
+        message: e.to_string(),
+    })?;
+    std::fs::write(&identity_path, json).map_err(|e| AnalysisError::io(&identity_path, e))?;
     let partial = PartialPairs::create(partial_path)?;
-    let mut result = pairwise_distances(&shapes, &options.pairwise, &|record| {
+    let mut taken: Vec<(&(usize, usize), &PairRecord)> = known.iter().collect();
+    taken.sort_by_key(|((s, t), _)| (*t, *s));
+    for (&(s, t), record) in taken {
+        partial.append(&PairRecord {
+            a: names[s].clone(),
+            b: names[t].clone(),
+            ..record.clone()
+        });
+    }
+    let mut result = pairwise_distances_resuming(&shapes, &options.pairwise, &known, &|record| {
         // (the file names, as below)
         partial.append(&PairRecord {
             a: names[record.source].clone(),
@@ -466,6 +682,11 @@ pub fn run_distances(
         asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
         cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
         partial_pairs_error,
+        resumed: options.resume.then(|| ResumeReport {
+            pairs: known.len(),
+            sources: resume_notes,
+        }),
+        resume_key: identity,
         files,
     };
     report.timings.write = t_write.elapsed().as_secs_f64();
@@ -478,11 +699,44 @@ pub fn run_distances(
     // Everything it held is in pairs.csv now. (A file that cannot be removed only repeats
     // pairs.csv's rows, so that is not an error.)
     let _ = std::fs::remove_file(out.join(PARTIAL_PAIRS));
+    let _ = std::fs::remove_file(out.join(PARTIAL_IDENTITY));
     Ok(DistancesRun {
         matrix,
         pairs: result.pairs,
         report,
     })
+}
+
+/// The [`RunIdentity`] of a run with `options` over the prepared `inputs`.
+fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -> RunIdentity {
+    let settings = format!(
+        "{:?}|warm_start {}|{:?}",
+        options.pairwise.newton, options.pairwise.warm_start, options.disk_map
+    );
+    RunIdentity {
+        shapespace_version: env!("CARGO_PKG_VERSION").to_string(),
+        settings: sha256_hex(settings.as_bytes()),
+        inputs: inputs
+            .iter()
+            .map(|input| InputIdentity {
+                name: input.name.clone(),
+                key: match (&input.sha256, &input.markers, input.ok) {
+                    (Some(sha), Some(m), true) => serde_json::to_string(&m.center)
+                        .ok()
+                        .map(|center| format!("{sha}:{center}:{}", m.boundary)),
+                    _ => None,
+                },
+            })
+            .collect(),
+    }
+}
+
+/// Removes `path` if it exists.
+fn remove_if_present(path: &Path) -> Result<(), AnalysisError> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(AnalysisError::io(path, e)),
+        _ => Ok(()),
+    }
 }
 
 /// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations,dual_cost` (a is the

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use shapespace_analysis::distance::{
     directed_distance, pairwise_distances, prepare_shape, DirectedDistance, PairwiseOptions, PreparedShape,
 };
-use shapespace_analysis::pipeline::{run_distances, DistancesOptions, PARTIAL_PAIRS, PREVIOUS_PARTIAL_PAIRS};
+use shapespace_analysis::pipeline::{
+    run_distances, DistancesOptions, PARTIAL_IDENTITY, PARTIAL_PAIRS, PREVIOUS_PARTIAL_IDENTITY, PREVIOUS_PARTIAL_PAIRS,
+};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::{read_mesh, write_mesh};
 use shapespace_geometry::prepare::subdivide_midpoint;
@@ -323,7 +325,8 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     let run = run_distances(&files, &out, &DistancesOptions::default(), &|done, _, stage| {
         if stage == "pairs" {
             let text = std::fs::read_to_string(out.join(PARTIAL_PAIRS)).unwrap();
-            seen.lock().unwrap().push((done, text));
+            let identity = std::fs::read_to_string(out.join(PARTIAL_IDENTITY)).unwrap();
+            seen.lock().unwrap().push((done, text, identity));
         }
     })
     .unwrap();
@@ -334,7 +337,10 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         .lines()
         .map(String::from)
         .collect();
-    for (done, text) in &seen {
+    for (done, text, identity) in &seen {
+        // beside it, what its pairs depend on (for a resumed run), as in the final report
+        let identity: shapespace_analysis::pipeline::RunIdentity = serde_json::from_str(identity).unwrap();
+        assert_eq!(identity, run.report.resume_key);
         let mut lines = text.lines();
         assert!(lines.next().unwrap().starts_with("a,b,distance,cost,"), "{text}");
         let rows: Vec<&str> = lines.collect();
@@ -342,8 +348,13 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         // the rows are pairs.csv's (file names, not `#1`)
         assert!(rows.iter().all(|r| final_rows.contains(*r)), "{text}");
     }
-    assert!(seen.iter().any(|(_, text)| text.lines().count() == 7));
+    assert!(seen.iter().any(|(_, text, _)| text.lines().count() == 7));
     assert!(!out.join(PARTIAL_PAIRS).exists(), "removed once pairs.csv is written");
+    assert!(!out.join(PARTIAL_IDENTITY).exists());
+    // the identity of the failed file has no key, the others their file's SHA-256 and markers
+    let keys: Vec<Option<&str>> = run.report.resume_key.inputs.iter().map(|i| i.key.as_deref()).collect();
+    assert!(keys[1].is_none() && keys.iter().filter(|k| k.is_some()).count() == 3, "{keys:?}");
+    assert!(keys[0].unwrap().starts_with(run.report.inputs[0].sha256.as_deref().unwrap()));
     assert_eq!(
         std::fs::read_to_string(out.join(PREVIOUS_PARTIAL_PAIRS)).unwrap(),
         "stale\n"
@@ -480,6 +491,143 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
 
 /// When the direct solve stops short, `directed_distance` falls back to a density continuation
 /// from scratch, counts the steps of both and says so in the status.
+/// `pairs.csv` without its `seconds` column, which a resumed pair takes from the earlier run.
+fn rows_without_seconds(out: &Path) -> Vec<String> {
+    std::fs::read_to_string(out.join("pairs.csv"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let mut fields: Vec<&str> = l.split(',').collect();
+            fields.remove(6);
+            fields.join(",")
+        })
+        .collect()
+}
+
+#[test]
+fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
+    let dir = out_dir("resume");
+    let inputs = dir.join("inputs");
+    std::fs::create_dir_all(&inputs).unwrap();
+    // copies (one is edited below), with the faces' shared marker file beside them
+    std::fs::copy(repo("datasets/faces/landmarks.json"), inputs.join("landmarks.json")).unwrap();
+    let files: Vec<PathBuf> = ["id00_neutral", "id01_happy", "id02_sad", "id03_surprise"]
+        .iter()
+        .map(|name| {
+            let path = inputs.join(format!("{name}.obj"));
+            std::fs::copy(repo(&format!("datasets/faces/{name}.obj")), &path).unwrap();
+            path
+        })
+        .collect();
+    let options = DistancesOptions::default();
+    let resume = DistancesOptions {
+        resume: true,
+        ..DistancesOptions::default()
+    };
+    let reference = run_distances(&files, &dir.join("reference"), &options, &|_, _, _| {}).unwrap();
+    assert!(reference.report.resumed.is_none());
+    let same_results = |run: &shapespace_analysis::pipeline::DistancesRun, out: &Path| {
+        // bit for bit: each pair is computed from its two shapes alone
+        assert_eq!(
+            run.matrix.values.iter().map(|d| d.to_bits()).collect::<Vec<_>>(),
+            reference.matrix.values.iter().map(|d| d.to_bits()).collect::<Vec<_>>()
+        );
+        assert_eq!(rows_without_seconds(out), rows_without_seconds(&dir.join("reference")));
+    };
+    let resumed = |run: &shapespace_analysis::pipeline::DistancesRun| run.report.resumed.clone().unwrap();
+
+    // A finished run given one more file computes only that file's pairs.
+    let out = dir.join("grown");
+    run_distances(&files[..3], &out, &options, &|_, _, _| {}).unwrap();
+    let computed = std::sync::atomic::AtomicUsize::new(0);
+    let run = run_distances(&files, &out, &resume, &|_, total, stage| {
+        if stage == "pairs" {
+            assert_eq!(total, 3);
+            computed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+    })
+    .unwrap();
+    assert_eq!(computed.into_inner(), 3);
+    assert_eq!(resumed(&run).pairs, 3, "{:?}", resumed(&run));
+    assert!(
+        resumed(&run).sources[0].ends_with("pairs.csv: 3 pairs taken from 3 rows"),
+        "{:?}",
+        resumed(&run)
+    );
+    same_results(&run, &out);
+
+    // A stopped run (what it leaves: its identity file and the rows it finished, the last one
+    // cut in the middle) goes on where it stopped.
+    let out = dir.join("stopped");
+    std::fs::create_dir_all(&out).unwrap();
+    let text = std::fs::read_to_string(dir.join("reference/pairs.csv")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    std::fs::write(
+        out.join(PARTIAL_PAIRS),
+        format!("{}\n{}\n{}\n{}", lines[0], lines[1], lines[3], &lines[2][..40]),
+    )
+    .unwrap();
+    std::fs::write(
+        out.join(PARTIAL_IDENTITY),
+        serde_json::to_string(&reference.report.resume_key).unwrap(),
+    )
+    .unwrap();
+    let run = run_distances(&files, &out, &resume, &|_, _, _| {}).unwrap();
+    assert_eq!(resumed(&run).pairs, 2, "{:?}", resumed(&run));
+    assert!(
+        resumed(&run).sources[0].ends_with("2 pairs taken from 2 rows, 1 unreadable or incomplete skipped"),
+        "{:?}",
+        resumed(&run)
+    );
+    same_results(&run, &out);
+    assert!(!out.join(PARTIAL_PAIRS).exists() && !out.join(PARTIAL_IDENTITY).exists());
+    assert!(out.join(PREVIOUS_PARTIAL_PAIRS).exists() && out.join(PREVIOUS_PARTIAL_IDENTITY).exists());
+
+    // A file whose bytes changed (here only a comment) has its pairs computed again; the others
+    // are taken.
+    let mut edited = std::fs::read(&files[3]).unwrap();
+    edited.extend_from_slice(b"# edited\n");
+    std::fs::write(&files[3], edited).unwrap();
+    let run = run_distances(&files, &out, &resume, &|_, _, _| {}).unwrap();
+    assert_eq!(resumed(&run).pairs, 3, "{:?}", resumed(&run));
+    same_results(&run, &out);
+    let sha = |run: &shapespace_analysis::pipeline::DistancesRun| run.report.inputs[3].sha256.clone().unwrap();
+    assert_ne!(sha(&run), sha(&reference));
+    assert_eq!(sha(&run).len(), 64);
+
+    // Other solver settings: nothing is taken, and the report says why.
+    let looser = DistancesOptions {
+        resume: true,
+        pairwise: PairwiseOptions {
+            newton: NewtonParams {
+                tolerance: 1e-3,
+                ..PairwiseOptions::default().newton
+            },
+            ..PairwiseOptions::default()
+        },
+        ..DistancesOptions::default()
+    };
+    let run = run_distances(&files[..2], &out, &looser, &|_, _, _| {}).unwrap();
+    assert_eq!(resumed(&run).pairs, 0);
+    assert!(
+        resumed(&run).sources[0].contains("not used: computed with other solver"),
+        "{:?}",
+        resumed(&run)
+    );
+
+    // A warm-started pair depends on the pairs before it: refused.
+    let warm = DistancesOptions {
+        resume: true,
+        pairwise: PairwiseOptions {
+            warm_start: true,
+            ..PairwiseOptions::default()
+        },
+        ..DistancesOptions::default()
+    };
+    let error = run_distances(&files, &out, &warm, &|_, _, _| {}).unwrap_err().to_string();
+    assert!(error.contains("resume cannot be combined with warm start"), "{error}");
+}
+
 #[test]
 fn a_direct_solve_that_stops_short_falls_back_and_says_so() {
     let cap = spherical_cap(std::f64::consts::FRAC_PI_2, 12);

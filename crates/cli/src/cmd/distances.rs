@@ -36,6 +36,13 @@ pub struct SolverArgs {
     /// one on the bundled faces: 10 against 16 Newton steps at the finest level (median).
     #[arg(long)]
     pub warm_start: bool,
+    /// Take the pairs that earlier runs in the output folder computed (its pairs.csv, or the
+    /// pairs.partial.csv of a run that was stopped) instead of computing them again, where both
+    /// files (compared by content), their markers and the solver settings are the same: a
+    /// stopped run goes on where it stopped, a finished one given more files computes only the
+    /// new pairs. report.json's `resumed` says what was taken from where.
+    #[arg(long, conflicts_with = "warm_start")]
+    pub resume: bool,
     /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -53,7 +60,7 @@ pub struct DistancesArgs {
     /// Output directory (distances.csv, pairs.csv, report.json; with --mds also the MDS files).
     /// While the pairs run, pairs.partial.csv there holds those finished so far (pairs.csv's
     /// columns, in the order they finish): what a run that is stopped early leaves behind (a new
-    /// run moves such a file to pairs.partial.prev.csv first).
+    /// run moves such a file to pairs.partial.prev.csv first; see --resume).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -122,6 +129,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             },
             warm_start: solver.warm_start,
         },
+        resume: solver.resume,
         ..DistancesOptions::default()
     };
     let show = !solver.quiet && std::io::stderr().is_terminal();
@@ -175,6 +183,12 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         r.timings.pairs_wall,
         r.threads
     );
+    if let Some(resumed) = &r.resumed {
+        eprintln!("distances: {} directed pairs taken from earlier runs", resumed.pairs);
+        for source in &resumed.sources {
+            eprintln!("distances:   {source}");
+        }
+    }
     if let Some(a) = &r.asymmetry {
         eprintln!(
             "distances: relative asymmetry median {:.2e}, max {:.2e}",
