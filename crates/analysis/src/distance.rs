@@ -433,6 +433,15 @@ pub fn pairwise_distances_resuming(
 /// of crowded cells found on 2026-12-04) fails that pair with its message instead of taking the
 /// whole run down after every other pair has been computed. The shared per-shape caches are
 /// safe to use after it: their locks recover from poisoning.
+/// How a pair's status starts (after `failed: `) when it panicked.
+const INTERNAL_ERROR: &str = "internal error (a bug in shapespace; please report it with the two meshes)";
+
+/// Whether a `pairs.csv` status is that of a pair that panicked (a bug, which a resumed run
+/// computes again rather than repeating its record).
+pub fn is_internal_error(status: &str) -> bool {
+    status.starts_with("failed: ") && status["failed: ".len()..].starts_with(INTERNAL_ERROR)
+}
+
 fn guarded<T>(pair: impl FnOnce() -> Result<T, AnalysisError>) -> Result<T, String> {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(pair)) {
         Ok(result) => result.map_err(|e| e.to_string()),
@@ -442,9 +451,7 @@ fn guarded<T>(pair: impl FnOnce() -> Result<T, AnalysisError>) -> Result<T, Stri
                 .map(|s| s.to_string())
                 .or_else(|| payload.downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "no message".into());
-            Err(format!(
-                "internal error (a bug in shapespace; please report it with the two meshes): {what}"
-            ))
+            Err(format!("{INTERNAL_ERROR}: {what}"))
         }
     }
 }
@@ -494,5 +501,12 @@ mod tests {
         );
         let literal = guarded::<u32>(|| panic!("plain")).unwrap_err();
         assert!(literal.ends_with(": plain"), "{literal}");
+        // as a failed record's status, recognized as a panic (a resumed run computes it again)
+        assert!(is_internal_error(
+            &failed_record(&["a".into(), "b".into()], 0, 1, literal).status
+        ));
+        assert!(!is_internal_error(
+            &failed_record(&["a".into(), "b".into()], 0, 1, "no convergence".into()).status
+        ));
     }
 }

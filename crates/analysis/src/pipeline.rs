@@ -295,7 +295,9 @@ const EARLIER_PAIRS: [(&str, &str, bool); 3] = [
 /// take: those whose version and settings equal `identity`'s and whose two shapes have the key
 /// of a current input (the same file content and markers, whatever its name now), keyed by the
 /// current (source, target) among `needed` (a row serves every current pair of files with those
-/// keys). The first file to give a pair wins (all of them give the same record). Also returns
+/// keys). The first file to give a pair wins (all of them give the same record). Failed pairs
+/// are taken (the same shapes and settings fail the same way), except internal errors (panics:
+/// bugs, computed again). Also returns
 /// one line per file found: how many rows it gave, or why it gave none. A last line without its
 /// newline (a run killed in the middle of a row) is not read.
 fn earlier_pairs(
@@ -365,13 +367,17 @@ fn earlier_pairs(
         if incomplete {
             text.truncate(text.rfind('\n').map_or(0, |k| k + 1));
         }
-        let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
+        let (mut rows, mut unreadable, mut taken, mut panicked) = (0, usize::from(incomplete), 0, 0);
         for row in csv::Reader::from_reader(text.as_bytes()).deserialize::<PairRecord>() {
             let Ok(record) = row else {
                 unreadable += 1;
                 continue;
             };
             rows += 1;
+            if crate::distance::is_internal_error(&record.status) {
+                panicked += 1;
+                continue;
+            }
             let current = |name: &str| earlier_key.get(name).and_then(|k| by_key.get(k)).map_or(&[][..], |v| v);
             for &s in current(&record.a) {
                 for &t in current(&record.b) {
@@ -382,11 +388,13 @@ fn earlier_pairs(
                 }
             }
         }
-        let skipped = if unreadable > 0 {
-            format!(", {unreadable} unreadable or incomplete skipped")
-        } else {
-            String::new()
-        };
+        let mut skipped = String::new();
+        if unreadable > 0 {
+            skipped += &format!(", {unreadable} unreadable or incomplete skipped");
+        }
+        if panicked > 0 {
+            skipped += &format!(", {panicked} internal errors computed again");
+        }
         notes.push(format!(
             "{}: {taken} pairs taken from {rows} rows{skipped}",
             pairs_path.display()

@@ -353,8 +353,13 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     assert!(!out.join(PARTIAL_IDENTITY).exists());
     // the identity of the failed file has no key, the others their file's SHA-256 and markers
     let keys: Vec<Option<&str>> = run.report.resume_key.inputs.iter().map(|i| i.key.as_deref()).collect();
-    assert!(keys[1].is_none() && keys.iter().filter(|k| k.is_some()).count() == 3, "{keys:?}");
-    assert!(keys[0].unwrap().starts_with(run.report.inputs[0].sha256.as_deref().unwrap()));
+    assert!(
+        keys[1].is_none() && keys.iter().filter(|k| k.is_some()).count() == 3,
+        "{keys:?}"
+    );
+    assert!(keys[0]
+        .unwrap()
+        .starts_with(run.report.inputs[0].sha256.as_deref().unwrap()));
     assert_eq!(
         std::fs::read_to_string(out.join(PREVIOUS_PARTIAL_PAIRS)).unwrap(),
         "stale\n"
@@ -562,9 +567,21 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
     std::fs::create_dir_all(&out).unwrap();
     let text = std::fs::read_to_string(dir.join("reference/pairs.csv")).unwrap();
     let lines: Vec<&str> = text.lines().collect();
+    // (and a pair that panicked: a bug, computed again)
+    let panicked = lines[4].replace(
+        ",converged,",
+        ",failed: internal error (a bug in shapespace; please report it with the two meshes): boom,",
+    );
+    assert_ne!(panicked, lines[4]);
     std::fs::write(
         out.join(PARTIAL_PAIRS),
-        format!("{}\n{}\n{}\n{}", lines[0], lines[1], lines[3], &lines[2][..40]),
+        format!(
+            "{}\n{}\n{}\n{panicked}\n{}",
+            lines[0],
+            lines[1],
+            lines[3],
+            &lines[2][..40]
+        ),
     )
     .unwrap();
     std::fs::write(
@@ -575,7 +592,9 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
     let run = run_distances(&files, &out, &resume, &|_, _, _| {}).unwrap();
     assert_eq!(resumed(&run).pairs, 2, "{:?}", resumed(&run));
     assert!(
-        resumed(&run).sources[0].ends_with("2 pairs taken from 2 rows, 1 unreadable or incomplete skipped"),
+        resumed(&run).sources[0].ends_with(
+            "2 pairs taken from 3 rows, 1 unreadable or incomplete skipped, 1 internal errors computed again"
+        ),
         "{:?}",
         resumed(&run)
     );
@@ -624,7 +643,9 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
         },
         ..DistancesOptions::default()
     };
-    let error = run_distances(&files, &out, &warm, &|_, _, _| {}).unwrap_err().to_string();
+    let error = run_distances(&files, &out, &warm, &|_, _, _| {})
+        .unwrap_err()
+        .to_string();
     assert!(error.contains("resume cannot be combined with warm start"), "{error}");
 }
 
