@@ -690,7 +690,7 @@ pub fn run_distances(
         asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
         cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
         partial_pairs_error,
-        resumed: options.resume.then(|| ResumeReport {
+        resumed: options.resume.then_some(ResumeReport {
             pairs: known.len(),
             sources: resume_notes,
         }),
