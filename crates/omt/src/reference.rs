@@ -239,7 +239,7 @@ pub fn integrate_cells_bruteforce(sites: &[[f64; 2]], weights: &[f64], measure: 
 /// cell is the cell clipped by the domain's convex hull. Brute force, O(N² + N·M): tests only.
 pub fn cell_polygons_bruteforce(sites: &[[f64; 2]], weights: &[f64], measure: &SourceMeasure) -> Vec<Vec<[f64; 2]>> {
     let (lo, hi) = domain_box(measure);
-    let hull = convex_hull(&measure.vertices);
+    let hull = crate::restricted::convex_hull(&measure.vertices);
     (0..sites.len())
         .map(|i| {
             let y = sites[i];
@@ -257,34 +257,6 @@ pub fn cell_polygons_bruteforce(sites: &[[f64; 2]], weights: &[f64], measure: &S
             cell.vertices.iter().map(|z| [z[0] + y[0], z[1] + y[1]]).collect()
         })
         .collect()
-}
-
-/// Convex hull (Andrew's monotone chain), counter-clockwise, collinear points dropped.
-fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
-    let mut p = points.to_vec();
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    p.dedup();
-    if p.len() < 3 {
-        return p;
-    }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
-    }
-    hull
 }
 
 #[cfg(test)]

@@ -334,7 +334,7 @@ fn coarsen(
 /// [`distance_to_boundary`] runs once per coarse group over every edge, and the disk polygon of
 /// the area-preserving map has 8 edges per boundary vertex: 2,448 for Nefertiti slit, where the
 /// `hypot` per edge and group took a quarter of a second).
-fn convex_hull(points: &[[f64; 2]]) -> Vec<([[f64; 2]; 2], f64)> {
+fn hull_edges(points: &[[f64; 2]]) -> Vec<([[f64; 2]; 2], f64)> {
     let hull = crate::restricted::convex_hull(points);
     if hull.len() < 3 {
         return Vec::new();
@@ -455,7 +455,7 @@ pub(crate) fn coarse_to_fine_heights(
         ..params.clone()
     };
     // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
-    let boundary = convex_hull(&measure.vertices);
+    let boundary = hull_edges(&measure.vertices);
     let averaged = averaging_sample(measure, coarse_n, boundary.len()).and_then(|sample| measure.averaged(sample));
     let level_measure = averaged.as_deref().unwrap_or(measure);
     let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
