@@ -131,6 +131,7 @@ pub struct DistancesReport {
     pub options: ReportOptions,
     pub threads: usize,
     pub timings: StageTimings,
+    /// Directed pairs in `pairs.csv`, those taken from earlier runs included (`resumed`).
     pub pairs_computed: usize,
     pub pairs_failed: usize,
     pub failures: Vec<String>,
@@ -173,6 +174,10 @@ pub struct ResumeReport {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunIdentity {
     pub shapespace_version: String,
+    /// SHA-256 of the running executable ([`build_identity`]): the version string alone does
+    /// not change with the code, and a pair's bits depend on it. None when the executable cannot
+    /// be read (its pairs are then never taken).
+    pub build: Option<String>,
     /// SHA-256 (hex) of the debug form of the solver parameters, `warm_start` and the conformal
     /// map's parameters.
     pub settings: String,
@@ -186,6 +191,20 @@ pub struct InputIdentity {
     /// The file's SHA-256 and its resolved markers (`SHA:CENTER:BOUNDARY`, the markers as in a
     /// marker file); None for a file that failed to prepare.
     pub key: Option<String>,
+}
+
+/// SHA-256 of the running executable, computed once per process (~0.1 s for a 50 MB test
+/// binary); None when it cannot be read. Two runs with equal identities ran the same machine
+/// code; the dynamically linked C library (libm's `exp`, `atan2`, ...) is not covered, so a
+/// folder moved to another machine should not be resumed there.
+pub fn build_identity() -> Option<String> {
+    static BUILD: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
+    BUILD
+        .get_or_init(|| {
+            let exe = std::env::current_exe().ok()?;
+            std::fs::read(exe).ok().map(|bytes| sha256_hex(&bytes))
+        })
+        .clone()
 }
 
 /// SHA-256 of `bytes`, lower-case hex.
@@ -319,8 +338,14 @@ fn earlier_pairs(
     let mut notes = Vec::new();
     for (pairs_name, identity_name, in_report) in EARLIER_PAIRS {
         let pairs_path = out.join(pairs_name);
-        let Ok(mut text) = std::fs::read_to_string(&pairs_path) else {
-            continue;
+        let not_used = |why: String| format!("{}: not used: {why}", pairs_path.display());
+        let mut text = match std::fs::read_to_string(&pairs_path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(e) => {
+                notes.push(not_used(e.to_string()));
+                continue;
+            }
         };
         let identity_path = out.join(identity_name);
         let earlier = std::fs::read_to_string(&identity_path)
@@ -333,7 +358,6 @@ fn earlier_pairs(
                 }
                 .map_err(|e| e.to_string())
             });
-        let not_used = |why: String| format!("{}: not used: {why}", pairs_path.display());
         let earlier = match earlier {
             Ok(Some(earlier)) => earlier,
             Ok(None) => {
@@ -350,6 +374,12 @@ fn earlier_pairs(
                 "written by shapespace {} (this is {})",
                 earlier.shapespace_version, identity.shapespace_version
             )));
+            continue;
+        }
+        if earlier.build.is_none() || earlier.build != identity.build {
+            notes.push(not_used(
+                "written by another build of shapespace (or one whose executable could not be read)".into(),
+            ));
             continue;
         }
         if earlier.settings != identity.settings {
@@ -504,12 +534,16 @@ pub fn run_distances(
         .zip(&names)
         .map(|(path, name)| {
             let t = Instant::now();
-            let sha256 = std::fs::read(path).ok().map(|bytes| sha256_hex(&bytes));
+            // (the bytes hashed are the bytes parsed)
+            let bytes = shapespace_geometry::io::read_mesh_bytes(path);
+            let sha256 = bytes.as_ref().ok().map(|bytes| sha256_hex(bytes));
             let outcome = (|| -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| AnalysisError::Shape {
-                    name: name.clone(),
-                    message: e.to_string(),
-                })?;
+                let mesh = bytes
+                    .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
+                    .map_err(|e| AnalysisError::Shape {
+                        name: name.clone(),
+                        message: e.to_string(),
+                    })?;
                 let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
                 let shape =
                     prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
@@ -632,6 +666,11 @@ pub fn run_distances(
     }
 
     let t_write = Instant::now();
+    // An earlier report.json goes first: pairs.csv is read by a resumed run against the
+    // report's resume_key, so a run stopped between the two writes must not leave the new
+    // pairs beside the old key (its partial file, removed last, still has them).
+    let report_path = out.join("report.json");
+    remove_if_present(&report_path)?;
     let matrix = DistanceMatrix::new(names.clone(), result.matrix.clone())?;
     let mut files = Vec::new();
     let matrix_path = out.join("distances.csv");
@@ -661,7 +700,6 @@ pub fn run_distances(
         .filter(|p| p.distance.is_finite() && p.cost > 0.0)
         .map(|p| (p.cost - p.dual_cost).abs() / p.cost)
         .collect();
-    let report_path = out.join("report.json");
     files.push(report_path.clone());
     let mut report = DistancesReport {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -723,6 +761,7 @@ fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -> RunIdenti
     );
     RunIdentity {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),
+        build: build_identity(),
         settings: sha256_hex(settings.as_bytes()),
         inputs: inputs
             .iter()

@@ -494,8 +494,6 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
     );
 }
 
-/// When the direct solve stops short, `directed_distance` falls back to a density continuation
-/// from scratch, counts the steps of both and says so in the status.
 /// `pairs.csv` without its `seconds` column, which a resumed pair takes from the earlier run.
 fn rows_without_seconds(out: &Path) -> Vec<String> {
     std::fs::read_to_string(out.join("pairs.csv"))
@@ -573,15 +571,12 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
         ",failed: internal error (a bug in shapespace; please report it with the two meshes): boom,",
     );
     assert_ne!(panicked, lines[4]);
+    // (the cut row ends inside its last field, so only its missing newline marks it)
+    let cut = &lines[2][..lines[2].len() - 4];
+    assert_eq!(cut.split(',').count(), 10);
     std::fs::write(
         out.join(PARTIAL_PAIRS),
-        format!(
-            "{}\n{}\n{}\n{panicked}\n{}",
-            lines[0],
-            lines[1],
-            lines[3],
-            &lines[2][..40]
-        ),
+        format!("{}\n{}\n{}\n{panicked}\n{cut}", lines[0], lines[1], lines[3]),
     )
     .unwrap();
     std::fs::write(
@@ -613,6 +608,104 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
     let sha = |run: &shapespace_analysis::pipeline::DistancesRun| run.report.inputs[3].sha256.clone().unwrap();
     assert_ne!(sha(&run), sha(&reference));
     assert_eq!(sha(&run).len(), 64);
+
+    // Renamed copies in the other order, both directions: the direction the earlier run
+    // computed (id00_neutral -> id01_happy, now z1 -> z0) is taken, the other one computed.
+    let renamed = dir.join("renamed");
+    std::fs::create_dir_all(&renamed).unwrap();
+    std::fs::copy(inputs.join("landmarks.json"), renamed.join("landmarks.json")).unwrap();
+    let swapped: Vec<PathBuf> = [&files[1], &files[0]]
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let path = renamed.join(format!("z{k}.obj"));
+            std::fs::copy(f, &path).unwrap();
+            path
+        })
+        .collect();
+    let both = DistancesOptions {
+        resume: true,
+        pairwise: PairwiseOptions {
+            symmetrize: true,
+            ..PairwiseOptions::default()
+        },
+        ..DistancesOptions::default()
+    };
+    let run = run_distances(&swapped, &out, &both, &|_, _, _| {}).unwrap();
+    assert_eq!(resumed(&run).pairs, 1, "{:?}", resumed(&run));
+    let taken = run.pairs.iter().find(|p| p.a == "z1").unwrap();
+    let earlier = &reference.pairs[0];
+    assert_eq!(
+        (earlier.a.as_str(), earlier.b.as_str(), taken.b.as_str()),
+        ("id00_neutral", "id01_happy", "z0")
+    );
+    assert_eq!(
+        [taken.distance, taken.cost, taken.dual_cost, taken.max_mass_error].map(f64::to_bits),
+        [
+            earlier.distance,
+            earlier.cost,
+            earlier.dual_cost,
+            earlier.max_mass_error
+        ]
+        .map(f64::to_bits)
+    );
+
+    // Other markers: no key matches.
+    let moved = DistancesOptions {
+        resume: true,
+        markers: shapespace_analysis::pipeline::MarkerOptions {
+            center: Some(CenterMarker::Vertex(4842)),
+            ..Default::default()
+        },
+        ..DistancesOptions::default()
+    };
+    let run = run_distances(&files[..2], &out, &moved, &|_, _, _| {}).unwrap();
+    assert_eq!(resumed(&run).pairs, 0, "{:?}", resumed(&run));
+
+    // A failure is taken as it is (the same inputs fail the same way); another build's pairs,
+    // and a pairs.csv without its report, are not taken.
+    let out = dir.join("failed");
+    std::fs::create_dir_all(&out).unwrap();
+    let failed = format!(
+        "{},{},NaN,NaN,0,NaN,1.5,failed: no convergence (test),0,NaN",
+        earlier.a, earlier.b
+    );
+    std::fs::write(out.join(PARTIAL_PAIRS), format!("{}\n{failed}\n", lines[0])).unwrap();
+    std::fs::write(
+        out.join(PARTIAL_IDENTITY),
+        serde_json::to_string(&reference.report.resume_key).unwrap(),
+    )
+    .unwrap();
+    let run = run_distances(&files[..2], &out, &resume, &|_, _, _| {}).unwrap();
+    assert_eq!(resumed(&run).pairs, 1, "{:?}", resumed(&run));
+    assert!(run.matrix.values[1].is_nan() && run.pairs[0].status == "failed: no convergence (test)");
+    assert_eq!(
+        run.report.failures,
+        ["id00_neutral -> id01_happy: failed: no convergence (test)"]
+    );
+    let mut other_build = reference.report.resume_key.clone();
+    other_build.build = Some("0".repeat(64));
+    std::fs::write(out.join(PARTIAL_PAIRS), format!("{}\n{failed}\n", lines[0])).unwrap();
+    std::fs::write(out.join(PARTIAL_IDENTITY), serde_json::to_string(&other_build).unwrap()).unwrap();
+    std::fs::remove_file(out.join("report.json")).unwrap();
+    let run = run_distances(&files[..2], &out, &resume, &|_, _, _| {}).unwrap();
+    let sources = resumed(&run).sources;
+    assert_eq!(sources.len(), 3, "{sources:?}");
+    assert!(
+        sources[0].contains("pairs.csv: not used: ") && sources[0].contains("report.json"),
+        "{sources:?}"
+    );
+    assert!(
+        sources[1].contains("pairs.partial.csv: not used: written by another build"),
+        "{sources:?}"
+    );
+    // (the failure then comes from the partial file the first resumed run moved aside)
+    assert!(
+        sources[2].ends_with("pairs.partial.prev.csv: 1 pairs taken from 1 rows"),
+        "{sources:?}"
+    );
+    assert_eq!(resumed(&run).pairs, 1);
+    let out = dir.join("stopped");
 
     // Other solver settings: nothing is taken, and the report says why.
     let looser = DistancesOptions {
@@ -649,6 +742,8 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
     assert!(error.contains("resume cannot be combined with warm start"), "{error}");
 }
 
+/// When the direct solve stops short, `directed_distance` falls back to a density continuation
+/// from scratch, counts the steps of both and says so in the status.
 #[test]
 fn a_direct_solve_that_stops_short_falls_back_and_says_so() {
     let cap = spherical_cap(std::f64::consts::FRAC_PI_2, 12);

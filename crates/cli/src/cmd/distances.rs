@@ -184,7 +184,11 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         r.threads
     );
     if let Some(resumed) = &r.resumed {
-        eprintln!("distances: {} directed pairs taken from earlier runs", resumed.pairs);
+        eprintln!(
+            "distances: {} of the directed pairs taken from earlier runs in {}",
+            resumed.pairs,
+            out.display()
+        );
         for source in &resumed.sources {
             eprintln!("distances:   {source}");
         }

@@ -77,10 +77,24 @@ impl MeshFormat {
 /// case-insensitive). Returns #V positions in file order and #F triangles (polygons
 /// fan-triangulated); see the module documentation for what is an error.
 pub fn read_mesh(path: &Path) -> Result<TriMesh, GeometryError> {
+    parse_mesh(read_mesh_bytes(path)?, path)
+}
+
+/// The bytes of the mesh file at `path`, for [`parse_mesh`] (after checking that its extension
+/// names a format): [`read_mesh`] in two steps, so that a caller can also hash exactly the
+/// bytes it parses.
+pub fn read_mesh_bytes(path: &Path) -> Result<Vec<u8>, GeometryError> {
+    MeshFormat::from_path(path)?;
+    read_bytes(path)
+}
+
+/// Parses mesh bytes in the format named by `path`'s extension (`path` also labels error
+/// messages); the same result as [`read_mesh`] on a file holding them.
+pub fn parse_mesh(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, GeometryError> {
     match MeshFormat::from_path(path)? {
-        MeshFormat::Obj => read_obj(path),
-        MeshFormat::Off => read_off(path),
-        MeshFormat::Ply => read_ply(path),
+        MeshFormat::Obj => parse_obj(data, path),
+        MeshFormat::Off => parse_off(data, path),
+        MeshFormat::Ply => parse_ply(data, path),
     }
 }
 
