@@ -909,3 +909,53 @@ fn demo_refuses_labels_that_do_not_match_before_any_distance() {
     );
     assert!(!out_dir.join("distances.csv").exists());
 }
+
+/// `distances --resume` takes the pairs of the earlier run in the folder and computes the rest;
+/// it says so, and refuses `--warm-start` (a warm-started pair depends on the pairs before it).
+#[test]
+fn distances_resume_computes_only_the_new_pairs() {
+    let dir = scratch("resume");
+    let out = dir.join("d");
+    let faces: Vec<String> = ["id00_neutral", "id01_happy", "id02_sad"]
+        .iter()
+        .map(|n| format!("datasets/faces/{n}.obj"))
+        .collect();
+    let first = shapespace(&[
+        "distances",
+        &faces[0],
+        &faces[1],
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    let mut args = vec![
+        "distances",
+        &faces[0],
+        &faces[1],
+        &faces[2],
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(["--quiet", "--resume"]);
+    let resumed = shapespace(&args);
+    let msg = stderr(&resumed);
+    assert_eq!(resumed.status.code(), Some(0), "{msg}");
+    assert!(
+        msg.contains("distances: 1 of the directed pairs taken from earlier runs"),
+        "{msg}"
+    );
+    assert!(msg.contains("pairs.csv: 1 pairs taken from 1 rows"), "{msg}");
+    let pairs = std::fs::read_to_string(out.join("pairs.csv")).unwrap();
+    assert_eq!(pairs.lines().count(), 4, "{pairs}");
+    let report = std::fs::read_to_string(out.join("report.json")).unwrap();
+    assert!(
+        report.contains("\"resumed\"") && report.contains("\"sha256\""),
+        "{report}"
+    );
+    args.push("--warm-start");
+    let refused = shapespace(&args);
+    assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
+    assert!(stderr(&refused).contains("--warm-start"), "{}", stderr(&refused));
+    std::fs::remove_dir_all(&dir).ok();
+}
