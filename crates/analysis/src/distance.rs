@@ -148,7 +148,8 @@ pub fn directed_distance(
     };
     let direct = solve_ot(&source.measure, &target.points, &target.masses, &direct_params);
     let (solution, note) = match direct {
-        Ok(solution) if solution.converged() => (solution, String::new()),
+        // (after the deadline the fallback would stop at once)
+        Ok(solution) if solution.converged() || params.past_deadline() => (solution, String::new()),
         first => {
             let (first_iterations, first_evaluations, why) = match &first {
                 Ok(s) => (s.iterations, s.evaluations, s.stop_description()),
@@ -207,6 +208,11 @@ pub struct PairwiseOptions {
     /// Warm-start each pair from the previous pair with the same target (default false: slower
     /// than the solver's coarse-to-fine start on the bundled faces).
     pub warm_start: bool,
+    /// Give up a directed pair (status `time limit ...`, no distance) at its first Newton step
+    /// that would begin this long after the pair started ([`NewtonParams::deadline`]; the
+    /// fallback is not tried then). Pairs that finish within it are exactly those without it;
+    /// which pairs reach it depends on the machine. Default `None`.
+    pub time_limit: Option<std::time::Duration>,
 }
 
 impl Default for PairwiseOptions {
@@ -220,6 +226,7 @@ impl Default for PairwiseOptions {
                 ..NewtonParams::default()
             },
             warm_start: false,
+            time_limit: None,
         }
     }
 }
@@ -326,6 +333,9 @@ pub fn pairwise_distances_resuming(
                 let mut params = options.newton.clone();
                 if options.warm_start {
                     params.initial_heights = warm;
+                }
+                if let Some(limit) = options.time_limit {
+                    params.deadline = Some(Instant::now() + limit);
                 }
                 match guarded(|| directed_distance(src, tgt, &params)) {
                     Ok((d, heights)) => (
@@ -436,6 +446,13 @@ const INTERNAL_ERROR: &str = "internal error (a bug in shapespace; please report
 /// computes again rather than repeating its record).
 pub fn is_internal_error(status: &str) -> bool {
     status.starts_with("failed: ") && status["failed: ".len()..].starts_with(INTERNAL_ERROR)
+}
+
+/// Whether a `pairs.csv` status is that of a pair that stopped at its time limit
+/// ([`PairwiseOptions::time_limit`]): an outcome of the machine's speed, not of the inputs, so a
+/// resumed run computes it again.
+pub fn is_time_limit(status: &str) -> bool {
+    status.starts_with("time limit")
 }
 
 /// Runs one pair's computation so that a panic (a bug, e.g. the index overrun in the clipping

@@ -226,6 +226,8 @@ pub struct ReportOptions {
     pub max_iterations: usize,
     pub warm_start: bool,
     pub intrinsic_delaunay: bool,
+    /// Per-pair time limit, seconds (`PairwiseOptions::time_limit`).
+    pub pair_time_limit: Option<f64>,
 }
 
 /// The result of [`run_distances`].
@@ -316,7 +318,7 @@ const EARLIER_PAIRS: [(&str, &str, bool); 3] = [
 /// current (source, target) among `needed` (a row serves every current pair of files with those
 /// keys). The first file to give a pair wins (all of them give the same record). Failed pairs
 /// are taken (the same shapes and settings fail the same way), except internal errors (panics:
-/// bugs, computed again). Also returns
+/// bugs) and pairs stopped at their time limit, which are computed again. Also returns
 /// one line per file found: how many rows it gave, or why it gave none. A last line without its
 /// newline (a run killed in the middle of a row) is not read.
 fn earlier_pairs(
@@ -397,7 +399,8 @@ fn earlier_pairs(
         if incomplete {
             text.truncate(text.rfind('\n').map_or(0, |k| k + 1));
         }
-        let (mut rows, mut unreadable, mut taken, mut panicked) = (0, usize::from(incomplete), 0, 0);
+        let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
+        let (mut panicked, mut timed_out) = (0, 0);
         for row in csv::Reader::from_reader(text.as_bytes()).deserialize::<PairRecord>() {
             let Ok(record) = row else {
                 unreadable += 1;
@@ -406,6 +409,10 @@ fn earlier_pairs(
             rows += 1;
             if crate::distance::is_internal_error(&record.status) {
                 panicked += 1;
+                continue;
+            }
+            if crate::distance::is_time_limit(&record.status) {
+                timed_out += 1;
                 continue;
             }
             let current = |name: &str| earlier_key.get(name).and_then(|k| by_key.get(k)).map_or(&[][..], |v| v);
@@ -424,6 +431,9 @@ fn earlier_pairs(
         }
         if panicked > 0 {
             skipped += &format!(", {panicked} internal errors computed again");
+        }
+        if timed_out > 0 {
+            skipped += &format!(", {timed_out} stopped at their time limit computed again");
         }
         notes.push(format!(
             "{}: {taken} pairs taken from {rows} rows{skipped}",
@@ -712,6 +722,7 @@ pub fn run_distances(
             max_iterations: options.pairwise.newton.max_iterations,
             warm_start: options.pairwise.warm_start,
             intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
+            pair_time_limit: options.pairwise.time_limit.map(|l| l.as_secs_f64()),
         },
         threads: rayon::current_num_threads(),
         timings: StageTimings {

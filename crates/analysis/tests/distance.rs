@@ -742,6 +742,55 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
     assert!(error.contains("resume cannot be combined with warm start"), "{error}");
 }
 
+/// A pair that reaches its time limit is given up with that status (no fallback, no distance);
+/// a resumed run computes it again, and a limit that is not reached changes nothing.
+#[test]
+fn pairs_at_their_time_limit_are_given_up_and_computed_again_on_resume() {
+    let dir = out_dir("time_limit");
+    let files: Vec<PathBuf> = ["id00_neutral", "id01_happy", "id02_sad"]
+        .iter()
+        .map(|n| repo(&format!("datasets/faces/{n}.obj")))
+        .collect();
+    let limited = |limit: std::time::Duration, resume: bool| DistancesOptions {
+        resume,
+        pairwise: PairwiseOptions {
+            time_limit: Some(limit),
+            ..PairwiseOptions::default()
+        },
+        ..DistancesOptions::default()
+    };
+    let out = dir.join("out");
+    let run = run_distances(
+        &files,
+        &out,
+        &limited(std::time::Duration::from_nanos(1), false),
+        &|_, _, _| {},
+    )
+    .unwrap();
+    assert_eq!(run.report.pairs_failed, 3);
+    for p in &run.pairs {
+        assert!(
+            p.status == "time limit" && p.distance.is_nan() && p.iterations == 0,
+            "{p:?}"
+        );
+    }
+    assert_eq!(run.report.options.pair_time_limit, Some(1e-9));
+    let hour = std::time::Duration::from_secs(3600);
+    let run = run_distances(&files, &out, &limited(hour, true), &|_, _, _| {}).unwrap();
+    let resumed = run.report.resumed.clone().unwrap();
+    assert_eq!(resumed.pairs, 0);
+    assert!(
+        resumed.sources[0].ends_with("0 pairs taken from 3 rows, 3 stopped at their time limit computed again"),
+        "{resumed:?}"
+    );
+    assert_eq!(run.report.pairs_failed, 0);
+    let free = run_distances(&files, &dir.join("free"), &DistancesOptions::default(), &|_, _, _| {}).unwrap();
+    assert_eq!(
+        run.matrix.values.iter().map(|d| d.to_bits()).collect::<Vec<_>>(),
+        free.matrix.values.iter().map(|d| d.to_bits()).collect::<Vec<_>>()
+    );
+}
+
 /// When the direct solve stops short, `directed_distance` falls back to a density continuation
 /// from scratch, counts the steps of both and says so in the status.
 #[test]

@@ -957,5 +957,31 @@ fn distances_resume_computes_only_the_new_pairs() {
     let refused = shapespace(&args);
     assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
     assert!(stderr(&refused).contains("--warm-start"), "{}", stderr(&refused));
+    // A pair time limit: reached at once, every pair fails with that reason (exit 1); it must
+    // be a positive number of seconds.
+    let limited_out = dir.join("limited");
+    let mut args = vec![
+        "distances",
+        &faces[0],
+        &faces[1],
+        "--out",
+        limited_out.to_str().unwrap(),
+    ];
+    args.extend(["--quiet", "--pair-time-limit", "1e-9"]);
+    let limited = shapespace(&args);
+    let msg = stderr(&limited);
+    assert_eq!(limited.status.code(), Some(1), "{msg}");
+    assert!(msg.contains("id00_neutral -> id01_happy: time limit"), "{msg}");
+    for bad in ["0", "nan", "inf"] {
+        let last = args.len() - 1;
+        args[last] = bad;
+        let refused = shapespace(&args);
+        assert_eq!(refused.status.code(), Some(2), "{bad}: {}", stderr(&refused));
+        assert!(
+            stderr(&refused).contains("--pair-time-limit must be a positive"),
+            "{}",
+            stderr(&refused)
+        );
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -332,6 +332,49 @@ fn iteration_cap_is_reported() {
     ));
 }
 
+/// A deadline that has passed stops every path of the solve before its first step, as
+/// `TimeLimit` (not as a stall of the continuation it interrupted, and without trying another
+/// start); one far ahead changes nothing, bit for bit.
+#[test]
+fn a_passed_deadline_stops_every_path_and_a_distant_one_changes_nothing() {
+    // contrast 1e3: the coarse-to-fine start (Auto) or the density continuation (Voronoi)
+    let measure = disk_measure(8, &|x| if x[0] > 0.0 { 1e3 } else { 1.0 });
+    let points = sunflower(1500, 1.0);
+    let masses = vec![1.0; points.len()];
+    for (start_strategy, density_continuation) in [
+        (StartStrategy::Auto, Some(10.0)),
+        (StartStrategy::Voronoi, Some(10.0)),
+        (StartStrategy::Voronoi, None),
+    ] {
+        let params = NewtonParams {
+            start_strategy,
+            density_continuation,
+            ..Default::default()
+        };
+        let passed = NewtonParams {
+            deadline: Some(std::time::Instant::now()),
+            ..params.clone()
+        };
+        let sol = solve_ot(&measure, &points, &masses, &passed).unwrap();
+        assert_eq!(
+            sol.stop,
+            StopReason::TimeLimit,
+            "{start_strategy:?} {density_continuation:?}"
+        );
+        assert_eq!(sol.all_iterations(), 0, "{start_strategy:?} {density_continuation:?}");
+        assert!(matches!(sol.into_result(), Err(OmtError::NoConvergence { .. })));
+        let free = solve_ot(&measure, &points, &masses, &params).unwrap();
+        let distant = NewtonParams {
+            deadline: Some(std::time::Instant::now() + std::time::Duration::from_secs(3600)),
+            ..params
+        };
+        let timed = solve_ot(&measure, &points, &masses, &distant).unwrap();
+        assert_eq!(free.stop, timed.stop);
+        assert_eq!(free.heights, timed.heights);
+        assert_eq!(free.all_iterations(), timed.all_iterations());
+    }
+}
+
 /// The coarse-to-fine start reaches the same solution as the Voronoi start, from a start with no
 /// empty cell (its prolongation guarantees that; before 2026-12-01 (4) it fell back to the
 /// Voronoi start on these points).

@@ -43,6 +43,13 @@ pub struct SolverArgs {
     /// new pairs. report.json's `resumed` says what was taken from where.
     #[arg(long, conflicts_with = "warm_start")]
     pub resume: bool,
+    /// Give up a pair after about this many seconds (at its first Newton step that would begin
+    /// later; status `time limit`, no distance): a few pathological pairs (crowded conformal
+    /// images of whole bodies) can otherwise take many minutes each before failing. Pairs that
+    /// finish in time are unaffected; which ones do depends on the machine, so --resume computes
+    /// the others again.
+    #[arg(long, value_name = "SECONDS")]
+    pub pair_time_limit: Option<f64>,
     /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -114,6 +121,15 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         solver.tol
     );
     anyhow::ensure!(solver.max_iterations >= 1, "--max-iterations must be at least 1");
+    let time_limit = solver
+        .pair_time_limit
+        .map(|s| {
+            std::time::Duration::try_from_secs_f64(s)
+                .ok()
+                .filter(|d| !d.is_zero())
+                .ok_or_else(|| anyhow::anyhow!("--pair-time-limit must be a positive number of seconds, got {s}"))
+        })
+        .transpose()?;
     let markers = solver.markers.options()?;
     // The library's pairwise defaults (linear solver, coarse-level tolerance), which the
     // benchmark measures, with the user's tolerance and cap.
@@ -128,6 +144,7 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
                 ..defaults
             },
             warm_start: solver.warm_start,
+            time_limit,
         },
         resume: solver.resume,
         ..DistancesOptions::default()

@@ -183,6 +183,19 @@ pub struct NewtonParams {
     /// in rounding (which can also flip a discrete choice of a later merging round) and the
     /// solves agree within their tolerance.
     pub target_coarsening: Option<Arc<TargetCoarsening>>,
+    /// Stop as [`StopReason::TimeLimit`] at the first Newton step that would begin after this
+    /// instant (checked before each step, so a step under way is finished). It holds for the
+    /// whole solve: every coarse level, continuation stage and start, none of which begins
+    /// another attempt once it has passed. A solve that ends before it is exactly the solve
+    /// without it. Default `None`.
+    pub deadline: Option<Instant>,
+}
+
+impl NewtonParams {
+    /// Whether [`Self::deadline`] has passed.
+    pub fn past_deadline(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
+    }
 }
 
 impl Default for NewtonParams {
@@ -203,6 +216,7 @@ impl Default for NewtonParams {
             flux_masses: false,
             coarse_tolerance: 1e-3,
             target_coarsening: None,
+            deadline: None,
         }
     }
 }
@@ -298,6 +312,8 @@ pub enum StopReason {
     IterationCap,
     /// No acceptable step could be found, or a non-finite value appeared.
     Stalled { reason: String },
+    /// [`NewtonParams::deadline`] passed before the solve ended.
+    TimeLimit,
 }
 
 impl std::fmt::Display for StopReason {
@@ -306,6 +322,7 @@ impl std::fmt::Display for StopReason {
             StopReason::Converged => write!(f, "converged"),
             StopReason::IterationCap => write!(f, "iteration cap"),
             StopReason::Stalled { reason } => write!(f, "stalled: {reason}"),
+            StopReason::TimeLimit => write!(f, "time limit"),
         }
     }
 }
@@ -1305,7 +1322,7 @@ pub fn solve_ot(
                     coarse_iterations,
                 };
             }
-            if solution.converged() || params.start_strategy != StartStrategy::Auto {
+            if solution.converged() || params.start_strategy != StartStrategy::Auto || params.past_deadline() {
                 return Ok(solution);
             }
             // Auto: the start it chose did not work out; the Voronoi path gets its chance, and
@@ -1405,9 +1422,10 @@ fn solve_density_continuation(
         iterations += stage.iterations;
         evaluations += stage.evaluations;
         let converged = stage.converged();
-        let give_up = !converged && dt * 0.5 < MIN_CONTINUATION_STEP;
+        let timed_out = stage.stop == StopReason::TimeLimit;
+        let give_up = !converged && (timed_out || dt * 0.5 < MIN_CONTINUATION_STEP);
         if (converged && last) || give_up {
-            if give_up && !last {
+            if give_up && !last && !timed_out {
                 stage.stop = StopReason::Stalled {
                     reason: format!(
                         "density continuation could not advance past t = {t:.4}: the stage toward t = {t_next:.4} stopped ({})",
@@ -1518,7 +1536,7 @@ fn solve_mass_continuation(
             stage.evaluations += evaluations;
             log.append(&mut stage.log);
             stage.log = log;
-            if !last {
+            if !last && stage.stop != StopReason::TimeLimit {
                 stage.stop = StopReason::Stalled {
                     reason: format!(
                         "mass continuation stage {stages} at t = {t_stage:.3e} stopped: {}",
@@ -1663,6 +1681,10 @@ fn solve_single(
         }
         if iterations >= params.max_iterations {
             stop = StopReason::IterationCap;
+            break;
+        }
+        if params.past_deadline() {
+            stop = StopReason::TimeLimit;
             break;
         }
         let t_solve = Instant::now();

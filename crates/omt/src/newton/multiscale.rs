@@ -467,7 +467,8 @@ pub(crate) fn coarse_to_fine_heights(
         // level its start. Only after a coarse start: without one, `solve_ot` has already run
         // the Voronoi path with the caller's continuation (and a level below that failed has
         // had its own retry). The failed attempt's steps are counted when the retry succeeds.
-        Ok(first) if matches!(first.start, super::Start::CoarseToFine { .. }) => {
+        // (not once the deadline has passed: the retry would stop at once)
+        Ok(first) if matches!(first.start, super::Start::CoarseToFine { .. }) && !params.past_deadline() => {
             let first_iterations = first.all_iterations();
             let retry = NewtonParams {
                 start_strategy: super::StartStrategy::Voronoi,
