@@ -38,9 +38,10 @@ pub struct SolverArgs {
     pub warm_start: bool,
     /// Take the pairs that earlier runs in the output folder computed (its pairs.csv, or the
     /// pairs.partial.csv of a run that was stopped) instead of computing them again, where both
-    /// files (compared by content), their markers and the solver settings are the same: a
-    /// stopped run goes on where it stopped, a finished one given more files computes only the
-    /// new pairs. report.json's `resumed` says what was taken from where.
+    /// files (compared by content), their markers, the solver settings and the shapespace
+    /// executable (a rebuilt one starts over) are the same: a stopped run goes on where it
+    /// stopped, a finished one given more files computes only the new pairs. report.json's
+    /// `resumed` says what was taken from where.
     #[arg(long, conflicts_with = "warm_start")]
     pub resume: bool,
     /// Give up a pair after about this many seconds (at its first Newton step that would begin
