@@ -29,7 +29,7 @@ use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::newton::TargetCoarsening;
-use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
+use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy, StopReason};
 
 use crate::error::AnalysisError;
 
@@ -146,10 +146,18 @@ pub fn directed_distance(
         target_coarsening: Some(target.coarsening.clone()),
         ..params.clone()
     };
+    // Past the deadline a solve that stopped for another reason is reported as stopped by it
+    // (without the limit the fallback would have run), and no further attempt is made.
+    let timed_out = |e: String| AnalysisError::Pair {
+        a: source.name.clone(),
+        b: target.name.clone(),
+        message: format!("time limit ({e})"),
+    };
     let direct = solve_ot(&source.measure, &target.points, &target.masses, &direct_params);
-    let (solution, note) = match direct {
-        // (after the deadline the fallback would stop at once)
-        Ok(solution) if solution.converged() || params.past_deadline() => (solution, String::new()),
+    let (mut solution, note) = match direct {
+        Ok(solution) if solution.converged() => (solution, String::new()),
+        Ok(solution) if params.past_deadline() => (solution, String::new()),
+        Err(e) if params.past_deadline() => return Err(timed_out(format!("the direct solve stopped: {e}"))),
         first => {
             let (first_iterations, first_evaluations, why) = match &first {
                 Ok(s) => (s.iterations, s.evaluations, s.stop_description()),
@@ -161,13 +169,24 @@ pub fn directed_distance(
                 density_continuation: params.density_continuation.or(Some(10.0)),
                 ..params.clone()
             };
-            let mut solution =
-                solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(pair_error)?;
+            let mut solution = solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(
+                |e| match params.past_deadline() {
+                    true => timed_out(format!("the fallback stopped: {e}; the direct solve: {why}")),
+                    false => pair_error(e),
+                },
+            )?;
             solution.iterations += first_iterations;
             solution.evaluations += first_evaluations;
             (solution, format!(" (after a direct solve that stopped: {why})"))
         }
     };
+    let mut note = note;
+    if !solution.converged() && params.past_deadline() && solution.stop != StopReason::TimeLimit {
+        // (what stopped it is kept: "time limit (stopped: ...) ...")
+        note = format!(" (stopped: {}){note}", solution.stop_description());
+        solution.stop = StopReason::TimeLimit;
+        solution.diagnosis = None;
+    }
     let converged = solution.converged();
     let result = DirectedDistance {
         cost: solution.cost,
@@ -210,8 +229,10 @@ pub struct PairwiseOptions {
     pub warm_start: bool,
     /// Give up a directed pair (status `time limit ...`, no distance) at its first Newton step
     /// that would begin this long after the pair started ([`NewtonParams::deadline`]; the
-    /// fallback is not tried then). Pairs that finish within it are exactly those without it;
-    /// which pairs reach it depends on the machine. Default `None`.
+    /// fallback is not tried then). Pairs that finish within it are exactly those without it
+    /// (with `warm_start`, only up to the first pair given up in each target's group: the pairs
+    /// after it start from other heights); which pairs reach it depends on the machine.
+    /// Default `None`.
     pub time_limit: Option<std::time::Duration>,
 }
 
@@ -334,8 +355,10 @@ pub fn pairwise_distances_resuming(
                 if options.warm_start {
                     params.initial_heights = warm;
                 }
-                if let Some(limit) = options.time_limit {
-                    params.deadline = Some(Instant::now() + limit);
+                // (a limit too far ahead for the clock is no limit; a caller's own deadline
+                // holds if it is earlier)
+                if let Some(deadline) = options.time_limit.and_then(|limit| Instant::now().checked_add(limit)) {
+                    params.deadline = Some(params.deadline.map_or(deadline, |d| d.min(deadline)));
                 }
                 match guarded(|| directed_distance(src, tgt, &params)) {
                     Ok((d, heights)) => (
@@ -452,7 +475,10 @@ pub fn is_internal_error(status: &str) -> bool {
 /// ([`PairwiseOptions::time_limit`]): an outcome of the machine's speed, not of the inputs, so a
 /// resumed run computes it again.
 pub fn is_time_limit(status: &str) -> bool {
-    status.starts_with("time limit")
+    status
+        .strip_prefix("failed: ")
+        .unwrap_or(status)
+        .starts_with("time limit")
 }
 
 /// Runs one pair's computation so that a panic (a bug, e.g. the index overrun in the clipping

@@ -766,9 +766,14 @@ pub fn run_distances(
 
 /// The [`RunIdentity`] of a run with `options` over the prepared `inputs`.
 fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -> RunIdentity {
+    // (a deadline is a moment, not a setting: a pair stopped by it is computed again anyway)
+    let newton = shapespace_omt::NewtonParams {
+        deadline: None,
+        ..options.pairwise.newton.clone()
+    };
     let settings = format!(
-        "{:?}|warm_start {}|{:?}",
-        options.pairwise.newton, options.pairwise.warm_start, options.disk_map
+        "{newton:?}|warm_start {}|{:?}",
+        options.pairwise.warm_start, options.disk_map
     );
     RunIdentity {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),

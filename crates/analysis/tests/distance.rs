@@ -784,6 +784,24 @@ fn pairs_at_their_time_limit_are_given_up_and_computed_again_on_resume() {
         "{resumed:?}"
     );
     assert_eq!(run.report.pairs_failed, 0);
+    // A deadline in the middle of a pair (its coarse levels, the finest one or a fallback):
+    // the pair converges or is reported as stopped by it, never as another failure.
+    let (_, a) = face("id00_neutral");
+    let (_, b) = face("id02_sad");
+    let shapes = [Some(a), Some(b)];
+    for ms in [2, 10, 40, 120, 300] {
+        let options = PairwiseOptions {
+            time_limit: Some(std::time::Duration::from_millis(ms)),
+            ..PairwiseOptions::default()
+        };
+        let result = pairwise_distances(&shapes, &options, &|_| {});
+        let p = &result.pairs[0];
+        assert!(
+            p.status == "converged" || shapespace_analysis::distance::is_time_limit(&p.status),
+            "{ms} ms: {}",
+            p.status
+        );
+    }
     let free = run_distances(&files, &dir.join("free"), &DistancesOptions::default(), &|_, _, _| {}).unwrap();
     assert_eq!(
         run.matrix.values.iter().map(|d| d.to_bits()).collect::<Vec<_>>(),

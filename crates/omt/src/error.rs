@@ -21,4 +21,8 @@ pub enum OmtError {
     /// A failure of the sparse factorization or solve.
     #[error("linear algebra: {0}")]
     LinearAlgebra(String),
+    /// `NewtonParams::deadline` passed before the solve had a start to report (what it was doing
+    /// then).
+    #[error("time limit: the deadline passed while {0}")]
+    TimeLimit(String),
 }

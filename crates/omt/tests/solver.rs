@@ -369,6 +369,22 @@ fn a_passed_deadline_stops_every_path_and_a_distant_one_changes_nothing() {
             ..params
         };
         let timed = solve_ot(&measure, &points, &masses, &distant).unwrap();
+        // a deadline in the middle of the solve: converged, or stopped on it, whatever the
+        // path was doing then
+        if free.converged() {
+            for ms in [1, 3, 10, 30, 100] {
+                let mid = NewtonParams {
+                    deadline: Some(std::time::Instant::now() + std::time::Duration::from_millis(ms)),
+                    ..distant.clone()
+                };
+                let sol = solve_ot(&measure, &points, &masses, &mid).unwrap();
+                assert!(
+                    sol.converged() || sol.stop == StopReason::TimeLimit,
+                    "{start_strategy:?} {density_continuation:?} {ms} ms: {}",
+                    sol.stop
+                );
+            }
+        }
         assert_eq!(free.stop, timed.stop);
         assert_eq!(free.heights, timed.heights);
         assert_eq!(free.all_iterations(), timed.all_iterations());

@@ -49,7 +49,7 @@ pub struct SolverArgs {
     /// images of whole bodies) can otherwise take many minutes each before failing. Pairs that
     /// finish in time are unaffected; which ones do depends on the machine, so --resume computes
     /// the others again.
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", conflicts_with = "warm_start")]
     pub pair_time_limit: Option<f64>,
     /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
     #[arg(long)]

@@ -1337,6 +1337,10 @@ pub fn solve_ot(
             better.iterations += worse.iterations;
             better.evaluations += worse.evaluations;
             better.t_total = t_begin.elapsed().as_secs_f64();
+            if worse.stop == StopReason::TimeLimit {
+                // (the better heights, but the solve as a whole ended on the deadline)
+                better.stop = StopReason::TimeLimit;
+            }
             return Ok(better);
         }
     }
@@ -1611,6 +1615,11 @@ fn solve_single(
         let mut scale = if start == Start::Voronoi { 1.0 } else { 2.0 };
         let mut stale = 0;
         loop {
+            if params.past_deadline() {
+                return Err(OmtError::TimeLimit(
+                    "searching for a start with no empty cell (contracted Voronoi diagrams)".into(),
+                ));
+            }
             scale *= 0.5;
             heights = Heights::contracted(points, center, scale);
             current = evaluate(&backend, points, &heights)?;
