@@ -11,12 +11,14 @@ use std::time::Instant;
 use std::collections::HashMap;
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
 
 use crate::distance::{pairwise_distances_resuming, prepare_shape, PairRecord, PairwiseOptions, PreparedShape};
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
+pub use crate::resume::{build_identity, InputIdentity, ResumeReport, RunIdentity};
+use crate::resume::{earlier_pairs, run_identity, sha256_hex};
 use crate::stats::{summarize, Summary};
 
 /// How markers are chosen for each file.
@@ -85,7 +87,8 @@ pub struct DistancesOptions {
     pub pairwise: PairwiseOptions,
     pub disk_map: DiskMapParams,
     /// Take the directed pairs that earlier runs in the output folder computed from the same
-    /// files, markers and solver settings from their files instead of computing them again
+    /// files, markers and solver settings, with the same executable, from their files instead
+    /// of computing them again
     /// (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
     /// the pairs solved before it).
     pub resume: bool,
@@ -153,64 +156,6 @@ pub struct DistancesReport {
     /// What the pairs depend on, for a later `resume`.
     pub resume_key: RunIdentity,
     pub files: Vec<PathBuf>,
-}
-
-/// The pairs a resumed run took from earlier runs.
-#[derive(Clone, Debug, Serialize)]
-pub struct ResumeReport {
-    /// Directed pairs taken from earlier files (not computed by this run).
-    pub pairs: usize,
-    /// One line per earlier pairs file found in the output folder: how many of its rows were
-    /// taken, or why none were.
-    pub sources: Vec<String>,
-}
-
-/// What a run's pairs depend on: the version, the solver and conformal-map settings, and per
-/// input the file's content and resolved markers. Written before the first pair beside
-/// [`PARTIAL_PAIRS`] (as [`PARTIAL_IDENTITY`]) and into `report.json` (`resume_key`), so that a
-/// resumed run reuses exactly the rows whose two shapes and settings are unchanged (a directed
-/// pair's result depends on nothing else: not on the other files, the thread count or
-/// `symmetrize`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RunIdentity {
-    pub shapespace_version: String,
-    /// SHA-256 of the running executable ([`build_identity`]): the version string alone does
-    /// not change with the code, and a pair's bits depend on it. None when the executable cannot
-    /// be read (its pairs are then never taken).
-    pub build: Option<String>,
-    /// SHA-256 (hex) of the debug form of the solver parameters, `warm_start` and the conformal
-    /// map's parameters.
-    pub settings: String,
-    pub inputs: Vec<InputIdentity>,
-}
-
-/// One input of a [`RunIdentity`].
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct InputIdentity {
-    pub name: String,
-    /// The file's SHA-256 and its resolved markers (`SHA:CENTER:BOUNDARY`, the markers as in a
-    /// marker file); None for a file that failed to prepare.
-    pub key: Option<String>,
-}
-
-/// SHA-256 of the running executable, computed once per process (~0.1 s for a 50 MB test
-/// binary); None when it cannot be read. Two runs with equal identities ran the same machine
-/// code; the dynamically linked C library (libm's `exp`, `atan2`, ...) is not covered, so a
-/// folder moved to another machine should not be resumed there.
-pub fn build_identity() -> Option<String> {
-    static BUILD: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
-    BUILD
-        .get_or_init(|| {
-            let exe = std::env::current_exe().ok()?;
-            std::fs::read(exe).ok().map(|bytes| sha256_hex(&bytes))
-        })
-        .clone()
-}
-
-/// SHA-256 of `bytes`, lower-case hex.
-fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The options as recorded in the report.
@@ -303,146 +248,6 @@ pub const PARTIAL_IDENTITY: &str = "pairs.partial.json";
 /// Where [`PARTIAL_IDENTITY`] goes with [`PREVIOUS_PARTIAL_PAIRS`].
 pub const PREVIOUS_PARTIAL_IDENTITY: &str = "pairs.partial.prev.json";
 
-/// An earlier run's pairs file in the output folder and where its [`RunIdentity`] is: a
-/// finished run's `pairs.csv` (`report.json`'s `resume_key`), a stopped run's
-/// [`PARTIAL_PAIRS`], and one moved aside by a restart ([`PREVIOUS_PARTIAL_PAIRS`]).
-const EARLIER_PAIRS: [(&str, &str, bool); 3] = [
-    ("pairs.csv", "report.json", true),
-    (PARTIAL_PAIRS, PARTIAL_IDENTITY, false),
-    (PREVIOUS_PARTIAL_PAIRS, PREVIOUS_PARTIAL_IDENTITY, false),
-];
-
-/// The rows of the earlier runs' pairs files in `out` ([`EARLIER_PAIRS`]) that this run can
-/// take: those whose version and settings equal `identity`'s and whose two shapes have the key
-/// of a current input (the same file content and markers, whatever its name now), keyed by the
-/// current (source, target) among `needed` (a row serves every current pair of files with those
-/// keys). The first file to give a pair wins (all of them give the same record). Failed pairs
-/// are taken (the same shapes and settings fail the same way), except internal errors (panics:
-/// bugs) and pairs stopped at their time limit, which are computed again. Also returns
-/// one line per file found: how many rows it gave, or why it gave none. A last line without its
-/// newline (a run killed in the middle of a row) is not read.
-fn earlier_pairs(
-    out: &Path,
-    identity: &RunIdentity,
-    needed: &std::collections::HashSet<(usize, usize)>,
-) -> (HashMap<(usize, usize), PairRecord>, Vec<String>) {
-    #[derive(Deserialize)]
-    struct Report {
-        resume_key: Option<RunIdentity>,
-    }
-    let mut by_key: HashMap<&str, Vec<usize>> = HashMap::new();
-    for (i, input) in identity.inputs.iter().enumerate() {
-        if let Some(key) = &input.key {
-            by_key.entry(key).or_default().push(i);
-        }
-    }
-    let mut known = HashMap::new();
-    let mut notes = Vec::new();
-    for (pairs_name, identity_name, in_report) in EARLIER_PAIRS {
-        let pairs_path = out.join(pairs_name);
-        let not_used = |why: String| format!("{}: not used: {why}", pairs_path.display());
-        let mut text = match std::fs::read_to_string(&pairs_path) {
-            Ok(text) => text,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
-            Err(e) => {
-                notes.push(not_used(e.to_string()));
-                continue;
-            }
-        };
-        let identity_path = out.join(identity_name);
-        let earlier = std::fs::read_to_string(&identity_path)
-            .map_err(|e| e.to_string())
-            .and_then(|json| {
-                if in_report {
-                    serde_json::from_str::<Report>(&json).map(|r| r.resume_key)
-                } else {
-                    serde_json::from_str::<RunIdentity>(&json).map(Some)
-                }
-                .map_err(|e| e.to_string())
-            });
-        let earlier = match earlier {
-            Ok(Some(earlier)) => earlier,
-            Ok(None) => {
-                notes.push(not_used(format!("{} has no resume_key", identity_path.display())));
-                continue;
-            }
-            Err(e) => {
-                notes.push(not_used(format!("{}: {e}", identity_path.display())));
-                continue;
-            }
-        };
-        if earlier.shapespace_version != identity.shapespace_version {
-            notes.push(not_used(format!(
-                "written by shapespace {} (this is {})",
-                earlier.shapespace_version, identity.shapespace_version
-            )));
-            continue;
-        }
-        if earlier.build.is_none() || earlier.build != identity.build {
-            notes.push(not_used(
-                "written by another build of shapespace (or one whose executable could not be read)".into(),
-            ));
-            continue;
-        }
-        if earlier.settings != identity.settings {
-            notes.push(not_used(
-                "computed with other solver or conformal-map settings (tolerance, iteration cap, ...)".into(),
-            ));
-            continue;
-        }
-        let earlier_key: HashMap<&str, &str> = earlier
-            .inputs
-            .iter()
-            .filter_map(|input| input.key.as_deref().map(|k| (input.name.as_str(), k)))
-            .collect();
-        let incomplete = !text.is_empty() && !text.ends_with('\n');
-        if incomplete {
-            text.truncate(text.rfind('\n').map_or(0, |k| k + 1));
-        }
-        let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
-        let (mut panicked, mut timed_out) = (0, 0);
-        for row in csv::Reader::from_reader(text.as_bytes()).deserialize::<PairRecord>() {
-            let Ok(record) = row else {
-                unreadable += 1;
-                continue;
-            };
-            rows += 1;
-            if crate::distance::is_internal_error(&record.status) {
-                panicked += 1;
-                continue;
-            }
-            if crate::distance::is_time_limit(&record.status) {
-                timed_out += 1;
-                continue;
-            }
-            let current = |name: &str| earlier_key.get(name).and_then(|k| by_key.get(k)).map_or(&[][..], |v| v);
-            for &s in current(&record.a) {
-                for &t in current(&record.b) {
-                    if s != t && needed.contains(&(s, t)) && !known.contains_key(&(s, t)) {
-                        known.insert((s, t), record.clone());
-                        taken += 1;
-                    }
-                }
-            }
-        }
-        let mut skipped = String::new();
-        if unreadable > 0 {
-            skipped += &format!(", {unreadable} unreadable or incomplete skipped");
-        }
-        if panicked > 0 {
-            skipped += &format!(", {panicked} internal errors computed again");
-        }
-        if timed_out > 0 {
-            skipped += &format!(", {timed_out} stopped at their time limit computed again");
-        }
-        notes.push(format!(
-            "{}: {taken} pairs taken from {rows} rows{skipped}",
-            pairs_path.display()
-        ));
-    }
-    (known, notes)
-}
-
 /// [`PARTIAL_PAIRS`], appended to from the worker threads: its writer, or after the first
 /// failed write, that failure.
 struct PartialPairs {
@@ -492,8 +297,8 @@ impl PartialPairs {
 /// start is moved to `out/`[`PREVIOUS_PARTIAL_PAIRS`] first (with its [`PARTIAL_IDENTITY`]).
 ///
 /// With [`DistancesOptions::resume`], the directed pairs found in those files or in an earlier
-/// `out/pairs.csv` ([`earlier_pairs`]) are taken from there when their two files (by content,
-/// [`RunIdentity`]), markers, the version and the solver settings are the same: a stopped run
+/// `out/pairs.csv` ([`crate::resume`]) are taken from there when their two files (by content,
+/// [`RunIdentity`]), markers, the executable and the solver settings are the same: a stopped run
 /// goes on where it stopped, and a finished one extended by more files computes only the new
 /// pairs. The results are those of a run from scratch (every pair is computed on its own, from
 /// its two shapes), except for `seconds`, which is the earlier run's; the taken pairs are
@@ -762,36 +567,6 @@ pub fn run_distances(
         pairs: result.pairs,
         report,
     })
-}
-
-/// The [`RunIdentity`] of a run with `options` over the prepared `inputs`.
-fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -> RunIdentity {
-    // (a deadline is a moment, not a setting: a pair stopped by it is computed again anyway)
-    let newton = shapespace_omt::NewtonParams {
-        deadline: None,
-        ..options.pairwise.newton.clone()
-    };
-    let settings = format!(
-        "{newton:?}|warm_start {}|{:?}",
-        options.pairwise.warm_start, options.disk_map
-    );
-    RunIdentity {
-        shapespace_version: env!("CARGO_PKG_VERSION").to_string(),
-        build: build_identity(),
-        settings: sha256_hex(settings.as_bytes()),
-        inputs: inputs
-            .iter()
-            .map(|input| InputIdentity {
-                name: input.name.clone(),
-                key: match (&input.sha256, &input.markers, input.ok) {
-                    (Some(sha), Some(m), true) => serde_json::to_string(&m.center)
-                        .ok()
-                        .map(|center| format!("{sha}:{center}:{}", m.boundary)),
-                    _ => None,
-                },
-            })
-            .collect(),
-    }
 }
 
 /// Removes `path` if it exists.
