@@ -154,7 +154,7 @@ pub fn directed_distance(
         message: format!("time limit ({e})"),
     };
     let direct = solve_ot(&source.measure, &target.points, &target.masses, &direct_params);
-    let (mut solution, note) = match direct {
+    let (mut solution, mut note) = match direct {
         Ok(solution) if solution.converged() => (solution, String::new()),
         Ok(solution) if params.past_deadline() => (solution, String::new()),
         Err(e) if params.past_deadline() => return Err(timed_out(format!("the direct solve stopped: {e}"))),
@@ -180,7 +180,6 @@ pub fn directed_distance(
             (solution, format!(" (after a direct solve that stopped: {why})"))
         }
     };
-    let mut note = note;
     if !solution.converged() && params.past_deadline() && solution.stop != StopReason::TimeLimit {
         // (what stopped it is kept: "time limit (stopped: ...) ...")
         note = format!(" (stopped: {}){note}", solution.stop_description());
