@@ -148,16 +148,20 @@ pub fn directed_distance(
     };
     // Past the deadline a solve that stopped for another reason is reported as stopped by it
     // (without the limit the fallback would have run), and no further attempt is made.
-    let timed_out = |e: String| AnalysisError::Pair {
+    // (an error that is the deadline says so itself: "time limit: the deadline passed while ...")
+    let timed_out = |e: shapespace_omt::OmtError, what: &str, after: String| AnalysisError::Pair {
         a: source.name.clone(),
         b: target.name.clone(),
-        message: format!("time limit ({e})"),
+        message: match e {
+            shapespace_omt::OmtError::TimeLimit(_) => format!("{e}{after}"),
+            e => format!("time limit ({what} stopped: {e}){after}"),
+        },
     };
     let direct = solve_ot(&source.measure, &target.points, &target.masses, &direct_params);
     let (mut solution, mut note) = match direct {
         Ok(solution) if solution.converged() => (solution, String::new()),
         Ok(solution) if params.past_deadline() => (solution, String::new()),
-        Err(e) if params.past_deadline() => return Err(timed_out(format!("the direct solve stopped: {e}"))),
+        Err(e) if params.past_deadline() => return Err(timed_out(e, "the direct solve", String::new())),
         first => {
             let (first_iterations, first_evaluations, why) = match &first {
                 Ok(s) => (s.iterations, s.evaluations, s.stop_description()),
@@ -171,7 +175,11 @@ pub fn directed_distance(
             };
             let mut solution = solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(
                 |e| match params.past_deadline() {
-                    true => timed_out(format!("the fallback stopped: {e}; the direct solve: {why}")),
+                    true => timed_out(
+                        e,
+                        "the fallback",
+                        format!(" (after a direct solve that stopped: {why})"),
+                    ),
                     false => pair_error(e),
                 },
             )?;
@@ -359,6 +367,7 @@ pub fn pairwise_distances_resuming(
                 if let Some(deadline) = options.time_limit.and_then(|limit| Instant::now().checked_add(limit)) {
                     params.deadline = Some(params.deadline.map_or(deadline, |d| d.min(deadline)));
                 }
+                let started = Instant::now();
                 match guarded(|| directed_distance(src, tgt, &params)) {
                     Ok((d, heights)) => (
                         PairRecord {
@@ -377,7 +386,18 @@ pub fn pairwise_distances_resuming(
                         },
                         d.converged.then_some(heights),
                     ),
-                    Err(e) => (failed_record(&names, s, t, e), None),
+                    Err(e) => {
+                        // (the time it took before failing: up to a time limit, or minutes on a
+                        // pair that fails late)
+                        let seconds = started.elapsed().as_secs_f64();
+                        (
+                            PairRecord {
+                                seconds,
+                                ..failed_record(&names, s, t, e)
+                            },
+                            None,
+                        )
+                    }
                 }
             }
             _ => (failed_record(&names, s, t, "shape failed to prepare".into()), None),

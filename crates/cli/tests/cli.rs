@@ -971,7 +971,7 @@ fn distances_resume_computes_only_the_new_pairs() {
     let limited = shapespace(&args);
     let msg = stderr(&limited);
     assert_eq!(limited.status.code(), Some(1), "{msg}");
-    assert!(msg.contains("id00_neutral -> id01_happy: time limit"), "{msg}");
+    assert!(msg.contains("id00_neutral -> id01_happy: failed: time limit"), "{msg}");
     for bad in ["0", "nan", "inf"] {
         let last = args.len() - 1;
         args[last] = bad;

@@ -186,8 +186,10 @@ pub struct NewtonParams {
     /// Stop as [`StopReason::TimeLimit`] at the first Newton step that would begin after this
     /// instant (checked before each step, so a step under way is finished). It holds for the
     /// whole solve: every coarse level, continuation stage and start, none of which begins
-    /// another attempt once it has passed. A solve that ends before it is exactly the solve
-    /// without it. Default `None`.
+    /// another attempt once it has passed; when it passes before the finest level has a start
+    /// (in the coarse levels of the coarse-to-fine start, or in the search for a start with no
+    /// empty cell) the solve returns `Err(OmtError::TimeLimit)` saying where. A solve that ends
+    /// before it is exactly the solve without it. Default `None`.
     pub deadline: Option<Instant>,
 }
 

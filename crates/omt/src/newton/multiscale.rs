@@ -458,8 +458,18 @@ pub(crate) fn coarse_to_fine_heights(
     let boundary = hull_edges(&measure.vertices);
     let averaged = averaging_sample(measure, coarse_n, boundary.len()).and_then(|sample| measure.averaged(sample));
     let level_measure = averaged.as_deref().unwrap_or(measure);
+    // The deadline ends the whole solve: a level it stopped (or a level below, whose error comes
+    // up through `solve_ot`) is reported as such instead of leaving every enclosing level to
+    // try its own Voronoi start.
+    let timed_out = || {
+        Err(OmtError::TimeLimit(format!(
+            "solving the {coarse_n}-point level of the coarse-to-fine start"
+        )))
+    };
     let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
+        Err(e @ OmtError::TimeLimit(_)) => return Err(e),
+        Ok(s) if s.stop == super::StopReason::TimeLimit || params.past_deadline() => return timed_out(),
         // A coarse level that its own coarse-to-fine start does not solve (TOSCA wolves as
         // distance pairs: density contrast ~8e13, the 603-point level stops at the cap) gets
         // the robust path at its own small size: the Voronoi start with density continuation.
@@ -467,8 +477,7 @@ pub(crate) fn coarse_to_fine_heights(
         // level its start. Only after a coarse start: without one, `solve_ot` has already run
         // the Voronoi path with the caller's continuation (and a level below that failed has
         // had its own retry). The failed attempt's steps are counted when the retry succeeds.
-        // (not once the deadline has passed: the retry would stop at once)
-        Ok(first) if matches!(first.start, super::Start::CoarseToFine { .. }) && !params.past_deadline() => {
+        Ok(first) if matches!(first.start, super::Start::CoarseToFine { .. }) => {
             let first_iterations = first.all_iterations();
             let retry = NewtonParams {
                 start_strategy: super::StartStrategy::Voronoi,
@@ -480,9 +489,12 @@ pub(crate) fn coarse_to_fine_heights(
                     s.iterations += first_iterations;
                     s
                 }
+                Err(e @ OmtError::TimeLimit(_)) => return Err(e),
+                _ if params.past_deadline() => return timed_out(),
                 _ => return Ok(None),
             }
         }
+        _ if params.past_deadline() => return timed_out(),
         _ => return Ok(None),
     };
     let cells = &solution.cells;
