@@ -321,6 +321,16 @@ pub fn pairwise_distances(
     pairwise_distances_resuming(shapes, options, &HashMap::new(), progress)
 }
 
+/// The directed pairs (source, target) a pairwise run over n shapes computes, by target, then
+/// source: s → t for s < t, and with `symmetrize` also s → t for s > t.
+pub fn directed_pairs(n: usize, symmetrize: bool) -> impl Iterator<Item = (usize, usize)> {
+    (0..n).flat_map(move |t| {
+        (0..n)
+            .filter(move |&s| s != t && (symmetrize || s < t))
+            .map(move |s| (s, t))
+    })
+}
+
 /// [`pairwise_distances`], taking the directed pairs (source, target) in `known` from there
 /// instead of computing them (the records of an earlier run, see `pipeline::run_distances`'
 /// `resume`): their records are used as they are (index fields set to the pair), `progress` is
@@ -339,13 +349,13 @@ pub fn pairwise_distances_resuming(
         .enumerate()
         .map(|(i, s)| s.as_ref().map(|s| s.name.clone()).unwrap_or_else(|| format!("#{i}")))
         .collect();
-    let groups: Vec<(usize, Vec<usize>)> = (0..n)
-        .map(|t| {
-            let sources: Vec<usize> = (0..n).filter(|&s| s != t && (options.symmetrize || s < t)).collect();
-            (t, sources)
-        })
-        .filter(|(_, s)| !s.is_empty())
-        .collect();
+    let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
+    for (s, t) in directed_pairs(n, options.symmetrize) {
+        match groups.last_mut() {
+            Some((last, sources)) if *last == t => sources.push(s),
+            _ => groups.push((t, vec![s])),
+        }
+    }
     // One directed pair, optionally warm-started; returns the record and the heights to pass on.
     let run = |s: usize, t: usize, warm: Option<Vec<f64>>| -> (PairRecord, Option<Vec<f64>>) {
         if let Some(record) = known.get(&(s, t)) {
@@ -487,7 +497,9 @@ const INTERNAL_ERROR: &str = "internal error (a bug in shapespace; please report
 /// Whether a `pairs.csv` status is that of a pair that panicked (a bug, which a resumed run
 /// computes again rather than repeating its record).
 pub fn is_internal_error(status: &str) -> bool {
-    status.starts_with("failed: ") && status["failed: ".len()..].starts_with(INTERNAL_ERROR)
+    status
+        .strip_prefix("failed: ")
+        .is_some_and(|s| s.starts_with(INTERNAL_ERROR))
 }
 
 /// Whether a `pairs.csv` status is that of a pair that stopped at its time limit

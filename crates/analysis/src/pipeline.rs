@@ -14,7 +14,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
 
-use crate::distance::{pairwise_distances_resuming, prepare_shape, PairRecord, PairwiseOptions, PreparedShape};
+use crate::distance::{
+    directed_pairs, pairwise_distances_resuming, prepare_shape, PairRecord, PairwiseOptions, PreparedShape,
+};
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
 pub use crate::resume::{build_identity, InputIdentity, ResumeReport, RunIdentity};
@@ -423,10 +425,7 @@ pub fn run_distances(
 
     let t_pairs = Instant::now();
     let identity = run_identity(options, &inputs);
-    let needed: std::collections::HashSet<(usize, usize)> = (0..n)
-        .flat_map(|t| (0..n).map(move |s| (s, t)))
-        .filter(|&(s, t)| s != t && (options.pairwise.symmetrize || s < t))
-        .collect();
+    let needed: std::collections::HashSet<(usize, usize)> = directed_pairs(n, options.pairwise.symmetrize).collect();
     let (known, resume_notes) = if options.resume {
         earlier_pairs(out, &identity, &needed)
     } else {
@@ -454,12 +453,8 @@ pub fn run_distances(
     let partial = PartialPairs::create(partial_path)?;
     let mut taken: Vec<(&(usize, usize), &PairRecord)> = known.iter().collect();
     taken.sort_by_key(|((s, t), _)| (*t, *s));
-    for (&(s, t), record) in taken {
-        partial.append(&PairRecord {
-            a: names[s].clone(),
-            b: names[t].clone(),
-            ..record.clone()
-        });
+    for (_, record) in taken {
+        partial.append(record);
     }
     let mut result = pairwise_distances_resuming(&shapes, &options.pairwise, &known, &|record| {
         // (the file names, as below)

@@ -85,7 +85,7 @@ const EARLIER_PAIRS: [(&str, &str, bool); 3] = [
 /// take: those whose version and settings equal `identity`'s and whose two shapes have the key
 /// of a current input (the same file content and markers, whatever its name now), keyed by the
 /// current (source, target) among `needed` (a row serves every current pair of files with those
-/// keys). The first file to give a pair wins (all of them give the same record). Failed pairs
+/// keys), each with the current names and indices. The first file to give a pair wins (all of them give the same record). Failed pairs
 /// are taken (the same shapes and settings fail the same way), except internal errors (panics:
 /// bugs) and pairs stopped at their time limit, which are computed again. Also returns
 /// one line per file found: how many rows it gave, or why it gave none. A last line without its
@@ -188,7 +188,14 @@ pub(crate) fn earlier_pairs(
             for &s in current(&record.a) {
                 for &t in current(&record.b) {
                     if s != t && needed.contains(&(s, t)) && !known.contains_key(&(s, t)) {
-                        known.insert((s, t), record.clone());
+                        let current = PairRecord {
+                            a: identity.inputs[s].name.clone(),
+                            b: identity.inputs[t].name.clone(),
+                            source: s,
+                            target: t,
+                            ..record.clone()
+                        };
+                        known.insert((s, t), current);
                         taken += 1;
                     }
                 }

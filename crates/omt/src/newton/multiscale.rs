@@ -469,7 +469,8 @@ pub(crate) fn coarse_to_fine_heights(
     let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
         Err(e @ OmtError::TimeLimit(_)) => return Err(e),
-        Ok(s) if s.stop == super::StopReason::TimeLimit || params.past_deadline() => return timed_out(),
+        // (a level stopped on the deadline included: `StopReason::TimeLimit` means it has passed)
+        _ if params.past_deadline() => return timed_out(),
         // A coarse level that its own coarse-to-fine start does not solve (TOSCA wolves as
         // distance pairs: density contrast ~8e13, the 603-point level stops at the cap) gets
         // the robust path at its own small size: the Voronoi start with density continuation.
@@ -494,7 +495,6 @@ pub(crate) fn coarse_to_fine_heights(
                 _ => return Ok(None),
             }
         }
-        _ if params.past_deadline() => return timed_out(),
         _ => return Ok(None),
     };
     let cells = &solution.cells;
