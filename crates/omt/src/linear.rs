@@ -39,8 +39,8 @@ pub enum LinearSolver {
     Cholesky,
     /// As `Cholesky`, but a new pattern keeps the previous AMD ordering while its fill
     /// nnz(L)/nnz(A) stays within 20% of the fill the ordering was computed with (checked by
-    /// counting, see `factor_nnz`), the symbolic factorization is on the current pattern only,
-    /// and the factorization is supernodal from 2000 unknowns. The same solutions up to
+    /// counting, see `factor_nnz`), and the symbolic factorization is on the current pattern
+    /// only. The same solutions up to
     /// round-off, ~30% cheaper on face pairs (9.4k unknowns, a new pattern at almost every
     /// step). Not the default: on the uniform disk the first steps change so many pairs that a
     /// kept ordering's fill grows 5–9× (1e5), and on camelhead subdivided it gave no gain. (It
@@ -106,14 +106,17 @@ pub const SPECULATION_MIN: usize = 5000;
 /// nnz(L)/nnz(A) is at most this factor times the ratio the ordering had on its own pattern.
 const REORDER_FILL_GROWTH: f64 = 1.2;
 
-/// From this many unknowns on the factorization is supernodal (faer's automatic choice picks the
-/// simplicial one for the 2-D Laplacians here, which is ~25% slower from N ≈ 10⁴ on).
+/// From this many unknowns on the factorization is supernodal, with every backend and for the
+/// speculative symbolic factorizations too. faer's automatic choice takes the simplicial one for
+/// the Hessians here (their fill is low: nnz(L) ≈ 4–7 nnz(A) with AMD), which is slower: ~25 %
+/// at 9.4k unknowns (face pairs), and 30–45 % per numeric factorization at 52.8k (TOSCA michael1
+/// slit, nnz(L) 0.9–1.45M; ARCHITECTURE.md, session 26).
 const SUPERNODAL_MIN: usize = 2000;
 
 /// Parameters of the symbolic factorization of an m × m system.
-fn symbolic_params(m: usize, reuse_ordering: bool) -> CholeskySymbolicParams<'static> {
+fn symbolic_params(m: usize) -> CholeskySymbolicParams<'static> {
     CholeskySymbolicParams {
-        supernodal_flop_ratio_threshold: if reuse_ordering && m >= SUPERNODAL_MIN {
+        supernodal_flop_ratio_threshold: if m >= SUPERNODAL_MIN {
             SupernodalThreshold::FORCE_SUPERNODAL
         } else {
             SupernodalThreshold::AUTO
@@ -173,13 +176,11 @@ impl NewtonSystem {
             None,
             hessian.row_idx.clone(),
         );
-        Some(
-            amd_symbolic(structure.as_ref(), false).map(|symbolic| SpeculativeSymbolic {
-                pattern: merged.iter().map(|e| (e.0, e.1)).collect(),
-                symbolic,
-                seconds: t0.elapsed().as_secs_f64(),
-            }),
-        )
+        Some(amd_symbolic(structure.as_ref()).map(|symbolic| SpeculativeSymbolic {
+            pattern: merged.iter().map(|e| (e.0, e.1)).collect(),
+            symbolic,
+            seconds: t0.elapsed().as_secs_f64(),
+        }))
     }
 
     /// Takes `speculative` as the current symbolic factorization when the accepted `cells` have a
@@ -433,12 +434,12 @@ impl NewtonSystem {
                     structure,
                     Side::Lower,
                     SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, m)),
-                    symbolic_params(m, reuse),
+                    symbolic_params(m),
                 )
                 .map_err(err);
             }
         }
-        let symbolic = amd_symbolic(structure, reuse)?;
+        let symbolic = amd_symbolic(structure)?;
         self.orderings += 1;
         if reuse {
             let (fwd, inv) = symbolic.perm().expect("AMD gives a permutation").arrays();
@@ -449,20 +450,11 @@ impl NewtonSystem {
     }
 }
 
-/// Symbolic Cholesky factorization of the lower pattern `structure` with a new AMD ordering
-/// (`reuse_ordering`: the parameters of [`LinearSolver::CholeskyReusedOrdering`]).
-fn amd_symbolic(
-    structure: faer::sparse::SymbolicSparseColMatRef<'_, u32>,
-    reuse_ordering: bool,
-) -> Result<SymbolicCholesky<u32>, OmtError> {
+/// Symbolic Cholesky factorization of the lower pattern `structure` with a new AMD ordering.
+fn amd_symbolic(structure: faer::sparse::SymbolicSparseColMatRef<'_, u32>) -> Result<SymbolicCholesky<u32>, OmtError> {
     let m = structure.nrows();
-    factorize_symbolic_cholesky(
-        structure,
-        Side::Lower,
-        SymmetricOrdering::Amd,
-        symbolic_params(m, reuse_ordering),
-    )
-    .map_err(|e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}")))
+    factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Amd, symbolic_params(m))
+        .map_err(|e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}")))
 }
 
 /// The pairs of `cells.edge_masses` with positive mass, each once as (i, j) with i < j, sorted,
