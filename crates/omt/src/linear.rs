@@ -32,17 +32,19 @@ use crate::error::OmtError;
 /// How the Newton system H δ = −G is solved.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub enum LinearSolver {
-    /// Sparse LLᵀ (faer, AMD ordering, sequential); the symbolic factorization is kept while no
-    /// new neighbouring pair appears, and recomputed on the union of all patterns since the
-    /// previous one otherwise.
+    /// Sparse LLᵀ (faer, AMD ordering, sequential, supernodal from [`SUPERNODAL_MIN`] unknowns);
+    /// the symbolic factorization is kept while no new neighbouring pair appears, and recomputed
+    /// on the union of all patterns since the previous one otherwise.
     #[default]
     Cholesky,
     /// As `Cholesky`, but a new pattern keeps the previous AMD ordering while its fill
     /// nnz(L)/nnz(A) stays within 20% of the fill the ordering was computed with (checked by
     /// counting, see `factor_nnz`), and the symbolic factorization is on the current pattern
-    /// only. The same solutions up to
-    /// round-off, ~30% cheaper on face pairs (9.4k unknowns, a new pattern at almost every
-    /// step). Not the default: on the uniform disk the first steps change so many pairs that a
+    /// only. The same solutions up to round-off. On face pairs (9.4k unknowns, a new pattern at
+    /// almost every step) its linear solves were ~30 % cheaper than `Cholesky`'s, measured when
+    /// `Cholesky` still factorized simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation
+    /// speed"); the supernodal factorization was part of that gain, and the kept ordering's
+    /// share alone has not been re-measured since session 26. Not the default: on the uniform disk the first steps change so many pairs that a
     /// kept ordering's fill grows 5–9× (1e5), and on camelhead subdivided it gave no gain. (It
     /// was also held back by the f64 floor of the heights on the wolf of the area-preserving
     /// tests; with the heights in double-double form that floor is gone.)
@@ -108,9 +110,11 @@ const REORDER_FILL_GROWTH: f64 = 1.2;
 
 /// From this many unknowns on the factorization is supernodal, with every backend and for the
 /// speculative symbolic factorizations too. faer's automatic choice takes the simplicial one for
-/// the Hessians here (their fill is low: nnz(L) ≈ 4–7 nnz(A) with AMD), which is slower: ~25 %
-/// at 9.4k unknowns (face pairs), and 30–45 % per numeric factorization at 52.8k (TOSCA michael1
-/// slit, nnz(L) 0.9–1.45M; ARCHITECTURE.md, session 26).
+/// the Hessians here (their fill is low: nnz(L) ≈ 4–7 nnz(A) with AMD), which is slower: at
+/// 52.8k unknowns (TOSCA michael1 slit, nnz(L) 0.89–1.45M) a late Newton step's factorization
+/// and solve took 0.20–0.23 s simplicial and 0.09–0.16 s supernodal; on a 9.4k-unknown grid one
+/// numeric factorization takes 0.012–0.020 s simplicial and 0.009 s supernodal (ARCHITECTURE.md,
+/// session 26). Below ~2,000 unknowns the two take the same time.
 const SUPERNODAL_MIN: usize = 2000;
 
 /// Parameters of the symbolic factorization of an m × m system.
@@ -759,12 +763,21 @@ mod tests {
             p.sort_unstable();
             p
         };
+        // from SUPERNODAL_MIN unknowns every path factorizes supernodally (faer's automatic
+        // choice takes the simplicial factorization for this low-fill pattern)
+        let supernodal = |system: &NewtonSystem| {
+            matches!(
+                system.symbolic.as_ref().map(|s| s.raw()),
+                Some(faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
+            )
+        };
         let mut system = NewtonSystem::new(0, LinearSolver::Cholesky);
         let delta = system
             .newton_direction(&points, &cells_with(grid.clone()), &gradient)
             .unwrap();
         assert!(residual(&grid, &delta) < 1e-10);
         assert_eq!(system.symbolic_factorizations, 1);
+        assert!(supernodal(&system));
 
         // the accepted cells keep the pattern: the speculation is dropped
         let spec = system.speculate(n, &superset).unwrap().unwrap();
@@ -783,6 +796,7 @@ mod tests {
         inside.extend(diagonals.iter().step_by(5).copied());
         assert!(system.adopt(spec, &cells_with(inside.clone())));
         assert_eq!(system.symbolic_factorizations, 2);
+        assert!(supernodal(&system));
         let delta = system
             .newton_direction(&points, &cells_with(inside.clone()), &gradient)
             .unwrap();
@@ -790,7 +804,7 @@ mod tests {
         assert!(residual(&inside, &delta) < 1e-10);
         // the fresh system's direction agrees
         let fresh = NewtonSystem::new(0, LinearSolver::Cholesky)
-            .newton_direction(&points, &cells_with(inside), &gradient)
+            .newton_direction(&points, &cells_with(inside.clone()), &gradient)
             .unwrap();
         let diff = delta.iter().zip(&fresh).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(
@@ -802,9 +816,22 @@ mod tests {
         assert!(system.speculate(n, &superset).is_none());
         let small = NewtonSystem::new(0, LinearSolver::Cholesky);
         assert!(small.speculate(SPECULATION_MIN - 1, &superset[..10]).is_none());
-        let reused = NewtonSystem::new(0, LinearSolver::CholeskyReusedOrdering);
+        let mut reused = NewtonSystem::new(0, LinearSolver::CholeskyReusedOrdering);
         assert!(reused.speculate(n, &superset).is_none());
         assert!(system.speculates(n) && !small.speculates(SPECULATION_MIN - 1) && !reused.speculates(n));
+
+        // the kept-ordering backend: supernodal with a new AMD ordering and with the kept one
+        let mut few = grid.clone();
+        few.extend(diagonals.iter().step_by(97).copied());
+        for (edges, orderings) in [(&grid, 1), (&few, 1)] {
+            let delta = reused
+                .newton_direction(&points, &cells_with(edges.clone()), &gradient)
+                .unwrap();
+            assert!(residual(edges, &delta) < 1e-10);
+            assert_eq!(reused.orderings, orderings);
+            assert!(supernodal(&reused));
+        }
+        assert_eq!(reused.symbolic_factorizations, 2);
     }
 
     /// A new pair recomputes the symbolic factorization, with the kept ordering (no new AMD)

@@ -73,7 +73,7 @@
 mod line_search;
 mod multiscale;
 
-pub use multiscale::TargetCoarsening;
+pub use multiscale::{TargetCoarsening, RETRY_CONTINUATION};
 
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;

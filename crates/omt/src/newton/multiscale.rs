@@ -77,7 +77,7 @@ const CROWDED: f64 = 1e-6;
 const RINGS: usize = 3;
 /// Density-continuation ratio of the retry of a coarse level that its own coarse-to-fine start
 /// did not solve (when the caller's parameters have none; the distances' fallback uses the same).
-const RETRY_CONTINUATION: f64 = 10.0;
+pub const RETRY_CONTINUATION: f64 = 10.0;
 /// Fine-to-coarse ratio: pairwise merging rounds continue until at most N/RATIO groups remain.
 const RATIO: usize = 4;
 /// After the first round of a level, two groups merge only if each group of several points has
