@@ -32,9 +32,9 @@ use crate::error::OmtError;
 /// How the Newton system H δ = −G is solved.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub enum LinearSolver {
-    /// Sparse LLᵀ (faer, AMD ordering, sequential, supernodal from [`SUPERNODAL_MIN`] unknowns);
-    /// the symbolic factorization is kept while no new neighbouring pair appears, and recomputed
-    /// on the union of all patterns since the previous one otherwise.
+    /// Sparse LLᵀ (faer, AMD ordering, sequential, supernodal from 2,000 unknowns); the symbolic
+    /// factorization is kept while no new neighbouring pair appears, and recomputed on the union
+    /// of all patterns since the previous one otherwise.
     #[default]
     Cholesky,
     /// As `Cholesky`, but a new pattern keeps the previous AMD ordering while its fill
@@ -44,10 +44,11 @@ pub enum LinearSolver {
     /// almost every step) its linear solves were ~30 % cheaper than `Cholesky`'s, measured when
     /// `Cholesky` still factorized simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation
     /// speed"); the supernodal factorization was part of that gain, and the kept ordering's
-    /// share alone has not been re-measured since session 26. Not the default: on the uniform disk the first steps change so many pairs that a
-    /// kept ordering's fill grows 5–9× (1e5), and on camelhead subdivided it gave no gain. (It
-    /// was also held back by the f64 floor of the heights on the wolf of the area-preserving
-    /// tests; with the heights in double-double form that floor is gone.)
+    /// share alone has not been re-measured since session 26. Not the default: on the uniform
+    /// disk the first steps change so many pairs that a kept ordering's fill grows 5–9× (1e5),
+    /// and on camelhead subdivided it gave no gain. (It was also held back by the f64 floor of
+    /// the heights on the wolf of the area-preserving tests; with the heights in double-double
+    /// form that floor is gone.)
     CholeskyReusedOrdering,
     /// Conjugate gradients with a Jacobi preconditioner, stopped at
     /// ‖r‖ ≤ `relative_tolerance`·‖b‖ or after `max_iterations`.
