@@ -5,10 +5,9 @@
 //! fails (unreadable, not a disk, bad markers) is reported with its reason and its row and
 //! column of the matrix are empty, while all other pairs still complete.
 
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-use std::collections::HashMap;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -90,8 +89,7 @@ pub struct DistancesOptions {
     pub disk_map: DiskMapParams,
     /// Take the directed pairs that earlier runs in the output folder computed from the same
     /// files, markers and solver settings, with the same executable, from their files instead
-    /// of computing them again
-    /// (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
+    /// of computing them again (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
     /// the pairs solved before it).
     pub resume: bool,
 }
@@ -425,7 +423,7 @@ pub fn run_distances(
 
     let t_pairs = Instant::now();
     let identity = run_identity(options, &inputs);
-    let needed: std::collections::HashSet<(usize, usize)> = directed_pairs(n, options.pairwise.symmetrize).collect();
+    let needed: HashSet<(usize, usize)> = directed_pairs(n, options.pairwise.symmetrize).collect();
     let (known, resume_notes) = if options.resume {
         earlier_pairs(out, &identity, &needed)
     } else {
