@@ -11,7 +11,9 @@
 //! a sparse, row-diagonally dominant system (every connected component of R touches a fixed
 //! vertex) solved by faer's sparse LU, one system per connected component, in coordinates
 //! relative to the mean of the component's fixed neighbours (keeps relative precision in small
-//! regions).
+//! regions). The components are solved in parallel, and a component that did not change since
+//! the previous round is taken from it (TOSCA michael1 slit: repair 0.96 → 0.72 s, the same
+//! map bit for bit).
 //!
 //! Untangling first: [`untangle_kernels`] (Gauss–Seidel, a corner of a folded face moves into
 //! the kernel of its star when that lowers the folds around it) runs for up to
@@ -348,91 +350,136 @@ fn tutte_weights(
     Ok(layout)
 }
 
+/// Solutions of the Tutte system's connected components from an earlier round of
+/// [`repair_folds`], keyed by (first vertex, size): the region only grows, so a component with
+/// the same first vertex and size is the same vertex set, with the same weights and fixed
+/// neighbours, and its solution can be taken as it is.
+type ComponentSolutions = Vec<((usize, usize), Vec<[f64; 2]>)>;
+
 /// Solves the Tutte system on the region (`in_region`, interior vertices only) with every other
-/// vertex fixed at `fixed`, one connected component at a time; returns the new positions.
+/// vertex fixed at `fixed`, one connected component at a time (in parallel; each solve is
+/// sequential, so the result does not depend on the thread count); returns the new positions.
+/// With `earlier`, components solved in an earlier call (same weights, same `fixed`) are taken
+/// from it, and it is replaced by this call's components.
 fn solve_region(
     neighbors: &[Vec<u32>],
     weights: &[Vec<f64>],
     in_region: &[bool],
     fixed: &[[f64; 2]],
+    earlier: Option<&mut ComponentSolutions>,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
     let n = fixed.len();
-    let mut out = fixed.to_vec();
-    let mut local = vec![usize::MAX; n];
-    let mut seen = vec![false; n];
+    // the components, each listed in breadth-first order from its smallest vertex, and every
+    // region vertex's index within its component
+    let mut local = vec![u32::MAX; n];
+    let mut components: Vec<Vec<usize>> = Vec::new();
     for start in 0..n {
-        if !in_region[start] || seen[start] {
+        if !in_region[start] || local[start] != u32::MAX {
             continue;
         }
-        // the component of `start`
         let mut comp = vec![start];
-        seen[start] = true;
+        local[start] = 0;
         let mut head = 0;
         while head < comp.len() {
             let v = comp[head];
             head += 1;
             for &u in &neighbors[v] {
                 let u = u as usize;
-                if in_region[u] && !seen[u] {
-                    seen[u] = true;
+                if in_region[u] && local[u] == u32::MAX {
+                    local[u] = comp.len() as u32;
                     comp.push(u);
                 }
             }
         }
-        for (li, &v) in comp.iter().enumerate() {
-            local[v] = li;
-        }
-        // reference point: mean of the fixed neighbours
-        let (mut c, mut count) = ([0.0f64; 2], 0usize);
-        for &v in &comp {
-            for &u in &neighbors[v] {
-                if !in_region[u as usize] {
-                    c[0] += fixed[u as usize][0];
-                    c[1] += fixed[u as usize][1];
-                    count += 1;
-                }
-            }
-        }
-        if count == 0 {
-            return Err(AnalysisError::InvalidInput(format!(
-                "fold repair: region component of vertex {start} touches no fixed vertex"
-            )));
-        }
-        c = [c[0] / count as f64, c[1] / count as f64];
-        let m = comp.len();
-        let mut trip = Vec::with_capacity(m * 8);
-        let mut rhs = faer::Mat::<f64>::zeros(m, 2);
-        for (li, &v) in comp.iter().enumerate() {
-            trip.push(Triplet::new(li, li, 1.0));
-            for (&u, &w) in neighbors[v].iter().zip(&weights[v]) {
-                let u = u as usize;
-                if in_region[u] {
-                    trip.push(Triplet::new(li, local[u], -w));
-                } else {
-                    rhs[(li, 0)] += w * (fixed[u][0] - c[0]);
-                    rhs[(li, 1)] += w * (fixed[u][1] - c[1]);
-                }
-            }
-        }
-        let a = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
-            .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: assembling the Tutte system: {e:?}")))?;
-        lu_solve_in_place(a.as_ref(), rhs.as_mut()).map_err(|e| {
-            AnalysisError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e}"))
-        })?;
-        for (li, &v) in comp.iter().enumerate() {
-            let p = [rhs[(li, 0)] + c[0], rhs[(li, 1)] + c[1]];
-            if !(p[0].is_finite() && p[1].is_finite()) {
-                return Err(AnalysisError::InvalidInput(format!(
-                    "fold repair: non-finite position of vertex {v}"
-                )));
-            }
+        components.push(comp);
+    }
+    let known = earlier.as_deref().map_or(&[][..], |e| e.as_slice());
+    let solutions: Vec<Vec<[f64; 2]>> = components
+        .par_iter()
+        .map(
+            |comp| match known.iter().find(|(key, _)| *key == (comp[0], comp.len())) {
+                Some((_, solution)) => Ok(solution.clone()),
+                None => solve_component(neighbors, weights, in_region, fixed, &local, comp),
+            },
+        )
+        .collect::<Result<_, _>>()?;
+    let mut out = fixed.to_vec();
+    for (comp, solution) in components.iter().zip(&solutions) {
+        for (&v, &p) in comp.iter().zip(solution) {
             out[v] = p;
         }
-        for &v in &comp {
-            local[v] = usize::MAX;
-        }
+    }
+    if let Some(earlier) = earlier {
+        *earlier = components
+            .iter()
+            .map(|comp| (comp[0], comp.len()))
+            .zip(solutions)
+            .collect();
     }
     Ok(out)
+}
+
+/// The Tutte solve of one connected component `comp` of the region (`local`: each region
+/// vertex's index within its component), in coordinates relative to the mean of its fixed
+/// neighbours; its vertices' new positions, in the order of `comp`.
+fn solve_component(
+    neighbors: &[Vec<u32>],
+    weights: &[Vec<f64>],
+    in_region: &[bool],
+    fixed: &[[f64; 2]],
+    local: &[u32],
+    comp: &[usize],
+) -> Result<Vec<[f64; 2]>, AnalysisError> {
+    // reference point: mean of the fixed neighbours
+    let (mut c, mut count) = ([0.0f64; 2], 0usize);
+    for &v in comp {
+        for &u in &neighbors[v] {
+            if !in_region[u as usize] {
+                c[0] += fixed[u as usize][0];
+                c[1] += fixed[u as usize][1];
+                count += 1;
+            }
+        }
+    }
+    if count == 0 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "fold repair: region component of vertex {} touches no fixed vertex",
+            comp[0]
+        )));
+    }
+    c = [c[0] / count as f64, c[1] / count as f64];
+    let m = comp.len();
+    let mut trip = Vec::with_capacity(m * 8);
+    let mut rhs = faer::Mat::<f64>::zeros(m, 2);
+    for (li, &v) in comp.iter().enumerate() {
+        trip.push(Triplet::new(li, li, 1.0));
+        for (&u, &w) in neighbors[v].iter().zip(&weights[v]) {
+            let u = u as usize;
+            if in_region[u] {
+                trip.push(Triplet::new(li, local[u] as usize, -w));
+            } else {
+                rhs[(li, 0)] += w * (fixed[u][0] - c[0]);
+                rhs[(li, 1)] += w * (fixed[u][1] - c[1]);
+            }
+        }
+    }
+    let a = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
+        .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: assembling the Tutte system: {e:?}")))?;
+    lu_solve_in_place(a.as_ref(), rhs.as_mut())
+        .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e}")))?;
+    comp.iter()
+        .enumerate()
+        .map(|(li, &v)| {
+            let p = [rhs[(li, 0)] + c[0], rhs[(li, 1)] + c[1]];
+            if p[0].is_finite() && p[1].is_finite() {
+                Ok(p)
+            } else {
+                Err(AnalysisError::InvalidInput(format!(
+                    "fold repair: non-finite position of vertex {v}"
+                )))
+            }
+        })
+        .collect()
 }
 
 /// From this many unknowns on, the Tutte systems are factorized supernodally (faer's automatic
@@ -656,6 +703,7 @@ pub fn repair_folds(
     let mut in_region = vec![false; n];
     let mut region_size = 0;
     let mut rings = params.initial_rings.max(1);
+    let mut solved = ComponentSolutions::new();
     let mut result = loop {
         info.rounds += 1;
         info.rings = rings;
@@ -664,7 +712,7 @@ pub fn repair_folds(
         seeds.dedup();
         region_size += grow_region(&neighbors, is_boundary, &seeds, rings, &mut in_region);
         let whole = region_size == num_interior;
-        let candidate = solve_region(&neighbors, &weights, &in_region, &original)?;
+        let candidate = solve_region(&neighbors, &weights, &in_region, &original, Some(&mut solved))?;
         bad = folded_faces(&mesh.faces, &candidate).2;
         if bad.is_empty() {
             info.whole_disk = whole;
@@ -682,7 +730,7 @@ pub fn repair_folds(
                     uv,
                     RepairWeights::Surface,
                 )?;
-                let candidate = solve_region(&neighbors, &weights, &in_region, &original)?;
+                let candidate = solve_region(&neighbors, &weights, &in_region, &original, None)?;
                 bad = folded_faces(&mesh.faces, &candidate).2;
                 if bad.is_empty() {
                     break candidate;
@@ -787,7 +835,7 @@ pub fn mean_value_tutte_map(
     )?;
     let positions: Vec<[f64; 2]> = fixed.iter().zip(layout).map(|(f, p)| f.unwrap_or(*p)).collect();
     let free: Vec<bool> = is_fixed.iter().map(|f| !f).collect();
-    solve_region(&neighbors, &weights, &free, &positions)
+    solve_region(&neighbors, &weights, &free, &positions, None)
 }
 
 /// What [`untangle_kernels`] did.
@@ -1204,9 +1252,65 @@ mod tests {
             let all_interior: Vec<bool> = is_boundary.iter().map(|b| !b).collect();
             let interior = all_interior.iter().filter(|&&b| b).count();
             assert_eq!(interior >= SUPERNODAL_LU_MIN, rings == 30, "{interior} unknowns");
-            let out = solve_region(&neighbors, &w, &all_interior, &uv).unwrap();
+            let out = solve_region(&neighbors, &w, &all_interior, &uv, None).unwrap();
             let d = max_distance(&out, &uv);
             assert!(d < 1e-14, "{rings} rings: max displacement {d:e}");
+        }
+    }
+
+    /// A component whose vertex set did not change since the last round is taken from it, and
+    /// the positions equal a fresh solve's bit for bit; a grown component is solved again.
+    #[test]
+    fn unchanged_components_are_taken_from_the_earlier_round() {
+        let (mesh, is_boundary, mut uv) = disk_layout(12);
+        let n = mesh.num_vertices();
+        let mut state = 7u64;
+        for (p, &b) in uv.iter_mut().zip(&is_boundary) {
+            if !b {
+                p[0] += 0.01 * (xorshift(&mut state) as f64 / u64::MAX as f64 - 0.5);
+                p[1] += 0.01 * (xorshift(&mut state) as f64 / u64::MAX as f64 - 0.5);
+            }
+        }
+        let conn = Connectivity::of(&mesh);
+        let neighbors = conn.vertex_neighbors(n);
+        let w = tutte_weights(
+            &mesh,
+            &conn.vertex_faces,
+            &neighbors,
+            &is_boundary,
+            &uv,
+            RepairWeights::Surface,
+        )
+        .unwrap();
+        let near = |c: [f64; 2], r: f64| -> Vec<bool> {
+            (0..n)
+                .map(|v| !is_boundary[v] && (uv[v][0] - c[0]).hypot(uv[v][1] - c[1]) < r)
+                .collect()
+        };
+        let (a, a_grown, b) = (near([-0.5, 0.0], 0.2), near([-0.5, 0.0], 0.3), near([0.5, 0.0], 0.2));
+        let union = |x: &[bool], y: &[bool]| -> Vec<bool> { x.iter().zip(y).map(|(p, q)| *p || *q).collect() };
+        let (first, second) = (union(&a, &b), union(&a_grown, &b));
+        let mut earlier = ComponentSolutions::new();
+        solve_region(&neighbors, &w, &first, &uv, Some(&mut earlier)).unwrap();
+        assert_eq!(earlier.len(), 2);
+        let cached = solve_region(&neighbors, &w, &second, &uv, Some(&mut earlier)).unwrap();
+        let fresh = solve_region(&neighbors, &w, &second, &uv, None).unwrap();
+        assert_eq!(cached, fresh);
+        assert!(
+            max_distance(&fresh, &uv) > 1e-4,
+            "the solve moves the jittered vertices"
+        );
+        // the entry for b is what is taken: a marked copy shows up in the result
+        let key_b = earlier.iter().map(|(k, _)| *k).find(|&(v, _)| b[v]).unwrap();
+        for (k, solution) in earlier.iter_mut() {
+            if *k == key_b {
+                solution.iter_mut().for_each(|p| *p = [9.0, 9.0]);
+            }
+        }
+        let marked = solve_region(&neighbors, &w, &second, &uv, Some(&mut earlier)).unwrap();
+        for v in 0..n {
+            let expected = if b[v] { [9.0, 9.0] } else { fresh[v] };
+            assert_eq!(marked[v], expected, "vertex {v}");
         }
     }
 
