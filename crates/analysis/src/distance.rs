@@ -19,10 +19,10 @@
 //! the number of threads.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
@@ -419,26 +419,23 @@ pub fn pairwise_distances_resuming(
     let records: Vec<Vec<PairRecord>> = if options.warm_start {
         let mut order: Vec<usize> = (0..groups.len()).collect();
         order.sort_by_key(|&g| std::cmp::Reverse(groups[g].1.len()));
-        let mut done: Vec<(usize, Vec<PairRecord>)> = order
-            .par_iter()
-            .with_max_len(1)
-            .map(|&g| {
-                let (t, sources) = &groups[g];
-                let mut warm: Option<Vec<f64>> = None;
-                let records = sources
-                    .iter()
-                    .map(|&s| {
-                        let (record, heights) = run(s, *t, warm.clone());
-                        // a pair that did not converge passes on the last converged heights
-                        if heights.is_some() {
-                            warm = heights;
-                        }
-                        record
-                    })
-                    .collect();
-                (g, records)
-            })
-            .collect();
+        let mut done: Vec<(usize, Vec<PairRecord>)> = one_per_thread(order.len(), |k| {
+            let g = order[k];
+            let (t, sources) = &groups[g];
+            let mut warm: Option<Vec<f64>> = None;
+            let records = sources
+                .iter()
+                .map(|&s| {
+                    let (record, heights) = run(s, *t, warm.clone());
+                    // a pair that did not converge passes on the last converged heights
+                    if heights.is_some() {
+                        warm = heights;
+                    }
+                    record
+                })
+                .collect();
+            (g, records)
+        });
         done.sort_by_key(|(g, _)| *g);
         done.into_iter().map(|(_, r)| r).collect()
     } else {
@@ -446,11 +443,7 @@ pub fn pairwise_distances_resuming(
             .iter()
             .flat_map(|(t, sources)| sources.iter().map(move |&s| (s, *t)))
             .collect();
-        vec![flat
-            .par_iter()
-            .with_max_len(1)
-            .map(|&(s, t)| run(s, t, None).0)
-            .collect()]
+        vec![one_per_thread(flat.len(), |k| run(flat[k].0, flat[k].1, None).0)]
     };
     let pairs: Vec<PairRecord> = records.into_iter().flatten().collect();
     let mut directed = vec![f64::NAN; n * n];
@@ -513,6 +506,31 @@ pub fn is_time_limit(status: &str) -> bool {
         .starts_with("time limit")
 }
 
+/// `work(0) … work(count − 1)`, in parallel on the threads of the current rayon pool: each
+/// thread takes the next index as it becomes free, so no thread starts an item while another
+/// of its items waits. (With the items as rayon tasks, a thread waiting inside an item's own
+/// parallel work could steal and run a whole other item before returning to it, so that item's
+/// clock and time limit would count the other's work: seen at six threads.) The items' own
+/// parallel work is shared as usual. Results in index order.
+fn one_per_thread<T: Send>(count: usize, work: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let next = AtomicUsize::new(0);
+    let mut done: Vec<(usize, T)> = rayon::broadcast(|_| {
+        let mut mine = Vec::new();
+        loop {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            if k >= count {
+                return mine;
+            }
+            mine.push((k, work(k)));
+        }
+    })
+    .into_iter()
+    .flatten()
+    .collect();
+    done.sort_unstable_by_key(|(k, _)| *k);
+    done.into_iter().map(|(_, t)| t).collect()
+}
+
 /// Runs one pair's computation so that a panic (a bug, e.g. the index overrun in the clipping
 /// of crowded cells found on 2026-12-04) fails that pair with its message instead of taking the
 /// whole run down after every other pair has been computed. The shared per-shape caches are
@@ -556,6 +574,39 @@ fn failed_record(names: &[String], s: usize, t: usize, status: String) -> PairRe
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// No item starts on a thread while another item waits there, even when the items' own
+    /// parallel halves are stolen and waited for (the flat `par_iter` over pairs this replaced
+    /// nested items 2–3 deep in each of ten runs of this test), and the results come in index
+    /// order.
+    #[test]
+    fn one_item_at_a_time_per_thread() {
+        use std::cell::Cell;
+        thread_local!(static ACTIVE: Cell<usize> = const { Cell::new(0) });
+        let deepest = AtomicUsize::new(0);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(6).build().unwrap();
+        let results = pool.install(|| {
+            one_per_thread(96, |k| {
+                let depth = ACTIVE.with(|a| {
+                    a.set(a.get() + 1);
+                    a.get()
+                });
+                deepest.fetch_max(depth, Ordering::Relaxed);
+                for _ in 0..5 {
+                    // the second half is stolen by an idle thread, and the first half's thread
+                    // then waits for it
+                    rayon::join(
+                        || std::thread::sleep(std::time::Duration::from_micros(200)),
+                        || std::thread::sleep(std::time::Duration::from_millis(2)),
+                    );
+                }
+                ACTIVE.with(|a| a.set(a.get() - 1));
+                k * k
+            })
+        });
+        assert_eq!(results, (0..96).map(|k| k * k).collect::<Vec<_>>());
+        assert_eq!(deepest.load(Ordering::Relaxed), 1);
+    }
 
     #[test]
     fn a_panicking_pair_fails_with_its_message() {
