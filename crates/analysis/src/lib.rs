@@ -13,6 +13,7 @@ pub mod pipeline;
 pub mod plot;
 pub mod point_location;
 pub mod registration;
+pub mod report_path;
 pub mod resume;
 pub mod shape_space;
 pub mod stats;

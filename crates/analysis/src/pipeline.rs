@@ -98,6 +98,7 @@ pub struct DistancesOptions {
 #[derive(Clone, Debug, Serialize)]
 pub struct ShapeReport {
     pub name: String,
+    #[serde(serialize_with = "crate::report_path::one")]
     pub path: PathBuf,
     /// SHA-256 of the file's bytes (hex, as `sha256sum` prints it); None when it cannot be read.
     pub sha256: Option<String>,
@@ -155,6 +156,7 @@ pub struct DistancesReport {
     pub resumed: Option<ResumeReport>,
     /// What the pairs depend on, for a later `resume`.
     pub resume_key: RunIdentity,
+    #[serde(serialize_with = "crate::report_path::many")]
     pub files: Vec<PathBuf>,
 }
 

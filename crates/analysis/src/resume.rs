@@ -110,7 +110,9 @@ pub(crate) fn earlier_pairs(
     for (pairs_name, identity_name, in_report) in EARLIER_PAIRS {
         let pairs_path = out.join(pairs_name);
         let not_used = |why: String| format!("{}: not used: {why}", pairs_path.display());
-        let mut text = match std::fs::read_to_string(&pairs_path) {
+        // (bytes: a last row cut inside a multi-byte character must not make the whole file
+        // unreadable; it is dropped below with any other unfinished last row)
+        let mut text = match std::fs::read(&pairs_path) {
             Ok(text) => text,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
             Err(e) => {
@@ -164,13 +166,13 @@ pub(crate) fn earlier_pairs(
             .iter()
             .filter_map(|input| input.key.as_deref().map(|k| (input.name.as_str(), k)))
             .collect();
-        let incomplete = !text.is_empty() && !text.ends_with('\n');
+        let incomplete = text.last().is_some_and(|&b| b != b'\n');
         if incomplete {
-            text.truncate(text.rfind('\n').map_or(0, |k| k + 1));
+            text.truncate(text.iter().rposition(|&b| b == b'\n').map_or(0, |k| k + 1));
         }
         let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
         let (mut panicked, mut timed_out) = (0, 0);
-        for row in csv::Reader::from_reader(text.as_bytes()).deserialize::<PairRecord>() {
+        for row in csv::Reader::from_reader(text.as_slice()).deserialize::<PairRecord>() {
             let Ok(record) = row else {
                 unreadable += 1;
                 continue;

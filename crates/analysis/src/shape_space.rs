@@ -109,6 +109,7 @@ pub struct MdsResult {
     pub color_by: Option<String>,
     pub marker_by: Option<String>,
     /// Files written.
+    #[serde(serialize_with = "crate::report_path::many")]
     pub files: Vec<PathBuf>,
 }
 

@@ -571,14 +571,14 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
         ",failed: internal error (a bug in shapespace; please report it with the two meshes): boom,",
     );
     assert_ne!(panicked, lines[4]);
-    // (the cut row ends inside its last field, so only its missing newline marks it)
+    // (the cut row ends inside its last field, so only its missing newline marks it; it ends
+    // with the first byte of a two-byte character, as a cut inside a name like "é" would, which
+    // must not make the whole file unreadable)
     let cut = &lines[2][..lines[2].len() - 4];
     assert_eq!(cut.split(',').count(), 10);
-    std::fs::write(
-        out.join(PARTIAL_PAIRS),
-        format!("{}\n{}\n{}\n{panicked}\n{cut}", lines[0], lines[1], lines[3]),
-    )
-    .unwrap();
+    let mut partial = format!("{}\n{}\n{}\n{panicked}\n{cut}", lines[0], lines[1], lines[3]).into_bytes();
+    partial.push("é".as_bytes()[0]);
+    std::fs::write(out.join(PARTIAL_PAIRS), partial).unwrap();
     std::fs::write(
         out.join(PARTIAL_IDENTITY),
         serde_json::to_string(&reference.report.resume_key).unwrap(),
@@ -1105,4 +1105,24 @@ fn wolf_pair_converges_from_the_coarse_start_and_agrees_with_the_continuation() 
         direct.dual_cost,
         continuation.dual_value()
     );
+}
+
+/// A file and an output folder whose names are not valid UTF-8: the run finishes with its
+/// report (it used to fail at `report.json` after every pair was computed, having deleted the
+/// previous report), the names written lossily.
+#[cfg(unix)]
+#[test]
+fn non_utf8_file_and_folder_names_get_a_report() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = out_dir("non_utf8");
+    let odd = dir.join(std::ffi::OsStr::from_bytes(b"x\xff.obj"));
+    std::fs::copy(repo("datasets/disks/cat_head.obj"), &odd).unwrap();
+    let files = vec![odd, repo("datasets/disks/plate121.ply")];
+    let out = dir.join(std::ffi::OsStr::from_bytes(b"out\xfe"));
+    let run = run_distances(&files, &out, &DistancesOptions::default(), &|_, _, _| {}).unwrap();
+    assert!(run.pairs[0].distance.is_finite(), "{:?}", run.pairs[0]);
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let path = report["inputs"][0]["path"].as_str().unwrap();
+    assert!(path.ends_with("/x\u{fffd}.obj"), "{path}");
+    assert_eq!(report["inputs"][0]["name"], "x\u{fffd}");
 }

@@ -221,6 +221,7 @@ pub struct BenchResult {
     /// metrics included).
     pub total_seconds: f64,
     /// Files written.
+    #[serde(serialize_with = "crate::report_path::many")]
     pub files: Vec<PathBuf>,
 }
 

@@ -180,7 +180,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     };
     let met = registration_metrics(&source, &target, &reg, &mp)?;
     let extra = serde_json::json!({
-        "source": args.source, "target": args.target, "landmarks": landmarks.source_name,
+        "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
         "geodesic_samples": args.samples, "seed": args.seed, "harmonic": params.harmonic,
     });
