@@ -536,8 +536,8 @@ fn one_per_thread<T: Send>(count: usize, work: impl Fn(usize) -> T + Sync) -> Ve
 /// whole run down after every other pair has been computed. The shared per-shape caches are
 /// safe to use after it: their locks recover from poisoning. A pair error's message is returned
 /// without the pair's names (the record has them, and a resumed run may call the files
-/// otherwise).
-fn guarded<T>(pair: impl FnOnce() -> Result<T, AnalysisError>) -> Result<T, String> {
+/// otherwise). `run_distances` runs each file's preparation under it too.
+pub(crate) fn guarded<T>(pair: impl FnOnce() -> Result<T, AnalysisError>) -> Result<T, String> {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(pair)) {
         Ok(result) => result.map_err(|e| match e {
             AnalysisError::Pair { message, .. } => message,

@@ -189,25 +189,29 @@ pub struct DistancesRun {
 /// (folders and stem, joined by `/`) that no other file shares: `a/cat` and `b/cat` for
 /// `data/a/cat.obj` and `data/b/cat.obj`, `x/cat` and `y/x/cat` when the folder names repeat
 /// too; files that differ only in their extension (`cat.obj`, `cat.off`) keep it (`cat.obj`).
-/// The same path given twice keeps one name (which [`run_distances`] refuses as a duplicate).
+/// An absolute path's full name starts with `/` (`/x/cat` beside the relative `x/cat`), and
+/// bytes that are not UTF-8 are written as `\xNN` (two such names stay apart). The same path
+/// given twice keeps one name (which [`run_distances`] refuses as a duplicate).
 pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
     use std::path::Component;
-    // the path's folders and its stem, or (`with_extension`) its file name
+    // the path's folders and its stem, or (`with_extension`) its file name; a root is an empty
+    // first part
     let split = |p: &PathBuf, with_extension: bool| {
         let mut parts: Vec<String> = p
             .parent()
             .map(|d| {
                 d.components()
                     .filter_map(|c| match c {
-                        Component::Normal(s) => Some(s.to_string_lossy().into_owned()),
+                        Component::Normal(s) => Some(escaped(s)),
                         Component::ParentDir => Some("..".to_string()),
+                        Component::RootDir => Some(String::new()),
                         _ => None,
                     })
                     .collect()
             })
             .unwrap_or_default();
         let last = if with_extension { p.file_name() } else { p.file_stem() };
-        parts.push(last.map(|s| s.to_string_lossy().into_owned()).unwrap_or_default());
+        parts.push(last.map(escaped).unwrap_or_default());
         parts
     };
     let stems: Vec<Vec<String>> = paths.iter().map(|p| split(p, false)).collect();
@@ -233,6 +237,28 @@ pub fn shape_names(paths: &[PathBuf]) -> Vec<String> {
                 .unwrap_or_else(|| files[i].join("/"))
         })
         .collect()
+}
+
+/// A path component as text, bytes that are not UTF-8 as `\xNN` (on Unix; elsewhere lossy), so
+/// that different names stay different.
+fn escaped(s: &std::ffi::OsStr) -> String {
+    #[cfg(unix)]
+    {
+        use std::fmt::Write;
+        use std::os::unix::ffi::OsStrExt;
+        let mut out = String::new();
+        for chunk in s.as_bytes().utf8_chunks() {
+            out.push_str(chunk.valid());
+            for b in chunk.invalid() {
+                let _ = write!(out, "\\x{b:02x}");
+            }
+        }
+        out
+    }
+    #[cfg(not(unix))]
+    {
+        s.to_string_lossy().into_owned()
+    }
 }
 
 /// The file in the output folder that holds the pairs finished so far while a run is going on,
@@ -354,26 +380,29 @@ pub fn run_distances(
             // (the bytes hashed are the bytes parsed)
             let bytes = shapespace_geometry::io::read_mesh_bytes(path);
             let sha256 = bytes.as_ref().ok().map(|bytes| sha256_hex(bytes));
-            let outcome = (|| -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                let mesh = bytes
-                    .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
-                    .map_err(|e| AnalysisError::Shape {
-                        name: name.clone(),
-                        message: e.to_string(),
-                    })?;
-                let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
-                let shape =
-                    prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
-                        name: path.display().to_string(),
-                        message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
-                    })?;
-                let choice = MarkerChoice {
-                    center: shape.disk.info.markers.center,
-                    boundary: shape.disk.info.markers.boundary_vertex,
-                    source,
-                };
-                Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
-            })();
+            // (a panic, i.e. a bug, fails this file only, as it fails a pair only in the pairs)
+            let outcome = crate::distance::guarded(
+                || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
+                    let mesh = bytes
+                        .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
+                        .map_err(|e| AnalysisError::Shape {
+                            name: name.clone(),
+                            message: e.to_string(),
+                        })?;
+                    let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
+                    let shape =
+                        prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
+                            name: path.display().to_string(),
+                            message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                        })?;
+                    let choice = MarkerChoice {
+                        center: shape.disk.info.markers.center,
+                        boundary: shape.disk.info.markers.boundary_vertex,
+                        source,
+                    };
+                    Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
+                },
+            );
             let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(k, n, "prepare");
             let seconds = t.elapsed().as_secs_f64();
@@ -407,7 +436,7 @@ pub fn run_distances(
                         path: path.clone(),
                         sha256,
                         ok: false,
-                        error: Some(e.to_string()),
+                        error: Some(e),
                         vertices: None,
                         faces: None,
                         markers: None,

@@ -1026,6 +1026,19 @@ fn shape_names_are_the_shortest_distinguishing_suffixes() {
         names(&["a/cat.obj", "b/cat.obj", "a/cat.off"]),
         ["a/cat.obj", "b/cat", "cat.off"]
     );
+    // an absolute path and the relative one it ends with are different files
+    assert_eq!(names(&["/tmp/x/cat.ply", "tmp/x/cat.ply"]), ["/tmp/x/cat", "tmp/x/cat"]);
+    assert_eq!(names(&["/cat.ply", "cat.ply"]), ["/cat", "cat"]);
+    // names that are not UTF-8 stay apart
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let odd = |bytes: &[u8]| std::path::PathBuf::from(std::ffi::OsStr::from_bytes(bytes));
+        assert_eq!(
+            shape_names(&[odd(b"d/x\xff.obj"), odd(b"d/x\xfe.obj"), odd(b"d/\xc3\xa9.obj")]),
+            ["x\\xff", "x\\xfe", "é"]
+        );
+    }
     // the same file twice, also spelt differently, is refused before anything is written
     let out = std::env::temp_dir().join(format!("shapespace_same_file_twice_{}", std::process::id()));
     let face = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_sad.obj");
@@ -1109,7 +1122,7 @@ fn wolf_pair_converges_from_the_coarse_start_and_agrees_with_the_continuation() 
 
 /// A file and an output folder whose names are not valid UTF-8: the run finishes with its
 /// report (it used to fail at `report.json` after every pair was computed, having deleted the
-/// previous report), the names written lossily.
+/// previous report), the path written lossily, the shape name with the byte escaped.
 #[cfg(unix)]
 #[test]
 fn non_utf8_file_and_folder_names_get_a_report() {
@@ -1124,5 +1137,5 @@ fn non_utf8_file_and_folder_names_get_a_report() {
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let path = report["inputs"][0]["path"].as_str().unwrap();
     assert!(path.ends_with("/x\u{fffd}.obj"), "{path}");
-    assert_eq!(report["inputs"][0]["name"], "x\u{fffd}");
+    assert_eq!(report["inputs"][0]["name"], "x\\xff");
 }
