@@ -985,3 +985,38 @@ fn distances_resume_computes_only_the_new_pairs() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Output paths are checked before any work: a report in a missing folder, a plots folder that
+/// is a file, an output that is a folder each exit 2 naming the path, with nothing written
+/// (the map used to be written first and the run to fail at the report or plots).
+#[test]
+fn output_paths_are_checked_before_the_work() {
+    let dir = scratch("output_paths");
+    let file = dir.join("plain_file");
+    std::fs::write(&file, "").unwrap();
+    let out = dir.join("o.obj");
+    let (o, missing, f) = (out.to_str().unwrap(), dir.join("nodir/r.json"), file.to_str().unwrap());
+    let face = "datasets/disks/cat_head.obj";
+    for (args, named) in [
+        (
+            vec!["param", face, "--out", o, "--report", missing.to_str().unwrap()],
+            "nodir",
+        ),
+        (vec!["param", face, "--out", o, "--plots", f], "plain_file"),
+        (
+            vec!["conformal", face, "--out", o, "--factors", missing.to_str().unwrap()],
+            "nodir",
+        ),
+        (vec!["prepare", face, "--out", dir.to_str().unwrap()], "is a folder"),
+    ] {
+        let run = shapespace(&args);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {}", stderr(&run));
+        assert!(stderr(&run).contains(named), "{args:?}: {}", stderr(&run));
+        assert!(!out.exists(), "{args:?} wrote its map");
+    }
+    // a plots folder that does not exist yet is created
+    let plots = dir.join("new/plots");
+    let run = shapespace(&["param", face, "--out", o, "--plots", plots.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(plots.join("area_distortion.png").exists());
+}

@@ -11,6 +11,35 @@ pub mod param;
 pub mod prepare;
 pub mod register;
 
+/// Checks, before any work, that output files can be created where they are named: not an
+/// existing folder, and in a folder that exists (so that a wrong path fails at once, not after
+/// minutes of computation with some outputs written and others not).
+pub(crate) fn check_output_files<'a>(files: impl IntoIterator<Item = &'a std::path::Path>) -> anyhow::Result<()> {
+    for file in files {
+        if file.is_dir() {
+            anyhow::bail!("{}: is a folder; name an output file", file.display());
+        }
+        let parent = file.parent().filter(|p| !p.as_os_str().is_empty());
+        if let Some(parent) = parent.filter(|p| !p.is_dir()) {
+            anyhow::bail!(
+                "{}: cannot write there: the folder {} does not exist",
+                file.display(),
+                parent.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Creates an output folder before any work (an existing file of that name is an error).
+pub(crate) fn create_output_folder(dir: &std::path::Path) -> anyhow::Result<()> {
+    use anyhow::Context;
+    if dir.exists() && !dir.is_dir() {
+        anyhow::bail!("{}: exists and is not a folder", dir.display());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating the folder {}", dir.display()))
+}
+
 /// Checks, before any work, that `out` names a mesh format that stores per-vertex texture
 /// coordinates (the map): `.obj` (`vt` lines) or `.ply` (`u`, `v` vertex properties). OFF has
 /// no texture coordinates, and any other extension no writer; both are errors naming the file.

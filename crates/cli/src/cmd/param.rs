@@ -102,6 +102,10 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     super::check_map_output(&args.out)?;
+    super::check_output_files([args.out.as_path()].into_iter().chain(args.report.as_deref()))?;
+    if let Some(dir) = &args.plots {
+        super::create_output_folder(dir)?;
+    }
     let domain: Domain = args.domain.parse()?;
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
