@@ -371,12 +371,27 @@ pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> R
             ring_thirds[i]
         )));
     }
+    // (the weights relative to the largest, so that any finite positive weights give finite
+    // masses: 1e308 on every vertex is no weighting at all)
     let raw: Vec<f64> = match weights {
-        Some(w) => ring_thirds.iter().zip(w).map(|(a, w)| a * w).collect(),
+        Some(w) => {
+            let largest = w.iter().fold(0.0f64, |m, &x| m.max(x));
+            ring_thirds.iter().zip(w).map(|(a, w)| a * (w / largest)).collect()
+        }
         None => ring_thirds.to_vec(),
     };
     let total: f64 = raw.iter().sum();
-    Ok(raw.iter().map(|m| m * std::f64::consts::PI / total).collect())
+    let masses: Vec<f64> = raw.iter().map(|m| m / total * std::f64::consts::PI).collect();
+    if let Some(i) = masses.iter().position(|m| !m.is_normal()) {
+        return Err(AnalysisError::InvalidInput(format!(
+            "the weights leave vertex {i} a target mass of {:e} (weight {:e} against the largest {:e}): \
+             the weights span too many orders of magnitude",
+            masses[i],
+            weights.map_or(1.0, |w| w[i]),
+            weights.map_or(1.0, |w| w.iter().fold(0.0f64, |m, &x| m.max(x)))
+        )));
+    }
+    Ok(masses)
 }
 
 /// The OT problem of [`area_preserving_map`] (Su et al. 2015, Algorithm 2, steps 1–2): the
@@ -968,6 +983,20 @@ mod tests {
         assert!(weighted_target_masses(&thirds, Some(&[1.0])).is_err());
         assert!(weighted_target_masses(&[1.0, 0.0], None).is_err());
         assert_eq!(region_weights(3, &[2], 5.0).unwrap(), vec![1.0, 1.0, 5.0]);
+        // weights as large as f64 allows: uniform ones change nothing (their sum overflowed to
+        // inf, and the masses to NaN, before the weights were scaled by the largest), and one at
+        // 1e300 beside ones leaves the others 1e-300 of it
+        let thirds = [0.5, 0.25, 0.25, 1.0];
+        assert_eq!(
+            weighted_target_masses(&thirds, Some(&[1e308; 4])).unwrap(),
+            weighted_target_masses(&thirds, None).unwrap()
+        );
+        let top = weighted_target_masses(&thirds, Some(&[1.0, 1.0, 1.0, 1e300])).unwrap();
+        assert!(top.iter().all(|m| m.is_normal()), "{top:?}");
+        assert!((top[3] - std::f64::consts::PI).abs() < 1e-15 && (top[0] / top[1] - 2.0).abs() < 1e-15);
+        // a range too wide for f64 masses is an error naming the vertex, not an infinite mass
+        let e = weighted_target_masses(&thirds, Some(&[1.0, 1.0, 1.0, f64::MAX])).unwrap_err();
+        assert!(e.to_string().contains("vertex 0"), "{e}");
         assert!(region_weights(3, &[3], 5.0).is_err());
     }
 

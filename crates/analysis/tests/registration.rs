@@ -240,6 +240,15 @@ fn bad_landmarks_give_errors() {
     assert!(msg.contains("bad.csv:1"), "{msg}");
     std::fs::write(&f, "source,target\n5,6\n").unwrap();
     assert_eq!(Landmarks::from_csv(&f).unwrap().pairs, vec![(5, 6)]);
+    // a byte-order mark (a spreadsheet's CSV) does not make the first pair a header, with or
+    // without a header after it; a typo in the first row is an error, not a header
+    std::fs::write(&f, "\u{feff}1438,1438\r\n910,910\r\n").unwrap();
+    assert_eq!(Landmarks::from_csv(&f).unwrap().pairs, vec![(1438, 1438), (910, 910)]);
+    std::fs::write(&f, "\u{feff}source,target\n5,6\n").unwrap();
+    assert_eq!(Landmarks::from_csv(&f).unwrap().pairs, vec![(5, 6)]);
+    std::fs::write(&f, "x1438,1438\n910,910\n").unwrap();
+    let msg = Landmarks::from_csv(&f).unwrap_err().to_string();
+    assert!(msg.contains("line 1") && msg.contains("`x1438`"), "{msg}");
     // named landmarks that do not match
     let mut a = markers().landmarks;
     let b = a.clone();

@@ -233,8 +233,10 @@ impl<'de> serde::de::Visitor<'de> for StrictValueVisitor {
 
 impl MarkerFile {
     /// Parses the JSON text of a marker file; `source_name` names it in errors. A key repeated
-    /// within one object (e.g. a landmark named twice) is an error.
+    /// within one object (e.g. a landmark named twice) is an error. A leading byte-order mark
+    /// (some editors write one) is skipped.
     pub fn from_json_str(text: &str, source_name: &str) -> Result<Self, ConformalError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let StrictValue(value) =
             serde_json::from_str(text).map_err(|e| parse_err(source_name, format!("line {}: {e}", e.line())))?;
         let obj = value
@@ -658,6 +660,9 @@ mod tests {
         assert_eq!(f.markers.center, CenterMarker::Vertex(123));
         assert_eq!(f.markers.boundary, BoundaryMarker::Vertex(456));
         assert_eq!(f.landmarks.get("chin"), Some(&9));
+        // a byte-order mark first (it was "expected value at line 1 column 1")
+        let f = MarkerFile::from_json_str("\u{feff}{\"center\": 12, \"boundary\": 4}", "t.json").unwrap();
+        assert_eq!(f.markers.center, CenterMarker::Vertex(12));
         let f = MarkerFile::from_json_str(r#"{"center": {"face": 3, "bary": [0.2, 0.3, 0.5]}}"#, "t.json").unwrap();
         assert_eq!(
             f.markers.center,

@@ -39,10 +39,12 @@ impl Landmarks {
     }
 
     /// Reads a CSV file with rows `source,target` (0-based vertex indices; an optional header
-    /// line whose first field is not a number; `#` comments). Each landmark is named
-    /// `line N`. Errors name the file and the line.
+    /// line in which no field is a number; `#` comments; a leading byte-order mark is skipped).
+    /// Each landmark is named `line N`. Errors name the file and the line; a first row with
+    /// one number and one typo is an error, not a header.
     pub fn from_csv(path: &Path) -> Result<Self, AnalysisError> {
         let text = std::fs::read_to_string(path).map_err(|e| AnalysisError::io(path, e))?;
+        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
         let src = path.display().to_string();
         let mut out = Landmarks {
             source_name: src.clone(),
@@ -57,8 +59,8 @@ impl Landmarks {
             let name = format!("line {}", i + 1);
             if out.pairs.is_empty()
                 && out.names.is_empty()
-                && fields[0].parse::<f64>().is_err()
-                && i == first_content_line(&text)
+                && fields.iter().all(|f| f.parse::<f64>().is_err())
+                && i == first_content_line(text)
             {
                 continue; // header
             }
