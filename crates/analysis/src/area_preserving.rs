@@ -56,7 +56,9 @@
 //!   the turned map is kept when it has fewer flat ears
 //!   ([`AreaPreservingMap::square_rotation`]). The OT map is not exactly equivariant under
 //!   turns of the targets alone (the square is not round), so this is a best effort; flat ears
-//!   that remain are reported by the fold repair.
+//!   that remain stay degenerate in the map and are counted by the fold repair
+//!   (`FoldRepairInfo::flat_boundary_faces`; the square's boundary projection sets the side's
+//!   coordinate exactly, so they are exactly flat, not flipped by rounding).
 //!
 //! # Importance weights (Zhao et al. 2013, §4; Su et al. 2015, §5.2)
 //! Per-vertex weights $w_i > 0$ give $\nu_i \leftarrow \pi\, w_i \nu_i / \sum_j w_j \nu_j$: a region
@@ -336,12 +338,17 @@ fn project_to_boundary(domain: Domain, c: [f64; 2]) -> [f64; 2] {
             }
         }
         Domain::Square => {
+            // radially onto the side the point faces, whose coordinate is set exactly (±a), so
+            // that vertices on one side are exactly collinear: an ear flat on a side is then
+            // degenerate, not flipped by rounding
+            let a = 0.5 * std::f64::consts::PI.sqrt();
             let m = c[0].abs().max(c[1].abs());
-            if m > 0.0 {
-                let s = 0.5 * std::f64::consts::PI.sqrt() / m;
-                [c[0] * s, c[1] * s]
-            } else {
+            if !(m > 0.0) {
                 c
+            } else if c[0].abs() >= c[1].abs() {
+                [a.copysign(c[0]), c[1] * (a / m)]
+            } else {
+                [c[0] * (a / m), a.copysign(c[1])]
             }
         }
     }
@@ -515,7 +522,9 @@ pub fn area_preserving_map(
                 // repair's report)
                 if let Ok(turned) = place(rotation) {
                     ot_seconds += turned.ot_seconds;
-                    if flat(&turned.uv) < flat_before {
+                    // (never a converged map for one that did not converge)
+                    let converged = turned.solution.converged() || !placed.solution.converged();
+                    if converged && flat(&turned.uv) < flat_before {
                         placed = turned;
                         square_rotation = rotation;
                     }

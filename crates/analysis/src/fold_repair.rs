@@ -144,8 +144,13 @@ pub struct FoldRepairInfo {
     pub flipped_before: usize,
     /// Faces of the input map with zero or sub-1e-300 area.
     pub degenerate_before: usize,
-    /// Folded (flipped or degenerate) faces of the output map (0 unless the repair is off).
+    /// Folded (flipped or degenerate) faces of the output map: 0, unless the repair is off or
+    /// `flat_boundary_faces` remain.
     pub folded_after: usize,
+    /// Faces with three boundary corners whose image is flat (collinear up to rounding: ears
+    /// lying on a side of the square). No move of interior vertices can repair them; they are
+    /// left as they are and count in `folded_after`.
+    pub flat_boundary_faces: usize,
     /// Sweeps and vertex moves of the kernel untangling run first, and the faces it left folded.
     pub untangle: UntangleInfo,
     /// Tutte solve rounds (0 when nothing was folded after the untangling, or the repair is off).
@@ -200,6 +205,14 @@ fn doubled_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<f64> {
     let inv = 1.0 / s;
     let area = (cross * inv) * inv;
     (cross > 0.0 && area >= MIN_DOUBLED_AREA).then_some(area)
+}
+
+/// Whether the triangle (a, b, c) is flat: its doubled area, of either sign, at most 1e-9 of
+/// the product of two edge lengths (collinear corners up to rounding).
+fn is_flat(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> bool {
+    let (d1, d2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
+    let cross = d1[0] * d2[1] - d1[1] * d2[0];
+    cross.abs() <= 1e-9 * d1[0].hypot(d1[1]) * d2[0].hypot(d2[1])
 }
 
 /// Counts (flipped, degenerate) faces of `uv` and lists the folded ones.
@@ -676,25 +689,37 @@ pub fn repair_folds(
     if !params.enabled || bad.is_empty() {
         return Ok(info);
     }
-    if let Some(&f) = bad
-        .iter()
-        .find(|&&f| mesh.faces[f].iter().all(|&v| is_boundary[v as usize]))
-    {
-        return Err(AnalysisError::FoldRepair {
-            folded: bad.len(),
-            message: format!("face {f} is folded and has only boundary vertices (boundary out of order or coincident)"),
-        });
+    // Folded faces with three boundary corners cannot be repaired by moving interior vertices.
+    // A flat one (an ear lying on a side of the square, module docs of `area_preserving`) is
+    // left as it is and counted; a flipped one means the boundary is out of order: an error.
+    let on_boundary = |f: usize| mesh.faces[f].iter().all(|&v| is_boundary[v as usize]);
+    for &f in bad.iter().filter(|&&f| on_boundary(f)) {
+        let [a, b, c] = mesh.faces[f].map(|v| uv[v as usize]);
+        if !is_flat(a, b, c) {
+            return Err(AnalysisError::FoldRepair {
+                folded: bad.len(),
+                message: format!(
+                    "face {f} is folded and has only boundary vertices (boundary out of order or coincident)"
+                ),
+            });
+        }
+        info.flat_boundary_faces += 1;
+    }
+    bad.retain(|&f| !on_boundary(f));
+    if bad.is_empty() {
+        return Ok(info);
     }
     let conn = Connectivity::of(mesh);
     let input = uv.to_vec();
     if params.untangle_sweeps > 0 {
         info.untangle = untangle_kernels(&mesh.faces, &conn.vertex_faces, is_boundary, uv, params.untangle_sweeps);
-        if info.untangle.folded_after == 0 {
-            info.folded_after = 0;
+        bad = folded_faces(&mesh.faces, uv).2;
+        bad.retain(|&f| !on_boundary(f));
+        if bad.is_empty() {
+            info.folded_after = info.flat_boundary_faces;
             count_moves(&input, uv, &mut info);
             return Ok(info);
         }
-        bad = folded_faces(&mesh.faces, uv).2;
     }
     let neighbors = conn.vertex_neighbors(n);
     let mut weights = tutte_weights(mesh, &conn.vertex_faces, &neighbors, is_boundary, uv, params.weights)?;
@@ -714,6 +739,7 @@ pub fn repair_folds(
         let whole = region_size == num_interior;
         let candidate = solve_region(&neighbors, &weights, &in_region, &original, Some(&mut solved))?;
         bad = folded_faces(&mesh.faces, &candidate).2;
+        bad.retain(|&f| !on_boundary(f));
         if bad.is_empty() {
             info.whole_disk = whole;
             break candidate;
@@ -732,6 +758,7 @@ pub fn repair_folds(
                 )?;
                 let candidate = solve_region(&neighbors, &weights, &in_region, &original, None)?;
                 bad = folded_faces(&mesh.faces, &candidate).2;
+                bad.retain(|&f| !on_boundary(f));
                 if bad.is_empty() {
                     break candidate;
                 }
@@ -775,7 +802,7 @@ pub fn repair_folds(
         &mut result,
         params.retraction_sweeps,
     );
-    info.folded_after = 0;
+    info.folded_after = info.flat_boundary_faces;
     uv.copy_from_slice(&result);
     count_moves(&input, uv, &mut info);
     Ok(info)

@@ -707,3 +707,48 @@ fn bodies_slit_several_times_map_without_empty_starts_or_reversed_boundaries() {
     // centaur0 slit twice is the case that reverses boundary edges
     assert!(reordered >= 1);
 }
+
+/// A disk whose boundary has more ears (faces with three boundary corners) than the square has
+/// corners: the ears that fall on a side are flat whatever the map does. The square map is
+/// still written, with those faces counted as flat boundary faces and every other face valid
+/// (the fold repair used to fail on the first of them: "boundary out of order").
+#[test]
+fn square_maps_meshes_with_more_ears_than_corners() {
+    let n = 8;
+    let mut positions = vec![[0.0, 0.0, 0.0]];
+    for i in 0..n {
+        let t = std::f64::consts::TAU * i as f64 / n as f64;
+        positions.push([t.cos(), t.sin(), 0.0]);
+    }
+    for i in 0..n {
+        let t = std::f64::consts::TAU * (i as f64 + 0.5) / n as f64;
+        positions.push([1.3 * t.cos(), 1.3 * t.sin(), 0.1]);
+    }
+    let mut faces = Vec::new();
+    for i in 0..n as u32 {
+        let (a, b) = (1 + i, 1 + (i + 1) % n as u32);
+        faces.push([0, a, b]);
+        faces.push([a, 1 + n as u32 + i, b]);
+    }
+    let fan = TriMesh::new(positions, faces).unwrap();
+    let mesh = shapespace_geometry::prepare::subdivide_midpoint(&fan).unwrap();
+    let ears = shapespace_analysis::area_preserving::boundary_ears(&mesh);
+    assert_eq!(ears.len(), n);
+    let params = AreaPreservingParams {
+        domain: Domain::Square,
+        ..Default::default()
+    };
+    let map = area_preserving_map(&mesh, &Markers::default(), &params).unwrap();
+    let info = &map.fold_repair.info;
+    assert!(info.flat_boundary_faces >= n - 4, "{info:?}");
+    assert_eq!(info.folded_after, info.flat_boundary_faces);
+    let report = distortion_report(&mesh, &map.conformal.uv, &map.uv).unwrap();
+    let ap = &report.maps[1];
+    assert_eq!(ap.num_flipped, 0);
+    assert_eq!(
+        ap.num_degenerate, info.flat_boundary_faces,
+        "only the flat ears are degenerate"
+    );
+    // their Υ = −∞ is left out of the statistics, and counted
+    assert_eq!(ap.abs_area_distortion.non_finite, info.flat_boundary_faces);
+}

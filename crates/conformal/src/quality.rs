@@ -77,15 +77,22 @@ pub struct Stats {
     pub max: f64,
     /// Smallest value.
     pub min: f64,
+    /// Entries left out of the statistics above because they are not finite (Υ = −∞ of a
+    /// face whose image is degenerate, or NaN).
+    pub non_finite: usize,
 }
 
 impl Stats {
-    /// Statistics of the finite entries of `values` (all zero when there are none).
-    /// Percentiles use the nearest rank on the sorted values.
+    /// Statistics of the finite entries of `values` (all zero when there are none), with the
+    /// count of the others. Percentiles use the nearest rank on the sorted values.
     pub fn of(values: &[f64]) -> Stats {
         let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+        let non_finite = values.len() - v.len();
         if v.is_empty() {
-            return Stats::default();
+            return Stats {
+                non_finite,
+                ..Stats::default()
+            };
         }
         v.sort_by(f64::total_cmp);
         let rank = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
@@ -95,6 +102,7 @@ impl Stats {
             p95: rank(0.95),
             max: v[v.len() - 1],
             min: v[0],
+            non_finite,
         }
     }
 }
@@ -359,5 +367,10 @@ mod tests {
         let v: Vec<f64> = (0..101).map(|i| i as f64).collect();
         let s = Stats::of(&v);
         assert_eq!((s.mean, s.median, s.p95, s.max, s.min), (50.0, 50.0, 95.0, 100.0, 0.0));
+        assert_eq!(s.non_finite, 0);
+        // a degenerate face's Υ = −∞ and a NaN are left out, and counted
+        let s = Stats::of(&[1.0, f64::NEG_INFINITY, 3.0, f64::NAN]);
+        assert_eq!((s.mean, s.max, s.min, s.non_finite), (2.0, 3.0, 1.0, 2));
+        assert_eq!(Stats::of(&[f64::INFINITY]).non_finite, 1);
     }
 }

@@ -76,7 +76,11 @@ impl Default for MetricParams {
 /// Mean, median, 95th percentile and maximum of a set of values (NaN when empty).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ValueSummary {
+    /// The finite values summarized.
     pub count: usize,
+    /// Values left out because they are not finite (e.g. max(J, 1/J) = ∞ of a collapsed
+    /// one-ring).
+    pub non_finite: usize,
     pub mean: f64,
     pub median: f64,
     pub p95: f64,
@@ -84,13 +88,15 @@ pub struct ValueSummary {
 }
 
 impl ValueSummary {
-    /// Summary of `values` (non-finite values are ignored); percentiles by nearest rank on the
+    /// Summary of `values` (non-finite values are left out and counted); percentiles by nearest rank on the
     /// sorted values (median: mean of the two middle values for an even count).
     pub fn of(values: &[f64]) -> Self {
         let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+        let non_finite = values.len() - v.len();
         if v.is_empty() {
             return ValueSummary {
                 count: 0,
+                non_finite,
                 mean: f64::NAN,
                 median: f64::NAN,
                 p95: f64::NAN,
@@ -107,6 +113,7 @@ impl ValueSummary {
         let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
         ValueSummary {
             count: n,
+            non_finite,
             mean: v.iter().sum::<f64>() / n as f64,
             median,
             p95: v[rank],

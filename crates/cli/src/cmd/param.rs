@@ -185,6 +185,13 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             map.square_rotation
         );
     }
+    let flat = map.fold_repair.info.flat_boundary_faces;
+    if flat > 0 {
+        eprintln!(
+            "{}: {flat} boundary ears (faces with three boundary corners) lie flat on a side of the square: no move of interior vertices can unfold them, so they stay degenerate in the map (the square has 4 corners for them; --domain disk has none of this, or split those faces)",
+            args.input.display()
+        );
+    }
     if let Some(dir) = &args.plots {
         write_distortion_histograms(&report, dir, 60)
             .with_context(|| format!("writing plots into {}", dir.display()))?;
