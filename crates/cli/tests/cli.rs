@@ -1020,3 +1020,42 @@ fn output_paths_are_checked_before_the_work() {
     assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
     assert!(plots.join("area_distortion.png").exists());
 }
+
+/// `register` on two grids with the same vertex count: the geodesic error against v ↔ v is
+/// reported unless `--no-ground-truth` says the vertex orders differ; marker files without
+/// landmarks register with a note that no landmark holds the map.
+#[test]
+fn register_ground_truth_is_optional_and_missing_landmarks_are_said() {
+    let dir = scratch("register-ground-truth");
+    let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
+    std::fs::write(&a, grid_obj(1.0)).unwrap();
+    std::fs::write(&b, grid_obj(1.5)).unwrap();
+    // vertex 0 is a corner of the 5 × 5 grid
+    let markers = dir.join("m.json");
+    std::fs::write(&markers, r#"{"center": 12, "boundary": 0}"#).unwrap();
+    for (flag, geodesic) in [(None, true), (Some("--no-ground-truth"), false)] {
+        let out_dir = dir.join(format!("out{geodesic}"));
+        let mut args = vec![
+            "register",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--source-markers",
+            markers.to_str().unwrap(),
+            "--target-markers",
+            markers.to_str().unwrap(),
+            "--method",
+            "conformal",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        args.extend(flag);
+        let out = shapespace(&args);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(0), "{msg}");
+        assert!(msg.contains("no landmark pairs"), "{msg}");
+        let metrics: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out_dir.join("metrics.json")).unwrap()).unwrap();
+        assert_eq!(metrics["metrics"]["geodesic"].is_object(), geodesic, "{flag:?}");
+        assert_eq!(msg.contains("geodesic error"), geodesic, "{msg}");
+    }
+}
