@@ -108,8 +108,8 @@ pub struct ReorientInfo {
 /// Makes the face orientation consistent and, on closed components, outward.
 ///
 /// Breadth-first search over faces through edges with exactly two faces flips every face that
-/// traverses a shared edge in the same direction as its already-visited neighbour (the first face
-/// of each piece keeps its orientation; flipping `[a, b, c]` gives `[a, c, b]`). Then each closed
+/// traverses a shared edge in the same direction as its already-visited neighbour (each piece
+/// keeps the orientation most of its faces have; flipping `[a, b, c]` gives `[a, c, b]`). Then each closed
 /// component (every edge has exactly two faces) with negative signed volume is flipped entirely,
 /// so its normals point outward. Vertices are unchanged. Errors for a non-orientable surface,
 /// naming the edge where the contradiction appears.

@@ -306,21 +306,25 @@ pub fn inconsistent_edges(faces: &[[u32; 3]], conn: &Connectivity) -> Vec<[u32; 
 
 /// Per-face flips that make the orientation consistent: flipping face f when `flips[f]` makes
 /// every edge with exactly two faces used once in each direction. Found by breadth-first search
-/// over faces through such edges; the first face reached in each connected piece keeps its
-/// orientation. Returns `None` for a non-orientable surface (e.g. a Möbius strip), with the edge
-/// at which the contradiction was found.
+/// over faces through such edges; in each connected piece the orientation most of its faces
+/// already have is kept (the fewer faces are flipped; on a tie, the first face's), so one face
+/// wound the wrong way never mirrors the rest. Returns `Err` for a non-orientable surface (e.g.
+/// a Möbius strip), with the edge at which the contradiction was found.
 pub fn orientation_flips(faces: &[[u32; 3]], conn: &Connectivity) -> Result<Vec<bool>, [u32; 2]> {
     let nf = faces.len();
     let mut flip = vec![false; nf];
     let mut seen = vec![false; nf];
     let mut queue = std::collections::VecDeque::new();
+    let mut piece = Vec::new();
     for start in 0..nf {
         if seen[start] {
             continue;
         }
         seen[start] = true;
         queue.push_back(start);
+        piece.clear();
         while let Some(f) = queue.pop_front() {
+            piece.push(f);
             for k in 0..3 {
                 let e = conn.face_edges[f][k] as usize;
                 let ef = &conn.edge_faces[e];
@@ -342,6 +346,11 @@ pub fn orientation_flips(faces: &[[u32; 3]], conn: &Connectivity) -> Result<Vec<
                     flip[g] = need;
                     queue.push_back(g);
                 }
+            }
+        }
+        if 2 * piece.iter().filter(|&&f| flip[f]).count() > piece.len() {
+            for &f in &piece {
+                flip[f] = !flip[f];
             }
         }
     }

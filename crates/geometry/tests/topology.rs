@@ -568,6 +568,14 @@ fn reorient_an_open_disk_and_fill_three_holes() {
     assert_eq!(info.closed_components_turned_outward, 0);
     assert!(face_normals(&fixed).iter().all(|n| n[2] == 1.0));
 
+    // only face 0 wound the wrong way: it is the one flipped (it used to set the orientation
+    // of the whole piece, mirroring the disk)
+    let mut one = fixed.clone();
+    one.faces[0].swap(1, 2);
+    let (again, info) = prepare::reorient(&one).unwrap();
+    assert_eq!(info.faces_flipped_for_consistency, 1);
+    assert!(face_normals(&again).iter().all(|n| n[2] == 1.0));
+
     let (filled, info) = prepare::fill_holes_except_longest(&fixed).unwrap();
     assert_eq!(info.holes_filled, 3);
     assert_eq!(filled.num_vertices(), fixed.num_vertices() + 3);
