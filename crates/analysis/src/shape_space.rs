@@ -127,9 +127,7 @@ pub fn shape_space_stats(
     let mut cross = Vec::new();
     if let Some(labels) = labels {
         for col in &labels.columns {
-            let mut classes = labels.column(col)?;
-            classes.sort_unstable();
-            classes.dedup();
+            let classes = crate::stats::label_classes(&labels.column(col)?);
             label_stats.insert(
                 col.clone(),
                 LabelColumnStats {

@@ -13,6 +13,9 @@
 //!   $s(i) = (b(i) - a(i)) / \max(a(i), b(i))$ with $a(i)$ the mean distance from $i$ to the other
 //!   members of its class and $b(i)$ the smallest mean distance from $i$ to another class;
 //!   $s(i) = 0$ for a singleton class (Rousseeuw's convention).
+//! - An **empty label cell** means "unknown", not a class: such a shape is neither scored nor
+//!   anyone's neighbour or class member for that column (it counts in `unscored`), and its
+//!   pairs are left out of the within/between-class distances.
 
 use serde::{Deserialize, Serialize};
 
@@ -80,7 +83,11 @@ pub fn loo_1nn_accuracy(d: &DistanceMatrix, labels: &Labels, target_col: &str) -
     let target = labels.column(target_col)?;
     let (mut correct, mut total, mut unscored) = (0, 0, 0);
     for i in 0..d.len() {
-        match nearest_neighbour(d, i, |_| true) {
+        if target[i].is_empty() {
+            unscored += 1;
+            continue;
+        }
+        match nearest_neighbour(d, i, |j| !target[j].is_empty()) {
             Some(j) => {
                 total += 1;
                 correct += usize::from(target[j] == target[i]);
@@ -108,7 +115,12 @@ pub fn loo_1nn_accuracy_across(
     let exclude = labels.column(exclude_same_col)?;
     let (mut correct, mut total, mut unscored) = (0, 0, 0);
     for i in 0..d.len() {
-        match nearest_neighbour(d, i, |j| exclude[j] != exclude[i]) {
+        if target[i].is_empty() || exclude[i].is_empty() {
+            unscored += 1;
+            continue;
+        }
+        let admissible = |j: usize| !target[j].is_empty() && !exclude[j].is_empty() && exclude[j] != exclude[i];
+        match nearest_neighbour(d, i, admissible) {
             Some(j) => {
                 total += 1;
                 correct += usize::from(target[j] == target[i]);
@@ -128,17 +140,19 @@ pub fn loo_1nn_accuracy_across(
 pub fn silhouette_values(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result<Vec<Option<f64>>, AnalysisError> {
     check_rows(d, labels)?;
     let column = labels.column(col)?;
-    let mut classes: Vec<&str> = column.clone();
-    classes.sort_unstable();
-    classes.dedup();
-    let class_of: Vec<usize> = column.iter().map(|c| classes.binary_search(c).unwrap_or(0)).collect();
+    let classes = label_classes(&column);
+    // (usize::MAX: no label)
+    let class_of: Vec<usize> = column
+        .iter()
+        .map(|c| classes.binary_search(c).unwrap_or(usize::MAX))
+        .collect();
     let class_sizes: Vec<usize> = (0..classes.len())
         .map(|c| class_of.iter().filter(|&&k| k == c).count())
         .collect();
     let n = d.len();
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
-        if classes.len() < 2 {
+        if classes.len() < 2 || class_of[i] == usize::MAX {
             out.push(None);
             continue;
         }
@@ -150,7 +164,7 @@ pub fn silhouette_values(d: &DistanceMatrix, labels: &Labels, col: &str) -> Resu
         let mut sums = vec![0.0; classes.len()];
         let mut counts = vec![0usize; classes.len()];
         for j in 0..n {
-            if j == i {
+            if j == i || class_of[j] == usize::MAX {
                 continue;
             }
             let v = d.symmetric(i, j);
@@ -176,6 +190,14 @@ pub fn silhouette_values(d: &DistanceMatrix, labels: &Labels, col: &str) -> Resu
         out.push(Some(if denom > 0.0 { (b - a) / denom } else { 0.0 }));
     }
     Ok(out)
+}
+
+/// The distinct non-empty values of a label column, sorted (an empty cell is no class).
+pub fn label_classes<'a>(column: &[&'a str]) -> Vec<&'a str> {
+    let mut classes: Vec<&str> = column.iter().copied().filter(|c| !c.is_empty()).collect();
+    classes.sort_unstable();
+    classes.dedup();
+    classes
 }
 
 /// Mean silhouette of column `col` over the shapes where it is defined ([`silhouette_values`]);
@@ -238,7 +260,7 @@ pub fn class_distances(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result
     for i in 0..d.len() {
         for j in i + 1..d.len() {
             let v = d.symmetric(i, j);
-            if v.is_nan() {
+            if v.is_nan() || column[i].is_empty() || column[j].is_empty() {
                 continue;
             }
             if column[i] == column[j] {

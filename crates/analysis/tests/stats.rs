@@ -247,3 +247,33 @@ fn symmetry_gap_of_known_matrix() {
     // Statistics use the mean of both directions.
     assert!((d.symmetric(1, 2) - 3.15).abs() < 1e-15);
 }
+
+/// An empty label cell is "unknown", not a class: the reviewer's case, three shapes where b and
+/// c have no label, used to count as two classes with c → b a correct neighbour.
+#[test]
+fn empty_label_cells_are_unknown_not_a_class() {
+    let d = symmetric_matrix(3, &[(0, 1, 0.5), (0, 2, 0.6), (1, 2, 0.1)]);
+    let l = labels(&["kind"], &[&["x"], &[""], &[""]]);
+    let acc = loo_1nn_accuracy(&d, &l, "kind").unwrap();
+    // only a is scored, and has no labelled neighbour
+    assert_eq!((acc.correct, acc.total, acc.unscored), (0, 0, 3));
+    assert_eq!(silhouette_values(&d, &l, "kind").unwrap(), vec![None, None, None]);
+    let s = class_distances(&d, &l, "kind").unwrap();
+    assert_eq!((s.within.count, s.between.count), (0, 0));
+    assert_eq!(
+        shapespace_analysis::stats::label_classes(&["x", "", "y", "x"]),
+        ["x", "y"]
+    );
+
+    // the faces with s2's identity unknown: s2 is skipped as query and as neighbour, so s1's
+    // nearest labelled neighbour is s0 (p1) and s3's is s4 (p2): 5 of 5 correct
+    let (d, mut l) = faces();
+    l.values[2][0].clear();
+    let acc = loo_1nn_accuracy(&d, &l, "identity").unwrap();
+    assert_eq!((acc.correct, acc.total, acc.unscored), (5, 5, 1));
+    let across = loo_1nn_accuracy_across(&d, &l, "expression", "identity").unwrap();
+    assert_eq!(across.unscored, 1);
+    assert!(silhouette_values(&d, &l, "identity").unwrap()[2].is_none());
+    // within pairs: 0.1 (s0 s1) and the three of p2
+    assert_eq!(class_distances(&d, &l, "identity").unwrap().within.count, 4);
+}
