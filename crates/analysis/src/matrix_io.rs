@@ -346,7 +346,9 @@ fn file_stem(s: &str) -> &str {
 }
 
 /// Reads a labels CSV (module docs) and aligns it with `names` (the shapes of a distance
-/// matrix). Matching: exact key, else equal file stems. Rows that match no shape are ignored.
+/// matrix). Matching: exact key; else the longest shape name the key ends with at a folder
+/// boundary (with or without its extension); else equal file stems, when one shape has that
+/// stem. Rows that match no shape are ignored.
 ///
 /// Errors: header whose first column is not `file`/`name`, rows with the wrong number of cells
 /// (`path:line`), a shape matched by two rows ([`AnalysisError::AmbiguousLabel`]), shapes
@@ -394,6 +396,29 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
     for (i, n) in names.iter().enumerate() {
         by_stem.entry(file_stem(n)).or_default().push(i);
     }
+    // A key that is a file path names the shape whose name it ends with (at a folder boundary),
+    // with or without the file's extension, the longest such name: `data/x/cat.obj` names
+    // `x/cat` beside `y/cat`, `dots/p.a.ply` names `p.a`. Only when no name does, equal file
+    // stems decide, and only for a stem one shape has.
+    let path_match = |key: &str| -> Option<usize> {
+        let key = key.replace('\\', "/");
+        let without_extension = match key.rfind('.') {
+            Some(k) if k > key.rfind('/').map_or(0, |s| s + 1) => &key[..k],
+            _ => key.as_str(),
+        };
+        let ends_with = |whole: &str, name: &str| {
+            whole == name
+                || (whole.len() > name.len()
+                    && whole.ends_with(name)
+                    && whole[..whole.len() - name.len()].ends_with('/'))
+        };
+        names
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| ends_with(without_extension, n) || ends_with(&key, n))
+            .max_by_key(|(_, n)| n.len())
+            .map(|(i, _)| i)
+    };
     let mut rows: Vec<Option<(u64, Vec<String>)>> = vec![None; names.len()];
     for record in records {
         let record = record.map_err(|e| AnalysisError::csv(path, e))?;
@@ -409,9 +434,13 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
             ));
         }
         let key = &record[0];
-        let matched: Vec<usize> = match exact.get(key) {
-            Some(&i) => vec![i],
-            None => by_stem.get(file_stem(key)).cloned().unwrap_or_default(),
+        let matched: Vec<usize> = match exact.get(key).copied().or_else(|| path_match(key)) {
+            Some(i) => vec![i],
+            None => by_stem
+                .get(file_stem(key))
+                .filter(|shapes| shapes.len() == 1)
+                .cloned()
+                .unwrap_or_default(),
         };
         for i in matched {
             if let Some((first_line, _)) = &rows[i] {

@@ -138,6 +138,27 @@ fn labels_match_by_exact_name_or_file_stem() {
         ),
         "{err}"
     );
+    // file paths as keys for names with a dot in the stem, and for names that repeat their
+    // stem in different folders (both failed to match before: "no label row", "ambiguous")
+    let dotted: Vec<String> = vec!["p.a".into(), "p.b".into()];
+    std::fs::write(&path, "file,kind\ndots/p.a.ply,A\ndots/p.b.ply,B\n").unwrap();
+    assert_eq!(read_labels(&path, &dotted).unwrap().column("kind").unwrap(), ["A", "B"]);
+    let folders: Vec<String> = vec!["x/p".into(), "y/p".into(), "plate121".into()];
+    std::fs::write(
+        &path,
+        "file,kind\ndata/x/p.ply,X\ndata/y/p.ply,Y\ndatasets/disks/plate121.ply,Z\n",
+    )
+    .unwrap();
+    assert_eq!(
+        read_labels(&path, &folders).unwrap().column("kind").unwrap(),
+        ["X", "Y", "Z"]
+    );
+    // a bare stem two shapes share names neither
+    std::fs::write(&path, "file,kind\np.ply,X\nplate121,Z\n").unwrap();
+    assert!(matches!(
+        read_labels(&path, &folders),
+        Err(AnalysisError::MissingLabels { names, .. }) if names == ["x/p", "y/p"]
+    ));
     std::fs::write(&path, "shape,identity\nface01,p1\n").unwrap();
     assert!(matches!(
         read_labels(&path, &names),
