@@ -478,6 +478,13 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     let out = run(&["--max-iterations", "1"]);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert!(stderr(&out).contains("pair a -> b: "), "{}", stderr(&out));
+    // with --mds the incomplete matrix is not embedded: exit 1 as without it (it was 2), and
+    // an earlier MDS in the folder is removed rather than left beside the new distances
+    std::fs::write(out_dir.join("mds.csv"), "stale").unwrap();
+    let out = run(&["--max-iterations", "1", "--mds"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("MDS skipped"), "{}", stderr(&out));
+    assert!(!out_dir.join("mds.csv").exists());
     // an absurd thread count is capped (10,000 threads took over a minute to start on 2 cores)
     let out = run(&["--threads", "100000"]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));

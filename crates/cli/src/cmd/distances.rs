@@ -88,10 +88,28 @@ pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
     }
     let run = compute(&args.files, &args.out, &args.solver)?;
     if args.mds {
-        mds(&args.out, args.labels.as_deref())?;
+        if run.report.failures.is_empty() {
+            mds(&args.out, args.labels.as_deref())?;
+        } else {
+            // (MDS needs every distance; outputs of an earlier MDS in this folder would
+            // describe other distances)
+            for f in MDS_OUTPUTS {
+                let path = args.out.join(f);
+                if path.exists() {
+                    std::fs::remove_file(&path).with_context(|| format!("removing the stale {}", path.display()))?;
+                }
+            }
+            eprintln!(
+                "shapespace: MDS skipped: {} failure(s) left distances.csv incomplete (see report.json); run `shapespace mds` on a matrix without the failed shapes",
+                run.report.failures.len()
+            );
+        }
     }
     Ok(exit_code(&run))
 }
+
+/// The files `shapespace mds` writes into its output folder.
+const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "mds.svg", "stats.json"];
 
 /// Reads the labels file and matches it to the shapes of `files` (the names the distances will
 /// carry), so that a labels file the MDS would refuse fails before any distance is computed.
