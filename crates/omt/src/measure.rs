@@ -39,6 +39,20 @@ struct AveragedCopy {
     measure: Option<Arc<SourceMeasure>>,
 }
 
+/// The vertices some triangle uses, in their order.
+pub(crate) fn used_vertices(vertices: &[[f64; 2]], triangles: &[[u32; 3]]) -> Vec<[f64; 2]> {
+    let mut used = vec![false; vertices.len()];
+    for t in triangles {
+        t.iter().for_each(|&v| used[v as usize] = true);
+    }
+    vertices
+        .iter()
+        .zip(&used)
+        .filter(|(_, &u)| u)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
 impl SourceMeasure {
     /// Checks shapes, finiteness, positive densities and counter-clockwise, non-degenerate
     /// triangles.
@@ -138,10 +152,27 @@ impl SourceMeasure {
     }
 
     /// Uniform density `density` on a convex polygon given counter-clockwise, triangulated as a
-    /// fan from its vertex average.
+    /// fan from its vertex average. Errors for fewer than 3 vertices and for a polygon that is
+    /// not convex and counter-clockwise (its area, by the shoelace formula, differs from its
+    /// convex hull's by more than 1e-9 relative: the solver clips cells to the convex hull).
     pub fn uniform_polygon(polygon: &[[f64; 2]], density: f64) -> Result<Self, OmtError> {
         if polygon.len() < 3 {
             return Err(OmtError::InvalidInput("a polygon needs at least 3 vertices".into()));
+        }
+        let shoelace = |p: &[[f64; 2]]| {
+            (0..p.len())
+                .map(|k| {
+                    let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                    a[0] * b[1] - a[1] * b[0]
+                })
+                .sum::<f64>()
+                / 2.0
+        };
+        let (area, hull) = (shoelace(polygon), shoelace(&crate::restricted::convex_hull(polygon)));
+        if !((area - hull).abs() <= 1e-9 * hull.abs()) {
+            return Err(OmtError::InvalidInput(format!(
+                "the polygon is not convex and counter-clockwise: its signed area {area:e} differs from its convex hull's {hull:e}"
+            )));
         }
         let n = polygon.len();
         let c = polygon.iter().fold([0.0, 0.0], |acc, p| {
@@ -171,6 +202,30 @@ impl SourceMeasure {
     /// The unit square [0,1]², uniform density 1.
     pub fn unit_square() -> Result<Self, OmtError> {
         Self::uniform_polygon(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], 1.0)
+    }
+
+    /// How far the triangles fall short of covering the convex hull of the vertices they use:
+    /// (hull area − Σ triangle areas) / hull area; 0 for a triangulated convex domain, positive
+    /// for a non-convex one (or gaps), negative where triangles overlap. The solver clips cells
+    /// to that hull, so only a convex domain gives right cell shapes.
+    pub fn convexity_gap(&self) -> f64 {
+        let hull = crate::restricted::convex_hull(&used_vertices(&self.vertices, &self.triangles));
+        let hull_area: f64 = (0..hull.len())
+            .map(|k| {
+                let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
+                a[0] * b[1] - a[1] * b[0]
+            })
+            .sum::<f64>()
+            / 2.0;
+        let area: f64 = self
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| self.vertices[v as usize]);
+                0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).abs()
+            })
+            .sum();
+        (hull_area - area) / hull_area
     }
 
     /// Total mass μ(Ω) = Σ_t ρ_t |t|.

@@ -799,3 +799,56 @@ fn flux_form_matches_the_full_integration() {
         }
     }
 }
+
+/// The domain must be convex: a polygon that is not (or runs clockwise) is refused, a mesh
+/// measures its shortfall from its convex hull, and a vertex no triangle uses widens neither
+/// the hull nor the cells (it used to put a cell corner at the stray vertex).
+#[test]
+fn domains_are_convex_and_only_used_vertices_count() {
+    let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    assert!(SourceMeasure::uniform_polygon(&square, 1.0).is_ok());
+    let notched = [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [1.0, 1.0], [0.0, 2.0]];
+    let e = SourceMeasure::uniform_polygon(&notched, 1.0).unwrap_err().to_string();
+    assert!(e.contains("not convex"), "{e}");
+    let clockwise: Vec<[f64; 2]> = square.iter().rev().copied().collect();
+    assert!(SourceMeasure::uniform_polygon(&clockwise, 1.0).is_err());
+    // an L of three unit squares (area 3) misses 0.5 of its hull (area 3.5)
+    let l_shape = SourceMeasure::new(
+        vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [2.0, 0.0],
+            [0.0, 1.0],
+            [1.0, 1.0],
+            [2.0, 1.0],
+            [0.0, 2.0],
+            [1.0, 2.0],
+        ],
+        vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [3, 4, 7], [3, 7, 6]],
+        vec![1.0; 6],
+    )
+    .unwrap();
+    assert!(
+        (l_shape.convexity_gap() - 1.0 / 7.0).abs() < 1e-15,
+        "{}",
+        l_shape.convexity_gap()
+    );
+    // the unit square with a stray vertex at (5, 5)
+    let stray = SourceMeasure::new(
+        vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [5.0, 5.0]],
+        vec![[0, 1, 2], [0, 2, 3]],
+        vec![1.0; 2],
+    )
+    .unwrap();
+    assert_eq!(stray.convexity_gap(), 0.0);
+    let (sites, weights) = ([[0.25, 0.5], [0.75, 0.5]], [0.0, 0.0]);
+    let diagram = PowerDiagram::new(&sites, &weights).unwrap();
+    let cells = cell_polygons(&diagram, &sites, &weights, &stray);
+    assert_eq!(cells.len(), 2);
+    for cell in &cells {
+        assert!(
+            cell.iter().all(|p| p[0] <= 1.0 + 1e-12 && p[1] <= 1.0 + 1e-12),
+            "{cell:?}"
+        );
+    }
+}

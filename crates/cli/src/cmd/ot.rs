@@ -128,8 +128,18 @@ fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
             }
             None => vec![1.0; mesh.faces.len()],
         };
-        return SourceMeasure::new(vertices, mesh.faces.clone(), densities)
-            .with_context(|| format!("source measure from {}", mesh_path.display()));
+        let measure = SourceMeasure::new(vertices, mesh.faces.clone(), densities)
+            .with_context(|| format!("source measure from {}", mesh_path.display()))?;
+        let gap = measure.convexity_gap();
+        if !(gap.abs() <= 1e-6) {
+            bail!(
+                "{}: the triangles do not tile a convex domain (they miss {:.2e} of their convex hull's area{}); the solver clips the cells to that hull",
+                mesh_path.display(),
+                gap,
+                if gap < 0.0 { ": they overlap" } else { "" }
+            );
+        }
+        return Ok(measure);
     }
     Ok(match args.domain.as_str() {
         "disk" => SourceMeasure::unit_disk(512)?,

@@ -441,7 +441,8 @@ impl RestrictedIntegrator {
             triangles: measure.triangles.clone(),
             densities: measure.densities.clone(),
             triangle_areas,
-            boundary: convex_hull(&measure.vertices),
+            // (of the vertices the triangles use: an unreferenced one would widen the cells)
+            boundary: convex_hull(&crate::measure::used_vertices(&measure.vertices, &measure.triangles)),
             seeds: (0..measure.triangles.len()).map(|_| AtomicU32::new(NO_SEED)).collect(),
             flux: OnceLock::new(),
             flux_slot: measure.flux.clone(),
