@@ -116,15 +116,24 @@ impl Connectivity {
     /// and each loop starts at its smallest vertex index: the output is deterministic.
     ///
     /// At a non-manifold boundary vertex (two outgoing boundary half-edges) the walk takes the
-    /// unused one with the smallest target; `topology` reports such vertices separately.
+    /// unused one with the smallest target; `topology` reports such vertices separately. Where
+    /// no unused half-edge leaves the current vertex, the walk goes on backwards along an unused
+    /// one that arrives there (smallest source first), so a boundary whose faces are not
+    /// consistently oriented (a wrongly wound face on it, or a Möbius strip) is still one loop
+    /// per boundary curve.
     pub fn boundary_loops(&self, faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
         let halfedges = self.boundary_halfedges(faces);
         let mut outgoing: HashMap<u32, Vec<usize>> = HashMap::new();
+        let mut incoming: HashMap<u32, Vec<usize>> = HashMap::new();
         for (h, he) in halfedges.iter().enumerate() {
             outgoing.entry(he[0]).or_default().push(h);
+            incoming.entry(he[1]).or_default().push(h);
         }
         for list in outgoing.values_mut() {
             list.sort_by_key(|&h| halfedges[h][1]);
+        }
+        for list in incoming.values_mut() {
+            list.sort_by_key(|&h| halfedges[h][0]);
         }
         let mut used = vec![false; halfedges.len()];
         let mut order: Vec<usize> = (0..halfedges.len()).collect();
@@ -135,16 +144,21 @@ impl Connectivity {
                 continue;
             }
             let mut cycle = Vec::new();
-            let mut h = start;
+            let (mut h, mut from) = (start, halfedges[start][0]);
             loop {
                 used[h] = true;
-                cycle.push(halfedges[h][0]);
-                let next_vertex = halfedges[h][1];
-                let next = outgoing
-                    .get(&next_vertex)
-                    .and_then(|list| list.iter().copied().find(|&g| !used[g]));
-                match next {
-                    Some(g) => h = g,
+                cycle.push(from);
+                // the other end of h
+                let at = if halfedges[h][0] == from {
+                    halfedges[h][1]
+                } else {
+                    halfedges[h][0]
+                };
+                let unused = |map: &HashMap<u32, Vec<usize>>| {
+                    map.get(&at).and_then(|list| list.iter().copied().find(|&g| !used[g]))
+                };
+                match unused(&outgoing).or_else(|| unused(&incoming)) {
+                    Some(g) => (h, from) = (g, at),
                     None => break,
                 }
             }

@@ -128,10 +128,10 @@ fn mobius_strip_is_not_orientable() {
     let r = mesh_report(&m).unwrap();
     assert!(!r.orientable);
     assert!(!r.consistently_oriented);
-    // V − E + F = 40 − 80 + 40. (Its single boundary curve is not a directed loop: the
-    // half-edge walk of `Connectivity::boundary_loops` breaks it at the twist, so the loop count
-    // is not asserted.)
+    // V − E + F = 40 − 80 + 40, and one boundary curve of 40 vertices (it is not a directed
+    // loop: the walk goes on backwards at the twist; it used to count 2 loops)
     assert_eq!(r.euler_characteristic, 0);
+    assert_eq!((r.num_boundary_loops, r.boundary_loop_lengths.clone()), (1, vec![40]));
     assert_eq!(r.classification.class, MeshClass::Other);
     assert!(r.classification.reasons.iter().any(|s| s.contains("not orientable")));
     let err = prepare::reorient(&m).unwrap_err().to_string();
@@ -569,9 +569,11 @@ fn reorient_an_open_disk_and_fill_three_holes() {
     assert!(face_normals(&fixed).iter().all(|n| n[2] == 1.0));
 
     // only face 0 wound the wrong way: it is the one flipped (it used to set the orientation
-    // of the whole piece, mirroring the disk)
+    // of the whole piece, mirroring the disk); the outer boundary, which face 0 touches, is
+    // still one loop, and the report still finds the 4 loops
     let mut one = fixed.clone();
     one.faces[0].swap(1, 2);
+    assert_eq!(mesh_report(&one).unwrap().num_boundary_loops, 4);
     let (again, info) = prepare::reorient(&one).unwrap();
     assert_eq!(info.faces_flipped_for_consistency, 1);
     assert!(face_normals(&again).iter().all(|n| n[2] == 1.0));
