@@ -685,8 +685,11 @@ pub struct PrepareReport {
     pub unreferenced_dropped: usize,
     /// Faces of the components other than the largest, dropped.
     pub faces_of_other_components_dropped: usize,
-    /// Faces flipped to make the orientation consistent (and closed components outward).
+    /// Faces flipped to make the orientation consistent.
     pub faces_flipped: usize,
+    /// Closed components whose faces were all flipped to face outward (0 or 1: the largest
+    /// component is kept).
+    pub closed_components_turned_outward: usize,
     /// Input vertex at the centre of the disk cut from a closed surface, if one was cut.
     pub cut_center: Option<u32>,
     /// Faces removed by the cut.
@@ -748,6 +751,7 @@ pub fn prepare_disk(
     origin = follow(&origin, &map, m.num_vertices());
     let (mut m, info) = reorient(&m)?;
     report.faces_flipped = info.faces_flipped_for_consistency;
+    report.closed_components_turned_outward = info.closed_components_turned_outward;
     let conn = Connectivity::of(&m);
     if conn.boundary_loops(&m.faces).is_empty() {
         let center = match options.cut_center {

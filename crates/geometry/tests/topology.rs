@@ -634,6 +634,14 @@ fn prepare_disk_makes_disks_and_reports_its_steps() {
     )
     .unwrap();
     assert_eq!(given.cut_center, Some(7));
+    assert_eq!(given.closed_components_turned_outward, 0);
+    // an inward-facing sphere is turned outward, and the report says so
+    let inward = TriMesh {
+        faces: big.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
+        ..big.clone()
+    };
+    let (_, _, turned) = prepare::prepare_disk(&inward, &prepare::PrepareOptions::default()).unwrap();
+    assert_eq!((turned.faces_flipped, turned.closed_components_turned_outward), (0, 1));
     // a centre on the dropped component or out of range is an error naming it
     for v in [off + 2, 1_000_000] {
         let err = prepare::prepare_disk(

@@ -91,6 +91,9 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
             report.faces_flipped
         ));
     }
+    if report.closed_components_turned_outward > 0 {
+        steps.push("turned the closed surface's faces outward (they faced inward)".to_string());
+    }
     if let Some(c) = report.cut_center {
         steps.push(format!(
             "cut a {}-ring disk ({} faces) around input vertex {c}",
