@@ -127,7 +127,35 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     if dims == 0 || dims > n {
         return Err(AnalysisError::InvalidDims { dims, n });
     }
-    let b = double_centred(d)?;
+    // The distances divided by the largest first, so that neither their squares nor the
+    // eigenvalues under- or overflow along the way (distances of 1e-170 gave an all-zero
+    // embedding); the coordinates and eigenvalues are scaled back at the end.
+    let mut largest = (0.0f64, 0, 0);
+    for i in 0..n {
+        for j in 0..n {
+            let v = d.symmetric(i, j);
+            if v > largest.0 {
+                largest = (v, i, j);
+            }
+        }
+    }
+    let unit = if largest.0.is_finite() && largest.0 > 0.0 {
+        largest.0
+    } else {
+        1.0
+    };
+    if !(unit * unit).is_finite() {
+        return Err(AnalysisError::DistanceTooLarge {
+            a: d.names[largest.1].clone(),
+            b: d.names[largest.2].clone(),
+            value: largest.0,
+        });
+    }
+    let scaled = DistanceMatrix {
+        names: d.names.clone(),
+        values: d.values.iter().map(|v| v / unit).collect(),
+    };
+    let b = double_centred(&scaled)?;
     let b_mat = faer::Mat::<f64>::from_fn(n, n, |i, j| b[i * n + j]);
     let evd = b_mat
         .self_adjoint_eigen(faer::Side::Lower)
@@ -136,6 +164,7 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     let u = evd.U();
     // faer sorts eigenvalues in non-decreasing order; we want non-increasing.
     let order: Vec<usize> = (0..n).rev().collect();
+    // (of the scaled matrix; the shares and signs are scale-free)
     let eigenvalues: Vec<f64> = order.iter().map(|&k| s[k]).collect();
 
     let positive_sum: f64 = eigenvalues.iter().filter(|&&l| l > 0.0).sum();
@@ -168,15 +197,16 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
         }
         let sign = if u[(arg, col)] < 0.0 { -1.0 } else { 1.0 };
         for (i, row) in coordinates.iter_mut().enumerate() {
-            row[k] = sign * u[(i, col)] * scale;
+            row[k] = sign * u[(i, col)] * scale * unit;
         }
     }
+    let squared = unit * unit;
     Ok(Mds {
         coordinates,
-        eigenvalues,
+        eigenvalues: eigenvalues.iter().map(|l| l * squared).collect(),
         variance_shares,
-        positive_sum,
-        negative_sum,
+        positive_sum: positive_sum * squared,
+        negative_sum: negative_sum * squared,
         negative_count,
         clamped_dims,
     })
@@ -219,6 +249,40 @@ mod tests {
         }
         assert!((mds.variance_shares[0] - 1.0).abs() < 1e-12);
         assert!(mds.variance_shares[1].abs() < 1e-12);
+    }
+
+    /// The embedding scales with the distances over the whole f64 range: 1e-170 times the
+    /// points above gives 1e-170 times their coordinates (the squared distances underflowed
+    /// to an all-zero embedding), and 1e150 times them 1e150 times (the eigenvalues, 1e300
+    /// times, still fit); beyond, the error names the largest distance.
+    #[test]
+    fn embedding_scales_with_the_distances() {
+        let d = euclidean_matrix(&[vec![0.0], vec![1.0], vec![3.0]]);
+        let base = classical_mds(&d, 1).unwrap();
+        for s in [1e-170, 1e150] {
+            let scaled = DistanceMatrix {
+                names: d.names.clone(),
+                values: d.values.iter().map(|v| v * s).collect(),
+            };
+            let mds = classical_mds(&scaled, 1).unwrap();
+            for (a, b) in mds.coordinates.iter().zip(&base.coordinates) {
+                assert!((a[0] / s - b[0]).abs() < 1e-12, "scale {s:e}: {a:?} vs {b:?}");
+            }
+            assert!((mds.variance_shares[0] - 1.0).abs() < 1e-12);
+            if s > 1.0 {
+                assert!((mds.eigenvalues[0] / (s * s) - 42.0 / 9.0).abs() < 1e-12);
+            }
+        }
+        let big = DistanceMatrix {
+            names: d.names.clone(),
+            values: vec![0.0, 1.5e160, 2e160, 1.5e160, 0.0, 1e160, 2e160, 1e160, 0.0],
+        };
+        match classical_mds(&big, 1) {
+            Err(AnalysisError::DistanceTooLarge { a, b, value }) => {
+                assert_eq!((a.as_str(), b.as_str(), value), ("p0", "p2", 2e160));
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]
