@@ -355,7 +355,9 @@ fn project_to_boundary(domain: Domain, c: [f64; 2]) -> [f64; 2] {
 }
 
 /// Target masses ν_i = π·w_i a_i / Σ_j w_j a_j from one-ring thirds a_i (#V) and optional
-/// weights w (#V, finite and > 0). Errors on a vertex without incident area or a bad weight.
+/// weights w (#V, finite and > 0; used relative to the largest). Errors on a vertex without
+/// incident area, a bad weight, or a mass that is not a normal f64 (weights or areas spanning
+/// more orders of magnitude than f64 holds).
 pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> Result<Vec<f64>, AnalysisError> {
     if let Some(w) = weights {
         if w.len() != ring_thirds.len() {
@@ -390,13 +392,19 @@ pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> R
     let total: f64 = raw.iter().sum();
     let masses: Vec<f64> = raw.iter().map(|m| m / total * std::f64::consts::PI).collect();
     if let Some(i) = masses.iter().position(|m| !m.is_normal()) {
-        return Err(AnalysisError::InvalidInput(format!(
-            "the weights leave vertex {i} a target mass of {:e} (weight {:e} against the largest {:e}): \
-             the weights span too many orders of magnitude",
-            masses[i],
-            weights.map_or(1.0, |w| w[i]),
-            weights.map_or(1.0, |w| w.iter().fold(0.0f64, |m, &x| m.max(x)))
-        )));
+        return Err(AnalysisError::InvalidInput(match weights {
+            Some(w) => format!(
+                "the weights leave vertex {i} a target mass of {:e} (weight {:e} against the largest {:e}): \
+                 the weights span too many orders of magnitude",
+                masses[i],
+                w[i],
+                w.iter().fold(0.0f64, |m, &x| m.max(x))
+            ),
+            None => format!(
+                "vertex {i} has a target mass of {:e}: its one-ring area ({:e}) is too small beside the total ({total:e})",
+                masses[i], ring_thirds[i]
+            ),
+        }));
     }
     Ok(masses)
 }

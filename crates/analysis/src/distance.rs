@@ -486,7 +486,7 @@ pub fn pairwise_distances_resuming(
 }
 
 /// How a pair's status starts (after `failed: `) when it panicked.
-const INTERNAL_ERROR: &str = "internal error (a bug in shapespace; please report it with the two meshes)";
+pub(crate) const INTERNAL_ERROR: &str = "internal error (a bug in shapespace; please report it with the mesh files)";
 
 /// Whether a `pairs.csv` status is that of a pair that panicked (a bug, which a resumed run
 /// computes again rather than repeating its record).

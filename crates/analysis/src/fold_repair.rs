@@ -207,12 +207,10 @@ fn doubled_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<f64> {
     (cross > 0.0 && area >= MIN_DOUBLED_AREA).then_some(area)
 }
 
-/// Whether the triangle (a, b, c) is flat: its doubled area, of either sign, at most 1e-9 of
-/// the product of two edge lengths (collinear corners up to rounding).
+/// Whether the triangle (a, b, c) is flat: three distinct, exactly collinear corners (exact
+/// orientation predicate). Coincident corners are not flat: they mean a boundary out of order.
 fn is_flat(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> bool {
-    let (d1, d2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
-    let cross = d1[0] * d2[1] - d1[1] * d2[0];
-    cross.abs() <= 1e-9 * d1[0].hypot(d1[1]) * d2[0].hypot(d2[1])
+    a != b && b != c && c != a && orient_scaled(a, b, c) == Sign::Zero
 }
 
 /// Counts (flipped, degenerate) faces of `uv` and lists the folded ones.
@@ -415,6 +413,10 @@ fn solve_region(
                 None => solve_component(neighbors, weights, in_region, fixed, &local, comp),
             },
         )
+        // (all results first, then the first error in component order: the same error
+        // whatever the threads do)
+        .collect::<Vec<_>>()
+        .into_iter()
         .collect::<Result<_, _>>()?;
     let mut out = fixed.to_vec();
     for (comp, solution) in components.iter().zip(&solutions) {
@@ -659,8 +661,10 @@ fn grow_region(
 /// re-embedding with growing regions (module docs); boundary vertices (`is_boundary`, #V) never
 /// move. With `params.enabled == false` only counts the folds.
 ///
-/// Errors: a folded face with three boundary vertices (cannot be repaired by moving interior
-/// vertices: the boundary is out of order or has coincident vertices), a degenerate 3D
+/// Errors: a flipped face with three boundary vertices, or one with coincident corners (cannot
+/// be repaired by moving interior vertices: the boundary is out of order; a flat one with
+/// distinct corners, an ear on a side of the square, is left and counted in
+/// `flat_boundary_faces`), a degenerate 3D
 /// one-ring, a failed sparse solve, or a whole-disk solve that still folds with both weights
 /// (floating point defeating Floater's theorem).
 pub fn repair_folds(

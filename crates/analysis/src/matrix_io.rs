@@ -21,8 +21,12 @@
 //! scans/face01.obj,p1,neutral
 //! ```
 //!
-//! A row matches a shape when its key equals the shape name, or when the file stems agree
-//! (`scans/face01.obj` matches the shape `face01` and the shape `face01.obj`).
+//! A row matches a shape when its key equals the shape name; else a key that is a file path
+//! matches the shape whose name it ends with at a folder boundary, with or without its
+//! extension, the longest such name (`scans/face01.obj` matches the shape `face01` or
+//! `face01.obj`, `data/x/cat.obj` the shape `x/cat` beside `y/cat`); else equal file stems
+//! decide, when only one shape has that stem. An empty label cell means "unknown" (module
+//! `stats`).
 
 use std::collections::HashMap;
 use std::path::Path;

@@ -436,7 +436,12 @@ pub fn run_distances(
                         path: path.clone(),
                         sha256,
                         ok: false,
-                        error: Some(e),
+                        // (the other errors name the file already)
+                        error: Some(if e.starts_with(crate::distance::INTERNAL_ERROR) {
+                            format!("{}: {e}", path.display())
+                        } else {
+                            e
+                        }),
                         vertices: None,
                         faces: None,
                         markers: None,

@@ -108,11 +108,13 @@ fn plot_err(path: &Path, e: impl std::fmt::Display) -> AnalysisError {
     }
 }
 
-/// Distinct values in first-appearance order, and the index of each entry's value.
+/// Distinct values in first-appearance order, and the index of each entry's value. An empty
+/// label (unknown, module `stats`) shows as `(no label)` in the legend.
 fn categories(values: &[&str]) -> (Vec<String>, Vec<usize>) {
     let mut distinct: Vec<String> = Vec::new();
     let index = values
         .iter()
+        .map(|&v| if v.is_empty() { "(no label)" } else { v })
         .map(|v| match distinct.iter().position(|d| d == v) {
             Some(k) => k,
             None => {
@@ -695,4 +697,16 @@ pub fn histograms(
     };
     result?;
     Ok(input.hist)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::categories;
+
+    #[test]
+    fn empty_labels_are_one_legend_entry_named_as_unknown() {
+        let (names, index) = categories(&["a", "", "b", "", "a"]);
+        assert_eq!(names, ["a", "(no label)", "b"]);
+        assert_eq!(index, [0, 1, 2, 1, 0]);
+    }
 }

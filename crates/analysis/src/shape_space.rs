@@ -224,6 +224,9 @@ pub fn write_eigenvalues_csv(path: &Path, mds: &Mds) -> Result<(), AnalysisError
 ///   distances, and the cross-column accuracies for every ordered pair of columns.
 ///
 /// Errors before anything is written: unreadable or malformed CSVs, unknown label columns, a
+/// The files [`run_mds`] writes into its output folder.
+pub const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "mds.svg", "stats.json"];
+
 /// missing distance (MDS needs a complete matrix; the error names the pair), invalid `dims`.
 pub fn run_mds(
     distances: &Path,
@@ -248,11 +251,12 @@ pub fn run_mds(
     let stats = shape_space_stats(&d, labels.as_ref(), &mds, params.triangle_rel_eps)?;
 
     std::fs::create_dir_all(out_dir).map_err(|e| AnalysisError::io(out_dir, e))?;
+    let [mds_name, eig_name, png_name, svg_name, json_name] = MDS_OUTPUTS;
     let mut files = Vec::new();
-    let mds_csv = out_dir.join("mds.csv");
+    let mds_csv = out_dir.join(mds_name);
     write_mds_csv(&mds_csv, &d.names, labels.as_ref(), &mds)?;
     files.push(mds_csv);
-    let eig_csv = out_dir.join("eigenvalues.csv");
+    let eig_csv = out_dir.join(eig_name);
     write_eigenvalues_csv(&eig_csv, &mds)?;
     files.push(eig_csv);
 
@@ -268,8 +272,8 @@ pub fn run_mds(
         .file_name()
         .map_or_else(|| distances.display().to_string(), |f| f.to_string_lossy().into_owned());
     let title = format!("Classical MDS of {source} (n = {})", d.len());
-    for ext in ["png", "svg"] {
-        let path = out_dir.join(format!("mds.{ext}"));
+    for name in [png_name, svg_name] {
+        let path = out_dir.join(name);
         mds_scatter(
             &path,
             &mds,
@@ -279,7 +283,7 @@ pub fn run_mds(
         )?;
         files.push(path);
     }
-    let json_path = out_dir.join("stats.json");
+    let json_path = out_dir.join(json_name);
     let json = serde_json::to_string_pretty(&stats).map_err(|e| AnalysisError::Serialize {
         path: json_path.clone(),
         message: e.to_string(),

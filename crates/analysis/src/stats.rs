@@ -29,7 +29,8 @@ pub struct NnAccuracy {
     pub correct: usize,
     /// Shapes that had an admissible neighbour (the denominator).
     pub total: usize,
-    /// Shapes with no admissible neighbour (all candidates missing or excluded); not counted.
+    /// Shapes not scored: no admissible neighbour (all candidates missing, excluded or without
+    /// a label), or the shape's own label cell empty.
     pub unscored: usize,
     /// `correct / total`, `None` when `total == 0`.
     pub accuracy: Option<f64>,

@@ -568,7 +568,7 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
     // (and a pair that panicked: a bug, computed again)
     let panicked = lines[4].replace(
         ",converged,",
-        ",failed: internal error (a bug in shapespace; please report it with the two meshes): boom,",
+        ",failed: internal error (a bug in shapespace; please report it with the mesh files): boom,",
     );
     assert_ne!(panicked, lines[4]);
     // (the cut row ends inside its last field, so only its missing newline marks it; it ends

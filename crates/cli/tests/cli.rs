@@ -485,6 +485,20 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert!(stderr(&out).contains("MDS skipped"), "{}", stderr(&out));
     assert!(!out_dir.join("mds.csv").exists());
+    // the demo on such a folder does the same
+    let demo_out = dir.join("demo");
+    let out = shapespace(&[
+        "demo",
+        "--data",
+        dir.to_str().unwrap(),
+        "--out",
+        demo_out.to_str().unwrap(),
+        "--max-iterations",
+        "1",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("MDS skipped"), "{}", stderr(&out));
     // an absurd thread count is capped (10,000 threads took over a minute to start on 2 cores)
     let out = run(&["--threads", "100000"]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));

@@ -112,7 +112,8 @@ impl Connectivity {
 
     /// Ordered boundary loops, each a vertex cycle following the boundary half-edge direction
     /// (for a consistently oriented disk whose faces are counter-clockwise, the loop is
-    /// counter-clockwise too). Loops are sorted by decreasing length, then by smallest vertex,
+    /// counter-clockwise too; on a mesh that is not consistently oriented a loop may run
+    /// against some of its half-edges, see below). Loops are sorted by decreasing length, then by smallest vertex,
     /// and each loop starts at its smallest vertex index: the output is deterministic.
     ///
     /// At a non-manifold boundary vertex (two outgoing boundary half-edges) the walk takes the

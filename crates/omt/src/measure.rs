@@ -39,6 +39,17 @@ struct AveragedCopy {
     measure: Option<Arc<SourceMeasure>>,
 }
 
+/// Signed area of a polygon (shoelace formula; positive counter-clockwise).
+fn signed_area(p: &[[f64; 2]]) -> f64 {
+    (0..p.len())
+        .map(|k| {
+            let (a, b) = (p[k], p[(k + 1) % p.len()]);
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum::<f64>()
+        / 2.0
+}
+
 /// The vertices some triangle uses, in their order.
 pub(crate) fn used_vertices(vertices: &[[f64; 2]], triangles: &[[u32; 3]]) -> Vec<[f64; 2]> {
     let mut used = vec![false; vertices.len()];
@@ -159,16 +170,10 @@ impl SourceMeasure {
         if polygon.len() < 3 {
             return Err(OmtError::InvalidInput("a polygon needs at least 3 vertices".into()));
         }
-        let shoelace = |p: &[[f64; 2]]| {
-            (0..p.len())
-                .map(|k| {
-                    let (a, b) = (p[k], p[(k + 1) % p.len()]);
-                    a[0] * b[1] - a[1] * b[0]
-                })
-                .sum::<f64>()
-                / 2.0
-        };
-        let (area, hull) = (shoelace(polygon), shoelace(&crate::restricted::convex_hull(polygon)));
+        let (area, hull) = (
+            signed_area(polygon),
+            signed_area(&crate::restricted::convex_hull(polygon)),
+        );
         if !((area - hull).abs() <= 1e-9 * hull.abs()) {
             return Err(OmtError::InvalidInput(format!(
                 "the polygon is not convex and counter-clockwise: its signed area {area:e} differs from its convex hull's {hull:e}"
@@ -209,14 +214,10 @@ impl SourceMeasure {
     /// for a non-convex one (or gaps), negative where triangles overlap. The solver clips cells
     /// to that hull, so only a convex domain gives right cell shapes.
     pub fn convexity_gap(&self) -> f64 {
-        let hull = crate::restricted::convex_hull(&used_vertices(&self.vertices, &self.triangles));
-        let hull_area: f64 = (0..hull.len())
-            .map(|k| {
-                let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
-                a[0] * b[1] - a[1] * b[0]
-            })
-            .sum::<f64>()
-            / 2.0;
+        let hull_area = signed_area(&crate::restricted::convex_hull(&used_vertices(
+            &self.vertices,
+            &self.triangles,
+        )));
         let area: f64 = self
             .triangles
             .iter()

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use super::distances::{check_labels, compute, exit_code, mds, SolverArgs};
+use super::distances::{check_labels, compute, exit_code, mds_unless_failed, SolverArgs};
 
 /// Arguments of `shapespace demo`.
 #[derive(clap::Args)]
@@ -46,6 +46,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         check_labels(labels, &files)?;
     }
     let run = compute(&files, &args.out, &args.solver)?;
-    mds(&args.out, labels.as_deref())?;
+    mds_unless_failed(&run, &args.out, labels.as_deref())?;
     Ok(exit_code(&run))
 }

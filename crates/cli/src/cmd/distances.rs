@@ -88,28 +88,35 @@ pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
     }
     let run = compute(&args.files, &args.out, &args.solver)?;
     if args.mds {
-        if run.report.failures.is_empty() {
-            mds(&args.out, args.labels.as_deref())?;
-        } else {
-            // (MDS needs every distance; outputs of an earlier MDS in this folder would
-            // describe other distances)
-            for f in MDS_OUTPUTS {
-                let path = args.out.join(f);
-                if path.exists() {
-                    std::fs::remove_file(&path).with_context(|| format!("removing the stale {}", path.display()))?;
-                }
-            }
-            eprintln!(
-                "shapespace: MDS skipped: {} failure(s) left distances.csv incomplete (see report.json); run `shapespace mds` on a matrix without the failed shapes",
-                run.report.failures.len()
-            );
-        }
+        mds_unless_failed(&run, &args.out, args.labels.as_deref())?;
     }
     Ok(exit_code(&run))
 }
 
-/// The files `shapespace mds` writes into its output folder.
-const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "mds.svg", "stats.json"];
+/// MDS + statistics on `out/distances.csv` when every file and pair of `run` succeeded. With
+/// failures the matrix is incomplete and MDS needs every distance: the MDS is skipped with a
+/// message (the exit code stays that of the failures), and the outputs of an earlier MDS in
+/// `out`, which would describe other distances, are removed.
+pub fn mds_unless_failed(
+    run: &DistancesRun,
+    out: &std::path::Path,
+    labels: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    if run.report.failures.is_empty() {
+        return mds(out, labels);
+    }
+    for f in shapespace_analysis::shape_space::MDS_OUTPUTS {
+        let path = out.join(f);
+        if path.exists() {
+            std::fs::remove_file(&path).with_context(|| format!("removing the stale {}", path.display()))?;
+        }
+    }
+    eprintln!(
+        "shapespace: MDS skipped: {} failure(s) left distances.csv incomplete (see report.json); run `shapespace mds` on a matrix without the failed shapes",
+        run.report.failures.len()
+    );
+    Ok(())
+}
 
 /// Reads the labels file and matches it to the shapes of `files` (the names the distances will
 /// carry), so that a labels file the MDS would refuse fails before any distance is computed.

@@ -15,7 +15,7 @@ pub struct MdsArgs {
     /// Output directory (mds.csv, eigenvalues.csv, mds.png, mds.svg, stats.json).
     #[arg(long)]
     pub out: PathBuf,
-    /// Labels CSV: first column `file` or `name` (matched by name or file stem), then label columns.
+    /// Labels CSV: first column `file` or `name` (a shape name, or a file path ending with one), then label columns (an empty cell: unknown).
     #[arg(long)]
     pub labels: Option<PathBuf>,
     /// Number of MDS dimensions written to mds.csv (the plot shows the first two).

@@ -271,9 +271,19 @@ fn repair_summary(info: &shapespace_analysis::fold_repair::FoldRepairInfo) -> St
     } else if folded == 0 {
         "no folded faces".to_string()
     } else {
+        let untangled = if info.untangle.sweeps > 0 {
+            format!("{} after the untangling, ", info.untangle.folded_after)
+        } else {
+            String::new()
+        };
+        let flat = if info.flat_boundary_faces > 0 {
+            format!(" ({} flat boundary ears, left)", info.flat_boundary_faces)
+        } else {
+            String::new()
+        };
         format!(
-            "fold repair: {folded} folded before, {} after the untangling, {} vertices moved, {} Tutte rounds",
-            info.untangle.folded_after, info.vertices_moved, info.rounds
+            "fold repair: {folded} folded before, {untangled}{} after{flat}, {} vertices moved, {} Tutte rounds",
+            info.folded_after, info.vertices_moved, info.rounds
         )
     }
 }

@@ -138,6 +138,7 @@ fn harmonic_params(
 
 pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let method: Method = args.method.parse()?;
+    super::create_output_folder(&args.out)?;
     let read = |p: &Path| shapespace_geometry::io::read_mesh(p).with_context(|| format!("reading {}", p.display()));
     let source = read(&args.source)?;
     let target = read(&args.target)?;
@@ -225,6 +226,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
+    super::create_output_folder(&args.out)?;
     let mp = MetricParams {
         geodesic_samples: args.samples,
         seed: args.seed,

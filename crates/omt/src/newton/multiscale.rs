@@ -455,7 +455,7 @@ pub(crate) fn coarse_to_fine_heights(
         ..params.clone()
     };
     // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
-    let boundary = hull_edges(&measure.vertices);
+    let boundary = hull_edges(&crate::measure::used_vertices(&measure.vertices, &measure.triangles));
     let averaged = averaging_sample(measure, coarse_n, boundary.len()).and_then(|sample| measure.averaged(sample));
     let level_measure = averaged.as_deref().unwrap_or(measure);
     // The deadline ends the whole solve: a level it stopped (or a level below, whose error comes
