@@ -749,6 +749,27 @@ pub fn prepare_disk(
     let (m, map) = keep_largest_component(&m)?;
     report.faces_of_other_components_dropped = faces_before - m.num_faces();
     origin = follow(&origin, &map, m.num_vertices());
+    // Defects of the kept component that no step below repairs, named here by input vertex
+    // indices (they used to surface later as "a hole needs at least 3 vertices"): a face with a
+    // repeated corner, an edge with more than two faces.
+    let input = |v: u32| origin[v as usize].map_or_else(|| format!("new {v}"), |o| o.to_string());
+    if let Some(t) = m.faces.iter().find(|t| t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
+        return Err(GeometryError::Topology(format!(
+            "a face on input vertices ({}, {}, {}) repeats a vertex: remove such degenerate faces first",
+            input(t[0]),
+            input(t[1]),
+            input(t[2])
+        )));
+    }
+    let non_manifold = topology::non_manifold_edges(&Connectivity::of(&m));
+    if let Some(e) = non_manifold.first() {
+        return Err(GeometryError::Topology(format!(
+            "{} non-manifold edges (more than two faces on one edge), e.g. between input vertices {} and {}: a disk cannot be made by cutting and filling alone",
+            non_manifold.len(),
+            input(e[0]),
+            input(e[1])
+        )));
+    }
     let (mut m, info) = reorient(&m)?;
     report.faces_flipped = info.faces_flipped_for_consistency;
     report.closed_components_turned_outward = info.closed_components_turned_outward;

@@ -757,3 +757,31 @@ fn report_area_with_coordinates_near_the_f64_limit() {
         f64::INFINITY
     );
 }
+
+/// `prepare_disk` names the defects no step of it repairs, by input vertex indices: a face with
+/// a repeated corner and an edge with three faces (both surfaced as "a hole needs at least 3
+/// vertices, got 1 / 2" from the hole filling).
+#[test]
+fn prepare_names_degenerate_faces_and_non_manifold_edges() {
+    let g = grid(4, 4);
+    let mut degenerate = g.clone();
+    degenerate.faces.push([5, 5, 6]);
+    let err = prepare::prepare_disk(&degenerate, &prepare::PrepareOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("(5, 5, 6) repeats a vertex"), "{err}");
+    // a fin on an interior edge of the grid's first face (shared with a second face)
+    let mut fin = g.clone();
+    let [_, a, b] = g.faces[0];
+    assert_eq!(g.faces.iter().filter(|t| t.contains(&a) && t.contains(&b)).count(), 2);
+    fin.positions.push([0.1, 0.1, 1.0]);
+    fin.faces.push([a, b, g.num_vertices() as u32]);
+    let err = prepare::prepare_disk(&fin, &prepare::PrepareOptions::default())
+        .unwrap_err()
+        .to_string();
+    let (lo, hi) = (a.min(b), a.max(b));
+    assert!(
+        err.contains("1 non-manifold edges") && err.contains(&format!("input vertices {lo} and {hi}")),
+        "{err}"
+    );
+}
