@@ -382,11 +382,9 @@ pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> R
     }
     // (the weights relative to the largest, so that any finite positive weights give finite
     // masses: 1e308 on every vertex is no weighting at all)
+    let largest = weights.map_or(1.0, |w| w.iter().fold(0.0f64, |m, &x| m.max(x)));
     let raw: Vec<f64> = match weights {
-        Some(w) => {
-            let largest = w.iter().fold(0.0f64, |m, &x| m.max(x));
-            ring_thirds.iter().zip(w).map(|(a, w)| a * (w / largest)).collect()
-        }
+        Some(w) => ring_thirds.iter().zip(w).map(|(a, w)| a * (w / largest)).collect(),
         None => ring_thirds.to_vec(),
     };
     let total: f64 = raw.iter().sum();
@@ -396,9 +394,7 @@ pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> R
             Some(w) => format!(
                 "the weights leave vertex {i} a target mass of {:e} (weight {:e} against the largest {:e}): \
                  the weights span too many orders of magnitude",
-                masses[i],
-                w[i],
-                w.iter().fold(0.0f64, |m, &x| m.max(x))
+                masses[i], w[i], largest
             ),
             None => format!(
                 "vertex {i} has a target mass of {:e}: its one-ring area ({:e}) is too small beside the total ({total:e})",

@@ -147,8 +147,8 @@ pub struct FoldRepairInfo {
     /// Folded (flipped or degenerate) faces of the output map: 0, unless the repair is off or
     /// `flat_boundary_faces` remain.
     pub folded_after: usize,
-    /// Faces with three boundary corners whose image is flat (collinear up to rounding: ears
-    /// lying on a side of the square). No move of interior vertices can repair them; they are
+    /// Faces with three boundary corners whose image is flat (three distinct, exactly collinear
+    /// corners: ears lying on a side of the square). No move of interior vertices can repair them; they are
     /// left as they are and count in `folded_after`.
     pub flat_boundary_faces: usize,
     /// Sweeps and vertex moves of the kernel untangling run first, and the faces it left folded.
@@ -709,6 +709,12 @@ pub fn repair_folds(
         }
         info.flat_boundary_faces += 1;
     }
+    // the folded faces the repair can act on
+    let repairable = |uv: &[[f64; 2]]| -> Vec<usize> {
+        let mut bad = folded_faces(&mesh.faces, uv).2;
+        bad.retain(|&f| !on_boundary(f));
+        bad
+    };
     bad.retain(|&f| !on_boundary(f));
     if bad.is_empty() {
         return Ok(info);
@@ -717,8 +723,7 @@ pub fn repair_folds(
     let input = uv.to_vec();
     if params.untangle_sweeps > 0 {
         info.untangle = untangle_kernels(&mesh.faces, &conn.vertex_faces, is_boundary, uv, params.untangle_sweeps);
-        bad = folded_faces(&mesh.faces, uv).2;
-        bad.retain(|&f| !on_boundary(f));
+        bad = repairable(uv);
         if bad.is_empty() {
             info.folded_after = info.flat_boundary_faces;
             count_moves(&input, uv, &mut info);
@@ -742,8 +747,7 @@ pub fn repair_folds(
         region_size += grow_region(&neighbors, is_boundary, &seeds, rings, &mut in_region);
         let whole = region_size == num_interior;
         let candidate = solve_region(&neighbors, &weights, &in_region, &original, Some(&mut solved))?;
-        bad = folded_faces(&mesh.faces, &candidate).2;
-        bad.retain(|&f| !on_boundary(f));
+        bad = repairable(&candidate);
         if bad.is_empty() {
             info.whole_disk = whole;
             break candidate;
@@ -761,8 +765,7 @@ pub fn repair_folds(
                     RepairWeights::Surface,
                 )?;
                 let candidate = solve_region(&neighbors, &weights, &in_region, &original, None)?;
-                bad = folded_faces(&mesh.faces, &candidate).2;
-                bad.retain(|&f| !on_boundary(f));
+                bad = repairable(&candidate);
                 if bad.is_empty() {
                     break candidate;
                 }

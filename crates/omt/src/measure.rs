@@ -39,15 +39,10 @@ struct AveragedCopy {
     measure: Option<Arc<SourceMeasure>>,
 }
 
-/// Signed area of a polygon (shoelace formula; positive counter-clockwise).
+/// Signed area of a polygon (positive counter-clockwise): the fan sum of
+/// [`crate::restricted::polygon_integrals`].
 fn signed_area(p: &[[f64; 2]]) -> f64 {
-    (0..p.len())
-        .map(|k| {
-            let (a, b) = (p[k], p[(k + 1) % p.len()]);
-            a[0] * b[1] - a[1] * b[0]
-        })
-        .sum::<f64>()
-        / 2.0
+    crate::restricted::polygon_integrals(p).0
 }
 
 /// The vertices some triangle uses, in their order.
@@ -164,7 +159,7 @@ impl SourceMeasure {
 
     /// Uniform density `density` on a convex polygon given counter-clockwise, triangulated as a
     /// fan from its vertex average. Errors for fewer than 3 vertices and for a polygon that is
-    /// not convex and counter-clockwise (its area, by the shoelace formula, differs from its
+    /// not convex and counter-clockwise (its signed area differs from its
     /// convex hull's by more than 1e-9 relative: the solver clips cells to the convex hull).
     pub fn uniform_polygon(polygon: &[[f64; 2]], density: f64) -> Result<Self, OmtError> {
         if polygon.len() < 3 {

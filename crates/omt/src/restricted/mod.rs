@@ -250,7 +250,8 @@ fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> b
 }
 
 /// Exact integrals of the (unit-density) convex polygon relative to the site: area, ∫ z, ∫ |z|².
-fn polygon_integrals(v: &[[f64; 2]]) -> (f64, [f64; 2], f64) {
+/// (The area, a signed fan sum, is the signed area of any polygon.)
+pub(crate) fn polygon_integrals(v: &[[f64; 2]]) -> (f64, [f64; 2], f64) {
     let (mut area, mut m1, mut m2) = (0.0, [0.0; 2], 0.0);
     if v.len() < 3 {
         return (area, m1, m2);
