@@ -388,7 +388,9 @@ pub fn weighted_target_masses(ring_thirds: &[f64], weights: Option<&[f64]>) -> R
         None => ring_thirds.to_vec(),
     };
     let total: f64 = raw.iter().sum();
-    let masses: Vec<f64> = raw.iter().map(|m| m / total * std::f64::consts::PI).collect();
+    // (in the order of operations before the weights were scaled: the same masses, to the bit,
+    // as before for unweighted maps; m·π cannot overflow with the weights at most 1)
+    let masses: Vec<f64> = raw.iter().map(|m| m * std::f64::consts::PI / total).collect();
     if let Some(i) = masses.iter().position(|m| !m.is_normal()) {
         return Err(AnalysisError::InvalidInput(match weights {
             Some(w) => format!(
