@@ -1,5 +1,6 @@
-//! Probe: Newton iteration logs of one face pair under several solver settings (env `FLUX`:
-//! the Newton evaluations' masses by the flux form).
+//! Probe: Newton iteration logs of one face pair with the pairwise distances' solver settings
+//! (`PairwiseOptions::default()`; args A B [CONTINUATION]; env `FLUX`: the Newton evaluations'
+//! masses by the flux form).
 #[path = "common/faces.rs"]
 mod faces;
 #[path = "common/newton_log.rs"]
@@ -22,7 +23,8 @@ fn main() {
         density_continuation: cont,
         max_iterations: 300,
         flux_masses: std::env::var("FLUX").is_ok(),
-        ..Default::default()
+        // the distances' settings (tolerance, coarse tolerance, linear solver), as a pair runs
+        ..shapespace_analysis::distance::PairwiseOptions::default().newton
     };
     let sol = shapespace_omt::solve_ot(&shapes[0].measure, &shapes[1].points, &shapes[1].masses, &params).unwrap();
     newton_log::print_newton_log(&sol);
@@ -33,6 +35,10 @@ fn main() {
     println!(
         "SUMMARY it {} evals {} rej_minmass {rm} rej_norm {rn} cost {:.15e} err {:.2e}",
         sol.iterations, sol.evaluations, sol.cost, sol.max_relative_error
+    );
+    println!(
+        "finest linear algebra: assembly {:.4} s, symbolic {:.4} s ({} factorizations, {} orderings), numeric + solve {:.4} s",
+        sol.t_assembly, sol.t_symbolic, sol.symbolic_factorizations, sol.orderings, sol.t_numeric
     );
     println!(
         "start {:?} eps0 {:.2e} t_start {:.3} total {:.3} cost {:.6} stop {}",
