@@ -37,10 +37,10 @@ pub enum LinearSolver {
     /// of all patterns since the previous one otherwise.
     #[default]
     Cholesky,
-    /// As `Cholesky`, but a new pattern keeps the previous AMD ordering while its fill
-    /// nnz(L)/nnz(A) stays within 20% of the fill the ordering was computed with (checked by
-    /// counting, see `factor_nnz`), and the symbolic factorization is on the current pattern
-    /// only. The same solutions up to round-off. On face pairs (9.4k unknowns, a new pattern at
+    /// As `Cholesky`, but a new pattern with few new pairs (at most `REORDER_CHECK_NEW_PAIRS`, 0.4 %,
+    /// of them) keeps the previous AMD ordering while its fill nnz(L)/nnz(A) stays within 20% of
+    /// the fill the ordering was computed with (checked by counting, see `factor_nnz`), and the
+    /// symbolic factorization is on the current pattern only. The same solutions up to round-off. On face pairs (9.4k unknowns, a new pattern at
     /// almost every step) its linear solves were ~30 % cheaper than `Cholesky`'s, measured when
     /// `Cholesky` still factorized simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation
     /// speed"); the supernodal factorization was part of that gain, and the kept ordering's
@@ -72,10 +72,9 @@ pub struct NewtonSystem {
     solver: LinearSolver,
     pattern: Vec<(u32, u32)>,
     symbolic: Option<SymbolicCholesky<u32>>,
-    /// AMD ordering (forward, inverse) of the pattern it was computed for, and that pattern's
-    /// fill ratio nnz(L)/nnz(A); reused for later patterns while their fill ratio stays within
-    /// [`REORDER_FILL_GROWTH`] of it.
-    ordering: Option<(Vec<u32>, Vec<u32>, f64)>,
+    /// The last AMD ordering, reused for later patterns while their fill ratio stays within
+    /// [`REORDER_FILL_GROWTH`] of its own (`CholeskyReusedOrdering` only).
+    ordering: Option<KeptOrdering>,
     /// Values of the Cholesky factor (reused buffer).
     factor: Vec<f64>,
     /// Number of symbolic factorizations computed so far.
@@ -89,6 +88,18 @@ pub struct NewtonSystem {
     pub t_assembly: f64,
     pub t_symbolic: f64,
     pub t_numeric: f64,
+}
+
+/// An AMD ordering kept for later patterns: (forward, inverse), and the fill ratio nnz(L)/nnz(A)
+/// it has on the pattern it was computed for. That ratio is counted only when a later pattern
+/// is checked against it (most new orderings on face pairs are replaced before any check), from
+/// the kept lower pattern (`col_ptr`, `row_idx`) of the reduced Hessian.
+struct KeptOrdering {
+    forward: Vec<u32>,
+    inverse: Vec<u32>,
+    fill: Option<f64>,
+    col_ptr: Vec<u32>,
+    row_idx: Vec<u32>,
 }
 
 /// A symbolic factorization computed ahead of need (see [`NewtonSystem::speculate`]).
@@ -108,6 +119,14 @@ pub const SPECULATION_MIN: usize = 5000;
 /// A new neighbour pattern keeps the previous fill-reducing ordering while its fill ratio
 /// nnz(L)/nnz(A) is at most this factor times the ratio the ordering had on its own pattern.
 const REORDER_FILL_GROWTH: f64 = 1.2;
+
+/// A pattern with more new neighbour pairs than this share of its pairs gets a new ordering
+/// without counting the kept one's fill. Measured on five face pairs (finest level, 9,411
+/// unknowns, 28,029 pairs, 2026-12-04 (28)): every pattern with 90 or fewer new pairs (0.3 %)
+/// kept the ordering, every one with 152 or more (0.5 %) failed the fill test; each count
+/// (about 1 ms, and 1 ms more for the new ordering's own fill) was spent for nothing in 22
+/// of 28 symbolic factorizations.
+const REORDER_CHECK_NEW_PAIRS: f64 = 0.004;
 
 /// From this many unknowns on the factorization is supernodal, with every backend and for the
 /// speculative symbolic factorizations too. faer's automatic choice takes the simplicial one for
@@ -170,7 +189,7 @@ impl NewtonSystem {
         let t0 = std::time::Instant::now();
         let edges: Vec<(u32, u32, f64)> = diagram_pairs.iter().map(|&(i, j)| (i, j, 0.0)).collect();
         let (merged, added) = merge_patterns(&self.pattern, &edges);
-        if !added && self.symbolic.is_some() {
+        if added == 0 && self.symbolic.is_some() {
             return None;
         }
         let hessian = self.assemble(n, &merged);
@@ -197,8 +216,8 @@ impl NewtonSystem {
             return false;
         }
         let pairs = pattern_edges(cells, |_, _, _| 0.0);
-        let needed = self.symbolic.is_none() || merge_patterns(&self.pattern, &pairs).1;
-        if !needed || merge_patterns(&speculative.pattern, &pairs).1 {
+        let needed = self.symbolic.is_none() || merge_patterns(&self.pattern, &pairs).1 > 0;
+        if !needed || merge_patterns(&speculative.pattern, &pairs).1 > 0 {
             return false;
         }
         self.factor = vec![0.0; speculative.symbolic.len_val()];
@@ -235,12 +254,14 @@ impl NewtonSystem {
         // (`Cholesky`) or, when the ordering is kept (cheap symbolic factorizations, see
         // `symbolic_factorization`), on this step's own pattern, so no stale pairs add fill.
         let mut new_pairs = false;
+        let mut added = 0;
         if matches!(
             self.solver,
             LinearSolver::Cholesky | LinearSolver::CholeskyReusedOrdering
         ) {
-            let (merged, added) = merge_patterns(&self.pattern, &edges);
-            new_pairs = added || self.symbolic.is_none();
+            let merged;
+            (merged, added) = merge_patterns(&self.pattern, &edges);
+            new_pairs = added > 0 || self.symbolic.is_none();
             if !new_pairs || self.solver == LinearSolver::Cholesky {
                 edges = merged;
             }
@@ -250,7 +271,10 @@ impl NewtonSystem {
         self.t_assembly += t0.elapsed().as_secs_f64();
         let reduced = match self.solver.clone() {
             LinearSolver::Cholesky | LinearSolver::CholeskyReusedOrdering => {
-                self.solve_cholesky(n - 1, &edges, new_pairs, &hessian, rhs)?
+                // (with a new symbolic factorization, the kept ordering is tried only when few
+                // of the pairs are new)
+                let try_kept = (added as f64) <= REORDER_CHECK_NEW_PAIRS * edges.len() as f64;
+                self.solve_cholesky(n - 1, &edges, new_pairs.then_some(try_kept), &hessian, rhs)?
             }
             LinearSolver::ConjugateGradient {
                 relative_tolerance,
@@ -333,23 +357,29 @@ impl NewtonSystem {
         }
     }
 
+    /// `new_pattern`: None when the pattern is the current symbolic factorization's, else
+    /// whether a kept ordering may be tried for the new one.
     fn solve_cholesky(
         &mut self,
         m: usize,
         edges: &[(u32, u32, f64)],
-        new_pairs: bool,
+        new_pattern: Option<bool>,
         hessian: &ReducedHessian,
         mut rhs: Vec<f64>,
     ) -> Result<Vec<f64>, OmtError> {
         if m == 0 {
             return Ok(rhs);
         }
-        let same_pattern = self.symbolic.is_some() && !new_pairs;
         let structure =
             SymbolicSparseColMat::<u32>::new_checked(m, m, hessian.col_ptr.clone(), None, hessian.row_idx.clone());
-        if !same_pattern {
+        let new_pattern = if self.symbolic.is_none() {
+            Some(true)
+        } else {
+            new_pattern
+        };
+        if let Some(try_kept) = new_pattern {
             let t0 = std::time::Instant::now();
-            let symbolic = self.symbolic_factorization(hessian, structure.as_ref())?;
+            let symbolic = self.symbolic_factorization(hessian, structure.as_ref(), try_kept)?;
             self.factor = vec![0.0; symbolic.len_val()];
             self.symbolic = Some(symbolic);
             self.pattern = edges.iter().map(|e| (e.0, e.1)).collect();
@@ -422,23 +452,32 @@ impl NewtonSystem {
     /// fill of the kept ordering is counted first (elimination tree and column counts only,
     /// much cheaper than AMD), since a few new neighbour pairs can multiply it: on the 1e5 disk
     /// the first Newton steps change enough pairs to raise it 5–9×, while on face pairs most
-    /// steps keep it.
+    /// steps keep it. With `try_kept` false (many new pairs, [`REORDER_CHECK_NEW_PAIRS`]) the
+    /// count is skipped and a new ordering computed.
     fn symbolic_factorization(
         &mut self,
         hessian: &ReducedHessian,
         structure: faer::sparse::SymbolicSparseColMatRef<'_, u32>,
+        try_kept: bool,
     ) -> Result<SymbolicCholesky<u32>, OmtError> {
         let err = |e| OmtError::LinearAlgebra(format!("symbolic Cholesky: {e:?}"));
         let m = structure.nrows();
-        let nnz_a = structure.compute_nnz() as f64;
         let reuse = self.solver == LinearSolver::CholeskyReusedOrdering;
-        if let Some((fwd, inv, fill)) = self.ordering.as_ref().filter(|_| reuse) {
-            let budget = (REORDER_FILL_GROWTH * fill * nnz_a) as usize;
-            if fwd.len() == m && factor_nnz(hessian, inv, budget).is_some() {
+        if let Some(kept) = self
+            .ordering
+            .as_mut()
+            .filter(|k| reuse && try_kept && k.forward.len() == m)
+        {
+            let fill = *kept.fill.get_or_insert_with(|| {
+                let nnz_l = factor_nnz(&kept.col_ptr, &kept.row_idx, &kept.inverse, usize::MAX);
+                nnz_l.unwrap_or(usize::MAX) as f64 / kept.row_idx.len() as f64
+            });
+            let budget = (REORDER_FILL_GROWTH * fill * structure.compute_nnz() as f64) as usize;
+            if factor_nnz(&hessian.col_ptr, &hessian.row_idx, &kept.inverse, budget).is_some() {
                 return factorize_symbolic_cholesky(
                     structure,
                     Side::Lower,
-                    SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, m)),
+                    SymmetricOrdering::Custom(PermRef::new_checked(&kept.forward, &kept.inverse, m)),
                     symbolic_params(m),
                 )
                 .map_err(err);
@@ -447,9 +486,14 @@ impl NewtonSystem {
         let symbolic = amd_symbolic(structure)?;
         self.orderings += 1;
         if reuse {
-            let (fwd, inv) = symbolic.perm().expect("AMD gives a permutation").arrays();
-            let nnz_l = factor_nnz(hessian, inv, usize::MAX).unwrap_or(usize::MAX);
-            self.ordering = Some((fwd.to_vec(), inv.to_vec(), nnz_l as f64 / nnz_a));
+            let (forward, inverse) = symbolic.perm().expect("AMD gives a permutation").arrays();
+            self.ordering = Some(KeptOrdering {
+                forward: forward.to_vec(),
+                inverse: inverse.to_vec(),
+                fill: None,
+                col_ptr: hessian.col_ptr.clone(),
+                row_idx: hessian.row_idx.clone(),
+            });
         }
         Ok(symbolic)
     }
@@ -486,18 +530,19 @@ fn pattern_edges(cells: &CellIntegrals, value: impl Fn(u32, u32, f64) -> f64) ->
     edges
 }
 
-/// nnz(L) of the Cholesky factor of the symmetric pattern `hessian` (lower CSC with diagonal)
-/// permuted by `inv` (unknown → elimination position), or None when it exceeds `budget`.
+/// nnz(L) of the Cholesky factor of the symmetric pattern (`col_ptr`, `row_idx`) (lower CSC
+/// with diagonal, as the reduced Hessian) permuted by `inv` (unknown → elimination position),
+/// or None when it exceeds `budget`.
 /// Counts by walking the row subtrees of the elimination tree (Liu 1990; as faer's
 /// `prefactorize_symbolic_cholesky`), O(nnz(L)), stopping as soon as the budget is exceeded.
-fn factor_nnz(hessian: &ReducedHessian, inv: &[u32], budget: usize) -> Option<usize> {
+fn factor_nnz(col_ptr_a: &[u32], row_idx_a: &[u32], inv: &[u32], budget: usize) -> Option<usize> {
     const NONE: u32 = u32::MAX;
     let m = inv.len();
     // Permuted upper triangle by columns (rows unsorted, diagonal dropped).
     let mut col_ptr = vec![0u32; m + 1];
     let entries = || {
         (0..m).flat_map(move |c| {
-            hessian.row_idx[hessian.col_ptr[c] as usize..hessian.col_ptr[c + 1] as usize]
+            row_idx_a[col_ptr_a[c] as usize..col_ptr_a[c + 1] as usize]
                 .iter()
                 .map(move |&r| (inv[r as usize], inv[c]))
         })
@@ -543,11 +588,11 @@ fn factor_nnz(hessian: &ReducedHessian, inv: &[u32], budget: usize) -> Option<us
 }
 
 /// Union of the sorted pair list `pattern` with the sorted weighted `edges` (pairs of `pattern`
-/// absent from `edges` get weight 0), and whether `edges` had a pair not in `pattern`.
-fn merge_patterns(pattern: &[(u32, u32)], edges: &[(u32, u32, f64)]) -> (Vec<(u32, u32, f64)>, bool) {
+/// absent from `edges` get weight 0), and how many pairs of `edges` are not in `pattern`.
+fn merge_patterns(pattern: &[(u32, u32)], edges: &[(u32, u32, f64)]) -> (Vec<(u32, u32, f64)>, usize) {
     let mut merged = Vec::with_capacity(pattern.len().max(edges.len()));
     let (mut a, mut b) = (0, 0);
-    let mut added = false;
+    let mut added = 0;
     while a < pattern.len() || b < edges.len() {
         let pa = pattern.get(a).copied();
         let eb = edges.get(b).map(|e| (e.0, e.1));
@@ -567,7 +612,7 @@ fn merge_patterns(pattern: &[(u32, u32)], edges: &[(u32, u32, f64)]) -> (Vec<(u3
             }
             _ => {
                 merged.push(edges[b]);
-                added = true;
+                added += 1;
                 b += 1;
             }
         }
@@ -823,7 +868,7 @@ mod tests {
 
         // the kept-ordering backend: supernodal with a new AMD ordering and with the kept one
         let mut few = grid.clone();
-        few.extend(diagonals.iter().step_by(97).copied());
+        few.extend(diagonals.iter().step_by(200).copied());
         for (edges, orderings) in [(&grid, 1), (&few, 1)] {
             let delta = reused
                 .newton_direction(&points, &cells_with(edges.clone()), &gradient)
@@ -836,11 +881,13 @@ mod tests {
     }
 
     /// A new pair recomputes the symbolic factorization, with the kept ordering (no new AMD)
-    /// when asked for and the fill stays low; the step solves the system either way.
+    /// when asked for, few pairs are new and the fill stays low; the step solves the system
+    /// either way.
     #[test]
     fn ordering_is_reused_across_new_pairs() {
-        // 12 × 12 grid graph, later with a few diagonals added (as when neighbours change).
-        let k = 12u32;
+        // 40 × 40 grid graph, later with a few diagonals added (as when neighbours change), then
+        // with many (12 % new pairs: a new ordering without counting the kept one's fill).
+        let k = 40u32;
         let n = (k * k) as usize;
         let points: Vec<[f64; 2]> = (0..n).map(|v| [(v as u32 % k) as f64, (v as u32 / k) as f64]).collect();
         let mut grid = Vec::new();
@@ -859,12 +906,22 @@ mod tests {
         let mean = gradient.iter().sum::<f64>() / n as f64;
         let gradient: Vec<f64> = gradient.iter().map(|g| g - mean).collect();
         let mut with_diagonals = grid.clone();
-        for v in [13u32, 50, 77, 100] {
+        for v in [130u32, 500, 777, 1000] {
             with_diagonals.push((v, v + k + 1, 0.3));
         }
+        with_diagonals.sort_unstable_by_key(|e| (e.0, e.1));
+        let mut many = grid.clone();
+        for y in 0..k - 1 {
+            for x in (0..k - 1).filter(|x| (x + y) % 4 == 0) {
+                many.push((y * k + x, y * k + x + k + 1, 0.25));
+            }
+        }
+        assert!(many.len() - grid.len() > 300);
         for solver in [LinearSolver::Cholesky, LinearSolver::CholeskyReusedOrdering] {
             let mut system = NewtonSystem::new(0, solver.clone());
-            for (edges, factorizations) in [(grid.clone(), 1), (with_diagonals.clone(), 2), (grid.clone(), 2)] {
+            let steps = [(&grid, 1, 1), (&with_diagonals, 2, 1), (&grid, 2, 1), (&many, 3, 2)];
+            for (edges, factorizations, kept_orderings) in steps {
+                let edges = edges.clone();
                 let cells = CellIntegrals {
                     masses: vec![1.0; n],
                     first_moments: vec![[0.0; 2]; n],
@@ -881,7 +938,7 @@ mod tests {
                 let orderings = if solver == LinearSolver::Cholesky {
                     factorizations
                 } else {
-                    1
+                    kept_orderings
                 };
                 assert_eq!(system.orderings, orderings);
             }
@@ -928,10 +985,11 @@ mod tests {
             };
             let symbolic = factorize_symbolic_cholesky(structure.as_ref(), Side::Lower, ord, params).unwrap();
             let (_, inv) = symbolic.perm().unwrap().arrays();
-            let count = factor_nnz(&hessian, inv, usize::MAX).unwrap();
+            let (c, r) = (&hessian.col_ptr, &hessian.row_idx);
+            let count = factor_nnz(c, r, inv, usize::MAX).unwrap();
             assert_eq!(count, symbolic.len_val());
-            assert_eq!(factor_nnz(&hessian, inv, count), Some(count));
-            assert_eq!(factor_nnz(&hessian, inv, count - 1), None);
+            assert_eq!(factor_nnz(c, r, inv, count), Some(count));
+            assert_eq!(factor_nnz(c, r, inv, count - 1), None);
         }
     }
 }
