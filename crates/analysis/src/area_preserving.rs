@@ -76,7 +76,7 @@ use shapespace_omt::{solve_ot, NewtonParams, OtSolution, SourceMeasure};
 
 use crate::distortion::map_distortion;
 use crate::error::AnalysisError;
-use crate::fold_repair::{repair_folds, FoldRepairInfo, FoldRepairParams};
+use crate::fold_repair::{repair_folds_with, FoldRepairInfo, FoldRepairParams};
 
 /// The domain of the area-preserving map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -433,11 +433,21 @@ pub fn transport_problem(
     markers: &Markers,
     params: &AreaPreservingParams,
 ) -> Result<TransportProblem, AnalysisError> {
+    transport_problem_with(mesh, &Connectivity::of(mesh), markers, params)
+}
+
+/// [`transport_problem`] with the mesh's connectivity `conn`.
+fn transport_problem_with(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    markers: &Markers,
+    params: &AreaPreservingParams,
+) -> Result<TransportProblem, AnalysisError> {
     let conformal = disk_map(mesh, markers, &params.disk_map).map_err(AnalysisError::DiskMap)?;
     let scale2 = conformal.scale * conformal.scale;
     let thirds: Vec<f64> = vertex_dual_areas(mesh).iter().map(|a| a * scale2).collect();
     let target_masses = weighted_target_masses(&thirds, params.weights.as_deref())?;
-    let is_boundary = Connectivity::of(mesh).boundary_vertices(mesh.num_vertices());
+    let is_boundary = conn.boundary_vertices(mesh.num_vertices());
     let num_boundary = is_boundary.iter().filter(|&&b| b).count();
     let k = match params.domain {
         Domain::Disk => params.disk_polygon_vertices.unwrap_or((8 * num_boundary).max(1024)),
@@ -467,13 +477,15 @@ pub fn area_preserving_map(
     params: &AreaPreservingParams,
 ) -> Result<AreaPreservingMap, AnalysisError> {
     let t0 = Instant::now();
+    // (one connectivity for the boundary flags, the boundary order and the fold repair)
+    let conn = Connectivity::of(mesh);
     let TransportProblem {
         conformal,
         target_masses,
         is_boundary,
         polygon,
         measure,
-    } = transport_problem(mesh, markers, params)?;
+    } = transport_problem_with(mesh, &conn, markers, params)?;
     let t1 = Instant::now();
     // OT from Ω to the targets (the conformal image turned by `rotation`), the centroid map and
     // the boundary order
@@ -498,9 +510,9 @@ pub fn area_preserving_map(
             solution
         };
         let (mut uv, max_projection) = centroid_map(params.domain, &solution, &is_boundary)?;
-        let violations = boundary_order_violations(mesh, &uv);
+        let violations = boundary_order_violations_with(&conn, mesh, &uv);
         let reordered = if violations > 0 {
-            order_boundary(mesh, params.domain, &mut uv)
+            order_boundary_with(&conn, mesh, params.domain, &mut uv)
         } else {
             0
         };
@@ -558,8 +570,13 @@ pub fn area_preserving_map(
         domain_vertices: polygon.len(),
     };
     let t3 = Instant::now();
-    let before = map_quality(mesh, &uv)?;
-    let info = repair_folds(mesh, &is_boundary, &mut uv, &params.fold_repair)?;
+    // The input's report runs beside the repair (which is mostly sequential: its retraction).
+    let input = uv.clone();
+    let (before, info) = rayon::join(
+        || map_quality(mesh, &input),
+        || repair_folds_with(mesh, Some(&conn), &is_boundary, &mut uv, &params.fold_repair),
+    );
+    let (before, info) = (before?, info?);
     let after = if info.vertices_moved > 0 {
         map_quality(mesh, &uv)?
     } else {
@@ -635,7 +652,11 @@ fn centroid_map(
 /// turn clockwise around the origin, i.e. cross(uv_a, uv_b) ≤ 0. For a map that keeps the
 /// boundary on a star-shaped curve in counter-clockwise order this is 0.
 pub fn boundary_order_violations(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
-    let conn = Connectivity::of(mesh);
+    boundary_order_violations_with(&Connectivity::of(mesh), mesh, uv)
+}
+
+/// [`boundary_order_violations`] with the mesh's connectivity `conn`.
+fn boundary_order_violations_with(conn: &Connectivity, mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
     conn.boundary_halfedges(&mesh.faces)
         .iter()
         .filter(|[a, b]| {
@@ -656,7 +677,11 @@ pub fn boundary_order_violations(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
 /// ordered loop with a gap of π or more) is left as it is (nothing local can order it; the
 /// fold repair then reports it).
 pub fn order_boundary(mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> usize {
-    let conn = Connectivity::of(mesh);
+    order_boundary_with(&Connectivity::of(mesh), mesh, domain, uv)
+}
+
+/// [`order_boundary`] with the mesh's connectivity `conn`.
+fn order_boundary_with(conn: &Connectivity, mesh: &TriMesh, domain: Domain, uv: &mut [[f64; 2]]) -> usize {
     let mut moved = 0;
     for lp in conn.boundary_loops(&mesh.faces) {
         let n = lp.len();

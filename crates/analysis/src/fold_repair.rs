@@ -673,6 +673,18 @@ pub fn repair_folds(
     uv: &mut [[f64; 2]],
     params: &FoldRepairParams,
 ) -> Result<FoldRepairInfo, AnalysisError> {
+    repair_folds_with(mesh, None, is_boundary, uv, params)
+}
+
+/// [`repair_folds`] with the mesh's connectivity when the caller has it (built here otherwise,
+/// and only when a fold needs the Tutte rounds).
+pub(crate) fn repair_folds_with(
+    mesh: &TriMesh,
+    connectivity: Option<&Connectivity>,
+    is_boundary: &[bool],
+    uv: &mut [[f64; 2]],
+    params: &FoldRepairParams,
+) -> Result<FoldRepairInfo, AnalysisError> {
     let n = mesh.num_vertices();
     if uv.len() != n || is_boundary.len() != n {
         return Err(AnalysisError::InvalidInput(format!(
@@ -719,7 +731,14 @@ pub fn repair_folds(
     if bad.is_empty() {
         return Ok(info);
     }
-    let conn = Connectivity::of(mesh);
+    let built;
+    let conn = match connectivity {
+        Some(c) => c,
+        None => {
+            built = Connectivity::of(mesh);
+            &built
+        }
+    };
     let input = uv.to_vec();
     if params.untangle_sweeps > 0 {
         info.untangle = untangle_kernels(&mesh.faces, &conn.vertex_faces, is_boundary, uv, params.untangle_sweeps);
