@@ -673,7 +673,9 @@ fn retract_components(
     // largest first, for the balance of the parallel loop
     members.sort_by_key(|m| std::cmp::Reverse(m.len()));
     let uv_in: &[[f64; 2]] = uv;
-    let moved: Vec<(usize, Vec<(usize, [f64; 2])>)> = members
+    // per component: its sweeps, and its vertices' final positions
+    type Retracted = (usize, Vec<(usize, [f64; 2])>);
+    let moved: Vec<Retracted> = members
         .par_iter()
         // (one job per component: rayon's adaptive split would leave the largest ones, listed
         // first, together on one thread)
