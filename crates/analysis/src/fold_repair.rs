@@ -409,6 +409,8 @@ fn solve_region(
     let known = earlier.as_deref().map_or(&[][..], |e| e.as_slice());
     let solutions: Vec<Vec<[f64; 2]>> = components
         .par_iter()
+        // (one job per component: rayon's adaptive split can leave the large ones on one thread)
+        .with_max_len(1)
         .map(
             |comp| match known.iter().find(|(key, _)| *key == (comp[0], comp.len())) {
                 Some((_, solution)) => Ok(solution.clone()),
