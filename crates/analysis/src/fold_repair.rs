@@ -1179,6 +1179,30 @@ mod tests {
         (mesh, is_boundary, uv)
     }
 
+    /// `reference` squeezed radially (|p| → |p|^e, e = `exponent(p)`): an embedding of the disk.
+    fn squeezed(reference: &[[f64; 2]], exponent: impl Fn([f64; 2]) -> f64) -> Vec<[f64; 2]> {
+        reference
+            .iter()
+            .map(|&p| {
+                let r = p[0].hypot(p[1]);
+                let f = if r > 0.0 { r.powf(exponent(p)) / r } else { 1.0 };
+                [p[0] * f, p[1] * f]
+            })
+            .collect()
+    }
+
+    /// Retraction floors: the faces' doubled areas in `reference` times e^{-0.3}, so that some
+    /// moves towards the reference are refused.
+    fn retraction_floors(mesh: &TriMesh, reference: &[[f64; 2]]) -> Vec<f64> {
+        mesh.faces
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.map(|v| reference[v as usize]);
+                doubled_area(a, b, c).unwrap() * (-0.3f64).exp()
+            })
+            .collect()
+    }
+
     /// max_v |a_v − b_v|.
     fn max_distance(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
         a.iter()
@@ -1315,22 +1339,8 @@ mod tests {
         let movable: Vec<usize> = (0..n).filter(|&v| !is_boundary[v]).collect();
         // start: the disk squeezed radially (an embedding), target: the reference layout,
         // floors from the reference areas minus a margin, so some moves are refused
-        let start: Vec<[f64; 2]> = reference
-            .iter()
-            .map(|p| {
-                let r = p[0].hypot(p[1]);
-                let f = if r > 0.0 { r.powf(1.8) / r } else { 1.0 };
-                [p[0] * f, p[1] * f]
-            })
-            .collect();
-        let floors: Vec<f64> = mesh
-            .faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|v| reference[v as usize]);
-                doubled_area(a, b, c).unwrap() * (-0.3f64).exp()
-            })
-            .collect();
+        let start = squeezed(&reference, |_| 1.8);
+        let floors = retraction_floors(&mesh, &reference);
         let mut fast = start.clone();
         let sweeps = retract(
             &mesh.faces,
@@ -1427,23 +1437,8 @@ mod tests {
         }
         assert_eq!(count, 3, "three sectors");
         // start: squeezed radially, with one sector squeezed harder (different sweep counts)
-        let start: Vec<[f64; 2]> = reference
-            .iter()
-            .map(|p| {
-                let r = p[0].hypot(p[1]);
-                let e = if p[1] > 0.0 { 1.8 } else { 1.4 };
-                let f = if r > 0.0 { r.powf(e) / r } else { 1.0 };
-                [p[0] * f, p[1] * f]
-            })
-            .collect();
-        let floors: Vec<f64> = mesh
-            .faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|v| reference[v as usize]);
-                doubled_area(a, b, c).unwrap() * (-0.3f64).exp()
-            })
-            .collect();
+        let start = squeezed(&reference, |p| if p[1] > 0.0 { 1.8 } else { 1.4 });
+        let floors = retraction_floors(&mesh, &reference);
         let mut one = start.clone();
         let sweeps = retract(
             &mesh.faces,
