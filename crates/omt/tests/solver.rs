@@ -276,6 +276,22 @@ fn invalid_input_is_rejected() {
         solve_ot(&measure, &[[0.5, 0.5], [0.2, 0.2], [0.5, 0.5]], &[1.0; 3], &p),
         Err(OmtError::DuplicatePoints { i: 0, j: 2 })
     ));
+    // Masses each finite whose rescaling to the source's mass leaves f64: a sum that overflows
+    // (the targets would all be 0 and the solve stall), and subnormal masses whose scale
+    // overflows. Masses near either end of the range whose rescaling stays finite are solved.
+    let points = [[0.5, 0.5], [0.2, 0.2], [0.8, 0.3]];
+    for masses in [[1e308; 3], [5e-324; 3]] {
+        match solve_ot(&measure, &points, &masses, &p) {
+            Err(OmtError::InvalidInput(m)) => assert!(m.contains("rescale the masses"), "{m}"),
+            other => panic!("masses {masses:?}: {:?}", other.map(|s| s.stop)),
+        }
+    }
+    for scale in [1e300, 1e-300] {
+        let masses = [scale, 3.0 * scale, 2.0 * scale];
+        let sol = solve_ot(&measure, &points, &masses, &p).unwrap();
+        assert!(sol.converged(), "scale {scale:e}");
+        assert!((sol.cells.masses[1] / sol.cells.masses[0] - 3.0).abs() < 1e-5);
+    }
     // Parameters `p` must be rejected as invalid input whose message contains `needle`.
     let rejected = |p: NewtonParams, needle: &str, case: String| match solve_ot(
         &measure,

@@ -15,7 +15,8 @@
 //!
 //! ## Choices (documented here because they are not in the paper)
 //! - **Target masses** are always rescaled by `mass_scale = μ(Ω)/Σν` (recorded in the solution);
-//!   masses must be finite and > 0.
+//!   masses must be finite and > 0, and so must Σν and every rescaled mass (else an input
+//!   error asks to rescale them: 1e308 masses overflow the sum, subnormal ones the scale).
 //! - **Start.** Warm start if given, else ([`StartStrategy`]) the coarse-to-fine start of
 //!   `multiscale` or the Voronoi diagram $h_i = -|y_i|^2/2$. KMT need every cell non-empty
 //!   at $h_0$ (otherwise ε₀ = 0 and the damping protects nothing). If a start has an empty cell,
@@ -1079,6 +1080,19 @@ fn validate(
     if !(total.is_finite() && total > 0.0) {
         return Err(OmtError::InvalidInput(format!(
             "the source measure's total mass is {total} (its triangles' areas times densities must sum to a finite positive number; rescale the density mesh or the densities)"
+        )));
+    }
+    // The targets are the masses rescaled to the source's mass (module docs): that rescaling
+    // must stay within f64 (masses of 1e308 overflow their sum, subnormal ones the scale).
+    let sum: f64 = masses.iter().sum();
+    let scale = total / sum;
+    let representable = |m: f64| {
+        let t = m * scale;
+        t.is_finite() && t > 0.0
+    };
+    if !(sum.is_finite() && scale.is_finite() && scale > 0.0) || !masses.iter().all(|&m| representable(m)) {
+        return Err(OmtError::InvalidInput(format!(
+            "the target masses sum to {sum:e}, which cannot be rescaled to the source's mass {total:e} in double precision; rescale the masses (e.g. divide them by the largest)"
         )));
     }
     if !(params.coarse_tolerance > 0.0 && params.coarse_tolerance < 1.0) {
