@@ -692,14 +692,15 @@ fn retract_components(
                     (global.len() - 1) as u32
                 })
             };
-            for &v in part {
-                id(v as u32, &mut global);
-            }
+            // (a vertex listed twice in `movable` keeps one local id and is tried twice per
+            // sweep, as in `retract`)
+            let sub_movable: Vec<usize> = part.iter().map(|&v| id(v as u32, &mut global) as usize).collect();
+            let distinct = global.len();
             let mut face_id: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
             let (mut sub_faces, mut sub_floors) = (Vec::new(), Vec::new());
-            let mut sub_vertex_faces: Vec<Vec<u32>> = vec![Vec::new(); part.len()];
-            for (k, &v) in part.iter().enumerate() {
-                for &f in &vertex_faces[v] {
+            let mut sub_vertex_faces: Vec<Vec<u32>> = vec![Vec::new(); distinct];
+            for k in 0..distinct {
+                for &f in &vertex_faces[global[k]] {
                     let g = *face_id.entry(f).or_insert_with(|| {
                         sub_faces.push(faces[f as usize].map(|u| id(u, &mut global)));
                         sub_floors.push(floors[f as usize]);
@@ -710,7 +711,6 @@ fn retract_components(
             }
             let mut sub_uv: Vec<[f64; 2]> = global.iter().map(|&v| uv_in[v]).collect();
             let sub_target: Vec<[f64; 2]> = global.iter().map(|&v| target[v]).collect();
-            let sub_movable: Vec<usize> = (0..part.len()).collect();
             sub_vertex_faces.resize(global.len(), Vec::new());
             let sweeps = retract(
                 &sub_faces,
@@ -721,7 +721,7 @@ fn retract_components(
                 &mut sub_uv,
                 max_sweeps,
             );
-            (sweeps, part.iter().enumerate().map(|(k, &v)| (v, sub_uv[k])).collect())
+            (sweeps, (0..distinct).map(|k| (global[k], sub_uv[k])).collect())
         })
         .collect();
     let mut sweeps = 0;
@@ -792,7 +792,7 @@ pub fn repair_folds(
 }
 
 /// [`repair_folds`] with the mesh's connectivity when the caller has it (built here otherwise,
-/// and only when a fold needs the Tutte rounds).
+/// once a fold that moving interior vertices can repair is found).
 pub(crate) fn repair_folds_with(
     mesh: &TriMesh,
     connectivity: Option<&Connectivity>,
@@ -1465,6 +1465,30 @@ mod tests {
         assert_eq!(parts, one);
         assert_ne!(one, start);
         assert_ne!(one, reference, "the floors should hold some vertices back");
+        // a vertex listed twice is tried twice per sweep by both
+        let mut repeated = movable.clone();
+        repeated.insert(3, movable[movable.len() / 2]);
+        let (mut one, mut parts) = (start.clone(), start.clone());
+        let sweeps = retract(
+            &mesh.faces,
+            &conn.vertex_faces,
+            &floors,
+            &repeated,
+            &reference,
+            &mut one,
+            200,
+        );
+        let part_sweeps = retract_components(
+            &mesh.faces,
+            &conn.vertex_faces,
+            &neighbors,
+            &floors,
+            &repeated,
+            &reference,
+            &mut parts,
+            200,
+        );
+        assert_eq!((part_sweeps, &parts), (sweeps, &one));
     }
 
     #[test]

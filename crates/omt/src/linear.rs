@@ -37,11 +37,11 @@ pub enum LinearSolver {
     /// of all patterns since the previous one otherwise.
     #[default]
     Cholesky,
-    /// As `Cholesky`, but a new pattern with few new pairs (at most `REORDER_CHECK_NEW_PAIRS`, 0.4 %,
-    /// of them) keeps the previous AMD ordering while its fill nnz(L)/nnz(A) stays within 20% of
-    /// the fill the ordering was computed with (checked by counting, see `factor_nnz`), and the
-    /// symbolic factorization is on the current pattern only. The same solutions up to round-off. On face pairs (9.4k unknowns, a new pattern at
-    /// almost every step) its linear solves were ~30 % cheaper than `Cholesky`'s, measured when
+    /// As `Cholesky`, but a new pattern with few new pairs (at most `REORDER_CHECK_NEW_PAIRS`,
+    /// 0.4 %, of them) keeps the previous AMD ordering while its fill nnz(L)/nnz(A) stays within
+    /// 20% of the fill the ordering was computed with (checked by counting, see `factor_nnz`),
+    /// and the symbolic factorization is on the current pattern only. The same solutions up to
+    /// round-off. On face pairs (9.4k unknowns, a new pattern at almost every step) its linear solves were ~30 % cheaper than `Cholesky`'s, measured when
     /// `Cholesky` still factorized simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation
     /// speed"); the supernodal factorization was part of that gain, and the kept ordering's
     /// share alone has not been re-measured since session 26. Not the default: on the uniform
@@ -72,7 +72,8 @@ pub struct NewtonSystem {
     solver: LinearSolver,
     pattern: Vec<(u32, u32)>,
     symbolic: Option<SymbolicCholesky<u32>>,
-    /// The last AMD ordering, reused for later patterns while their fill ratio stays within
+    /// The last AMD ordering, reused for later patterns with few new pairs
+    /// ([`REORDER_CHECK_NEW_PAIRS`]) while their fill ratio stays within
     /// [`REORDER_FILL_GROWTH`] of its own (`CholeskyReusedOrdering` only).
     ordering: Option<KeptOrdering>,
     /// Values of the Cholesky factor (reused buffer).
@@ -125,7 +126,11 @@ const REORDER_FILL_GROWTH: f64 = 1.2;
 /// unknowns, 28,029 pairs, 2026-12-04 (28)): every pattern with 90 or fewer new pairs (0.3 %)
 /// kept the ordering, every one with 152 or more (0.5 %) failed the fill test; each count
 /// (about 1 ms, and 1 ms more for the new ordering's own fill) was spent for nothing in 22
-/// of 28 symbolic factorizations.
+/// of 28 symbolic factorizations. New pairs are counted against the current symbolic
+/// factorization's pattern (the ordering's own one or a later pattern that kept it; the fill
+/// test guards the drift). Patterns of fewer than 250 pairs never keep an ordering once a pair
+/// is new (their AMD costs little; on face pairs the coarse levels' orderings therefore changed
+/// by round-off).
 const REORDER_CHECK_NEW_PAIRS: f64 = 0.004;
 
 /// From this many unknowns on the factorization is supernodal, with every backend and for the
