@@ -41,10 +41,11 @@ pub enum LinearSolver {
     /// 0.4 %, of them) keeps the previous AMD ordering while its fill nnz(L)/nnz(A) stays within
     /// 20% of the fill the ordering was computed with (checked by counting, see `factor_nnz`),
     /// and the symbolic factorization is on the current pattern only. The same solutions up to
-    /// round-off. On face pairs (9.4k unknowns, a new pattern at almost every step) its linear solves were ~30 % cheaper than `Cholesky`'s, measured when
-    /// `Cholesky` still factorized simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation
-    /// speed"); the supernodal factorization was part of that gain, and the kept ordering's
-    /// share alone has not been re-measured since session 26. Not the default: on the uniform
+    /// round-off. On face pairs (9.4k unknowns, a new pattern at almost every step) its linear
+    /// solves were ~30 % cheaper than `Cholesky`'s, measured when `Cholesky` still factorized
+    /// simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation speed"); the supernodal
+    /// factorization was part of that gain, and the kept ordering's share alone has not been
+    /// re-measured since session 26. Not the default: on the uniform
     /// disk the first steps change so many pairs that a kept ordering's fill grows 5–9× (1e5),
     /// and on camelhead subdivided it gave no gain. (It was also held back by the f64 floor of
     /// the heights on the wolf of the area-preserving tests; with the heights in double-double
