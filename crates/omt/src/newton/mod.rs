@@ -1090,7 +1090,7 @@ fn validate(
         let t = m * scale;
         t.is_finite() && t > 0.0
     };
-    if !(sum.is_finite() && scale.is_finite() && scale > 0.0) || !masses.iter().all(|&m| representable(m)) {
+    if !(sum.is_finite() && scale.is_finite() && scale > 0.0 && masses.iter().all(|&m| representable(m))) {
         return Err(OmtError::InvalidInput(format!(
             "the target masses sum to {sum:e}, which cannot be rescaled to the source's mass {total:e} in double precision; rescale the masses (e.g. divide them by the largest)"
         )));
