@@ -212,8 +212,11 @@ pub fn write_eigenvalues_csv(path: &Path, mds: &Mds) -> Result<(), AnalysisError
     write_csv(path, std::iter::once(header).chain(rows))
 }
 
+/// The files [`run_mds`] writes into its output folder.
+pub const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "mds.svg", "stats.json"];
+
 /// `shapespace mds`: reads the distance matrix CSV `distances` (and the labels CSV `labels`,
-/// matched to the shapes by name or file stem), embeds it with classical MDS in `params.dims`
+/// matched to the shapes as [`read_labels`] says), embeds it with classical MDS in `params.dims`
 /// dimensions, and writes to `out_dir` (created if needed):
 ///
 /// - `mds.csv` (name, label columns, x1..xk), `eigenvalues.csv` (k, eigenvalue, share);
@@ -224,9 +227,6 @@ pub fn write_eigenvalues_csv(path: &Path, mds: &Mds) -> Result<(), AnalysisError
 ///   distances, and the cross-column accuracies for every ordered pair of columns.
 ///
 /// Errors before anything is written: unreadable or malformed CSVs, unknown label columns, a
-/// The files [`run_mds`] writes into its output folder.
-pub const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "mds.svg", "stats.json"];
-
 /// missing distance (MDS needs a complete matrix; the error names the pair), invalid `dims`.
 pub fn run_mds(
     distances: &Path,
