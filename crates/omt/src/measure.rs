@@ -45,20 +45,6 @@ fn signed_area(p: &[[f64; 2]]) -> f64 {
     crate::restricted::polygon_integrals(p).0
 }
 
-/// The vertices some triangle uses, in their order.
-pub(crate) fn used_vertices(vertices: &[[f64; 2]], triangles: &[[u32; 3]]) -> Vec<[f64; 2]> {
-    let mut used = vec![false; vertices.len()];
-    for t in triangles {
-        t.iter().for_each(|&v| used[v as usize] = true);
-    }
-    vertices
-        .iter()
-        .zip(&used)
-        .filter(|(_, &u)| u)
-        .map(|(p, _)| *p)
-        .collect()
-}
-
 impl SourceMeasure {
     /// Checks shapes, finiteness, positive densities and counter-clockwise, non-degenerate
     /// triangles.
@@ -204,15 +190,30 @@ impl SourceMeasure {
         Self::uniform_polygon(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], 1.0)
     }
 
+    /// The convex hull of the vertices some triangle uses (counter-clockwise): Ω's boundary
+    /// when Ω is convex, the polygon the solver clips cells to. Unreferenced vertices do not
+    /// count (they would widen the cells).
+    pub(crate) fn domain_hull(&self) -> Vec<[f64; 2]> {
+        let mut used = vec![false; self.vertices.len()];
+        for t in &self.triangles {
+            t.iter().for_each(|&v| used[v as usize] = true);
+        }
+        let points: Vec<[f64; 2]> = self
+            .vertices
+            .iter()
+            .zip(&used)
+            .filter(|(_, &u)| u)
+            .map(|(p, _)| *p)
+            .collect();
+        crate::restricted::convex_hull(&points)
+    }
+
     /// How far the triangles fall short of covering the convex hull of the vertices they use:
     /// (hull area − Σ triangle areas) / hull area; 0 for a triangulated convex domain, positive
     /// for a non-convex one (or gaps), negative where triangles overlap. The solver clips cells
     /// to that hull, so only a convex domain gives right cell shapes.
     pub fn convexity_gap(&self) -> f64 {
-        let hull_area = signed_area(&crate::restricted::convex_hull(&used_vertices(
-            &self.vertices,
-            &self.triangles,
-        )));
+        let hull_area = signed_area(&self.domain_hull());
         let area: f64 = self
             .triangles
             .iter()

@@ -239,7 +239,7 @@ pub fn integrate_cells_bruteforce(sites: &[[f64; 2]], weights: &[f64], measure: 
 /// cell is the cell clipped by the domain's convex hull. Brute force, O(N² + N·M): tests only.
 pub fn cell_polygons_bruteforce(sites: &[[f64; 2]], weights: &[f64], measure: &SourceMeasure) -> Vec<Vec<[f64; 2]>> {
     let (lo, hi) = domain_box(measure);
-    let hull = crate::restricted::convex_hull(&crate::measure::used_vertices(&measure.vertices, &measure.triangles));
+    let hull = measure.domain_hull();
     (0..sites.len())
         .map(|i| {
             let y = sites[i];

@@ -330,12 +330,11 @@ fn coarsen(
     })
 }
 
-/// The edges of the convex hull of `points`, counter-clockwise, with their lengths (computed once:
+/// The edges of the convex polygon `hull` (counter-clockwise), with their lengths (computed once:
 /// [`distance_to_boundary`] runs once per coarse group over every edge, and the disk polygon of
 /// the area-preserving map has 8 edges per boundary vertex: 2,448 for Nefertiti slit, where the
 /// `hypot` per edge and group took a quarter of a second).
-fn hull_edges(points: &[[f64; 2]]) -> Vec<([[f64; 2]; 2], f64)> {
-    let hull = crate::restricted::convex_hull(points);
+fn hull_edges(hull: &[[f64; 2]]) -> Vec<([[f64; 2]; 2], f64)> {
     if hull.len() < 3 {
         return Vec::new();
     }
@@ -455,7 +454,7 @@ pub(crate) fn coarse_to_fine_heights(
         ..params.clone()
     };
     // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
-    let boundary = hull_edges(&crate::measure::used_vertices(&measure.vertices, &measure.triangles));
+    let boundary = hull_edges(&measure.domain_hull());
     let averaged = averaging_sample(measure, coarse_n, boundary.len()).and_then(|sample| measure.averaged(sample));
     let level_measure = averaged.as_deref().unwrap_or(measure);
     // The deadline ends the whole solve: a level it stopped (or a level below, whose error comes

@@ -443,7 +443,7 @@ impl RestrictedIntegrator {
             densities: measure.densities.clone(),
             triangle_areas,
             // (of the vertices the triangles use: an unreferenced one would widen the cells)
-            boundary: convex_hull(&crate::measure::used_vertices(&measure.vertices, &measure.triangles)),
+            boundary: measure.domain_hull(),
             seeds: (0..measure.triangles.len()).map(|_| AtomicU32::new(NO_SEED)).collect(),
             flux: OnceLock::new(),
             flux_slot: measure.flux.clone(),
