@@ -11,11 +11,14 @@ pub mod param;
 pub mod prepare;
 pub mod register;
 
-/// Checks, before any work, that output files can be created where they are named: not an
-/// existing folder, and in a folder that exists (so that a wrong path fails at once, not after
-/// minutes of computation with some outputs written and others not).
-pub(crate) fn check_output_files<'a>(files: impl IntoIterator<Item = &'a std::path::Path>) -> anyhow::Result<()> {
-    for file in files {
+/// Checks, before any work, that the output files given (`None`: an optional output not asked
+/// for) can be created where they are named: not an existing folder, and in a folder that
+/// exists (so that a wrong path fails at once, not after minutes of computation with some
+/// outputs written and others not).
+pub(crate) fn check_output_files<'a>(
+    files: impl IntoIterator<Item = Option<&'a std::path::Path>>,
+) -> anyhow::Result<()> {
+    for file in files.into_iter().flatten() {
         if file.is_dir() {
             anyhow::bail!("{}: is a folder; name an output file", file.display());
         }

@@ -102,7 +102,7 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     super::check_map_output(&args.out)?;
-    super::check_output_files([args.out.as_path()].into_iter().chain(args.report.as_deref()))?;
+    super::check_output_files([Some(args.out.as_path()), args.report.as_deref()])?;
     if let Some(dir) = &args.plots {
         super::create_output_folder(dir)?;
     }
