@@ -55,7 +55,7 @@ use std::time::Instant;
 use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
-use crate::disk_map::{check_disk, count_negative, finish, neighbors, CROWDING_LIMIT};
+use crate::disk_map::{center_vertex, check_disk, count_negative, finish, neighbors, CROWDING_LIMIT};
 use crate::error::ConformalError;
 use crate::intrinsic::{next, prev, triangle_area_from_lengths, IntrinsicTriangulation, NONE};
 use crate::linsolve::restricted_laplacian;
@@ -146,6 +146,9 @@ pub struct BffInfo {
     pub residuals: Vec<f64>,
     /// Intrinsic edge flips performed (0 without intrinsic Delaunay).
     pub intrinsic_flips: usize,
+    /// Vertices inserted by intrinsic edge splits
+    /// ([`crate::intrinsic::IntrinsicTriangulation::connect_interior`]).
+    pub inserted_vertices: usize,
     /// Interior edges with a negative cotangent weight after the flips.
     pub negative_weights_after: usize,
     /// Vertices moved by the fold repair.
@@ -448,14 +451,14 @@ pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Re
     let adj = neighbors(&tri);
     let resolved = resolve_markers(mesh, &tri.is_boundary, &adj, markers)?;
     let t1 = Instant::now();
-    if params.intrinsic_delaunay {
-        tri.make_delaunay()?;
-    }
+    let center = center_vertex(mesh, &tri.is_boundary, resolved.center)?;
+    let inserted_vertices = tri.connect_interior(center, params.intrinsic_delaunay)?;
     let negative_weights_after = count_negative(&tri);
     let t2 = Instant::now();
     let raw = bff_disk_coordinates(&tri, resolved.boundary_vertex, params)?;
     let t3 = Instant::now();
-    let fin = finish(mesh, &tri.is_boundary, &resolved, &raw.z, params.repair_folds)?;
+    let n = mesh.num_vertices();
+    let fin = finish(mesh, &tri.is_boundary[..n], &resolved, &raw.z[..n], params.repair_folds)?;
     // boundary crowding (module docs of crate::disk_map): the same limit as the Green's map
     let (gap_vertex, min_interior_gap) = fin
         .uv
@@ -493,6 +496,7 @@ pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Re
             iterations: raw.iterations,
             residuals: raw.residuals,
             intrinsic_flips: tri.num_flips,
+            inserted_vertices,
             negative_weights_after,
             fold_repairs: fin.fold_repairs,
             min_interior_gap,

@@ -143,6 +143,11 @@ pub struct DiskMapInfo {
     pub mobius: Mobius,
     /// Intrinsic edge flips performed (0 without intrinsic Delaunay).
     pub intrinsic_flips: usize,
+    /// Vertices inserted by intrinsic edge splits so that every interior vertex is joined to
+    /// the center through interior vertices
+    /// ([`IntrinsicTriangulation::connect_interior`]); they take part in the linear solves
+    /// only, the map is given at the input vertices.
+    pub inserted_vertices: usize,
     /// Interior edges with a negative cotangent weight in the input triangulation.
     pub negative_weights_before: usize,
     /// Same after the intrinsic Delaunay flips (0 unless the flips were disabled).
@@ -400,34 +405,20 @@ fn clockwise_edges(edges: impl Iterator<Item = [u32; 2]>, uv: &[[f64; 2]]) -> us
         .count()
 }
 
-/// Every interior vertex must be reachable from `center` through interior vertices of the
-/// triangulation the Laplacian is built on: the Dirichlet problems of the map are zero on any
-/// other part of the interior ([`ConformalError::CutOffInterior`]). Checked on the input
-/// triangulation and again after the intrinsic Delaunay flips (`flipped`), which join the
-/// two sides of a part a few triangles wide and can cut its interior vertices off too.
-/// `center` is an interior vertex (the markers' resolution rejects a boundary center).
-fn check_interior_connected(tri: &IntrinsicTriangulation, center: u32, flipped: bool) -> Result<(), ConformalError> {
-    debug_assert!(
-        !tri.is_boundary[center as usize],
-        "the center {center} is on the boundary"
-    );
-    // components of the graph of interior–interior edges, by union–find over the half-edges
-    let mut parent: Vec<u32> = (0..tri.num_vertices as u32).collect();
-    for h in 0..tri.tail.len() as u32 {
-        let (a, b) = (tri.tail[h as usize], tri.head(h));
-        if !tri.is_boundary[a as usize] && !tri.is_boundary[b as usize] {
-            union(&mut parent, a, b);
+/// The interior vertex the center marker stands on: its vertex, or for a point inside a face
+/// the interior corner of largest barycentric weight (the pole of the Green's function at p,
+/// and the vertex the interior is connected to by [`IntrinsicTriangulation::connect_interior`]).
+pub(crate) fn center_vertex(mesh: &TriMesh, is_boundary: &[bool], center: ResolvedCenter) -> Result<u32, ConformalError> {
+    match center {
+        ResolvedCenter::Vertex(v) => Ok(v),
+        ResolvedCenter::Face { face, bary } => {
+            let corners = mesh.faces[face as usize];
+            (0..3)
+                .filter(|&k| !is_boundary[corners[k] as usize])
+                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
+                .map(|k| corners[k])
+                .ok_or_else(|| ConformalError::InvalidMarker(format!("face {face} has no interior corner")))
         }
-    }
-    let root = find(&mut parent, center);
-    let mut cut_off = (0..tri.num_vertices).filter(|&v| !tri.is_boundary[v] && find(&mut parent, v as u32) != root);
-    match cut_off.next() {
-        None => Ok(()),
-        Some(vertex) => Err(ConformalError::CutOffInterior {
-            vertex,
-            count: 1 + cut_off.count(),
-            by_flips: flipped,
-        }),
     }
 }
 
@@ -636,24 +627,12 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     check_disk(mesh, &tri)?;
     let adj = neighbors(&tri);
     let resolved = resolve_markers(mesh, &tri.is_boundary, &adj, markers)?;
-    let own_pole = match resolved.center {
-        ResolvedCenter::Vertex(v) => v,
-        ResolvedCenter::Face { face, bary } => {
-            let corners = mesh.faces[face as usize];
-            let k = (0..3)
-                .filter(|&k| !tri.is_boundary[corners[k] as usize])
-                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
-                .ok_or_else(|| ConformalError::InvalidMarker(format!("face {face} has no interior corner")))?;
-            corners[k]
-        }
-    };
-    check_interior_connected(&tri, own_pole, false)?;
+    let own_pole = center_vertex(mesh, &tri.is_boundary, resolved.center)?;
     let negative_weights_before = count_negative(&tri);
     let t1 = Instant::now();
-    if params.intrinsic_delaunay {
-        tri.make_delaunay()?;
-    }
+    let inserted_vertices = tri.connect_interior(own_pole, params.intrinsic_delaunay)?;
     let negative_weights_after = count_negative(&tri);
+    let n = mesh.num_vertices();
     let t2 = Instant::now();
     // Route 1 (default): Green's function at the central vertex, then the Möbius map sending
     // φ(p) to 0. Route 2 (fallback): Green's function at p itself, used when p lies where the
@@ -662,10 +641,9 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     let central = match (&markers.center, resolved.center) {
         // the automatic center is the central vertex (resolved above by the same function)
         (crate::markers::CenterMarker::Auto, ResolvedCenter::Vertex(v)) => v,
-        _ => crate::markers::central_vertex(mesh, &tri.is_boundary, &adj)
+        _ => crate::markers::central_vertex(mesh, &tri.is_boundary[..n], &adj)
             .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?,
     };
-    check_interior_connected(&tri, own_pole, true)?;
     let image_of_center = |z: &[[f64; 2]]| center_image(mesh, resolved.center, z);
     // smallest image distance from the center's image to the corners around it
     let local_scale = |z: &[[f64; 2]], a: [f64; 2]| -> f64 {
@@ -716,7 +694,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         finish: secs(t4, t5),
         total: secs(t0, t5),
     };
-    let fin = match finish(mesh, &tri.is_boundary, &resolved, &z, params.repair_folds) {
+    let fin = match finish(mesh, &tri.is_boundary[..n], &resolved, &z[..n], params.repair_folds) {
         Err(ConformalError::FoldedImage {
             num_flipped,
             first_face,
@@ -756,6 +734,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                     pole,
                     mobius: b.info.mobius,
                     intrinsic_flips: b.info.intrinsic_flips,
+                    inserted_vertices: b.info.inserted_vertices,
                     negative_weights_before,
                     negative_weights_after: b.info.negative_weights_after,
                     fold_repairs: b.info.fold_repairs,
@@ -795,6 +774,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             pole,
             mobius: fin.mobius,
             intrinsic_flips: tri.num_flips,
+            inserted_vertices,
             negative_weights_before,
             negative_weights_after,
             fold_repairs: fin.fold_repairs,

@@ -74,12 +74,11 @@ pub enum ConformalError {
     /// same symptom is crowding below the solve's rounding: [`ConformalError::OutOfRange`].)
     #[error("interior vertex {vertex} maps on or outside the unit circle (|z| = {radius:.9}): folded or near-degenerate triangles (angles close to 180°) broke the discrete maximum principle")]
     InteriorOutsideDisk { vertex: usize, radius: f64 },
-    /// Interior vertices that no path through interior vertices connects to the centre: edges
-    /// joining two boundary vertices ("bridges") cut them off, and every harmonic disk map (the
-    /// Dirichlet problem is zero there) puts them on the boundary circle.
-    /// `by_flips`: the input's interior is connected, the intrinsic Delaunay flips cut it (a
-    /// part only a few triangles wide, which a conformal map also crowds against the circle).
-    #[error("{count} interior vertices (first: vertex {vertex}) are cut off from the centre's part of the interior by edges joining two boundary vertices{}, so a harmonic disk map puts them on the boundary circle; {}", if *by_flips { " of the intrinsic Delaunay triangulation" } else { "" }, if *by_flips { "the part around them is a few triangles wide (a conformal map crowds such parts against the circle): refine the mesh there, or compare with --no-intrinsic-delaunay" } else { "split those edges first (`shapespace prepare` does)" })]
+    /// Interior vertices that no path through interior vertices connects to the centre, even
+    /// after the intrinsic splits of the edges joining two boundary vertices that cut them off
+    /// ([`crate::intrinsic::IntrinsicTriangulation::connect_interior`]); a harmonic disk map
+    /// would put them on the boundary circle. `by_flips`: with intrinsic Delaunay flips.
+    #[error("{count} interior vertices (first: vertex {vertex}) stay cut off from the centre's part of the interior after {} rounds of intrinsic splits of the edges joining two boundary vertices{}, so a harmonic disk map would put them on the boundary circle", crate::intrinsic::MAX_CONNECT_ROUNDS, if *by_flips { " and Delaunay flips" } else { "" })]
     CutOffInterior {
         vertex: usize,
         count: usize,

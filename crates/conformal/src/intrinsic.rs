@@ -19,9 +19,17 @@
 
 use std::collections::VecDeque;
 
+use shapespace_geometry::topology::{find, union};
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
+
+/// Tolerance of the Delaunay condition cot α + cot β ≥ −tol (keeps co-circular
+/// configurations such as regular grids from flipping back and forth).
+const DELAUNAY_TOLERANCE: f64 = 1e-12;
+
+/// Rounds of flips and splits [`IntrinsicTriangulation::connect_interior`] makes at most.
+pub const MAX_CONNECT_ROUNDS: usize = 64;
 
 /// Marker for a boundary half-edge without twin.
 pub const NONE: u32 = u32::MAX;
@@ -318,7 +326,7 @@ impl IntrinsicTriangulation {
     /// Returns the number of flips. Errors if more than 50·#E + 1000 flips are needed (Lawson's
     /// algorithm terminates in theory; the budget guards against roundoff cycles).
     pub fn make_delaunay(&mut self) -> Result<usize, ConformalError> {
-        let tol = 1e-12;
+        let tol = DELAUNAY_TOLERANCE;
         let nh = self.tail.len();
         let budget = 50 * nh + 1000;
         let mut queued = vec![false; nh];
@@ -356,6 +364,140 @@ impl IntrinsicTriangulation {
             }
         }
         Ok(self.num_flips - start)
+    }
+
+    /// Splits the interior edge of half-edge h = a→b at its midpoint m, a new interior vertex
+    /// with index `num_vertices` (returned): the faces (a, b, c) and (b, a, d) become (a, m, c),
+    /// (m, b, c), (b, m, d) and (m, a, d). The first and third keep the slots of h's and its
+    /// twin's faces, the other two are appended. |mc| and |md| are the medians of the two
+    /// triangles laid out in the plane, so the surface (its metric and area) is unchanged and m
+    /// is flat (angle sum 2π) [Sharp, Soliman & Crane 2019, §3: vertex insertion].
+    pub fn split_edge(&mut self, h: u32) -> u32 {
+        let t = self.twin[h as usize];
+        debug_assert!(t != NONE, "split_edge needs an interior edge");
+        let (hn, hp, tn, tp) = (next(h), prev(h), next(t), prev(t));
+        let (a, b) = (self.tail[h as usize], self.tail[t as usize]);
+        let (c, d) = (self.tail[hp as usize], self.tail[tp as usize]);
+        let l_ab = self.length[h as usize];
+        let (l_bc, l_ca) = (self.length[hn as usize], self.length[hp as usize]);
+        let (l_ad, l_db) = (self.length[tn as usize], self.length[tp as usize]);
+        let median = |u: f64, v: f64| (0.5 * (u * u + v * v) - 0.25 * l_ab * l_ab).max(0.0).sqrt();
+        let (l_mc, l_md) = (median(l_bc, l_ca), median(l_ad, l_db));
+        let half = 0.5 * l_ab;
+        let m = self.num_vertices as u32;
+        self.num_vertices += 1;
+        self.is_boundary.push(false);
+        let (x_bc, x_ad) = (self.twin[hn as usize], self.twin[tn as usize]);
+        let f2 = self.tail.len() as u32; // (m, b, c)
+        let f4 = f2 + 3; // (m, a, d)
+        self.tail.extend_from_slice(&[m, b, c, m, a, d]);
+        self.length.extend_from_slice(&[half, l_bc, l_mc, half, l_ad, l_md]);
+        self.twin.extend_from_slice(&[NONE; 6]);
+        // (a, m, c) in h's slots: h = a→m, hn = m→c, hp = c→a (unchanged)
+        self.tail[hn as usize] = m;
+        self.length[h as usize] = half;
+        self.length[hn as usize] = l_mc;
+        // (b, m, d) in t's slots: t = b→m, tn = m→d, tp = d→b (unchanged)
+        self.tail[tn as usize] = m;
+        self.length[t as usize] = half;
+        self.length[tn as usize] = l_md;
+        let mut link = |x: u32, y: u32| {
+            self.twin[x as usize] = y;
+            if y != NONE {
+                self.twin[y as usize] = x;
+            }
+        };
+        link(h, f4); // a→m / m→a
+        link(hn, f2 + 2); // m→c / c→m
+        link(f2, t); // m→b / b→m
+        link(f2 + 1, x_bc); // b→c
+        link(tn, f4 + 2); // m→d / d→m
+        link(f4 + 1, x_ad); // a→d
+        m
+    }
+
+    /// Interior vertices that no path through interior vertices joins to `center` (an interior
+    /// vertex): edges joining two boundary vertices cut them off, and the Dirichlet problems of
+    /// a harmonic disk map are zero there, which puts them on the boundary circle.
+    pub fn cut_off_vertices(&self, center: u32) -> Vec<u32> {
+        let mut parent: Vec<u32> = (0..self.num_vertices as u32).collect();
+        for h in 0..self.tail.len() as u32 {
+            let (a, b) = (self.tail[h as usize], self.head(h));
+            if !self.is_boundary[a as usize] && !self.is_boundary[b as usize] {
+                union(&mut parent, a, b);
+            }
+        }
+        let root = find(&mut parent, center);
+        (0..self.num_vertices as u32)
+            .filter(|&v| !self.is_boundary[v as usize] && find(&mut parent, v) != root)
+            .collect()
+    }
+
+    /// Makes every interior vertex reachable from `center` through interior vertices, and
+    /// with `delaunay` the triangulation intrinsically Delaunay too: rounds of Delaunay flips
+    /// ([`Self::make_delaunay`]) and midpoint splits ([`Self::split_edge`]) of the interior
+    /// edges that join two boundary vertices opposite a cut-off vertex. A split vertex is
+    /// interior and joins both sides of the edge, and the flips never remove it (its angle on
+    /// the split edge is π, so the diagonal back to the edge is never Delaunay); a cut-off part
+    /// a few triangles wide needs one round per row of such edges. The inserted vertices carry
+    /// values in the linear solves only: maps are read at the original vertices, which keep
+    /// their indices. Returns the number of inserted vertices.
+    ///
+    /// Errors: [`ConformalError::CutOffInterior`] when interior vertices are still cut off after
+    /// [`MAX_CONNECT_ROUNDS`] rounds, or lie in a part with no such edge to split (neither
+    /// happens on a disk), and the errors of [`Self::make_delaunay`].
+    pub fn connect_interior(&mut self, center: u32, delaunay: bool) -> Result<usize, ConformalError> {
+        let start = self.num_vertices;
+        for _ in 0..MAX_CONNECT_ROUNDS {
+            if delaunay {
+                self.make_delaunay()?;
+            }
+            let cut = self.cut_off_vertices(center);
+            if cut.is_empty() {
+                return Ok(self.num_vertices - start);
+            }
+            let mut is_cut = vec![false; self.num_vertices];
+            for &v in &cut {
+                is_cut[v as usize] = true;
+            }
+            let mut split = 0;
+            while let Some(h) = self.bridge_next_to(&is_cut) {
+                self.split_edge(h);
+                split += 1;
+            }
+            if split == 0 {
+                return Err(self.cut_off_error(&cut, delaunay));
+            }
+        }
+        let cut = self.cut_off_vertices(center);
+        if cut.is_empty() {
+            return Ok(self.num_vertices - start);
+        }
+        Err(self.cut_off_error(&cut, delaunay))
+    }
+
+    /// An interior edge joining two boundary vertices with a vertex flagged in `is_cut`
+    /// opposite it (a half-edge of it), if any.
+    fn bridge_next_to(&self, is_cut: &[bool]) -> Option<u32> {
+        (0..self.tail.len() as u32).find(|&h| {
+            let t = self.twin[h as usize];
+            t != NONE
+                && h < t
+                && self.is_boundary[self.tail[h as usize] as usize]
+                && self.is_boundary[self.head(h) as usize]
+                && [prev(h), prev(t)].iter().any(|&g| {
+                    let v = self.tail[g as usize] as usize;
+                    v < is_cut.len() && is_cut[v]
+                })
+        })
+    }
+
+    fn cut_off_error(&self, cut: &[u32], by_flips: bool) -> ConformalError {
+        ConformalError::CutOffInterior {
+            vertex: cut[0] as usize,
+            count: cut.len(),
+            by_flips,
+        }
     }
 
     /// Per half-edge weight triplets (tail, head, ½ cot of the opposite angle), 3·#F entries:
@@ -398,6 +540,51 @@ mod tests {
         let a = triangle_area_from_lengths(1.0, 1.0, 1e-9);
         assert!((a / 0.5e-9 - 1.0).abs() < 1e-9, "{a}");
         assert_eq!(triangle_area_from_lengths(1.0, 1.0, 3.0), 0.0);
+    }
+
+    /// A midpoint split keeps the surface: total area, the lengths of the two triangles' other
+    /// sides, a flat new vertex (angle sum 2π), consistent twins; and a Delaunay pass after it
+    /// does not flip the split edge back.
+    #[test]
+    fn split_edge_keeps_the_surface_and_makes_a_flat_interior_vertex() {
+        let positions = vec![[0.0, 0.0, 0.0], [2.0, 0.1, 0.3], [0.7, 1.3, -0.2], [1.1, -0.9, 0.4]];
+        let mesh = TriMesh::new(positions, vec![[0, 1, 2], [1, 0, 3]]).unwrap();
+        let mut it = IntrinsicTriangulation::from_mesh(&mesh).unwrap();
+        let area0: f64 = (0..it.num_faces()).map(|f| it.face_area(f)).sum();
+        let h = (0..6u32).find(|&h| it.twin[h as usize] != NONE).unwrap();
+        let m = it.split_edge(h);
+        assert_eq!((m, it.num_vertices, it.num_faces()), (4, 5, 4));
+        assert!(!it.is_boundary[4]);
+        let area1: f64 = (0..it.num_faces()).map(|f| it.face_area(f)).sum();
+        assert!((area0 - area1).abs() < 1e-14 * area0, "{area0} vs {area1}");
+        let mut angle_sum = 0.0;
+        for g in 0..it.tail.len() as u32 {
+            let t = it.twin[g as usize];
+            if t != NONE {
+                assert_eq!(it.twin[t as usize], g);
+                assert_eq!((it.tail[t as usize], it.head(t)), (it.head(g), it.tail[g as usize]));
+                assert_eq!(it.length[t as usize], it.length[g as usize]);
+            }
+            if it.tail[g as usize] == m {
+                let (e, a, b) = (it.length[next(g) as usize], it.length[g as usize], it.length[prev(g) as usize]);
+                angle_sum += (4.0 * triangle_area_from_lengths(e, a, b)).atan2(a * a + b * b - e * e);
+            }
+        }
+        assert!((angle_sum - std::f64::consts::TAU).abs() < 1e-12, "{angle_sum}");
+        // the four outer sides keep their 3D lengths
+        let d = |a: usize, b: usize| {
+            let (p, q) = (mesh.positions[a], mesh.positions[b]);
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        };
+        for (a, b) in [(1, 2), (2, 0), (0, 3), (3, 1)] {
+            let g = (0..it.tail.len() as u32)
+                .find(|&g| it.tail[g as usize] == a && it.head(g) == b)
+                .unwrap();
+            assert!((it.length[g as usize] - d(a as usize, b as usize)).abs() < 1e-15);
+        }
+        let flips = it.make_delaunay().unwrap();
+        assert!((0..it.tail.len() as u32).all(|g| it.tail[g as usize] != it.head(g)));
+        assert!(it.min_delaunay_cot_sum() >= -1e-12, "after {flips} flips");
     }
 
     #[test]

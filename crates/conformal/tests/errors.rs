@@ -1,5 +1,7 @@
 //! Inputs that are not usable give typed errors, never panics or garbage.
 
+use shapespace_conformal::green::green_function;
+use shapespace_conformal::intrinsic::IntrinsicTriangulation;
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, Markers};
 use shapespace_geometry::prepare::subdivide_midpoint;
 use shapespace_geometry::primitives::{icosphere, pinched_strip, unit_disk};
@@ -81,36 +83,54 @@ fn interior_vertex_outside_the_circle_is_named() {
 }
 
 /// Interior vertices that only a path through boundary vertices joins to the centre (an edge
-/// between two boundary vertices cuts the interior): the Dirichlet problem is zero there, so
-/// the map would put them on the circle. Named as such, with the remedy; `prepare_disk` splits
-/// the cutting edges, after which (refined) the map exists and the former pocket is inside the
-/// disk.
+/// between two boundary vertices cuts the interior) would have a zero Dirichlet problem and map
+/// onto the circle. The map splits such edges intrinsically (`connect_interior`): its Green's
+/// function equals, at the input's vertices, that of the mesh whose same edges were split in
+/// 3D (a flat strip: the same surface and the same vertices), and is positive on the former
+/// pocket; once refined, the strip maps without a fold and without `prepare`.
 #[test]
-fn interior_cut_off_by_a_boundary_edge_is_named() {
+fn interior_cut_off_by_a_boundary_edge_is_joined_by_intrinsic_splits() {
     let m = pinched_strip();
+    let mut tri = IntrinsicTriangulation::from_mesh(&m).unwrap();
+    assert_eq!(tri.cut_off_vertices(4), vec![9]);
+    let inserted = tri.connect_interior(4, false).unwrap();
+    assert!(inserted > 0);
+    assert!(tri.cut_off_vertices(4).is_empty());
+    // the edges split: the two boundary neighbours of each inserted vertex in line with it
+    let n = m.num_vertices();
+    let mut split = Vec::new();
+    for v in n..tri.num_vertices {
+        let ends: Vec<(u32, f64)> = (0..tri.tail.len() as u32)
+            .filter(|&h| tri.tail[h as usize] as usize == v && tri.is_boundary[tri.head(h) as usize])
+            .map(|h| (tri.head(h), tri.length[h as usize]))
+            .collect();
+        let dist = |a: u32, b: u32| {
+            let (p, q) = (m.positions[a as usize], m.positions[b as usize]);
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        };
+        let pair = ends
+            .iter()
+            .flat_map(|a| ends.iter().map(move |b| (a, b)))
+            .find(|(a, b)| a.0 < b.0 && (dist(a.0, b.0) - a.1 - b.1).abs() < 1e-12)
+            .expect("an inserted vertex lies on the edge it split");
+        split.push([pair.0 .0, pair.1 .0]);
+    }
+    let in_3d = shapespace_geometry::prepare::split_edges(&m, &split).unwrap();
+    let tri_3d = IntrinsicTriangulation::from_mesh(&in_3d).unwrap();
+    let u = green_function(&tri, 4).unwrap();
+    let u_3d = green_function(&tri_3d, 4).unwrap();
+    for v in 0..n {
+        assert!((u[v] - u_3d[v]).abs() < 1e-13, "vertex {v}: {} vs {}", u[v], u_3d[v]);
+    }
+    assert!(u[9] > 1e-3, "u(9) = {}", u[9]);
+
     let markers = Markers {
         center: shapespace_conformal::CenterMarker::Vertex(4),
         ..Markers::default()
     };
-    match disk_map(&m, &markers, &DiskMapParams::default()) {
-        Err(
-            e @ ConformalError::CutOffInterior {
-                vertex: 9,
-                count: 1,
-                by_flips: false,
-            },
-        ) => {
-            assert!(e.to_string().contains("shapespace prepare"), "{e}");
-        }
-        other => panic!("{:?}", other.map(|d| d.quality)),
-    }
-    let (prepared, _, report) = shapespace_geometry::prepare::prepare_disk(&m, &Default::default()).unwrap();
-    assert_eq!(report.bridges_split, 3);
-    // (the 17-vertex strip itself is too coarse for an unfolded map: refine it, same surface)
-    let fine = subdivide_midpoint(&subdivide_midpoint(&prepared).unwrap()).unwrap();
+    let fine = subdivide_midpoint(&subdivide_midpoint(&m).unwrap()).unwrap();
     let map = disk_map(&fine, &markers, &DiskMapParams::default()).unwrap();
     let r = |v: usize| map.uv[v][0].hypot(map.uv[v][1]);
     assert!(r(9) < 0.99 && r(9) > 0.1, "|z(9)| = {}", r(9));
-    assert_eq!(r(4), 0.0);
     assert_eq!(map.quality.num_flipped, 0);
 }
