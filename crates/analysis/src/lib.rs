@@ -16,6 +16,7 @@ pub mod registration;
 pub mod report_path;
 pub mod resume;
 pub mod shape_space;
+pub mod shared_markers;
 pub mod stats;
 
 pub use error::AnalysisError;

@@ -12,6 +12,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
+use shapespace_geometry::TriMesh;
 
 use crate::distance::{
     directed_pairs, pairwise_distances_resuming, prepare_shape, PairRecord, PairwiseOptions, PreparedShape,
@@ -371,8 +372,8 @@ pub fn run_distances(
     let n = paths.len();
 
     let t_prepare = Instant::now();
-    let done = std::sync::atomic::AtomicUsize::new(0);
-    let prepared: Vec<(Option<PreparedShape>, ShapeReport)> = paths
+    // (a panic, i.e. a bug, fails this file only, as it fails a pair only in the pairs)
+    let loaded: Vec<(Option<String>, f64, Result<(TriMesh, Markers, String), String>)> = paths
         .par_iter()
         .zip(&names)
         .map(|(path, name)| {
@@ -380,32 +381,73 @@ pub fn run_distances(
             // (the bytes hashed are the bytes parsed)
             let bytes = shapespace_geometry::io::read_mesh_bytes(path);
             let sha256 = bytes.as_ref().ok().map(|bytes| sha256_hex(bytes));
-            // (a panic, i.e. a bug, fails this file only, as it fails a pair only in the pairs)
-            let outcome = crate::distance::guarded(
-                || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                    let mesh = bytes
-                        .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
-                        .map_err(|e| AnalysisError::Shape {
-                            name: name.clone(),
-                            message: e.to_string(),
+            let outcome = crate::distance::guarded(|| -> Result<(TriMesh, Markers, String), AnalysisError> {
+                let mesh = bytes
+                    .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
+                    .map_err(|e| AnalysisError::Shape {
+                        name: name.clone(),
+                        message: e.to_string(),
+                    })?;
+                let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
+                Ok((mesh, markers, source))
+            });
+            (sha256, t.elapsed().as_secs_f64(), outcome)
+        })
+        .collect();
+    // automatic markers: one choice per group of files with the same faces
+    let mut loaded = loaded;
+    let inputs: Vec<crate::shared_markers::MarkerInput> = loaded
+        .iter()
+        .enumerate()
+        .filter_map(|(i, (_, _, r))| {
+            r.as_ref()
+                .ok()
+                .map(|(mesh, markers, _)| crate::shared_markers::MarkerInput {
+                    name: &names[i],
+                    mesh,
+                    markers,
+                })
+        })
+        .collect();
+    let shared = crate::shared_markers::share_auto_markers(&inputs);
+    drop(inputs);
+    let mut shared = shared.into_iter();
+    for (_, _, r) in &mut loaded {
+        if let Ok((_, markers, source)) = r {
+            if let Some(s) = shared.next().flatten() {
+                *markers = s.markers;
+                *source = format!("{source}, {}", s.note);
+            }
+        }
+    }
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let prepared: Vec<(Option<PreparedShape>, ShapeReport)> = paths
+        .par_iter()
+        .zip(&names)
+        .zip(loaded)
+        .map(|((path, name), (sha256, load_seconds, loaded))| {
+            let t = Instant::now();
+            let outcome = loaded.and_then(|(mesh, markers, source)| {
+                crate::distance::guarded(
+                    || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
+                        let shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
+                            AnalysisError::Shape {
+                                name: path.display().to_string(),
+                                message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                            }
                         })?;
-                    let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
-                    let shape =
-                        prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
-                            name: path.display().to_string(),
-                            message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
-                        })?;
-                    let choice = MarkerChoice {
-                        center: shape.disk.info.markers.center,
-                        boundary: shape.disk.info.markers.boundary_vertex,
-                        source,
-                    };
-                    Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
-                },
-            );
+                        let choice = MarkerChoice {
+                            center: shape.disk.info.markers.center,
+                            boundary: shape.disk.info.markers.boundary_vertex,
+                            source,
+                        };
+                        Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
+                    },
+                )
+            });
             let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(k, n, "prepare");
-            let seconds = t.elapsed().as_secs_f64();
+            let seconds = load_seconds + t.elapsed().as_secs_f64();
             match outcome {
                 Ok((shape, choice, v, f)) => {
                     let (lo, hi) = shape

@@ -408,7 +408,11 @@ fn clockwise_edges(edges: impl Iterator<Item = [u32; 2]>, uv: &[[f64; 2]]) -> us
 /// The interior vertex the center marker stands on: its vertex, or for a point inside a face
 /// the interior corner of largest barycentric weight (the pole of the Green's function at p,
 /// and the vertex the interior is connected to by [`IntrinsicTriangulation::connect_interior`]).
-pub(crate) fn center_vertex(mesh: &TriMesh, is_boundary: &[bool], center: ResolvedCenter) -> Result<u32, ConformalError> {
+pub(crate) fn center_vertex(
+    mesh: &TriMesh,
+    is_boundary: &[bool],
+    center: ResolvedCenter,
+) -> Result<u32, ConformalError> {
     match center {
         ResolvedCenter::Vertex(v) => Ok(v),
         ResolvedCenter::Face { face, bary } => {
@@ -612,6 +616,17 @@ pub(crate) fn finish(
         quality: summary,
         fold_repairs,
     })
+}
+
+/// The markers [`disk_map`] would use on `mesh`: explicit ones checked, automatic ones
+/// resolved ([`crate::markers`]), without mapping. Errors: as [`disk_map`]'s checks of the
+/// input (not a disk, degenerate faces) and of the markers.
+pub fn resolve_markers_of(mesh: &TriMesh, markers: &Markers) -> Result<ResolvedMarkers, ConformalError> {
+    mesh.validate()?;
+    let tri = IntrinsicTriangulation::from_mesh(mesh)?;
+    check_disk(mesh, &tri)?;
+    let adj = neighbors(&tri);
+    resolve_markers(mesh, &tri.is_boundary, &adj, markers)
 }
 
 /// The discrete Riemann map of `mesh` onto the unit disk with p ↦ 0 and q ↦ 1 (module docs).

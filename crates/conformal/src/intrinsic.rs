@@ -566,7 +566,11 @@ mod tests {
                 assert_eq!(it.length[t as usize], it.length[g as usize]);
             }
             if it.tail[g as usize] == m {
-                let (e, a, b) = (it.length[next(g) as usize], it.length[g as usize], it.length[prev(g) as usize]);
+                let (e, a, b) = (
+                    it.length[next(g) as usize],
+                    it.length[g as usize],
+                    it.length[prev(g) as usize],
+                );
                 angle_sum += (4.0 * triangle_area_from_lengths(e, a, b)).atan2(a * a + b * b - e * e);
             }
         }

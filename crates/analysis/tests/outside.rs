@@ -1,0 +1,143 @@
+//! Real meshes the project was not tuned on: public face scans, expression sets and bodies from
+//! the shared data folder beside the clone (`../shared/datasets`, or `SHAPESPACE_DATA`). Each
+//! is prepared as `shapespace prepare` does and mapped as `shapespace conformal` does. When the
+//! folder is missing the tests say so on stderr and check nothing.
+
+use std::path::{Path, PathBuf};
+
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
+use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, Markers};
+use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("SHAPESPACE_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "SKIPPED: the shared data folder {} is missing (set SHAPESPACE_DATA to the datasets folder)",
+            dir.display()
+        );
+        None
+    }
+}
+
+fn files(dir: &Path, sub: &str, ext: &str) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir.join(sub))
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.join(sub).display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == ext))
+        .collect();
+    out.sort();
+    out
+}
+
+/// Every outside disk prepares and maps with no flipped triangle and finite positive densities,
+/// except the Sumner face poses listed in `KNOWN_FAILURES`, whose maps still fold (the mouth's
+/// filled hole and cone vertices with angle sums of 0.2–0.7 rad leave intrinsic edges that no
+/// flip can make Delaunay); those must fail with a fold or range error, never succeed with
+/// folds or garbage. The list is what stands between this test and the goal.
+#[test]
+fn outside_disks_prepare_and_map_without_flips() {
+    let Some(dir) = data_dir() else { return };
+    const KNOWN_FAILURES: [&str; 8] = ["pose1", "pose3", "pose4", "pose5", "pose6", "pose7", "pose8", "pose9"];
+    let mut corpus = files(&dir, "outside/facefuns", "ply");
+    corpus.extend(files(&dir, "outside/sumner_face_poses", "obj"));
+    corpus.extend(files(&dir, "goast/faces", "ply"));
+    assert_eq!(corpus.len(), 12 + 9 + 4, "the corpus changed");
+    use rayon::prelude::*;
+    let outcomes: Vec<(String, Result<(), String>)> = corpus
+        .par_iter()
+        .map(|path| {
+            let name = path.file_stem().unwrap().to_string_lossy().to_string();
+            let mesh = shapespace_geometry::io::read_mesh(path).unwrap();
+            let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
+            let outcome = match disk_map(&prepared, &Markers::default(), &DiskMapParams::default()) {
+                Ok(map) => {
+                    assert_eq!(map.quality.num_flipped, 0, "{name}");
+                    assert_eq!(map.quality.num_degenerate, 0, "{name}");
+                    assert!(map.face_densities.iter().all(|d| d.is_finite() && *d > 0.0), "{name}");
+                    Ok(())
+                }
+                Err(e) => {
+                    assert!(
+                        matches!(
+                            e,
+                            ConformalError::FoldedImage { .. }
+                                | ConformalError::InteriorOutsideDisk { .. }
+                                | ConformalError::OutOfRange { .. }
+                        ),
+                        "{name}: {e}"
+                    );
+                    Err(e.to_string())
+                }
+            };
+            (name, outcome)
+        })
+        .collect();
+    let mut mapped = 0;
+    let mut failed = Vec::new();
+    for (name, outcome) in outcomes {
+        match outcome {
+            Ok(()) => {
+                assert!(
+                    !KNOWN_FAILURES.contains(&name.as_str()),
+                    "{name} maps now: drop it from KNOWN_FAILURES"
+                );
+                mapped += 1;
+            }
+            Err(e) => {
+                assert!(KNOWN_FAILURES.contains(&name.as_str()), "{name}: {e}");
+                failed.push(name);
+            }
+        }
+    }
+    eprintln!(
+        "outside corpus: {mapped} of {} mapped; still failing: {failed:?}",
+        corpus.len()
+    );
+    assert_eq!(mapped, corpus.len() - KNOWN_FAILURES.len());
+}
+
+/// Files that share one connectivity get the same automatic markers, chosen once: GOAST's four
+/// expressions of one face. Resolved per file, the smile's boundary marker landed elsewhere and
+/// its distances to the other expressions were 2–3× theirs to each other (0.10–0.11 against
+/// 0.04–0.06); with one choice all six distances lie within a factor 1.6 of each other.
+#[test]
+fn expressions_sharing_one_connectivity_share_their_auto_markers() {
+    let Some(dir) = data_dir() else { return };
+    let tmp = std::env::temp_dir().join(format!("shapespace-outside-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let mut paths = Vec::new();
+    for path in files(&dir, "goast/faces", "ply") {
+        let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
+        let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
+        let out = tmp.join(path.file_name().unwrap()).with_extension("obj");
+        shapespace_geometry::io::write_obj(&out, &prepared).unwrap();
+        paths.push(out);
+    }
+    let run = run_distances(&paths, &tmp.join("run"), &DistancesOptions::default(), &|_, _, _| {}).unwrap();
+    let markers: Vec<_> = run
+        .report
+        .inputs
+        .iter()
+        .map(|s| s.markers.as_ref().expect("every face maps"))
+        .collect();
+    for m in &markers {
+        assert_eq!((m.center, m.boundary), (markers[0].center, markers[0].boundary));
+        assert!(m.source.contains("shared by the 4 files"), "{}", m.source);
+    }
+    let d = &run.matrix;
+    let off: Vec<f64> = (0..4)
+        .flat_map(|i| (0..4).filter(move |&j| j != i).map(move |j| (i, j)))
+        .map(|(i, j)| d.values[4 * i + j])
+        .collect();
+    assert!(off.iter().all(|x| x.is_finite() && *x > 0.0), "{off:?}");
+    let (lo, hi) = off
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x), h.max(x)));
+    assert!(hi / lo < 1.6, "distances {off:?}");
+    std::fs::remove_dir_all(&tmp).ok();
+}
