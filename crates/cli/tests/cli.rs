@@ -549,6 +549,34 @@ fn distances_report_failed_pairs_and_bad_tolerances() {
 /// The not-a-disk error points to `shapespace prepare`, and that command turns a closed surface
 /// (an icosahedron subdivided once: 42 V, 80 F) and a face with a spare component into disks the
 /// conformal map accepts; its vertex map leads back to the input.
+/// One hole is "1 hole", not "1 holes".
+#[test]
+fn prepare_counts_one_filled_hole_in_the_singular() {
+    let dir = scratch("prepare_one_hole");
+    let mut mesh = shapespace_geometry::primitives::unit_disk(4);
+    let is_boundary = shapespace_geometry::Connectivity::of(&mesh).boundary_vertices(mesh.num_vertices());
+    let inner = mesh
+        .faces
+        .iter()
+        .position(|f| f.iter().all(|&v| !is_boundary[v as usize]))
+        .unwrap();
+    mesh.faces.remove(inner);
+    let holed = dir.join("holed.obj");
+    shapespace_geometry::io::write_mesh(&holed, &mesh).unwrap();
+    let out = shapespace(&[
+        "prepare",
+        holed.to_str().unwrap(),
+        "--out",
+        dir.join("filled.obj").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("filled 1 hole (one vertex appended)"),
+        "{}",
+        stderr(&out)
+    );
+}
+
 #[test]
 fn prepare_makes_disks_that_conformal_accepts() {
     let dir = scratch("prepare");

@@ -101,10 +101,11 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
         ));
     }
     if report.holes_filled > 0 {
-        steps.push(format!(
-            "filled {} holes (one vertex appended per hole)",
-            report.holes_filled
-        ));
+        steps.push(if report.holes_filled == 1 {
+            "filled 1 hole (one vertex appended)".to_string()
+        } else {
+            format!("filled {} holes (one vertex appended per hole)", report.holes_filled)
+        });
     }
     if report.seam_edges > 0 {
         steps.push(format!(
