@@ -711,7 +711,10 @@ fn flux_bound(params: &NewtonParams) -> Option<f64> {
 }
 
 /// The cell integrator with its per-measure precomputation, and the insertion order of the
-/// points (computed at the first evaluation; a backend serves one set of points).
+/// points (computed at the first evaluation; a backend serves one set of points). One backend
+/// lives for a whole solve, so the size of the `Restricted` variant costs nothing; boxing it
+/// would add an indirection to every evaluation.
+#[allow(clippy::large_enum_variant)]
 pub(crate) enum Backend<'a> {
     Restricted(RestrictedIntegrator, OnceLock<InsertionOrder>),
     BruteForce(&'a SourceMeasure),
