@@ -12,7 +12,6 @@ Checks (exit status 1 on failure):
  * every face (datasets/faces/*.obj) and pose (datasets/poses/*/*.off) is one
    component, manifold, consistently oriented, with one boundary loop and
    chi = 1, with no unreferenced vertex;
- * every copied disk (datasets/disks/, datasets/beyond_f64/) is a disk;
  * vertex and face counts are identical within each set, and so are the
    face lists (vertex i corresponds to vertex i);
  * landmark indices are in range, the `boundary` vertex is on the boundary
@@ -62,9 +61,7 @@ def main():
             failures.append("%s: not an oriented disk without unreferenced vertices: %r" % (rel, t))
         if amin <= 0:
             failures.append("%s: zero-area triangle" % rel)
-        s = set_of(rel)
-        if s not in ("disks", "beyond_f64"):  # single meshes, not pose or expression sets
-            sets.setdefault(s, []).append((rel, V, F))
+        sets.setdefault(set_of(rel), []).append((rel, V, F))
     # consistency within each set
     for s, items in sets.items():
         F0 = items[0][2]

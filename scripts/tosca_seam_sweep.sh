@@ -1,14 +1,26 @@
 #!/usr/bin/env bash
-# Area-preserving maps of every TOSCA mesh in DIR (default /work/shared/datasets/tosca), made
+# Area-preserving maps of every TOSCA mesh in DIR (default: tosca/ of the shared datasets folder,
+# $SHAPESPACE_DATA, else ../shared/datasets beside the repository), made
 # disks by `shapespace prepare` with and without `--seam 1`. Prints one Markdown row per mesh and
 # cut: OT outcome, steps, seconds (conformal / OT / repair / total), median |Υ| of the
 # conformal and of the area-preserving map, and whether the conformal map fell back to BFF.
-# Usage: scripts/tosca_seam_sweep.sh [DIR] [SEAM...]   (needs `cargo build --release` first)
+# Usage: scripts/tosca_seam_sweep.sh [DIR] [SEAM...]   (needs `cargo build --release` first;
+# the binary is taken from $CARGO_TARGET_DIR, default target/)
 set -u
-dir=${1:-/work/shared/datasets/tosca}
+root=$(cd "$(dirname "$0")/.." && pwd)
+data=${SHAPESPACE_DATA:-$root/../shared/datasets}
+dir=${1:-$data/tosca}
 shift || true
 seams=${*:-"0 1"}
-bin=target/release/shapespace
+bin=${CARGO_TARGET_DIR:-$root/target}/release/shapespace
+if [ ! -d "$dir" ]; then
+  echo "SKIPPED: $dir not found (give DIR or set SHAPESPACE_DATA to the shared datasets folder)" >&2
+  exit 1
+fi
+if [ ! -x "$bin" ]; then
+  echo "$bin not found: run cargo build --release first" >&2
+  exit 2
+fi
 out=$(mktemp -d)
 echo "| mesh | seam | V | OT | steps | conformal s | OT s | repair s | total s | conformal median abs(Υ) | area-preserving median abs(Υ) | BFF fallback |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|---|"

@@ -1,6 +1,7 @@
 //! Probe: the Newton log of the area-preserving OT of a TOSCA body slit as `shapespace prepare
-//! --seam K` makes it. `body_ot_log NAME [K]` (default victoria0, 1), or `body_ot_log PATH` for a
-//! mesh that is already a disk (e.g. written by `shapespace prepare`).
+//! --seam K` makes it. `body_ot_log NAME [K]` (default victoria0, 1; NAME is read from `tosca/`
+//! of the shared datasets folder, `$SHAPESPACE_DATA`, default `../shared/datasets`), or
+//! `body_ot_log PATH` for a mesh that is already a disk (e.g. written by `shapespace prepare`).
 #[path = "common/newton_log.rs"]
 mod newton_log;
 
@@ -15,8 +16,8 @@ fn main() {
     let disk = if name.contains('/') {
         shapespace_geometry::io::read_mesh(std::path::Path::new(&name)).unwrap()
     } else {
-        let path = format!("/work/shared/datasets/tosca/{name}.off");
-        let mesh = shapespace_geometry::io::read_mesh(std::path::Path::new(&path)).unwrap();
+        let path = shapespace_test_support::shared_datasets_dir().join(format!("tosca/{name}.off"));
+        let mesh = shapespace_geometry::io::read_mesh(&path).unwrap_or_else(|e| panic!("{e} (set SHAPESPACE_DATA)"));
         let options = PrepareOptions {
             seam_extremities: k,
             ..Default::default()

@@ -9,12 +9,14 @@ use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::subdivide_midpoint;
 
 fn main() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let mesh = match std::env::args().nth(1) {
         // any disk mesh (e.g. a TOSCA mesh or Nefertiti cut open by `shapespace prepare`)
         Some(path) => shapespace_geometry::io::read_mesh(std::path::Path::new(&path)).unwrap(),
         None => {
-            let m = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).unwrap();
+            let m = shapespace_geometry::io::read_mesh(
+                &shapespace_test_support::shared_datasets_dir().join("libigl_tutorial_data/camelhead.off"),
+            )
+            .unwrap();
             if std::env::var("NOSUB").is_ok() {
                 m
             } else {

@@ -30,7 +30,7 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 fn main() {
-    let tosca = std::path::Path::new("/work/shared/datasets/tosca");
+    let tosca = shapespace_test_support::shared_datasets_dir().join("tosca"); // $SHAPESPACE_DATA
     for name in std::env::args().skip(1) {
         let mesh = shapespace_geometry::io::read_mesh(&tosca.join(format!("{name}.off"))).unwrap();
         let (mesh, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();

@@ -1,4 +1,4 @@
-//! Benchmark of the main job (issue 6): pairwise conformal Wasserstein distances among the
+//! Benchmark of the main job: pairwise conformal Wasserstein distances among the
 //! first N bundled faces (default 30, i.e. 435 pairs), printing a table of the stages.
 //!
 //! `cargo run --release -p shapespace-analysis --example distance_bench -- [N] [THREADS]`

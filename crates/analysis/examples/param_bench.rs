@@ -1,17 +1,17 @@
 //! Timing table of the area-preserving map (conformal / OT / output / total, seconds):
 //! `cargo run --release -p shapespace-analysis --example param_bench`.
 //!
-//! Meshes: the bundled libigl face (25.9k V, 51.7k F), camelhead and camelhead subdivided 1-to-4
-//! (45k V, 90.8k F: the ~85k-face size of the issue), and TOSCA meshes from
-//! `/work/shared/datasets/tosca` (skipped cleanly when absent) made disks as `shapespace prepare`
+//! Meshes, all from the shared datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`
+//! beside the workspace; a missing file is reported as a skipped row): the libigl face (25.9k V,
+//! 51.7k F), camelhead and camelhead subdivided 1-to-4 (45k V, 90.8k F, the ~85k-face size of
+//! the benchmark goal), and TOSCA meshes from `tosca/` made disks as `shapespace prepare`
 //! does (`geometry::prepare::prepare_disk`): closed meshes lose the 3-ring around the vertex
 //! nearest to the area centroid (dog0 ~50k faces, horse0 ~38k, centaur0 ~31.5k); open scans
 //! (victoria0, ~91k faces) keep their longest boundary loop and get the other holes filled;
 //! victoria0, michael1 (105k faces) and dog0 also as `prepare --seam 1` makes them (slit from
 //! the farthest tip to the boundary: without it victoria0 and dog0 crowd beyond f64).
-//! Also Nefertiti (common-3d-test-models, 99.9k faces, closed: cut the same way, and also slit
-//! with `--seam 1`) when
-//! `/work/shared/datasets/common_3d_test_models` is there.
+//! Also Nefertiti (`common_3d_test_models/nefertiti.obj`, 99.9k faces, closed: cut the same
+//! way, and also slit with `--seam 1`).
 //! Failures are printed as table rows, not hidden. Arguments select cases by name substring
 //! (`param_bench nefertiti camelhead`); only the selected meshes are loaded and prepared. With
 //! env `NO_FLIPS` every power diagram is built by insertion (`NewtonParams::flip_updates` off);
@@ -45,15 +45,18 @@ fn tosca_disk(path: &Path, seam_extremities: usize) -> Result<TriMesh, String> {
 type Case = (String, Box<dyn Fn() -> Result<TriMesh, String>>);
 
 fn main() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let tosca = Path::new("/work/shared/datasets/tosca");
+    let data = shapespace_test_support::shared_datasets_dir();
+    let tosca = data.join("tosca");
     let read = |path: std::path::PathBuf| -> Box<dyn Fn() -> Result<TriMesh, String>> {
         Box::new(move || shapespace_geometry::io::read_mesh(&path).map_err(|e| e.to_string()))
     };
-    let camel_path = root.join("datasets/disks/camelhead.off");
+    let camel_path = data.join("libigl_tutorial_data/camelhead.off");
     let mut meshes: Vec<Case> = vec![
-        ("disks/face.obj".into(), read(root.join("datasets/disks/face.obj"))),
-        ("disks/camelhead.off".into(), read(camel_path.clone())),
+        (
+            "libigl/face.obj".into(),
+            read(data.join("libigl_tutorial_data/face.obj")),
+        ),
+        ("libigl/camelhead.off".into(), read(camel_path.clone())),
         (
             "camelhead 1-to-4 subdivided".into(),
             Box::new(move || {
@@ -72,8 +75,8 @@ fn main() {
                 body(tosca.join(format!("{name}.off")), 0),
             ));
         }
-        // the bodies as `shapespace prepare --seam 1` makes them (victoria0 and michael0: the
-        // ~91k / 105k-face real meshes of the issue; dog0: fails without the slit)
+        // the bodies as `shapespace prepare --seam 1` makes them (victoria0 and michael1: real
+        // meshes of ~91k / 105k faces; dog0: fails without the slit)
         for name in ["victoria0", "michael1", "dog0"] {
             meshes.push((
                 format!("tosca/{name} (cut, seam 1)"),
@@ -81,15 +84,16 @@ fn main() {
             ));
         }
     } else {
-        println!("(skipping TOSCA meshes: {} not found)", tosca.display());
+        println!(
+            "SKIPPED: the TOSCA meshes, {} not found (set SHAPESPACE_DATA)",
+            tosca.display()
+        );
     }
-    // a scanned bust of 99.9k faces (closed; cut open as above): the real ~85k-face mesh of
-    // the issue whose conformal image does not crowd beyond f64 (the large TOSCA meshes do)
-    let nefertiti = Path::new("/work/shared/datasets/common_3d_test_models/nefertiti.obj");
-    if nefertiti.is_file() {
-        meshes.push(("nefertiti (cut)".into(), body(nefertiti.to_path_buf(), 0)));
-        meshes.push(("nefertiti (cut, seam 1)".into(), body(nefertiti.to_path_buf(), 1)));
-    }
+    // a scanned bust of 99.9k faces (closed; cut open as above): a real mesh of that size
+    // whose conformal image does not crowd beyond f64 (the large TOSCA meshes do)
+    let nefertiti = data.join("common_3d_test_models/nefertiti.obj");
+    meshes.push(("nefertiti (cut)".into(), body(nefertiti.clone(), 0)));
+    meshes.push(("nefertiti (cut, seam 1)".into(), body(nefertiti, 1)));
     println!("| mesh | V | F | conformal s | OT s | output s | repair s | total s | OT iterations | max rel. mass error | median abs(Υ) | flips |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let only: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();

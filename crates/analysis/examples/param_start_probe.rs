@@ -14,10 +14,12 @@ use shapespace_omt::newton::{integrate_at_heights, CellIntegrator, Start};
 use shapespace_omt::{solve_ot, NewtonParams, StartStrategy};
 
 fn main() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     for arg in std::env::args().skip(1) {
         let mesh = if arg == "camelhead-sub" {
-            let m = shapespace_geometry::io::read_mesh(&root.join("datasets/disks/camelhead.off")).unwrap();
+            let m = shapespace_geometry::io::read_mesh(
+                &shapespace_test_support::shared_datasets_dir().join("libigl_tutorial_data/camelhead.off"),
+            )
+            .unwrap();
             subdivide_midpoint(&m).unwrap()
         } else {
             let m = shapespace_geometry::io::read_mesh(std::path::Path::new(&arg)).unwrap();

@@ -1,5 +1,5 @@
-//! Probe: fold repair strategies on the centroid map of the area-preserving OT (measured
-//! 2026-12-02, `crates/analysis/ARCHITECTURE.md`, "Fold repair on many folds").
+//! Probe: fold repair strategies on the centroid map of the area-preserving OT (results in
+//! `docs/decisions/0012-fold-repair.md` and `docs/experiments.md`).
 //! `cargo run --release -p shapespace-analysis --example repair_probe -- MESH...` (a path, or a
 //! TOSCA name such as `horse0`, cut as `shapespace prepare` does). Per mesh: the centroid map
 //! without repair, then (A) `repair_folds` (default; env `SWEEPS`, `FLOOR` set its retraction
@@ -250,7 +250,7 @@ fn main() {
         let path = if std::path::Path::new(&arg).exists() {
             std::path::PathBuf::from(&arg)
         } else {
-            std::path::Path::new("/work/shared/datasets/tosca").join(format!("{arg}.off"))
+            shapespace_test_support::shared_datasets_dir().join(format!("tosca/{arg}.off"))
         };
         let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
         let mesh = if Connectivity::of(&mesh).boundary_loops(&mesh.faces).len() == 1 {

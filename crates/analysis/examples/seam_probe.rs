@@ -74,7 +74,7 @@ fn run(label: &str, mesh: &shapespace_geometry::TriMesh) {
 fn main() {
     let mut args = std::env::args().skip(1);
     let k: usize = args.next().expect("K").parse().expect("K: a count");
-    let tosca = std::path::Path::new("/work/shared/datasets/tosca");
+    let tosca = shapespace_test_support::shared_datasets_dir().join("tosca"); // $SHAPESPACE_DATA
     let baseline = std::env::var("BASELINE").is_ok();
     for name in args {
         let mesh = shapespace_geometry::io::read_mesh(&tosca.join(format!("{name}.off"))).unwrap();

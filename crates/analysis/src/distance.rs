@@ -12,8 +12,8 @@
 //! Per-shape work (conformal map, density, points, masses) is done once per shape
 //! ([`prepare_shape`]); the pairs reuse it. Each pair starts cold by default: the solver's
 //! coarse-to-fine start (taken automatically for these densities) needs 6–10 steps at the finest
-//! level (30 pairs, 2026-12-04; 8–18 when first measured), the previous pair's heights 16–32
-//! (measured on the bundled faces, `ARCHITECTURE.md`).
+//! level (measured on 30 pairs of bundled faces), the previous pair's heights 16–32
+//! (`docs/decisions/0016-pairwise-scheduling.md`).
 //! With [`PairwiseOptions::warm_start`] the pairs that share a target are solved in a fixed order,
 //! each warm-started from the previous one's heights; either way the results do not depend on
 //! the number of threads.
@@ -219,8 +219,8 @@ pub struct PairwiseOptions {
     ///   cost of Eq. 19 is off at first order in the mass residual, so this is what sets the
     ///   distances' accuracy: on 30 ordered face pairs, against solves to 1e-11, the cost is within
     ///   7.6e-9 relative at 1e-4 and 5.4e-11 at 1e-6, for 221 instead of 234 finest-level steps;
-    ///   on the 780 pairs of the demo the distances agree with those at 1e-6 to 2.1e-8 (omt
-    ///   `ARCHITECTURE.md`, session 23). Each pair's dual value
+    ///   on the 780 pairs of the demo the distances agree with those at 1e-6 to 2.1e-8 (`docs/decisions/
+    ///   0008-distance-tolerance-and-dual-check.md`). Each pair's dual value
     ///   ([`DirectedDistance::dual_cost`]) measures that error a posteriori.
     /// - `LinearSolver::CholeskyReusedOrdering` (~30 % cheaper linear solves on face pairs,
     ///   measured when the plain `Cholesky` still factorized them simplicially; see its docs).
@@ -230,7 +230,7 @@ pub struct PairwiseOptions {
     ///   solutions met the 1e-6 mass tolerance then in force).
     ///
     /// (`flux_masses` stays off: 7 % fewer instructions on face pairs, but slower in wall time,
-    /// omt `ARCHITECTURE.md`, session 18.)
+    /// `docs/decisions/0010-restricted-integration.md`.)
     pub newton: NewtonParams,
     /// Warm-start each pair from the previous pair with the same target (default false: slower
     /// than the solver's coarse-to-fine start on the bundled faces).
@@ -531,8 +531,8 @@ fn one_per_thread<T: Send>(count: usize, work: impl Fn(usize) -> T + Sync) -> Ve
     done.into_iter().map(|(_, t)| t).collect()
 }
 
-/// Runs one pair's computation so that a panic (a bug, e.g. the index overrun in the clipping
-/// of crowded cells found on 2026-12-04) fails that pair with its message instead of taking the
+/// Runs one pair's computation so that a panic (a bug, such as an index overrun in the clipping
+/// of crowded cells) fails that pair with its message instead of taking the
 /// whole run down after every other pair has been computed. The shared per-shape caches are
 /// safe to use after it: their locks recover from poisoning. A pair error's message is returned
 /// without the pair's names (the record has them, and a resumed run may call the files

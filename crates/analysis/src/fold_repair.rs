@@ -21,7 +21,7 @@
 //! removes 75–80 % of the folds of the TOSCA meshes (horse0: 1279 → 316, Nefertiti cut open:
 //! 1885 → 434). What it leaves goes to the Tutte rounds below, with the untangled map as
 //! their input; without this step the Tutte rounds start from more folds, their region grows
-//! larger, and the retraction leaves more vertices displaced (measured 2026-12-02,
+//! larger, and the retraction leaves more vertices displaced (measured with
 //! `examples/repair_probe.rs`: |Υ| median / p95 of the repaired map on wolf0 0.366 / 1.164 →
 //! 0.275 / 1.168, horse0 0.417 / 1.386 → 0.365 / 1.297, Nefertiti 0.538 / 1.288 →
 //! 0.483 / 1.190).

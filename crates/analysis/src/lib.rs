@@ -23,3 +23,9 @@ pub use error::AnalysisError;
 pub use matrix_io::{read_distance_matrix, read_labels, write_distance_matrix, DistanceMatrix, Labels};
 pub use mds::{classical_mds, Mds};
 pub use shape_space::{run_mds, MdsParams, MdsResult};
+
+/// The code blocks of the repository's README, compiled as doctests so that its library
+/// example keeps building.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;

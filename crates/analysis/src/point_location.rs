@@ -7,14 +7,14 @@
 //! A bounding-volume hierarchy over the triangles' bounding boxes (binary, split at the median
 //! centroid along the longer side, leaves of at most [`LEAF_CAPACITY`] triangles): exactly
 //! 2⌈F/leaf⌉ − 1 nodes whatever the geometry. Conformal disk images squeeze long protrusions
-//! into regions of size ~e^{−H/ρ} (DESIGN.md) and area-preserving (centroid) maps may fold
+//! into regions of size ~e^{−H/ρ} (`docs/conventions.md`, "Conformal map") and area-preserving (centroid) maps may fold
 //! triangles over each other: a uniform grid would pile thousands of tiny triangles into one
 //! cell, and a subdividing quadtree never terminates inside a stack of overlapping triangles;
 //! the hierarchy adapts to both. Build O(F log F), query O(log F) plus the overlapping boxes.
 //!
 //! # Query
 //! Barycentric coordinates are computed from edge vectors relative to a corner of each
-//! candidate triangle (differences of nearby coordinates, DESIGN.md), as ratios of signed
+//! candidate triangle (differences of nearby coordinates, `docs/conventions.md`), as ratios of signed
 //! areas. A point is inside when its smallest coordinate is ≥ −[`INSIDE_TOLERANCE`]. Among the
 //! candidates of the leaf, the triangle with the largest smallest coordinate wins, so points on
 //! shared edges and vertices get a deterministic answer. Points that no candidate holds (outside

@@ -1,7 +1,7 @@
 //! Resuming a pairwise run: what a directed pair's result depends on ([`RunIdentity`]: the
 //! executable, the settings, and per input the file's bytes and markers), recorded beside the
 //! pairs files of a run, and the rows of earlier runs in an output folder that a new run can
-//! take instead of computing them ([`earlier_pairs`], used by
+//! take instead of computing them (`earlier_pairs`, used by
 //! [`run_distances`](crate::pipeline::run_distances) with `resume`).
 
 use std::collections::{HashMap, HashSet};

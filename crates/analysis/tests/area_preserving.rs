@@ -1,6 +1,7 @@
 //! Integration tests of the area-preserving map (conformal map + inverse OT centroid map) on
-//! analytic meshes and the bundled datasets (`datasets/disks`, `datasets/faces`,
-//! `datasets/poses`). Numbers quoted in comments were measured on this implementation
+//! analytic meshes, the bundled datasets (`datasets/faces`, `datasets/poses`) and the public
+//! disks of the shared datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`;
+//! skipped with a `SKIPPED` line naming the file when absent). Numbers quoted in comments were measured on this implementation
 //! (release build); the bounds leave a margin around them. Unless a test turns it off, the
 //! fold repair runs (the default).
 
@@ -21,6 +22,25 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// A mesh of the shared datasets folder with automatic markers, or `None` (after a `SKIPPED`
+/// line naming it) when the file is absent.
+fn load_shared(rel: &str) -> Option<(TriMesh, Markers)> {
+    let path = shapespace_test_support::shared_file(rel)?;
+    let mesh = read_mesh(&path).unwrap_or_else(|e| panic!("{rel}: {e}"));
+    Some((mesh, Markers::default()))
+}
+
+/// A mesh of the repository (`datasets/…`) or, for any other path, of the shared datasets
+/// folder (`None` when that is absent).
+fn load_any(rel: &str) -> Option<(TriMesh, Markers)> {
+    if rel.starts_with("datasets/") {
+        Some(load(rel))
+    } else {
+        load_shared(rel)
+    }
+}
+
+/// A mesh of the repository with its sidecar markers (`auto` when there are none).
 fn load(rel: &str) -> (TriMesh, Markers) {
     let path = repo().join(rel);
     let mesh = read_mesh(&path).unwrap_or_else(|e| panic!("{rel}: {e}"));
@@ -70,8 +90,8 @@ struct Expect {
 /// median / p95). "centroid" is the
 /// single-shot centroid map (`fold_repair.before`), "repaired" the returned map after the fold
 /// repair with the default parameters (0 flipped and 0 degenerate faces on all of them; kernel
-/// untangling first, then Tutte rounds for what is left: measured 2026-12-02; before the
-/// untangling step wolf0 gave 0.354 / 1.11, 0.179 / 0.834, 1846 / 5):
+/// untangling first, then Tutte rounds for what is left; with the Tutte rounds alone
+/// wolf0 gives 0.354 / 1.11, 0.179 / 0.834, 1846 / 5):
 /// | mesh | V | conformal abs Υ | centroid abs Υ | flips | centroid abs ε | repaired abs Υ | repaired abs ε | moved V / rounds |
 /// |---|---|---|---|---|---|---|---|---|
 /// | faces/id00_neutral | 9412 | 0.483 / 2.69 | 0.046 / 0.326 | 29 | 0.024 / 0.182 | 0.046 / 0.323 | 0.024 / 0.178 | 35 / 1 |
@@ -103,7 +123,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 0.38,
         },
         Expect {
-            path: "datasets/disks/camelhead.off",
+            path: "libigl_tutorial_data/camelhead.off",
             median_before: 0.05,
             p95_before: 0.6,
             flips_before: 400,
@@ -111,7 +131,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 0.52,
         },
         Expect {
-            path: "datasets/disks/lion.off",
+            path: "libigl_tutorial_data/lion.off",
             median_before: 0.13,
             p95_before: 0.9,
             flips_before: 350,
@@ -119,7 +139,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 0.85,
         },
         Expect {
-            path: "datasets/disks/face.obj",
+            path: "libigl_tutorial_data/face.obj",
             median_before: 0.05,
             p95_before: 0.16,
             flips_before: 20,
@@ -127,7 +147,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 0.14,
         },
         Expect {
-            path: "datasets/disks/woody.obj",
+            path: "common_3d_test_models/woody.obj",
             median_before: 0.15,
             p95_before: 0.6,
             flips_before: 10,
@@ -135,7 +155,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 0.55,
         },
         Expect {
-            path: "datasets/disks/cat_head.obj",
+            path: "geometry_central_assets/cat_head.obj",
             median_before: 0.3,
             p95_before: 1.0,
             flips_before: 6,
@@ -143,7 +163,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 1.05,
         },
         Expect {
-            path: "datasets/disks/plate121.ply",
+            path: "goast/plate/plate121.ply",
             median_before: 0.08,
             p95_before: 0.3,
             flips_before: 0,
@@ -151,7 +171,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             p95: 0.3,
         },
         Expect {
-            path: "datasets/disks/plate121_rolledA.ply",
+            path: "goast/plate/plate121_rolledA.ply",
             median_before: 0.08,
             p95_before: 0.3,
             flips_before: 0,
@@ -168,8 +188,12 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
         },
     ];
     let mut table = String::new();
+    let mut checked = 0;
     for case in &cases {
-        let (mesh, markers) = load(case.path);
+        let Some((mesh, markers)) = load_any(case.path) else {
+            continue;
+        };
+        checked += 1;
         let map = area_preserving_map(&mesh, &markers, &AreaPreservingParams::default())
             .unwrap_or_else(|e| panic!("{}: {e:#?}", case.path));
         assert!(map.ot.converged, "{}: {:?}", case.path, map.ot);
@@ -268,7 +292,7 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
             case.path
         );
     }
-    eprintln!("{table}");
+    eprintln!("{table}{checked} of {} meshes checked", cases.len());
 }
 
 /// With the fold repair off, the map is the single-shot centroid map: no vertex moved, the
@@ -276,8 +300,13 @@ fn area_preservation_distortion_and_folds_on_bundled_disks() {
 /// not move (the repair only changes positions of the vertices it reports).
 #[test]
 fn repair_off_reproduces_the_centroid_map() {
-    for path in ["datasets/disks/cat_head.obj", "datasets/disks/woody.obj"] {
-        let (mesh, markers) = load(path);
+    for path in [
+        "geometry_central_assets/cat_head.obj",
+        "common_3d_test_models/woody.obj",
+    ] {
+        let Some((mesh, markers)) = load_shared(path) else {
+            continue;
+        };
         let on = area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()).unwrap();
         let mut params = AreaPreservingParams::default();
         params.fold_repair.enabled = false;
@@ -324,13 +353,15 @@ fn result_does_not_depend_on_the_thread_count() {
     assert_eq!(one.uv, three.uv);
 }
 
-/// The bundled disk the pipeline does not handle fails with a typed error naming the stage, not
+/// The public disk the pipeline does not handle fails with a typed error naming the stage, not
 /// with garbage: the alligator's conformal image crowds a protrusion beyond f64 range. (The
 /// centaur poses, which also used to fail here, now converge: double-double heights and the
 /// coarse-to-fine start of the OT solver.)
 #[test]
 fn meshes_that_fail_report_why() {
-    let (mesh, markers) = load("datasets/beyond_f64/alligator.obj");
+    let Some((mesh, markers)) = load_shared(shapespace_test_support::BEYOND_F64_DISK) else {
+        return;
+    };
     match area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()) {
         Err(AnalysisError::DiskMap(_)) => {}
         other => panic!(
@@ -497,7 +528,9 @@ fn weights_csv_reading_and_errors() {
 /// 1e-10 so both runs reach the same fixed point).
 #[test]
 fn rigid_motion_invariance() {
-    let (mesh, markers) = load("datasets/disks/woody.obj");
+    let Some((mesh, markers)) = load_shared("common_3d_test_models/woody.obj") else {
+        return;
+    };
     let (c, s) = (0.6f64, 0.8f64);
     let mut moved = mesh.clone();
     for p in &mut moved.positions {
@@ -552,7 +585,9 @@ fn square_domain() {
 /// `square_domain`) is not turned.
 #[test]
 fn square_plate_turns_its_ears_onto_corners() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/disks/plate121.ply");
+    let Some(path) = shapespace_test_support::shared_file("goast/plate/plate121.ply") else {
+        return;
+    };
     let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
     let params = AreaPreservingParams {
         domain: Domain::Square,
@@ -642,8 +677,8 @@ fn a_seam_through_the_farthest_tip_lowers_the_distortion() {
     }
 }
 
-/// Bodies slit more than once (`prepare --seam 2`/`3`) used to fail in two ways, both fixed on
-/// 2026-12-03 (15) and checked here on the bundled poses:
+/// Bodies slit more than once (`prepare --seam 2`/`3`) can fail in two ways, both guarded
+/// against and checked here on the bundled poses:
 /// - the coarse-to-fine start left cells empty (wolf0 slit three times, centaur2 twice: two
 ///   slit copies on the unit circle whose cells existed but lay outside Ω; the prolongation's
 ///   check only looked for hidden sites). The start itself (`max_iterations = 0`) must now have

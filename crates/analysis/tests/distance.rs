@@ -852,7 +852,7 @@ fn a_direct_solve_that_stops_short_falls_back_and_says_so() {
 /// the coarse-to-fine start of id01_happy → id00_neutral has cells at 1e-3 and 21 times their
 /// targets, which held the plain damped Newton steps to τ ≈ 0.02 at first. Aiming each step at
 /// soft-capped targets gives the same cost with fewer steps and evaluations at the finest level
-/// (measured 2026-12-02 with the coarse-to-fine `SPREAD` 0.9: 23 → 22 steps over all levels,
+/// (measured with the coarse-to-fine `SPREAD` 0.9: 23 → 22 steps over all levels,
 /// 15 → 11 evaluations at the finest level; with the former 0.5: 26 → 23 and 19 → 14).
 #[test]
 fn intermediate_targets_give_the_same_face_distance_with_fewer_evaluations() {
@@ -1127,10 +1127,15 @@ fn wolf_pair_converges_from_the_coarse_start_and_agrees_with_the_continuation() 
 #[test]
 fn non_utf8_file_and_folder_names_get_a_report() {
     use std::os::unix::ffi::OsStrExt;
+    let Some(inputs) =
+        shapespace_test_support::shared_files(&["geometry_central_assets/cat_head.obj", "goast/plate/plate121.ply"])
+    else {
+        return;
+    };
     let dir = out_dir("non_utf8");
     let odd = dir.join(std::ffi::OsStr::from_bytes(b"x\xff.obj"));
-    std::fs::copy(repo("datasets/disks/cat_head.obj"), &odd).unwrap();
-    let files = vec![odd, repo("datasets/disks/plate121.ply")];
+    std::fs::copy(&inputs[0], &odd).unwrap();
+    let files = vec![odd, inputs[1].clone()];
     let out = dir.join(std::ffi::OsStr::from_bytes(b"out\xfe"));
     let run = run_distances(&files, &out, &DistancesOptions::default(), &|_, _, _| {}).unwrap();
     assert!(run.pairs[0].distance.is_finite(), "{:?}", run.pairs[0]);

@@ -283,7 +283,7 @@ fn a_non_disk_surface_is_named() {
 /// coarse-to-fine start), all converged to 1e-6; tolerances 1e-8 / 1e-10 give 0.015 % / 0.08 %.
 /// The planar cotangent weights of the repaired centroid map in the crowded limbs make g that
 /// sensitive; mean-value weights are stable (0.185 % for both starts) but less accurate
-/// (geodesic mean 0.112). Noted on issue 7; the bound is set above the spread.
+/// (geodesic mean 0.112). The bound is set above the spread.
 #[test]
 fn omt_beats_conformal_on_two_centaur_poses() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses/centaur");

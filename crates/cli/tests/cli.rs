@@ -5,6 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+/// geometry-central's cat head (131 vertices), a public disk read from the shared datasets
+/// folder (`$SHAPESPACE_DATA`, default `../shared/datasets`); tests that need it skip loudly
+/// when it is absent.
+const CAT_HEAD: &str = "geometry_central_assets/cat_head.obj";
+
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
@@ -835,10 +840,13 @@ fn marker_file_landmarks_out_of_range_are_named() {
 /// file").
 #[test]
 fn marker_point_and_domain_messages() {
+    let Some(cat_head) = shapespace_test_support::shared_file(CAT_HEAD) else {
+        return;
+    };
     let dir = scratch("messages");
     let out = shapespace(&[
         "conformal",
-        "datasets/disks/cat_head.obj",
+        cat_head.to_str().unwrap(),
         "--out",
         dir.join("x.obj").to_str().unwrap(),
         "--center",
@@ -908,8 +916,11 @@ fn register_names_the_marker_problem() {
 /// extensions are refused before any work, with exit status 2, naming the file, writing nothing.
 #[test]
 fn map_outputs_follow_the_extension() {
+    let Some(cat_head) = shapespace_test_support::shared_file(CAT_HEAD) else {
+        return;
+    };
     let dir = scratch("map-formats");
-    let input = "datasets/disks/cat_head.obj";
+    let input = cat_head.to_str().unwrap();
     for cmd in ["conformal", "param"] {
         let obj = dir.join(format!("{cmd}.obj"));
         let ply = dir.join(format!("{cmd}.ply"));
@@ -1040,12 +1051,15 @@ fn distances_resume_computes_only_the_new_pairs() {
 /// (the map used to be written first and the run to fail at the report or plots).
 #[test]
 fn output_paths_are_checked_before_the_work() {
+    let Some(cat_head) = shapespace_test_support::shared_file(CAT_HEAD) else {
+        return;
+    };
     let dir = scratch("output_paths");
     let file = dir.join("plain_file");
     std::fs::write(&file, "").unwrap();
     let out = dir.join("o.obj");
     let (o, missing, f) = (out.to_str().unwrap(), dir.join("nodir/r.json"), file.to_str().unwrap());
-    let face = "datasets/disks/cat_head.obj";
+    let face = cat_head.to_str().unwrap();
     for (args, named) in [
         (
             vec!["param", face, "--out", o, "--report", missing.to_str().unwrap()],

@@ -1,7 +1,7 @@
 //! Timing table of `disk_map` (release: `cargo run --release -p shapespace-conformal --example
 //! bench_disk_map`). Prints size, intrinsic flips, linear solves and the best of 3 runs per
 //! stage. Meshes: hemispheres of ~1k/10k/100k faces, a jittered unit disk of ~100k faces, and
-//! the repository's face.obj / camelhead / an ICT face when `datasets/` is present.
+//! the libigl face.obj and camelhead (shared datasets folder, `$SHAPESPACE_DATA`) and an ICT face.
 
 use std::path::PathBuf;
 
@@ -39,9 +39,18 @@ fn main() {
         ("jittered disk r129".into(), jittered_disk(129)),
     ];
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../datasets");
-    for name in ["disks/face.obj", "disks/camelhead.off", "faces/id00_neutral.obj"] {
-        if let Ok(m) = shapespace_geometry::io::read_mesh(&data.join(name)) {
-            cases.push((name.into(), m));
+    let shared = shapespace_test_support::shared_datasets_dir(); // $SHAPESPACE_DATA
+    for (name, path) in [
+        ("libigl/face.obj", shared.join("libigl_tutorial_data/face.obj")),
+        (
+            "libigl/camelhead.off",
+            shared.join("libigl_tutorial_data/camelhead.off"),
+        ),
+        ("faces/id00_neutral.obj", data.join("faces/id00_neutral.obj")),
+    ] {
+        match shapespace_geometry::io::read_mesh(&path) {
+            Ok(m) => cases.push((name.into(), m)),
+            Err(e) => eprintln!("SKIPPED: {name}: {e}"),
         }
     }
     println!(

@@ -9,7 +9,8 @@
 //! smooth surface), a cap of half-angle 1 with p off the pole (exact = Möbius ∘
 //! stereographic), the planar domain f(D),
 //! f(z) = z + 0.3z² (exact = f⁻¹), the 40 bundled ICT faces (landmarks.json markers) and the
-//! `datasets/disks` meshes (automatic markers).
+//! public disks of the shared datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`;
+//! automatic markers; a missing one is reported and skipped).
 //!
 //! Columns: wall time (best of 3, the two methods interleaved in the same process), max / mean
 //! |z − z_exact| over vertices and max / mean |λ − λ_exact| over interior vertices (e^{2λ} =
@@ -451,19 +452,17 @@ fn main() {
         cases.push(quadratic_case(rings));
     }
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../datasets");
-    for name in [
-        "cat_head.obj",
-        "plate121.ply",
-        "plate121_rolledA.ply",
-        "camelhead.off",
-        "lion.off",
-        "woody.obj",
-        "face.obj",
-        "alligator.obj",
-    ] {
-        if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("disks").join(name)) {
+    let public = shapespace_test_support::PUBLIC_DISKS
+        .iter()
+        .copied()
+        .chain([("alligator", shapespace_test_support::BEYOND_F64_DISK)]);
+    for (name, rel) in public {
+        let Some(path) = shapespace_test_support::shared_file(rel) else {
+            continue;
+        };
+        if let Ok(mesh) = shapespace_geometry::io::read_mesh(&path) {
             cases.push(Case {
-                name: format!("disks/{name}"),
+                name: name.to_string(),
                 mesh,
                 markers: Markers::default(),
                 exact: None,
@@ -478,7 +477,8 @@ fn main() {
     }
 
     // alligator: what BFF returns when its crowding check is switched off
-    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("beyond_f64/alligator.obj")) {
+    let shared = shapespace_test_support::shared_datasets_dir();
+    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&shared.join(shapespace_test_support::BEYOND_F64_DISK)) {
         alligator_without_crowding_check(&mesh);
     }
 
@@ -498,11 +498,11 @@ fn main() {
     ) {
         refinement("faces/id00_neutral", mesh, mf.markers, face_levels);
     }
-    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("disks/camelhead.off")) {
-        refinement("disks/camelhead", mesh, Markers::default(), camel_levels);
+    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&shared.join("libigl_tutorial_data/camelhead.off")) {
+        refinement("camelhead", mesh, Markers::default(), camel_levels);
     }
-    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&data.join("disks/plate121.ply")) {
-        refinement("disks/plate121", mesh, Markers::default(), plate_levels);
+    if let Ok(mesh) = shapespace_geometry::io::read_mesh(&shared.join("goast/plate/plate121.ply")) {
+        refinement("plate121", mesh, Markers::default(), plate_levels);
     }
 
     // the 40 ICT faces: per-method aggregate and the agreement of the two maps

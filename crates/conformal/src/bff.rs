@@ -47,7 +47,7 @@
 //! [`bff_disk_coordinates`] returns these raw disk coordinates; [`bff_disk_map`] adds marker
 //! resolution, the Möbius normalization p ↦ 0, q ↦ 1, fold repair, densities and conformal
 //! factors exactly as [`crate::disk_map()`] does, so the two constructions are compared like with
-//! like (see ARCHITECTURE.md for the measurements).
+//! like (measurements: `docs/decisions/0001-green-function-disk-map.md`).
 
 use std::f64::consts::{PI, TAU};
 use std::time::Instant;

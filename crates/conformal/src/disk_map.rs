@@ -31,10 +31,10 @@
 //!    per-vertex conformal factors e^{2λ_i} = Σ_{f∋i} area₃ / Σ_{f∋i} area₂, evaluated on the
 //!    ORIGINAL faces (the intrinsic triangulation shares the vertex set).
 //!
-//! Why this construction (measured, see ARCHITECTURE.md): two sparse Cholesky solves, no
+//! Why this construction (measured, `docs/decisions/0001-green-function-disk-map.md`): two sparse Cholesky solves, no
 //! iteration, the boundary lies exactly on |z| = 1 (u = 0 there), and the radius error on
-//! the hemisphere is first order in the edge length (DESIGN.md's reference accuracy).
-//! Compared with Boundary First Flattening ([`crate::bff`], 2026-12-01): BFF is second order
+//! the hemisphere is first order in the edge length (the reference accuracy of `docs/conventions.md`).
+//! Compared with Boundary First Flattening ([`crate::bff`]): BFF is second order
 //! on smooth surfaces (12× smaller error on the hemisphere at 19k vertices, no pole error for
 //! off-center markers), but on the real meshes this construction is closer to the refined
 //! solution of the same polyhedral surface (ICT face: ≈ 2× in the max, ≈ 4× in the mean;
@@ -93,7 +93,7 @@ pub struct DiskMapParams {
     pub repair_folds: bool,
     /// When folds remain after the repair, try Boundary First Flattening ([`crate::bff`]) and
     /// return its map if it has none (default true; only with `repair_folds`).
-    /// [`DiskMapInfo::bff_fallback`] then says so. Measured (2026-12-03): the slits of
+    /// [`DiskMapInfo::bff_fallback`] then says so. Measured: the slits of
     /// `prepare --seam 1` through the limbs of TOSCA bodies run along zigzag edge paths whose
     /// reflex boundary corners fold 11–254 faces of the Green's-function map (cat1, dog1, dog3,
     /// michael0, wolf2); BFF, which places the boundary by its own scale-factor iteration, maps

@@ -135,7 +135,7 @@ fn cut_path(
     Ok(path)
 }
 
-/// The harmonic conjugate angle θ (#V, left-sheet values; θ[pole] = 0) of a = −2πu (#V), see
+/// The harmonic conjugate angle θ (#V, left-sheet values; `θ[pole] = 0`) of a = −2πu (#V), see
 /// the module docs; `pin` is the vertex whose angle is set to 0 (any vertex of the annulus).
 /// The same as [`ConjugateSystem::new`] followed by [`ConjugateSystem::angle`].
 pub fn conjugate_angle(

@@ -12,7 +12,7 @@
 //! embedding of that triangulation (Tutte/Floater; Radó's theorem in the smooth case). Images
 //! of the ORIGINAL triangles are then very rarely flipped; measure them with
 //! [`crate::quality`]. Hard interior landmarks can fold the map: nothing guarantees injectivity
-//! then (DESIGN.md, Registration).
+//! then (`docs/conventions.md`, "Registration").
 //!
 //! Boundary constraints:
 //! * [`BoundaryConstraint::Fixed`]: every boundary vertex at a given position;

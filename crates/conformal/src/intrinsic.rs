@@ -115,7 +115,7 @@ impl IntrinsicTriangulation {
     }
 
     /// Builds an intrinsic triangulation from faces and per-half-edge lengths
-    /// (`lengths[3f + k]` is the length of side (faces[f][k], faces[f][k+1])).
+    /// (`lengths[3f + k]` is the length of side (`faces[f][k]`, `faces[f][k+1]`)).
     pub fn from_lengths(num_vertices: usize, faces: &[[u32; 3]], lengths: Vec<f64>) -> Result<Self, ConformalError> {
         let nh = 3 * faces.len();
         let mut tail = Vec::with_capacity(nh);

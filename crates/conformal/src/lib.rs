@@ -2,14 +2,14 @@
 //!
 //! Conformal maps of disk-type surfaces onto the unit disk (the discrete Riemann map with an
 //! interior marker p ↦ 0 and a boundary marker q ↦ 1), Möbius normalization, map quality
-//! measures and constrained harmonic maps. See `ARCHITECTURE.md` for the choice of method and
-//! the measured accuracy.
+//! measures and constrained harmonic maps. See `ARCHITECTURE.md` for the code map and the measured
+//! accuracy, and `docs/decisions/0001-green-function-disk-map.md` for the choice of method.
 //!
-//! * [`disk_map`]: the Riemann map (Green's function + harmonic conjugate on the intrinsic
+//! * [`disk_map()`]: the Riemann map (Green's function + harmonic conjugate on the intrinsic
 //!   Delaunay triangulation), with densities and conformal factors;
 //! * [`bff`]: the same map by Boundary First Flattening with the disk target: second order on
 //!   smooth surfaces, less accurate than the Green's map on the real meshes measured, so not
-//!   the default (ARCHITECTURE.md, "Method choice", 2026-12-01);
+//!   the default (`docs/decisions/0001-green-function-disk-map.md`);
 //! * [`mobius`]: disk automorphisms z ↦ e^{iθ}(z − a)/(1 − āz);
 //! * [`markers`]: interior/boundary markers, parsing and automatic choices;
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;

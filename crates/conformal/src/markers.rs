@@ -438,7 +438,7 @@ pub fn closest_point_barycentric(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64;
 
 /// The vertex farthest from the boundary in graph-geodesic distance (Dijkstra on 3D edge
 /// lengths from all boundary vertices; ties within a relative 1e-9 → smallest index): the
-/// automatic center, and the pole of the Green's function in [`crate::disk_map`].
+/// automatic center, and the pole of the Green's function in [`crate::disk_map()`].
 pub fn central_vertex(mesh: &TriMesh, is_boundary: &[bool], neighbors: &[Vec<u32>]) -> Option<u32> {
     let sources: Vec<(u32, f64)> = (0..mesh.num_vertices() as u32)
         .filter(|&v| is_boundary[v as usize])

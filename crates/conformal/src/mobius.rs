@@ -3,7 +3,7 @@
 //! Every conformal automorphism of the unit disk D has the form
 //! $$ M(z) = e^{i\theta}\,\frac{z - a}{1 - \bar a z}, \qquad |a| < 1, $$
 //! [Ahlfors, *Complex Analysis*, §1.3]. It maps D onto D and the circle onto itself, sends
-//! a ↦ 0, and |M'(z)| = (1 − |a|²)/|1 − āz|². The disk-map normalization of DESIGN.md takes
+//! a ↦ 0, and |M'(z)| = (1 − |a|²)/|1 − āz|². The disk-map normalization of `docs/conventions.md` takes
 //! a = φ(p) (the image of the interior marker) and θ such that M(φ(q)) = 1.
 //!
 //! Points are `[re, im]` pairs; internally [`faer::c64`].

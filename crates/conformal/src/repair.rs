@@ -152,7 +152,7 @@ fn mean_value_row(
     row.into_iter().map(|(w, c)| (w, c / total)).collect()
 }
 
-/// Largest patch (in rings around a folded face) that [`repair_by_patch`] re-embeds.
+/// Largest patch (in rings around a folded face) that `repair_by_patch` re-embeds.
 pub const MAX_PATCH_RINGS: usize = 6;
 
 /// Re-embeds the free vertices within k rings of face `f` as a uniform Tutte map with the rest

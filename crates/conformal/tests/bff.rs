@@ -1,7 +1,7 @@
 //! Boundary First Flattening onto the disk (`shapespace_conformal::bff`): closed forms, the
 //! agreement with the Green's-function map on a real face, and bad input.
 //!
-//! Observed (release, 2026-11; the same numbers as `examples/compare_methods.rs`):
+//! Observed (release; the same numbers as `examples/compare_methods.rs`):
 //! * hemisphere, rings 10/20/40 (p = pole): max radius error 6.50e-4, 1.64e-4, 4.10e-5
 //!   (order 2.0; the Green's map: 1.69e-3, 5.94e-4, 2.50e-4), max angle error (times r)
 //!   8.0e-5, 4.0e-6, 8.8e-7, max relative face-density error 2.8e-2, 1.36e-2, 6.7e-3 (order 1,
@@ -176,7 +176,7 @@ fn bff_and_green_agree_on_an_ict_face_and_converge_to_each_other() {
     // Not a bug but discretization error: under 1-to-4 midpoint subdivision (same polyhedral
     // surface, same continuum map) the distance goes 1.51e-2 → 6.8e-3 → 3.4e-3 → 1.9e-3, and
     // most of it is BFF's own level-to-level change (8.7e-3 → 3.5e-3 → 1.6e-3; the Green's
-    // map: 5.0e-3 → 1.8e-3 → 6.3e-4; see ARCHITECTURE.md).
+    // map: 5.0e-3 → 1.8e-3 → 6.3e-4; `docs/decisions/0001-green-function-disk-map.md`).
     let Some(d) = datasets_dir() else { return };
     let path = d.join("faces/id00_neutral.obj");
     let m = shapespace_geometry::io::read_mesh(&path).unwrap();
@@ -279,8 +279,10 @@ fn crowded_alligator_is_a_range_error_and_degrades_without_the_check() {
     // the conformal map itself crowds the tail against the circle (BFF's boundary scale
     // factors span 10^14): with the default crowding limit BFF refuses like the Green's map;
     // without it the map comes back unfolded but the tail's shape is lost in f64
-    let Some(d) = datasets_dir() else { return };
-    let m = shapespace_geometry::io::read_mesh(&d.join("beyond_f64/alligator.obj")).unwrap();
+    let Some(path) = shared_file(shapespace_test_support::BEYOND_F64_DISK) else {
+        return;
+    };
+    let m = shapespace_geometry::io::read_mesh(&path).unwrap();
     match bff_disk_map(&m, &Markers::default(), &BffParams::default()) {
         Err(ConformalError::OutOfRange { log10_value, .. }) => assert!(log10_value < -10.0),
         other => panic!("expected a crowding error, got {:?}", other.map(|d| d.quality)),

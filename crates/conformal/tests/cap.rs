@@ -1,7 +1,7 @@
 //! Spherical caps against the closed form: stereographic projection r = tan(θ/2)/tan(α/2),
-//! density μ(r) = (1+R²)/(1+R²r²)² (DESIGN.md, "Conformal map: what a correct one looks like").
+//! density μ(r) = (1+R²)/(1+R²r²)² (`docs/conventions.md`, "Closed-form test values").
 //!
-//! Observed (release, 2026-11): hemisphere, rings 10/20/40/57/80 (V = 331 … 19441): max radius
+//! Observed (release): hemisphere, rings 10/20/40/57/80 (V = 331 … 19441): max radius
 //! error 1.69e-3, 5.94e-4, 2.50e-4, 1.68e-4, 1.20e-4 (order ≈ 1.2 in h, then 1); max angle
 //! error (times r) 5.6e-4 … 4.7e-5; mean relative face-density error 5.9e-3, 2.9e-3, 1.4e-3
 //! (first order). The max density error stays ≈ 1.8 % on the second ring around the pole
@@ -60,7 +60,7 @@ fn hemisphere_radius_angle_density_converge() {
 
 #[test]
 fn hemisphere_10k_vertices_reaches_design_accuracy() {
-    // rings 57 → 9919 vertices; DESIGN.md asks ≲ 4e-4, observed 1.68e-4
+    // rings 57 → 9919 vertices; `docs/conventions.md` asks ≲ 4e-4, observed 1.68e-4
     let (rad, ang, dens, _) = errors(FRAC_PI_2, 57);
     assert!(rad < 2.5e-4, "radius error {rad}");
     assert!(ang < 1.5e-4, "angle error {ang}");

@@ -1,4 +1,6 @@
-//! Real meshes from the repository's `datasets/` (skipped when the folder is absent).
+//! Real meshes: the repository's `datasets/` (faces, poses) and the public disks of the shared
+//! datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`; a test whose files are
+//! absent is skipped with a `SKIPPED` line naming them).
 //!
 //! Observed (auto markers unless stated; Λ = ln(γmax/γmin) mean / p95 / max):
 //! * camelhead (11,381 V): 6,488 intrinsic flips remove all 4,881 negative interior weights;
@@ -11,7 +13,7 @@
 //! * face.obj (25,905 V): 13,008 negative weights → 0; Λ 0.029 / 0.063 / 0.200.
 //! * TOSCA michael0 (not bundled; a fixture of 282 vertices): a fold of adjacent slivers that no
 //!   single-vertex move removes; the patch re-embedding moves 92 vertices.
-//! * alligator (flat, long tail; `datasets/beyond_f64/`): boundary crowding, 1 − |φ| ≈ 1e-15
+//! * alligator (flat, long tail; `common_3d_test_models/alligator.obj`): boundary crowding, 1 − |φ| ≈ 1e-15
 //!   in the tail → a clear `OutOfRange` error instead of 13 folded triangles.
 
 mod common;
@@ -22,8 +24,10 @@ use shapespace_geometry::io::read_mesh;
 
 #[test]
 fn camelhead_has_no_flips() {
-    let Some(d) = datasets_dir() else { return };
-    let m = read_mesh(&d.join("disks/camelhead.off")).unwrap();
+    let Some(path) = shared_file("libigl_tutorial_data/camelhead.off") else {
+        return;
+    };
+    let m = read_mesh(&path).unwrap();
     let dm = map(&m, &Markers::default());
     assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0);
     assert!(dm.info.negative_weights_before > 1000);
@@ -120,32 +124,43 @@ fn bundled_meshes(dir: &std::path::Path) -> Vec<(std::path::PathBuf, Markers)> {
         .collect()
 }
 
-/// Issue 3's real-data check over whole folders, so a disk added to `datasets/` is checked too:
-/// every mesh in `disks/` and `poses/*/`, and the neutral face of each identity, maps with no
-/// flipped or degenerate image triangle, positive finite densities and the boundary on the
-/// circle (Λ statistics printed). The one bundled disk whose conformal image is beyond f64
-/// (`beyond_f64/`, the alligator's tail at 1 − |z| ≈ 1e-15.5 for every interior marker) is
-/// refused with the range error instead (1 − |z| below 1e-10); every mesh of that folder must be.
+/// The real-data check over whole folders, so a disk added to `datasets/` is checked too:
+/// every mesh in `poses/*/`, the neutral face of each identity and every public disk of the
+/// shared folder ([`PUBLIC_DISKS`]) maps with no flipped or degenerate image triangle, positive
+/// finite densities and the boundary on the circle (Λ statistics printed). The public disk whose
+/// conformal image is beyond f64 (the alligator, its tail at 1 − |z| ≈ 1e-15.5 for every
+/// interior marker) is refused with the range error instead (1 − |z| below 1e-10).
 ///
-/// Measured (2026-12-02, 23 meshes): Λ mean 0.029 (libigl face) … 0.30 (cat head, 131 V), p95
+/// Measured over these 23 meshes: Λ mean 0.029 (libigl face) … 0.30 (cat head, 131 V), p95
 /// 0.063 … 0.66 (wolf), max 0.20 … 16.4 (centaur: slivers in the crowded limbs).
 #[test]
 fn every_bundled_disk_maps_without_flips_and_beyond_f64_ones_are_refused() {
     let Some(d) = datasets_dir() else { return };
-    let mut meshes = bundled_meshes(&d.join("disks"));
+    let mut meshes: Vec<(String, std::path::PathBuf, Markers)> = Vec::new();
     for pose in ["wolf", "centaur"] {
-        meshes.extend(bundled_meshes(&d.join("poses").join(pose)));
+        for (p, m) in bundled_meshes(&d.join("poses").join(pose)) {
+            meshes.push((p.strip_prefix(&d).unwrap().display().to_string(), p, m));
+        }
     }
-    meshes.extend(
-        bundled_meshes(&d.join("faces"))
-            .into_iter()
-            .filter(|(p, _)| p.to_string_lossy().ends_with("_neutral.obj")),
+    for (p, m) in bundled_meshes(&d.join("faces")) {
+        if p.to_string_lossy().ends_with("_neutral.obj") {
+            meshes.push((p.strip_prefix(&d).unwrap().display().to_string(), p, m));
+        }
+    }
+    assert_eq!(meshes.len(), 6 + 10, "bundled meshes");
+    let public: Vec<_> = PUBLIC_DISKS.iter().filter_map(|(_, rel)| shared_file(rel)).collect();
+    for (path, (name, _)) in public.iter().zip(PUBLIC_DISKS) {
+        meshes.push((name.to_string(), path.clone(), Markers::default()));
+    }
+    eprintln!(
+        "{} meshes: 16 bundled, {} of {} public disks found",
+        meshes.len(),
+        public.len(),
+        PUBLIC_DISKS.len()
     );
-    assert_eq!(meshes.len(), 7 + 6 + 10, "bundled meshes");
-    for (path, markers) in &meshes {
+    for (name, path, markers) in &meshes {
         let m = read_mesh(path).unwrap();
         let dm = disk_map(&m, markers, &DiskMapParams::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let name = path.strip_prefix(&d).unwrap().display();
         assert_eq!(dm.quality.num_flipped + dm.quality.num_degenerate, 0, "{name}");
         assert!(dm.face_densities.iter().all(|&x| x > 0.0 && x.is_finite()), "{name}");
         for (v, z) in dm.uv.iter().enumerate() {
@@ -155,18 +170,17 @@ fn every_bundled_disk_maps_without_flips_and_beyond_f64_ones_are_refused() {
         eprintln!("{name}: Λ mean {:.3} p95 {:.3} max {:.2}", q.mean, q.p95, q.max);
         assert!(q.mean.is_finite() && q.p95 < 1.0, "{name}: {q:?}");
     }
-    let beyond = bundled_meshes(&d.join("beyond_f64"));
-    assert!(!beyond.is_empty());
-    for (path, markers) in &beyond {
-        let m = read_mesh(path).unwrap();
-        match disk_map(&m, markers, &DiskMapParams::default()) {
-            Err(ConformalError::OutOfRange { log10_value, .. }) => assert!(log10_value < -10.0),
-            other => panic!(
-                "{}: expected a range error, got {:?}",
-                path.display(),
-                other.map(|d| d.quality)
-            ),
-        }
+    let Some(path) = shared_file(shapespace_test_support::BEYOND_F64_DISK) else {
+        return;
+    };
+    let m = read_mesh(&path).unwrap();
+    match disk_map(&m, &Markers::default(), &DiskMapParams::default()) {
+        Err(ConformalError::OutOfRange { log10_value, .. }) => assert!(log10_value < -10.0),
+        other => panic!(
+            "{}: expected a range error, got {:?}",
+            path.display(),
+            other.map(|d| d.quality)
+        ),
     }
 }
 
@@ -194,10 +208,9 @@ fn fill_inner_loops(mesh: &shapespace_geometry::TriMesh) -> shapespace_geometry:
 
 #[test]
 fn shared_ict_template_with_filled_holes_has_no_flips() {
-    let path = std::path::PathBuf::from("/work/shared/datasets/ict_facekit/template_face_full_neutral.obj");
-    if !path.is_file() {
+    let Some(path) = shared_file("ict_facekit/template_face_full_neutral.obj") else {
         return;
-    }
+    };
     let raw = read_mesh(&path).unwrap();
     assert!(matches!(
         disk_map(&raw, &Markers::default(), &DiskMapParams::default()),

@@ -13,7 +13,7 @@ use crate::mesh::TriMesh;
 use crate::quantities::{corner_cotangents, vertex_dual_areas};
 
 /// Half-cotangent weight of each directed corner: for face f and corner k, the weight
-/// ½ cot θ_k that belongs to the edge opposite corner k, i.e. (faces[f][k+1], faces[f][k+2]).
+/// ½ cot θ_k that belongs to the edge opposite corner k, i.e. (`faces[f][k+1]`, `faces[f][k+2]`).
 pub fn edge_cotan_triplets(mesh: &TriMesh) -> Vec<(u32, u32, f64)> {
     let cots = corner_cotangents(mesh);
     let mut out = Vec::with_capacity(3 * mesh.num_faces());

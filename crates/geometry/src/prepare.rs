@@ -638,7 +638,7 @@ pub fn split_edges(mesh: &TriMesh, edges: &[[u32; 2]]) -> Result<TriMesh, Geomet
     Ok(out)
 }
 
-/// Scales the mesh to total area π, the area of the unit disk (DESIGN.md, "Normalization of a
+/// Scales the mesh to total area π, the area of the unit disk (`docs/conventions.md`, "Normalization of a
 /// surface"; Su et al. 2015 §4.2), about its area-weighted centroid ([`scale_to_area`]).
 pub fn normalize_for_shape_space(mesh: &TriMesh) -> Result<TriMesh, GeometryError> {
     scale_to_area(mesh, std::f64::consts::PI)
@@ -664,7 +664,7 @@ pub struct PrepareOptions {
     /// After the disk is made, cut it open along shortest edge paths from this many extremities
     /// to the boundary ([`crate::seam`]; default 0: no seam). One is the measured choice for
     /// bodies: the slit through the farthest tip keeps their conformal images from crowding
-    /// beyond f64 (see `crates/omt/ARCHITECTURE.md`, session 14).
+    /// beyond f64 (`docs/bodies-and-seams.md`).
     pub seam_extremities: usize,
 }
 

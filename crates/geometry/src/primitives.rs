@@ -73,7 +73,7 @@ pub fn unit_disk(rings: usize) -> TriMesh {
 ///
 /// Vertex 0 is the pole; ring k lies at polar angle θ = α·k/rings. With the pole as interior
 /// marker its conformal map to the unit disk is stereographic projection, r = tan(θ/2)/tan(α/2)
-/// (DESIGN.md). Outward normals, so faces are counter-clockwise seen from above.
+/// (`docs/conventions.md`). Outward normals, so faces are counter-clockwise seen from above.
 pub fn spherical_cap(alpha: f64, rings: usize) -> TriMesh {
     let (params, faces) = ring_layout(rings);
     let positions = params
@@ -195,7 +195,7 @@ pub fn grid(nx: usize, ny: usize) -> TriMesh {
 
 /// A tube of radius `radius` and height `height` along +z, closed at z = 0 by a flat cap and
 /// open at z = height: a disk-topology surface whose conformal factor decays like e^{−z/ρ}
-/// along the tube (DESIGN.md). The cap has `cap_rings` rings (vertex 0 is the cap center, the
+/// along the tube (`docs/conventions.md`). The cap has `cap_rings` rings (vertex 0 is the cap center, the
 /// natural interior marker); the tube has `6·cap_rings` vertices around and `along` segments.
 /// Faces are oriented with outward normals (the cap faces −z).
 pub fn capped_tube(radius: f64, height: f64, cap_rings: usize, along: usize) -> TriMesh {

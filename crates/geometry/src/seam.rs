@@ -4,7 +4,7 @@
 //! Why: a conformal map of a disk shrinks a protrusion exponentially in its length over its
 //! width (Su et al. 2015, Fig. 1). A body cut open by a small disk on the torso keeps every limb
 //! as an interior protrusion, and its conformal image puts whole fingers, paws and tails into
-//! regions a few ulps wide (the TOSCA meshes, `omt/ARCHITECTURE.md`, session 8). A seam that runs
+//! regions a few ulps wide (the TOSCA meshes, `docs/bodies-and-seams.md`). A seam that runs
 //! through the limbs' tips turns each limb into a strip along the boundary, which the conformal
 //! map opens instead of collapsing — the usual remedy in surface parameterization (cut graphs
 //! through points of extreme conformal scale, as in Ben-Chen, Gotsman & Bunin 2008 and Sharp &

@@ -1,8 +1,9 @@
 //! Mesh I/O on real files and round trips.
 //!
-//! Counts come from the `SOURCE.md` tables and `mesh_stats.json` of `/work/shared/datasets`
-//! (computed there by an independent Python script). Small copies in `tests/data/` always run;
-//! the tests on the big shared files print a note and return when `../shared` is absent.
+//! Counts come from the `SOURCE.md` tables and `mesh_stats.json` of the shared datasets folder
+//! (`$SHAPESPACE_DATA`, default `../shared/datasets` beside the workspace; computed there by an
+//! independent Python script). The tests on real files read them from that folder and are
+//! skipped, with a `SKIPPED` line naming the missing path, when it is absent.
 
 use std::path::{Path, PathBuf};
 
@@ -12,28 +13,13 @@ use shapespace_geometry::io::{
     parse_obj, read_mesh, read_obj, read_off, read_ply, write_mesh, write_obj, write_off, write_ply, PlyFormat,
 };
 use shapespace_geometry::TriMesh;
+use shapespace_test_support::{shared_file, shared_root};
 
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn data(name: &str) -> PathBuf {
-    repo_root().join("tests/data").join(name)
-}
-
-/// The shared datasets folder, or `None` (with a note) when it is not there (CI).
-fn shared() -> Option<PathBuf> {
-    let dir = repo_root().join("../shared/datasets");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "note: {} not found; skipping the test on the shared datasets",
-            dir.display()
-        );
-        None
-    }
-}
+/// The small public meshes these tests read, in the shared datasets folder.
+const CAT_HEAD: &str = "geometry_central_assets/cat_head.obj";
+const PLATE121: &str = "goast/plate/plate121.ply";
+const WOLF0: &str = "tosca/wolf0.off";
+const WOODY: &str = "common_3d_test_models/woody.obj";
 
 /// A fresh temporary directory for this test process.
 fn temp_dir(name: &str) -> PathBuf {
@@ -48,31 +34,40 @@ fn assert_counts(mesh: &TriMesh, v: usize, f: usize, what: &str) {
 }
 
 #[test]
-fn small_copies_read_with_the_published_counts() {
-    let cat = read_mesh(&data("cat_head.obj")).unwrap();
+fn small_meshes_read_with_the_published_counts() {
+    let (Some(cat), Some(plate), Some(wolf), Some(woody)) = (
+        shared_file(CAT_HEAD),
+        shared_file(PLATE121),
+        shared_file(WOLF0),
+        shared_file(WOODY),
+    ) else {
+        return;
+    };
+    let cat = read_mesh(&cat).unwrap();
     assert_counts(&cat, 131, 248, "cat_head.obj");
     // First and last vertex lines, and the first face line "f 1 2 3", of the file.
     assert_eq!(cat.positions[0], [-0.008298, 0.583053, 0.070454]);
     assert_eq!(cat.faces[0], [0, 1, 2]);
     assert_eq!(cat.uvs, None);
 
-    let plate = read_mesh(&data("plate121.ply")).unwrap();
+    let plate = read_mesh(&plate).unwrap();
     assert_counts(&plate, 121, 200, "plate121.ply");
     // A flat plate: every z is 0.
     assert!(plate.positions.iter().all(|p| p[2] == 0.0));
 
-    let wolf = read_mesh(&data("wolf0.off")).unwrap();
+    let wolf = read_mesh(&wolf).unwrap();
     assert_counts(&wolf, 4344, 8684, "wolf0.off");
     assert_eq!(wolf.positions[0], [3.106520, 50.349998, 52.238998]);
 
-    let woody = read_mesh(&data("woody.obj")).unwrap();
+    let woody = read_mesh(&woody).unwrap();
     assert_counts(&woody, 694, 1267, "woody.obj");
 }
 
 #[test]
 fn every_format_round_trips_a_real_mesh() {
     let dir = temp_dir("real");
-    let wolf = read_off(&data("wolf0.off")).unwrap();
+    let Some(wolf) = shared_file(WOLF0) else { return };
+    let wolf = read_off(&wolf).unwrap();
     for name in ["w.obj", "w.OFF", "w.ply"] {
         let path = dir.join(name);
         write_mesh(&path, &wolf).unwrap();
@@ -194,7 +189,7 @@ fn obj_uvs_per_vertex_when_consistent() {
 
 #[test]
 fn shared_real_format_variants() {
-    let Some(root) = shared() else { return };
+    let Some(root) = shared_root() else { return };
     let cases: [(&str, usize, usize); 11] = [
         ("libigl_tutorial_data/camelhead.off", 11381, 22704), // CRLF, trailing spaces
         ("tosca/cat0.off", 27894, 55712),
@@ -228,7 +223,7 @@ fn shared_real_format_variants() {
 
 #[test]
 fn igea_tristrips_match_the_triangle_list() {
-    let Some(root) = shared() else { return };
+    let Some(root) = shared_root() else { return };
     let strips = read_ply(&root.join("common_3d_test_models/igea.ply")).unwrap();
     let list = read_ply(&root.join("common_3d_test_models/igea_trilist.ply")).unwrap();
     assert_eq!(strips.num_vertices(), 134345);
@@ -252,7 +247,7 @@ fn igea_tristrips_match_the_triangle_list() {
 /// count after fan triangulation).
 #[test]
 fn shared_corpus_matches_mesh_stats() {
-    let Some(root) = shared() else { return };
+    let Some(root) = shared_root() else { return };
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(root.join("mesh_stats.json")).unwrap()).unwrap();
     let entries = stats.as_array().unwrap();

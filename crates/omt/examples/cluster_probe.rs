@@ -1,4 +1,4 @@
-//! Probe (experimental, not wired into the solver; see ARCHITECTURE.md): hierarchical merge of
+//! Probe (experimental, not wired into the solver; see `docs/experiments.md`): hierarchical merge of
 //! near-coincident points for the 1e4 random points / 100x contrast case of ot_bench.
 //! `cluster_probe N ALPHAS` with env CTOL (level tolerance), FRAC (a level is used when it
 //! merges > N/FRAC points), KAPPA, SPREAD. Inputs from `synthetic` (those of ot_bench).
@@ -6,7 +6,7 @@
 //! merges enough, then the next alpha); the coarsest level solved directly; each finer level
 //! starts from the lifted coarse heights (children split the parent cell around its centroid,
 //! lowered by KAPPA * R * max|o|), empty cells raised at their anchors, then damped Newton.
-//! Measured 2026-12-01 (machine shared): ALPHAS 0.5,0.7,0.9,1.2 CTOL 1e-3 FRAC 50: 21 levels,
+//! Measured (machine shared): ALPHAS 0.5,0.7,0.9,1.2 CTOL 1e-3 FRAC 50: 21 levels,
 //! no fallback, 3.15 s total, final error 1.1e-8 (default solver: no convergence in 200 steps;
 //! mass continuation 62 s). Other schedules had levels whose repair failed and fell back to the
 //! Voronoi start (6-25 s): the repair is the open problem.

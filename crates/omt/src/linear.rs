@@ -43,9 +43,9 @@ pub enum LinearSolver {
     /// and the symbolic factorization is on the current pattern only. The same solutions up to
     /// round-off. On face pairs (9.4k unknowns, a new pattern at almost every step) its linear
     /// solves were ~30 % cheaper than `Cholesky`'s, measured when `Cholesky` still factorized
-    /// simplicially there (omt `ARCHITECTURE.md`, "Per-evaluation speed"); the supernodal
+    /// simplicially there (`docs/decisions/0009-linear-algebra.md`); the supernodal
     /// factorization was part of that gain, and the kept ordering's share alone has not been
-    /// re-measured since session 26. Not the default: on the uniform
+    /// re-measured separately. Not the default: on the uniform
     /// disk the first steps change so many pairs that a kept ordering's fill grows 5–9× (1e5),
     /// and on camelhead subdivided it gave no gain. (It was also held back by the f64 floor of
     /// the heights on the wolf of the area-preserving tests; with the heights in double-double
@@ -124,7 +124,7 @@ const REORDER_FILL_GROWTH: f64 = 1.2;
 
 /// A pattern with more new neighbour pairs than this share of its pairs gets a new ordering
 /// without counting the kept one's fill. Measured on five face pairs (finest level, 9,411
-/// unknowns, 28,029 pairs, 2026-12-04 (28)): every pattern with 90 or fewer new pairs (0.3 %)
+/// unknowns, 28,029 pairs): every pattern with 90 or fewer new pairs (0.3 %)
 /// kept the ordering, every one with 152 or more (0.5 %) failed the fill test; each count
 /// (about 1 ms, and 1 ms more for the new ordering's own fill) was spent for nothing in 22
 /// of 28 symbolic factorizations. New pairs are counted against the current symbolic
@@ -139,8 +139,8 @@ const REORDER_CHECK_NEW_PAIRS: f64 = 0.004;
 /// the Hessians here (their fill is low: nnz(L) ≈ 4–7 nnz(A) with AMD), which is slower: at
 /// 52.8k unknowns (TOSCA michael1 slit, nnz(L) 0.89–1.45M) a late Newton step's factorization
 /// and solve took 0.20–0.23 s simplicial and 0.09–0.16 s supernodal; on a 9.4k-unknown grid one
-/// numeric factorization takes 0.012–0.020 s simplicial and 0.009 s supernodal (ARCHITECTURE.md,
-/// session 26). Below ~2,000 unknowns the two take the same time.
+/// numeric factorization takes 0.012–0.020 s simplicial and 0.009 s supernodal
+/// (`docs/decisions/0009-linear-algebra.md`). Below ~2,000 unknowns the two take the same time.
 const SUPERNODAL_MIN: usize = 2000;
 
 /// Parameters of the symbolic factorization of an m × m system.

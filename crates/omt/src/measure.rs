@@ -9,7 +9,7 @@ use crate::error::OmtError;
 /// A piecewise-constant density on a planar triangulation covering a convex domain Ω.
 ///
 /// `vertices` (#M), `triangles` (#T, counter-clockwise) and `densities` (#T, > 0, mass per unit
-/// area). The measure of a set A is Σ_t densities[t]·|A ∩ t|.
+/// area). The measure of a set A is Σ_t `densities[t]`·|A ∩ t|.
 ///
 /// A measure also keeps the averaged copies that the coarse levels of the multiscale start use
 /// ([`SourceMeasure::averaged`]), so that pairwise runs, which solve from one source measure
@@ -185,7 +185,7 @@ impl SourceMeasure {
         Self::uniform_polygon(&polygon, 1.0)
     }
 
-    /// The unit square [0,1]², uniform density 1.
+    /// The unit square \[0, 1\]², uniform density 1.
     pub fn unit_square() -> Result<Self, OmtError> {
         Self::uniform_polygon(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], 1.0)
     }

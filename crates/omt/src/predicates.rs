@@ -268,7 +268,7 @@ pub fn power_compare(x: [f64; 2], yi: [f64; 2], wi: Weight, yj: [f64; 2], wj: We
     pa.sub(&pb).sub(&weight_diff_exact(wi, wj)).sign()
 }
 
-/// A power weight in double-double form, w = w[0] + w[1] with |w[1]| ≤ ulp(w[0])/2 (w[1] = 0 for
+/// A power weight in double-double form, `w = w[0] + w[1]` with `|w[1]| ≤ ulp(w[0])/2` (`w[1] = 0` for
 /// plain `f64` weights). The solver keeps its heights, hence the weights 2h + |y|², in this form:
 /// cells of sites 1e-9 apart must be placed by weight differences below one ulp of the weights
 /// themselves (see `newton`).

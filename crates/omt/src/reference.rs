@@ -8,7 +8,7 @@
 //! The oracle clips a box around the domain by all $N - 1$ half-planes (Sutherland–Hodgman on
 //! convex polygons, every edge labelled by the constraint that produced it), then clips every
 //! source triangle whose bounding box meets the cell by the cell's edges, and integrates the
-//! pieces exactly (DESIGN.md, "Transport cost"): for a triangle $(a, b, c)$ of area $A$,
+//! pieces exactly (`docs/conventions.md`, "Transport cost and exact integrals"): for a triangle $(a, b, c)$ of area $A$,
 //! $\int x = A(a+b+c)/3$ and $\int |x|^2 = A(|a|^2+|b|^2+|c|^2+a\cdot b+b\cdot c+c\cdot a)/6$.
 //!
 //! Cost $O(N^2 + N M)$ per call with $N$ sites and $M$ source triangles (plus the clipping work):

@@ -571,7 +571,7 @@ fn edge_on_a_density_jump() {
     );
 }
 
-/// Edge masses are the off-diagonal derivatives of the masses (DESIGN.md, Hessian):
+/// Edge masses are the off-diagonal derivatives of the masses (`docs/conventions.md`, "Energy, gradient, Hessian"):
 /// ∂μ(W_i)/∂w_j = μ(e_ij) / (2|y_i − y_j|) for neighbours i ≠ j, checked by central differences.
 #[test]
 fn edge_masses_are_mass_derivatives() {

@@ -65,7 +65,7 @@ fn gradient_and_hessian_match_finite_differences_in_the_heights() {
             max_hessian_error < 1e-6,
             "{integrator:?}: Hessian error {max_hessian_error:e}"
         );
-        // The weight-variable Hessian carries a factor ½ (w = 2h + |y|²): with the factor of DESIGN.md
+        // The weight-variable Hessian carries a factor ½ (w = 2h + |y|²): with the factor of `docs/conventions.md`
         // applied to h and not to w, a wrong factor would give an error of 50%.
     }
 }
@@ -418,7 +418,7 @@ fn a_passed_deadline_stops_every_path_and_a_distant_one_changes_nothing() {
 }
 
 /// The coarse-to-fine start reaches the same solution as the Voronoi start, from a start with no
-/// empty cell (its prolongation guarantees that; before 2026-12-01 (4) it fell back to the
+/// empty cell (its prolongation guarantees that; a heuristic lift would fall back to the
 /// Voronoi start on these points).
 #[test]
 fn coarse_to_fine_start_reaches_the_same_solution() {

@@ -1,7 +1,7 @@
 //! Radial closed forms on the unit disk: a radial source density μ(r) against N sunflower points
 //! of the uniform disk (equal masses). The optimal map of the continuous problem is radial,
 //! T(r) = √(F(r)/π) with F the source's cumulative mass, and the semi-discrete cost converges to
-//! ∫₀¹ (r − T(r))² μ(r) 2πr dr as N grows (DESIGN.md, "Closed-form test").
+//! ∫₀¹ (r − T(r))² μ(r) 2πr dr as N grows (`docs/conventions.md`, "Closed-form test values").
 
 mod common;
 
@@ -45,7 +45,7 @@ fn check_convergence(name: &str, measured: &[(usize, f64, usize)], exact: f64) {
 }
 
 /// The stereographic hemisphere density μ(r) = 2/(1 + r²)² (R = 1) against the uniform disk:
-/// T(r) = r√(2/(1 + r²)), cost 0.0329512 (DESIGN.md).
+/// T(r) = r√(2/(1 + r²)), cost 0.0329512 (`docs/conventions.md`).
 #[test]
 fn hemisphere_density_to_uniform_points_converges_to_the_radial_cost() {
     let density = |x: [f64; 2]| {

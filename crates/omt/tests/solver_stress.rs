@@ -563,10 +563,10 @@ fn auto_start_takes_coarse_to_fine_for_oversized_voronoi_cells() {
 /// Intermediate targets (`NewtonParams::target_ratio_cap`, module docs of `newton`) on the
 /// 100× contrast case at N = 10⁴ (the `ot_bench` case): the coarse-to-fine start has cells far
 /// from their targets; aiming each step at soft-capped targets reaches the same solution with
-/// fewer evaluations at the finest level (measured 2026-12-02: 15 → 13 steps, 33 → 23
+/// fewer evaluations at the finest level (measured: 15 → 13 steps, 33 → 23
 /// evaluations). On other random point sets of this case the cap is neutral or worse (N = 4000,
 /// seed 7: 10 → 14 steps, 19 → 23 evaluations); its gains are on the conformal images
-/// (`analysis/tests/distance.rs`, `ARCHITECTURE.md`).
+/// (`analysis/tests/distance.rs`, `docs/decisions/0004-intermediate-targets.md`).
 #[test]
 fn intermediate_targets_reach_the_same_solution() {
     use shapespace_omt::synthetic::{disk_rings_measure, random_disk_points};

@@ -31,7 +31,7 @@
 //! drops from 0.032 to 0.024. The price: the folds of φ₁ stay in g (flipped area 3.6% instead
 //! of 2.3%).
 //!
-//! Default g for OMT ([`HarmonicParams::for_method`], measured in ARCHITECTURE.md): planar
+//! Default g for OMT ([`HarmonicParams::for_method`], measured in `docs/decisions/0015-registration-harmonic-map.md`): planar
 //! weights; if one solve folds, the landmarks move to their targets in 16 steps (each solved
 //! with the weights of the previous layout), then folded faces are untangled with the boundary
 //! and landmarks fixed ([`crate::fold_repair::untangle_kernels`]): 0 folded faces of g on all
@@ -39,7 +39,7 @@
 //! guarantee.
 //!
 //! Radó's theorem makes g bijective only without interior constraints; hard landmark pins can
-//! fold it (DESIGN.md), and the disk maps themselves may fold: [`metrics`] measures flips.
+//! fold it (`docs/conventions.md`, "Registration"), and the disk maps themselves may fold: [`metrics`] measures flips.
 
 pub mod bench;
 pub mod landmarks;
@@ -142,7 +142,7 @@ impl Default for HarmonicParams {
 impl HarmonicParams {
     /// The default g of a method. OMT: planar weights, [`OMT_LANDMARK_STEPS`] landmark steps,
     /// untangling on (measured on the wolf poses: 0 flipped faces of g on all six pairs, geodesic
-    /// mean 0.0282 vs 0.0292 for one solve; ARCHITECTURE.md). Conformal: [`Default`] (the
+    /// mean 0.0282 vs 0.0292 for one solve; `docs/decisions/0015-registration-harmonic-map.md`). Conformal: [`Default`] (the
     /// baseline as published; steps and untangling leave it folding 6–8% of the area).
     pub fn for_method(method: Method) -> Self {
         match method {
@@ -239,7 +239,7 @@ impl Default for RegistrationParams {
 /// [`DiskImage::ot_max_relative_error`].
 ///
 /// The fold repair skips the kernel untangling ([`crate::fold_repair::FoldRepairParams::untangle_sweeps`] = 0):
-/// measured 2026-12-02 with `shapespace register-bench datasets/poses`, untangling first gave
+/// measured with `shapespace register-bench datasets/poses`, untangling first gave
 /// the wolf a geodesic error of 0.0296 / 0.0232 (mean / median) against 0.0282 / 0.0224 with
 /// the Tutte rounds alone, and the centaur 0.0699 / 0.0510 against 0.0692 / 0.0538; the Tutte
 /// rounds place a repaired vertex by the mean-value weights of its neighbours, which the

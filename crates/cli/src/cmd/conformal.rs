@@ -2,7 +2,7 @@
 //! [--landmarks FILE.json] [--factors OUT.csv] [--report OUT.json] [--pole center|central]
 //! [--method green|bff]`:
 //! the discrete Riemann map
-//! of a disk-type mesh onto the unit disk ([`shapespace_conformal::disk_map`], or boundary-first
+//! of a disk-type mesh onto the unit disk ([`shapespace_conformal::disk_map()`], or boundary-first
 //! flattening with `--method bff`, [`shapespace_conformal::bff_disk_map`], as a cross-check).
 //!
 //! Markers: a marker file (`--landmarks`, else the sidecar `NAME.landmarks.json` or
@@ -48,7 +48,7 @@ pub struct ConformalArgs {
     pub no_intrinsic_delaunay: bool,
     /// Construction: `green` (Green's function and harmonic conjugate, default) or `bff`
     /// (boundary-first flattening iterated to the circle; same normalization; a cross-check,
-    /// compared in crates/conformal/ARCHITECTURE.md). `--pole` applies to `green` only.
+    /// compared in `docs/decisions/0001-green-function-disk-map.md`). `--pole` applies to `green` only.
     #[arg(long, default_value = "green", value_parser = ["green", "bff"])]
     pub method: String,
     /// With `green`: report folds that survive the repair as an error instead of falling back to

@@ -6,10 +6,18 @@ use std::path::PathBuf;
 use shapespace_conformal::{disk_map, BoundaryMarker, CenterMarker, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::TriMesh;
 
-/// The repository's `datasets/` folder (None when absent: tests then skip).
+#[allow(unused_imports)] // each test binary uses its own subset
+pub use shapespace_test_support::{shared_file, PUBLIC_DISKS};
+
+/// The repository's `datasets/` folder (None, after a `SKIPPED` line naming it, when absent).
 pub fn datasets_dir() -> Option<PathBuf> {
-    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../datasets");
-    d.is_dir().then_some(d)
+    let d = shapespace_test_support::repo("datasets");
+    if d.is_dir() {
+        Some(d)
+    } else {
+        eprintln!("SKIPPED: the repository's datasets folder {} not found", d.display());
+        None
+    }
 }
 
 /// Markers with a vertex center and a vertex boundary marker.

@@ -7,7 +7,7 @@
 //! polygon whose fan would overlap itself (a fan triangle facing the opposite way of the
 //! polygon's vector area: a nearly planar polygon, not convex and not star-shaped from its first
 //! corner) is an error naming the polygon, since its triangles would cover the wrong area
-//! ([`check_fans`]).
+//! (`check_fans`).
 //!
 //! Readers only reject syntactic and numeric problems: truncated files, counts that disagree
 //! with the data, non-numeric tokens, NaN or infinite coordinates, vertex indices out of range,

@@ -2,7 +2,7 @@
 //! keeps mass ≥ ε₀ and ‖G(h + τδ)‖₂ ≤ (1 − τ/2)‖G(h)‖₂.
 //!
 //! The acceptance test is exactly KMT's; two deviations in how the trial τ are chosen, for speed
-//! (measured on face pairs, see ARCHITECTURE.md):
+//! (measured on face pairs, `docs/decisions/0006-line-search.md`):
 //! - The search starts at τ = min(1, `growth`·τ_prev) (τ_prev the previous accepted step; the
 //!   caller picks the growth, 1.5), so a long phase of small steps (strong density contrast)
 //!   does not re-evaluate the same rejected trials every iteration, while τ can still grow back

@@ -31,7 +31,7 @@
 //!   prolongation of the one below it, which provably leaves no cell empty. From a Voronoi start
 //!   the damped steps are limited to about one cell width, so a large displacement (a density
 //!   contrast, points crowded by a conformal map) costs many steps; from the prolongation the
-//!   finest level needs 8–18 (measured in `ARCHITECTURE.md`). `StartStrategy::Auto` (default)
+//!   finest level needs 6–18 (`docs/decisions/0003-coarse-to-fine-start.md`). `StartStrategy::Auto` (default)
 //!   takes it when the density ratio exceeds 10 or the Voronoi start has a cell below 1e-8 or
 //!   above 100 times its target.
 //! - **Density continuation** (with `StartStrategy::Voronoi`, and on the coarsest level of the
@@ -60,7 +60,7 @@
 //!   exactly KMT's, so the quadratic phase and the stopping rule are unchanged. If a step with
 //!   modified targets is accepted only below τ = 0.01, or not at all, the solve continues with
 //!   the plain targets (the crowded TOSCA meshes, whose cells must grow 1e20-fold: centaur0
-//!   takes 15 steps with it and 14 without; measured in `ARCHITECTURE.md`).
+//!   takes 15 steps with it and 14 without; `docs/decisions/0004-intermediate-targets.md`).
 //! - **Pinning.** The unknown with the largest target mass (first one on ties) is pinned for the
 //!   whole solve (step 0), so the sparsity pattern only changes when neighbours change.
 //! - **Stops.** `Converged` when $\max_i |G_i|/\nu_i \le$ `tolerance`; `IterationCap`; `Stalled` when
@@ -125,7 +125,7 @@ pub struct NewtonParams {
     /// The line search gives up (`Stalled`) below τ = 2^−max_halvings (default 100: with the
     /// heights in double-double form a step τδ down to ~2^−100 still changes them; conformal
     /// images of protrusions start with cells of mass 1e-26 that only such steps keep
-    /// non-empty, see `ARCHITECTURE.md`).
+    /// non-empty, `docs/decisions/0005-double-double-heights.md`).
     pub max_halvings: usize,
     /// Linear solver of the Newton system (default sparse Cholesky).
     pub linear_solver: LinearSolver,
@@ -168,14 +168,14 @@ pub struct NewtonParams {
     /// Default `false`: on face pairs it saves 7 % of the instructions (its field built once per
     /// source face) but was slower in wall time (30 faces, 2 threads: 134 and 149 s against 129
     /// and 118 s, interleaved), and on the area-preserving maps it costs 9 % more instructions
-    /// (Nefertiti: several measures solved once each); `ARCHITECTURE.md`, session 18.
+    /// (Nefertiti: several measures solved once each); `docs/decisions/0010-restricted-integration.md`.
     pub flux_masses: bool,
     /// Tolerance of the coarser levels of the coarse-to-fine start (default 1e-3; the finest
     /// level's `tolerance` where that is looser). Their solutions only shape the start (its
     /// guarantee that no cell is empty holds for any coarse heights), so a looser value trades
     /// coarse steps against the start's quality: on face pairs 1e-1 gives the same finest-level
     /// steps with ~4 fewer coarse ones, on the TOSCA bodies it costs 1–3 finest steps
-    /// (`ARCHITECTURE.md`, session 20). Must be in (0, 1).
+    /// (`docs/decisions/0008-distance-tolerance-and-dual-check.md`). Must be in (0, 1).
     pub coarse_tolerance: f64,
     /// The target's coarsening hierarchy ([`TargetCoarsening`], built once per target) for the
     /// coarse-to-fine start; ignored when it is not that of this solve's points and masses.
@@ -224,7 +224,7 @@ impl Default for NewtonParams {
     }
 }
 
-/// Default of [`NewtonParams::target_ratio_cap`]. Measured 2026-12-02 (`ARCHITECTURE.md`): on 8
+/// Default of [`NewtonParams::target_ratio_cap`]. Measured (`docs/decisions/0004-intermediate-targets.md`): on 8
 /// faces (28 distance pairs) 16, 24, 32, 64, 128 and 256 with a hard cap all cut the finest
 /// level's evaluations by about a fifth, 4 and 1000 less; the soft cap at 32 cut the steps over
 /// all levels 697 → 603 and the evaluations of the finest level 450 → 315.
@@ -294,13 +294,13 @@ const AUTO_CONTRAST: f64 = 10.0;
 /// fraction of its target mass.
 const AUTO_MIN_START: f64 = 1e-8;
 /// [`StartStrategy::Auto`] takes the coarse-to-fine start when a Voronoi cell has more than this
-/// multiple of its target mass. Measured 2026-12-02 on area-preserving maps (uniform disk, the
+/// multiple of its target mass. Measured on area-preserving maps (uniform disk, the
 /// conformal images as targets; `analysis/examples/param_start_probe.rs`): the coarse-to-fine
 /// start was the faster one where the largest Voronoi cell was 2.4e3 (Nefertiti cut open, 50k
 /// points: 15 against 25 steps, OT 5.5 against 8.2 s) and 3.4e3 times its target (Igea, 134k:
 /// 13 against 19 steps, 10.6 against 14.7 s), the slower one at 6.5 … 70 (camelhead and its
 /// 1-to-4 subdivision, the libigl face, lion, woody, cat head, an ICT face, a bump domain).
-/// Lowered from 300 to 100 on 2026-12-03: Nefertiti cut open and slit twice (`prepare --seam
+/// Why 100 and not 300: Nefertiti cut open and slit twice (`prepare --seam
 /// 2`, 50k points) has its largest Voronoi cell at 130 times its target, and the coarse-to-fine
 /// start took 6 steps / 2.4 s against 25 steps / 8.5 s from the Voronoi start; camelhead
 /// subdivided (70) stays on the Voronoi start (8 steps, 2.3 s, against 9 steps, 3.2 s).
@@ -534,7 +534,7 @@ pub fn heights_from_weights(points: &[[f64; 2]], weights: &[f64]) -> Vec<f64> {
 /// against the site distance |y_i − y_j|: sites 1e-9 apart whose cells must be 1e-2 wide need
 /// h_i − h_j to ~1e-17, below one ulp of heights of order one. With plain f64 heights the
 /// solve then ends at a floor of the mass error (≈ 1e-6 on the wolf of the area-preserving
-/// tests, see `ARCHITECTURE.md`); in double-double form the weights reach the predicates and
+/// tests, `docs/decisions/0005-double-double-heights.md`); in double-double form the weights reach the predicates and
 /// the clipping exactly ([`PowerDiagram::with_order_dd`]). The Newton directions stay f64: an
 /// error of a few ulps in δ only perturbs the step, it does not set a floor.
 #[derive(Clone, Debug)]
@@ -711,7 +711,10 @@ fn flux_bound(params: &NewtonParams) -> Option<f64> {
 }
 
 /// The cell integrator with its per-measure precomputation, and the insertion order of the
-/// points (computed at the first evaluation; a backend serves one set of points).
+/// points (computed at the first evaluation; a backend serves one set of points). One backend
+/// lives for a whole solve, so the size of the `Restricted` variant costs nothing; boxing it
+/// would add an indirection to every evaluation.
+#[allow(clippy::large_enum_variant)]
 pub(crate) enum Backend<'a> {
     Restricted(RestrictedIntegrator, OnceLock<InsertionOrder>),
     BruteForce(&'a SourceMeasure),
@@ -1006,7 +1009,7 @@ fn no_progress(log: &[IterationRecord]) -> bool {
 /// Whether the last [`FLAT_WINDOW`] steps of `log` all had τ < [`FLAT_TAU`], the largest τ of
 /// the window's second half is at most [`FLAT_GROWTH`] times that of its first half (τ no longer
 /// grows), and together they lowered the max relative error by less than [`STALL_GAIN`].
-/// Measured 2026-12-02 on TOSCA michael0 from the Voronoi start: after τ grew 4× per step to
+/// Measured on TOSCA michael0 from the Voronoi start: after τ grew 4× per step to
 /// ~1e-14 it oscillated between 1e-16 and 7e-14 for 70 steps, the error fixed at 5.64e3 (the
 /// points are a few ulps apart), until the iteration cap; horse5, which converges, grows τ 4×
 /// per step from 1e-26 to 1e-4 with a flat error (growth: not a stall) and then lowers the
@@ -1244,8 +1247,8 @@ fn stall_diagnosis(points: &[[f64; 2]], masses: &[f64], lo: [f64; 2], hi: [f64; 
 }
 
 /// The area centroid of Ω (the density ignored), the center of the contracted starts. It lies
-/// deep inside the convex Ω (it cuts every chord through it at most 2 : 1). Before 2026-12-04
-/// (24) the μ-barycenter was used; on TOSCA dog0 → dog1, both slit, as a distance pair (μ-barycenter
+/// deep inside the convex Ω (it cuts every chord through it at most 2 : 1). Not the
+/// μ-barycenter: on TOSCA dog0 → dog1, both slit, as a distance pair (μ-barycenter
 /// at radius 0.38, area centroid at 1.7e-4), the direct solve from the contraction toward the
 /// μ-barycenter ran past 300 s, and from the one toward the centroid it stopped on crowding
 /// (points 1e-14 apart) after 22 steps.
@@ -1975,8 +1978,8 @@ mod contraction_tests {
     /// also for a row of points 1.6e-11 apart (as at a limb's tip in a conformal image): no cell
     /// is empty and every cell mass agrees with that of the Voronoi diagram of the z_i (exact
     /// here) to 1e-13 (measured 7.6e-15), and the crowded cells (1e-13 … 4e-13 each) to 1e-3 of
-    /// their mass (measured 1.2e-4). With f64 heights −|z_i|²/(2s), as before 2026-12-04 (24),
-    /// the masses were off by up to 1.3e-9, 6.3 times the crowded cells' own, and 22 of the
+    /// their mass (measured 1.2e-4). With f64 heights −|z_i|²/(2s)
+    /// the masses are off by up to 1.3e-9, 6.3 times the crowded cells' own, and 22 of the
     /// cells were empty at s = 1/2.
     #[test]
     fn contracted_heights_give_the_voronoi_diagram_of_the_contracted_points() {

@@ -9,8 +9,8 @@
 //! way, recursively, at tolerance max(tol, [`NewtonParams::coarse_tolerance`]) (default 1e-3);
 //! levels stop below 1000 points, or below 16 when the points are crowded (two closer than 1e-6
 //! of the mean spacing). A coarse level that its own coarse-to-fine start does not solve is
-//! solved again from the Voronoi start with density continuation, at its own small size (since
-//! 2026-12-04 (24); the TOSCA wolves as distance pairs, whose direct solves had fallen to the
+//! solved again from the Voronoi start with density continuation, at its own small size (needed
+//! by the TOSCA wolves as distance pairs, whose direct solves otherwise fall to the
 //! Voronoi start and the iteration cap). The coarsening depends on the target alone (its masses rescaled to the
 //! source's mass change the coarse masses and means by rounding, and at most rarely a merge):
 //! [`TargetCoarsening`] holds it, computed from the masses as given, for runs that solve many
@@ -44,14 +44,14 @@
 //! recomputed over all groups. Each check round's fine diagram is updated by flips from the
 //! previous round's, the first from the Delaunay triangulation of the first coarsening round
 //! (the same diagrams as built anew, [`PowerDiagram::with_order_dd_unless_hidden_from`]).
-//! (Until 2026-12-03 (15) the check looked for hidden points only;
-//! a point whose cell exists but lies outside Ω passed it: two slit copies on the unit circle
-//! of the bundled wolf0 slit three times started empty and the solve failed.)
+//! (A check for hidden points only is not enough: a point whose cell exists but lies outside Ω
+//! passes it; two slit copies on the unit circle of the bundled wolf0 slit three times are
+//! such points.)
 //! Heights are kept in double-double form throughout (children of a crowded group differ by
 //! less than an ulp of the heights).
 //!
 //! **Measured** (`examples/multiscale_probe.rs`, `analysis/examples/param_bench.rs`; numbers in
-//! `ARCHITECTURE.md`): on 1e4 random points with a 100× density contrast the solve takes 0.75 s
+//! `docs/decisions/0003-coarse-to-fine-start.md`): on 1e4 random points with a 100× density contrast the solve takes 0.75 s
 //! (15 Newton steps at the finest level), against 15.8 s by density continuation; on the TOSCA
 //! horse and centaur it converges in 16–18 steps instead of 47–62. On problems whose Voronoi start
 //! is already good (uniform density and well-spread points) it is slower than the Voronoi start,
@@ -86,7 +86,7 @@ const SCALE_MATCH: f64 = 1e-3;
 /// At most this many merging rounds per level.
 const MAX_ROUNDS: usize = 6;
 /// s_g as a fraction of the distance from the coarse centroid c_g to its cell's boundary.
-/// (0.5 until 2026-12-02 (11); with the intermediate targets of the Newton steps, 0.9 took the
+/// (With the intermediate targets of the Newton steps, 0.9 instead of 0.5 takes the
 /// 8-face distance benchmark from 603 to 564 steps and 315 to 291 finest-level evaluations,
 /// TOSCA horse0's area-preserving OT from 20 to 14 steps; any value below 1 keeps the
 /// guarantee, since the balls B(c_g, s_g) stay inside the cells.)
@@ -96,7 +96,7 @@ const SPREAD: f64 = 0.9;
 /// k ≥ 1; quantized so that the copy is shared by the pairs of one source, whose coarse levels
 /// differ slightly) in [AVERAGING_MIN_SAMPLE·n, 2·AVERAGING_MIN_SAMPLE·n), when that copy has at
 /// most half the measure's triangles (never on the uniform disk of 512 triangles). Measured on
-/// face pairs (`analysis/examples/pair_cost.rs`, 2026-12-02 (12)): the copy for a level of 1,349
+/// face pairs (`analysis/examples/pair_cost.rs`): the copy for a level of 1,349
 /// points has 4.7k triangles instead of 18.6k, the coarse levels cost a third of what they did,
 /// and the finest level takes as many steps.
 const AVERAGING_MIN_SAMPLE: f64 = 1.5;
@@ -166,7 +166,7 @@ struct CoarseLevel {
 
 impl TargetCoarsening {
     /// The hierarchy of the target (`points`, `masses`), as the coarse-to-fine start would
-    /// compute it level by level (down to [`MIN_COARSE`] points; the start decides per solve
+    /// compute it level by level (down to `MIN_COARSE` points; the start decides per solve
     /// how many levels it uses). Invalid input gives a hierarchy without levels.
     pub fn new(points: &[[f64; 2]], masses: &[f64]) -> Self {
         let order = InsertionOrder::new(points).ok();

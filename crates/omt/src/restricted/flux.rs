@@ -23,8 +23,8 @@
 //! size of the cell's mass rather than of F × its perimeter. The work is proportional to the
 //! crossings of power edges with source edges (plus one walk locating each power vertex); on
 //! face pairs an evaluation costs about 60 % of the boundary form's (module `boundary`); the
-//! field is built once per measure and shared by all solves from it (`ARCHITECTURE.md`,
-//! session 18).
+//! field is built once per measure and shared by all solves from it
+//! (`docs/decisions/0010-restricted-integration.md`).
 //!
 //! **When it declines.** The walks decide with exact predicates, but the positions are floating
 //! point, so each cell gets an error estimate (the terms' rounding, and the endpoints' position

@@ -5,7 +5,7 @@
 //! W_i ∩ t. Each piece is the triangle clipped by the half-planes of the neighbours j of i,
 //! which in coordinates z = x − y_i relative to the site read
 //! $$ z \cdot d_j \le \tfrac12 \left(|d_j|^2 + w_i - w_j\right), \qquad d_j = y_j - y_i, $$
-//! and its integrals are exact closed forms (DESIGN.md, "Transport cost"): a fan of triangles
+//! and its integrals are exact closed forms (`docs/conventions.md`, "Transport cost and exact integrals"): a fan of triangles
 //! (a, b, c) of area A gives ∫ z = A (a + b + c)/3 and
 //! ∫ |z|² = A (|a|² + |b|² + |c|² + a·b + b·c + c·a)/6.
 //!
@@ -19,7 +19,7 @@
 //! in a fixed triangle order (along a Hilbert curve of the centroids, which also keeps point
 //! location walks short), so the result does not depend on the number of threads.
 //!
-//! Since 2026-12-02 (13) each triangle first goes through the boundary (Green's theorem) form of
+//! Each triangle first goes through the boundary (Green's theorem) form of
 //! the same integrals (module `boundary`): the cells' power polygons are built once per diagram,
 //! each cell meeting t clips its polygon's *edges* to t, and arcs of ∂t close the pieces; about
 //! a third of the clipping path's work. It declines triangles where a combinatorial decision is
@@ -27,7 +27,7 @@
 //! not two-dimensional, go through the clipping path described here, so the rules below for
 //! degenerate cases hold for both.
 //!
-//! Since 2026-12-03 (18) the Newton evaluations can take the masses and edge masses only, by the
+//! The Newton evaluations can take the masses and edge masses only, by the
 //! flux form (module `flux`, [`RestrictedIntegrator::integrate_masses`]; opt-in,
 //! `NewtonParams::flux_masses`: fewer instructions on face pairs, but not faster in wall time): a Raviart–Thomas
 //! field with divergence ρ, built once per measure, turns every cell mass into a sum over its
@@ -757,7 +757,7 @@ impl RestrictedIntegrator {
         // The flux form pays where the source is finer than the diagram (its work grows with
         // the power edges, the boundary form's with the pieces, ~ N + M): face pairs, 18.8k
         // triangles for 9.4k sites, −12 %; the area-preserving map of Nefertiti, 7.3k triangles
-        // for 50k sites, +14 % (ARCHITECTURE.md, session 18).
+        // for 50k sites, +14 % (`docs/decisions/0010-restricted-integration.md`).
         let pays = self.triangles.len() >= diagram.num_sites();
         if let Some(bound) = self
             .flux_bound
@@ -900,9 +900,9 @@ mod tests {
 
     /// A polygon made non-convex (here by construction; in a solve by the rounding of earlier
     /// cuts in cells ~1e-14 wide) can cross the clipping line more than twice: two spikes above
-    /// y = 1 give m + 2 vertices. `clip` wrote past its m + 1 slots and panicked in
-    /// `shapespace distances` on the bundled TOSCA wolves and centaurs together (2026-12-04;
-    /// which pair was not recorded); it now has room for 2m.
+    /// y = 1 give m + 2 vertices. `clip` has room for 2m vertices
+    /// (with m + 1 slots it panicked in `shapespace distances` on the bundled TOSCA wolves and
+    /// centaurs together).
     #[test]
     fn clip_keeps_every_crossing_of_a_non_convex_polygon() {
         let spikes = [[0.0, 0.0], [4.0, 0.0], [3.0, 2.0], [2.0, 0.5], [1.0, 2.0]];
