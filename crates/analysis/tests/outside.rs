@@ -1,28 +1,13 @@
 //! Real meshes the project was not tuned on: public face scans, expression sets and bodies from
 //! the shared data folder beside the clone (`../shared/datasets`, or `SHAPESPACE_DATA`). Each
 //! is prepared as `shapespace prepare` does and mapped as `shapespace conformal` does. When the
-//! folder is missing the tests say so on stderr and check nothing.
+//! folder is missing the tests say so on stderr (`SKIPPED`) and check nothing.
 
 use std::path::{Path, PathBuf};
 
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, Markers};
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("SHAPESPACE_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "SKIPPED: the shared data folder {} is missing (set SHAPESPACE_DATA to the datasets folder)",
-            dir.display()
-        );
-        None
-    }
-}
 
 fn files(dir: &Path, sub: &str, ext: &str) -> Vec<PathBuf> {
     let mut out: Vec<PathBuf> = std::fs::read_dir(dir.join(sub))
@@ -41,7 +26,7 @@ fn files(dir: &Path, sub: &str, ext: &str) -> Vec<PathBuf> {
 /// folds or garbage. The list is what stands between this test and the goal.
 #[test]
 fn outside_disks_prepare_and_map_without_flips() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = shapespace_test_support::shared_root() else { return };
     const KNOWN_FAILURES: [&str; 8] = ["pose1", "pose3", "pose4", "pose5", "pose6", "pose7", "pose8", "pose9"];
     let mut corpus = files(&dir, "outside/facefuns", "ply");
     corpus.extend(files(&dir, "outside/sumner_face_poses", "obj"));
@@ -107,7 +92,7 @@ fn outside_disks_prepare_and_map_without_flips() {
 /// 0.04–0.06); with one choice all six distances lie within a factor 1.6 of each other.
 #[test]
 fn expressions_sharing_one_connectivity_share_their_auto_markers() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = shapespace_test_support::shared_root() else { return };
     let tmp = std::env::temp_dir().join(format!("shapespace-outside-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     let mut paths = Vec::new();
