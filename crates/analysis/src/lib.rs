@@ -7,6 +7,7 @@ pub mod distortion;
 pub mod error;
 pub mod fold_repair;
 pub mod geodesic;
+pub mod invariance;
 pub mod matrix_io;
 pub mod mds;
 pub mod pipeline;

@@ -82,6 +82,10 @@ pub fn markers_for(
     Ok((markers, source))
 }
 
+/// A file read for [`run_distances`]: its SHA-256, the seconds spent, and its mesh with its
+/// markers and their source (or why it could not be read).
+type LoadedFile = (Option<String>, f64, Result<(TriMesh, Markers, String), String>);
+
 /// Options of [`run_distances`].
 #[derive(Clone, Debug, Default)]
 pub struct DistancesOptions {
@@ -373,7 +377,7 @@ pub fn run_distances(
 
     let t_prepare = Instant::now();
     // (a panic, i.e. a bug, fails this file only, as it fails a pair only in the pairs)
-    let loaded: Vec<(Option<String>, f64, Result<(TriMesh, Markers, String), String>)> = paths
+    let loaded: Vec<LoadedFile> = paths
         .par_iter()
         .zip(&names)
         .map(|(path, name)| {

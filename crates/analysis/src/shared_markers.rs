@@ -186,7 +186,7 @@ mod tests {
         let c = unit_disk(5);
         let given = Markers {
             center: CenterMarker::Vertex(0),
-            boundary: BoundaryMarker::Vertex((0..a.num_vertices() as u32).rev().next().unwrap()),
+            boundary: BoundaryMarker::Vertex(a.num_vertices() as u32 - 1),
         };
         let auto = Markers::default();
         let inputs = vec![

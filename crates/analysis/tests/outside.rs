@@ -26,7 +26,9 @@ fn files(dir: &Path, sub: &str, ext: &str) -> Vec<PathBuf> {
 /// folds or garbage. The list is what stands between this test and the goal.
 #[test]
 fn outside_disks_prepare_and_map_without_flips() {
-    let Some(dir) = shapespace_test_support::shared_root() else { return };
+    let Some(dir) = shapespace_test_support::shared_root() else {
+        return;
+    };
     const KNOWN_FAILURES: [&str; 8] = ["pose1", "pose3", "pose4", "pose5", "pose6", "pose7", "pose8", "pose9"];
     let mut corpus = files(&dir, "outside/facefuns", "ply");
     corpus.extend(files(&dir, "outside/sumner_face_poses", "obj"));
@@ -92,7 +94,9 @@ fn outside_disks_prepare_and_map_without_flips() {
 /// 0.04–0.06); with one choice all six distances lie within a factor 1.6 of each other.
 #[test]
 fn expressions_sharing_one_connectivity_share_their_auto_markers() {
-    let Some(dir) = shapespace_test_support::shared_root() else { return };
+    let Some(dir) = shapespace_test_support::shared_root() else {
+        return;
+    };
     let tmp = std::env::temp_dir().join(format!("shapespace-outside-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     let mut paths = Vec::new();
