@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
+use shapespace_geometry::io::{write_atomically, AtomicFile};
 
 use crate::error::AnalysisError;
 use crate::matrix_io::{read_distance_matrix, read_labels, DistanceMatrix, Labels};
@@ -174,11 +175,15 @@ pub fn shape_space_stats(
 
 fn write_csv(path: &Path, rows: impl IntoIterator<Item = Vec<String>>) -> Result<(), AnalysisError> {
     let to_err = |e: csv::Error| AnalysisError::csv(path, e);
-    let mut w = csv::Writer::from_path(path).map_err(to_err)?;
+    let file = AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))?;
+    let mut w = csv::Writer::from_writer(file);
     for row in rows {
         w.write_record(&row).map_err(to_err)?;
     }
-    w.flush().map_err(|e| AnalysisError::io(path, e))
+    w.into_inner()
+        .map_err(|e| AnalysisError::io(path, e.into_error()))?
+        .commit()
+        .map_err(|e| AnalysisError::io(path, e))
 }
 
 /// Writes `mds.csv`: header `name,<label columns>,x1..xk`, one row per shape.
@@ -288,7 +293,7 @@ pub fn run_mds(
         path: json_path.clone(),
         message: e.to_string(),
     })?;
-    std::fs::write(&json_path, json + "\n").map_err(|e| AnalysisError::io(&json_path, e))?;
+    write_atomically(&json_path, (json + "\n").as_bytes()).map_err(|e| AnalysisError::io(&json_path, e))?;
     files.push(json_path);
 
     Ok(MdsResult {

@@ -365,7 +365,6 @@ fn pipeline_reports_a_bad_file_and_completes_the_other_pairs() {
         "stale\n"
     );
     let report = &run.report;
-    assert!(report.partial_pairs_error.is_none());
     assert_eq!(report.inputs.len(), 4);
     let failed: Vec<_> = report.inputs.iter().filter(|i| !i.ok).collect();
     assert_eq!(failed.len(), 1);

@@ -1080,3 +1080,82 @@ fn register_ground_truth_is_optional_and_missing_landmarks_are_said() {
         assert_eq!(msg.contains("geodesic error"), geodesic, "{msg}");
     }
 }
+
+/// Runs the binary with its file-size limit (RLIMIT_FSIZE) at `bytes` and SIGXFSZ ignored, so
+/// that a write past the limit fails with EFBIG as on a full disk.
+#[cfg(target_os = "linux")]
+fn shapespace_with_file_size_limit(bytes: u64, args: &[&str]) -> Output {
+    let mut sh_args = vec![
+        "-c".to_string(),
+        format!("trap '' XFSZ; exec prlimit --fsize={bytes} \"$0\" \"$@\""),
+        env!("CARGO_BIN_EXE_shapespace").to_string(),
+    ];
+    sh_args.extend(args.iter().map(|a| a.to_string()));
+    Command::new("sh")
+        .args(&sh_args)
+        .current_dir(root())
+        .output()
+        .expect("sh runs")
+}
+
+/// The names in a folder, sorted.
+fn folder_entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Issue 42, item 4: an output that cannot be written whole (here a file-size limit, as a full
+/// disk) fails naming the file and leaves the previous complete file as it was, with no
+/// temporary file behind; a resume checkpoint that cannot be written stops the run at once with
+/// an error naming it (the pairs used to go on with the checkpoint empty, and the final files
+/// were then cut).
+#[cfg(target_os = "linux")]
+#[test]
+fn issue_42_outputs_are_written_atomically() {
+    let dir = scratch("atomic");
+    let (obj, csv) = (dir.join("map.obj"), dir.join("factors.csv"));
+    let args = [
+        "conformal",
+        "datasets/disks/cat_head.obj",
+        "--out",
+        obj.to_str().unwrap(),
+        "--factors",
+        csv.to_str().unwrap(),
+    ];
+    let first = shapespace(&args);
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    let (obj_before, csv_before) = (std::fs::read(&obj).unwrap(), std::fs::read(&csv).unwrap());
+    assert!(obj_before.len() > 4096 && csv_before.len() > 4096);
+    let limited = shapespace_with_file_size_limit(4096, &args);
+    let msg = stderr(&limited);
+    assert_eq!(limited.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("map.obj") && msg.contains("too large"), "{msg}");
+    assert!(std::fs::read(&obj).unwrap() == obj_before, "the previous map was cut");
+    assert!(std::fs::read(&csv).unwrap() == csv_before, "the previous factors were cut");
+    assert_eq!(folder_entries(&dir), ["factors.csv", "map.obj"]);
+
+    // The checkpoint: the run's identity file (about 610 bytes) and the checkpoint's header and
+    // first rows (about 140 bytes each) fit under the limit, a later row does not.
+    let out = dir.join("d");
+    let faces: Vec<String> = ["id00_neutral", "id01_happy", "id02_sad"]
+        .iter()
+        .map(|n| format!("datasets/faces/{n}.obj"))
+        .collect();
+    let mut args = vec!["distances"];
+    args.extend(faces.iter().map(String::as_str));
+    args.extend(["--out", out.to_str().unwrap(), "--quiet", "--threads", "1", "--symmetrize"]);
+    let limited = shapespace_with_file_size_limit(660, &args);
+    let msg = stderr(&limited);
+    assert_eq!(limited.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("pairs.partial.csv: cannot write the resume checkpoint"),
+        "{msg}"
+    );
+    assert!(msg.contains("the run stopped"), "{msg}");
+    assert!(!out.join("distances.csv").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

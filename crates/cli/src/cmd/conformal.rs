@@ -20,7 +20,7 @@ use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
 use shapespace_conformal::quality::QualitySummary;
 use shapespace_conformal::{bff_disk_map, disk_map, BffParams, DiskMapParams, PolePlacement};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh, AtomicFile};
 
 /// Arguments of `shapespace conformal`.
 #[derive(clap::Args)]
@@ -74,13 +74,12 @@ struct MapOutput {
 }
 
 fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
-    let file = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = std::io::BufWriter::new(file);
+    let mut w = AtomicFile::create(path).with_context(|| format!("writing {}", path.display()))?;
     writeln!(w, "vertex,u,v,lambda")?;
     for (i, (z, l)) in map.uv.iter().zip(&map.conformal_factor).enumerate() {
         writeln!(w, "{i},{:?},{:?},{:?}", z[0], z[1], l)?;
     }
-    w.flush().with_context(|| format!("writing {}", path.display()))?;
+    w.commit().with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -184,7 +183,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
             "wall_seconds": t0.elapsed().as_secs_f64(),
         });
         let text = serde_json::to_string_pretty(&report)?;
-        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -243,9 +243,6 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             a.max.unwrap_or(f64::NAN)
         );
     }
-    if let Some(e) = &r.partial_pairs_error {
-        eprintln!("shapespace: warning: the finished pairs could not be kept in {e} during the run (the files below are complete)");
-    }
     for f in &r.files {
         eprintln!("distances: wrote {}", f.display());
     }

@@ -23,7 +23,7 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
 use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
 
 /// Arguments of `shapespace param`.
 #[derive(clap::Args)]
@@ -220,7 +220,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "distortion": report,
         });
         let text = serde_json::to_string_pretty(&json)?;
-        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
     }
     if !map.ot.converged {
         eprintln!(
