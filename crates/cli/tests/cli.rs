@@ -1135,7 +1135,10 @@ fn issue_42_outputs_are_written_atomically() {
     assert_eq!(limited.status.code(), Some(2), "{msg}");
     assert!(msg.contains("map.obj") && msg.contains("too large"), "{msg}");
     assert!(std::fs::read(&obj).unwrap() == obj_before, "the previous map was cut");
-    assert!(std::fs::read(&csv).unwrap() == csv_before, "the previous factors were cut");
+    assert!(
+        std::fs::read(&csv).unwrap() == csv_before,
+        "the previous factors were cut"
+    );
     assert_eq!(folder_entries(&dir), ["factors.csv", "map.obj"]);
 
     // The checkpoint: the run's identity file (about 610 bytes) and the checkpoint's header and
@@ -1147,7 +1150,14 @@ fn issue_42_outputs_are_written_atomically() {
         .collect();
     let mut args = vec!["distances"];
     args.extend(faces.iter().map(String::as_str));
-    args.extend(["--out", out.to_str().unwrap(), "--quiet", "--threads", "1", "--symmetrize"]);
+    args.extend([
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--threads",
+        "1",
+        "--symmetrize",
+    ]);
     let limited = shapespace_with_file_size_limit(660, &args);
     let msg = stderr(&limited);
     assert_eq!(limited.status.code(), Some(2), "{msg}");
@@ -1157,5 +1167,118 @@ fn issue_42_outputs_are_written_atomically() {
     );
     assert!(msg.contains("the run stopped"), "{msg}");
     assert!(!out.join("distances.csv").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 42, item 5: an output that is one of the inputs (under the same or another name, or
+/// through a hard link) is refused before any work with exit 2 naming it, and the input is left
+/// as it was; an output that is a symbolic link, given by name or found in an output folder, is
+/// refused and its target left alone.
+#[cfg(unix)]
+#[test]
+fn issue_42_outputs_never_overwrite_inputs() {
+    let dir = scratch("overwrite");
+    let cat = dir.join("cat.obj");
+    std::fs::copy(root().join("datasets/disks/cat_head.obj"), &cat).unwrap();
+    let plate = dir.join("pl.ply");
+    std::fs::copy(root().join("tests/data/plate121.ply"), &plate).unwrap();
+    let points = dir.join("p.csv");
+    write_sunflower_points(&points, 50, 2);
+    let linked = dir.join("hard_link_to_cat.obj");
+    std::fs::hard_link(&cat, &linked).unwrap();
+    let other_spelling = dir.join(".").join("cat.obj");
+    let o = dir.join("o.obj");
+    let (cat_s, o_s, pl_s, p_s) = (
+        cat.to_str().unwrap(),
+        o.to_str().unwrap(),
+        plate.to_str().unwrap(),
+        points.to_str().unwrap(),
+    );
+    let before: Vec<Vec<u8>> = [&cat, &plate, &points]
+        .iter()
+        .map(|p| std::fs::read(p).unwrap())
+        .collect();
+    for args in [
+        vec!["conformal", cat_s, "--out", o_s, "--factors", cat_s],
+        vec![
+            "conformal",
+            cat_s,
+            "--out",
+            o_s,
+            "--report",
+            other_spelling.to_str().unwrap(),
+        ],
+        vec!["conformal", cat_s, "--out", o_s, "--factors", linked.to_str().unwrap()],
+        vec!["param", cat_s, "--out", o_s, "--report", cat_s],
+        vec!["param", pl_s, "--out", pl_s],
+        vec!["prepare", cat_s, "--out", cat_s],
+        vec!["ot", "--points", p_s, "--out", p_s],
+        vec!["ot", "--points", p_s, "--out", o_s, "--report", p_s],
+    ] {
+        let run = shapespace(&args);
+        let msg = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {msg}");
+        assert!(msg.contains("an output must not replace an input"), "{args:?}: {msg}");
+        assert!(!o.exists(), "{args:?} wrote its map");
+    }
+    let after: Vec<Vec<u8>> = [&cat, &plate, &points]
+        .iter()
+        .map(|p| std::fs::read(p).unwrap())
+        .collect();
+    assert!(before == after, "an input was changed");
+
+    // two outputs in one file
+    let csv = dir.join("f.csv");
+    let run = shapespace(&[
+        "conformal",
+        cat_s,
+        "--out",
+        o_s,
+        "--factors",
+        csv.to_str().unwrap(),
+        "--report",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("named for two outputs"), "{}", stderr(&run));
+
+    // symbolic links: an output file, and a file in an output folder
+    let elsewhere = dir.join("elsewhere.txt");
+    std::fs::write(&elsewhere, "precious").unwrap();
+    let link = dir.join("link.csv");
+    std::os::unix::fs::symlink(&elsewhere, &link).unwrap();
+    let run = shapespace(&["conformal", cat_s, "--out", o_s, "--factors", link.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("is a symbolic link"), "{}", stderr(&run));
+    let out = dir.join("d");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, out.join("distances.csv")).unwrap();
+    let run = shapespace(&[
+        "distances",
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("distances.csv: is a symbolic link"),
+        "{}",
+        stderr(&run)
+    );
+    assert_eq!(std::fs::read_to_string(&elsewhere).unwrap(), "precious");
+    // mds: its distances file inside its output folder under an output's name
+    let mds_in = dir.join("m");
+    std::fs::create_dir_all(&mds_in).unwrap();
+    let stats = mds_in.join("stats.json");
+    std::fs::write(&stats, "name,a,b\na,0,1\nb,1,0\n").unwrap();
+    let run = shapespace(&["mds", stats.to_str().unwrap(), "--out", mds_in.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("an output must not replace an input"),
+        "{}",
+        stderr(&run)
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -87,11 +87,14 @@ fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
 pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     super::check_map_output(&args.out)?;
-    super::check_output_files([
-        Some(args.out.as_path()),
-        args.factors.as_deref(),
-        args.report.as_deref(),
-    ])?;
+    super::check_output_files(
+        [
+            Some(args.out.as_path()),
+            args.factors.as_deref(),
+            args.report.as_deref(),
+        ],
+        [Some(args.input.as_path()), args.markers.landmarks.as_deref()],
+    )?;
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;

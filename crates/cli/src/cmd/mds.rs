@@ -30,6 +30,11 @@ pub struct MdsArgs {
 }
 
 pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
+    super::check_output_folder(
+        &args.out,
+        &shapespace_analysis::shape_space::MDS_OUTPUTS,
+        [Some(args.distances.as_path()), args.labels.as_deref()],
+    )?;
     let params = MdsParams {
         dims: args.dims,
         color_by: args.color_by.clone(),

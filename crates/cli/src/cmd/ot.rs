@@ -159,7 +159,14 @@ fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
 }
 
 pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
-    super::check_output_files([Some(args.out.as_path()), args.cells.as_deref(), args.report.as_deref()])?;
+    super::check_output_files(
+        [Some(args.out.as_path()), args.cells.as_deref(), args.report.as_deref()],
+        [
+            Some(args.points.as_path()),
+            args.density_mesh.as_deref(),
+            args.density.as_deref(),
+        ],
+    )?;
     let measure = source_measure(args)?;
     let rows: Vec<PointRow> = read_rows(&args.points)?;
     let points: Vec<[f64; 2]> = rows.iter().map(|r| [r.x, r.y]).collect();

@@ -102,7 +102,14 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     super::check_map_output(&args.out)?;
-    super::check_output_files([Some(args.out.as_path()), args.report.as_deref()])?;
+    super::check_output_files(
+        [Some(args.out.as_path()), args.report.as_deref()],
+        [
+            Some(args.input.as_path()),
+            args.weights.as_deref(),
+            args.markers.landmarks.as_deref(),
+        ],
+    )?;
     if let Some(dir) = &args.plots {
         super::create_output_folder(dir)?;
     }

@@ -43,7 +43,10 @@ pub struct PrepareArgs {
 }
 
 pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
-    super::check_output_files([Some(args.out.as_path()), args.vertex_map.as_deref()])?;
+    super::check_output_files(
+        [Some(args.out.as_path()), args.vertex_map.as_deref()],
+        [Some(args.input.as_path())],
+    )?;
     let cut_center = match args.cut_center.trim() {
         "auto" => CutCenter::Auto,
         s => CutCenter::Vertex(
