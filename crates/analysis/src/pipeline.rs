@@ -20,7 +20,7 @@ use crate::distance::{
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
 pub use crate::resume::{build_identity, InputIdentity, ResumeReport, RunIdentity};
-use crate::resume::{earlier_pairs, run_identity, sha256_hex};
+use crate::resume::{earlier_pairs, pair_row, run_identity, sha256_hex, PAIRS_HEADER};
 use crate::stats::{summarize, Summary};
 
 /// How markers are chosen for each file.
@@ -277,6 +277,7 @@ pub const PREVIOUS_PARTIAL_IDENTITY: &str = "pairs.partial.prev.json";
 /// failed write, that failure; `failed` is set with it (the run's stop signal).
 struct PartialPairs {
     path: PathBuf,
+    identity: RunIdentity,
     writer: std::sync::Mutex<Result<csv::Writer<std::fs::File>, AnalysisError>>,
     failed: std::sync::atomic::AtomicBool,
 }
@@ -284,15 +285,21 @@ struct PartialPairs {
 impl PartialPairs {
     /// Creates the file (a new one: never an existing file or a symbolic link, which the
     /// caller has moved aside); an error here is an output error of the run.
-    fn create(path: PathBuf) -> Result<Self, AnalysisError> {
+    fn create(path: PathBuf, identity: RunIdentity) -> Result<Self, AnalysisError> {
         let file = std::fs::OpenOptions::new()
             .write(true)
             .create_new(true)
             .open(&path)
             .map_err(|e| AnalysisError::checkpoint(&path, e.to_string()))?;
+        let mut writer = csv::Writer::from_writer(file);
+        writer
+            .write_record(PAIRS_HEADER)
+            .and_then(|()| writer.flush().map_err(csv::Error::from))
+            .map_err(|e| AnalysisError::checkpoint(&path, e.to_string()))?;
         Ok(Self {
             path,
-            writer: std::sync::Mutex::new(Ok(csv::Writer::from_writer(file))),
+            identity,
+            writer: std::sync::Mutex::new(Ok(writer)),
             failed: std::sync::atomic::AtomicBool::new(false),
         })
     }
@@ -304,7 +311,7 @@ impl PartialPairs {
         let mut state = self.writer.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         if let Ok(w) = &mut *state {
             let written = w
-                .serialize(record)
+                .write_record(pair_row(&self.identity, record))
                 .map_err(|e| e.to_string())
                 .and_then(|()| w.flush().map_err(|e| e.to_string()));
             if let Err(e) = written {
@@ -490,7 +497,7 @@ pub fn run_distances(
         message: e.to_string(),
     })?;
     write_atomically(&identity_path, json.as_bytes()).map_err(|e| AnalysisError::io(&identity_path, e))?;
-    let partial = PartialPairs::create(partial_path)?;
+    let partial = PartialPairs::create(partial_path, identity.clone())?;
     let mut taken: Vec<(&(usize, usize), &PairRecord)> = known.iter().collect();
     taken.sort_by_key(|((s, t), _)| (*t, *s));
     for (_, record) in taken {
@@ -527,7 +534,7 @@ pub fn run_distances(
     write_distance_matrix(&matrix_path, &matrix)?;
     files.push(matrix_path);
     let pairs_path = out.join("pairs.csv");
-    write_pairs_csv(&pairs_path, &result.pairs)?;
+    write_pairs_csv(&pairs_path, &result.pairs, &identity)?;
     files.push(pairs_path);
 
     let mut failures: Vec<String> = inputs.iter().filter_map(|r| r.error.clone()).collect();
@@ -611,14 +618,17 @@ fn remove_if_present(path: &Path) -> Result<(), AnalysisError> {
     }
 }
 
-/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations,dual_cost` (a is the
-/// source density side, b the target points side).
-pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), AnalysisError> {
+/// Writes `pairs.csv` of a run of `identity`: the columns of [`PAIRS_HEADER`],
+/// `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations,dual_cost,check` (a
+/// is the source density side, b the target points side; `check` protects the row for a
+/// resumed run, [`crate::resume::row_check`]).
+pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord], identity: &RunIdentity) -> Result<(), AnalysisError> {
     let to_err = |e: csv::Error| AnalysisError::csv(path, e);
     let file = AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))?;
     let mut w = csv::Writer::from_writer(file);
+    w.write_record(PAIRS_HEADER).map_err(to_err)?;
     for p in pairs {
-        w.serialize(p).map_err(to_err)?;
+        w.write_record(pair_row(identity, p)).map_err(to_err)?;
     }
     w.into_inner()
         .map_err(|e| AnalysisError::io(path, e.into_error()))?
@@ -629,6 +639,15 @@ pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), Analysis
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn identity() -> RunIdentity {
+        RunIdentity {
+            shapespace_version: "0".into(),
+            build: None,
+            settings: "s".into(),
+            inputs: Vec::new(),
+        }
+    }
 
     fn record(a: &str) -> PairRecord {
         PairRecord {
@@ -654,7 +673,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("shapespace-partial-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join(PARTIAL_PAIRS);
-        let partial = PartialPairs::create(path.clone()).unwrap();
+        let partial = PartialPairs::create(path.clone(), identity()).unwrap();
         partial.append(&record("x"));
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.lines().count(), 2, "{text}");
@@ -673,6 +692,7 @@ mod tests {
         let file = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
         let partial = PartialPairs {
             path: PathBuf::from("/dev/full"),
+            identity: identity(),
             writer: std::sync::Mutex::new(Ok(csv::Writer::from_writer(file))),
             failed: std::sync::atomic::AtomicBool::new(false),
         };

@@ -1282,3 +1282,77 @@ fn issue_42_outputs_never_overwrite_inputs() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 42, item 3: `--resume` takes only intact rows. A row of pairs.csv whose distance was
+/// changed to −1, inf, 1e400 or NaN, whose distance and cost were both changed consistently (a
+/// plausible value, caught by the row's check) or whose status is unknown is computed again
+/// with a note naming its line, and the run succeeds with the fresh run's values (these rows
+/// used to be copied, failing the run or reporting an empty distance as converged).
+#[test]
+fn issue_42_resume_recomputes_changed_rows() {
+    let dir = scratch("resume_verifies");
+    let out = dir.join("d");
+    let faces: Vec<String> = ["id00_neutral", "id01_happy", "id02_sad"]
+        .iter()
+        .map(|n| format!("datasets/faces/{n}.obj"))
+        .collect();
+    let mut args = vec!["distances"];
+    args.extend(faces.iter().map(String::as_str));
+    args.extend(["--out", out.to_str().unwrap(), "--quiet"]);
+    let first = shapespace(&args);
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    let pairs_path = out.join("pairs.csv");
+    let report_path = out.join("report.json");
+    let (pairs, report) = (
+        std::fs::read_to_string(&pairs_path).unwrap(),
+        std::fs::read_to_string(&report_path).unwrap(),
+    );
+    // a row's values without its seconds (a taken row keeps the earlier run's) and its check
+    let values = |line: &str| {
+        let fields: Vec<&str> = line.split(',').collect();
+        [&fields[..6], &fields[7..10]].concat().join(",")
+    };
+    let original = pairs.lines().nth(1).unwrap().to_string();
+    let fields: Vec<&str> = original.split(',').collect();
+    assert_eq!(fields[7], "converged");
+    let cost: f64 = fields[3].parse().unwrap();
+    let plausible_cost = format!("{:?}", cost * 1.02);
+    let plausible_distance = format!("{:?}", (cost * 1.02).sqrt());
+    args.push("--resume");
+    for (label, distance, cost, status) in [
+        ("-1", "-1", fields[3], "converged"),
+        ("inf", "inf", fields[3], "converged"),
+        ("1e400", "1e400", fields[3], "converged"),
+        ("NaN", "NaN", fields[3], "converged"),
+        (
+            "plausible",
+            plausible_distance.as_str(),
+            plausible_cost.as_str(),
+            "converged",
+        ),
+        ("status", fields[2], fields[3], "converged-ish"),
+    ] {
+        let mut changed = fields.clone();
+        changed[2] = distance;
+        changed[3] = cost;
+        changed[7] = status;
+        let tampered = pairs.replacen(&original, &changed.join(","), 1);
+        assert_ne!(tampered, pairs);
+        std::fs::write(&pairs_path, &tampered).unwrap();
+        std::fs::write(&report_path, &report).unwrap();
+        let resumed = shapespace(&args);
+        let msg = stderr(&resumed);
+        assert_eq!(resumed.status.code(), Some(0), "{label}: {msg}");
+        assert!(
+            msg.contains("pairs.csv: 2 pairs taken from 3 rows, 1 invalid rows computed again: line 2"),
+            "{label}: {msg}"
+        );
+        let now = std::fs::read_to_string(&pairs_path).unwrap();
+        assert_eq!(
+            now.lines().map(values).collect::<Vec<_>>(),
+            pairs.lines().map(values).collect::<Vec<_>>(),
+            "{label}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
