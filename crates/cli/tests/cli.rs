@@ -338,8 +338,8 @@ fn grid_obj(scale: f64) -> String {
 }
 
 /// Finite coordinates whose squares overflow (1e300) or underflow (1e-300): the disk commands
-/// say the coordinates are out of range (not "zero-length edge"), `info` reports an infinite
-/// area instead of NaN.
+/// and `info` say the coordinates are out of range (not "zero-length edge", not an infinite
+/// area).
 #[test]
 fn coordinates_out_of_range_are_named() {
     let dir = scratch("range");
@@ -359,7 +359,8 @@ fn coordinates_out_of_range_are_named() {
     }
     let out = shapespace(&["info", dir.join("huge.obj").to_str().unwrap()]);
     let table = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(table.contains("inf") && !table.contains("NaN"), "{table}");
+    assert!(!table.contains("inf") && !table.contains("NaN"), "{table}");
+    assert!(stderr(&out).contains("huge.obj") && stderr(&out).contains("rescale the mesh"));
     // the distances go through the conformal map directly: same message, per file
     let (normal, normal2) = (dir.join("normal.obj"), dir.join("normal2.obj"));
     std::fs::write(&normal, grid_obj(1.0)).unwrap();
@@ -1353,6 +1354,87 @@ fn issue_42_resume_recomputes_changed_rows() {
             pairs.lines().map(values).collect::<Vec<_>>(),
             "{label}"
         );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `datasets/disks/cat_head.obj` with every coordinate multiplied by 10^`exponent`, written
+/// into `dir`.
+fn scaled_cat(dir: &Path, exponent: i32) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("datasets/disks/cat_head.obj")).unwrap();
+    let scale = format!("1e{exponent}").parse::<f64>().unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        match line.strip_prefix("v ") {
+            Some(rest) => {
+                let p: Vec<f64> = rest
+                    .split_whitespace()
+                    .map(|x| x.parse::<f64>().unwrap() * scale)
+                    .collect();
+                out.push_str(&format!("v {:?} {:?} {:?}\n", p[0], p[1], p[2]));
+            }
+            None => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    let path = dir.join(format!("cat_{exponent}.obj"));
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// Issue 42, item 1: the accepted coordinate range is the one the maps work in. cat_head scaled
+/// by 1e-45 and 1e45 maps; scaled by 1e-100, 1e100, 1e140 or 1e154 `info` and `conformal` both
+/// refuse it with the same message (`conformal` used to fail with a singular Laplacian or
+/// "degenerate faces", and `info` to print an infinite area for a "disk").
+#[test]
+fn issue_42_coordinate_range_is_the_working_one() {
+    let dir = scratch("coordinate_range");
+    let o = dir.join("o.obj");
+    for exponent in [-45, 45] {
+        let cat = scaled_cat(&dir, exponent);
+        let run = shapespace(&["conformal", cat.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+        assert_eq!(run.status.code(), Some(0), "1e{exponent}: {}", stderr(&run));
+        let info = shapespace(&["info", cat.to_str().unwrap()]);
+        let table = String::from_utf8_lossy(&info.stdout).into_owned();
+        assert_eq!(info.status.code(), Some(0), "1e{exponent}: {}", stderr(&info));
+        assert!(
+            table.contains("disk") && !table.contains("inf"),
+            "1e{exponent}: {table}"
+        );
+    }
+    for exponent in [-100, 100, 140, 154] {
+        let cat = scaled_cat(&dir, exponent);
+        let name = cat.file_name().unwrap().to_str().unwrap().to_string();
+        let run = shapespace(&["conformal", cat.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+        let msg = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "1e{exponent}: {msg}");
+        assert!(
+            msg.contains(&name)
+                && msg.contains("coordinates out of the usable range")
+                && msg.contains("rescale the mesh"),
+            "1e{exponent}: {msg}"
+        );
+        for json in [false, true] {
+            let mut args = vec!["info", cat.to_str().unwrap()];
+            if json {
+                args.push("--json");
+            }
+            let info = shapespace(&args);
+            let (out, msg) = (String::from_utf8_lossy(&info.stdout).into_owned(), stderr(&info));
+            assert_eq!(info.status.code(), Some(1), "1e{exponent}: {msg}");
+            assert!(
+                msg.contains(&name)
+                    && msg.contains("coordinates out of the usable range")
+                    && msg.contains("rescale the mesh"),
+                "1e{exponent}: {msg}"
+            );
+            assert!(
+                !out.contains("inf") && !out.contains("null") && !out.contains("disk"),
+                "1e{exponent}: {out}"
+            );
+        }
     }
     std::fs::remove_dir_all(&dir).ok();
 }

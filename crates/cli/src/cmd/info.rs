@@ -129,8 +129,13 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         .files
         .par_iter()
         .map(|path| {
+            // (a mesh outside the range the maps work in is refused as `conformal` refuses it,
+            // rather than described with an area that overflows)
             let report = read_mesh(path)
-                .and_then(|mesh| mesh_report(&mesh))
+                .and_then(|mesh| {
+                    shapespace_geometry::topology::check_coordinate_range(&mesh)?;
+                    mesh_report(&mesh)
+                })
                 .map_err(|e| describe_error(path, &e));
             (path.clone(), report)
         })
