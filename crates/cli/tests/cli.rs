@@ -1438,3 +1438,40 @@ fn issue_42_coordinate_range_is_the_working_one() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 42, item 2: one definition of a degenerate face. A 7-vertex fan whose centre is the
+/// decimal midpoint of two rim vertices (not exactly on their segment in binary, but with a zero
+/// area from its edge lengths): `info` reports the degenerate face, and `prepare`, `conformal`
+/// and `param` refuse the mesh for it (`info` said 0 degenerate faces and `prepare` "already a
+/// disk, unchanged", then `conformal` failed on face 0).
+#[test]
+fn issue_42_degenerate_faces_are_one_definition() {
+    let dir = scratch("degenerate");
+    let fan = dir.join("fan.obj");
+    let mut text = String::from("v 0.735 0.45 -0.17\nv 0.95 0.01 -0.08\nv 0.52 0.89 -0.26\nv -0.6 0.93 -0.14\n");
+    text.push_str("v -1.02 0.05 0.22\nv -0.55 -0.81 -0.04\nv 0.53 -0.92 0.09\n");
+    for k in 0..6 {
+        text.push_str(&format!("f 1 {} {}\n", k + 2, (k + 1) % 6 + 2));
+    }
+    std::fs::write(&fan, text).unwrap();
+    let info = shapespace(&["info", fan.to_str().unwrap(), "--json"]);
+    assert_eq!(info.status.code(), Some(0), "{}", stderr(&info));
+    let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(json[0]["num_degenerate_faces"], 1, "{json}");
+    assert_eq!(json[0]["first_degenerate_faces"][0], 0, "{json}");
+    let info = shapespace(&["info", fan.to_str().unwrap()]);
+    let table = String::from_utf8_lossy(&info.stdout).into_owned();
+    assert!(table.contains("fan.obj: 1 degenerate face"), "{table}");
+    let o = dir.join("o.obj");
+    for cmd in ["prepare", "conformal", "param"] {
+        let run = shapespace(&[cmd, fan.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+        let msg = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "{cmd}: {msg}");
+        assert!(
+            msg.contains("fan.obj") && msg.contains("1 degenerate face") && msg.contains("first face 0"),
+            "{cmd}: {msg}"
+        );
+        assert!(!o.exists(), "{cmd}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

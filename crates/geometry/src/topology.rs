@@ -357,19 +357,24 @@ pub fn orientation_flips(faces: &[[u32; 3]], conn: &Connectivity) -> Result<Vec<
     Ok(flip)
 }
 
-/// Degenerate faces: a repeated vertex index, or exactly zero area. Face indices in order.
+/// Degenerate faces, face indices in order: a repeated vertex index, or corners that are
+/// coincident, exactly collinear or collinear to rounding
+/// ([`crate::predicates::degenerate_corners`], the definition the disk maps use too).
 pub fn degenerate_faces(mesh: &TriMesh) -> Vec<u32> {
     (0..mesh.num_faces())
-        .filter(|&f| {
-            let [a, b, c] = mesh.faces[f];
-            if a == b || b == c || c == a {
-                return true;
-            }
-            let [p, q, r] = mesh.face_positions(f);
-            norm2(cross(sub(q, p), sub(r, p))) == 0.0
-        })
+        .filter(|&f| degenerate_face(mesh, f).is_some())
         .map(|f| f as u32)
         .collect()
+}
+
+/// Why face `f` of `mesh` is degenerate, if it is ([`degenerate_faces`]).
+pub fn degenerate_face(mesh: &TriMesh, f: usize) -> Option<&'static str> {
+    let [a, b, c] = mesh.faces[f];
+    if a == b || b == c || c == a {
+        return Some("repeated vertex");
+    }
+    let [p, q, r] = mesh.face_positions(f);
+    crate::predicates::degenerate_corners(p, q, r)
 }
 
 /// Vertices whose position is exactly equal (bitwise, with −0.0 = 0.0) to that of a vertex with

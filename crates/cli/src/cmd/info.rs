@@ -115,10 +115,19 @@ fn print_table(rows: &[(PathBuf, MeshReport)]) {
     for row in &cells {
         println!("{}", line(row));
     }
-    // why the "other" meshes are neither disks nor spheres
+    // why the "other" meshes are neither disks nor spheres, and degenerate faces, which the
+    // disk maps refuse whatever the class
     for (path, r) in rows {
         if r.classification.class == MeshClass::Other {
             println!("{}: {}", path.display(), r.classification.reasons.join("; "));
+        }
+        if let Some(f) = r.first_degenerate_faces.first() {
+            println!(
+                "{}: {} degenerate face{} (repeated vertex, or zero area), first face {f}",
+                path.display(),
+                r.num_degenerate_faces,
+                if r.num_degenerate_faces == 1 { "" } else { "s" }
+            );
         }
     }
 }
