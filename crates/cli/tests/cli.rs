@@ -1475,3 +1475,68 @@ fn issue_42_degenerate_faces_are_one_definition() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 42, item 6: `stats.json` stays linear in the number of label columns. With 40 label
+/// columns over 8 shapes the cross-column accuracies (one per ordered pair of columns: 1,560)
+/// are skipped with a note unless columns are chosen with `--cross-columns`.
+#[test]
+fn issue_42_mds_stats_are_bounded_in_label_columns() {
+    let dir = scratch("mds_columns");
+    let n = 8;
+    let names: Vec<String> = (0..n).map(|i| format!("s{i}")).collect();
+    let mut matrix = format!("name,{}\n", names.join(","));
+    for i in 0..n {
+        let row: Vec<String> = (0..n)
+            .map(|j| format!("{}", (i as f64 - j as f64).abs() + if i == j { 0.0 } else { 0.5 }))
+            .collect();
+        matrix.push_str(&format!("{},{}\n", names[i], row.join(",")));
+    }
+    let distances = dir.join("d.csv");
+    std::fs::write(&distances, matrix).unwrap();
+    let columns = 40;
+    let mut labels = format!(
+        "name,{}\n",
+        (0..columns).map(|c| format!("c{c}")).collect::<Vec<_>>().join(",")
+    );
+    for (i, name) in names.iter().enumerate() {
+        let row: Vec<String> = (0..columns).map(|c| format!("v{}", (i + c) % 3)).collect();
+        labels.push_str(&format!("{name},{}\n", row.join(",")));
+    }
+    let labels_path = dir.join("labels.csv");
+    std::fs::write(&labels_path, labels).unwrap();
+    let out = dir.join("m");
+    let args = vec![
+        "mds",
+        distances.to_str().unwrap(),
+        "--labels",
+        labels_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let run = shapespace(&args);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["labels"].as_object().unwrap().len(), columns);
+    assert_eq!(stats["cross"].as_array().unwrap().len(), 0);
+    assert!(
+        stats["cross_skipped"].as_str().unwrap().contains("40 label columns"),
+        "{}",
+        stats["cross_skipped"]
+    );
+    assert!(stderr(&run).contains("--cross-columns"), "{}", stderr(&run));
+    let mut chosen = args.clone();
+    chosen.extend(["--cross-columns", "c0,c1,c2"]);
+    let run = shapespace(&chosen);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["cross"].as_array().unwrap().len(), 6);
+    assert!(stats.get("cross_skipped").is_none());
+    chosen.push("--cross-columns");
+    chosen.push("nope");
+    let run = shapespace(&chosen);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("nope"), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).ok();
+}
