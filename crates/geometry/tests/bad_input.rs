@@ -24,6 +24,13 @@ const fn err(at: &'static str, problem: &'static [&'static str]) -> Expect {
 
 /// Every file in the corpus and what reading it must give.
 const CORPUS: &[(&str, Expect)] = &[
+    // issue 42: a lone CR inside a number, PLY 2.0, OFF counts with an extra value
+    ("issue_42_cr_inside_number.obj", err(":2:", &["carriage return"])),
+    ("issue_42_ply_version_2.ply", err(":2:", &["PLY version '2.0'"])),
+    (
+        "issue_42_off_counts_extra_value.off",
+        err(":2:", &["expected the counts", "found 4 values"]),
+    ),
     ("binary_garbage.obj", err(":1:", &["binary data"])),
     ("concave_quad.obj", err(":6:", &["face 0", "not convex"])),
     ("self_crossing_quad.obj", err(":6:", &["face 0", "crosses itself"])),

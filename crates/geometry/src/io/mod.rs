@@ -167,7 +167,10 @@ pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
 }
 
 /// Rejects a line holding control characters (other than tab, vertical tab, form feed and
-/// carriage return): binary data in a file read as text.
+/// carriage return): binary data in a file read as text. A carriage return left inside a line
+/// (the one of a CRLF line ending is removed before) is refused on its own: it would split the
+/// token it sits in (`-0.6\r427` read as two numbers), and a file with CR-only line endings
+/// reads as one line.
 pub(crate) fn check_text_line(path: &Path, line_no: usize, line: &[u8]) -> Result<(), GeometryError> {
     if let Some(&b) = line
         .iter()
@@ -177,6 +180,13 @@ pub(crate) fn check_text_line(path: &Path, line_no: usize, line: &[u8]) -> Resul
             path,
             line_no,
             format!("binary data (byte 0x{b:02x}) in a text file; not a text mesh file or corrupted"),
+        ));
+    }
+    if line.contains(&b'\r') {
+        return Err(parse_error(
+            path,
+            line_no,
+            "carriage return (\\r) inside a line: a corrupted number or CR-only line endings; convert the file to LF or CRLF line endings",
         ));
     }
     Ok(())
