@@ -247,3 +247,18 @@ fn truncations_and_corruptions_never_panic() {
         }
     }
 }
+
+/// Issue 42, item 7: a device as a mesh file is refused before reading (`/dev/zero` was read
+/// without end), naming the file.
+#[cfg(unix)]
+#[test]
+fn issue_42_devices_are_not_read_as_meshes() {
+    let dir = std::env::temp_dir().join(format!("shapespace-device-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let zero = dir.join("zero.obj");
+    let _ = std::fs::remove_file(&zero);
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let e = read_mesh(&zero).unwrap_err().to_string();
+    assert!(e.contains("zero.obj") && e.contains("not a regular file"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -117,11 +117,25 @@ pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 // Helpers shared by the readers and writers.
 
 /// Reads a whole file, mapping failures to [`GeometryError::Io`].
+/// A device or a socket is refused before reading (`/dev/zero` would be read without end);
+/// a named pipe is read.
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, GeometryError> {
-    std::fs::read(path).map_err(|error| GeometryError::Io {
+    let io_err = |error| GeometryError::Io {
         path: path.to_path_buf(),
         error,
-    })
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::metadata(path).map_err(io_err)?.file_type();
+        if kind.is_char_device() || kind.is_block_device() || kind.is_socket() {
+            return Err(io_err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a regular file (a device or a socket); name a mesh file",
+            )));
+        }
+    }
+    std::fs::read(path).map_err(io_err)
 }
 
 /// Validates `mesh` and runs `write` on an [`AtomicFile`] for `path` (the previous file stays
