@@ -16,6 +16,9 @@ pub enum AnalysisError {
     /// written; the run stops (its pairs could not be kept).
     #[error("{}: cannot write the resume checkpoint: {message}; the run stopped", path.display())]
     Checkpoint { path: PathBuf, message: String },
+    /// Another run holds the lock of the output folder (`pipeline::lock_output_folder`).
+    #[error("{}: another shapespace run is writing into this folder; wait for it to end or choose another output folder", path.display())]
+    Locked { path: PathBuf },
     /// A CSV file is malformed at a given 1-based line.
     #[error("{}:{line}: {message}", path.display())]
     Parse { path: PathBuf, line: u64, message: String },

@@ -381,6 +381,7 @@ pub fn run_distances(
         }
     }
     std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
+    let _lock = lock_output_folder(out)?;
     let n = paths.len();
 
     let t_prepare = Instant::now();
@@ -608,6 +609,31 @@ pub fn run_distances(
         pairs: result.pairs,
         report,
     })
+}
+
+/// The lock file of an output folder ([`lock_output_folder`]).
+pub const LOCK_FILE: &str = ".shapespace.lock";
+
+/// Takes the lock of the output folder `out` for the caller's lifetime of the returned file: an
+/// exclusive advisory lock (`flock`) on `out/`[`LOCK_FILE`], released when the file is dropped
+/// or the process ends (a killed run leaves the empty file, not the lock). A second run into the
+/// same folder while one is going on gets [`AnalysisError::Locked`] (two runs would write the
+/// same checkpoint and outputs).
+pub fn lock_output_folder(out: &Path) -> Result<std::fs::File, AnalysisError> {
+    let path = out.join(LOCK_FILE);
+    shapespace_geometry::io::atomic::refuse_symlink(&path).map_err(|e| AnalysisError::io(&path, e))?;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .map_err(|e| AnalysisError::io(&path, e))?;
+    match file.try_lock() {
+        Ok(()) => Ok(file),
+        Err(std::fs::TryLockError::WouldBlock) => Err(AnalysisError::Locked { path }),
+        Err(std::fs::TryLockError::Error(e)) => Err(AnalysisError::io(&path, e)),
+    }
 }
 
 /// Removes `path` if it exists.

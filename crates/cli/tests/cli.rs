@@ -1540,3 +1540,39 @@ fn issue_42_mds_stats_are_bounded_in_label_columns() {
     assert!(stderr(&run).contains("nope"), "{}", stderr(&run));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 42, item 7: a second run into an output folder while one is going on (here: the test
+/// holds the folder's lock) is refused at once, naming the lock; the lock goes with its holder.
+#[test]
+fn issue_42_one_run_at_a_time_per_output_folder() {
+    let dir = scratch("lock");
+    let out = dir.join("d");
+    std::fs::create_dir_all(&out).unwrap();
+    let lock = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(out.join(".shapespace.lock"))
+        .unwrap();
+    lock.try_lock().unwrap();
+    let args = [
+        "distances",
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    let second = shapespace(&args);
+    let msg = stderr(&second);
+    assert_eq!(second.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains(".shapespace.lock") && msg.contains("another shapespace run is writing into this folder"),
+        "{msg}"
+    );
+    assert!(!out.join("pairs.partial.csv").exists());
+    drop(lock);
+    let run = shapespace(&args);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).ok();
+}
