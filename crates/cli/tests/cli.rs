@@ -1576,3 +1576,137 @@ fn issue_42_one_run_at_a_time_per_output_folder() {
     assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// One step of a xorshift64* generator (a fixed, dependency-free stream for the sweep below).
+fn xorshift(state: &mut u64) -> u64 {
+    *state ^= *state >> 12;
+    *state ^= *state << 25;
+    *state ^= *state >> 27;
+    state.wrapping_mul(0x2545_f491_4f6c_dd1d)
+}
+
+/// `bytes` with one seeded mutation: a byte flipped, set to a digit, CR, TAB, NUL or a minus
+/// sign; a line removed or repeated; a number replaced by an extreme one; or the file cut.
+fn mutate(bytes: &[u8], state: &mut u64) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    let pick = |state: &mut u64, n: usize| (xorshift(state) % n.max(1) as u64) as usize;
+    let line_starts: Vec<usize> = std::iter::once(0)
+        .chain(
+            bytes
+                .iter()
+                .enumerate()
+                .filter(|(_, &b)| b == b'\n')
+                .map(|(i, _)| i + 1),
+        )
+        .filter(|&i| i < bytes.len())
+        .collect();
+    match pick(state, 8) {
+        0 => {
+            let i = pick(state, out.len());
+            out[i] ^= 1 << pick(state, 8);
+        }
+        1 => {
+            let i = pick(state, out.len());
+            out[i] = b"0123456789\r\t\0-"[pick(state, 14)];
+        }
+        2 | 3 => {
+            let k = pick(state, line_starts.len());
+            let start = line_starts[k];
+            let end = line_starts.get(k + 1).copied().unwrap_or(out.len());
+            let line = out[start..end].to_vec();
+            if pick(state, 2) == 0 {
+                out.drain(start..end);
+            } else {
+                out.splice(start..start, line);
+            }
+        }
+        4 | 5 => {
+            // a token that starts with a digit replaced by an extreme value
+            let starts: Vec<usize> = (1..out.len())
+                .filter(|&i| out[i].is_ascii_digit() && out[i - 1] == b' ')
+                .collect();
+            if let Some(&i) = starts.get(pick(state, starts.len())) {
+                let end = (i..out.len())
+                    .find(|&j| out[j] == b' ' || out[j] == b'\n')
+                    .unwrap_or(out.len());
+                let value = [
+                    "1e308",
+                    "-1e308",
+                    "1e-320",
+                    "nan",
+                    "inf",
+                    "4294967295",
+                    "-1",
+                    "0",
+                    "1e400",
+                    "99999999999999999999",
+                ][pick(state, 10)];
+                out.splice(i..end, value.bytes());
+            }
+        }
+        6 => {
+            let k = pick(state, out.len());
+            out.truncate(k);
+        }
+        _ => {
+            let i = pick(state, out.len());
+            let j = pick(state, out.len());
+            out.swap(i, j);
+        }
+    }
+    out
+}
+
+/// A seeded mutation sweep over small meshes of every format (600 files, a few seconds):
+/// `info` on each, `conformal` on every third, must exit 0, 1 or 2 (never a panic), name the
+/// file when it fails, and print no NaN or infinity when it succeeds.
+#[test]
+fn issue_42_mutated_meshes_fail_cleanly() {
+    let dir = scratch("mutations");
+    let seeds = [
+        "datasets/disks/cat_head.obj",
+        "datasets/disks/plate121.ply",
+        "tests/data/wolf0.off",
+        "tests/bad_input/ok_extra_elements_big_endian.ply",
+        "tests/bad_input/ok_mixed_tri_quad.obj",
+        "tests/bad_input/ok_non_manifold_vertex.off",
+    ];
+    let mut state = 0x42_2026_u64;
+    let o = dir.join("o.obj");
+    let mut failed = 0;
+    for (s, seed) in seeds.iter().enumerate() {
+        let bytes = std::fs::read(root().join(seed)).unwrap();
+        let ext = Path::new(seed).extension().unwrap().to_str().unwrap();
+        for k in 0..100 {
+            let mutated = mutate(&bytes, &mut state);
+            let file = dir.join(format!("m{s}_{k}.{ext}"));
+            std::fs::write(&file, &mutated).unwrap();
+            let name = file.file_name().unwrap().to_str().unwrap().to_string();
+            let mut runs = vec![vec!["info", file.to_str().unwrap()]];
+            if k % 3 == 0 {
+                runs.push(vec!["conformal", file.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+            }
+            for args in runs {
+                let out = shapespace(&args);
+                let (stdout, msg) = (String::from_utf8_lossy(&out.stdout).into_owned(), stderr(&out));
+                let code = out.status.code();
+                assert!(
+                    matches!(code, Some(0..=2)),
+                    "{args:?} ({seed}, mutation {k}): {code:?}: {msg}"
+                );
+                if code == Some(0) {
+                    assert!(
+                        !stdout.contains("NaN") && !stdout.contains("inf"),
+                        "{args:?} ({seed}, mutation {k}): {stdout}"
+                    );
+                } else {
+                    failed += 1;
+                    assert!(msg.contains(&name), "{args:?} ({seed}, mutation {k}): {msg}");
+                }
+            }
+        }
+    }
+    // (the sweep is not vacuous: most mutations are caught)
+    assert!(failed > 100, "{failed} failures");
+    std::fs::remove_dir_all(&dir).ok();
+}
