@@ -338,7 +338,8 @@ pub fn pairwise_distances(
     options: &PairwiseOptions,
     progress: &(dyn Fn(&PairRecord) + Sync),
 ) -> PairwiseResult {
-    pairwise_distances_resuming(shapes, options, &HashMap::new(), progress)
+    let go_on = std::sync::atomic::AtomicBool::new(false);
+    pairwise_distances_resuming(shapes, options, &HashMap::new(), &go_on, progress)
 }
 
 /// The directed pairs (source, target) a pairwise run over n shapes computes, by target, then
@@ -356,11 +357,14 @@ pub fn directed_pairs(n: usize, symmetrize: bool) -> impl Iterator<Item = (usize
 /// `resume`): their records are used as they are (index fields set to the pair), `progress` is
 /// not called for them and their seconds are not in [`PairwiseResult::pair_seconds`]. With
 /// `warm_start` a known pair passes no heights on, so the pairs after it start as a group's
-/// first does.
+/// first does. Once `stop` is set (by `progress`, say, when the pairs can no longer be saved),
+/// no further pair starts: the pairs not yet begun get a failed record (`failed: not
+/// computed: the run was stopped`) and no `progress` call; the pairs under way finish.
 pub fn pairwise_distances_resuming(
     shapes: &[Option<PreparedShape>],
     options: &PairwiseOptions,
     known: &HashMap<(usize, usize), PairRecord>,
+    stop: &std::sync::atomic::AtomicBool,
     progress: &(dyn Fn(&PairRecord) + Sync),
 ) -> PairwiseResult {
     let n = shapes.len();
@@ -385,6 +389,12 @@ pub fn pairwise_distances_resuming(
                 ..record.clone()
             };
             return (record, None);
+        }
+        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            return (
+                failed_record(&names, s, t, "not computed: the run was stopped".into()),
+                None,
+            );
         }
         let out = match (&shapes[s], &shapes[t]) {
             (Some(src), Some(tgt)) => {

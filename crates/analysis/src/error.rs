@@ -12,6 +12,13 @@ pub enum AnalysisError {
     /// `source()`, so that `{:#}` chains do not print it twice.)
     #[error("{}: {error}", path.display())]
     Io { path: PathBuf, error: std::io::Error },
+    /// The resume checkpoint of a pairwise run (`pairs.partial.csv`) could not be created or
+    /// written; the run stops (its pairs could not be kept).
+    #[error("{}: cannot write the resume checkpoint: {message}; the run stopped", path.display())]
+    Checkpoint { path: PathBuf, message: String },
+    /// Another run holds the lock of the output folder (`pipeline::lock_output_folder`).
+    #[error("{}: another shapespace run is writing into this folder; wait for it to end or choose another output folder", path.display())]
+    Locked { path: PathBuf },
     /// A CSV file is malformed at a given 1-based line.
     #[error("{}:{line}: {message}", path.display())]
     Parse { path: PathBuf, line: u64, message: String },
@@ -128,6 +135,14 @@ impl AnalysisError {
         match err.into_kind() {
             csv::ErrorKind::Io(source) => AnalysisError::io(path, source),
             _ => AnalysisError::parse(path, line, message),
+        }
+    }
+
+    /// A [`AnalysisError::Checkpoint`] failure of `path`.
+    pub fn checkpoint(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        AnalysisError::Checkpoint {
+            path: path.into(),
+            message: message.into(),
         }
     }
 

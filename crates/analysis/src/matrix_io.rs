@@ -32,6 +32,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+use shapespace_geometry::io::AtomicFile;
 
 use crate::error::AnalysisError;
 
@@ -176,7 +177,8 @@ fn format_distance(v: f64) -> String {
 /// Writes `d` as the square CSV described in the module docs (header `name,<names>`, one row
 /// per shape, missing entries as empty cells). Values round-trip exactly.
 pub fn write_distance_matrix(path: &Path, d: &DistanceMatrix) -> Result<(), AnalysisError> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| AnalysisError::csv(path, e))?;
+    let file = AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))?;
+    let mut w = csv::Writer::from_writer(file);
     let mut header = Vec::with_capacity(d.len() + 1);
     header.push("name".to_string());
     header.extend(d.names.iter().cloned());
@@ -187,7 +189,10 @@ pub fn write_distance_matrix(path: &Path, d: &DistanceMatrix) -> Result<(), Anal
         row.extend((0..d.len()).map(|j| format_distance(d.get(i, j))));
         w.write_record(&row).map_err(|e| AnalysisError::csv(path, e))?;
     }
-    w.flush().map_err(|e| AnalysisError::io(path, e))
+    w.into_inner()
+        .map_err(|e| AnalysisError::io(path, e.into_error()))?
+        .commit()
+        .map_err(|e| AnalysisError::io(path, e))
 }
 
 fn parse_distance(cell: &str) -> Option<f64> {

@@ -12,6 +12,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
+use shapespace_geometry::io::{write_atomically, AtomicFile};
 use shapespace_geometry::TriMesh;
 
 use crate::distance::{
@@ -20,7 +21,7 @@ use crate::distance::{
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
 pub use crate::resume::{build_identity, InputIdentity, ResumeReport, RunIdentity};
-use crate::resume::{earlier_pairs, run_identity, sha256_hex};
+use crate::resume::{earlier_pairs, pair_row, run_identity, sha256_hex, PAIRS_HEADER};
 use crate::stats::{summarize, Summary};
 
 /// How markers are chosen for each file.
@@ -151,10 +152,6 @@ pub struct DistancesReport {
     /// |cost − dual cost| / cost over the converged pairs: the a-posteriori check of the costs
     /// (first order in the mass residual; the dual cost is a lower bound on the exact one).
     pub cost_dual_gap: Option<Summary>,
-    /// Why [`PARTIAL_PAIRS`] could not be kept up to date during the run, if it could not (the
-    /// final files are unaffected).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub partial_pairs_error: Option<String>,
     /// With [`DistancesOptions::resume`]: the pairs taken from earlier runs, and what each
     /// earlier file gave or why it was not used.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -282,44 +279,60 @@ pub const PARTIAL_IDENTITY: &str = "pairs.partial.json";
 pub const PREVIOUS_PARTIAL_IDENTITY: &str = "pairs.partial.prev.json";
 
 /// [`PARTIAL_PAIRS`], appended to from the worker threads: its writer, or after the first
-/// failed write, that failure.
+/// failed write, that failure; `failed` is set with it (the run's stop signal).
 struct PartialPairs {
     path: PathBuf,
-    writer: std::sync::Mutex<Result<csv::Writer<std::fs::File>, String>>,
+    identity: RunIdentity,
+    writer: std::sync::Mutex<Result<csv::Writer<std::fs::File>, AnalysisError>>,
+    failed: std::sync::atomic::AtomicBool,
 }
 
 impl PartialPairs {
-    /// Creates the file; an error here is an output error of the run.
-    fn create(path: PathBuf) -> Result<Self, AnalysisError> {
-        let writer = csv::Writer::from_path(&path).map_err(|e| AnalysisError::csv(&path, e))?;
+    /// Creates the file (a new one: never an existing file or a symbolic link, which the
+    /// caller has moved aside); an error here is an output error of the run.
+    fn create(path: PathBuf, identity: RunIdentity) -> Result<Self, AnalysisError> {
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(|e| AnalysisError::checkpoint(&path, e.to_string()))?;
+        let mut writer = csv::Writer::from_writer(file);
+        writer
+            .write_record(PAIRS_HEADER)
+            .and_then(|()| writer.flush().map_err(csv::Error::from))
+            .map_err(|e| AnalysisError::checkpoint(&path, e.to_string()))?;
         Ok(Self {
             path,
+            identity,
             writer: std::sync::Mutex::new(Ok(writer)),
+            failed: std::sync::atomic::AtomicBool::new(false),
         })
     }
 
-    /// Appends one row and flushes it. The first failure stops the appending and is kept for
-    /// the report: the run itself goes on (its final files do not depend on this one).
+    /// Appends one row and flushes it to the file. The first failure is kept and sets
+    /// [`PartialPairs::failed`]: a run whose pairs can no longer be saved stops, since a kill
+    /// or a full disk later would lose them all.
     fn append(&self, record: &PairRecord) {
         let mut state = self.writer.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         if let Ok(w) = &mut *state {
             let written = w
-                .serialize(record)
+                .write_record(pair_row(&self.identity, record))
                 .map_err(|e| e.to_string())
                 .and_then(|()| w.flush().map_err(|e| e.to_string()));
             if let Err(e) = written {
-                *state = Err(format!("{}: {e}", self.path.display()));
+                *state = Err(AnalysisError::checkpoint(&self.path, e));
+                self.failed.store(true, std::sync::atomic::Ordering::Relaxed);
             }
         }
     }
 
     /// Closes the file and returns the first append failure, if any.
-    fn finish(self) -> Option<String> {
+    fn finish(self) -> Result<(), AnalysisError> {
         let state = self
             .writer
             .into_inner()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        state.err()
+        state.map(drop)
     }
 }
 
@@ -373,6 +386,7 @@ pub fn run_distances(
         }
     }
     std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
+    let _lock = lock_output_folder(out)?;
     let n = paths.len();
 
     let t_prepare = Instant::now();
@@ -515,7 +529,7 @@ pub fn run_distances(
     let done = std::sync::atomic::AtomicUsize::new(0);
     let partial_path = out.join(PARTIAL_PAIRS);
     let identity_path = out.join(PARTIAL_IDENTITY);
-    if partial_path.exists() {
+    if std::fs::symlink_metadata(&partial_path).is_ok() {
         // the moved pairs file keeps its own identity file (or none)
         let previous = out.join(PREVIOUS_PARTIAL_PAIRS);
         std::fs::rename(&partial_path, &previous).map_err(|e| AnalysisError::io(&previous, e))?;
@@ -529,14 +543,14 @@ pub fn run_distances(
         path: identity_path.clone(),
         message: e.to_string(),
     })?;
-    std::fs::write(&identity_path, json).map_err(|e| AnalysisError::io(&identity_path, e))?;
-    let partial = PartialPairs::create(partial_path)?;
+    write_atomically(&identity_path, json.as_bytes()).map_err(|e| AnalysisError::io(&identity_path, e))?;
+    let partial = PartialPairs::create(partial_path, identity.clone())?;
     let mut taken: Vec<(&(usize, usize), &PairRecord)> = known.iter().collect();
     taken.sort_by_key(|((s, t), _)| (*t, *s));
     for (_, record) in taken {
         partial.append(record);
     }
-    let mut result = pairwise_distances_resuming(&shapes, &options.pairwise, &known, &|record| {
+    let mut result = pairwise_distances_resuming(&shapes, &options.pairwise, &known, &partial.failed, &|record| {
         // (the file names, as below)
         partial.append(&PairRecord {
             a: names[record.source].clone(),
@@ -546,7 +560,7 @@ pub fn run_distances(
         let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total_pairs, "pairs");
     });
-    let partial_pairs_error = partial.finish();
+    partial.finish()?;
     let pairs_wall = t_pairs.elapsed().as_secs_f64();
     // `pairwise_distances` knows only the prepared shapes' names (a failed one is `#i`): use the
     // file names throughout, as in distances.csv.
@@ -567,7 +581,7 @@ pub fn run_distances(
     write_distance_matrix(&matrix_path, &matrix)?;
     files.push(matrix_path);
     let pairs_path = out.join("pairs.csv");
-    write_pairs_csv(&pairs_path, &result.pairs)?;
+    write_pairs_csv(&pairs_path, &result.pairs, &identity)?;
     files.push(pairs_path);
 
     let mut failures: Vec<String> = inputs.iter().filter_map(|r| r.error.clone()).collect();
@@ -618,7 +632,6 @@ pub fn run_distances(
         iterations: (!iterations.is_empty()).then(|| summarize(&iterations)),
         asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
         cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
-        partial_pairs_error,
         resumed: options.resume.then_some(ResumeReport {
             pairs: known.len(),
             sources: resume_notes,
@@ -632,7 +645,7 @@ pub fn run_distances(
         path: report_path.clone(),
         message: e.to_string(),
     })?;
-    std::fs::write(&report_path, json).map_err(|e| AnalysisError::io(&report_path, e))?;
+    write_atomically(&report_path, json.as_bytes()).map_err(|e| AnalysisError::io(&report_path, e))?;
     // Everything it held is in pairs.csv now. (A file that cannot be removed only repeats
     // pairs.csv's rows, so that is not an error.)
     let _ = std::fs::remove_file(out.join(PARTIAL_PAIRS));
@@ -644,6 +657,31 @@ pub fn run_distances(
     })
 }
 
+/// The lock file of an output folder ([`lock_output_folder`]).
+pub const LOCK_FILE: &str = ".shapespace.lock";
+
+/// Takes the lock of the output folder `out` for the caller's lifetime of the returned file: an
+/// exclusive advisory lock (`flock`) on `out/`[`LOCK_FILE`], released when the file is dropped
+/// or the process ends (a killed run leaves the empty file, not the lock). A second run into the
+/// same folder while one is going on gets [`AnalysisError::Locked`] (two runs would write the
+/// same checkpoint and outputs).
+pub fn lock_output_folder(out: &Path) -> Result<std::fs::File, AnalysisError> {
+    let path = out.join(LOCK_FILE);
+    shapespace_geometry::io::atomic::refuse_symlink(&path).map_err(|e| AnalysisError::io(&path, e))?;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .map_err(|e| AnalysisError::io(&path, e))?;
+    match file.try_lock() {
+        Ok(()) => Ok(file),
+        Err(std::fs::TryLockError::WouldBlock) => Err(AnalysisError::Locked { path }),
+        Err(std::fs::TryLockError::Error(e)) => Err(AnalysisError::io(&path, e)),
+    }
+}
+
 /// Removes `path` if it exists.
 fn remove_if_present(path: &Path) -> Result<(), AnalysisError> {
     match std::fs::remove_file(path) {
@@ -652,20 +690,36 @@ fn remove_if_present(path: &Path) -> Result<(), AnalysisError> {
     }
 }
 
-/// Writes `pairs.csv`: `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations,dual_cost` (a is the
-/// source density side, b the target points side).
-pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord]) -> Result<(), AnalysisError> {
-    let to_err = |e: csv::Error| AnalysisError::parse(path, 0, e.to_string());
-    let mut w = csv::Writer::from_path(path).map_err(to_err)?;
+/// Writes `pairs.csv` of a run of `identity`: the columns of [`PAIRS_HEADER`],
+/// `a,b,distance,cost,iterations,max_mass_error,seconds,status,evaluations,dual_cost,check` (a
+/// is the source density side, b the target points side; `check` protects the row for a
+/// resumed run, [`crate::resume::row_check`]).
+pub fn write_pairs_csv(path: &Path, pairs: &[PairRecord], identity: &RunIdentity) -> Result<(), AnalysisError> {
+    let to_err = |e: csv::Error| AnalysisError::csv(path, e);
+    let file = AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))?;
+    let mut w = csv::Writer::from_writer(file);
+    w.write_record(PAIRS_HEADER).map_err(to_err)?;
     for p in pairs {
-        w.serialize(p).map_err(to_err)?;
+        w.write_record(pair_row(identity, p)).map_err(to_err)?;
     }
-    w.flush().map_err(|e| AnalysisError::io(path, e))
+    w.into_inner()
+        .map_err(|e| AnalysisError::io(path, e.into_error()))?
+        .commit()
+        .map_err(|e| AnalysisError::io(path, e))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn identity() -> RunIdentity {
+        RunIdentity {
+            shapespace_version: "0".into(),
+            build: None,
+            settings: "s".into(),
+            inputs: Vec::new(),
+        }
+    }
 
     fn record(a: &str) -> PairRecord {
         PairRecord {
@@ -691,26 +745,36 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("shapespace-partial-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join(PARTIAL_PAIRS);
-        let partial = PartialPairs::create(path.clone()).unwrap();
+        let partial = PartialPairs::create(path.clone(), identity()).unwrap();
         partial.append(&record("x"));
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.lines().count(), 2, "{text}");
         assert!(text.lines().nth(1).unwrap().starts_with("x,b,0.5,0.25,3,"), "{text}");
         partial.append(&record("y"));
         assert_eq!(std::fs::read_to_string(&path).unwrap().lines().count(), 3);
-        assert_eq!(partial.finish(), None);
+        partial.finish().unwrap();
         std::fs::remove_dir_all(&dir).ok();
     }
 
-    /// A device that refuses every write: the first failure is kept for the report with the
-    /// path (no panic, no error for the run).
+    /// A device that refuses every write: the first failure sets the stop signal and is
+    /// returned, naming the file (no panic).
     #[cfg(target_os = "linux")]
     #[test]
-    fn a_partial_pairs_write_failure_is_reported_not_fatal() {
-        let partial = PartialPairs::create(PathBuf::from("/dev/full")).unwrap();
+    fn a_partial_pairs_write_failure_stops_the_run() {
+        let file = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let partial = PartialPairs {
+            path: PathBuf::from("/dev/full"),
+            identity: identity(),
+            writer: std::sync::Mutex::new(Ok(csv::Writer::from_writer(file))),
+            failed: std::sync::atomic::AtomicBool::new(false),
+        };
         partial.append(&record("x"));
+        assert!(partial.failed.load(std::sync::atomic::Ordering::Relaxed));
         partial.append(&record("y"));
-        let error = partial.finish().expect("writing to /dev/full fails");
-        assert!(error.starts_with("/dev/full: "), "{error}");
+        let error = partial.finish().expect_err("writing to /dev/full fails").to_string();
+        assert!(
+            error.starts_with("/dev/full: cannot write the resume checkpoint"),
+            "{error}"
+        );
     }
 }

@@ -13,6 +13,7 @@ use std::sync::OnceLock;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
+use shapespace_geometry::io::replace_atomically;
 
 use crate::error::AnalysisError;
 use crate::mds::Mds;
@@ -500,10 +501,22 @@ pub fn mds_scatter(
         title,
     };
     let result = match kind {
-        "png" => draw_scatter(BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-            .map_err(|e| plot_err(path, e)),
-        _ => draw_scatter(SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-            .map_err(|e| plot_err(path, e)),
+        "png" => replace_atomically(
+            path,
+            |temp| {
+                draw_scatter(BitMapBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+                    .map_err(|e| plot_err(path, e))
+            },
+            |e| AnalysisError::io(path, e),
+        ),
+        _ => replace_atomically(
+            path,
+            |temp| {
+                draw_scatter(SVGBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+                    .map_err(|e| plot_err(path, e))
+            },
+            |e| AnalysisError::io(path, e),
+        ),
     };
     result
 }
@@ -690,10 +703,22 @@ pub fn histograms(
         x_label,
     };
     let result = match kind {
-        "png" => draw_histograms(BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-            .map_err(|e| plot_err(path, e)),
-        _ => draw_histograms(SVGBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-            .map_err(|e| plot_err(path, e)),
+        "png" => replace_atomically(
+            path,
+            |temp| {
+                draw_histograms(BitMapBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+                    .map_err(|e| plot_err(path, e))
+            },
+            |e| AnalysisError::io(path, e),
+        ),
+        _ => replace_atomically(
+            path,
+            |temp| {
+                draw_histograms(SVGBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
+                    .map_err(|e| plot_err(path, e))
+            },
+            |e| AnalysisError::io(path, e),
+        ),
     };
     result?;
     Ok(input.hist)

@@ -3,6 +3,13 @@
 //! pairs files of a run, and the rows of earlier runs in an output folder that a new run can
 //! take instead of computing them (`earlier_pairs`, used by
 //! [`run_distances`](crate::pipeline::run_distances) with `resume`).
+//!
+//! A row is taken only if it is intact: its `check` column ([`row_check`]) covers the run's
+//! settings and build, the keys of its two inputs and its values as written, so a row changed
+//! after it was written (by hand, or a disk error) is not taken silently; and its values must be
+//! those a computation gives ([`invalid_values`]: a converged pair has a finite distance >= 0
+//! that is the square root of its cost, a pair that did not converge has none, the status is one
+//! the solver writes). Such rows are computed again and listed in the resume notes.
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
@@ -72,6 +79,112 @@ pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// The columns of `pairs.csv` and of the partial pairs files: those of [`PairRecord`], then
+/// `check` ([`row_check`]).
+pub const PAIRS_HEADER: [&str; 11] = [
+    "a",
+    "b",
+    "distance",
+    "cost",
+    "iterations",
+    "max_mass_error",
+    "seconds",
+    "status",
+    "evaluations",
+    "dual_cost",
+    "check",
+];
+
+/// The fields of `record` as `pairs.csv` writes them (the columns of [`PAIRS_HEADER`] but the
+/// last; floats in their shortest round-trip form, NaN as `NaN`).
+fn record_fields(record: &PairRecord) -> Vec<String> {
+    let mut w = csv::WriterBuilder::new().has_headers(false).from_writer(Vec::new());
+    // (serializing strings and numbers into memory cannot fail)
+    w.serialize(record).expect("a PairRecord serializes");
+    let bytes = w.into_inner().expect("writing into memory");
+    let row = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(bytes.as_slice())
+        .records()
+        .next()
+        .expect("one row")
+        .expect("a row just written");
+    row.iter().map(str::to_string).collect()
+}
+
+/// The row of `pairs.csv` for `record` in a run of `identity`: its fields and its check (empty
+/// when one of its shapes has no key: a file that failed to prepare, whose rows are never taken).
+pub(crate) fn pair_row(identity: &RunIdentity, record: &PairRecord) -> Vec<String> {
+    let mut fields = record_fields(record);
+    let fields_ref: Vec<&str> = fields.iter().map(String::as_str).collect();
+    let check = row_check(identity, &fields_ref).unwrap_or_default();
+    fields.push(check);
+    fields
+}
+
+/// The check of a pairs row of a run of `identity` whose fields (the [`PAIRS_HEADER`] columns
+/// but `check`, as written) are `fields`: the first 16 hex digits of the SHA-256 of the
+/// settings, the build, the keys of the row's two inputs (named by its first two fields) and the
+/// fields. None when a name has no key. It detects a changed row, not a forged one (anyone can
+/// compute it).
+pub fn row_check(identity: &RunIdentity, fields: &[&str]) -> Option<String> {
+    let key = |name: &str| {
+        identity
+            .inputs
+            .iter()
+            .find(|input| input.name == name)
+            .and_then(|input| input.key.as_deref())
+    };
+    let (a, b) = (key(fields.first()?)?, key(fields.get(1)?)?);
+    let mut text = format!(
+        "{}\u{1e}{}\u{1e}{a}\u{1e}{b}",
+        identity.settings,
+        identity.build.as_deref().unwrap_or("")
+    );
+    for field in fields {
+        text.push('\u{1e}');
+        text.push_str(field);
+    }
+    Some(sha256_hex(text.as_bytes())[..16].to_string())
+}
+
+/// Why the values of a pairs row cannot be those of a computation, if they cannot: a converged
+/// pair has a finite distance >= 0 equal to the square root of its finite cost, a finite dual
+/// cost and a mass error >= 0; a pair that did not converge (status `failed: ...`, `iteration
+/// cap...`, `stalled...`, `time limit...`) has no distance; seconds are finite and >= 0; any
+/// other status is unknown.
+pub(crate) fn invalid_values(r: &PairRecord) -> Option<String> {
+    let non_negative = |x: f64| x.is_finite() && x >= 0.0;
+    if !non_negative(r.seconds) {
+        return Some(format!("seconds {} (must be finite and >= 0)", r.seconds));
+    }
+    if r.status.starts_with("converged") {
+        if !non_negative(r.distance) {
+            return Some(format!("distance {} (must be finite and >= 0)", r.distance));
+        }
+        if !r.cost.is_finite() || r.distance != r.cost.max(0.0).sqrt() {
+            return Some(format!(
+                "distance {} is not the square root of the cost {}",
+                r.distance, r.cost
+            ));
+        }
+        if !non_negative(r.max_mass_error) || !r.dual_cost.is_finite() {
+            return Some(format!(
+                "mass error {} and dual cost {} (must be finite, the error >= 0)",
+                r.max_mass_error, r.dual_cost
+            ));
+        }
+        None
+    } else if ["failed: ", "iteration cap", "stalled", "time limit"]
+        .iter()
+        .any(|s| r.status.starts_with(s))
+    {
+        (!r.distance.is_nan()).then(|| format!("distance {} for a pair that did not converge", r.distance))
+    } else {
+        Some(format!("unknown status {:?}", r.status))
+    }
+}
+
 /// An earlier run's pairs file in the output folder and where its [`RunIdentity`] is: a
 /// finished run's `pairs.csv` (`report.json`'s `resume_key`), a stopped run's
 /// [`PARTIAL_PAIRS`], and one moved aside by a restart ([`PREVIOUS_PARTIAL_PAIRS`]).
@@ -85,7 +198,8 @@ const EARLIER_PAIRS: [(&str, &str, bool); 3] = [
 /// take: those whose version and settings equal `identity`'s and whose two shapes have the key
 /// of a current input (the same file content and markers, whatever its name now), keyed by the
 /// current (source, target) among `needed` (a row serves every current pair of files with those
-/// keys), each with the current names and indices. The first file to give a pair wins (all of them give the same record). Failed pairs
+/// keys), each with the current names and indices. The first file to give a pair wins (all of them give the same record). Rows that are not intact
+/// (module docs) are not taken and are listed in that file's line. Failed pairs
 /// are taken (the same shapes and settings fail the same way), except internal errors (panics:
 /// bugs) and pairs stopped at their time limit, which are computed again. Also returns
 /// one line per file found: how many rows it gave, or why it gave none. A last line without its
@@ -172,8 +286,15 @@ pub(crate) fn earlier_pairs(
         }
         let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
         let (mut panicked, mut timed_out) = (0, 0);
-        for row in csv::Reader::from_reader(text.as_slice()).deserialize::<PairRecord>() {
-            let Ok(record) = row else {
+        let mut invalid = Vec::new();
+        let mut reader = csv::Reader::from_reader(text.as_slice());
+        let headers = reader.headers().cloned().unwrap_or_default();
+        let check_column = headers.iter().position(|h| h == "check");
+        for row in reader.records() {
+            let Some((row, record)) = row
+                .ok()
+                .and_then(|row| row.deserialize::<PairRecord>(Some(&headers)).ok().map(|r| (row, r)))
+            else {
                 unreadable += 1;
                 continue;
             };
@@ -184,6 +305,26 @@ pub(crate) fn earlier_pairs(
             }
             if crate::distance::is_time_limit(&record.status) {
                 timed_out += 1;
+                continue;
+            }
+            let fields: Vec<&str> = row
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| Some(i) != check_column)
+                .map(|(_, f)| f)
+                .collect();
+            // (a row of a file that failed to prepare has no check and is never taken)
+            let Some(expected) = row_check(&earlier, &fields) else {
+                continue;
+            };
+            let line = row.position().map_or(0, |p| p.line());
+            let why = if check_column.and_then(|c| row.get(c)) != Some(expected.as_str()) {
+                Some("does not match its check (changed after it was written)".to_string())
+            } else {
+                invalid_values(&record)
+            };
+            if let Some(why) = why {
+                invalid.push(format!("line {line} ({} -> {}): {why}", record.a, record.b));
                 continue;
             }
             let current = |name: &str| earlier_key.get(name).and_then(|k| by_key.get(k)).map_or(&[][..], |v| v);
@@ -212,6 +353,13 @@ pub(crate) fn earlier_pairs(
         }
         if timed_out > 0 {
             skipped += &format!(", {timed_out} stopped at their time limit computed again");
+        }
+        if !invalid.is_empty() {
+            skipped += &format!(
+                ", {} invalid rows computed again: {}",
+                invalid.len(),
+                invalid.join("; ")
+            );
         }
         notes.push(format!(
             "{}: {taken} pairs taken from {rows} rows{skipped}",

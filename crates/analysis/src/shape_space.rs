@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
+use shapespace_geometry::io::{write_atomically, AtomicFile};
 
 use crate::error::AnalysisError;
 use crate::matrix_io::{read_distance_matrix, read_labels, DistanceMatrix, Labels};
@@ -28,7 +29,15 @@ pub struct MdsParams {
     /// Triangle-inequality tolerance relative to the mean distance: a triple violates when
     /// `d_ik > d_ij + d_jk + triangle_rel_eps · mean(d)`.
     pub triangle_rel_eps: f64,
+    /// Label columns whose cross-column accuracies ([`CrossAccuracy`], one per ordered pair of
+    /// distinct columns) `stats.json` gets; None: every column when there are at most
+    /// [`MAX_CROSS_COLUMNS`], else none (the count is quadratic in the columns).
+    pub cross_columns: Option<Vec<String>>,
 }
+
+/// The most label columns whose cross-column accuracies are computed without being asked for:
+/// c columns give c(c − 1) of them (1,000 columns made a 176 MB `stats.json`).
+pub const MAX_CROSS_COLUMNS: usize = 8;
 
 impl Default for MdsParams {
     fn default() -> Self {
@@ -37,6 +46,7 @@ impl Default for MdsParams {
             color_by: None,
             marker_by: None,
             triangle_rel_eps: 1e-9,
+            cross_columns: None,
         }
     }
 }
@@ -94,8 +104,13 @@ pub struct ShapeSpaceStats {
     pub mds: MdsSummary,
     /// Per label column (sorted by name).
     pub labels: BTreeMap<String, LabelColumnStats>,
-    /// For every ordered pair of distinct label columns.
+    /// For every ordered pair of distinct label columns among those chosen
+    /// ([`MdsParams::cross_columns`]).
     pub cross: Vec<CrossAccuracy>,
+    /// Why `cross` is empty although there are several label columns (more than
+    /// [`MAX_CROSS_COLUMNS`] and none chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cross_skipped: Option<String>,
 }
 
 /// The result of [`run_mds`].
@@ -113,18 +128,21 @@ pub struct MdsResult {
     pub files: Vec<PathBuf>,
 }
 
-/// Computes the statistics of `d` (and of `labels`, aligned with it, if given) for `stats.json`.
+/// Computes the statistics of `d` (and of `labels`, aligned with it, if given) for `stats.json`;
+/// the cross-column accuracies among `cross_columns` ([`MdsParams::cross_columns`]).
 pub fn shape_space_stats(
     d: &DistanceMatrix,
     labels: Option<&Labels>,
     mds: &Mds,
     triangle_rel_eps: f64,
+    cross_columns: Option<&[String]>,
 ) -> Result<ShapeSpaceStats, AnalysisError> {
     let symmetry = symmetry_gap(d);
     let eps = triangle_rel_eps * symmetry.mean_distance.unwrap_or(0.0);
     let triangle = triangle_violations(d, eps);
     let mut label_stats = BTreeMap::new();
     let mut cross = Vec::new();
+    let mut cross_skipped = None;
     if let Some(labels) = labels {
         for col in &labels.columns {
             let classes = crate::stats::label_classes(&labels.column(col)?);
@@ -138,8 +156,24 @@ pub fn shape_space_stats(
                 },
             );
         }
-        for target in &labels.columns {
-            for exclude in &labels.columns {
+        let chosen: Vec<String> = match cross_columns {
+            Some(columns) => {
+                for column in columns {
+                    labels.column_index(column)?;
+                }
+                columns.to_vec()
+            }
+            None if labels.columns.len() <= MAX_CROSS_COLUMNS => labels.columns.clone(),
+            None => {
+                cross_skipped = Some(format!(
+                    "{} label columns, more than {MAX_CROSS_COLUMNS}: cross-column accuracies only for the columns asked for (--cross-columns)",
+                    labels.columns.len()
+                ));
+                Vec::new()
+            }
+        };
+        for target in &chosen {
+            for exclude in &chosen {
                 if target != exclude {
                     cross.push(CrossAccuracy {
                         target: target.clone(),
@@ -169,16 +203,21 @@ pub fn shape_space_stats(
         },
         labels: label_stats,
         cross,
+        cross_skipped,
     })
 }
 
 fn write_csv(path: &Path, rows: impl IntoIterator<Item = Vec<String>>) -> Result<(), AnalysisError> {
     let to_err = |e: csv::Error| AnalysisError::csv(path, e);
-    let mut w = csv::Writer::from_path(path).map_err(to_err)?;
+    let file = AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))?;
+    let mut w = csv::Writer::from_writer(file);
     for row in rows {
         w.write_record(&row).map_err(to_err)?;
     }
-    w.flush().map_err(|e| AnalysisError::io(path, e))
+    w.into_inner()
+        .map_err(|e| AnalysisError::io(path, e.into_error()))?
+        .commit()
+        .map_err(|e| AnalysisError::io(path, e))
 }
 
 /// Writes `mds.csv`: header `name,<label columns>,x1..xk`, one row per shape.
@@ -224,7 +263,9 @@ pub const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "md
 ///   `marker_by` (defaults: first and second label columns);
 /// - `stats.json` ([`ShapeSpaceStats`]): symmetry gap, triangle-inequality violations, the MDS
 ///   variance summary, and with labels per column 1-NN LOO accuracy, silhouette, within/between
-///   distances, and the cross-column accuracies for every ordered pair of columns.
+///   distances, and the cross-column accuracies for every ordered pair of columns (of the
+///   columns chosen, [`MdsParams::cross_columns`]: by default all of at most
+///   [`MAX_CROSS_COLUMNS`], so that the file stays linear in the number of columns).
 ///
 /// Errors before anything is written: unreadable or malformed CSVs, unknown label columns, a
 /// missing distance (MDS needs a complete matrix; the error names the pair), invalid `dims`.
@@ -248,7 +289,13 @@ pub fn run_mds(
     let marker_by = pick(&params.marker_by, 1, "choosing markers by a label column")?;
 
     let mds = classical_mds(&d, params.dims)?;
-    let stats = shape_space_stats(&d, labels.as_ref(), &mds, params.triangle_rel_eps)?;
+    let stats = shape_space_stats(
+        &d,
+        labels.as_ref(),
+        &mds,
+        params.triangle_rel_eps,
+        params.cross_columns.as_deref(),
+    )?;
 
     std::fs::create_dir_all(out_dir).map_err(|e| AnalysisError::io(out_dir, e))?;
     let [mds_name, eig_name, png_name, svg_name, json_name] = MDS_OUTPUTS;
@@ -288,7 +335,7 @@ pub fn run_mds(
         path: json_path.clone(),
         message: e.to_string(),
     })?;
-    std::fs::write(&json_path, json + "\n").map_err(|e| AnalysisError::io(&json_path, e))?;
+    write_atomically(&json_path, (json + "\n").as_bytes()).map_err(|e| AnalysisError::io(&json_path, e))?;
     files.push(json_path);
 
     Ok(MdsResult {

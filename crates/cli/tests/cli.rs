@@ -343,8 +343,8 @@ fn grid_obj(scale: f64) -> String {
 }
 
 /// Finite coordinates whose squares overflow (1e300) or underflow (1e-300): the disk commands
-/// say the coordinates are out of range (not "zero-length edge"), `info` reports an infinite
-/// area instead of NaN.
+/// and `info` say the coordinates are out of range (not "zero-length edge", not an infinite
+/// area).
 #[test]
 fn coordinates_out_of_range_are_named() {
     let dir = scratch("range");
@@ -364,7 +364,8 @@ fn coordinates_out_of_range_are_named() {
     }
     let out = shapespace(&["info", dir.join("huge.obj").to_str().unwrap()]);
     let table = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(table.contains("inf") && !table.contains("NaN"), "{table}");
+    assert!(!table.contains("inf") && !table.contains("NaN"), "{table}");
+    assert!(stderr(&out).contains("huge.obj") && stderr(&out).contains("rescale the mesh"));
     // the distances go through the conformal map directly: same message, per file
     let (normal, normal2) = (dir.join("normal.obj"), dir.join("normal2.obj"));
     std::fs::write(&normal, grid_obj(1.0)).unwrap();
@@ -1121,4 +1122,633 @@ fn register_ground_truth_is_optional_and_missing_landmarks_are_said() {
         assert_eq!(metrics["metrics"]["geodesic"].is_object(), geodesic, "{flag:?}");
         assert_eq!(msg.contains("geodesic error"), geodesic, "{msg}");
     }
+}
+
+/// Runs the binary with its file-size limit (RLIMIT_FSIZE) at `bytes` and SIGXFSZ ignored, so
+/// that a write past the limit fails with EFBIG as on a full disk.
+#[cfg(target_os = "linux")]
+fn shapespace_with_file_size_limit(bytes: u64, args: &[&str]) -> Output {
+    let mut sh_args = vec![
+        "-c".to_string(),
+        format!("trap '' XFSZ; exec prlimit --fsize={bytes} \"$0\" \"$@\""),
+        env!("CARGO_BIN_EXE_shapespace").to_string(),
+    ];
+    sh_args.extend(args.iter().map(|a| a.to_string()));
+    Command::new("sh")
+        .args(&sh_args)
+        .current_dir(root())
+        .output()
+        .expect("sh runs")
+}
+
+/// The names in a folder, sorted.
+fn folder_entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Issue 42, item 4: an output that cannot be written whole (here a file-size limit, as a full
+/// disk) fails naming the file and leaves the previous complete file as it was, with no
+/// temporary file behind; a resume checkpoint that cannot be written stops the run at once with
+/// an error naming it (the pairs used to go on with the checkpoint empty, and the final files
+/// were then cut).
+#[cfg(target_os = "linux")]
+#[test]
+fn issue_42_outputs_are_written_atomically() {
+    let dir = scratch("atomic");
+    let (obj, csv) = (dir.join("map.obj"), dir.join("factors.csv"));
+    let args = [
+        "conformal",
+        "datasets/disks/cat_head.obj",
+        "--out",
+        obj.to_str().unwrap(),
+        "--factors",
+        csv.to_str().unwrap(),
+    ];
+    let first = shapespace(&args);
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    let (obj_before, csv_before) = (std::fs::read(&obj).unwrap(), std::fs::read(&csv).unwrap());
+    assert!(obj_before.len() > 4096 && csv_before.len() > 4096);
+    let limited = shapespace_with_file_size_limit(4096, &args);
+    let msg = stderr(&limited);
+    assert_eq!(limited.status.code(), Some(2), "{msg}");
+    assert!(msg.contains("map.obj") && msg.contains("too large"), "{msg}");
+    assert!(std::fs::read(&obj).unwrap() == obj_before, "the previous map was cut");
+    assert!(
+        std::fs::read(&csv).unwrap() == csv_before,
+        "the previous factors were cut"
+    );
+    assert_eq!(folder_entries(&dir), ["factors.csv", "map.obj"]);
+
+    // The checkpoint: the run's identity file (about 610 bytes) and the checkpoint's header and
+    // first rows (about 140 bytes each) fit under the limit, a later row does not.
+    let out = dir.join("d");
+    let faces: Vec<String> = ["id00_neutral", "id01_happy", "id02_sad"]
+        .iter()
+        .map(|n| format!("datasets/faces/{n}.obj"))
+        .collect();
+    let mut args = vec!["distances"];
+    args.extend(faces.iter().map(String::as_str));
+    args.extend([
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--threads",
+        "1",
+        "--symmetrize",
+    ]);
+    let limited = shapespace_with_file_size_limit(660, &args);
+    let msg = stderr(&limited);
+    assert_eq!(limited.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("pairs.partial.csv: cannot write the resume checkpoint"),
+        "{msg}"
+    );
+    assert!(msg.contains("the run stopped"), "{msg}");
+    assert!(!out.join("distances.csv").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 42, item 5: an output that is one of the inputs (under the same or another name, or
+/// through a hard link) is refused before any work with exit 2 naming it, and the input is left
+/// as it was; an output that is a symbolic link, given by name or found in an output folder, is
+/// refused and its target left alone.
+#[cfg(unix)]
+#[test]
+fn issue_42_outputs_never_overwrite_inputs() {
+    let dir = scratch("overwrite");
+    let cat = dir.join("cat.obj");
+    std::fs::copy(root().join("datasets/disks/cat_head.obj"), &cat).unwrap();
+    let plate = dir.join("pl.ply");
+    std::fs::copy(root().join("tests/data/plate121.ply"), &plate).unwrap();
+    let points = dir.join("p.csv");
+    write_sunflower_points(&points, 50, 2);
+    let linked = dir.join("hard_link_to_cat.obj");
+    std::fs::hard_link(&cat, &linked).unwrap();
+    let other_spelling = dir.join(".").join("cat.obj");
+    let o = dir.join("o.obj");
+    let (cat_s, o_s, pl_s, p_s) = (
+        cat.to_str().unwrap(),
+        o.to_str().unwrap(),
+        plate.to_str().unwrap(),
+        points.to_str().unwrap(),
+    );
+    let before: Vec<Vec<u8>> = [&cat, &plate, &points]
+        .iter()
+        .map(|p| std::fs::read(p).unwrap())
+        .collect();
+    for args in [
+        vec!["conformal", cat_s, "--out", o_s, "--factors", cat_s],
+        vec![
+            "conformal",
+            cat_s,
+            "--out",
+            o_s,
+            "--report",
+            other_spelling.to_str().unwrap(),
+        ],
+        vec!["conformal", cat_s, "--out", o_s, "--factors", linked.to_str().unwrap()],
+        vec!["param", cat_s, "--out", o_s, "--report", cat_s],
+        vec!["param", pl_s, "--out", pl_s],
+        vec!["prepare", cat_s, "--out", cat_s],
+        vec!["ot", "--points", p_s, "--out", p_s],
+        vec!["ot", "--points", p_s, "--out", o_s, "--report", p_s],
+    ] {
+        let run = shapespace(&args);
+        let msg = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {msg}");
+        assert!(msg.contains("an output must not replace an input"), "{args:?}: {msg}");
+        assert!(!o.exists(), "{args:?} wrote its map");
+    }
+    let after: Vec<Vec<u8>> = [&cat, &plate, &points]
+        .iter()
+        .map(|p| std::fs::read(p).unwrap())
+        .collect();
+    assert!(before == after, "an input was changed");
+
+    // two outputs in one file
+    let csv = dir.join("f.csv");
+    let run = shapespace(&[
+        "conformal",
+        cat_s,
+        "--out",
+        o_s,
+        "--factors",
+        csv.to_str().unwrap(),
+        "--report",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("named for two outputs"), "{}", stderr(&run));
+
+    // symbolic links: an output file, and a file in an output folder
+    let elsewhere = dir.join("elsewhere.txt");
+    std::fs::write(&elsewhere, "precious").unwrap();
+    let link = dir.join("link.csv");
+    std::os::unix::fs::symlink(&elsewhere, &link).unwrap();
+    let run = shapespace(&["conformal", cat_s, "--out", o_s, "--factors", link.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("is a symbolic link"), "{}", stderr(&run));
+    let out = dir.join("d");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, out.join("distances.csv")).unwrap();
+    let run = shapespace(&[
+        "distances",
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("distances.csv: is a symbolic link"),
+        "{}",
+        stderr(&run)
+    );
+    assert_eq!(std::fs::read_to_string(&elsewhere).unwrap(), "precious");
+    // mds: its distances file inside its output folder under an output's name
+    let mds_in = dir.join("m");
+    std::fs::create_dir_all(&mds_in).unwrap();
+    let stats = mds_in.join("stats.json");
+    std::fs::write(&stats, "name,a,b\na,0,1\nb,1,0\n").unwrap();
+    let run = shapespace(&["mds", stats.to_str().unwrap(), "--out", mds_in.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("an output must not replace an input"),
+        "{}",
+        stderr(&run)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 42, item 3: `--resume` takes only intact rows. A row of pairs.csv whose distance was
+/// changed to −1, inf, 1e400 or NaN, whose distance and cost were both changed consistently (a
+/// plausible value, caught by the row's check) or whose status is unknown is computed again
+/// with a note naming its line, and the run succeeds with the fresh run's values (these rows
+/// used to be copied, failing the run or reporting an empty distance as converged).
+#[test]
+fn issue_42_resume_recomputes_changed_rows() {
+    let dir = scratch("resume_verifies");
+    let out = dir.join("d");
+    let faces: Vec<String> = ["id00_neutral", "id01_happy", "id02_sad"]
+        .iter()
+        .map(|n| format!("datasets/faces/{n}.obj"))
+        .collect();
+    let mut args = vec!["distances"];
+    args.extend(faces.iter().map(String::as_str));
+    args.extend(["--out", out.to_str().unwrap(), "--quiet"]);
+    let first = shapespace(&args);
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    let pairs_path = out.join("pairs.csv");
+    let report_path = out.join("report.json");
+    let (pairs, report) = (
+        std::fs::read_to_string(&pairs_path).unwrap(),
+        std::fs::read_to_string(&report_path).unwrap(),
+    );
+    // a row's values without its seconds (a taken row keeps the earlier run's) and its check
+    let values = |line: &str| {
+        let fields: Vec<&str> = line.split(',').collect();
+        [&fields[..6], &fields[7..10]].concat().join(",")
+    };
+    let original = pairs.lines().nth(1).unwrap().to_string();
+    let fields: Vec<&str> = original.split(',').collect();
+    assert_eq!(fields[7], "converged");
+    let cost: f64 = fields[3].parse().unwrap();
+    let plausible_cost = format!("{:?}", cost * 1.02);
+    let plausible_distance = format!("{:?}", (cost * 1.02).sqrt());
+    args.push("--resume");
+    for (label, distance, cost, status) in [
+        ("-1", "-1", fields[3], "converged"),
+        ("inf", "inf", fields[3], "converged"),
+        ("1e400", "1e400", fields[3], "converged"),
+        ("NaN", "NaN", fields[3], "converged"),
+        (
+            "plausible",
+            plausible_distance.as_str(),
+            plausible_cost.as_str(),
+            "converged",
+        ),
+        ("status", fields[2], fields[3], "converged-ish"),
+    ] {
+        let mut changed = fields.clone();
+        changed[2] = distance;
+        changed[3] = cost;
+        changed[7] = status;
+        let tampered = pairs.replacen(&original, &changed.join(","), 1);
+        assert_ne!(tampered, pairs);
+        std::fs::write(&pairs_path, &tampered).unwrap();
+        std::fs::write(&report_path, &report).unwrap();
+        let resumed = shapespace(&args);
+        let msg = stderr(&resumed);
+        assert_eq!(resumed.status.code(), Some(0), "{label}: {msg}");
+        assert!(
+            msg.contains("pairs.csv: 2 pairs taken from 3 rows, 1 invalid rows computed again: line 2"),
+            "{label}: {msg}"
+        );
+        let now = std::fs::read_to_string(&pairs_path).unwrap();
+        assert_eq!(
+            now.lines().map(values).collect::<Vec<_>>(),
+            pairs.lines().map(values).collect::<Vec<_>>(),
+            "{label}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `datasets/disks/cat_head.obj` with every coordinate multiplied by 10^`exponent`, written
+/// into `dir`.
+fn scaled_cat(dir: &Path, exponent: i32) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("datasets/disks/cat_head.obj")).unwrap();
+    let scale = format!("1e{exponent}").parse::<f64>().unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        match line.strip_prefix("v ") {
+            Some(rest) => {
+                let p: Vec<f64> = rest
+                    .split_whitespace()
+                    .map(|x| x.parse::<f64>().unwrap() * scale)
+                    .collect();
+                out.push_str(&format!("v {:?} {:?} {:?}\n", p[0], p[1], p[2]));
+            }
+            None => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    let path = dir.join(format!("cat_{exponent}.obj"));
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// Issue 42, item 1: the accepted coordinate range is the one the maps work in. cat_head scaled
+/// by 1e-45 and 1e45 maps; scaled by 1e-100, 1e100, 1e140 or 1e154 `info` and `conformal` both
+/// refuse it with the same message (`conformal` used to fail with a singular Laplacian or
+/// "degenerate faces", and `info` to print an infinite area for a "disk").
+#[test]
+fn issue_42_coordinate_range_is_the_working_one() {
+    let dir = scratch("coordinate_range");
+    let o = dir.join("o.obj");
+    for exponent in [-45, 45] {
+        let cat = scaled_cat(&dir, exponent);
+        let run = shapespace(&["conformal", cat.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+        assert_eq!(run.status.code(), Some(0), "1e{exponent}: {}", stderr(&run));
+        let info = shapespace(&["info", cat.to_str().unwrap()]);
+        let table = String::from_utf8_lossy(&info.stdout).into_owned();
+        assert_eq!(info.status.code(), Some(0), "1e{exponent}: {}", stderr(&info));
+        assert!(
+            table.contains("disk") && !table.contains("inf"),
+            "1e{exponent}: {table}"
+        );
+    }
+    for exponent in [-100, 100, 140, 154] {
+        let cat = scaled_cat(&dir, exponent);
+        let name = cat.file_name().unwrap().to_str().unwrap().to_string();
+        let run = shapespace(&["conformal", cat.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+        let msg = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "1e{exponent}: {msg}");
+        assert!(
+            msg.contains(&name)
+                && msg.contains("coordinates out of the usable range")
+                && msg.contains("rescale the mesh"),
+            "1e{exponent}: {msg}"
+        );
+        for json in [false, true] {
+            let mut args = vec!["info", cat.to_str().unwrap()];
+            if json {
+                args.push("--json");
+            }
+            let info = shapespace(&args);
+            let (out, msg) = (String::from_utf8_lossy(&info.stdout).into_owned(), stderr(&info));
+            assert_eq!(info.status.code(), Some(1), "1e{exponent}: {msg}");
+            assert!(
+                msg.contains(&name)
+                    && msg.contains("coordinates out of the usable range")
+                    && msg.contains("rescale the mesh"),
+                "1e{exponent}: {msg}"
+            );
+            assert!(
+                !out.contains("inf") && !out.contains("null") && !out.contains("disk"),
+                "1e{exponent}: {out}"
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 42, item 2: one definition of a degenerate face. A 7-vertex fan whose centre is the
+/// decimal midpoint of two rim vertices (not exactly on their segment in binary, but with a zero
+/// area from its edge lengths): `info` reports the degenerate face, and `prepare`, `conformal`
+/// and `param` refuse the mesh for it (`info` said 0 degenerate faces and `prepare` "already a
+/// disk, unchanged", then `conformal` failed on face 0).
+#[test]
+fn issue_42_degenerate_faces_are_one_definition() {
+    let dir = scratch("degenerate");
+    let fan = dir.join("fan.obj");
+    let mut text = String::from("v 0.735 0.45 -0.17\nv 0.95 0.01 -0.08\nv 0.52 0.89 -0.26\nv -0.6 0.93 -0.14\n");
+    text.push_str("v -1.02 0.05 0.22\nv -0.55 -0.81 -0.04\nv 0.53 -0.92 0.09\n");
+    for k in 0..6 {
+        text.push_str(&format!("f 1 {} {}\n", k + 2, (k + 1) % 6 + 2));
+    }
+    std::fs::write(&fan, text).unwrap();
+    let info = shapespace(&["info", fan.to_str().unwrap(), "--json"]);
+    assert_eq!(info.status.code(), Some(0), "{}", stderr(&info));
+    let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(json[0]["num_degenerate_faces"], 1, "{json}");
+    assert_eq!(json[0]["first_degenerate_faces"][0], 0, "{json}");
+    let info = shapespace(&["info", fan.to_str().unwrap()]);
+    let table = String::from_utf8_lossy(&info.stdout).into_owned();
+    assert!(table.contains("fan.obj: 1 degenerate face"), "{table}");
+    let o = dir.join("o.obj");
+    for cmd in ["prepare", "conformal", "param"] {
+        let run = shapespace(&[cmd, fan.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+        let msg = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "{cmd}: {msg}");
+        assert!(
+            msg.contains("fan.obj") && msg.contains("1 degenerate face") && msg.contains("first face 0"),
+            "{cmd}: {msg}"
+        );
+        assert!(!o.exists(), "{cmd}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 42, item 6: `stats.json` stays linear in the number of label columns. With 40 label
+/// columns over 8 shapes the cross-column accuracies (one per ordered pair of columns: 1,560)
+/// are skipped with a note unless columns are chosen with `--cross-columns`.
+#[test]
+fn issue_42_mds_stats_are_bounded_in_label_columns() {
+    let dir = scratch("mds_columns");
+    let n = 8;
+    let names: Vec<String> = (0..n).map(|i| format!("s{i}")).collect();
+    let mut matrix = format!("name,{}\n", names.join(","));
+    for i in 0..n {
+        let row: Vec<String> = (0..n)
+            .map(|j| format!("{}", (i as f64 - j as f64).abs() + if i == j { 0.0 } else { 0.5 }))
+            .collect();
+        matrix.push_str(&format!("{},{}\n", names[i], row.join(",")));
+    }
+    let distances = dir.join("d.csv");
+    std::fs::write(&distances, matrix).unwrap();
+    let columns = 40;
+    let mut labels = format!(
+        "name,{}\n",
+        (0..columns).map(|c| format!("c{c}")).collect::<Vec<_>>().join(",")
+    );
+    for (i, name) in names.iter().enumerate() {
+        let row: Vec<String> = (0..columns).map(|c| format!("v{}", (i + c) % 3)).collect();
+        labels.push_str(&format!("{name},{}\n", row.join(",")));
+    }
+    let labels_path = dir.join("labels.csv");
+    std::fs::write(&labels_path, labels).unwrap();
+    let out = dir.join("m");
+    let args = vec![
+        "mds",
+        distances.to_str().unwrap(),
+        "--labels",
+        labels_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let run = shapespace(&args);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["labels"].as_object().unwrap().len(), columns);
+    assert_eq!(stats["cross"].as_array().unwrap().len(), 0);
+    assert!(
+        stats["cross_skipped"].as_str().unwrap().contains("40 label columns"),
+        "{}",
+        stats["cross_skipped"]
+    );
+    assert!(stderr(&run).contains("--cross-columns"), "{}", stderr(&run));
+    let mut chosen = args.clone();
+    chosen.extend(["--cross-columns", "c0,c1,c2"]);
+    let run = shapespace(&chosen);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["cross"].as_array().unwrap().len(), 6);
+    assert!(stats.get("cross_skipped").is_none());
+    chosen.push("--cross-columns");
+    chosen.push("nope");
+    let run = shapespace(&chosen);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("nope"), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 42, item 7: a second run into an output folder while one is going on (here: the test
+/// holds the folder's lock) is refused at once, naming the lock; the lock goes with its holder.
+#[test]
+fn issue_42_one_run_at_a_time_per_output_folder() {
+    let dir = scratch("lock");
+    let out = dir.join("d");
+    std::fs::create_dir_all(&out).unwrap();
+    let lock = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(out.join(".shapespace.lock"))
+        .unwrap();
+    lock.try_lock().unwrap();
+    let args = [
+        "distances",
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    let second = shapespace(&args);
+    let msg = stderr(&second);
+    assert_eq!(second.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains(".shapespace.lock") && msg.contains("another shapespace run is writing into this folder"),
+        "{msg}"
+    );
+    assert!(!out.join("pairs.partial.csv").exists());
+    drop(lock);
+    let run = shapespace(&args);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// One step of a xorshift64* generator (a fixed, dependency-free stream for the sweep below).
+fn xorshift(state: &mut u64) -> u64 {
+    *state ^= *state >> 12;
+    *state ^= *state << 25;
+    *state ^= *state >> 27;
+    state.wrapping_mul(0x2545_f491_4f6c_dd1d)
+}
+
+/// `bytes` with one seeded mutation: a byte flipped, set to a digit, CR, TAB, NUL or a minus
+/// sign; a line removed or repeated; a number replaced by an extreme one; or the file cut.
+fn mutate(bytes: &[u8], state: &mut u64) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    let pick = |state: &mut u64, n: usize| (xorshift(state) % n.max(1) as u64) as usize;
+    let line_starts: Vec<usize> = std::iter::once(0)
+        .chain(
+            bytes
+                .iter()
+                .enumerate()
+                .filter(|(_, &b)| b == b'\n')
+                .map(|(i, _)| i + 1),
+        )
+        .filter(|&i| i < bytes.len())
+        .collect();
+    match pick(state, 8) {
+        0 => {
+            let i = pick(state, out.len());
+            out[i] ^= 1 << pick(state, 8);
+        }
+        1 => {
+            let i = pick(state, out.len());
+            out[i] = b"0123456789\r\t\0-"[pick(state, 14)];
+        }
+        2 | 3 => {
+            let k = pick(state, line_starts.len());
+            let start = line_starts[k];
+            let end = line_starts.get(k + 1).copied().unwrap_or(out.len());
+            let line = out[start..end].to_vec();
+            if pick(state, 2) == 0 {
+                out.drain(start..end);
+            } else {
+                out.splice(start..start, line);
+            }
+        }
+        4 | 5 => {
+            // a token that starts with a digit replaced by an extreme value
+            let starts: Vec<usize> = (1..out.len())
+                .filter(|&i| out[i].is_ascii_digit() && out[i - 1] == b' ')
+                .collect();
+            if let Some(&i) = starts.get(pick(state, starts.len())) {
+                let end = (i..out.len())
+                    .find(|&j| out[j] == b' ' || out[j] == b'\n')
+                    .unwrap_or(out.len());
+                let value = [
+                    "1e308",
+                    "-1e308",
+                    "1e-320",
+                    "nan",
+                    "inf",
+                    "4294967295",
+                    "-1",
+                    "0",
+                    "1e400",
+                    "99999999999999999999",
+                ][pick(state, 10)];
+                out.splice(i..end, value.bytes());
+            }
+        }
+        6 => {
+            let k = pick(state, out.len());
+            out.truncate(k);
+        }
+        _ => {
+            let i = pick(state, out.len());
+            let j = pick(state, out.len());
+            out.swap(i, j);
+        }
+    }
+    out
+}
+
+/// A seeded mutation sweep over small meshes of every format (600 files, a few seconds):
+/// `info` on each, `conformal` on every third, must exit 0, 1 or 2 (never a panic), name the
+/// file when it fails, and print no NaN or infinity when it succeeds.
+#[test]
+fn issue_42_mutated_meshes_fail_cleanly() {
+    let dir = scratch("mutations");
+    let seeds = [
+        "datasets/disks/cat_head.obj",
+        "datasets/disks/plate121.ply",
+        "tests/data/wolf0.off",
+        "tests/bad_input/ok_extra_elements_big_endian.ply",
+        "tests/bad_input/ok_mixed_tri_quad.obj",
+        "tests/bad_input/ok_non_manifold_vertex.off",
+    ];
+    let mut state = 0x42_2026_u64;
+    let o = dir.join("o.obj");
+    let mut failed = 0;
+    for (s, seed) in seeds.iter().enumerate() {
+        let bytes = std::fs::read(root().join(seed)).unwrap();
+        let ext = Path::new(seed).extension().unwrap().to_str().unwrap();
+        for k in 0..100 {
+            let mutated = mutate(&bytes, &mut state);
+            let file = dir.join(format!("m{s}_{k}.{ext}"));
+            std::fs::write(&file, &mutated).unwrap();
+            let name = file.file_name().unwrap().to_str().unwrap().to_string();
+            let mut runs = vec![vec!["info", file.to_str().unwrap()]];
+            if k % 3 == 0 {
+                runs.push(vec!["conformal", file.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+            }
+            for args in runs {
+                let out = shapespace(&args);
+                let (stdout, msg) = (String::from_utf8_lossy(&out.stdout).into_owned(), stderr(&out));
+                let code = out.status.code();
+                assert!(
+                    matches!(code, Some(0..=2)),
+                    "{args:?} ({seed}, mutation {k}): {code:?}: {msg}"
+                );
+                if code == Some(0) {
+                    assert!(
+                        !stdout.contains("NaN") && !stdout.contains("inf"),
+                        "{args:?} ({seed}, mutation {k}): {stdout}"
+                    );
+                } else {
+                    failed += 1;
+                    assert!(msg.contains(&name), "{args:?} ({seed}, mutation {k}): {msg}");
+                }
+            }
+        }
+    }
+    // (the sweep is not vacuous: most mutations are caught)
+    assert!(failed > 100, "{failed} failures");
+    std::fs::remove_dir_all(&dir).ok();
 }

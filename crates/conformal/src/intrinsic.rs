@@ -19,6 +19,7 @@
 
 use std::collections::VecDeque;
 
+use shapespace_geometry::quantities::face_edge_lengths;
 use shapespace_geometry::topology::{find, union};
 use shapespace_geometry::TriMesh;
 
@@ -71,20 +72,7 @@ pub fn prev(h: u32) -> u32 {
     }
 }
 
-/// Area of a triangle from its side lengths with Kahan's stable form of Heron's formula
-/// (accurate for needle-like triangles). Returns 0 when roundoff violates the triangle
-/// inequality.
-pub fn triangle_area_from_lengths(a: f64, b: f64, c: f64) -> f64 {
-    let mut s = [a, b, c];
-    s.sort_by(|x, y| y.total_cmp(x));
-    let [a, b, c] = s;
-    let p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
-    if p > 0.0 {
-        0.25 * p.sqrt()
-    } else {
-        0.0
-    }
-}
+pub use shapespace_geometry::quantities::triangle_area_from_lengths;
 
 /// Cotangent of the angle opposite side `e` in a triangle with sides `e`, `u`, `v` and area
 /// `area`: cot θ = (u² + v² − e²) / (4A).
@@ -102,14 +90,7 @@ impl IntrinsicTriangulation {
         let lengths: Vec<f64> = mesh
             .faces
             .iter()
-            .flat_map(|f| {
-                let p = [f[0], f[1], f[2]].map(|v| mesh.positions[v as usize]);
-                (0..3).map(move |k| {
-                    let a = p[k];
-                    let b = p[(k + 1) % 3];
-                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-                })
-            })
+            .flat_map(|f| face_edge_lengths(f.map(|v| mesh.positions[v as usize])))
             .collect();
         Self::from_lengths(mesh.num_vertices(), &mesh.faces, lengths)
     }

@@ -10,6 +10,7 @@ pub mod error;
 pub mod io;
 pub mod laplacian;
 pub mod mesh;
+pub mod predicates;
 pub mod prepare;
 pub mod primitives;
 pub mod quantities;

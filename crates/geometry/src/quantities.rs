@@ -13,6 +13,30 @@ pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     0.5 * norm(cross(sub(b, a), sub(c, a)))
 }
 
+/// Area of a triangle from its side lengths with Kahan's stable form of Heron's formula
+/// [Kahan 2014, "Miscalculating area and angles of a needle-like triangle", §2] (accurate for
+/// needle-like triangles). Returns 0 when roundoff violates the triangle inequality.
+pub fn triangle_area_from_lengths(a: f64, b: f64, c: f64) -> f64 {
+    let mut s = [a, b, c];
+    s.sort_by(|x, y| y.total_cmp(x));
+    let [a, b, c] = s;
+    let p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+    if p > 0.0 {
+        0.25 * p.sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Side lengths of the triangle with corners `p[0]`, `p[1]`, `p[2]`: entry k is |p[k] − p[k+1]|
+/// (indices mod 3), the lengths the disk maps start from.
+pub fn face_edge_lengths(p: [[f64; 3]; 3]) -> [f64; 3] {
+    std::array::from_fn(|k| {
+        let (a, b) = (p[k], p[(k + 1) % 3]);
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    })
+}
+
 /// Face areas, #F.
 pub fn face_areas(mesh: &TriMesh) -> Vec<f64> {
     (0..mesh.num_faces())

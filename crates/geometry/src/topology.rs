@@ -357,19 +357,24 @@ pub fn orientation_flips(faces: &[[u32; 3]], conn: &Connectivity) -> Result<Vec<
     Ok(flip)
 }
 
-/// Degenerate faces: a repeated vertex index, or exactly zero area. Face indices in order.
+/// Degenerate faces, face indices in order: a repeated vertex index, or corners that are
+/// coincident, exactly collinear or collinear to rounding
+/// ([`crate::predicates::degenerate_corners`], the definition the disk maps use too).
 pub fn degenerate_faces(mesh: &TriMesh) -> Vec<u32> {
     (0..mesh.num_faces())
-        .filter(|&f| {
-            let [a, b, c] = mesh.faces[f];
-            if a == b || b == c || c == a {
-                return true;
-            }
-            let [p, q, r] = mesh.face_positions(f);
-            norm2(cross(sub(q, p), sub(r, p))) == 0.0
-        })
+        .filter(|&f| degenerate_face(mesh, f).is_some())
         .map(|f| f as u32)
         .collect()
+}
+
+/// Why face `f` of `mesh` is degenerate, if it is ([`degenerate_faces`]).
+pub fn degenerate_face(mesh: &TriMesh, f: usize) -> Option<&'static str> {
+    let [a, b, c] = mesh.faces[f];
+    if a == b || b == c || c == a {
+        return Some("repeated vertex");
+    }
+    let [p, q, r] = mesh.face_positions(f);
+    crate::predicates::degenerate_corners(p, q, r)
 }
 
 /// Vertices whose position is exactly equal (bitwise, with −0.0 = 0.0) to that of a vertex with
@@ -656,9 +661,14 @@ pub fn classify(mesh: &TriMesh) -> Result<Classification, GeometryError> {
     Ok(mesh_report(mesh)?.classification)
 }
 
-/// Squared edge lengths and areas must be representable: with coordinates beyond
-/// [`MAX_COORDINATE`] they overflow, with a mesh smaller than [`MIN_EXTENT`] they underflow to 0.
-/// An error that says so (and to rescale), for the vertices referenced by faces.
+/// The range of coordinates the disk maps work in: the cotangent weights and face areas go
+/// through the squared norm of an edge cross product, of the order of (edge length)⁴, which
+/// overflows f64 for edges of about 1e77 and underflows to 0 below about 1e-77 (measured:
+/// `datasets/disks/cat_head.obj`, of size ~1, maps when scaled by 1e-76 … 1e76 and fails at
+/// 1e±80 with a singular Laplacian or "degenerate faces"). The accepted range,
+/// coordinates up to [`MAX_COORDINATE`] and a mesh extent above [`MIN_EXTENT`], keeps a margin of
+/// 1e25 on both sides (edges down to 1e-25 of the extent). An error that says so (and to
+/// rescale), for the vertices referenced by faces; `info` reports the same error.
 pub fn check_coordinate_range(mesh: &TriMesh) -> Result<(), GeometryError> {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -680,16 +690,16 @@ pub fn check_coordinate_range(mesh: &TriMesh) -> Result<(), GeometryError> {
     if largest > MAX_COORDINATE || (extent > 0.0 && extent < MIN_EXTENT) {
         return Err(GeometryError::Invalid(format!(
             "coordinates out of the usable range: the mesh spans {extent:e} with coordinates up to {largest:e} \
-             (squared lengths need coordinates below {MAX_COORDINATE:e} and a size above {MIN_EXTENT:e}); rescale the mesh"
+             (the maps need coordinates up to {MAX_COORDINATE:e} and a size above {MIN_EXTENT:e}); rescale the mesh"
         )));
     }
     Ok(())
 }
 
-/// Largest coordinate magnitude [`require_disk`] accepts (squares stay below f64::MAX).
-pub const MAX_COORDINATE: f64 = 1e150;
-/// Smallest mesh extent [`require_disk`] accepts (squares stay above the f64 subnormals).
-pub const MIN_EXTENT: f64 = 1e-150;
+/// Largest coordinate magnitude [`require_disk`] accepts ([`check_coordinate_range`]).
+pub const MAX_COORDINATE: f64 = 1e50;
+/// Smallest mesh extent [`require_disk`] accepts ([`check_coordinate_range`]).
+pub const MIN_EXTENT: f64 = 1e-50;
 
 /// Checks that a mesh is ready for a disk conformal map: a topological disk ([`classify`])
 /// without unreferenced vertices and without degenerate faces. The error says what is wrong and

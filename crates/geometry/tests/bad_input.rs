@@ -24,6 +24,13 @@ const fn err(at: &'static str, problem: &'static [&'static str]) -> Expect {
 
 /// Every file in the corpus and what reading it must give.
 const CORPUS: &[(&str, Expect)] = &[
+    // issue 42: a lone CR inside a number, PLY 2.0, OFF counts with an extra value
+    ("issue_42_cr_inside_number.obj", err(":2:", &["carriage return"])),
+    ("issue_42_ply_version_2.ply", err(":2:", &["PLY version '2.0'"])),
+    (
+        "issue_42_off_counts_extra_value.off",
+        err(":2:", &["expected the counts", "found 4 values"]),
+    ),
     ("binary_garbage.obj", err(":1:", &["binary data"])),
     ("concave_quad.obj", err(":6:", &["face 0", "not convex"])),
     ("self_crossing_quad.obj", err(":6:", &["face 0", "crosses itself"])),
@@ -239,4 +246,19 @@ fn truncations_and_corruptions_never_panic() {
             }
         }
     }
+}
+
+/// Issue 42, item 7: a device as a mesh file is refused before reading (`/dev/zero` was read
+/// without end), naming the file.
+#[cfg(unix)]
+#[test]
+fn issue_42_devices_are_not_read_as_meshes() {
+    let dir = std::env::temp_dir().join(format!("shapespace-device-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let zero = dir.join("zero.obj");
+    let _ = std::fs::remove_file(&zero);
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let e = read_mesh(&zero).unwrap_err().to_string();
+    assert!(e.contains("zero.obj") && e.contains("not a regular file"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
 }

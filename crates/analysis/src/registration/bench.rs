@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use shapespace_conformal::MarkerFile;
+use shapespace_geometry::io::{write_atomically, AtomicFile};
 use shapespace_geometry::TriMesh;
 
 use crate::area_preserving::AreaPreservingParams;
@@ -25,10 +26,9 @@ pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
 /// Number of histogram bins over [`HISTOGRAM_RANGE`].
 pub const HISTOGRAM_BINS: usize = 40;
 
-fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, AnalysisError> {
-    std::fs::File::create(path)
-        .map(std::io::BufWriter::new)
-        .map_err(|e| AnalysisError::io(path, e))
+/// Starts writing `path` atomically (committed by the caller).
+fn create(path: &Path) -> Result<AtomicFile, AnalysisError> {
+    AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))
 }
 
 /// Writes the outputs of one registration into `out` (created if missing) and returns the
@@ -62,7 +62,7 @@ pub fn write_registration(
             )
             .map_err(io)?;
         }
-        w.flush().map_err(io)?;
+        w.commit().map_err(io)?;
     }
     files.push(path);
 
@@ -81,7 +81,7 @@ pub fn write_registration(
         path: path.clone(),
         message: e.to_string(),
     })?;
-    std::fs::write(&path, text).map_err(|e| AnalysisError::io(&path, e))?;
+    write_atomically(&path, text.as_bytes()).map_err(|e| AnalysisError::io(&path, e))?;
     files.push(path);
 
     for ext in ["png", "svg"] {
@@ -168,7 +168,7 @@ pub fn write_colored_obj(path: &Path, mesh: &TriMesh, colors: &[[f64; 3]]) -> Re
     for f in &mesh.faces {
         writeln!(w, "f {} {} {}", f[0] + 1, f[1] + 1, f[2] + 1).map_err(io)?;
     }
-    w.flush().map_err(io)
+    w.commit().map_err(io)
 }
 
 /// One row of the benchmark (`results.csv`).
@@ -390,17 +390,17 @@ pub fn register_bench(
     let mut files = Vec::new();
     let path = out.join("results.csv");
     {
-        let mut w = csv::Writer::from_path(&path).map_err(|e| AnalysisError::Serialize {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
+        let mut w = csv::Writer::from_writer(create(&path)?);
         for r in &rows {
             w.serialize(r).map_err(|e| AnalysisError::Serialize {
                 path: path.clone(),
                 message: e.to_string(),
             })?;
         }
-        w.flush().map_err(|e| AnalysisError::io(&path, e))?;
+        w.into_inner()
+            .map_err(|e| AnalysisError::io(&path, e.into_error()))?
+            .commit()
+            .map_err(|e| AnalysisError::io(&path, e))?;
     }
     files.push(path);
 
@@ -484,7 +484,7 @@ pub fn register_bench(
             }
             writeln!(w).map_err(io)?;
         }
-        w.flush().map_err(io)?;
+        w.commit().map_err(io)?;
     }
     files.push(path);
 
@@ -533,7 +533,7 @@ pub fn register_bench(
                 path: path.clone(),
                 message: e.to_string(),
             })?;
-    std::fs::write(&path, text).map_err(|e| AnalysisError::io(&path, e))?;
+    write_atomically(&path, text.as_bytes()).map_err(|e| AnalysisError::io(&path, e))?;
     files.push(path);
     Ok(BenchResult {
         rows,

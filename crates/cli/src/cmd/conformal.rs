@@ -20,7 +20,7 @@ use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
 use shapespace_conformal::quality::QualitySummary;
 use shapespace_conformal::{bff_disk_map, disk_map, BffParams, DiskMapParams, PolePlacement};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh, AtomicFile};
 
 /// Arguments of `shapespace conformal`.
 #[derive(clap::Args)]
@@ -74,13 +74,12 @@ struct MapOutput {
 }
 
 fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
-    let file = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = std::io::BufWriter::new(file);
+    let mut w = AtomicFile::create(path).with_context(|| format!("writing {}", path.display()))?;
     writeln!(w, "vertex,u,v,lambda")?;
     for (i, (z, l)) in map.uv.iter().zip(&map.conformal_factor).enumerate() {
         writeln!(w, "{i},{:?},{:?},{:?}", z[0], z[1], l)?;
     }
-    w.flush().with_context(|| format!("writing {}", path.display()))?;
+    w.commit().with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -88,11 +87,14 @@ fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
 pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     super::check_map_output(&args.out)?;
-    super::check_output_files([
-        Some(args.out.as_path()),
-        args.factors.as_deref(),
-        args.report.as_deref(),
-    ])?;
+    super::check_output_files(
+        [
+            Some(args.out.as_path()),
+            args.factors.as_deref(),
+            args.report.as_deref(),
+        ],
+        [Some(args.input.as_path()), args.markers.landmarks.as_deref()],
+    )?;
     let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
@@ -184,7 +186,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
             "wall_seconds": t0.elapsed().as_secs_f64(),
         });
         let text = serde_json::to_string_pretty(&report)?;
-        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(ExitCode::SUCCESS)
 }

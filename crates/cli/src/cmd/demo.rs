@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use super::distances::{check_labels, compute, exit_code, mds_unless_failed, SolverArgs};
+use super::distances::{check_labels, check_outputs, compute, exit_code, mds_unless_failed, SolverArgs};
 
 /// Arguments of `shapespace demo`.
 #[derive(clap::Args)]
@@ -45,6 +45,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     if let Some(labels) = &labels {
         check_labels(labels, &files)?;
     }
+    check_outputs(&args.out, &files, labels.as_deref(), &args.solver, true)?;
     let run = compute(&files, &args.out, &args.solver)?;
     mds_unless_failed(&run, &args.out, labels.as_deref())?;
     Ok(exit_code(&run))

@@ -83,6 +83,7 @@ pub struct DistancesArgs {
 }
 
 pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
+    check_outputs(&args.out, &args.files, args.labels.as_deref(), &args.solver, args.mds)?;
     if let Some(labels) = &args.labels {
         check_labels(labels, &args.files)?;
     }
@@ -91,6 +92,37 @@ pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
         mds_unless_failed(&run, &args.out, args.labels.as_deref())?;
     }
     Ok(exit_code(&run))
+}
+
+/// Checks, before any work, the files a run writes into `out` (with `mds`, the MDS outputs
+/// too): none is a symbolic link or one of the inputs (meshes, labels, marker file).
+pub fn check_outputs(
+    out: &std::path::Path,
+    files: &[PathBuf],
+    labels: Option<&std::path::Path>,
+    solver: &SolverArgs,
+    mds: bool,
+) -> anyhow::Result<()> {
+    use shapespace_analysis::pipeline::{
+        PARTIAL_IDENTITY, PARTIAL_PAIRS, PREVIOUS_PARTIAL_IDENTITY, PREVIOUS_PARTIAL_PAIRS,
+    };
+    let mut names = vec![
+        "distances.csv",
+        "pairs.csv",
+        "report.json",
+        PARTIAL_PAIRS,
+        PARTIAL_IDENTITY,
+        PREVIOUS_PARTIAL_PAIRS,
+        PREVIOUS_PARTIAL_IDENTITY,
+    ];
+    if mds {
+        names.extend(shapespace_analysis::shape_space::MDS_OUTPUTS);
+    }
+    let inputs = files
+        .iter()
+        .map(|f| Some(f.as_path()))
+        .chain([labels, solver.markers.landmarks.as_deref()]);
+    super::check_output_folder(out, &names, inputs)
 }
 
 /// MDS + statistics on `out/distances.csv` when every file and pair of `run` succeeded. With
@@ -242,9 +274,6 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             a.median.unwrap_or(f64::NAN),
             a.max.unwrap_or(f64::NAN)
         );
-    }
-    if let Some(e) = &r.partial_pairs_error {
-        eprintln!("shapespace: warning: the finished pairs could not be kept in {e} during the run (the files below are complete)");
     }
     for f in &r.files {
         eprintln!("distances: wrote {}", f.display());

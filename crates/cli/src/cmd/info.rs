@@ -115,10 +115,19 @@ fn print_table(rows: &[(PathBuf, MeshReport)]) {
     for row in &cells {
         println!("{}", line(row));
     }
-    // why the "other" meshes are neither disks nor spheres
+    // why the "other" meshes are neither disks nor spheres, and degenerate faces, which the
+    // disk maps refuse whatever the class
     for (path, r) in rows {
         if r.classification.class == MeshClass::Other {
             println!("{}: {}", path.display(), r.classification.reasons.join("; "));
+        }
+        if let Some(f) = r.first_degenerate_faces.first() {
+            println!(
+                "{}: {} degenerate face{} (repeated vertex, or zero area), first face {f}",
+                path.display(),
+                r.num_degenerate_faces,
+                if r.num_degenerate_faces == 1 { "" } else { "s" }
+            );
         }
     }
 }
@@ -129,8 +138,13 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         .files
         .par_iter()
         .map(|path| {
+            // (a mesh outside the range the maps work in is refused as `conformal` refuses it,
+            // rather than described with an area that overflows)
             let report = read_mesh(path)
-                .and_then(|mesh| mesh_report(&mesh))
+                .and_then(|mesh| {
+                    shapespace_geometry::topology::check_coordinate_range(&mesh)?;
+                    mesh_report(&mesh)
+                })
                 .map_err(|e| describe_error(path, &e));
             (path.clone(), report)
         })

@@ -27,13 +27,23 @@ pub struct MdsArgs {
     /// Label column for marker shapes (default: the second label column, if any).
     #[arg(long)]
     pub marker_by: Option<String>,
+    /// Label columns whose cross-column 1-NN accuracies (one per ordered pair) stats.json gets
+    /// (default: all columns when there are at most 8, else none: their number is quadratic).
+    #[arg(long, value_delimiter = ',')]
+    pub cross_columns: Option<Vec<String>>,
 }
 
 pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
+    super::check_output_folder(
+        &args.out,
+        &shapespace_analysis::shape_space::MDS_OUTPUTS,
+        [Some(args.distances.as_path()), args.labels.as_deref()],
+    )?;
     let params = MdsParams {
         dims: args.dims,
         color_by: args.color_by.clone(),
         marker_by: args.marker_by.clone(),
+        cross_columns: args.cross_columns.clone(),
         ..MdsParams::default()
     };
     let result = run_mds(&args.distances, args.labels.as_deref(), &args.out, &params)
@@ -66,6 +76,9 @@ pub fn print_summary(result: &MdsResult) {
             )),
             s.silhouette.map_or("n/a".into(), |v| format!("{v:.3}"))
         );
+    }
+    if let Some(note) = &result.stats.cross_skipped {
+        eprintln!("mds: {note}");
     }
     for c in &result.stats.cross {
         if let Some(a) = c.loo_1nn.accuracy {

@@ -11,14 +11,21 @@ pub mod param;
 pub mod prepare;
 pub mod register;
 
+use std::path::Path;
+
 /// Checks, before any work, that the output files given (`None`: an optional output not asked
-/// for) can be created where they are named: not an existing folder, and in a folder that
-/// exists (so that a wrong path fails at once, not after minutes of computation with some
-/// outputs written and others not).
+/// for) can be created where they are named: not an existing folder, in a folder that exists
+/// (so that a wrong path fails at once, not after minutes of computation with some outputs
+/// written and others not), not a symbolic link (outputs are never written through links), not
+/// one of the `inputs` (the same file under any name: an output must never replace an input)
+/// and not named twice.
 pub(crate) fn check_output_files<'a>(
-    files: impl IntoIterator<Item = Option<&'a std::path::Path>>,
+    outputs: impl IntoIterator<Item = Option<&'a Path>>,
+    inputs: impl IntoIterator<Item = Option<&'a Path>>,
 ) -> anyhow::Result<()> {
-    for file in files.into_iter().flatten() {
+    let inputs: Vec<&Path> = inputs.into_iter().flatten().collect();
+    let mut seen: Vec<&Path> = Vec::new();
+    for file in outputs.into_iter().flatten() {
         if file.is_dir() {
             anyhow::bail!("{}: is a folder; name an output file", file.display());
         }
@@ -30,8 +37,73 @@ pub(crate) fn check_output_files<'a>(
                 parent.display()
             );
         }
+        check_output_path(file, &inputs)?;
+        if let Some(other) = seen.iter().find(|o| same_file(o, file)) {
+            anyhow::bail!(
+                "{}: named for two outputs (also as {}); name different files",
+                file.display(),
+                other.display()
+            );
+        }
+        seen.push(file);
     }
     Ok(())
+}
+
+/// Checks, before any work, the files `names` that a command writes into the folder `dir`:
+/// none is a symbolic link or one of the `inputs` ([`check_output_files`]).
+pub(crate) fn check_output_folder<'a>(
+    dir: &Path,
+    names: &[&str],
+    inputs: impl IntoIterator<Item = Option<&'a Path>>,
+) -> anyhow::Result<()> {
+    let inputs: Vec<&Path> = inputs.into_iter().flatten().collect();
+    for name in names {
+        check_output_path(&dir.join(name), &inputs)?;
+    }
+    Ok(())
+}
+
+/// Refuses an output `file` that is a symbolic link or the same file as one of `inputs`.
+fn check_output_path(file: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
+    if std::fs::symlink_metadata(file).is_ok_and(|m| m.file_type().is_symlink()) {
+        anyhow::bail!(
+            "{}: is a symbolic link; outputs are not written through links (remove it or name another file)",
+            file.display()
+        );
+    }
+    if let Some(input) = inputs.iter().find(|input| same_file(input, file)) {
+        anyhow::bail!(
+            "{}: is the input {}; an output must not replace an input (name another file)",
+            file.display(),
+            input.display()
+        );
+    }
+    Ok(())
+}
+
+/// Whether `a` and `b` name the same file: the same device and inode where both exist (any
+/// name, hard link or symbolic link of it), else the same canonical folder and file name.
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    if let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+        use std::os::unix::fs::MetadataExt;
+        return (ma.dev(), ma.ino()) == (mb.dev(), mb.ino());
+    }
+    let canonical = |p: &Path| -> Option<std::path::PathBuf> {
+        if let Ok(c) = p.canonicalize() {
+            return Some(c);
+        }
+        let parent = p
+            .parent()
+            .filter(|q| !q.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        Some(parent.canonicalize().ok()?.join(p.file_name()?))
+    };
+    match (canonical(a), canonical(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => false,
+    }
 }
 
 /// Creates an output folder before any work (an existing file of that name is an error).

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
+use shapespace_geometry::io::{write_atomically, AtomicFile};
 use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::power_diagram::PowerDiagram;
 use shapespace_omt::restricted::cell_polygons;
@@ -158,7 +159,14 @@ fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
 }
 
 pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
-    super::check_output_files([Some(args.out.as_path()), args.cells.as_deref(), args.report.as_deref()])?;
+    super::check_output_files(
+        [Some(args.out.as_path()), args.cells.as_deref(), args.report.as_deref()],
+        [
+            Some(args.points.as_path()),
+            args.density_mesh.as_deref(),
+            args.density.as_deref(),
+        ],
+    )?;
     let measure = source_measure(args)?;
     let rows: Vec<PointRow> = read_rows(&args.points)?;
     let points: Vec<[f64; 2]> = rows.iter().map(|r| [r.x, r.y]).collect();
@@ -189,7 +197,8 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
         solution.stop, solution.iterations, solution.max_relative_error, solution.cost, solution.t_total
     );
 
-    let mut out = csv::Writer::from_path(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    let file = AtomicFile::create(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    let mut out = csv::Writer::from_writer(file);
     out.write_record(["i", "height", "mass", "cx", "cy"])?;
     let centroids = solution.centroids();
     for i in 0..points.len() {
@@ -202,12 +211,13 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
             format!("{:e}", c[1]),
         ])?;
     }
-    out.flush().with_context(|| format!("writing {}", args.out.display()))?;
+    commit_csv(out).with_context(|| format!("writing {}", args.out.display()))?;
 
     if let Some(path) = &args.cells {
         let diagram = PowerDiagram::new(&points, &solution.weights)?;
         let polygons = cell_polygons(&diagram, &points, &solution.weights, &measure);
-        let mut w = csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
+        let file = AtomicFile::create(path).with_context(|| format!("writing {}", path.display()))?;
+        let mut w = csv::Writer::from_writer(file);
         w.write_record(["i", "k", "x", "y"])?;
         for (i, polygon) in polygons.iter().enumerate() {
             for (k, p) in polygon.iter().enumerate() {
@@ -219,7 +229,7 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
                 ])?;
             }
         }
-        w.flush().with_context(|| format!("writing {}", path.display()))?;
+        commit_csv(w).with_context(|| format!("writing {}", path.display()))?;
     }
 
     if let Some(path) = &args.report {
@@ -262,7 +272,7 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
             },
             "log": log,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+        write_atomically(path, serde_json::to_string_pretty(&report)?.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(if solution.converged() {
@@ -270,4 +280,9 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// Flushes a CSV writer and puts its file in place.
+fn commit_csv(w: csv::Writer<AtomicFile>) -> std::io::Result<()> {
+    w.into_inner().map_err(|e| e.into_error())?.commit()
 }

@@ -23,7 +23,7 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
 use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
 
 /// Arguments of `shapespace param`.
 #[derive(clap::Args)]
@@ -102,7 +102,14 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     super::check_map_output(&args.out)?;
-    super::check_output_files([Some(args.out.as_path()), args.report.as_deref()])?;
+    super::check_output_files(
+        [Some(args.out.as_path()), args.report.as_deref()],
+        [
+            Some(args.input.as_path()),
+            args.weights.as_deref(),
+            args.markers.landmarks.as_deref(),
+        ],
+    )?;
     if let Some(dir) = &args.plots {
         super::create_output_folder(dir)?;
     }
@@ -220,7 +227,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "distortion": report,
         });
         let text = serde_json::to_string_pretty(&json)?;
-        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
     }
     if !map.ot.converged {
         eprintln!(

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::{read_mesh, write_mesh, AtomicFile};
 use shapespace_geometry::prepare::{prepare_disk, CutCenter, PrepareOptions, Radius};
 
 /// Arguments of `shapespace prepare`.
@@ -43,7 +43,10 @@ pub struct PrepareArgs {
 }
 
 pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
-    super::check_output_files([Some(args.out.as_path()), args.vertex_map.as_deref()])?;
+    super::check_output_files(
+        [Some(args.out.as_path()), args.vertex_map.as_deref()],
+        [Some(args.input.as_path())],
+    )?;
     let cut_center = match args.cut_center.trim() {
         "auto" => CutCenter::Auto,
         s => CutCenter::Vertex(
@@ -64,8 +67,7 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
         prepare_disk(&mesh, &options).with_context(|| format!("{}: cannot make a disk", args.input.display()))?;
     write_mesh(&args.out, &disk)?;
     if let Some(path) = &args.vertex_map {
-        let file = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
-        let mut w = std::io::BufWriter::new(file);
+        let mut w = AtomicFile::create(path).with_context(|| format!("writing {}", path.display()))?;
         writeln!(w, "vertex,input_vertex")?;
         for (v, o) in origin.iter().enumerate() {
             match o {
@@ -73,7 +75,7 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
                 None => writeln!(w, "{v},")?,
             }
         }
-        w.flush().with_context(|| format!("{}", path.display()))?;
+        w.commit().with_context(|| format!("writing {}", path.display()))?;
     }
     let mut steps = Vec::new();
     if report.unreferenced_dropped > 0 {

@@ -19,8 +19,10 @@
 //! No reader panics on any input, and pre-allocation is capped by the file size, so a header
 //! declaring $10^{12}$ vertices costs nothing before the truncation is reported.
 //!
-//! Writers print coordinates with Rust's shortest round-trip formatting (`{:?}`) in text formats
-//! and as raw `f64` in binary PLY, so every `f64` reads back bit for bit.
+//! Writers go through [`atomic`]: a temporary file beside the destination, renamed over it once
+//! complete, never through a symbolic link. They print coordinates with Rust's shortest
+//! round-trip formatting (`{:?}`) in text formats and as raw `f64` in binary PLY, so every `f64`
+//! reads back bit for bit.
 //!
 //! | format | read | write |
 //! |---|---|---|
@@ -28,6 +30,7 @@
 //! | OFF ([`off`]) | `OFF`/`COFF`/`NOFF`/... header or none, `#` comments, polygon faces | `OFF` |
 //! | PLY ([`ply`]) | ascii, binary LE/BE, any scalar types, `face` and `tristrips` lists | ascii, binary LE/BE (`f64`) |
 
+pub mod atomic;
 pub mod obj;
 pub mod off;
 pub mod ply;
@@ -37,6 +40,7 @@ use std::path::{Path, PathBuf};
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
 
+pub use atomic::{replace_atomically, write_atomically, AtomicFile};
 pub use obj::{parse_obj, read_obj, write_obj, write_obj_to};
 pub use off::{parse_off, read_off, write_off, write_off_to};
 pub use ply::{parse_ply, read_ply, write_ply, write_ply_to, PlyFormat};
@@ -113,32 +117,42 @@ pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 // Helpers shared by the readers and writers.
 
 /// Reads a whole file, mapping failures to [`GeometryError::Io`].
+/// A device or a socket is refused before reading (`/dev/zero` would be read without end);
+/// a named pipe is read.
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, GeometryError> {
-    std::fs::read(path).map_err(|error| GeometryError::Io {
+    let io_err = |error| GeometryError::Io {
         path: path.to_path_buf(),
         error,
-    })
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::metadata(path).map_err(io_err)?.file_type();
+        if kind.is_char_device() || kind.is_block_device() || kind.is_socket() {
+            return Err(io_err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a regular file (a device or a socket); name a mesh file",
+            )));
+        }
+    }
+    std::fs::read(path).map_err(io_err)
 }
 
-/// Validates `mesh`, creates `path` and runs `write` on a buffered writer, mapping I/O
-/// failures to [`GeometryError::Io`].
+/// Validates `mesh` and runs `write` on an [`AtomicFile`] for `path` (the previous file stays
+/// whole if anything fails), mapping I/O failures to [`GeometryError::Io`].
 pub(crate) fn write_file(
     path: &Path,
     mesh: &TriMesh,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+    write: impl FnOnce(&mut AtomicFile) -> std::io::Result<()>,
 ) -> Result<(), GeometryError> {
     mesh.validate().map_err(|e| e.with_path(path))?;
     let io_err = |error| GeometryError::Io {
         path: path.to_path_buf(),
         error,
     };
-    let file = std::fs::File::create(path).map_err(io_err)?;
-    let mut writer = std::io::BufWriter::new(file);
-    write(&mut writer).map_err(io_err)?;
-    use std::io::Write;
-    writer.flush().map_err(io_err)?;
-    writer.into_inner().map_err(|e| io_err(e.into_error()))?;
-    Ok(())
+    let mut file = AtomicFile::create(path).map_err(io_err)?;
+    write(&mut file).map_err(io_err)?;
+    file.commit().map_err(io_err)
 }
 
 /// A [`GeometryError::Parse`] at `line` (1-based) of `path`.
@@ -167,7 +181,10 @@ pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
 }
 
 /// Rejects a line holding control characters (other than tab, vertical tab, form feed and
-/// carriage return): binary data in a file read as text.
+/// carriage return): binary data in a file read as text. A carriage return left inside a line
+/// (the one of a CRLF line ending is removed before) is refused on its own: it would split the
+/// token it sits in (`-0.6\r427` read as two numbers), and a file with CR-only line endings
+/// reads as one line.
 pub(crate) fn check_text_line(path: &Path, line_no: usize, line: &[u8]) -> Result<(), GeometryError> {
     if let Some(&b) = line
         .iter()
@@ -177,6 +194,13 @@ pub(crate) fn check_text_line(path: &Path, line_no: usize, line: &[u8]) -> Resul
             path,
             line_no,
             format!("binary data (byte 0x{b:02x}) in a text file; not a text mesh file or corrupted"),
+        ));
+    }
+    if line.contains(&b'\r') {
+        return Err(parse_error(
+            path,
+            line_no,
+            "carriage return (\\r) inside a line: a corrupted number or CR-only line endings; convert the file to LF or CRLF line endings",
         ));
     }
     Ok(())

@@ -124,8 +124,12 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             toks = tokens(counts).collect();
         }
     }
-    if toks.len() < 2 {
-        return Err(parse_error(path, line_no, "expected the counts 'nv nf [ne]'"));
+    if toks.len() < 2 || toks.len() > 3 {
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("expected the counts 'nv nf [ne]', found {} values", toks.len()),
+        ));
     }
     let count = |k: usize, what: &str| -> Result<usize, GeometryError> {
         parse_i64(toks[k])

@@ -205,6 +205,17 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header, GeometryError> {
                     Some(b"binary_big_endian") => PlyFormat::BinaryBigEndian,
                     other => return Err(bad(format!("unknown PLY format '{}'", show(other.unwrap_or_default())))),
                 });
+                if let Some(version) = toks.get(2).filter(|v| **v != b"1.0") {
+                    return Err(bad(format!(
+                        "PLY version '{}' is not supported (only 1.0)",
+                        show(version)
+                    )));
+                }
+                if toks.len() > 3 {
+                    return Err(bad(
+                        "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'".to_string(),
+                    ));
+                }
             }
             b"comment" | b"obj_info" => {}
             b"element" => {
