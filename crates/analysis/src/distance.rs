@@ -32,6 +32,7 @@ use shapespace_omt::newton::{TargetCoarsening, RETRY_CONTINUATION};
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy, StopReason};
 
 use crate::error::AnalysisError;
+use crate::invariance::{rotation_invariant_distance, Invariance};
 
 /// A surface ready for distance computations: its conformal disk map, the pushed-forward
 /// density on the disk (as a source measure) and the target points and masses.
@@ -261,6 +262,13 @@ pub struct PairwiseOptions {
     /// after it start from other heights); which pairs reach it depends on the machine.
     /// Default `None`.
     pub time_limit: Option<std::time::Duration>,
+    /// Minimize each directed cost over rotations of the target's disk
+    /// ([`crate::invariance`]; default: the markers' alignment).
+    pub invariance: Invariance,
+    /// Report debiased distances in the matrix: √max(0, c(a, b) − c(b, b)) with c(b, b) the
+    /// target's self-cost, computed once per shape ([`debiased_cost`]; default false).
+    /// `pairs` keep the raw costs.
+    pub debias: bool,
 }
 
 impl Default for PairwiseOptions {
@@ -275,6 +283,8 @@ impl Default for PairwiseOptions {
             },
             warm_start: false,
             time_limit: None,
+            invariance: Invariance::Fixed,
+            debias: false,
         }
     }
 }
@@ -319,6 +329,10 @@ pub struct PairwiseResult {
     /// Seconds spent in the pairs computed (sum over pairs, not wall time; known pairs of
     /// [`pairwise_distances_resuming`] not included).
     pub pair_seconds: f64,
+    /// With [`PairwiseOptions::debias`]: each shape's self-cost c(s, s), n.
+    pub self_costs: Option<Vec<f64>>,
+    /// With [`PairwiseOptions::debias`]: directed pairs whose debiased cost was clamped at 0.
+    pub debias_clamped: usize,
 }
 
 /// All pairwise distances among prepared shapes (`None` entries are shapes that failed to
@@ -408,7 +422,30 @@ pub fn pairwise_distances_resuming(
                     params.deadline = Some(params.deadline.map_or(deadline, |d| d.min(deadline)));
                 }
                 let started = Instant::now();
-                match guarded(|| directed_distance(src, tgt, &params)) {
+                let solved = match options.invariance {
+                    Invariance::Fixed => guarded(|| directed_distance(src, tgt, &params)),
+                    Invariance::Rotation => guarded(|| rotation_invariant_distance(src, tgt, &params)).map(|r| {
+                        (
+                            DirectedDistance {
+                                cost: r.cost,
+                                dual_cost: r.dual_cost,
+                                distance: r.distance,
+                                iterations: r.iterations,
+                                max_mass_error: r.max_mass_error,
+                                seconds: started.elapsed().as_secs_f64(),
+                                status: if r.converged {
+                                    format!("converged (target rotated by {:.6} rad; {} solves)", r.theta, r.solves)
+                                } else {
+                                    r.status
+                                },
+                                converged: r.converged,
+                                evaluations: r.evaluations,
+                            },
+                            Vec::new(),
+                        )
+                    }),
+                };
+                match solved {
                     Ok((d, heights)) => (
                         PairRecord {
                             a: names[s].clone(),
@@ -475,9 +512,18 @@ pub fn pairwise_distances_resuming(
         vec![one_per_thread(flat.len(), |k| run(flat[k].0, flat[k].1, None).0)]
     };
     let pairs: Vec<PairRecord> = records.into_iter().flatten().collect();
+    let self_costs = options.debias.then(|| self_costs(shapes, options));
+    let mut debias_clamped = 0;
     let mut directed = vec![f64::NAN; n * n];
     for p in &pairs {
-        directed[p.source * n + p.target] = p.distance;
+        directed[p.source * n + p.target] = match &self_costs {
+            Some(own) if p.distance.is_finite() => {
+                let (c, clamped) = debiased_cost(p.cost, own[p.target]);
+                debias_clamped += clamped as usize;
+                c.sqrt()
+            }
+            _ => p.distance,
+        };
     }
     let mut matrix = vec![f64::NAN; n * n];
     let mut asymmetries = Vec::new();
@@ -511,7 +557,21 @@ pub fn pairwise_distances_resuming(
         pairs,
         asymmetries,
         pair_seconds,
+        self_costs,
+        debias_clamped,
     }
+}
+
+/// Each shape's self-cost c(s, s), its density against its own points (NaN for a shape that
+/// failed or a solve that did not converge), with the pairs' solver settings.
+fn self_costs(shapes: &[Option<PreparedShape>], options: &PairwiseOptions) -> Vec<f64> {
+    one_per_thread(shapes.len(), |i| match &shapes[i] {
+        Some(s) => match guarded(|| directed_distance(s, s, &options.newton)) {
+            Ok((d, _)) if d.converged => d.cost,
+            _ => f64::NAN,
+        },
+        None => f64::NAN,
+    })
 }
 
 /// How a pair's status starts (after `failed: `) when it panicked.

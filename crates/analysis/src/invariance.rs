@@ -52,6 +52,24 @@ pub struct RotationSearch {
     pub iterations: usize,
     /// Whether the final solve reached its tolerance.
     pub converged: bool,
+    /// The final solve's dual value ([`shapespace_omt::OtSolution::dual_value`]).
+    pub dual_cost: f64,
+    /// The final solve's max relative cell-mass error.
+    pub max_mass_error: f64,
+    /// Cell evaluations over all solves.
+    pub evaluations: usize,
+    /// The final solve's stop reason.
+    pub status: String,
+}
+
+/// Which alignments of the target's disk a distance minimizes over.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum Invariance {
+    /// The markers' alignment: interior marker at 0, boundary marker at 1 (Su et al.).
+    #[default]
+    Fixed,
+    /// Every rotation of the disk ([`rotation_invariant_distance`]): free of the boundary marker.
+    Rotation,
 }
 
 fn rotate(points: &[[f64; 2]], theta: f64) -> Vec<[f64; 2]> {
@@ -135,6 +153,7 @@ pub fn rotation_invariant_distance(
     };
     let mut solves = 0;
     let mut iterations = 0;
+    let mut evaluations = 0;
     let mut solve =
         |theta: f64, warm: Option<Vec<f64>>, tolerance: f64| -> Result<(OtSolution, Vec<[f64; 2]>), AnalysisError> {
             let points = rotate(&target.points, theta);
@@ -153,6 +172,7 @@ pub fn rotation_invariant_distance(
             let s = solve_ot(&source.measure, &points, &target.masses, &p).map_err(pair_error)?;
             solves += 1;
             iterations += s.all_iterations();
+            evaluations += s.evaluations;
             Ok((s, points))
         };
     // candidates: θ = 0 and the best correlation peaks at least 10 degrees from those taken
@@ -209,5 +229,9 @@ pub fn rotation_invariant_distance(
         solves,
         iterations,
         converged: sol.converged(),
+        dual_cost: sol.dual_value(),
+        max_mass_error: sol.max_relative_error,
+        evaluations,
+        status: sol.stop_description(),
     })
 }

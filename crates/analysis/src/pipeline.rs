@@ -149,6 +149,8 @@ pub struct DistancesReport {
     pub iterations: Option<Summary>,
     /// Relative asymmetry |d(a→b) − d(b→a)| / mean over the unordered pairs (with symmetrize).
     pub asymmetry: Option<Summary>,
+    /// With debiasing: the self-costs and the clamped pairs.
+    pub debias: Option<DebiasReport>,
     /// |cost − dual cost| / cost over the converged pairs: the a-posteriori check of the costs
     /// (first order in the mass residual; the dual cost is a lower bound on the exact one).
     pub cost_dual_gap: Option<Summary>,
@@ -177,6 +179,20 @@ pub struct ReportOptions {
     pub intrinsic_delaunay: bool,
     /// Per-pair time limit, seconds (`PairwiseOptions::time_limit`).
     pub pair_time_limit: Option<f64>,
+    /// `Fixed` (the markers' alignment) or `Rotation` (minimum over rotations of the disk).
+    pub invariance: crate::invariance::Invariance,
+    /// Whether the matrix holds debiased distances √max(0, c(a, b) − c(b, b)).
+    pub debias: bool,
+}
+
+/// Each shape's self-cost c(s, s) and the pairs clamped at 0 by the debiasing
+/// ([`crate::distance::PairwiseOptions::debias`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct DebiasReport {
+    /// Self-cost per input, in the order of `inputs` (null where the shape failed).
+    pub self_costs: Vec<Option<f64>>,
+    /// Directed pairs whose cost was below the target's self-cost (distance 0).
+    pub clamped_pairs: usize,
 }
 
 /// The result of [`run_distances`].
@@ -617,6 +633,8 @@ pub fn run_distances(
             warm_start: options.pairwise.warm_start,
             intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
             pair_time_limit: options.pairwise.time_limit.map(|l| l.as_secs_f64()),
+            invariance: options.pairwise.invariance,
+            debias: options.pairwise.debias,
         },
         threads: rayon::current_num_threads(),
         timings: StageTimings {
@@ -631,6 +649,10 @@ pub fn run_distances(
         failures,
         iterations: (!iterations.is_empty()).then(|| summarize(&iterations)),
         asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
+        debias: result.self_costs.as_ref().map(|own| DebiasReport {
+            self_costs: own.iter().map(|c| c.is_finite().then_some(*c)).collect(),
+            clamped_pairs: result.debias_clamped,
+        }),
         cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
         resumed: options.resume.then_some(ResumeReport {
             pairs: known.len(),

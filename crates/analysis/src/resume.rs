@@ -377,8 +377,14 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
         ..options.pairwise.newton.clone()
     };
     let settings = format!(
-        "{newton:?}|warm_start {}|{:?}",
-        options.pairwise.warm_start, options.disk_map
+        "{newton:?}|warm_start {}|{:?}{}",
+        options.pairwise.warm_start,
+        options.disk_map,
+        // (unchanged for the markers' alignment, so earlier runs' rows stay valid)
+        match options.pairwise.invariance {
+            crate::invariance::Invariance::Fixed => String::new(),
+            other => format!("|{other:?}"),
+        }
     );
     RunIdentity {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),

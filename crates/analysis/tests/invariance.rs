@@ -134,3 +134,33 @@ fn rotation_derivative_matches_finite_differences() {
         "analytic {slope} vs finite difference {fd}"
     );
 }
+
+/// In a pairwise run with `Invariance::Rotation`, a copy of a face with a wrong boundary marker
+/// is at the same distance from the others as the face itself, and its distance to the face is
+/// the rotation's floor (near 0), where the fixed alignment sees a different shape.
+#[test]
+fn pairwise_rotation_invariance_ignores_the_boundary_marker() {
+    use shapespace_analysis::distance::pairwise_distances;
+    use shapespace_analysis::invariance::Invariance;
+    let right = landmarks();
+    let wrong = wrong_boundary("id01_happy", &right);
+    let shapes = vec![
+        Some(face("id00_neutral", &right)),
+        Some(face("id01_happy", &right)),
+        Some(face("id01_happy", &wrong)),
+    ];
+    let options = PairwiseOptions {
+        invariance: Invariance::Rotation,
+        ..PairwiseOptions::default()
+    };
+    let r = pairwise_distances(&shapes, &options, &|_| {});
+    let d = |i: usize, j: usize| r.matrix[i * 3 + j];
+    assert!((d(0, 1) / d(0, 2) - 1.0).abs() < 1e-3, "{} vs {}", d(0, 1), d(0, 2));
+    // the same surface rotated: the self-distance floor (about 0.019), not a different shape
+    assert!(d(1, 2) < 0.03, "{}", d(1, 2));
+    for p in &r.pairs {
+        assert!(p.status.starts_with("converged (target rotated by"), "{}", p.status);
+    }
+    let fixed = pairwise_distances(&shapes, &PairwiseOptions::default(), &|_| {});
+    assert!(fixed.matrix[3 + 2] > 0.2, "{}", fixed.matrix[3 + 2]);
+}

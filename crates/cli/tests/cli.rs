@@ -1752,3 +1752,56 @@ fn issue_42_mutated_meshes_fail_cleanly() {
     assert!(failed > 100, "{failed} failures");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `--debias`: distances.csv holds √max(0, c(a, b) − c(b, b)) with the raw costs of pairs.csv
+/// and the self-costs of report.json; each self-cost is the shape's own floor (self-distance
+/// about 0.019 on the bundled faces), and debiasing lowers every distance.
+#[test]
+fn distances_debias_subtracts_the_targets_self_cost() {
+    let dir = scratch("debias");
+    let names = ["id00_happy", "id00_neutral", "id01_happy"];
+    let files: Vec<String> = names.iter().map(|n| format!("datasets/faces/{n}.obj")).collect();
+    let out_dir = dir.join("run");
+    let mut args: Vec<&str> = vec!["distances"];
+    args.extend(files.iter().map(|s| s.as_str()));
+    args.extend(["--out", out_dir.to_str().unwrap(), "--debias", "--quiet"]);
+    let out = shapespace(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap()).unwrap();
+    let own: Vec<f64> = report["debias"]["self_costs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect();
+    assert_eq!(own.len(), 3);
+    for c in &own {
+        assert!(c.sqrt() > 0.01 && c.sqrt() < 0.03, "self-distance {}", c.sqrt());
+    }
+    assert_eq!(report["options"]["debias"], true);
+    let matrix = shapespace_analysis::read_distance_matrix(&out_dir.join("distances.csv")).unwrap();
+    let pairs = std::fs::read_to_string(out_dir.join("pairs.csv")).unwrap();
+    let mut rows = pairs.lines();
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let mut checked = 0;
+    for row in rows {
+        let f: Vec<&str> = row.split(',').collect();
+        let (a, b) = (f[col("a")], f[col("b")]);
+        let (i, j) = (
+            names.iter().position(|n| *n == a).unwrap(),
+            names.iter().position(|n| *n == b).unwrap(),
+        );
+        let (raw, cost): (f64, f64) = (f[col("distance")].parse().unwrap(), f[col("cost")].parse().unwrap());
+        let expected = (cost - own[j]).max(0.0).sqrt();
+        let got = matrix.values[i * 3 + j];
+        assert!(
+            (got - expected).abs() <= 1e-15 * expected.max(1.0),
+            "{a} -> {b}: {got} vs {expected}"
+        );
+        assert!(got < raw, "{a} -> {b}: {got} vs raw {raw}");
+        checked += 1;
+    }
+    assert_eq!(checked, 3);
+}

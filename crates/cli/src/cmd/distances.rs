@@ -9,6 +9,7 @@ use super::markers::MarkerArgs;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use shapespace_analysis::distance::PairwiseOptions;
+use shapespace_analysis::invariance::Invariance;
 use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun};
 use shapespace_analysis::shape_space::{run_mds, MdsParams};
 use shapespace_omt::NewtonParams;
@@ -51,6 +52,18 @@ pub struct SolverArgs {
     /// the others again.
     #[arg(long, value_name = "SECONDS", conflicts_with = "warm_start")]
     pub pair_time_limit: Option<f64>,
+    /// `fixed`: the disks aligned by the markers (interior marker at 0, boundary marker at 1).
+    /// `rotation`: each directed cost minimized over rotations of the target's disk, so the
+    /// boundary marker plays no part (about 2-3× the time of a fixed pair: candidate rotations
+    /// from the shapes' angular mass profiles, then secant steps on the cost's derivative).
+    #[arg(long, default_value = "fixed", value_parser = ["fixed", "rotation"])]
+    pub invariance: String,
+    /// Write debiased distances √max(0, c(a,b) − c(b,b)) to distances.csv: each shape's own
+    /// quantization floor c(b,b) (its density against its own points, one extra solve per
+    /// shape) is subtracted from the costs towards it. pairs.csv keeps the raw costs;
+    /// report.json lists the self-costs and how many pairs were clamped at 0.
+    #[arg(long)]
+    pub debias: bool,
     /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -203,6 +216,11 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             },
             warm_start: solver.warm_start,
             time_limit,
+            invariance: match solver.invariance.as_str() {
+                "rotation" => Invariance::Rotation,
+                _ => Invariance::Fixed,
+            },
+            debias: solver.debias,
         },
         resume: solver.resume,
         ..DistancesOptions::default()
