@@ -41,9 +41,6 @@ pub enum AnalysisError {
     /// `|d_ab − d_ba|` exceeds the tolerance allowed by the caller.
     #[error("distance matrix is not symmetric: d({a:?},{b:?}) = {d_ab} but d({b:?},{a:?}) = {d_ba}")]
     Asymmetric { a: String, b: String, d_ab: f64, d_ba: f64 },
-    /// Shapes of the distance matrix that have no row in the labels file.
-    #[error("{}: no label row for {} shape(s): {}", path.display(), names.len(), names.join(", "))]
-    MissingLabels { path: PathBuf, names: Vec<String> },
     /// A shape name matches more than one row of the labels file.
     #[error("{}:{line}: label row {key:?} matches shape {name:?}, which already matched line {first_line}", path.display())]
     AmbiguousLabel {

@@ -147,6 +147,41 @@ impl DistanceMatrix {
         out
     }
 
+    /// The largest complete sub-matrix this greedy rule finds, and the names dropped: while an
+    /// unordered pair has neither direction, drop the shape with the most such pairs (of equal
+    /// counts, the later one). A shape that failed (an empty row and column) goes first; a
+    /// complete matrix is returned whole. The kept shapes stay in their order.
+    pub fn complete_subset(&self) -> (DistanceMatrix, Vec<String>) {
+        let n = self.len();
+        let mut kept: Vec<bool> = vec![true; n];
+        loop {
+            let mut missing = vec![0usize; n];
+            for (i, j) in self.missing_pairs() {
+                if kept[i] && kept[j] {
+                    missing[i] += 1;
+                    missing[j] += 1;
+                }
+            }
+            let worst = (0..n).filter(|&i| missing[i] > 0).max_by_key(|&i| (missing[i], i));
+            match worst {
+                Some(i) => kept[i] = false,
+                None => break,
+            }
+        }
+        let keep: Vec<usize> = (0..n).filter(|&i| kept[i]).collect();
+        let dropped = (0..n).filter(|&i| !kept[i]).map(|i| self.names[i].clone()).collect();
+        let values = keep
+            .iter()
+            .flat_map(|&i| keep.iter().map(move |&j| (i, j)))
+            .map(|(i, j)| self.get(i, j))
+            .collect();
+        let names = keep.iter().map(|&i| self.names[i].clone()).collect();
+        (
+            DistanceMatrix::new(names, values).expect("a square sub-matrix of distinct names"),
+            dropped,
+        )
+    }
+
     /// Unordered pairs `{i, j}`, `i < j`, for which both directions are missing.
     pub fn missing_pairs(&self) -> Vec<(usize, usize)> {
         let n = self.len();
@@ -314,9 +349,20 @@ pub fn read_distance_matrix(path: &Path) -> Result<DistanceMatrix, AnalysisError
 pub struct Labels {
     pub columns: Vec<String>,
     pub values: Vec<Vec<String>>,
+    /// Shapes without a row in the file: their cells are empty (unknown).
+    pub unlabeled: Vec<String>,
 }
 
 impl Labels {
+    /// The rows of the shapes at `indices`, in that order.
+    pub fn subset(&self, indices: &[usize], names: &[String]) -> Labels {
+        Labels {
+            columns: self.columns.clone(),
+            values: indices.iter().map(|&i| self.values[i].clone()).collect(),
+            unlabeled: self.unlabeled.iter().filter(|n| names.contains(n)).cloned().collect(),
+        }
+    }
+
     /// Index of a column by name.
     pub fn column_index(&self, column: &str) -> Result<usize, AnalysisError> {
         self.columns
@@ -360,8 +406,9 @@ fn file_stem(s: &str) -> &str {
 /// stem. Rows that match no shape are ignored.
 ///
 /// Errors: header whose first column is not `file`/`name`, rows with the wrong number of cells
-/// (`path:line`), a shape matched by two rows ([`AnalysisError::AmbiguousLabel`]), shapes
-/// without a row ([`AnalysisError::MissingLabels`]).
+/// (`path:line`), a shape matched by two rows ([`AnalysisError::AmbiguousLabel`]). Shapes
+/// without a row get empty cells (unknown, like an empty cell) and are listed in
+/// [`Labels::unlabeled`].
 pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisError> {
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(false)
@@ -470,17 +517,13 @@ pub fn read_labels(path: &Path, names: &[String]) -> Result<Labels, AnalysisErro
         .filter(|(r, _)| r.is_none())
         .map(|(_, n)| n.clone())
         .collect();
-    if !missing.is_empty() {
-        return Err(AnalysisError::MissingLabels {
-            path: path.to_path_buf(),
-            names: missing,
-        });
-    }
+    let width = columns.len();
     Ok(Labels {
         columns,
         values: rows
             .into_iter()
-            .map(|r| r.map(|(_, v)| v).unwrap_or_default())
+            .map(|r| r.map(|(_, v)| v).unwrap_or_else(|| vec![String::new(); width]))
             .collect(),
+        unlabeled: missing,
     })
 }

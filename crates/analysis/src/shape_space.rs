@@ -95,8 +95,13 @@ pub struct MdsSummary {
 /// Everything written to `stats.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShapeSpaceStats {
-    /// Number of shapes.
+    /// Number of shapes embedded.
     pub n: usize,
+    /// Shapes of the matrix left out of the embedding and the statistics because some of their
+    /// distances are missing ([`DistanceMatrix::complete_subset`]).
+    pub dropped_shapes: Vec<String>,
+    /// Embedded shapes without a row in the labels file (their labels are unknown).
+    pub unlabeled_shapes: Vec<String>,
     /// Unordered pairs with neither direction present.
     pub missing_pairs: usize,
     pub symmetry: SymmetryGap,
@@ -186,6 +191,8 @@ pub fn shape_space_stats(
     }
     Ok(ShapeSpaceStats {
         n: d.len(),
+        dropped_shapes: Vec::new(),
+        unlabeled_shapes: Vec::new(),
         missing_pairs: d.missing_pairs().len(),
         symmetry,
         triangle,
@@ -275,8 +282,19 @@ pub fn run_mds(
     out_dir: &Path,
     params: &MdsParams,
 ) -> Result<MdsResult, AnalysisError> {
-    let d = read_distance_matrix(distances)?;
-    let labels = labels.map(|p| read_labels(p, &d.names)).transpose()?;
+    let full = read_distance_matrix(distances)?;
+    let all_labels = labels.map(|p| read_labels(p, &full.names)).transpose()?;
+    // shapes whose distances are missing (failed files or pairs) leave the embedding
+    let (d, dropped) = full.complete_subset();
+    let kept: Vec<usize> = (0..full.len()).filter(|&i| !dropped.contains(&full.names[i])).collect();
+    let labels = all_labels.map(|l| l.subset(&kept, &d.names));
+    if d.len() < 2 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{}: fewer than 2 shapes have all their distances (dropped: {})",
+            distances.display(),
+            dropped.join(", ")
+        )));
+    }
     let pick = |given: &Option<String>, default_index: usize, what: &str| -> Result<Option<String>, AnalysisError> {
         match (given, &labels) {
             (Some(col), Some(l)) => l.column_index(col).map(|_| Some(col.clone())),
@@ -289,7 +307,7 @@ pub fn run_mds(
     let marker_by = pick(&params.marker_by, 1, "choosing markers by a label column")?;
 
     let mds = classical_mds(&d, params.dims)?;
-    let stats = shape_space_stats(
+    let mut stats = shape_space_stats(
         &d,
         labels.as_ref(),
         &mds,
@@ -297,6 +315,8 @@ pub fn run_mds(
         params.cross_columns.as_deref(),
     )?;
 
+    stats.dropped_shapes = dropped;
+    stats.unlabeled_shapes = labels.as_ref().map(|l| l.unlabeled.clone()).unwrap_or_default();
     std::fs::create_dir_all(out_dir).map_err(|e| AnalysisError::io(out_dir, e))?;
     let [mds_name, eig_name, png_name, svg_name, json_name] = MDS_OUTPUTS;
     let mut files = Vec::new();

@@ -24,6 +24,7 @@ fn labels(columns: &[&str], rows: &[&[&str]]) -> Labels {
     Labels {
         columns: columns.iter().map(|s| s.to_string()).collect(),
         values: rows.iter().map(|r| r.iter().map(|s| s.to_string()).collect()).collect(),
+        unlabeled: Vec::new(),
     }
 }
 

@@ -150,17 +150,24 @@ pub fn mds_unless_failed(
     if run.report.failures.is_empty() {
         return mds(out, labels);
     }
-    for f in shapespace_analysis::shape_space::MDS_OUTPUTS {
-        let path = out.join(f);
-        if path.exists() {
-            std::fs::remove_file(&path).with_context(|| format!("removing the stale {}", path.display()))?;
+    // incomplete matrix: the shapes with all their distances are embedded, the others listed
+    match run_mds(&out.join("distances.csv"), labels, out, &MdsParams::default()) {
+        Ok(result) => {
+            super::mds::print_summary(&result);
+            Ok(())
         }
+        Err(shapespace_analysis::AnalysisError::InvalidInput(why)) => {
+            for f in shapespace_analysis::shape_space::MDS_OUTPUTS {
+                let path = out.join(f);
+                if path.exists() {
+                    std::fs::remove_file(&path).with_context(|| format!("removing the stale {}", path.display()))?;
+                }
+            }
+            eprintln!("shapespace: MDS skipped: {why}");
+            Ok(())
+        }
+        Err(e) => Err(anyhow::Error::new(e).context("mds")),
     }
-    eprintln!(
-        "shapespace: MDS skipped: {} failure(s) left distances.csv incomplete (see report.json); run `shapespace mds` on a matrix without the failed shapes",
-        run.report.failures.len()
-    );
-    Ok(())
 }
 
 /// Reads the labels file and matches it to the shapes of `files` (the names the distances will

@@ -54,6 +54,20 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
 
 /// Prints the embedding's variance shares, the label statistics and the files written (stderr).
 pub fn print_summary(result: &MdsResult) {
+    if !result.stats.dropped_shapes.is_empty() {
+        eprintln!(
+            "mds: left out {} shape(s) with missing distances: {}",
+            result.stats.dropped_shapes.len(),
+            result.stats.dropped_shapes.join(", ")
+        );
+    }
+    if !result.stats.unlabeled_shapes.is_empty() {
+        eprintln!(
+            "mds: {} shape(s) without a labels row (unknown labels): {}",
+            result.stats.unlabeled_shapes.len(),
+            result.stats.unlabeled_shapes.join(", ")
+        );
+    }
     let shares: Vec<String> = result
         .mds
         .variance_shares
