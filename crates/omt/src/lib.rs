@@ -10,6 +10,7 @@ pub mod error;
 pub mod linear;
 pub mod measure;
 pub mod newton;
+pub mod peaks;
 pub mod power_diagram;
 pub mod predicates;
 pub mod reference;
