@@ -115,6 +115,22 @@ pub fn prepare_shape(
     })
 }
 
+/// The shape with its target measure (points and masses) quantized to at most `target_points`
+/// points by mass-weighted k-means in the disk ([`shapespace_omt::quantization::quantize`]:
+/// total mass and mean kept); its coarsening hierarchy is rebuilt for the new points. The source
+/// side (the density) is unchanged. A shape with at most that many points is returned as is.
+/// The error this makes in the distances is measured in the README ("Speed").
+pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> PreparedShape {
+    if shape.points.len() <= target_points {
+        return shape;
+    }
+    let q = shapespace_omt::quantization::quantize(&shape.points, &shape.masses, target_points);
+    shape.coarsening = Arc::new(TargetCoarsening::new(&q.points, &q.masses));
+    shape.points = q.points;
+    shape.masses = q.masses;
+    shape
+}
+
 /// The outcome of one directed computation source → target.
 #[derive(Clone, Debug, Serialize)]
 pub struct DirectedDistance {

@@ -92,6 +92,9 @@ pub struct DistancesOptions {
     /// of computing them again (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
     /// the pairs solved before it).
     pub resume: bool,
+    /// Quantize each shape's target measure to at most this many points
+    /// ([`crate::distance::quantize_target`]): faster pairs at a measured loss of accuracy.
+    pub target_points: Option<usize>,
 }
 
 /// Per-file outcome of the preparation stage.
@@ -175,6 +178,8 @@ pub struct ReportOptions {
     pub intrinsic_delaunay: bool,
     /// Per-pair time limit, seconds (`PairwiseOptions::time_limit`).
     pub pair_time_limit: Option<f64>,
+    /// `DistancesOptions::target_points`.
+    pub target_points: Option<usize>,
 }
 
 /// The result of [`run_distances`].
@@ -390,11 +395,14 @@ pub fn run_distances(
                             message: e.to_string(),
                         })?;
                     let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
-                    let shape =
+                    let mut shape =
                         prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {
                             name: path.display().to_string(),
                             message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
                         })?;
+                    if let Some(n) = options.target_points {
+                        shape = crate::distance::quantize_target(shape, n);
+                    }
                     let choice = MarkerChoice {
                         center: shape.disk.info.markers.center,
                         boundary: shape.disk.info.markers.boundary_vertex,
@@ -557,6 +565,7 @@ pub fn run_distances(
             warm_start: options.pairwise.warm_start,
             intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
             pair_time_limit: options.pairwise.time_limit.map(|l| l.as_secs_f64()),
+            target_points: options.target_points,
         },
         threads: rayon::current_num_threads(),
         timings: StageTimings {

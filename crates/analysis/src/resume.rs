@@ -229,8 +229,11 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
         ..options.pairwise.newton.clone()
     };
     let settings = format!(
-        "{newton:?}|warm_start {}|{:?}",
-        options.pairwise.warm_start, options.disk_map
+        "{newton:?}|warm_start {}|{:?}{}",
+        options.pairwise.warm_start,
+        options.disk_map,
+        // (absent without the option, so the settings of earlier runs keep their hash)
+        options.target_points.map(|n| format!("|target_points {n}")).unwrap_or_default()
     );
     RunIdentity {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),

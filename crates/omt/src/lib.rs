@@ -13,6 +13,7 @@ pub mod newton;
 pub mod peaks;
 pub mod power_diagram;
 pub mod predicates;
+pub mod quantization;
 pub mod reference;
 pub mod restricted;
 pub mod synthetic;
