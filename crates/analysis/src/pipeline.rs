@@ -98,6 +98,9 @@ pub struct DistancesOptions {
     /// of computing them again (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
     /// the pairs solved before it).
     pub resume: bool,
+    /// Quantize each shape's target measure to at most this many points
+    /// ([`crate::distance::quantize_target`]): faster pairs at a measured loss of accuracy.
+    pub target_points: Option<usize>,
 }
 
 /// Per-file outcome of the preparation stage.
@@ -179,6 +182,8 @@ pub struct ReportOptions {
     pub intrinsic_delaunay: bool,
     /// Per-pair time limit, seconds (`PairwiseOptions::time_limit`).
     pub pair_time_limit: Option<f64>,
+    /// `DistancesOptions::target_points`.
+    pub target_points: Option<usize>,
     /// `Fixed` (the markers' alignment) or `Rotation` (minimum over rotations of the disk).
     pub invariance: crate::invariance::Invariance,
     /// Whether the matrix holds debiased distances √max(0, c(a, b) − c(b, b)).
@@ -464,12 +469,15 @@ pub fn run_distances(
             let outcome = loaded.and_then(|(mesh, markers, source)| {
                 crate::distance::guarded(
                     || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                        let shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
+                        let mut shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
                             AnalysisError::Shape {
                                 name: path.display().to_string(),
                                 message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
                             }
                         })?;
+                        if let Some(n) = options.target_points {
+                            shape = crate::distance::quantize_target(shape, n);
+                        }
                         let choice = MarkerChoice {
                             center: shape.disk.info.markers.center,
                             boundary: shape.disk.info.markers.boundary_vertex,
@@ -635,6 +643,7 @@ pub fn run_distances(
             pair_time_limit: options.pairwise.time_limit.map(|l| l.as_secs_f64()),
             invariance: options.pairwise.invariance,
             debias: options.pairwise.debias,
+            target_points: options.target_points,
         },
         threads: rayon::current_num_threads(),
         timings: StageTimings {

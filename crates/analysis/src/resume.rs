@@ -377,14 +377,15 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
         ..options.pairwise.newton.clone()
     };
     let settings = format!(
-        "{newton:?}|warm_start {}|{:?}{}",
+        "{newton:?}|warm_start {}|{:?}{}{}",
         options.pairwise.warm_start,
         options.disk_map,
-        // (unchanged for the markers' alignment, so earlier runs' rows stay valid)
+        // (each absent in its default, so the settings of earlier runs keep their hash)
         match options.pairwise.invariance {
             crate::invariance::Invariance::Fixed => String::new(),
             other => format!("|{other:?}"),
-        }
+        },
+        options.target_points.map(|n| format!("|target_points {n}")).unwrap_or_default()
     );
     RunIdentity {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),

@@ -67,7 +67,12 @@ pub struct SolverArgs {
     /// Worker threads (default: all cores; at most 4 per core; 0 means 1).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// No progress bar.
+    /// Quantize each shape's target points to about N (mass-weighted k-means in the disk; total
+    /// mass and mean kept): an accuracy/time trade-off for large meshes. On 30k-vertex scans
+    /// N = 10000 changes the distances by well under 1 % (README, "Speed").
+    #[arg(long, value_name = "N")]
+    pub target_points: Option<usize>,
+    /// No progress bar (one line with the estimated time of the pairs after the first ones).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -178,6 +183,10 @@ pub fn check_labels(labels: &std::path::Path, files: &[PathBuf]) -> anyhow::Resu
     Ok(())
 }
 
+/// Finished pairs after which a run without progress bar prints its time estimate (at least one
+/// per thread).
+const ETA_AFTER_PAIRS: usize = 4;
+
 /// `--threads` is capped to this many threads per core.
 const MAX_THREADS_PER_CORE: usize = 4;
 
@@ -230,8 +239,12 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             debias: solver.debias,
         },
         resume: solver.resume,
+        target_points: solver.target_points,
         ..DistancesOptions::default()
     };
+    if let Some(n) = solver.target_points {
+        anyhow::ensure!(n >= 1, "--target-points must be at least 1");
+    }
     let show = !solver.quiet && std::io::stderr().is_terminal();
     let bar = if show {
         ProgressBar::new(0)
@@ -243,7 +256,29 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
+    // Without the bar (--quiet or no terminal), one line estimates the pairs' time once the first
+    // ETA_AFTER_PAIRS (at least one per thread) have finished; the pairs start when the last
+    // shape is prepared.
+    let pairs_start = std::sync::Mutex::new(None::<std::time::Instant>);
+    let estimate_after = ETA_AFTER_PAIRS.max(rayon::current_num_threads());
     let progress = |done: usize, total: usize, stage: &str| {
+        if !show {
+            let mut start = pairs_start.lock().unwrap_or_else(|e| e.into_inner());
+            match stage {
+                "prepare" if done == total => *start = Some(std::time::Instant::now()),
+                "pairs" if done == estimate_after.min(total) && done < total => {
+                    if let Some(t) = *start {
+                        let elapsed = t.elapsed().as_secs_f64();
+                        let all = elapsed * total as f64 / done as f64;
+                        eprintln!(
+                            "distances: {done} of {total} pairs in {elapsed:.1} s; estimated {all:.0} s for all pairs ({:.0} s to go)",
+                            all - elapsed
+                        );
+                    }
+                }
+                _ => {}
+            }
+        }
         if bar.length() != Some(total as u64) || done == 1 {
             bar.set_prefix(stage.to_string());
             bar.set_length(total as u64);

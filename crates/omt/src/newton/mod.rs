@@ -339,10 +339,13 @@ pub enum Start {
     Warm,
     /// The coarse-to-fine start (module `multiscale`): the next coarser level has `coarse_points`
     /// points, and all coarser levels together took `coarse_iterations` Newton steps (the
-    /// solution's own `iterations` count the finest level only).
+    /// solution's own `iterations` count the finest level only). `level_iterations` splits
+    /// `coarse_iterations` by level, next coarser level first (a level's retry from the Voronoi
+    /// start included in its count).
     CoarseToFine {
         coarse_points: usize,
         coarse_iterations: usize,
+        level_iterations: Vec<usize>,
     },
     /// The Voronoi diagram of the points contracted by `scale` toward the area centroid of Ω (used
     /// when the other start had an empty cell).
@@ -1316,6 +1319,7 @@ pub fn solve_ot(
             heights,
             coarse_points,
             coarse_iterations,
+            level_iterations,
             checked,
         }) = multiscale::coarse_to_fine_heights(measure, points, masses, &targets, params, delaunay.take())?
         {
@@ -1339,6 +1343,7 @@ pub fn solve_ot(
                 solution.start = Start::CoarseToFine {
                     coarse_points,
                     coarse_iterations,
+                    level_iterations,
                 };
             }
             if solution.converged() || params.start_strategy != StartStrategy::Auto || params.past_deadline() {

@@ -376,6 +376,8 @@ pub(crate) struct CoarseStart {
     pub coarse_points: usize,
     /// Newton steps of all coarser levels.
     pub coarse_iterations: usize,
+    /// The same by level, next coarser first.
+    pub level_iterations: Vec<usize>,
     /// The power diagram of `heights` built by the last check, with its insertion order (the
     /// first evaluation integrates it instead of building it again); `None` when the last check
     /// round still changed heights.
@@ -714,6 +716,12 @@ pub(crate) fn coarse_to_fine_heights(
         heights,
         coarse_points: coarse_n,
         coarse_iterations: solution.all_iterations(),
+        level_iterations: std::iter::once(solution.iterations)
+            .chain(match &solution.start {
+                super::Start::CoarseToFine { level_iterations, .. } => level_iterations.clone(),
+                _ => Vec::new(),
+            })
+            .collect(),
         checked: checked.map(|diagram| (diagram, order)),
     }))
 }

@@ -1,0 +1,46 @@
+//! Shared by the scan benchmarks (`#[path = "common/scans.rs"] mod scans;`): the real scans of
+//! `$SHAPESPACE_DATA/outside` (default: `../shared/datasets` beside the workspace), prepared
+//! as `shapespace prepare` does (holes but the rim filled) and mapped as `shapespace distances`
+//! maps them (markers `auto`). Files from public repositories are read from there, never
+//! copied into the project.
+
+use std::path::PathBuf;
+
+use shapespace_analysis::distance::{prepare_shape, PreparedShape};
+use shapespace_analysis::pipeline::{markers_for, MarkerOptions};
+use shapespace_conformal::DiskMapParams;
+use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
+use shapespace_geometry::TriMesh;
+
+/// `$SHAPESPACE_DATA`, else `../shared/datasets` beside the workspace.
+pub fn data_dir() -> PathBuf {
+    std::env::var_os("SHAPESPACE_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"))
+}
+
+/// The facefuns composite faces (30,204 vertices each), sorted by name; empty when absent.
+pub fn facefuns_files() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(data_dir().join("outside/facefuns"))
+        .map(|d| {
+            d.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "ply"))
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    files
+}
+
+/// The file as `shapespace prepare` leaves it (a disk).
+pub fn disk_mesh(path: &std::path::Path) -> TriMesh {
+    let mesh = shapespace_geometry::io::read_mesh(path).unwrap();
+    prepare_disk(&mesh, &PrepareOptions::default()).unwrap().0
+}
+
+/// `mesh` (read from `path`) mapped for the distances with the markers `shapespace distances`
+/// resolves for `path` (`auto` for the scans), or the map's error.
+pub fn prepared(name: &str, path: &std::path::Path, mesh: &TriMesh) -> Result<PreparedShape, String> {
+    let (markers, _) = markers_for(path, &MarkerOptions::default(), mesh.num_vertices()).map_err(|e| e.to_string())?;
+    prepare_shape(name, mesh, &markers, &DiskMapParams::default()).map_err(|e| e.to_string())
+}

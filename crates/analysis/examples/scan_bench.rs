@@ -1,0 +1,223 @@
+//! Benchmark of issue 40: face pairs at scan resolution against the bundled faces, in one run.
+//!
+//! `cargo run --release -p shapespace-analysis --example scan_bench -- [PAIRS] [--100k] [--quant]`
+//! (run from the repository root; 2 threads). Scans from `$SHAPESPACE_DATA/outside/facefuns`
+//! (default `../shared/datasets`; skipped loudly when absent), prepared as `shapespace prepare`
+//! does; those whose conformal map fails are left out. Each row is the median over PAIRS
+//! (default 6) consecutive directed pairs, solved as the distances solve them
+//! (`PairwiseOptions::default()`, the target's coarsening shared), the bundled and the scan
+//! pairs interleaved so that the machine's load hits both alike:
+//! - bundled 9.4k-vertex faces, facefuns 30k-vertex faces, and the same scan pairs with the
+//!   densities as mapped (`prepare_shape` without its spreading of density peaks, i.e. the
+//!   solver's input before that fix);
+//! - `--100k`: one facefuns pair subdivided once by edge midpoints (120k vertices), and the
+//!   peak memory of the process (VmHWM of /proc/self/status) after it;
+//! - `--quant`: the scan pairs again with `--target-points N` for N = 20000, 10000, 5000,
+//!   2000: the distances' relative error against full resolution and the time.
+
+#[path = "common/faces.rs"]
+mod faces;
+#[path = "common/scans.rs"]
+mod scans;
+
+use std::time::Instant;
+
+use shapespace_analysis::distance::{quantize_target, PairwiseOptions, PreparedShape};
+use shapespace_analysis::stats::summarize;
+use shapespace_omt::newton::Start;
+use shapespace_omt::NewtonParams;
+
+struct Solve {
+    seconds: f64,
+    finest: usize,
+    coarse: usize,
+    cost: f64,
+}
+
+fn solve(a: &PreparedShape, b: &PreparedShape) -> Solve {
+    let params = NewtonParams {
+        target_coarsening: Some(b.coarsening.clone()),
+        ..PairwiseOptions::default().newton
+    };
+    let t = Instant::now();
+    let sol = shapespace_omt::solve_ot(&a.measure, &b.points, &b.masses, &params).unwrap();
+    let seconds = t.elapsed().as_secs_f64();
+    assert!(sol.converged(), "{} -> {}: {}", a.name, b.name, sol.stop_description());
+    let coarse = match &sol.start {
+        Start::CoarseToFine { coarse_iterations, .. } => *coarse_iterations,
+        _ => 0,
+    };
+    Solve {
+        seconds,
+        finest: sol.iterations,
+        coarse,
+        cost: sol.cost,
+    }
+}
+
+fn vm_hwm_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
+        })
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn median(v: &[f64]) -> f64 {
+    summarize(v).median.unwrap_or(f64::NAN)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let pairs: usize = args.iter().find_map(|a| a.parse().ok()).unwrap_or(6);
+    let with_100k = args.iter().any(|a| a == "--100k");
+    let with_quant = args.iter().any(|a| a == "--quant");
+    rayon::ThreadPoolBuilder::new().num_threads(2).build_global().unwrap();
+    let files = scans::facefuns_files();
+    if files.is_empty() {
+        eprintln!(
+            "scan_bench: SKIPPED: no facefuns scans in {} (set SHAPESPACE_DATA)",
+            scans::data_dir().join("outside/facefuns").display()
+        );
+        return;
+    }
+    let mut scan_shapes = Vec::new();
+    let mut scan_meshes = Vec::new();
+    for f in &files {
+        if scan_shapes.len() == pairs + 1 {
+            break;
+        }
+        let name = f.file_stem().unwrap().to_string_lossy().to_string();
+        let mesh = scans::disk_mesh(f);
+        match scans::prepared(&name, f, &mesh) {
+            Ok(s) => {
+                scan_shapes.push(s);
+                scan_meshes.push((name, f.clone(), mesh));
+            }
+            Err(e) => eprintln!("scan_bench: {name} left out: {}", e.chars().take(100).collect::<String>()),
+        }
+    }
+    let face_names: Vec<String> = std::fs::read_dir("datasets/faces")
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "obj"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().to_string())
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .take(pairs + 1)
+        .collect();
+    let bundled = faces::prepared_faces(&face_names);
+    let n = pairs.min(scan_shapes.len() - 1).min(bundled.len() - 1);
+    let (mut bt, mut bs, mut st, mut ss) = (vec![], vec![], vec![], vec![]);
+    let mut scan_solves = Vec::new();
+    let (mut rt, mut rs, mut rc) = (vec![], vec![], vec![]);
+    for k in 0..n {
+        let b = solve(&bundled[k], &bundled[k + 1]);
+        let s = solve(&scan_shapes[k], &scan_shapes[k + 1]);
+        // the source density as mapped, without the spreading of its peaks
+        let mut raw = scan_shapes[k].clone();
+        raw.measure = shapespace_omt::SourceMeasure::new(
+            raw.measure.vertices.clone(),
+            raw.measure.triangles.clone(),
+            raw.disk.face_densities.clone(),
+        )
+        .unwrap();
+        let r = solve(&raw, &scan_shapes[k + 1]);
+        eprintln!(
+            "pair {k}: bundled {:.2} s {} finest (+{} coarse) | scan {} -> {} {:.2} s {} finest (+{} coarse) | unspread {:.2} s {} finest (+{} coarse), distance {:+.1e} relative",
+            b.seconds, b.finest, b.coarse, scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, s.finest, s.coarse,
+            r.seconds, r.finest, r.coarse, s.cost.sqrt() / r.cost.sqrt() - 1.0
+        );
+        rt.push(r.seconds);
+        rs.push(r.finest as f64);
+        rc.push((s.cost.sqrt() / r.cost.sqrt() - 1.0).abs());
+        bt.push(b.seconds);
+        bs.push(b.finest as f64);
+        st.push(s.seconds);
+        ss.push(s.finest as f64);
+        scan_solves.push(s);
+    }
+    let base = median(&bt);
+    println!("| pairs | vertices | pairs measured | median s per pair | finest Newton steps median / max | time ratio to bundled |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    let max = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
+    println!("| bundled faces | 9,412 | {n} | {base:.2} | {} / {} | 1 |", median(&bs), max(&bs));
+    println!(
+        "| facefuns scans | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
+        median(&st),
+        median(&ss),
+        max(&ss),
+        median(&st) / base
+    );
+    println!(
+        "| facefuns scans, densities as mapped (no peak spreading) | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
+        median(&rt),
+        median(&rs),
+        max(&rs),
+        median(&rt) / base
+    );
+    println!(
+        "\nspreading the density peaks changed the scan distances by {:.1e} relative (median), {:.1e} (max)",
+        median(&rc),
+        max(&rc)
+    );
+    if with_quant {
+        println!("\n| --target-points | pairs | distance error vs full: median / max | uncorrected (cost to the quantized points): median / max | median s per pair | time ratio to full |");
+        println!("|---:|---:|---:|---:|---:|---:|");
+        let full_t = median(&st);
+        for target in [20000, 10000, 5000, 2000] {
+            let (mut errs, mut raw, mut times) = (vec![], vec![], vec![]);
+            for k in 0..n {
+                let q = quantize_target(scan_shapes[k + 1].clone(), target);
+                let s = solve(&scan_shapes[k], &q);
+                let full = scan_solves[k].cost.sqrt();
+                let corrected = (s.cost - q.quantization_variance).max(0.0).sqrt();
+                errs.push((corrected / full - 1.0).abs());
+                raw.push((s.cost.sqrt() / full - 1.0).abs());
+                times.push(s.seconds);
+            }
+            println!(
+                "| {target} | {n} | {:.2e} / {:.2e} | {:.2e} / {:.2e} | {:.2} | {:.2} |",
+                median(&errs),
+                max(&errs),
+                median(&raw),
+                max(&raw),
+                median(&times),
+                median(&times) / full_t
+            );
+        }
+    }
+    if with_100k {
+        // the first two scans whose subdivision maps (the conformal map refuses some)
+        let mut fine: Vec<PreparedShape> = Vec::new();
+        for (name, path, mesh) in &scan_meshes {
+            let sub = shapespace_geometry::prepare::subdivide_midpoint(mesh).unwrap();
+            match scans::prepared(&format!("{name}_sub"), path, &sub) {
+                Ok(s) => fine.push(s),
+                Err(e) => eprintln!("scan_bench: {name} subdivided left out: {}", e.chars().take(100).collect::<String>()),
+            }
+            if fine.len() == 2 {
+                break;
+            }
+        }
+        if fine.len() < 2 {
+            println!("\n(no two subdivided scans map: no 120k-vertex row)");
+            return;
+        }
+        let s = solve(&fine[0], &fine[1]);
+        let b = solve(&bundled[0], &bundled[1]);
+        println!(
+            "| facefuns subdivided once | {} | 1 | {:.2} | {} / {} | {:.1} (to the bundled pair solved right after it, {:.2} s) |",
+            fine[1].points.len(),
+            s.seconds,
+            s.finest,
+            s.finest,
+            s.seconds / b.seconds,
+            b.seconds
+        );
+        println!("\npeak memory (VmHWM) of the whole run: {:.0} MB", vm_hwm_mb());
+    }
+}
