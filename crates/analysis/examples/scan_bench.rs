@@ -97,7 +97,10 @@ fn main() {
                 scan_shapes.push(s);
                 scan_meshes.push((name, f.clone(), mesh));
             }
-            Err(e) => eprintln!("scan_bench: {name} left out: {}", e.chars().take(100).collect::<String>()),
+            Err(e) => eprintln!(
+                "scan_bench: {name} left out: {}",
+                e.chars().take(100).collect::<String>()
+            ),
         }
     }
     let face_names: Vec<String> = std::fs::read_dir("datasets/faces")
@@ -144,7 +147,11 @@ fn main() {
     println!("| pairs | vertices | pairs measured | median s per pair | finest Newton steps median / max | time ratio to bundled |");
     println!("|---|---:|---:|---:|---:|---:|");
     let max = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
-    println!("| bundled faces | 9,412 | {n} | {base:.2} | {} / {} | 1 |", median(&bs), max(&bs));
+    println!(
+        "| bundled faces | 9,412 | {n} | {base:.2} | {} / {} | 1 |",
+        median(&bs),
+        max(&bs)
+    );
     println!(
         "| facefuns scans | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
         median(&st),
@@ -197,7 +204,10 @@ fn main() {
             let sub = shapespace_geometry::prepare::subdivide_midpoint(mesh).unwrap();
             match scans::prepared(&format!("{name}_sub"), path, &sub) {
                 Ok(s) => fine.push(s),
-                Err(e) => eprintln!("scan_bench: {name} subdivided left out: {}", e.chars().take(100).collect::<String>()),
+                Err(e) => eprintln!(
+                    "scan_bench: {name} subdivided left out: {}",
+                    e.chars().take(100).collect::<String>()
+                ),
             }
             if fine.len() == 2 {
                 break;

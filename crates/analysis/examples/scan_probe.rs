@@ -22,7 +22,9 @@ use shapespace_omt::newton::Start;
 
 fn quantiles(mut v: Vec<f64>, qs: &[f64]) -> Vec<f64> {
     v.sort_by(f64::total_cmp);
-    qs.iter().map(|q| v[((v.len() - 1) as f64 * q).round() as usize]).collect()
+    qs.iter()
+        .map(|q| v[((v.len() - 1) as f64 * q).round() as usize])
+        .collect()
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -39,7 +41,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if let Some(k) = std::env::var("CAP").ok().and_then(|s| s.parse::<f64>().ok()) {
             let med = quantiles(shape.measure.densities.clone(), &[0.5])[0];
             let d: Vec<f64> = shape.measure.densities.iter().map(|&d| d.min(k * med)).collect();
-            shape.measure = shapespace_omt::SourceMeasure::new(shape.measure.vertices.clone(), shape.measure.triangles.clone(), d)?;
+            shape.measure =
+                shapespace_omt::SourceMeasure::new(shape.measure.vertices.clone(), shape.measure.triangles.clone(), d)?;
         }
         if let Some(k) = std::env::var("SPREAD").ok().and_then(|s| s.parse::<f64>().ok()) {
             let (m, info) = shapespace_omt::peaks::spread_density_peaks(&shape.measure, k)?;
@@ -49,7 +52,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if let Some(k) = std::env::var("NUFLOOR").ok().and_then(|s| s.parse::<f64>().ok()) {
             let med = quantiles(shape.masses.clone(), &[0.5])[0];
             shape.masses.iter_mut().for_each(|m| *m = m.max(k * med));
-            shape.coarsening = std::sync::Arc::new(shapespace_omt::newton::TargetCoarsening::new(&shape.points, &shape.masses));
+            shape.coarsening = std::sync::Arc::new(shapespace_omt::newton::TargetCoarsening::new(
+                &shape.points,
+                &shape.masses,
+            ));
         }
         let d = &shape.measure.densities;
         let q = quantiles(d.clone(), &[0.0, 0.01, 0.5, 0.99, 1.0]);
@@ -71,13 +77,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = quantiles(rim.clone(), &[0.0, 0.5, 1.0]);
         {
             let med = q[2];
-            let areas: Vec<f64> = shape.measure.triangles.iter().map(|t| {
-                let [a, b, c] = t.map(|v| shape.points[v as usize]);
-                0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).abs()
-            }).collect();
+            let areas: Vec<f64> = shape
+                .measure
+                .triangles
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|v| shape.points[v as usize]);
+                    0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).abs()
+                })
+                .collect();
             let total: f64 = areas.iter().zip(d).map(|(a, d)| a * d).sum();
             for k in [1e2, 1e3, 1e4, 1e5, 1e6] {
-                let (n, mass) = areas.iter().zip(d).filter(|(_, &d)| d > k * med).fold((0, 0.0), |(n, m), (a, d)| (n + 1, m + a * d));
+                let (n, mass) = areas
+                    .iter()
+                    .zip(d)
+                    .filter(|(_, &d)| d > k * med)
+                    .fold((0, 0.0), |(n, m), (a, d)| (n + 1, m + a * d));
                 print!("[>{k:.0e}x median: {n} faces, mass {:.2e}] ", mass / total);
             }
             println!();
@@ -145,7 +160,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?;
             let nu = &start.target_masses;
             let m = &start.cells.masses;
-            for (lo, hi) in [(0.0, 0.5), (0.5, 0.9), (0.9, 0.99), (0.99, 0.999), (0.999, 1.0 - 1e-9), (1.0 - 1e-9, 2.0)] {
+            for (lo, hi) in [
+                (0.0, 0.5),
+                (0.5, 0.9),
+                (0.9, 0.99),
+                (0.99, 0.999),
+                (0.999, 1.0 - 1e-9),
+                (1.0 - 1e-9, 2.0),
+            ] {
                 let idx: Vec<usize> = (0..nu.len())
                     .filter(|&i| {
                         let r = b.points[i][0].hypot(b.points[i][1]);
@@ -169,7 +191,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for (k, r) in sol.log.iter().enumerate() {
                 println!(
                     "  {k:3} err {:.2e} tau {:.3e} rejm {} rejn {} minmass {:.2e} capped {}",
-                    r.max_relative_error, r.step, r.rejected_min_mass, r.rejected_norm, r.min_cell_mass, r.intermediate_targets
+                    r.max_relative_error,
+                    r.step,
+                    r.rejected_min_mass,
+                    r.rejected_norm,
+                    r.min_cell_mass,
+                    r.intermediate_targets
                 );
             }
         }

@@ -385,7 +385,10 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
             crate::invariance::Invariance::Fixed => String::new(),
             other => format!("|{other:?}"),
         },
-        options.target_points.map(|n| format!("|target_points {n}")).unwrap_or_default()
+        options
+            .target_points
+            .map(|n| format!("|target_points {n}"))
+            .unwrap_or_default()
     );
     RunIdentity {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),

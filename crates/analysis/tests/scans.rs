@@ -5,7 +5,9 @@
 
 use std::path::PathBuf;
 
-use shapespace_analysis::distance::{directed_distance, prepare_shape, quantize_target, PairwiseOptions, PreparedShape};
+use shapespace_analysis::distance::{
+    directed_distance, prepare_shape, quantize_target, PairwiseOptions, PreparedShape,
+};
 use shapespace_analysis::pipeline::{markers_for, MarkerOptions};
 use shapespace_conformal::DiskMapParams;
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
@@ -31,9 +33,12 @@ fn facefuns(n: usize) -> Option<Vec<PreparedShape>> {
     files.sort();
     let mut shapes = Vec::new();
     for f in files {
-        let mesh = prepare_disk(&shapespace_geometry::io::read_mesh(&f).unwrap(), &PrepareOptions::default())
-            .unwrap()
-            .0;
+        let mesh = prepare_disk(
+            &shapespace_geometry::io::read_mesh(&f).unwrap(),
+            &PrepareOptions::default(),
+        )
+        .unwrap()
+        .0;
         let (markers, _) = markers_for(&f, &MarkerOptions::default(), mesh.num_vertices()).unwrap();
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
         // (some faces' maps are refused; the test needs any two that map)

@@ -956,7 +956,11 @@ fn demo_refuses_labels_that_do_not_match_before_any_distance() {
     for name in ["id00_happy.obj", "id00_sad.obj", "landmarks.json"] {
         std::fs::copy(root().join("datasets/faces").join(name), dir.join(name)).unwrap();
     }
-    std::fs::write(dir.join("labels.csv"), "file,person\nid00_happy,p0\nid00_happy.obj,p1\n").unwrap();
+    std::fs::write(
+        dir.join("labels.csv"),
+        "file,person\nid00_happy,p0\nid00_happy.obj,p1\n",
+    )
+    .unwrap();
     let out_dir = dir.join("out");
     let out = shapespace(&[
         "demo",
@@ -1848,4 +1852,37 @@ fn mds_runs_on_the_complete_part_of_an_incomplete_run() {
         .lines()
         .count();
     assert_eq!(mds_rows, 1 + 4);
+}
+
+/// `register --boundary-marker auto` on two meshes with the same faces: one automatic choice for
+/// both, and metrics.json records each mesh's markers and where they came from.
+#[test]
+fn register_records_its_markers_and_shares_automatic_ones() {
+    let dir = scratch("register_markers");
+    let out_dir = dir.join("reg");
+    let out = shapespace(&[
+        "register",
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--method",
+        "conformal",
+        "--boundary-marker",
+        "auto",
+        "--samples",
+        "20",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("metrics.json")).unwrap()).unwrap();
+    let m = &metrics["run"]["markers"];
+    assert_eq!(m["source"]["center"], 4841, "{m}");
+    assert_eq!(m["source"]["boundary"], m["target"]["boundary"], "{m}");
+    assert_ne!(m["source"]["boundary"], 8889, "{m}");
+    let origin = m["source"]["source"].as_str().unwrap();
+    assert!(
+        origin.contains("landmarks.json, --boundary-marker, shared by the 2 files"),
+        "{origin}"
+    );
 }

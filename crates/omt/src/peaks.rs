@@ -171,7 +171,11 @@ mod tests {
         let (s, info) = spread_density_peaks(&m, 10.0).unwrap();
         assert_eq!(info.peak_triangles, 0);
         assert_eq!(info.changed_triangles, 0);
-        assert!(s.densities.iter().zip(&m.densities).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(s
+            .densities
+            .iter()
+            .zip(&m.densities)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 
     #[test]
@@ -185,12 +189,19 @@ mod tests {
         assert_eq!(info.peak_triangles, 2);
         assert!((info.cap - 130.0).abs() < 1e-9, "{}", info.cap);
         assert!(s.densities.iter().all(|&d| d <= info.cap * (1.0 + 1e-12)));
-        assert!((s.total_mass() - before).abs() <= 1e-12 * before, "{} {}", s.total_mass(), before);
+        assert!(
+            (s.total_mass() - before).abs() <= 1e-12 * before,
+            "{} {}",
+            s.total_mass(),
+            before
+        );
         // mass moved only near the peaks: an area of 0.38 is three vertex rings of cells of
         // width 0.1 (a 6 × 6 block, diagonal 0.85 … 1.27)
         assert!(info.max_patch_diameter < 1.3, "{}", info.max_patch_diameter);
         assert!(info.changed_triangles < 200, "{}", info.changed_triangles);
-        let untouched = (0..m.densities.len()).filter(|&t| s.densities[t] == m.densities[t]).count();
+        let untouched = (0..m.densities.len())
+            .filter(|&t| s.densities[t] == m.densities[t])
+            .count();
         assert_eq!(untouched + info.changed_triangles, m.densities.len());
     }
 

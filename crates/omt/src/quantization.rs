@@ -45,7 +45,10 @@ pub fn quantize(points: &[[f64; 2]], masses: &[f64], k: usize) -> Quantized {
     }
     let k = k.max(1);
     let (lo, hi) = crate::measure::bounding_box(points);
-    let span = [(hi[0] - lo[0]).max(f64::MIN_POSITIVE), (hi[1] - lo[1]).max(f64::MIN_POSITIVE)];
+    let span = [
+        (hi[0] - lo[0]).max(f64::MIN_POSITIVE),
+        (hi[1] - lo[1]).max(f64::MIN_POSITIVE),
+    ];
     // Morton start: equal-mass runs along the Z-order curve.
     let morton = |p: &[f64; 2]| -> u64 {
         let scale = (1u64 << 31) as f64;
@@ -232,7 +235,9 @@ mod tests {
             .group
             .iter()
             .enumerate()
-            .map(|(i, &g)| masses[i] * ((points[i][0] - q.points[g][0]).powi(2) + (points[i][1] - q.points[g][1]).powi(2)))
+            .map(|(i, &g)| {
+                masses[i] * ((points[i][0] - q.points[g][0]).powi(2) + (points[i][1] - q.points[g][1]).powi(2))
+            })
             .sum::<f64>()
             / total;
         // groups of ~5 points in cells of area π/1000: variance ~ π/1000/(2π) = 5e-4

@@ -13,7 +13,8 @@ use shapespace_analysis::registration::{
     register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
     RegistrationParams,
 };
-use shapespace_conformal::MarkerFile;
+use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
+use shapespace_conformal::{resolve_markers_of, BoundaryMarker, CenterMarker, MarkerFile};
 
 /// Arguments of `shapespace register`.
 #[derive(clap::Args)]
@@ -23,9 +24,21 @@ pub struct RegisterArgs {
     /// Target mesh S₂ (disk topology).
     pub target: PathBuf,
     /// Landmark pairs CSV `source,target` (vertex indices). Default: the named landmarks of the
-    /// meshes' marker files, paired by name.
+    /// meshes' marker files, paired by name. Allowed: interior vertices of both meshes, each used
+    /// by one landmark per side (boundary vertices are refused: the boundary is mapped onto the
+    /// circle as a whole).
     #[arg(long)]
     pub landmarks: Option<PathBuf>,
+    /// Interior marker p ↦ 0 of both meshes: a vertex index, a point `x,y,z` (projected to each
+    /// surface) or `auto`. Overrides the marker files. A vertex index is for meshes that share
+    /// their vertex order.
+    #[arg(long)]
+    pub center: Option<String>,
+    /// Boundary marker q ↦ 1 of both meshes: a boundary vertex index or `auto`. Overrides the
+    /// marker files. Where it is automatic on both and the meshes have the same faces, one
+    /// choice is made for both (on their mean shape), as `distances` does.
+    #[arg(long = "boundary-marker")]
+    pub boundary_marker: Option<String>,
     /// Marker file of the source (`{"center", "boundary", "landmarks"}`); default: its sidecar
     /// `NAME.landmarks.json` or `landmarks.json` beside it.
     #[arg(long)]
@@ -161,10 +174,58 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
                 .join(" and ")
         ),
     };
+    // markers: flags over marker files over auto; automatic ones shared where the faces agree
+    let origin =
+        |m: &Option<(PathBuf, MarkerFile)>| m.as_ref().map_or("auto".to_string(), |m| m.0.display().to_string());
+    let (mut sm, mut tm) = (
+        m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
+        m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
+    );
+    let (mut s_origin, mut t_origin) = (origin(&m1), origin(&m2));
+    if let Some(c) = &args.center {
+        let c = CenterMarker::parse(c).context("--center")?;
+        (sm.center, tm.center) = (c.clone(), c);
+        s_origin += ", --center";
+        t_origin += ", --center";
+    }
+    if let Some(b) = &args.boundary_marker {
+        let b = BoundaryMarker::parse(b).context("--boundary-marker")?;
+        (sm.boundary, tm.boundary) = (b.clone(), b);
+        s_origin += ", --boundary-marker";
+        t_origin += ", --boundary-marker";
+    }
+    let (source_name, target_name) = (args.source.display().to_string(), args.target.display().to_string());
+    let shared = share_auto_markers(&[
+        MarkerInput {
+            name: &source_name,
+            mesh: &source,
+            markers: &sm,
+        },
+        MarkerInput {
+            name: &target_name,
+            mesh: &target,
+            markers: &tm,
+        },
+    ]);
+    if let [Some(a), Some(b)] = &shared[..] {
+        (sm, tm) = (a.markers.clone(), b.markers.clone());
+        s_origin = format!("{s_origin}, {}", a.note);
+        t_origin = format!("{t_origin}, {}", b.note);
+    }
+    let resolved =
+        |mesh: &shapespace_geometry::TriMesh, m: &shapespace_conformal::Markers, path: &Path, origin: &str| {
+            resolve_markers_of(mesh, m)
+                .with_context(|| format!("markers of {}", path.display()))
+                .map(|r| serde_json::json!({"center": r.center, "boundary": r.boundary_vertex, "source": origin}))
+        };
+    let markers_json = serde_json::json!({
+        "source": resolved(&source, &sm, &args.source, &s_origin)?,
+        "target": resolved(&target, &tm, &args.target, &t_origin)?,
+    });
     let params = RegistrationParams {
         method,
-        source_markers: m1.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
-        target_markers: m2.as_ref().map(|m| m.1.markers.clone()).unwrap_or_default(),
+        source_markers: sm,
+        target_markers: tm,
         area_preserving: registration_area_params(),
         harmonic: harmonic_params(
             method,
@@ -195,6 +256,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
         "geodesic_samples": args.samples, "seed": args.seed, "harmonic": params.harmonic,
+        "markers": markers_json,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
     eprintln!(
