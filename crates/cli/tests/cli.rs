@@ -1886,3 +1886,32 @@ fn register_records_its_markers_and_shares_automatic_ones() {
         "{origin}"
     );
 }
+
+/// A file that fails in `distances` (unreadable, not a disk) is named once per line.
+#[test]
+fn distances_name_a_failed_file_once() {
+    let dir = scratch("failed_once");
+    let closed = dir.join("closed.obj");
+    shapespace_geometry::io::write_mesh(&closed, &shapespace_geometry::primitives::icosphere(1)).unwrap();
+    let bad = dir.join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
+    let out = shapespace(&[
+        "distances",
+        closed.to_str().unwrap(),
+        bad.to_str().unwrap(),
+        "datasets/faces/id00_happy.obj",
+        "--out",
+        dir.join("run").to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    for file in [&closed, &bad] {
+        let name = file.to_str().unwrap();
+        let line = err
+            .lines()
+            .find(|l| l.contains(name))
+            .unwrap_or_else(|| panic!("{err}"));
+        assert_eq!(line.matches(name).count(), 1, "{line}");
+    }
+}

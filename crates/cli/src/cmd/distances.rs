@@ -291,11 +291,12 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
     bar.finish_and_clear();
     let r = &run.report;
     for input in r.inputs.iter().filter(|i| !i.ok) {
-        eprintln!(
-            "shapespace: {}: {}",
-            input.path.display(),
-            input.error.as_deref().unwrap_or("failed")
-        );
+        // (the report's errors start with the file's path)
+        let shown = input.path.display().to_string();
+        match input.error.as_deref() {
+            Some(e) if e.strip_prefix(&shown).is_some_and(|rest| rest.starts_with(':')) => eprintln!("shapespace: {e}"),
+            e => eprintln!("shapespace: {shown}: {}", e.unwrap_or("failed")),
+        }
     }
     // the failures after those of the inputs are the pairs'
     let failed_inputs = r.inputs.iter().filter(|i| i.error.is_some()).count();
