@@ -42,6 +42,10 @@ pub struct MarkerChoice {
     pub center: shapespace_conformal::markers::ResolvedCenter,
     pub boundary: u32,
     pub source: String,
+    /// Unit 3D direction from the center marker to the boundary marker (for
+    /// [`crate::shared_markers::marker_outliers`]).
+    #[serde(skip)]
+    pub axis: Option<[f64; 3]>,
 }
 
 /// The markers of one mesh file of `num_vertices` vertices: command-line values first, then
@@ -187,6 +191,9 @@ pub struct DistancesReport {
     /// earlier file gave or why it was not used.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resumed: Option<ResumeReport>,
+    /// Files whose automatic markers differ strongly from the others'
+    /// ([`crate::shared_markers::marker_outliers`]).
+    pub marker_warnings: Vec<String>,
     /// What the pairs depend on, for a later `resume`.
     pub resume_key: RunIdentity,
     #[serde(serialize_with = "crate::report_path::many")]
@@ -500,10 +507,12 @@ pub fn run_distances(
                         if let Some(n) = options.target_points {
                             shape = crate::distance::quantize_target(shape, n);
                         }
+                        let resolved = shape.disk.info.markers;
                         let choice = MarkerChoice {
-                            center: shape.disk.info.markers.center,
-                            boundary: shape.disk.info.markers.boundary_vertex,
+                            center: resolved.center,
+                            boundary: resolved.boundary_vertex,
                             source,
+                            axis: crate::shared_markers::marker_axis(&mesh, &resolved),
                         };
                         Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
                     },
@@ -562,6 +571,22 @@ pub fn run_distances(
         .collect();
     let prepare_wall = t_prepare.elapsed().as_secs_f64();
     let (shapes, inputs): (Vec<Option<PreparedShape>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
+    // automatic markers far from the others' (files of different connectivity)
+    let automatic: Vec<(&str, [f64; 3])> = inputs
+        .iter()
+        .filter_map(|r| {
+            let m = r.markers.as_ref()?;
+            m.source.starts_with("auto").then_some((r.name.as_str(), m.axis?))
+        })
+        .collect();
+    let marker_warnings: Vec<String> = crate::shared_markers::marker_outliers(&automatic)
+        .into_iter()
+        .map(|(name, angle)| {
+            format!(
+                "{name}: its automatic markers point {angle:.0} degrees away from the other files' (the 3D direction from the center marker to the boundary marker, against the mean of the others); if the files share a frame, give the markers with a landmarks file"
+            )
+        })
+        .collect();
 
     let t_pairs = Instant::now();
     let identity = run_identity(options, &inputs);
@@ -689,6 +714,7 @@ pub fn run_distances(
             pairs: known.len(),
             sources: resume_notes,
         }),
+        marker_warnings,
         resume_key: identity,
         files,
     };

@@ -87,6 +87,59 @@ pub fn share_auto_markers(inputs: &[MarkerInput<'_>]) -> Vec<Option<SharedMarker
     out
 }
 
+/// The unit 3D direction from the center marker (a vertex, or a point in a face) to the boundary
+/// marker; `None` when they coincide.
+pub fn marker_axis(mesh: &TriMesh, markers: &shapespace_conformal::markers::ResolvedMarkers) -> Option<[f64; 3]> {
+    let p = |v: u32| mesh.positions[v as usize];
+    let center = match markers.center {
+        ResolvedCenter::Vertex(v) => p(v),
+        ResolvedCenter::Face { face, bary } => {
+            let f = mesh.faces[face as usize];
+            let mut c = [0.0; 3];
+            for k in 0..3 {
+                for d in 0..3 {
+                    c[d] += bary[k] * p(f[k])[d];
+                }
+            }
+            c
+        }
+    };
+    let q = p(markers.boundary_vertex);
+    let a = [q[0] - center[0], q[1] - center[1], q[2] - center[2]];
+    let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    (len > 0.0 && len.is_finite()).then(|| [a[0] / len, a[1] / len, a[2] / len])
+}
+
+/// Angle beyond which [`marker_outliers`] flags a file, degrees.
+pub const MARKER_OUTLIER_DEGREES: f64 = 45.0;
+
+/// Files whose automatic markers differ strongly from the rest, for sets of different
+/// connectivity (where [`share_auto_markers`] cannot make them agree): the angle between a
+/// file's marker axis ([`marker_axis`]) and the medoid axis (the one with the largest sum of
+/// cosines to all others, so that one stray file does not move the reference), flagged above
+/// [`MARKER_OUTLIER_DEGREES`], with at least three files. The measure assumes the files share a
+/// frame (scans of one device, one template's expressions): it says that the boundary marker sits
+/// on another side of the face than the others', which gives that file's distances a rotation
+/// the others do not have. Returns (name, degrees).
+pub fn marker_outliers<'a>(axes: &[(&'a str, [f64; 3])]) -> Vec<(&'a str, f64)> {
+    if axes.len() < 3 {
+        return Vec::new();
+    }
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let medoid = (0..axes.len())
+        .max_by(|&i, &j| {
+            let score = |k: usize| axes.iter().map(|(_, a)| dot(a, &axes[k].1)).sum::<f64>();
+            score(i).total_cmp(&score(j)).then(j.cmp(&i))
+        })
+        .expect("at least three axes");
+    axes.iter()
+        .filter_map(|(name, a)| {
+            let degrees = dot(a, &axes[medoid].1).clamp(-1.0, 1.0).acos().to_degrees();
+            (degrees > MARKER_OUTLIER_DEGREES).then_some((*name, degrees))
+        })
+        .collect()
+}
+
 /// The markers of the group on its mean shape, else on its file with the smallest name.
 fn resolve_for_group(
     inputs: &[MarkerInput<'_>],
@@ -178,6 +231,23 @@ mod tests {
             .map(|m| resolve_markers_of(m, &Markers::default()).unwrap().boundary_vertex)
             .collect();
         assert!(alone.iter().any(|&q| q != alone[0]), "{alone:?}");
+    }
+
+    #[test]
+    fn a_file_whose_marker_axis_points_elsewhere_is_flagged() {
+        let axes = [
+            ("a", [1.0, 0.0, 0.0]),
+            ("b", [0.96, 0.28, 0.0]),
+            ("c", [0.96, -0.28, 0.0]),
+            ("d", [0.0, 1.0, 0.0]),
+        ];
+        let flagged = marker_outliers(&axes);
+        assert_eq!(flagged.len(), 1, "{flagged:?}");
+        assert_eq!(flagged[0].0, "d");
+        // against the medoid b: a 16°, c 33°, d 74°
+        assert!((flagged[0].1 - 73.7).abs() < 0.1, "{flagged:?}");
+        assert!(marker_outliers(&axes[..3]).is_empty());
+        assert!(marker_outliers(&axes[..2]).is_empty());
     }
 
     #[test]

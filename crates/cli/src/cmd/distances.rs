@@ -290,6 +290,9 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
     bar.finish_and_clear();
     let r = &run.report;
+    for warning in &r.marker_warnings {
+        eprintln!("shapespace: warning: {warning}");
+    }
     for input in r.inputs.iter().filter(|i| !i.ok) {
         // (the report's errors start with the file's path)
         let shown = input.path.display().to_string();
