@@ -104,6 +104,7 @@ pub struct ShapeReport {
     /// SHA-256 of the file's bytes (hex, as `sha256sum` prints it); None when it cannot be read.
     pub sha256: Option<String>,
     pub ok: bool,
+    /// Why the file failed, starting with its path.
     pub error: Option<String>,
     pub vertices: Option<usize>,
     pub faces: Option<usize>,
@@ -397,12 +398,10 @@ pub fn run_distances(
             // (a panic, i.e. a bug, fails this file only, as it fails a pair only in the pairs)
             let outcome = crate::distance::guarded(
                 || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
+                    // (its errors start with the path)
                     let mesh = bytes
                         .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
-                        .map_err(|e| AnalysisError::Shape {
-                            name: name.clone(),
-                            message: e.to_string(),
-                        })?;
+                        .map_err(|e| AnalysisError::Mesh(e.with_path(path)))?;
                     let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
                     let shape =
                         prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| AnalysisError::Shape {

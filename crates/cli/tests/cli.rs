@@ -1710,3 +1710,42 @@ fn issue_42_mutated_meshes_fail_cleanly() {
     assert!(failed > 100, "{failed} failures");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 42, item 7: an error line names the file once (`distances` printed
+/// `bad.obj: bad: bad.obj:4: ...` and `fan.obj: fan.obj: ...`, `conformal` and `param`
+/// `reading bad.obj: bad.obj:4: ...`).
+#[test]
+fn issue_42_error_lines_name_the_file_once() {
+    let dir = scratch("path_once");
+    let bad = dir.join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n").unwrap();
+    let o = dir.join("o.obj");
+    for cmd in ["conformal", "param", "info"] {
+        let mut args = vec![cmd, bad.to_str().unwrap()];
+        if cmd != "info" {
+            args.extend(["--out", o.to_str().unwrap()]);
+        }
+        let run = shapespace(&args);
+        let msg = stderr(&run);
+        assert_eq!(msg.matches("bad.obj").count(), 1, "{cmd}: {msg}");
+        assert!(msg.contains("bad.obj:4: non-integer vertex index"), "{cmd}: {msg}");
+    }
+    let run = shapespace(&[
+        "distances",
+        bad.to_str().unwrap(),
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        dir.join("d").to_str().unwrap(),
+        "--quiet",
+    ]);
+    let msg = stderr(&run);
+    assert_eq!(run.status.code(), Some(1), "{msg}");
+    let line = msg.lines().find(|l| l.contains("non-integer")).unwrap_or_default();
+    assert_eq!(line.matches("bad.obj").count(), 1, "{msg}");
+    assert!(
+        line.starts_with("shapespace: ") && line.contains("bad.obj:4: non-integer vertex index"),
+        "{msg}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

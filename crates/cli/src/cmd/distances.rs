@@ -230,12 +230,12 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
     bar.finish_and_clear();
     let r = &run.report;
+    // (an input's error starts with its path)
     for input in r.inputs.iter().filter(|i| !i.ok) {
-        eprintln!(
-            "shapespace: {}: {}",
-            input.path.display(),
-            input.error.as_deref().unwrap_or("failed")
-        );
+        match &input.error {
+            Some(error) => eprintln!("shapespace: {error}"),
+            None => eprintln!("shapespace: {}: failed", input.path.display()),
+        }
     }
     // the failures after those of the inputs are the pairs'
     let failed_inputs = r.inputs.iter().filter(|i| i.error.is_some()).count();
