@@ -1473,6 +1473,22 @@ fn issue_42_degenerate_faces_are_one_definition() {
         );
         assert!(!o.exists(), "{cmd}");
     }
+    // distances maps each file directly: the same face and reason
+    let run = shapespace(&[
+        "distances",
+        fan.to_str().unwrap(),
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        dir.join("d").to_str().unwrap(),
+        "--quiet",
+    ]);
+    let msg = stderr(&run);
+    assert_eq!(run.status.code(), Some(1), "{msg}");
+    assert!(
+        msg.contains("fan.obj: degenerate face 0: zero area to rounding (nearly collinear corners)"),
+        "{msg}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
