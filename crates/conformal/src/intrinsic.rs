@@ -81,8 +81,8 @@ impl IntrinsicTriangulation {
     /// the mesh is named with the reason `info` and `prepare` give
     /// ([`shapespace_geometry::topology::degenerate_face`]).
     pub fn from_mesh(mesh: &TriMesh) -> Result<Self, ConformalError> {
-        if let Some((face, reason)) = (0..mesh.num_faces())
-            .find_map(|f| shapespace_geometry::topology::degenerate_face(mesh, f).map(|r| (f, r)))
+        if let Some((face, reason)) =
+            (0..mesh.num_faces()).find_map(|f| shapespace_geometry::topology::degenerate_face(mesh, f).map(|r| (f, r)))
         {
             return Err(ConformalError::DegenerateFace {
                 face,
