@@ -1,4 +1,4 @@
-//! Benchmark of issue 40: face pairs at scan resolution against the bundled faces, in one run.
+//! Benchmark: face pairs at scan resolution against the bundled faces, in one run.
 //!
 //! `cargo run --release -p shapespace-analysis --example scan_bench -- [PAIRS] [--100k] [--quant]`
 //! (run from the repository root; 2 threads). Scans from `$SHAPESPACE_DATA/outside/facefuns`

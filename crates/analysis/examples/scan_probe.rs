@@ -1,4 +1,4 @@
-//! Probe: where the Newton steps of a face pair go (issue 40), on any disk meshes (bundled
+//! Probe: where the Newton steps of a face pair go, on any disk meshes (bundled
 //! faces or prepared scans), with the pairwise distances' solver settings.
 //!
 //! `cargo run --release -p shapespace-analysis --example scan_probe -- A B [C ...]`

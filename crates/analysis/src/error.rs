@@ -19,6 +19,9 @@ pub enum AnalysisError {
     /// Another run holds the lock of the output folder (`pipeline::lock_output_folder`).
     #[error("{}: another shapespace run is writing into this folder; wait for it to end or choose another output folder", path.display())]
     Locked { path: PathBuf },
+    /// A mesh file could not be read (the error names the file).
+    #[error(transparent)]
+    Mesh(shapespace_geometry::GeometryError),
     /// A CSV file is malformed at a given 1-based line.
     #[error("{}:{line}: {message}", path.display())]
     Parse { path: PathBuf, line: u64, message: String },

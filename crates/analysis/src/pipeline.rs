@@ -91,32 +91,6 @@ pub fn markers_for(
 /// markers and their source (or why it could not be read).
 type LoadedFile = (Option<String>, f64, Result<(TriMesh, Markers, String), String>);
 
-/// A file's error as an [`AnalysisError::Shape`] that names the file once: reader errors name
-/// it themselves, as `path: problem` or `path:line: problem`, which then become the name.
-fn shape_error_naming_once(path: &Path, message: String) -> AnalysisError {
-    let shown = path.display().to_string();
-    let located = message.strip_prefix(&shown).and_then(|rest| {
-        let rest = rest.strip_prefix(':')?;
-        let digits = rest.len() - rest.trim_start_matches(|c: char| c.is_ascii_digit()).len();
-        let after = rest[digits..].strip_prefix(if digits > 0 { ": " } else { " " })?;
-        Some((
-            format!(
-                "{shown}{}",
-                if digits > 0 {
-                    format!(":{}", &rest[..digits])
-                } else {
-                    String::new()
-                }
-            ),
-            after.to_string(),
-        ))
-    });
-    match located {
-        Some((name, message)) => AnalysisError::Shape { name, message },
-        None => AnalysisError::Shape { name: shown, message },
-    }
-}
-
 /// Options of [`run_distances`].
 #[derive(Clone, Debug, Default)]
 pub struct DistancesOptions {
@@ -142,6 +116,7 @@ pub struct ShapeReport {
     /// SHA-256 of the file's bytes (hex, as `sha256sum` prints it); None when it cannot be read.
     pub sha256: Option<String>,
     pub ok: bool,
+    /// Why the file failed, starting with its path.
     pub error: Option<String>,
     pub vertices: Option<usize>,
     pub faces: Option<usize>,
@@ -455,7 +430,7 @@ pub fn run_distances(
             let outcome = crate::distance::guarded(|| -> Result<(TriMesh, Markers, String), AnalysisError> {
                 let mesh = bytes
                     .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
-                    .map_err(|e| shape_error_naming_once(path, e.to_string()))?;
+                    .map_err(|e| AnalysisError::Mesh(e.with_path(path)))?;
                 let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
                 Ok((mesh, markers, source))
             });

@@ -1,4 +1,4 @@
-//! Distances on real scans (issue 40): the facefuns composite faces (30,204 vertices, MIT,
+//! Distances on real scans: the facefuns composite faces (30,204 vertices, MIT,
 //! iholzleitner/facefuns; read from `$SHAPESPACE_DATA/outside/facefuns`, default
 //! `../shared/datasets` beside the workspace, never copied into the project). Skipped, with a
 //! message, when the folder is absent.
@@ -56,7 +56,7 @@ fn facefuns(n: usize) -> Option<Vec<PreparedShape>> {
 /// (six scan pairs: 0.58 % median, 1.05 % max; README "Speed"), and the quantized target has about 10k points with
 /// the full mass.
 #[test]
-fn issue_40_ten_thousand_target_points_within_one_percent() {
+fn ten_thousand_target_points_within_one_percent() {
     let Some(shapes) = facefuns(2) else { return };
     let (a, b) = (&shapes[0], &shapes[1]);
     assert!(b.points.len() > 30_000);
@@ -75,7 +75,7 @@ fn issue_40_ten_thousand_target_points_within_one_percent() {
 /// The spreading of density peaks in `prepare_shape` acts on the scans' rim (a few faces of
 /// 60k at 1e4 × the median density and more, moved a short way) and keeps the mass.
 #[test]
-fn issue_40_scan_density_peaks_are_spread_locally() {
+fn scan_density_peaks_are_spread_locally() {
     let Some(shapes) = facefuns(1) else { return };
     let s = &shapes[0];
     let info = &s.peak_spreading;

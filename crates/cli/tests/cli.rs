@@ -9,6 +9,7 @@ use std::process::{Command, Output};
 /// folder (`$SHAPESPACE_DATA`, default `../shared/datasets`); tests that need it skip loudly
 /// when it is absent.
 const CAT_HEAD: &str = "geometry_central_assets/cat_head.obj";
+const PLATE: &str = "goast/plate/plate121.ply";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -1158,19 +1159,22 @@ fn folder_entries(dir: &Path) -> Vec<String> {
     names
 }
 
-/// Issue 42, item 4: an output that cannot be written whole (here a file-size limit, as a full
+/// an output that cannot be written whole (here a file-size limit, as a full
 /// disk) fails naming the file and leaves the previous complete file as it was, with no
 /// temporary file behind; a resume checkpoint that cannot be written stops the run at once with
 /// an error naming it (the pairs used to go on with the checkpoint empty, and the final files
 /// were then cut).
 #[cfg(target_os = "linux")]
 #[test]
-fn issue_42_outputs_are_written_atomically() {
+fn outputs_are_written_atomically() {
+    let Some(cat_head) = shapespace_test_support::shared_file(CAT_HEAD) else {
+        return;
+    };
     let dir = scratch("atomic");
     let (obj, csv) = (dir.join("map.obj"), dir.join("factors.csv"));
     let args = [
         "conformal",
-        "datasets/disks/cat_head.obj",
+        cat_head.to_str().unwrap(),
         "--out",
         obj.to_str().unwrap(),
         "--factors",
@@ -1220,18 +1224,23 @@ fn issue_42_outputs_are_written_atomically() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 42, item 5: an output that is one of the inputs (under the same or another name, or
+/// an output that is one of the inputs (under the same or another name, or
 /// through a hard link) is refused before any work with exit 2 naming it, and the input is left
 /// as it was; an output that is a symbolic link, given by name or found in an output folder, is
 /// refused and its target left alone.
 #[cfg(unix)]
 #[test]
-fn issue_42_outputs_never_overwrite_inputs() {
+fn outputs_never_overwrite_inputs() {
+    let Some([cat_head, plate121]) =
+        shapespace_test_support::shared_files(&[CAT_HEAD, PLATE]).and_then(|v| <[PathBuf; 2]>::try_from(v).ok())
+    else {
+        return;
+    };
     let dir = scratch("overwrite");
     let cat = dir.join("cat.obj");
-    std::fs::copy(root().join("datasets/disks/cat_head.obj"), &cat).unwrap();
+    std::fs::copy(&cat_head, &cat).unwrap();
     let plate = dir.join("pl.ply");
-    std::fs::copy(root().join("tests/data/plate121.ply"), &plate).unwrap();
+    std::fs::copy(&plate121, &plate).unwrap();
     let points = dir.join("p.csv");
     write_sunflower_points(&points, 50, 2);
     let linked = dir.join("hard_link_to_cat.obj");
@@ -1333,13 +1342,13 @@ fn issue_42_outputs_never_overwrite_inputs() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 42, item 3: `--resume` takes only intact rows. A row of pairs.csv whose distance was
+/// `--resume` takes only intact rows. A row of pairs.csv whose distance was
 /// changed to −1, inf, 1e400 or NaN, whose distance and cost were both changed consistently (a
 /// plausible value, caught by the row's check) or whose status is unknown is computed again
 /// with a note naming its line, and the run succeeds with the fresh run's values (these rows
 /// used to be copied, failing the run or reporting an empty distance as converged).
 #[test]
-fn issue_42_resume_recomputes_changed_rows() {
+fn resume_recomputes_changed_rows() {
     let dir = scratch("resume_verifies");
     let out = dir.join("d");
     let faces: Vec<String> = ["id00_neutral", "id01_happy", "id02_sad"]
@@ -1407,10 +1416,10 @@ fn issue_42_resume_recomputes_changed_rows() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `datasets/disks/cat_head.obj` with every coordinate multiplied by 10^`exponent`, written
-/// into `dir`.
-fn scaled_cat(dir: &Path, exponent: i32) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("datasets/disks/cat_head.obj")).unwrap();
+/// geometry-central's cat head (`cat_head`) with every coordinate multiplied by 10^`exponent`,
+/// written into `dir`.
+fn scaled_cat(cat_head: &Path, dir: &Path, exponent: i32) -> PathBuf {
+    let text = std::fs::read_to_string(cat_head).unwrap();
     let scale = format!("1e{exponent}").parse::<f64>().unwrap();
     let mut out = String::new();
     for line in text.lines() {
@@ -1433,16 +1442,19 @@ fn scaled_cat(dir: &Path, exponent: i32) -> PathBuf {
     path
 }
 
-/// Issue 42, item 1: the accepted coordinate range is the one the maps work in. cat_head scaled
+/// the accepted coordinate range is the one the maps work in. cat_head scaled
 /// by 1e-45 and 1e45 maps; scaled by 1e-100, 1e100, 1e140 or 1e154 `info` and `conformal` both
 /// refuse it with the same message (`conformal` used to fail with a singular Laplacian or
 /// "degenerate faces", and `info` to print an infinite area for a "disk").
 #[test]
-fn issue_42_coordinate_range_is_the_working_one() {
+fn coordinate_range_is_the_working_one() {
+    let Some(cat_head) = shapespace_test_support::shared_file(CAT_HEAD) else {
+        return;
+    };
     let dir = scratch("coordinate_range");
     let o = dir.join("o.obj");
     for exponent in [-45, 45] {
-        let cat = scaled_cat(&dir, exponent);
+        let cat = scaled_cat(&cat_head, &dir, exponent);
         let run = shapespace(&["conformal", cat.to_str().unwrap(), "--out", o.to_str().unwrap()]);
         assert_eq!(run.status.code(), Some(0), "1e{exponent}: {}", stderr(&run));
         let info = shapespace(&["info", cat.to_str().unwrap()]);
@@ -1454,7 +1466,7 @@ fn issue_42_coordinate_range_is_the_working_one() {
         );
     }
     for exponent in [-100, 100, 140, 154] {
-        let cat = scaled_cat(&dir, exponent);
+        let cat = scaled_cat(&cat_head, &dir, exponent);
         let name = cat.file_name().unwrap().to_str().unwrap().to_string();
         let run = shapespace(&["conformal", cat.to_str().unwrap(), "--out", o.to_str().unwrap()]);
         let msg = stderr(&run);
@@ -1488,13 +1500,13 @@ fn issue_42_coordinate_range_is_the_working_one() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 42, item 2: one definition of a degenerate face. A 7-vertex fan whose centre is the
+/// one definition of a degenerate face. A 7-vertex fan whose centre is the
 /// decimal midpoint of two rim vertices (not exactly on their segment in binary, but with a zero
 /// area from its edge lengths): `info` reports the degenerate face, and `prepare`, `conformal`
 /// and `param` refuse the mesh for it (`info` said 0 degenerate faces and `prepare` "already a
 /// disk, unchanged", then `conformal` failed on face 0).
 #[test]
-fn issue_42_degenerate_faces_are_one_definition() {
+fn degenerate_faces_are_one_definition() {
     let dir = scratch("degenerate");
     let fan = dir.join("fan.obj");
     let mut text = String::from("v 0.735 0.45 -0.17\nv 0.95 0.01 -0.08\nv 0.52 0.89 -0.26\nv -0.6 0.93 -0.14\n");
@@ -1522,14 +1534,30 @@ fn issue_42_degenerate_faces_are_one_definition() {
         );
         assert!(!o.exists(), "{cmd}");
     }
+    // distances maps each file directly: the same face and reason
+    let run = shapespace(&[
+        "distances",
+        fan.to_str().unwrap(),
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        dir.join("d").to_str().unwrap(),
+        "--quiet",
+    ]);
+    let msg = stderr(&run);
+    assert_eq!(run.status.code(), Some(1), "{msg}");
+    assert!(
+        msg.contains("fan.obj: degenerate face 0: zero area to rounding (nearly collinear corners)"),
+        "{msg}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 42, item 6: `stats.json` stays linear in the number of label columns. With 40 label
+/// `stats.json` stays linear in the number of label columns. With 40 label
 /// columns over 8 shapes the cross-column accuracies (one per ordered pair of columns: 1,560)
 /// are skipped with a note unless columns are chosen with `--cross-columns`.
 #[test]
-fn issue_42_mds_stats_are_bounded_in_label_columns() {
+fn mds_stats_are_bounded_in_label_columns() {
     let dir = scratch("mds_columns");
     let n = 8;
     let names: Vec<String> = (0..n).map(|i| format!("s{i}")).collect();
@@ -1590,10 +1618,10 @@ fn issue_42_mds_stats_are_bounded_in_label_columns() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 42, item 7: a second run into an output folder while one is going on (here: the test
+/// a second run into an output folder while one is going on (here: the test
 /// holds the folder's lock) is refused at once, naming the lock; the lock goes with its holder.
 #[test]
-fn issue_42_one_run_at_a_time_per_output_folder() {
+fn one_run_at_a_time_per_output_folder() {
     let dir = scratch("lock");
     let out = dir.join("d");
     std::fs::create_dir_all(&out).unwrap();
@@ -1710,22 +1738,28 @@ fn mutate(bytes: &[u8], state: &mut u64) -> Vec<u8> {
 /// `info` on each, `conformal` on every third, must exit 0, 1 or 2 (never a panic), name the
 /// file when it fails, and print no NaN or infinity when it succeeds.
 #[test]
-fn issue_42_mutated_meshes_fail_cleanly() {
+fn mutated_meshes_fail_cleanly() {
     let dir = scratch("mutations");
-    let seeds = [
-        "datasets/disks/cat_head.obj",
-        "datasets/disks/plate121.ply",
-        "tests/data/wolf0.off",
-        "tests/bad_input/ok_extra_elements_big_endian.ply",
-        "tests/bad_input/ok_mixed_tri_quad.obj",
-        "tests/bad_input/ok_non_manifold_vertex.off",
-    ];
+    // three public meshes from the shared datasets (when present) and three of the repository's
+    let mut seeds: Vec<PathBuf> = [CAT_HEAD, PLATE, "tosca/wolf0.off"]
+        .iter()
+        .filter_map(|rel| shapespace_test_support::shared_file(rel))
+        .collect();
+    seeds.extend(
+        [
+            "tests/bad_input/ok_extra_elements_big_endian.ply",
+            "tests/bad_input/ok_mixed_tri_quad.obj",
+            "tests/bad_input/ok_non_manifold_vertex.off",
+        ]
+        .iter()
+        .map(|rel| root().join(rel)),
+    );
     let mut state = 0x42_2026_u64;
     let o = dir.join("o.obj");
     let mut failed = 0;
     for (s, seed) in seeds.iter().enumerate() {
-        let bytes = std::fs::read(root().join(seed)).unwrap();
-        let ext = Path::new(seed).extension().unwrap().to_str().unwrap();
+        let bytes = std::fs::read(seed).unwrap();
+        let ext = seed.extension().unwrap().to_str().unwrap();
         for k in 0..100 {
             let mutated = mutate(&bytes, &mut state);
             let file = dir.join(format!("m{s}_{k}.{ext}"));
@@ -1741,16 +1775,22 @@ fn issue_42_mutated_meshes_fail_cleanly() {
                 let code = out.status.code();
                 assert!(
                     matches!(code, Some(0..=2)),
-                    "{args:?} ({seed}, mutation {k}): {code:?}: {msg}"
+                    "{args:?} ({}, mutation {k}): {code:?}: {msg}",
+                    seed.display()
                 );
                 if code == Some(0) {
                     assert!(
                         !stdout.contains("NaN") && !stdout.contains("inf"),
-                        "{args:?} ({seed}, mutation {k}): {stdout}"
+                        "{args:?} ({}, mutation {k}): {stdout}",
+                        seed.display()
                     );
                 } else {
                     failed += 1;
-                    assert!(msg.contains(&name), "{args:?} ({seed}, mutation {k}): {msg}");
+                    assert!(
+                        msg.contains(&name),
+                        "{args:?} ({}, mutation {k}): {msg}",
+                        seed.display()
+                    );
                 }
             }
         }
@@ -1914,4 +1954,43 @@ fn distances_name_a_failed_file_once() {
             .unwrap_or_else(|| panic!("{err}"));
         assert_eq!(line.matches(name).count(), 1, "{line}");
     }
+}
+
+/// an error line names the file once (`distances` printed
+/// `bad.obj: bad: bad.obj:4: ...` and `fan.obj: fan.obj: ...`, `conformal` and `param`
+/// `reading bad.obj: bad.obj:4: ...`).
+#[test]
+fn error_lines_name_the_file_once() {
+    let dir = scratch("path_once");
+    let bad = dir.join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n").unwrap();
+    let o = dir.join("o.obj");
+    for cmd in ["conformal", "param", "info"] {
+        let mut args = vec![cmd, bad.to_str().unwrap()];
+        if cmd != "info" {
+            args.extend(["--out", o.to_str().unwrap()]);
+        }
+        let run = shapespace(&args);
+        let msg = stderr(&run);
+        assert_eq!(msg.matches("bad.obj").count(), 1, "{cmd}: {msg}");
+        assert!(msg.contains("bad.obj:4: non-integer vertex index"), "{cmd}: {msg}");
+    }
+    let run = shapespace(&[
+        "distances",
+        bad.to_str().unwrap(),
+        "datasets/faces/id00_neutral.obj",
+        "datasets/faces/id01_happy.obj",
+        "--out",
+        dir.join("d").to_str().unwrap(),
+        "--quiet",
+    ]);
+    let msg = stderr(&run);
+    assert_eq!(run.status.code(), Some(1), "{msg}");
+    let line = msg.lines().find(|l| l.contains("non-integer")).unwrap_or_default();
+    assert_eq!(line.matches("bad.obj").count(), 1, "{msg}");
+    assert!(
+        line.starts_with("shapespace: ") && line.contains("bad.obj:4: non-integer vertex index"),
+        "{msg}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }

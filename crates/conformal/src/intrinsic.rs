@@ -85,8 +85,18 @@ impl IntrinsicTriangulation {
     /// Builds the intrinsic triangulation of `mesh` (edge lengths measured in 3D).
     ///
     /// Errors: an edge with more than two faces, two faces with the same direction on an edge
-    /// (inconsistent orientation), a zero-length edge or a zero-area face.
+    /// (inconsistent orientation), a zero-length edge or a zero-area face; a degenerate face of
+    /// the mesh is named with the reason `info` and `prepare` give
+    /// ([`shapespace_geometry::topology::degenerate_face`]).
     pub fn from_mesh(mesh: &TriMesh) -> Result<Self, ConformalError> {
+        if let Some((face, reason)) =
+            (0..mesh.num_faces()).find_map(|f| shapespace_geometry::topology::degenerate_face(mesh, f).map(|r| (f, r)))
+        {
+            return Err(ConformalError::DegenerateFace {
+                face,
+                reason: reason.into(),
+            });
+        }
         let lengths: Vec<f64> = mesh
             .faces
             .iter()

@@ -664,7 +664,7 @@ pub fn classify(mesh: &TriMesh) -> Result<Classification, GeometryError> {
 /// The range of coordinates the disk maps work in: the cotangent weights and face areas go
 /// through the squared norm of an edge cross product, of the order of (edge length)⁴, which
 /// overflows f64 for edges of about 1e77 and underflows to 0 below about 1e-77 (measured:
-/// `datasets/disks/cat_head.obj`, of size ~1, maps when scaled by 1e-76 … 1e76 and fails at
+/// geometry-central's `cat_head.obj` (shared datasets), of size ~1, maps when scaled by 1e-76 … 1e76 and fails at
 /// 1e±80 with a singular Laplacian or "degenerate faces"). The accepted range,
 /// coordinates up to [`MAX_COORDINATE`] and a mesh extent above [`MIN_EXTENT`], keeps a margin of
 /// 1e25 on both sides (edges down to 1e-25 of the extent). An error that says so (and to

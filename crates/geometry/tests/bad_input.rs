@@ -24,11 +24,11 @@ const fn err(at: &'static str, problem: &'static [&'static str]) -> Expect {
 
 /// Every file in the corpus and what reading it must give.
 const CORPUS: &[(&str, Expect)] = &[
-    // issue 42: a lone CR inside a number, PLY 2.0, OFF counts with an extra value
-    ("issue_42_cr_inside_number.obj", err(":2:", &["carriage return"])),
-    ("issue_42_ply_version_2.ply", err(":2:", &["PLY version '2.0'"])),
+    // a lone CR inside a number, PLY 2.0, OFF counts with an extra value
+    ("cr_inside_number.obj", err(":2:", &["carriage return"])),
+    ("ply_version_2.ply", err(":2:", &["PLY version '2.0'"])),
     (
-        "issue_42_off_counts_extra_value.off",
+        "off_counts_extra_value.off",
         err(":2:", &["expected the counts", "found 4 values"]),
     ),
     ("binary_garbage.obj", err(":1:", &["binary data"])),
@@ -248,11 +248,11 @@ fn truncations_and_corruptions_never_panic() {
     }
 }
 
-/// Issue 42, item 7: a device as a mesh file is refused before reading (`/dev/zero` was read
+/// a device as a mesh file is refused before reading (`/dev/zero` was read
 /// without end), naming the file.
 #[cfg(unix)]
 #[test]
-fn issue_42_devices_are_not_read_as_meshes() {
+fn devices_are_not_read_as_meshes() {
     let dir = std::env::temp_dir().join(format!("shapespace-device-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let zero = dir.join("zero.obj");

@@ -39,7 +39,8 @@
 //! whole plane.
 //!
 //! Input range: coordinates with |x| ≤ 1e30 and weights with |w| ≤ 1e60 (so that no exact
-//! product overflows); coincident sites are rejected with [`OmtError::DuplicatePoints`].
+//! product overflows), and nonzero coordinates with |x| ≥ 1e-30 ([`MIN_COORDINATE`], so that no
+//! exact product underflows); coincident sites are rejected with [`OmtError::DuplicatePoints`].
 
 use crate::error::OmtError;
 use crate::predicates::{orient, power_compare, power_side_1d, power_side_sos, Weight};
@@ -47,6 +48,13 @@ use rayon::prelude::*;
 
 /// Sentinel for "no triangle / dead triangle".
 const NONE: u32 = u32::MAX;
+
+/// Smallest magnitude of a nonzero site coordinate: the predicates multiply up to four
+/// coordinates, and their exact error terms must stay normal f64 (spade refuses values below
+/// 1.8e-43 for the same reason, `InsertionError::TooSmall`). A power-diagram fuzz sweep with
+/// subnormal coordinates beside ordinary ones broke the diagram's invariants (non-regular edges,
+/// clockwise triangles, an index out of bounds).
+pub const MIN_COORDINATE: f64 = 1e-30;
 
 /// A power diagram, or the sites found hidden before its construction was stopped
 /// ([`PowerDiagram::with_order_dd_unless_hidden`]).
@@ -617,6 +625,12 @@ fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<Vec<u32>, Om
                 p[0], p[1]
             )));
         }
+        if p.iter().any(|c| *c != 0.0 && c.abs() < MIN_COORDINATE) {
+            return Err(OmtError::InvalidInput(format!(
+                "site {i} = ({:e}, {:e}) has a nonzero coordinate below {MIN_COORDINATE:e} in magnitude, where the exact predicates' products underflow; rescale the sites or round such coordinates to 0",
+                p[0], p[1]
+            )));
+        }
         if !w.is_finite() || w.abs() > 1e60 {
             return Err(OmtError::InvalidInput(format!(
                 "weight {i} = {w} is not finite or exceeds 1e60 in magnitude"
@@ -731,7 +745,8 @@ impl PowerDiagram {
     /// diagram. Expected O(N log N) time.
     ///
     /// Errors: [`OmtError::InvalidInput`] for mismatched lengths, no site, a non-finite
-    /// coordinate or weight, or one out of range (|x| > 1e30, |w| > 1e60), naming the index;
+    /// coordinate or weight, or one out of range (|x| > 1e30, 0 < |x| < 1e-30, |w| > 1e60),
+    /// naming the index;
     /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
     pub fn new(sites: &[[f64; 2]], weights: &[f64]) -> Result<Self, OmtError> {
         let sorted = validate_and_sort(sites, weights)?;

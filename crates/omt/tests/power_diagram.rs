@@ -531,3 +531,32 @@ fn triangle_neighbors_share_the_opposite_edge() {
     assert_eq!(triangles.len(), 2 * v - 2 - open_edges);
     assert!(open_edges >= 3);
 }
+
+/// Found by fuzzing: subnormal site coordinates beside ordinary ones (found by the
+/// `power_diagram` fuzz target; this input panicked with an index out of bounds, others broke the
+/// diagram's invariants) are refused as out of the predicates' range, naming the site; the
+/// smallest accepted magnitude builds a diagram that passes its checks.
+#[test]
+fn subnormal_sites_are_refused() {
+    let mut sites: Vec<[f64; 2]> = (0..7)
+        .map(|i| [-0.75 + 0.5 * (i % 4) as f64, -0.75 + 0.5 * (i / 4) as f64])
+        .collect();
+    sites.extend([
+        [1.35409856411e-312, 4.07058473839e-312],
+        [1.356087935164e-312, 4.070253176545e-312],
+        [4.0722425476e-312, 1.35409856411e-312],
+        [4.070253176545e-312, 1.35409856411e-312],
+        [1.35409856411e-312, 1.35409856411e-312],
+    ]);
+    let mut weights = vec![0.0; sites.len()];
+    weights[8] = 1.03213875272551e-309;
+    let e = PowerDiagram::new(&sites, &weights).unwrap_err().to_string();
+    assert!(e.contains("site 7") && e.contains("underflow"), "{e}");
+    // at the bound: accepted, and a valid diagram
+    let scale = 2.0 * shapespace_omt::power_diagram::MIN_COORDINATE / 1.35409856411e-312;
+    for p in &mut sites[7..] {
+        *p = [p[0] * scale, p[1] * scale];
+    }
+    let diagram = PowerDiagram::new(&sites, &vec![0.0; sites.len()]).unwrap();
+    diagram.sanity_check().unwrap();
+}

@@ -95,7 +95,8 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
         ],
         [Some(args.input.as_path()), args.markers.landmarks.as_deref()],
     )?;
-    let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
+    // (its errors name the file)
+    let mut mesh = read_mesh(&args.input)?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk map", args.input.display()))?;
     let (markers, marker_source) = args.markers.resolve(&args.input, mesh.num_vertices())?;

@@ -293,12 +293,11 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
     for warning in &r.marker_warnings {
         eprintln!("shapespace: warning: {warning}");
     }
+    // (an input's error starts with its path)
     for input in r.inputs.iter().filter(|i| !i.ok) {
-        // (the report's errors start with the file's path)
-        let shown = input.path.display().to_string();
-        match input.error.as_deref() {
-            Some(e) if e.strip_prefix(&shown).is_some_and(|rest| rest.starts_with(':')) => eprintln!("shapespace: {e}"),
-            e => eprintln!("shapespace: {shown}: {}", e.unwrap_or("failed")),
+        match &input.error {
+            Some(error) => eprintln!("shapespace: {error}"),
+            None => eprintln!("shapespace: {}: failed", input.path.display()),
         }
     }
     // the failures after those of the inputs are the pairs'

@@ -108,8 +108,8 @@ fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<Vec<
 
 fn source_measure(args: &OtArgs) -> anyhow::Result<SourceMeasure> {
     if let Some(mesh_path) = &args.density_mesh {
-        let mesh = shapespace_geometry::io::read_mesh(mesh_path)
-            .with_context(|| format!("reading {}", mesh_path.display()))?;
+        // (its errors name the file)
+        let mesh = shapespace_geometry::io::read_mesh(mesh_path)?;
         let vertices: Vec<[f64; 2]> = match &mesh.uvs {
             Some(uvs) => uvs.clone(),
             None => mesh.positions.iter().map(|p| [p[0], p[1]]).collect(),

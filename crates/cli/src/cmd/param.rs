@@ -114,7 +114,8 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         super::create_output_folder(dir)?;
     }
     let domain: Domain = args.domain.parse()?;
-    let mut mesh = read_mesh(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
+    // (its errors name the file)
+    let mut mesh = read_mesh(&args.input)?;
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk parameterization", args.input.display()))?;
     let (markers, marker_source) = args.markers.resolve(&args.input, mesh.num_vertices())?;

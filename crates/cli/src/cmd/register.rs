@@ -152,7 +152,8 @@ fn harmonic_params(
 pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let method: Method = args.method.parse()?;
     super::create_output_folder(&args.out)?;
-    let read = |p: &Path| shapespace_geometry::io::read_mesh(p).with_context(|| format!("reading {}", p.display()));
+    // (its errors name the file)
+    let read = |p: &Path| shapespace_geometry::io::read_mesh(p);
     let source = read(&args.source)?;
     let target = read(&args.target)?;
     let m1 = marker_file(args.source_markers.as_deref(), &args.source)?;
