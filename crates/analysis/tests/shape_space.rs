@@ -145,15 +145,18 @@ fn run_mds_errors_name_the_problem() {
     let err = run_mds(&dist_path, None, &out, &bad_col).unwrap_err();
     assert!(matches!(err, AnalysisError::LabelsRequired { .. }), "{err}");
 
-    // A failed pair (both directions missing) stops MDS and names the pair.
+    // A failed pair (both directions missing): one of its two shapes (the later, of equal
+    // counts) leaves the embedding, and the statistics say which.
     let n = d.len();
     d.values[3 * n + 7] = f64::NAN;
     d.values[7 * n + 3] = f64::NAN;
     write_distance_matrix(&dist_path, &d).unwrap();
-    let err = run_mds(&dist_path, Some(&labels_path), &out, &MdsParams::default()).unwrap_err();
-    let msg = err.to_string();
-    assert!(msg.contains(&d.names[3]) && msg.contains(&d.names[7]), "{msg}");
-    assert!(!out.join("mds.csv").exists());
+    let r = run_mds(&dist_path, Some(&labels_path), &out, &MdsParams::default()).unwrap();
+    assert_eq!(r.stats.dropped_shapes, vec![d.names[7].clone()]);
+    assert_eq!((r.stats.n, r.names.len(), r.stats.missing_pairs), (n - 1, n - 1, 0));
+    assert!(!r.names.contains(&d.names[7]));
+    let rows = std::fs::read_to_string(out.join("mds.csv")).unwrap().lines().count();
+    assert_eq!(rows, n);
 
     // Without labels everything but the label statistics is written.
     d.values[3 * n + 7] = 0.05;
