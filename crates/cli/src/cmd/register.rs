@@ -213,15 +213,18 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         s_origin = format!("{s_origin}, {}", a.note);
         t_origin = format!("{t_origin}, {}", b.note);
     }
-    let resolved =
-        |mesh: &shapespace_geometry::TriMesh, m: &shapespace_conformal::Markers, path: &Path, origin: &str| {
-            resolve_markers_of(mesh, m)
-                .with_context(|| format!("markers of {}", path.display()))
-                .map(|r| serde_json::json!({"center": r.center, "boundary": r.boundary_vertex, "source": origin}))
-        };
+    let resolved = |side: &str,
+                    mesh: &shapespace_geometry::TriMesh,
+                    m: &shapespace_conformal::Markers,
+                    path: &Path,
+                    origin: &str| {
+        resolve_markers_of(mesh, m)
+            .with_context(|| format!("markers of the {side} {}", path.display()))
+            .map(|r| serde_json::json!({"center": r.center, "boundary": r.boundary_vertex, "source": origin}))
+    };
     let markers_json = serde_json::json!({
-        "source": resolved(&source, &sm, &args.source, &s_origin)?,
-        "target": resolved(&target, &tm, &args.target, &t_origin)?,
+        "source": resolved("source", &source, &sm, &args.source, &s_origin)?,
+        "target": resolved("target", &target, &tm, &args.target, &t_origin)?,
     });
     let params = RegistrationParams {
         method,
