@@ -7,7 +7,7 @@
 //! A row is taken only if it is intact: its `check` column ([`row_check`]) covers the run's
 //! settings and build, the keys of its two inputs and its values as written, so a row changed
 //! after it was written (by hand, or a disk error) is not taken silently; and its values must be
-//! those a computation gives ([`invalid_values`]: a converged pair has a finite distance >= 0
+//! those a computation gives (`invalid_values`: a converged pair has a finite distance >= 0
 //! that is the square root of its cost, a pair that did not converge has none, the status is one
 //! the solver writes). Such rows are computed again and listed in the resume notes.
 

@@ -28,7 +28,7 @@ pub fn triangle_area_from_lengths(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
-/// Side lengths of the triangle with corners `p[0]`, `p[1]`, `p[2]`: entry k is |p[k] − p[k+1]|
+/// Side lengths of the triangle with corners `p[0]`, `p[1]`, `p[2]`: entry k is `|p[k] − p[k+1]|`
 /// (indices mod 3), the lengths the disk maps start from.
 pub fn face_edge_lengths(p: [[f64; 3]; 3]) -> [f64; 3] {
     std::array::from_fn(|k| {
