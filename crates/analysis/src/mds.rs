@@ -167,8 +167,7 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     // (of the scaled matrix; the shares and signs are scale-free)
     let eigenvalues: Vec<f64> = order.iter().map(|&k| s[k]).collect();
 
-    let positive_sum: f64 = eigenvalues.iter().filter(|&&l| l > 0.0).sum();
-    let negative_sum: f64 = eigenvalues.iter().filter(|&&l| l < 0.0).map(|l| -l).sum();
+    let (positive_sum, negative_sum) = eigenvalue_sums(&eigenvalues);
     let max_abs = eigenvalues.iter().fold(0.0f64, |m, l| m.max(l.abs()));
     let negative_count = eigenvalues.iter().filter(|&&l| l < -1e-12 * max_abs).count();
 
@@ -212,8 +211,26 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     })
 }
 
+/// Σ of the positive eigenvalues and Σ |negative eigenvalues|, each from +0: an empty f64
+/// `sum()` is −0, which printed as "-0.000" and serialized as `-0.0`.
+fn eigenvalue_sums(eigenvalues: &[f64]) -> (f64, f64) {
+    let positive = eigenvalues.iter().filter(|&&l| l > 0.0).fold(0.0, |s, l| s + l);
+    let negative = eigenvalues.iter().filter(|&&l| l < 0.0).fold(0.0, |s, l| s - l);
+    (positive, negative)
+}
+
 #[cfg(test)]
 mod tests {
+
+    /// Without negative eigenvalues the negative sum is +0, not −0 ("-0.000" in the summary).
+    #[test]
+    fn eigenvalue_sums_start_from_positive_zero() {
+        let (p, n) = eigenvalue_sums(&[3.0, 1.0, 0.0]);
+        assert_eq!(p, 4.0);
+        assert!(n == 0.0 && n.is_sign_positive());
+        assert_eq!(format!("{:.3}", n / p), "0.000");
+        assert_eq!(eigenvalue_sums(&[2.0, -0.5, -0.25]), (2.0, 0.75));
+    }
     use super::*;
 
     fn euclidean_matrix(points: &[Vec<f64>]) -> DistanceMatrix {
