@@ -1994,3 +1994,29 @@ fn error_lines_name_the_file_once() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `ot` that stops before its tolerance names the points file in its status line and exits 1.
+#[test]
+fn ot_names_the_points_file_when_it_stops_unconverged() {
+    let dir = scratch("ot_unconverged");
+    let points = dir.join("pts.csv");
+    write_sunflower_points(&points, 400, 3);
+    let out = shapespace(&[
+        "ot",
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        dir.join("r.csv").to_str().unwrap(),
+        "--max-iterations",
+        "1",
+        "--tol",
+        "1e-12",
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = stderr(&out);
+    let status = err
+        .lines()
+        .find(|l| l.contains("after 1 steps"))
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(status.contains(points.to_str().unwrap()), "{status}");
+}

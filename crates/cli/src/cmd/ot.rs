@@ -193,8 +193,13 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
     let solution =
         solve_ot(&measure, &points, &masses, &params).with_context(|| format!("OT to {}", args.points.display()))?;
     eprintln!(
-        "shapespace ot: {} after {} steps, max relative mass error {:.3e}, cost {:.9}, {:.2} s",
-        solution.stop, solution.iterations, solution.max_relative_error, solution.cost, solution.t_total
+        "shapespace ot: {}: {} after {} steps, max relative mass error {:.3e}, cost {:.9}, {:.2} s",
+        args.points.display(),
+        solution.stop,
+        solution.iterations,
+        solution.max_relative_error,
+        solution.cost,
+        solution.t_total
     );
 
     let file = AtomicFile::create(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
