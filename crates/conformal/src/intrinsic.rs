@@ -256,6 +256,14 @@ impl IntrinsicTriangulation {
             .any(|&g| own.contains(&self.twin[g as usize]))
     }
 
+    /// Makes x and y twins (y may be [`NONE`]: x is then a boundary side).
+    fn link(&mut self, x: u32, y: u32) {
+        self.twin[x as usize] = y;
+        if y != NONE {
+            self.twin[y as usize] = x;
+        }
+    }
+
     /// Flips the interior edge of half-edge h (faces (a,b,c) and (b,a,d) become (c,d,b) and
     /// (d,c,a)); the new length |cd| comes from laying both triangles out in the plane.
     fn flip(&mut self, h: u32) {
@@ -297,16 +305,10 @@ impl IntrinsicTriangulation {
         self.length[hp as usize] = l_bc;
         self.length[tn as usize] = l_ca;
         self.length[tp as usize] = l_ad;
-        let mut link = |x: u32, y: u32| {
-            self.twin[x as usize] = y;
-            if y != NONE {
-                self.twin[y as usize] = x;
-            }
-        };
-        link(hn, x4);
-        link(hp, x1);
-        link(tn, x2);
-        link(tp, x3);
+        self.link(hn, x4);
+        self.link(hp, x1);
+        self.link(tn, x2);
+        self.link(tp, x3);
         self.num_flips += 1;
     }
 
@@ -392,18 +394,12 @@ impl IntrinsicTriangulation {
         self.tail[tn as usize] = m;
         self.length[t as usize] = half;
         self.length[tn as usize] = l_md;
-        let mut link = |x: u32, y: u32| {
-            self.twin[x as usize] = y;
-            if y != NONE {
-                self.twin[y as usize] = x;
-            }
-        };
-        link(h, f4); // a→m / m→a
-        link(hn, f2 + 2); // m→c / c→m
-        link(f2, t); // m→b / b→m
-        link(f2 + 1, x_bc); // b→c
-        link(tn, f4 + 2); // m→d / d→m
-        link(f4 + 1, x_ad); // a→d
+        self.link(h, f4); // a→m / m→a
+        self.link(hn, f2 + 2); // m→c / c→m
+        self.link(f2, t); // m→b / b→m
+        self.link(f2 + 1, x_bc); // b→c
+        self.link(tn, f4 + 2); // m→d / d→m
+        self.link(f4 + 1, x_ad); // a→d
         m
     }
 
