@@ -286,6 +286,12 @@ fn invalid_input_is_rejected() {
             other => panic!("masses {masses:?}: {:?}", other.map(|s| s.stop)),
         }
     }
+    // one subnormal mass beside ordinary ones: the sum and the scale are fine, that mass's
+    // target underflows; the error names it
+    match solve_ot(&measure, &points, &[1.0, 1.0, 5e-324], &p) {
+        Err(OmtError::InvalidInput(m)) => assert!(m.contains("target mass 2 is") && m.contains("too small"), "{m}"),
+        other => panic!("{:?}", other.map(|s| s.stop)),
+    }
     for scale in [1e300, 1e-300] {
         let masses = [scale, 3.0 * scale, 2.0 * scale];
         let sol = solve_ot(&measure, &points, &masses, &p).unwrap();

@@ -1096,9 +1096,16 @@ fn validate(
         let t = m * scale;
         t.is_finite() && t > 0.0
     };
-    if !(sum.is_finite() && scale.is_finite() && scale > 0.0 && masses.iter().all(|&m| representable(m))) {
+    if !(sum.is_finite() && scale.is_finite() && scale > 0.0) {
         return Err(OmtError::InvalidInput(format!(
             "the target masses sum to {sum:e}, which cannot be rescaled to the source's mass {total:e} in double precision; rescale the masses (e.g. divide them by the largest)"
+        )));
+    }
+    // the sum is fine, but one mass is too small beside the others for its rescaled value
+    if let Some(i) = masses.iter().position(|&m| !representable(m)) {
+        return Err(OmtError::InvalidInput(format!(
+            "target mass {i} is {:e}, too small beside the others (they sum to {sum:e}): rescaled to the source's mass {total:e} it underflows double precision; drop that point or merge it with a neighbour",
+            masses[i]
         )));
     }
     if !(params.coarse_tolerance > 0.0 && params.coarse_tolerance < 1.0) {
