@@ -197,7 +197,7 @@ pub fn rotation_invariant_distance(
         }
     }
     let (mut theta, loose) = best.expect("θ = 0 is always a candidate");
-    let (mut sol, mut points) = solve(theta, Some(loose.heights), params.tolerance)?;
+    let (mut sol, points) = solve(theta, Some(loose.heights), params.tolerance)?;
     let mut g = rotation_derivative(&sol, &points);
     // first step: a small probe against the slope, then secant steps on C′
     let mut step = -g.signum() * 1e-2;
@@ -206,22 +206,20 @@ pub fn rotation_invariant_distance(
             break;
         }
         let next = wrap(theta + step);
-        let (s, p) = solve(next, Some(sol.heights.clone()), params.tolerance)?;
-        let g_next = rotation_derivative(&s, &p);
+        let (s, rotated) = solve(next, Some(sol.heights.clone()), params.tolerance)?;
+        let g_next = rotation_derivative(&s, &rotated);
         let secant = (g_next - g) / step;
-        let accepted = s.cost <= sol.cost || secant > 0.0;
         if s.cost <= sol.cost {
-            (theta, sol, points) = (next, s, p);
+            (theta, sol) = (next, s);
             step = if secant > 0.0 { -g_next / secant } else { step };
             g = g_next;
-        } else if accepted {
+        } else if secant > 0.0 {
             // overshoot: the minimum lies between; step from the kept point by the secant
             step = -g / secant;
         } else {
             step *= -0.5;
         }
     }
-    let _ = points;
     Ok(RotationSearch {
         cost: sol.cost,
         distance: sol.cost.max(0.0).sqrt(),
