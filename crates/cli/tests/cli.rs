@@ -1500,11 +1500,12 @@ fn coordinate_range_is_the_working_one() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// one definition of a degenerate face. A 7-vertex fan whose centre is the
-/// decimal midpoint of two rim vertices (not exactly on their segment in binary, but with a zero
-/// area from its edge lengths): `info` reports the degenerate face, and `prepare`, `conformal`
-/// and `param` refuse the mesh for it (`info` said 0 degenerate faces and `prepare` "already a
-/// disk, unchanged", then `conformal` failed on face 0).
+/// One definition of a degenerate face. A 7-vertex fan whose centre is the decimal midpoint of
+/// two rim vertices (not exactly on their segment in binary, but with a zero area from its edge
+/// lengths): `info` reports the degenerate face, `conformal` and `param` refuse the mesh for it
+/// and point to `prepare`, which repairs it (the face on the rim is removed, no vertex moves)
+/// into a mesh that `conformal` maps. (`info` said 0 degenerate faces and `prepare` "already a
+/// disk, unchanged", then `conformal` failed on face 0.)
 #[test]
 fn degenerate_faces_are_one_definition() {
     let dir = scratch("degenerate");
@@ -1524,16 +1525,33 @@ fn degenerate_faces_are_one_definition() {
     let table = String::from_utf8_lossy(&info.stdout).into_owned();
     assert!(table.contains("fan.obj: 1 degenerate face"), "{table}");
     let o = dir.join("o.obj");
-    for cmd in ["prepare", "conformal", "param"] {
+    for cmd in ["conformal", "param"] {
         let run = shapespace(&[cmd, fan.to_str().unwrap(), "--out", o.to_str().unwrap()]);
         let msg = stderr(&run);
         assert_eq!(run.status.code(), Some(2), "{cmd}: {msg}");
         assert!(
-            msg.contains("fan.obj") && msg.contains("1 degenerate face") && msg.contains("first face 0"),
+            msg.contains("fan.obj")
+                && msg.contains("1 degenerate face")
+                && msg.contains("first face 0")
+                && msg.contains("`shapespace prepare` repairs them"),
             "{cmd}: {msg}"
         );
         assert!(!o.exists(), "{cmd}");
     }
+    let prepared = dir.join("prepared.obj");
+    let run = shapespace(&["prepare", fan.to_str().unwrap(), "--out", prepared.to_str().unwrap()]);
+    let msg = stderr(&run);
+    assert_eq!(run.status.code(), Some(0), "{msg}");
+    assert!(
+        msg.contains("repaired 1 degenerate face without moving a vertex (1 removed from the boundary)"),
+        "{msg}"
+    );
+    let info = shapespace(&["info", prepared.to_str().unwrap(), "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(json[0]["num_degenerate_faces"], 0, "{json}");
+    let run = shapespace(&["conformal", prepared.to_str().unwrap(), "--out", o.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(o.exists());
     // distances maps each file directly: the same face and reason
     let run = shapespace(&[
         "distances",

@@ -14,6 +14,7 @@ pub mod predicates;
 pub mod prepare;
 pub mod primitives;
 pub mod quantities;
+pub mod repair;
 pub mod seam;
 pub mod topology;
 pub mod vec3;

@@ -1,6 +1,6 @@
 //! Explicit mesh preparation operations, each called by the user (nothing here runs
 //! implicitly): drop unreferenced vertices, keep the largest component, make the orientation
-//! consistent, fill holes, cut a disk out of a closed surface, scale to a given area.
+//! consistent, repair degenerate faces ([`crate::repair`]), fill holes, cut a disk out of a closed surface, scale to a given area.
 //!
 //! Every operation returns a new mesh. Vertex order is preserved except where documented; when
 //! vertices are removed, an old→new index map (`Vec<Option<u32>>`, #V of the input) is returned
@@ -15,6 +15,7 @@ use crate::connectivity::Connectivity;
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
 use crate::quantities::{face_areas, triangle_area};
+use crate::repair::{repair_degenerate_faces, DegenerateRepair};
 use crate::topology::{self, face_components, orientation_flips, MeshClass};
 use crate::vec3::{add, cross, dot, norm, scale, sub};
 
@@ -685,11 +686,16 @@ pub struct PrepareReport {
     pub unreferenced_dropped: usize,
     /// Faces of the components other than the largest, dropped.
     pub faces_of_other_components_dropped: usize,
+    /// Faces with a repeated vertex index, dropped.
+    pub repeated_vertex_faces_dropped: usize,
     /// Faces flipped to make the orientation consistent.
     pub faces_flipped: usize,
     /// Closed components whose faces were all flipped to face outward (0 or 1: the largest
     /// component is kept).
     pub closed_components_turned_outward: usize,
+    /// Degenerate (zero-area) faces repaired by edge flips, boundary-face removals and edge
+    /// collapses ([`repair_degenerate_faces`]).
+    pub degenerate_faces_repaired: DegenerateRepair,
     /// Input vertex at the centre of the disk cut from a closed surface, if one was cut.
     pub cut_center: Option<u32>,
     /// Faces removed by the cut.
@@ -710,8 +716,10 @@ pub struct PrepareReport {
 }
 
 /// Makes a disk-topology mesh out of a surface with the explicit operations of this module, in
-/// this order: drop unreferenced vertices, keep the largest component, make the orientation
-/// consistent, cut a disk out of a closed surface ([`cut_disk`] at `options.cut_center`), fill
+/// this order: drop unreferenced vertices, keep the largest component, drop faces with a
+/// repeated vertex, make the orientation consistent, repair zero-area faces without moving a
+/// vertex ([`repair_degenerate_faces`]: edge flips, boundary-face removals, collapses of
+/// coincident vertices), cut a disk out of a closed surface ([`cut_disk`] at `options.cut_center`), fill
 /// every boundary loop but the longest ([`fill_holes_except_longest`]), check the result with
 /// [`topology::require_disk`], optionally cut it open along a seam from its extremities to the
 /// boundary (`options.seam_extremities`, [`crate::seam`]), and, when edges joining two boundary
@@ -722,7 +730,8 @@ pub struct PrepareReport {
 /// filling or edge splits; a copy made by the seam cut maps to the input vertex it copies, so
 /// seam vertices appear more than once; the others keep their relative order) and what was
 /// done. Errors: an
-/// invalid mesh, a non-orientable or non-manifold surface, a cut centre out of range or removed
+/// invalid mesh, a degenerate face that no flip, removal or collapse repairs (named by input
+/// vertices), a non-orientable or non-manifold surface, a cut centre out of range or removed
 /// by an earlier step, or a result that is still not a disk (e.g. a closed surface of genus ≥ 1,
 /// which a disk cut leaves with handles: the error names the genus), or one without an interior
 /// vertex (a seam through every vertex).
@@ -749,18 +758,23 @@ pub fn prepare_disk(
     let (m, map) = keep_largest_component(&m)?;
     report.faces_of_other_components_dropped = faces_before - m.num_faces();
     origin = follow(&origin, &map, m.num_vertices());
-    // Defects of the kept component that no step below repairs, named here by input vertex
-    // indices (they used to surface later as "a hole needs at least 3 vertices"): a face with a
-    // repeated corner, an edge with more than two faces.
-    let input = |v: u32| origin[v as usize].map_or_else(|| format!("new {v}"), |o| o.to_string());
-    if let Some(t) = m.faces.iter().find(|t| t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
-        return Err(GeometryError::Topology(format!(
-            "a face on input vertices ({}, {}, {}) repeats a vertex: remove such degenerate faces first",
-            input(t[0]),
-            input(t[1]),
-            input(t[2])
-        )));
+    // Faces with a repeated corner have no area and join nothing: dropped. (They used to
+    // surface later as "a hole needs at least 3 vertices".)
+    let repeats = |t: &[u32; 3]| t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
+    let mut m = m;
+    let before = m.num_faces();
+    m.faces.retain(|t| !repeats(t));
+    report.repeated_vertex_faces_dropped = before - m.num_faces();
+    if report.repeated_vertex_faces_dropped > 0 {
+        let (compact, map) = drop_unreferenced_vertices(&m)?;
+        report.unreferenced_dropped += m.num_vertices() - compact.num_vertices();
+        origin = follow(&origin, &map, compact.num_vertices());
+        m = compact;
+        if m.faces.is_empty() {
+            return Err(GeometryError::Topology("every face repeats a vertex".into()));
+        }
     }
+    let input = |v: u32| origin[v as usize].map_or_else(|| format!("new {v}"), |o| o.to_string());
     let non_manifold = topology::non_manifold_edges(&Connectivity::of(&m));
     if let Some(e) = non_manifold.first() {
         return Err(GeometryError::Topology(format!(
@@ -770,9 +784,34 @@ pub fn prepare_disk(
             input(e[1])
         )));
     }
-    let (mut m, info) = reorient(&m)?;
+    let (m, info) = reorient(&m)?;
     report.faces_flipped = info.faces_flipped_for_consistency;
     report.closed_components_turned_outward = info.closed_components_turned_outward;
+    // zero-area faces (the definition every command shares): flipped, removed or collapsed
+    // without moving a vertex ([`crate::repair`])
+    let repaired = repair_degenerate_faces(&m);
+    if let Some(t) = repaired.remaining.first() {
+        let reason = crate::predicates::degenerate_corners(
+            m.positions[t[0] as usize],
+            m.positions[t[1] as usize],
+            m.positions[t[2] as usize],
+        )
+        .unwrap_or("degenerate");
+        return Err(GeometryError::Topology(format!(
+            "{} that no edge flip, boundary-face removal or edge collapse repairs, first on input vertices ({}, {}, {}): {reason}",
+            if repaired.remaining.len() == 1 {
+                "1 degenerate face".to_string()
+            } else {
+                format!("{} degenerate faces", repaired.remaining.len())
+            },
+            input(t[0]),
+            input(t[1]),
+            input(t[2])
+        )));
+    }
+    report.degenerate_faces_repaired = repaired.repair;
+    origin = follow(&origin, &repaired.vertex_map, repaired.mesh.num_vertices());
+    let mut m = repaired.mesh;
     let conn = Connectivity::of(&m);
     if conn.boundary_loops(&m.faces).is_empty() {
         let center = match options.cut_center {

@@ -798,7 +798,7 @@ pub fn require_disk(mesh: &TriMesh) -> Result<(), GeometryError> {
     }
     if r.num_degenerate_faces > 0 {
         problems.push(format!(
-            "{} (repeated vertex or zero area), first face {}: remove or repair them",
+            "{} (repeated vertex or zero area), first face {}: `shapespace prepare` repairs them (`prepare::prepare_disk`)",
             plural(r.num_degenerate_faces, "degenerate face", "degenerate faces"),
             r.first_degenerate_faces[0]
         ));

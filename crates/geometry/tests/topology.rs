@@ -758,18 +758,19 @@ fn report_area_with_coordinates_near_the_f64_limit() {
     );
 }
 
-/// `prepare_disk` names the defects no step of it repairs, by input vertex indices: a face with
-/// a repeated corner and an edge with three faces (both surfaced as "a hole needs at least 3
-/// vertices, got 1 / 2" from the hole filling).
+/// `prepare_disk` drops a face with a repeated corner (it surfaced as "a hole needs at least 3
+/// vertices, got 1" from the hole filling) and names the defect no step of it repairs by input
+/// vertex indices: an edge with three faces.
 #[test]
-fn prepare_names_degenerate_faces_and_non_manifold_edges() {
+fn prepare_drops_repeated_vertex_faces_and_names_non_manifold_edges() {
     let g = grid(4, 4);
     let mut degenerate = g.clone();
-    degenerate.faces.push([5, 5, 6]);
-    let err = prepare::prepare_disk(&degenerate, &prepare::PrepareOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("(5, 5, 6) repeats a vertex"), "{err}");
+    degenerate.faces.insert(3, [5, 5, 6]);
+    let (disk, origin, report) = prepare::prepare_disk(&degenerate, &prepare::PrepareOptions::default()).unwrap();
+    assert_eq!(report.repeated_vertex_faces_dropped, 1);
+    assert_eq!(disk.faces, g.faces);
+    assert_eq!(disk.positions, g.positions);
+    assert!(origin.iter().enumerate().all(|(v, o)| *o == Some(v as u32)));
     // a fin on an interior edge of the grid's first face (shared with a second face)
     let mut fin = g.clone();
     let [_, a, b] = g.faces[0];

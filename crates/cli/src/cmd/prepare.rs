@@ -1,7 +1,9 @@
 //! `shapespace prepare IN --out OUT [--cut-center V|auto] [--cut-rings K] [--seam N]
 //! [--vertex-map MAP.csv]`: a disk-topology mesh for the other commands, by the explicit
 //! operations of [`shapespace_geometry::prepare::prepare_disk`] (drop unreferenced vertices, keep
-//! the largest component, orient consistently, cut a disk out of a closed surface, fill all holes
+//! the largest component, drop faces with a repeated vertex, orient consistently, repair
+//! zero-area faces by edge flips, boundary-face removals and collapses, cut a disk out of a
+//! closed surface, fill all holes
 //! but the longest, optionally slit the disk from N extremities to its boundary, split the edges
 //! between two boundary vertices when they cut interior vertices off).
 //! Prints what it did.
@@ -87,6 +89,12 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
             report.faces_of_other_components_dropped
         ));
     }
+    if report.repeated_vertex_faces_dropped > 0 {
+        steps.push(format!(
+            "dropped {} faces with a repeated vertex",
+            report.repeated_vertex_faces_dropped
+        ));
+    }
     if report.faces_flipped > 0 {
         steps.push(format!(
             "flipped {} faces to a consistent orientation",
@@ -95,6 +103,28 @@ pub fn run(args: &PrepareArgs) -> Result<ExitCode> {
     }
     if report.closed_components_turned_outward > 0 {
         steps.push("turned the closed surface's faces outward (they faced inward)".to_string());
+    }
+    let r = &report.degenerate_faces_repaired;
+    if r.total() > 0 {
+        let how: Vec<String> = [
+            (r.flipped, "by an edge flip", "by edge flips"),
+            (r.removed, "removed from the boundary", "removed from the boundary"),
+            (
+                r.collapsed,
+                "by collapsing coincident vertices",
+                "by collapsing coincident vertices",
+            ),
+        ]
+        .iter()
+        .filter(|(n, _, _)| *n > 0)
+        .map(|&(n, one, many)| format!("{n} {}", if n == 1 { one } else { many }))
+        .collect();
+        steps.push(format!(
+            "repaired {} degenerate face{} without moving a vertex ({})",
+            r.total(),
+            if r.total() == 1 { "" } else { "s" },
+            how.join(", ")
+        ));
     }
     if let Some(c) = report.cut_center {
         steps.push(format!(
