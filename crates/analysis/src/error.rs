@@ -38,6 +38,10 @@ pub enum AnalysisError {
     /// A distance so large that the squared distances of classical MDS overflow f64.
     #[error("distance {value:e} between {a:?} and {b:?} is too large for classical MDS (the squared distances overflow); rescale the matrix")]
     DistanceTooLarge { a: String, b: String, value: f64 },
+    /// Distances so small that the eigenvalues of classical MDS (squared distances) underflow
+    /// f64: the largest is below √(smallest normal f64) ≈ 1.5e-154.
+    #[error("the largest distance, {value:e} between {a:?} and {b:?}, is too small for classical MDS (its square, the scale of the eigenvalues, underflows); rescale the matrix (MDS is scale-equivariant)")]
+    DistanceTooSmall { a: String, b: String, value: f64 },
     /// A distance needed by the computation is missing (empty cell or NaN: a failed pair).
     #[error("missing distance between {a:?} and {b:?} (empty or NaN cell); MDS needs a complete matrix")]
     MissingDistance { a: String, b: String },

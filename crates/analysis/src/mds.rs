@@ -128,8 +128,9 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
         return Err(AnalysisError::InvalidDims { dims, n });
     }
     // The distances divided by the largest first, so that neither their squares nor the
-    // eigenvalues under- or overflow along the way (distances of 1e-170 gave an all-zero
-    // embedding); the coordinates and eigenvalues are scaled back at the end.
+    // eigenvalues under- or overflow along the way; the coordinates and eigenvalues are scaled
+    // back at the end, which needs the largest squared distance to be a normal f64 (beyond, the
+    // eigenvalues written would be 0 or infinite beside finite shares: an error either way).
     let mut largest = (0.0f64, 0, 0);
     for i in 0..n {
         for j in 0..n {
@@ -146,6 +147,13 @@ pub fn classical_mds(d: &DistanceMatrix, dims: usize) -> Result<Mds, AnalysisErr
     };
     if !(unit * unit).is_finite() {
         return Err(AnalysisError::DistanceTooLarge {
+            a: d.names[largest.1].clone(),
+            b: d.names[largest.2].clone(),
+            value: largest.0,
+        });
+    }
+    if unit * unit < f64::MIN_POSITIVE {
+        return Err(AnalysisError::DistanceTooSmall {
             a: d.names[largest.1].clone(),
             b: d.names[largest.2].clone(),
             value: largest.0,
@@ -268,15 +276,17 @@ mod tests {
         assert!(mds.variance_shares[1].abs() < 1e-12);
     }
 
-    /// The embedding scales with the distances over the whole f64 range: 1e-170 times the
-    /// points above gives 1e-170 times their coordinates (the squared distances underflowed
-    /// to an all-zero embedding), and 1e150 times them 1e150 times (the eigenvalues, 1e300
-    /// times, still fit); beyond, the error names the largest distance.
+    /// The embedding scales with the distances wherever the eigenvalues (squared distances)
+    /// are normal f64: 1e-150 times the points above gives 1e-150 times their coordinates and
+    /// 1e-300 times the eigenvalues (the squared distances underflowed to an all-zero embedding
+    /// at 1e-170 before the rescaling), and 1e150 times them 1e150 times (eigenvalues 1e300
+    /// times); beyond either end the error names the largest distance (at 1e-300 the
+    /// eigenvalues were written as 0 beside finite shares).
     #[test]
     fn embedding_scales_with_the_distances() {
         let d = euclidean_matrix(&[vec![0.0], vec![1.0], vec![3.0]]);
         let base = classical_mds(&d, 1).unwrap();
-        for s in [1e-170, 1e150] {
+        for s in [1e-150, 1e150] {
             let scaled = DistanceMatrix {
                 names: d.names.clone(),
                 values: d.values.iter().map(|v| v * s).collect(),
@@ -286,8 +296,18 @@ mod tests {
                 assert!((a[0] / s - b[0]).abs() < 1e-12, "scale {s:e}: {a:?} vs {b:?}");
             }
             assert!((mds.variance_shares[0] - 1.0).abs() < 1e-12);
-            if s > 1.0 {
-                assert!((mds.eigenvalues[0] / (s * s) - 42.0 / 9.0).abs() < 1e-12);
+            assert!((mds.eigenvalues[0] / (s * s) - 42.0 / 9.0).abs() < 1e-12);
+        }
+        for s in [1e-170, 1e-300] {
+            let tiny = DistanceMatrix {
+                names: d.names.clone(),
+                values: d.values.iter().map(|v| v * s).collect(),
+            };
+            match classical_mds(&tiny, 1) {
+                Err(AnalysisError::DistanceTooSmall { a, b, value }) => {
+                    assert_eq!((a.as_str(), b.as_str(), value), ("p0", "p2", 3.0 * s));
+                }
+                other => panic!("{other:?}"),
             }
         }
         let big = DistanceMatrix {
