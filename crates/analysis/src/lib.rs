@@ -1,5 +1,19 @@
 //! Shape-space analysis: distance matrices and labels, classical MDS, nearest-neighbour and
 //! silhouette statistics, metric checks, and plots.
+//!
+//! ```
+//! use shapespace_analysis::{classical_mds, DistanceMatrix};
+//!
+//! // three points on a line at 0, 1 and 3: one positive eigenvalue, distances recovered in 1D
+//! let names = vec!["a".to_string(), "b".to_string(), "c".to_string()];
+//! let d = DistanceMatrix::new(names, vec![0.0, 1.0, 3.0, 1.0, 0.0, 2.0, 3.0, 2.0, 0.0])?;
+//! let mds = classical_mds(&d, 1)?;
+//! let x: Vec<f64> = mds.coordinates.iter().map(|row| row[0]).collect();
+//! assert!(((x[2] - x[0]).abs() - 3.0).abs() < 1e-12);
+//! assert!(((x[1] - x[0]).abs() - 1.0).abs() < 1e-12);
+//! assert!((mds.variance_shares[0] - 1.0).abs() < 1e-12);
+//! # Ok::<(), shapespace_analysis::AnalysisError>(())
+//! ```
 
 pub mod area_preserving;
 pub mod distance;

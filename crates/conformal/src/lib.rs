@@ -15,6 +15,22 @@
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;
 //! * [`harmonic`]: harmonic maps with boundary and landmark constraints;
 //! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips.
+//!
+//! ```
+//! use shapespace_conformal::{disk_map, DiskMapParams, Markers};
+//! use shapespace_geometry::primitives::spherical_cap;
+//!
+//! // a hemisphere with its pole as the centre: the conformal map is stereographic projection,
+//! // r = tan(θ/2) (first order in the edge length, `docs/conventions.md`)
+//! let cap = spherical_cap(std::f64::consts::FRAC_PI_2, 24);
+//! let map = disk_map(&cap, &Markers::default(), &DiskMapParams::default())?;
+//! assert_eq!(map.quality.num_flipped, 0);
+//! let ring = 12; // vertices of ring k are at polar angle θ = (π/2)·k/24
+//! let v = 1 + 3 * ring * (ring - 1); // the first vertex of that ring
+//! let r = map.uv[v][0].hypot(map.uv[v][1]);
+//! assert!((r - (std::f64::consts::FRAC_PI_8).tan()).abs() < 5e-3, "r = {r}");
+//! # Ok::<(), shapespace_conformal::ConformalError>(())
+//! ```
 
 // `!(x > 0.0)` is used on purpose: it also rejects NaN. Index loops mirror the mathematics.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]

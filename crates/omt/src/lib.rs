@@ -3,6 +3,22 @@
 //! Semi-discrete optimal mass transport on convex planar domains: power diagrams restricted to a
 //! triangulated density, exact cell integrals, and a damped Newton solver on the heights
 //! [Gu, Luo, Sun, Yau 2013; Kitagawa, Mérigot, Thibert 2019]. See `ARCHITECTURE.md`.
+//!
+//! ```
+//! use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
+//!
+//! // the uniform unit square to four points of equal mass: at the solution each power cell is
+//! // a quarter of the square, and the cost is that of the quadrant centres
+//! let square = SourceMeasure::unit_square()?;
+//! let points = [[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]];
+//! let solution = solve_ot(&square, &points, &[0.25; 4], &NewtonParams::default())?.into_result()?;
+//! for mass in &solution.cells.masses {
+//!     assert!((mass - 0.25).abs() < 1e-9);
+//! }
+//! // each quadrant has second moment about its centre 2 · (1/2)² / 12 · (1/4) = 1/96
+//! assert!((solution.cost - 4.0 / 96.0).abs() < 1e-9);
+//! # Ok::<(), shapespace_omt::OmtError>(())
+//! ```
 
 pub mod averaging;
 pub mod cells;
