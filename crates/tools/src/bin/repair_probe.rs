@@ -1,6 +1,6 @@
 //! Probe: fold repair strategies on the centroid map of the area-preserving OT (results in
 //! `docs/decisions/0012-fold-repair.md` and `docs/experiments.md`).
-//! `cargo run --release -p shapespace-analysis --example repair_probe -- MESH...` (a path, or a
+//! `cargo run --release -p shapespace-tools --bin repair_probe -- MESH...` (a path, or a
 //! TOSCA name such as `horse0`, cut as `shapespace prepare` does). Per mesh: the centroid map
 //! without repair, then (A) `repair_folds` (default; env `SWEEPS`, `FLOOR` set its retraction
 //! sweeps and log floor τ), (B) `untangle_kernels` alone, (C) B then `repair_folds`, (D) the

@@ -1,5 +1,5 @@
-//! Timing table of `disk_map` (release: `cargo run --release -p shapespace-conformal --example
-//! bench_disk_map`). Prints size, intrinsic flips, linear solves and the best of 3 runs per
+//! Timing table of `disk_map` (`cargo bench -p shapespace-tools
+//! --bench disk_map_bench`). Prints size, intrinsic flips, linear solves and the best of 3 runs per
 //! stage. Meshes: hemispheres of ~1k/10k/100k faces, a jittered unit disk of ~100k faces, and
 //! the libigl face.obj and camelhead (shared datasets folder, `$SHAPESPACE_DATA`) and an ICT face.
 
@@ -25,6 +25,7 @@ fn jittered_disk(rings: usize) -> TriMesh {
 }
 
 fn main() {
+    shapespace_tools::at_repository_root();
     // SHAPESPACE_SEQ=1: single-threaded faer (the machine may be shared)
     if std::env::var_os("SHAPESPACE_SEQ").is_some() {
         faer::set_global_parallelism(faer::Par::Seq);

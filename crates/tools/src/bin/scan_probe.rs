@@ -1,7 +1,7 @@
 //! Probe: where the Newton steps of a face pair go, on any disk meshes (bundled
 //! faces or prepared scans), with the pairwise distances' solver settings.
 //!
-//! `cargo run --release -p shapespace-analysis --example scan_probe -- A B [C ...]`
+//! `cargo run --release -p shapespace-tools --bin scan_probe -- A B [C ...]`
 //! solves A → B, B → C, ... (consecutive pairs; markers as `shapespace distances` resolves
 //! them: sidecar landmarks, else `auto`). Per shape: vertices, density range and quantiles, the
 //! map's method (BFF fallback or not), the smallest target masses, the density on the faces at

@@ -1,5 +1,5 @@
 //! Probe: how the choice of the interior marker changes the crowding of a disk map.
-//! `cargo run --release -p shapespace-conformal --example center_probe -- MESH [K]`: maps MESH
+//! `cargo run --release -p shapespace-tools --bin center_probe -- MESH [K]`: maps MESH
 //! with K interior vertices (evenly spaced by index) as centre and prints, per centre, Ok with
 //! the smallest 1 − |z| over interior vertices and the smallest nearest-edge image length, or
 //! the error.

@@ -1,12 +1,12 @@
-//! The registration benchmark without the CLI: `cargo run --release -p shapespace-analysis
-//! --example register_bench -- DATASET_DIR OUT_DIR [omt,conformal]` (same as
+//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal]` (same as
 //! `shapespace register-bench`). Prints the per-pair rows and the per-method means.
 use shapespace_analysis::registration::bench::register_bench;
 use shapespace_analysis::registration::{Method, MetricParams};
 use std::path::PathBuf;
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
+    shapespace_tools::at_repository_root();
+    let args: Vec<String> = std::env::args().filter(|a| a != "--bench").collect();
     let dataset = PathBuf::from(args.get(1).map_or("datasets/poses", String::as_str));
     let out = PathBuf::from(args.get(2).map_or("/tmp/register_bench", String::as_str));
     let methods: Vec<Method> = args

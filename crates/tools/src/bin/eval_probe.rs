@@ -1,8 +1,8 @@
 //! Probe: one full solve and the cost of one evaluation split into its parts, for a uniform disk
-//! problem or a face pair dumped by `shapespace-analysis`'s `dump_pair` example.
+//! problem or a face pair dumped by the `dump_pair` probe.
 //!
-//! `cargo run --release -p shapespace-omt --example eval_probe -- disk N [REPEATS]`
-//! `cargo run --release -p shapespace-omt --example eval_probe -- pair FILE.json [REPEATS]`
+//! `cargo run --release -p shapespace-tools --bin eval_probe -- disk N [REPEATS]`
+//! `cargo run --release -p shapespace-tools --bin eval_probe -- pair FILE.json [REPEATS]`
 //!
 //! The pair is solved as `distance::directed_distance` does (no density continuation, Voronoi
 //! start, `LinearSolver::CholeskyReusedOrdering`; env CHOLESKY=1: `LinearSolver::Cholesky`). Prints iterations, evaluations and the cost to full precision (to check that a change

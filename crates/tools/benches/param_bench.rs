@@ -1,5 +1,5 @@
 //! Timing table of the area-preserving map (conformal / OT / output / total, seconds):
-//! `cargo run --release -p shapespace-analysis --example param_bench`.
+//! `cargo bench -p shapespace-tools --bench param_bench`.
 //!
 //! Meshes, all from the shared datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`
 //! beside the workspace; a missing file is reported as a skipped row): the libigl face (25.9k V,
@@ -45,6 +45,7 @@ fn tosca_disk(path: &Path, seam_extremities: usize) -> Result<TriMesh, String> {
 type Case = (String, Box<dyn Fn() -> Result<TriMesh, String>>);
 
 fn main() {
+    shapespace_tools::at_repository_root();
     let data = shapespace_test_support::shared_datasets_dir();
     let tosca = data.join("tosca");
     let read = |path: std::path::PathBuf| -> Box<dyn Fn() -> Result<TriMesh, String>> {

@@ -1,8 +1,8 @@
 //! Benchmark of the main job: pairwise conformal Wasserstein distances among the
 //! first N bundled faces (default 30, i.e. 435 pairs), printing a table of the stages.
 //!
-//! `cargo run --release -p shapespace-analysis --example distance_bench -- [N] [THREADS]`
-//! (THREADS default 2; run from the repository root; env WARM=1 warm-starts each pair from the
+//! `cargo bench -p shapespace-tools --bench distance_bench -- [N] [THREADS]`
+//! (THREADS default 2; env WARM=1 warm-starts each pair from the
 //! previous one with the same target; env FLUX takes the Newton evaluations' masses by the flux form).
 //! Outputs go to `out/distance_bench/`.
 
@@ -12,7 +12,8 @@ use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_analysis::stats::summarize;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut args = std::env::args().skip(1);
+    shapespace_tools::at_repository_root();
+    let mut args = std::env::args().skip(1).filter(|a| a != "--bench");
     let n: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(30);
     let threads: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(2);
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global()?;

@@ -2,8 +2,7 @@
 //! --seam K` makes it. `body_ot_log NAME [K]` (default victoria0, 1; NAME is read from `tosca/`
 //! of the shared datasets folder, `$SHAPESPACE_DATA`, default `../shared/datasets`), or
 //! `body_ot_log PATH` for a mesh that is already a disk (e.g. written by `shapespace prepare`).
-#[path = "common/newton_log.rs"]
-mod newton_log;
+use shapespace_tools::newton_log;
 
 use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
 use shapespace_conformal::Markers;

@@ -1,15 +1,14 @@
 //! Probe: the distance solves of a few face pairs, one thread, for instruction counts under
 //! `valgrind --tool=cachegrind --cache-sim=no` when the machine is too noisy for timings.
 //!
-//! `cargo run --release -p shapespace-analysis --example pair_cost -- A:B [A:B ...]` (from the
+//! `cargo run --release -p shapespace-tools --bin pair_cost -- A:B [A:B ...]` (from the
 //! repository root; default id00_sad:id01_happy id02_neutral:id05_surprise id07_happy:id03_sad).
 //! Prints per pair the Newton steps over all levels, finest-level evaluations, seconds and the
 //! distance to full precision. With env `PREPARE_ONLY` it only prepares the faces: the count to
 //! subtract from a run's instructions. With env `NO_FLIPS` every power diagram is built by
 //! insertion (`NewtonParams::flip_updates` off); with env `FLUX` the Newton evaluations' masses
 //! come from the flux form (`NewtonParams::flux_masses` on).
-#[path = "common/faces.rs"]
-mod faces;
+use shapespace_tools::faces;
 
 use shapespace_analysis::distance::{directed_distance, PairwiseOptions};
 

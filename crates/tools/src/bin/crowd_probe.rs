@@ -1,11 +1,10 @@
 //! Probe: how the conformal image of a TOSCA mesh (cut as `shapespace prepare` does) crowds its
-//! points. `cargo run --release -p shapespace-analysis --example crowd_probe -- dog0 victoria0`.
+//! points. `cargo run --release -p shapespace-tools --bin crowd_probe -- dog0 victoria0`.
 //! Prints, per mesh, the histogram of log10(nearest-neighbour distance / mean spacing) and, for
 //! thresholds t, the clusters (components of the graph of Delaunay edges shorter than
 //! t × spacing): count, largest, their total target mass, and the worst separation ratio
 //! (cluster diameter / distance from the cluster to its nearest outside point).
-#[path = "common/crowding.rs"]
-mod crowding;
+use shapespace_tools::crowding;
 
 use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
 use shapespace_conformal::Markers;

@@ -1,7 +1,6 @@
 //! Probe: warm starts across sources with a common target.
-#[path = "common/faces.rs"]
-mod faces;
 use shapespace_omt::NewtonParams;
+use shapespace_tools::faces;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -1,12 +1,11 @@
 //! Probe: the Newton log (per step: error, τ, rejections by cause, timings) of the area-preserving
 //! OT on camelhead subdivided 1-to-4 (45k sites, Voronoi start), run twice; `NOSUB=1` for the
 //! original mesh, or a disk mesh given as the argument.
-//! `cargo run --release -p shapespace-analysis --example camel_probe [-- MESH]`.
-#[path = "common/newton_log.rs"]
-mod newton_log;
+//! `cargo run --release -p shapespace-tools --bin camel_probe [-- MESH]`.
 use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};
 use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::subdivide_midpoint;
+use shapespace_tools::newton_log;
 
 fn main() {
     let mesh = match std::env::args().nth(1) {

@@ -1,12 +1,11 @@
 //! Probe: how good a solver start is on a face pair. Prints the quantiles of the start's
 //! relative cell-mass errors (m_i − ν_i)/ν_i and the cells that are farthest off.
 //!
-//! `cargo run --release -p shapespace-analysis --example start_probe -- [A] [B] [voronoi|c2f] [STEPS]`
+//! `cargo run --release -p shapespace-tools --bin start_probe -- [A] [B] [voronoi|c2f] [STEPS]`
 //! (defaults id01_happy id00_neutral c2f 0; STEPS > 0 shows the errors after that many Newton
 //! steps instead). Run from the repository root.
-#[path = "common/faces.rs"]
-mod faces;
 use shapespace_omt::{NewtonParams, StartStrategy};
+use shapespace_tools::faces;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

@@ -1,11 +1,9 @@
 //! Writes the OT problem of one face pair (source a's density, target b's points and masses) as
-//! JSON, for the solver probes of `shapespace-omt` (`cargo run --release -p shapespace-omt
-//! --example eval_probe -- pair FILE`), so they do not redo the conformal maps.
+//! JSON, for the solver probes of `shapespace-omt` (`cargo run --release -p shapespace-tools --bin eval_probe -- pair FILE`), so they do not redo the conformal maps.
 //!
-//! `cargo run --release -p shapespace-analysis --example dump_pair -- A B OUT.json` (from the
+//! `cargo run --release -p shapespace-tools --bin dump_pair -- A B OUT.json` (from the
 //! repository root; default id00_sad id00_neutral).
-#[path = "common/faces.rs"]
-mod faces;
+use shapespace_tools::faces;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

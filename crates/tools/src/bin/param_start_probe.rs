@@ -3,7 +3,7 @@
 //! subdivided 1-to-4): the Voronoi start's cell masses against the targets (min and max of
 //! m/ν), then the OT from the Voronoi and from the coarse-to-fine start (finest-level steps,
 //! evaluations, coarse steps, seconds).
-//! `cargo run --release -p shapespace-analysis --example param_start_probe -- MESH...`
+//! `cargo run --release -p shapespace-tools --bin param_start_probe -- MESH...`
 use std::time::Instant;
 
 use shapespace_analysis::area_preserving::{transport_problem, AreaPreservingParams};

@@ -1,9 +1,8 @@
 //! Probe: TOSCA meshes cut open as `shapespace prepare` does, then along a seam through `K`
 //! extremities (`geometry::seam`), against the small-disk cut alone: crowding of the conformal
 //! image (points within 1e-9 / 1e-12 mean spacings of another) and the area-preserving map.
-//! `cargo run --release -p shapespace-analysis --example seam_probe -- K dog0 victoria0 ...`
-#[path = "common/crowding.rs"]
-mod crowding;
+//! `cargo run --release -p shapespace-tools --bin seam_probe -- K dog0 victoria0 ...`
+use shapespace_tools::crowding;
 
 use std::time::Instant;
 

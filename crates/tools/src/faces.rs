@@ -1,4 +1,4 @@
-//! Shared by the face-pair probes (`#[path = "common/faces.rs"] mod faces;`): the bundled faces
+//! Shared by the face-pair probes and benchmarks: the bundled faces
 //! prepared for distances, with the markers of `datasets/faces/landmarks.json` (nose tip 4841,
 //! chin 8889). Run from the repository root.
 

@@ -1,7 +1,7 @@
 //! Benchmark: face pairs at scan resolution against the bundled faces, in one run.
 //!
-//! `cargo run --release -p shapespace-analysis --example scan_bench -- [PAIRS] [--100k] [--quant]`
-//! (run from the repository root; 2 threads). Scans from `$SHAPESPACE_DATA/outside/facefuns`
+//! `cargo bench -p shapespace-tools --bench scan_bench -- [PAIRS] [--100k] [--quant]`
+//! (2 threads). Scans from `$SHAPESPACE_DATA/outside/facefuns`
 //! (default `../shared/datasets`; skipped loudly when absent), prepared as `shapespace prepare`
 //! does; those whose conformal map fails are left out. Each row is the median over PAIRS
 //! (default 6) consecutive directed pairs, solved as the distances solve them
@@ -15,10 +15,8 @@
 //! - `--quant`: the scan pairs again with `--target-points N` for N = 20000, 10000, 5000,
 //!   2000: the distances' relative error against full resolution and the time.
 
-#[path = "common/faces.rs"]
-mod faces;
-#[path = "common/scans.rs"]
-mod scans;
+use shapespace_tools::faces;
+use shapespace_tools::scans;
 
 use std::time::Instant;
 
@@ -71,7 +69,8 @@ fn median(v: &[f64]) -> f64 {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    shapespace_tools::at_repository_root();
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     let pairs: usize = args.iter().find_map(|a| a.parse().ok()).unwrap_or(6);
     let with_100k = args.iter().any(|a| a == "--100k");
     let with_quant = args.iter().any(|a| a == "--quant");

@@ -1,4 +1,4 @@
-//! Shared by the scan benchmarks (`#[path = "common/scans.rs"] mod scans;`): the real scans of
+//! Shared by the scan benchmark and probe: the real scans of
 //! `$SHAPESPACE_DATA/outside` (default: `../shared/datasets` beside the workspace), prepared
 //! as `shapespace prepare` does (holes but the rim filled) and mapped as `shapespace distances`
 //! maps them (markers `auto`). Files from public repositories are read from there, never

@@ -1,11 +1,10 @@
 //! Probe: starts for s → t from a solved s → t' (same source, another target).
 //! `transfer_probe S T' T` (face names in datasets/faces).
-#[path = "common/faces.rs"]
-mod faces;
 use shapespace_analysis::distance::PreparedShape;
 use shapespace_omt::power_diagram::PowerDiagram;
 use shapespace_omt::restricted::RestrictedIntegrator;
 use shapespace_omt::{newton::weights_from_heights, solve_ot, NewtonParams};
+use shapespace_tools::faces;
 use std::time::Instant;
 
 fn main() {

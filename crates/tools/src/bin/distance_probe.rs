@@ -1,11 +1,9 @@
 //! Probe: Newton iteration logs of one face pair with the pairwise distances' solver settings
 //! (`PairwiseOptions::default()`; args A B [CONTINUATION]; env `FLUX`: the Newton evaluations'
 //! masses by the flux form).
-#[path = "common/faces.rs"]
-mod faces;
-#[path = "common/newton_log.rs"]
-mod newton_log;
 use shapespace_omt::NewtonParams;
+use shapespace_tools::faces;
+use shapespace_tools::newton_log;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
