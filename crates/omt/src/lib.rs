@@ -30,8 +30,12 @@ pub mod peaks;
 pub mod power_diagram;
 pub mod predicates;
 pub mod quantization;
+// Test oracles and synthetic inputs: public for the integration tests, benchmarks and probes
+// (and the brute-force backend), not part of the API: hidden from the docs.
+#[doc(hidden)]
 pub mod reference;
 pub mod restricted;
+#[doc(hidden)]
 pub mod synthetic;
 
 pub use cells::CellIntegrals;
