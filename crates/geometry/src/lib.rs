@@ -26,6 +26,7 @@ pub mod error;
 pub mod io;
 pub mod laplacian;
 pub mod mesh;
+pub mod paths;
 pub mod predicates;
 pub mod prepare;
 pub mod primitives;

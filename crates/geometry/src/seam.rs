@@ -19,7 +19,7 @@
 use crate::connectivity::Connectivity;
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
-use crate::prepare::shortest_edge_paths as dijkstra;
+use crate::paths::shortest_edge_paths as dijkstra;
 use crate::topology;
 
 /// `count` extremities of a connected surface by geodesic farthest-point sampling (edge-path

@@ -141,7 +141,7 @@ fn main() {
                     }
                     let dconn = shapespace_geometry::Connectivity::of(&disk);
                     for &v in &disk.faces[f] {
-                        let d = shapespace_geometry::prepare::edge_path_distances(&disk, &dconn, v);
+                        let d = shapespace_geometry::paths::edge_path_distances(&disk, &dconn, v);
                         let near = |pred: &dyn Fn(usize) -> bool| {
                             (0..disk.num_vertices())
                                 .filter(|&w| pred(w))
