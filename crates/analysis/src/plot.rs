@@ -320,18 +320,247 @@ fn padded(lo: f64, hi: f64, pad: f64) -> (f64, f64) {
     }
 }
 
+/// How the colour column's values become colours.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ColorScale {
+    /// Continuous when every value is a number and there are at least
+    /// [`MIN_CONTINUOUS_VALUES`] distinct ones, else categorical.
+    #[default]
+    Auto,
+    /// One colour per distinct value.
+    Categorical,
+    /// A continuous scale (viridis) from the smallest to the largest value; every non-empty
+    /// value must be a number.
+    Continuous,
+}
+
+/// Distinct numbers a column needs before [`ColorScale::Auto`] colours it continuously (fewer
+/// are usually codes of groups: 0/1, 1/2/3).
+pub const MIN_CONTINUOUS_VALUES: usize = 6;
+
+/// The labels of an MDS scatter plot (each list has one entry per shape, in the matrix order).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ScatterLabels<'a> {
+    /// `(column name, values)`: point colours, by [`ColorScale`].
+    pub color: Option<(&'a str, &'a [&'a str])>,
+    /// `(column name, values)`: one marker shape per distinct value, cycling through [`MARKERS`].
+    pub marker: Option<(&'a str, &'a [&'a str])>,
+    /// Text written beside each point (the shape names, say).
+    pub point_labels: Option<&'a [&'a str]>,
+    /// How the colour column becomes colours.
+    pub color_scale: ColorScale,
+}
+
+/// Viridis, sampled at 0, ¼, ½, ¾ and 1 and interpolated linearly.
+const VIRIDIS: [(f64, f64, f64); 5] = [
+    (68.0, 1.0, 84.0),
+    (59.0, 82.0, 139.0),
+    (33.0, 145.0, 140.0),
+    (94.0, 201.0, 98.0),
+    (253.0, 231.0, 37.0),
+];
+
+/// The continuous scale's colour at `t` ∈ [0, 1] (clamped).
+pub fn continuous_color(t: f64) -> RGBColor {
+    let x = if t.is_finite() { t.clamp(0.0, 1.0) * 4.0 } else { 0.0 };
+    let k = (x.floor() as usize).min(3);
+    let f = x - k as f64;
+    let (a, b) = (VIRIDIS[k], VIRIDIS[k + 1]);
+    let mix = |u: f64, v: f64| (u + f * (v - u)).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// Grey for points without a value on a continuous scale.
+const NO_VALUE: RGBColor = RGBColor(170, 170, 170);
+
+/// Colours of the points.
+enum Coloring<'a> {
+    None,
+    Categorical {
+        column: &'a str,
+        values: Vec<String>,
+        index: Vec<usize>,
+    },
+    Continuous {
+        column: &'a str,
+        values: Vec<Option<f64>>,
+        lo: f64,
+        hi: f64,
+    },
+}
+
+impl<'a> Coloring<'a> {
+    fn new(color: Option<(&'a str, &'a [&'a str])>, scale: ColorScale) -> Result<Self, AnalysisError> {
+        let Some((column, raw)) = color else {
+            return Ok(Coloring::None);
+        };
+        let parsed: Vec<Option<f64>> = raw
+            .iter()
+            .map(|v| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+            .collect();
+        let numeric = raw.iter().zip(&parsed).all(|(v, p)| v.trim().is_empty() || p.is_some());
+        let mut distinct: Vec<f64> = parsed.iter().flatten().copied().collect();
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup();
+        let continuous = match scale {
+            ColorScale::Categorical => false,
+            ColorScale::Auto => numeric && distinct.len() >= MIN_CONTINUOUS_VALUES,
+            ColorScale::Continuous => {
+                if let Some((i, v)) = raw
+                    .iter()
+                    .zip(&parsed)
+                    .enumerate()
+                    .find(|(_, (v, p))| !v.trim().is_empty() && p.is_none())
+                    .map(|(i, (v, _))| (i, v))
+                {
+                    return Err(AnalysisError::PlotInput {
+                        message: format!(
+                            "colour column {column:?} on a continuous scale: value {v:?} of point {i} is not a finite number"
+                        ),
+                    });
+                }
+                true
+            }
+        };
+        if continuous {
+            let (lo, hi) = (
+                distinct.first().copied().unwrap_or(0.0),
+                distinct.last().copied().unwrap_or(0.0),
+            );
+            Ok(Coloring::Continuous {
+                column,
+                values: parsed,
+                lo,
+                hi,
+            })
+        } else {
+            let (values, index) = categories(raw);
+            Ok(Coloring::Categorical { column, values, index })
+        }
+    }
+
+    fn color(&self, i: usize) -> RGBColor {
+        match self {
+            Coloring::None => category_color(0, 1),
+            Coloring::Categorical { values, index, .. } => category_color(index[i], values.len()),
+            Coloring::Continuous { values, lo, hi, .. } => match values[i] {
+                Some(v) if hi > lo => continuous_color((v - lo) / (hi - lo)),
+                Some(_) => continuous_color(0.5),
+                None => NO_VALUE,
+            },
+        }
+    }
+
+    /// The legend section: every category, or five values along the continuous scale.
+    fn legend(&self) -> Option<(String, Vec<(LegendSymbol, String)>)> {
+        match self {
+            Coloring::None => None,
+            Coloring::Categorical { column, values, .. } => Some((
+                format!("{column} (colour)"),
+                values
+                    .iter()
+                    .enumerate()
+                    .map(|(k, v)| {
+                        (
+                            LegendSymbol::Marker(Marker::Circle, category_color(k, values.len())),
+                            v.clone(),
+                        )
+                    })
+                    .collect(),
+            )),
+            Coloring::Continuous { column, values, lo, hi } => {
+                let steps = if hi > lo { 4 } else { 0 };
+                let mut entries: Vec<(LegendSymbol, String)> = (0..=steps)
+                    .rev()
+                    .map(|k| {
+                        let t = if steps == 0 { 0.5 } else { k as f64 / steps as f64 };
+                        let v = if steps == 0 { *lo } else { lo + t * (hi - lo) };
+                        (
+                            LegendSymbol::Marker(Marker::Circle, continuous_color(t)),
+                            format_value(v),
+                        )
+                    })
+                    .collect();
+                if values.iter().any(Option::is_none) {
+                    entries.push((LegendSymbol::Marker(Marker::Circle, NO_VALUE), "(no value)".into()));
+                }
+                Some((format!("{column} (colour scale)"), entries))
+            }
+        }
+    }
+}
+
+/// A legend number: four significant digits, in exponent form outside [1e-3, 1e5).
+fn format_value(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if (1e-3..1e5).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
+/// A marker column: its name, its distinct values, and each point's value index.
+type MarkerCategories<'a> = (&'a str, Vec<String>, Vec<usize>);
+
 struct ScatterInput<'a> {
     points: Vec<(f64, f64)>,
     x_desc: String,
     y_desc: String,
-    color: Option<(&'a str, Vec<String>, Vec<usize>)>,
-    marker: Option<(&'a str, Vec<String>, Vec<usize>)>,
+    color: Coloring<'a>,
+    marker: Option<MarkerCategories<'a>>,
+    point_labels: Option<&'a [&'a str]>,
     title: &'a str,
+}
+
+impl ScatterInput<'_> {
+    fn has_legend(&self) -> bool {
+        !matches!(self.color, Coloring::None) || self.marker.is_some()
+    }
+
+    fn marker(&self, i: usize) -> Marker {
+        self.marker
+            .as_ref()
+            .map_or(Marker::Circle, |m| MARKERS[m.2[i] % MARKERS.len()])
+    }
+
+    fn legend_sections(&self) -> Vec<(String, Vec<(LegendSymbol, String)>)> {
+        let mut sections = Vec::new();
+        sections.extend(self.color.legend());
+        if let Some((col, values, _)) = &self.marker {
+            let grey = RGBColor(90, 90, 90);
+            let entries = values
+                .iter()
+                .enumerate()
+                .map(|(k, v)| (LegendSymbol::Marker(MARKERS[k % MARKERS.len()], grey), v.clone()))
+                .collect();
+            sections.push((format!("{col} (marker)"), entries));
+        }
+        sections
+    }
+}
+
+/// Marker half-size by the number of points (smaller markers for crowded plots).
+fn marker_radius(n: usize) -> i32 {
+    match n {
+        0..=120 => 7,
+        121..=300 => 5,
+        _ => 4,
+    }
 }
 
 fn draw_scatter<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &ScatterInput) -> DrawResult<DB> {
     root.fill(&WHITE)?;
-    let has_legend = input.color.is_some() || input.marker.is_some();
+    let has_legend = input.has_legend();
     let (w, _) = root.dim_in_pixel();
     let (plot_area, legend_area) = root.split_horizontally(if has_legend { w - LEGEND_WIDTH } else { w });
     let titled = plot_area
@@ -374,50 +603,21 @@ fn draw_scatter<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, input: &Scatte
         .x_labels(8)
         .y_labels(8)
         .draw()?;
-    let n_colors = input.color.as_ref().map_or(1, |c| c.1.len());
-    // Smaller markers for crowded plots.
-    let radius = match input.points.len() {
-        0..=120 => 7,
-        121..=300 => 5,
-        _ => 4,
-    };
+    let radius = marker_radius(input.points.len());
+    let label_style = (FONT, 12).into_font().color(&BLACK.mix(0.8));
     for (i, p) in input.points.iter().enumerate() {
-        let color = input
-            .color
-            .as_ref()
-            .map_or(category_color(0, 1), |c| category_color(c.2[i], n_colors));
-        let marker = input
-            .marker
-            .as_ref()
-            .map_or(Marker::Circle, |m| MARKERS[m.2[i] % MARKERS.len()]);
         let pixel = chart.backend_coord(p);
-        draw_marker(&root, pixel, radius, marker, color)?;
+        draw_marker(&root, pixel, radius, input.marker(i), input.color.color(i))?;
+        if let Some(labels) = input.point_labels {
+            root.draw(&Text::new(
+                labels[i].to_string(),
+                (pixel.0 + radius + 3, pixel.1 - radius - 3),
+                label_style.clone(),
+            ))?;
+        }
     }
     if has_legend {
-        let mut sections = Vec::new();
-        if let Some((col, values, _)) = &input.color {
-            let entries = values
-                .iter()
-                .enumerate()
-                .map(|(k, v)| {
-                    (
-                        LegendSymbol::Marker(Marker::Circle, category_color(k, values.len())),
-                        v.clone(),
-                    )
-                })
-                .collect();
-            sections.push((format!("{col} (colour)"), entries));
-        }
-        if let Some((col, values, _)) = &input.marker {
-            let grey = RGBColor(90, 90, 90);
-            let entries = values
-                .iter()
-                .enumerate()
-                .map(|(k, v)| (LegendSymbol::Marker(MARKERS[k % MARKERS.len()], grey), v.clone()))
-                .collect();
-            sections.push((format!("{col} (marker)"), entries));
-        }
-        draw_legend(&legend_area, &sections)?;
+        draw_legend(&legend_area, &input.legend_sections())?;
     }
     root.present()
 }
@@ -437,88 +637,211 @@ fn backend_kind(path: &Path) -> Result<&'static str, AnalysisError> {
     }
 }
 
-/// Scatter plot of the first two MDS coordinates (one coordinate against 0 if `dims == 1`),
-/// written as PNG or SVG according to the extension of `path` (1100×760 px).
-///
-/// - `color_labels`: `(column name, one value per shape)`: one colour per distinct value
-///   (Tableau 20, evenly spaced hues beyond 20 values), in first-appearance order.
-/// - `marker_labels`: likewise, one marker shape per value, cycling through [`MARKERS`].
-/// - Axes read "MDS 1 (xx.x% var)" with the shares of [`Mds::variance_shares`]; both axes use the
-///   same scale. The legend is in a panel right of the plot.
-///
-/// Errors: label lengths differing from `#shapes`, an unknown extension, drawing or write
-/// failures ([`AnalysisError::Plot`] with the path).
-pub fn mds_scatter(
+/// Writes a plot drawn by `$draw` (a function of a drawing area) to `$path` as PNG or SVG, by
+/// the extension, atomically.
+macro_rules! render {
+    ($path:expr, $size:expr, $draw:expr) => {{
+        let path: &Path = $path;
+        match backend_kind(path)? {
+            "png" => replace_atomically(
+                path,
+                |temp| $draw(BitMapBackend::new(temp, $size).into_drawing_area()).map_err(|e| plot_err(path, e)),
+                |e| AnalysisError::io(path, e),
+            ),
+            _ => replace_atomically(
+                path,
+                |temp| $draw(SVGBackend::new(temp, $size).into_drawing_area()).map_err(|e| plot_err(path, e)),
+                |e| AnalysisError::io(path, e),
+            ),
+        }
+    }};
+}
+
+/// Checks the label lists against `n` points, the extension, and loads the font; returns the
+/// colouring and the marker categories.
+fn scatter_labels<'a>(
     path: &Path,
-    mds: &Mds,
-    color_labels: Option<(&str, &[&str])>,
-    marker_labels: Option<(&str, &[&str])>,
-    title: &str,
-) -> Result<(), AnalysisError> {
-    let n = mds.coordinates.len();
+    n: usize,
+    labels: &ScatterLabels<'a>,
+) -> Result<(Coloring<'a>, Option<MarkerCategories<'a>>), AnalysisError> {
     if n == 0 {
         return Err(AnalysisError::PlotInput {
             message: "no points to plot".into(),
         });
     }
-    for (what, labels) in [("colour", color_labels), ("marker", marker_labels)] {
-        if let Some((col, values)) = labels {
+    let point_labels = labels.point_labels.map(|v| ("point labels", v));
+    for (what, given) in [
+        ("colour column", labels.color),
+        ("marker column", labels.marker),
+        ("labels", point_labels),
+    ] {
+        if let Some((col, values)) = given {
             if values.len() != n {
                 return Err(AnalysisError::PlotInput {
-                    message: format!("{what} column {col:?} has {} values for {n} points", values.len()),
+                    message: format!("{what} {col:?} has {} values for {n} points", values.len()),
                 });
             }
         }
     }
-    let kind = backend_kind(path)?;
+    backend_kind(path)?;
     ensure_font()?;
+    let coloring = Coloring::new(labels.color, labels.color_scale)?;
+    let marker = labels.marker.map(|(col, v)| {
+        let (d, i) = categories(v);
+        (col, d, i)
+    });
+    Ok((coloring, marker))
+}
+
+/// "MDS k (xx.x% var)" for axis `k` (from 0).
+fn axis_name(mds: &Mds, k: usize) -> String {
+    let share = mds
+        .variance_shares
+        .get(k)
+        .map_or(String::new(), |s| format!(" ({:.1}% var)", 100.0 * s));
+    format!("MDS {}{share}", k + 1)
+}
+
+/// Scatter plot of the first two MDS coordinates (one coordinate against 0 if `dims == 1`),
+/// written as PNG or SVG according to the extension of `path` (1100×760 px).
+///
+/// - `labels.color`: `(column name, one value per shape)`: one colour per distinct value
+///   (Tableau 20, evenly spaced hues beyond 20 values, in first-appearance order), or a
+///   continuous viridis scale for numbers ([`ColorScale`]; points without a value grey).
+/// - `labels.marker`: likewise, one marker shape per value, cycling through [`MARKERS`].
+/// - `labels.point_labels`: text beside each point.
+/// - Axes read "MDS 1 (xx.x% var)" with the shares of [`Mds::variance_shares`]; both axes use the
+///   same scale. The legend is in a panel right of the plot.
+///
+/// Errors: label lengths differing from `#shapes`, a non-number on a continuous scale, an
+/// unknown extension, drawing or write failures ([`AnalysisError::Plot`] with the path).
+pub fn mds_scatter(path: &Path, mds: &Mds, labels: &ScatterLabels, title: &str) -> Result<(), AnalysisError> {
+    let (color, marker) = scatter_labels(path, mds.coordinates.len(), labels)?;
     let points: Vec<(f64, f64)> = mds
         .coordinates
         .iter()
         .map(|c| (c[0], c.get(1).copied().unwrap_or(0.0)))
         .collect();
-    let share = |k: usize| {
-        mds.variance_shares
-            .get(k)
-            .map_or(String::new(), |s| format!(" ({:.1}% var)", 100.0 * s))
-    };
     let input = ScatterInput {
         points,
-        x_desc: format!("MDS 1{}", share(0)),
+        x_desc: axis_name(mds, 0),
         y_desc: if mds.dims() > 1 {
-            format!("MDS 2{}", share(1))
+            axis_name(mds, 1)
         } else {
             String::from("(1-D embedding)")
         },
-        color: color_labels.map(|(col, v)| {
-            let (d, i) = categories(v);
-            (col, d, i)
-        }),
-        marker: marker_labels.map(|(col, v)| {
-            let (d, i) = categories(v);
-            (col, d, i)
-        }),
+        color,
+        marker,
+        point_labels: labels.point_labels,
         title,
     };
-    let result = match kind {
-        "png" => replace_atomically(
-            path,
-            |temp| {
-                draw_scatter(BitMapBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-                    .map_err(|e| plot_err(path, e))
-            },
-            |e| AnalysisError::io(path, e),
-        ),
-        _ => replace_atomically(
-            path,
-            |temp| {
-                draw_scatter(SVGBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-                    .map_err(|e| plot_err(path, e))
-            },
-            |e| AnalysisError::io(path, e),
-        ),
+    render!(path, (WIDTH, HEIGHT), |area| draw_scatter(area, &input))
+}
+
+/// The most axes [`mds_scatter_matrix`] draws.
+pub const MAX_MATRIX_AXES: usize = 8;
+
+/// Scatter matrix of the first `k` MDS axes (2 ≤ k ≤ `mds.dims()`, at most
+/// [`MAX_MATRIX_AXES`]): panel (i, j) plots axis j+1 (horizontal) against axis i+1, the diagonal
+/// names the axes with their variance shares; colours, markers and the legend as in
+/// [`mds_scatter`] (point labels are left out: the panels are small). PNG or SVG by the
+/// extension of `path`, 1100×(260 + 110·k) px.
+pub fn mds_scatter_matrix(
+    path: &Path,
+    mds: &Mds,
+    k: usize,
+    labels: &ScatterLabels,
+    title: &str,
+) -> Result<(), AnalysisError> {
+    if !(2..=MAX_MATRIX_AXES.min(mds.dims())).contains(&k) {
+        return Err(AnalysisError::PlotInput {
+            message: format!(
+                "a scatter matrix of {k} axes needs 2 to {} axes of an embedding with {}",
+                MAX_MATRIX_AXES.min(mds.dims()).max(2),
+                mds.dims()
+            ),
+        });
+    }
+    let (color, marker) = scatter_labels(path, mds.coordinates.len(), labels)?;
+    let input = ScatterInput {
+        points: Vec::new(),
+        x_desc: String::new(),
+        y_desc: String::new(),
+        color,
+        marker,
+        point_labels: None,
+        title,
     };
-    result
+    let size = (WIDTH, 260 + 110 * k as u32);
+    render!(path, size, |area| draw_scatter_matrix(area, mds, k, &input))
+}
+
+fn draw_scatter_matrix<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    mds: &Mds,
+    k: usize,
+    input: &ScatterInput,
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let (w, _) = root.dim_in_pixel();
+    let has_legend = input.has_legend();
+    let (plot_area, legend_area) = root.split_horizontally(if has_legend { w - LEGEND_WIDTH } else { w });
+    let titled = plot_area
+        .margin(14, 10, 10, 10)
+        .titled(input.title, (FONT, 24).into_font())?;
+    let ranges: Vec<(f64, f64)> = (0..k)
+        .map(|a| {
+            let (lo, hi) = mds
+                .coordinates
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                    (lo.min(c[a]), hi.max(c[a]))
+                });
+            padded(lo, hi, 0.08)
+        })
+        .collect();
+    let n = mds.coordinates.len();
+    let radius = (marker_radius(n) - 2).max(2);
+    let cells = titled.split_evenly((k, k));
+    for (cell_index, cell) in cells.iter().enumerate() {
+        let (i, j) = (cell_index / k, cell_index % k);
+        if i == j {
+            let (cw, ch) = cell.dim_in_pixel();
+            let style = (FONT, 15).into_font().color(&BLACK);
+            let name = axis_name(mds, i);
+            let (tw, th) = cell.estimate_text_size(&name, &style)?;
+            cell.draw(&Text::new(
+                name,
+                ((cw as i32 - tw as i32) / 2, (ch as i32 - th as i32) / 2),
+                style,
+            ))?;
+            continue;
+        }
+        let mut chart = ChartBuilder::on(cell)
+            .margin(3)
+            .x_label_area_size(if i + 1 == k { 18 } else { 0 })
+            .y_label_area_size(if j == 0 { 34 } else { 0 })
+            .build_cartesian_2d(ranges[j].0..ranges[j].1, ranges[i].0..ranges[i].1)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_labels(3)
+            .y_labels(3)
+            .label_style((FONT, 10))
+            .draw()?;
+        let plotting = chart.plotting_area().clone();
+        for (p, c) in mds.coordinates.iter().enumerate() {
+            let pixel = chart.backend_coord(&(c[j], c[i]));
+            draw_marker(&root, pixel, radius, input.marker(p), input.color.color(p))?;
+        }
+        let (x_px, y_px) = plotting.get_pixel_range();
+        let frame = [(x_px.start, y_px.start), (x_px.end - 1, y_px.end - 1)];
+        root.draw(&Rectangle::new(frame, BLACK.mix(0.25)))?;
+    }
+    if has_legend {
+        draw_legend(&legend_area, &input.legend_sections())?;
+    }
+    root.present()
 }
 
 /// Per-series bin counts of a histogram.
@@ -726,7 +1049,50 @@ pub fn histograms(
 
 #[cfg(test)]
 mod tests {
-    use super::categories;
+    use super::*;
+
+    /// Auto: numbers with at least six distinct values go on the continuous scale, from
+    /// viridis' first colour at the smallest to its last at the largest, an empty cell grey;
+    /// fewer distinct numbers, or a word among them, stay categorical.
+    #[test]
+    fn numeric_columns_get_a_continuous_scale() {
+        let values = ["3", "1.5", "", "9", "4", "7", "2e0"];
+        let c = Coloring::new(Some(("x", &values)), ColorScale::Auto).unwrap();
+        let Coloring::Continuous { lo, hi, .. } = c else {
+            panic!("not continuous")
+        };
+        assert_eq!((lo, hi), (1.5, 9.0));
+        assert_eq!(c.color(1), RGBColor(68, 1, 84));
+        assert_eq!(c.color(3), RGBColor(253, 231, 37));
+        assert_eq!(c.color(2), NO_VALUE);
+        // 4 lies between 3 and 7: its green channel too (viridis' green rises throughout)
+        assert!(c.color(0).1 < c.color(4).1 && c.color(4).1 < c.color(5).1);
+        let few = ["1", "2", "1", "2", "3"];
+        assert!(matches!(
+            Coloring::new(Some(("x", &few)), ColorScale::Auto).unwrap(),
+            Coloring::Categorical { .. }
+        ));
+        let mixed = ["1", "2", "3", "4", "5", "6", "n/a"];
+        assert!(matches!(
+            Coloring::new(Some(("x", &mixed)), ColorScale::Auto).unwrap(),
+            Coloring::Categorical { .. }
+        ));
+        assert!(Coloring::new(Some(("x", &mixed)), ColorScale::Continuous).is_err());
+        assert!(matches!(
+            Coloring::new(Some(("x", &few)), ColorScale::Continuous).unwrap(),
+            Coloring::Continuous { .. }
+        ));
+    }
+
+    #[test]
+    fn legend_numbers_keep_four_significant_digits() {
+        assert_eq!(format_value(20.0), "20");
+        assert_eq!(format_value(0.123456), "0.1235");
+        assert_eq!(format_value(1234.5678), "1235");
+        assert_eq!(format_value(-2.5), "-2.5");
+        assert_eq!(format_value(1.5e-7), "1.500e-7");
+        assert_eq!(format_value(0.0), "0");
+    }
 
     #[test]
     fn empty_labels_are_one_legend_entry_named_as_unknown() {

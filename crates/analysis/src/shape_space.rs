@@ -11,7 +11,7 @@ use shapespace_geometry::io::{write_atomically, AtomicFile};
 use crate::error::AnalysisError;
 use crate::matrix_io::{read_distance_matrix, read_labels, DistanceMatrix, Labels};
 use crate::mds::{classical_mds, Mds};
-use crate::plot::mds_scatter;
+use crate::plot::{mds_scatter, mds_scatter_matrix, ColorScale, ScatterLabels, MAX_MATRIX_AXES};
 use crate::stats::{
     class_distances, loo_1nn_accuracy, loo_1nn_accuracy_across, mean_silhouette, symmetry_gap, triangle_violations,
     ClassDistances, NnAccuracy, SymmetryGap, TriangleViolations,
@@ -20,12 +20,17 @@ use crate::stats::{
 /// Options of [`run_mds`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MdsParams {
-    /// Embedding dimension `k` (`1 <= k <= #shapes`); the plot shows the first two.
+    /// Embedding dimension `k` (`1 <= k <= #shapes`); the plot shows the first two, and for
+    /// k ≥ 3 a scatter matrix the first k (at most [`MAX_MATRIX_AXES`]).
     pub dims: usize,
     /// Label column giving the point colours; default: the first label column.
     pub color_by: Option<String>,
     /// Label column giving the marker shapes; default: the second label column, if any.
     pub marker_by: Option<String>,
+    /// How the colour column becomes colours (numbers on a continuous scale by default).
+    pub color_scale: ColorScale,
+    /// Write each shape's name beside its point.
+    pub point_labels: bool,
     /// Triangle-inequality tolerance relative to the mean distance: a triple violates when
     /// `d_ik > d_ij + d_jk + triangle_rel_eps · mean(d)`.
     pub triangle_rel_eps: f64,
@@ -45,6 +50,8 @@ impl Default for MdsParams {
             dims: 2,
             color_by: None,
             marker_by: None,
+            color_scale: ColorScale::Auto,
+            point_labels: false,
             triangle_rel_eps: 1e-9,
             cross_columns: None,
         }
@@ -259,7 +266,15 @@ pub fn write_eigenvalues_csv(path: &Path, mds: &Mds) -> Result<(), AnalysisError
 }
 
 /// The files [`run_mds`] writes into its output folder.
-pub const MDS_OUTPUTS: [&str; 5] = ["mds.csv", "eigenvalues.csv", "mds.png", "mds.svg", "stats.json"];
+pub const MDS_OUTPUTS: [&str; 7] = [
+    "mds.csv",
+    "eigenvalues.csv",
+    "mds.png",
+    "mds.svg",
+    "stats.json",
+    "mds_matrix.png",
+    "mds_matrix.svg",
+];
 
 /// `shapespace mds`: reads the distance matrix CSV `distances` (and the labels CSV `labels`,
 /// matched to the shapes as [`read_labels`] says), embeds it with classical MDS in `params.dims`
@@ -318,7 +333,7 @@ pub fn run_mds(
     stats.dropped_shapes = dropped;
     stats.unlabeled_shapes = labels.as_ref().map(|l| l.unlabeled.clone()).unwrap_or_default();
     std::fs::create_dir_all(out_dir).map_err(|e| AnalysisError::io(out_dir, e))?;
-    let [mds_name, eig_name, png_name, svg_name, json_name] = MDS_OUTPUTS;
+    let [mds_name, eig_name, png_name, svg_name, json_name, matrix_png, matrix_svg] = MDS_OUTPUTS;
     let mut files = Vec::new();
     let mds_csv = out_dir.join(mds_name);
     write_mds_csv(&mds_csv, &d.names, labels.as_ref(), &mds)?;
@@ -339,16 +354,29 @@ pub fn run_mds(
         .file_name()
         .map_or_else(|| distances.display().to_string(), |f| f.to_string_lossy().into_owned());
     let title = format!("Classical MDS of {source} (n = {})", d.len());
+    let names: Vec<&str> = d.names.iter().map(String::as_str).collect();
+    let scatter = ScatterLabels {
+        color: colors.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),
+        marker: markers.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),
+        point_labels: params.point_labels.then_some(names.as_slice()),
+        color_scale: params.color_scale,
+    };
     for name in [png_name, svg_name] {
         let path = out_dir.join(name);
-        mds_scatter(
-            &path,
-            &mds,
-            colors.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),
-            markers.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),
-            &title,
-        )?;
+        mds_scatter(&path, &mds, &scatter, &title)?;
         files.push(path);
+    }
+    // k ≥ 3 axes: a scatter matrix of the first k; otherwise an earlier run's matrix, which
+    // would show another embedding, is removed
+    let k = params.dims.min(MAX_MATRIX_AXES);
+    for name in [matrix_png, matrix_svg] {
+        let path = out_dir.join(name);
+        if k >= 3 {
+            mds_scatter_matrix(&path, &mds, k, &scatter, &title)?;
+            files.push(path);
+        } else if path.exists() {
+            std::fs::remove_file(&path).map_err(|e| AnalysisError::io(&path, e))?;
+        }
     }
     let json_path = out_dir.join(json_name);
     let json = serde_json::to_string_pretty(&stats).map_err(|e| AnalysisError::Serialize {

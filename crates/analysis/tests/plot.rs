@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use shapespace_analysis::plot::{histogram_counts, histograms, mds_scatter};
+use shapespace_analysis::plot::{
+    histogram_counts, histograms, mds_scatter, mds_scatter_matrix, ColorScale, ScatterLabels,
+};
 use shapespace_analysis::{classical_mds, DistanceMatrix};
 
 fn out(name: &str) -> PathBuf {
@@ -30,6 +32,14 @@ fn check_svg(path: &PathBuf, must_contain: &[&str]) {
     for s in must_contain {
         assert!(text.contains(s), "SVG lacks {s:?}");
     }
+}
+
+/// The text of every `<text>` element of an SVG file, trimmed.
+fn svg_texts(path: &PathBuf) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.split("</text>")
+        .filter_map(|chunk| chunk.rfind('>').map(|i| chunk[i + 1..].trim().to_string()))
+        .collect()
 }
 
 /// Five people × four expressions: identity offsets plus expression offsets plus noise.
@@ -71,14 +81,12 @@ fn mds_scatter_writes_png_and_svg() {
     let exs: Vec<&str> = exs.iter().map(String::as_str).collect();
     for ext in ["png", "svg"] {
         let path = out(&format!("scatter.{ext}"));
-        mds_scatter(
-            &path,
-            &mds,
-            Some(("identity", &ids)),
-            Some(("expression", &exs)),
-            "Synthetic faces: classical MDS",
-        )
-        .unwrap();
+        let labels = ScatterLabels {
+            color: Some(("identity", &ids)),
+            marker: Some(("expression", &exs)),
+            ..ScatterLabels::default()
+        };
+        mds_scatter(&path, &mds, &labels, "Synthetic faces: classical MDS").unwrap();
         if ext == "png" {
             check_png(&path);
         } else {
@@ -87,15 +95,69 @@ fn mds_scatter_writes_png_and_svg() {
     }
     // Unlabelled and 1-D variants.
     let path = out("scatter_plain.png");
-    mds_scatter(&path, &mds, None, None, "no labels").unwrap();
+    mds_scatter(&path, &mds, &ScatterLabels::default(), "no labels").unwrap();
     check_png(&path);
     let mds1 = classical_mds(&d, 1).unwrap();
     let path = out("scatter_1d.svg");
-    mds_scatter(&path, &mds1, Some(("identity", &ids)), None, "1-D").unwrap();
+    let by_identity = ScatterLabels {
+        color: Some(("identity", &ids)),
+        ..ScatterLabels::default()
+    };
+    mds_scatter(&path, &mds1, &by_identity, "1-D").unwrap();
     check_svg(&path, &["MDS 1 ("]);
     // Bad input.
-    assert!(mds_scatter(&out("x.jpg"), &mds, None, None, "t").is_err());
-    assert!(mds_scatter(&out("x.png"), &mds, Some(("identity", &ids[..3])), None, "t").is_err());
+    assert!(mds_scatter(&out("x.jpg"), &mds, &ScatterLabels::default(), "t").is_err());
+    let short = ScatterLabels {
+        color: Some(("identity", &ids[..3])),
+        ..ScatterLabels::default()
+    };
+    assert!(mds_scatter(&out("x.png"), &mds, &short, "t").is_err());
+}
+
+/// Point labels, a numeric column on the continuous scale (its legend runs from the smallest
+/// to the largest value, in viridis' end colours), and a scatter matrix of three axes.
+#[test]
+fn point_labels_continuous_colours_and_a_scatter_matrix() {
+    let (d, _, _) = synthetic_faces();
+    let n = d.len();
+    let names: Vec<&str> = d.names.iter().map(String::as_str).collect();
+    let ages: Vec<String> = (0..n).map(|i| format!("{}", 20 + 3 * i)).collect();
+    let ages: Vec<&str> = ages.iter().map(String::as_str).collect();
+    let mds = classical_mds(&d, 3).unwrap();
+    let labels = ScatterLabels {
+        color: Some(("age", &ages)),
+        point_labels: Some(&names),
+        ..ScatterLabels::default()
+    };
+    let path = out("continuous.svg");
+    mds_scatter(&path, &mds, &labels, "ages").unwrap();
+    let last = format!("{}", 20 + 3 * (n - 1));
+    check_svg(&path, &["#440154", "#FDE725"]);
+    let texts = svg_texts(&path);
+    for t in ["age (colour scale)", "20", last.as_str(), names[0], names[n - 1]] {
+        assert!(texts.iter().any(|x| x == t), "no text {t:?} in {texts:?}");
+    }
+    for ext in ["svg", "png"] {
+        let path = out(&format!("matrix.{ext}"));
+        mds_scatter_matrix(&path, &mds, 3, &labels, "three axes").unwrap();
+        if ext == "svg" {
+            check_svg(&path, &["MDS 1 (", "MDS 2 (", "MDS 3 (", "age (colour scale)"]);
+        } else {
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        }
+    }
+    // more axes than the embedding has, and a word on a continuous scale
+    assert!(mds_scatter_matrix(&out("m.png"), &mds, 4, &labels, "t").is_err());
+    let mut words = ages.clone();
+    words[2] = "old";
+    let forced = ScatterLabels {
+        color: Some(("age", &words)),
+        color_scale: ColorScale::Continuous,
+        ..ScatterLabels::default()
+    };
+    let err = mds_scatter(&out("w.png"), &mds, &forced, "t").unwrap_err().to_string();
+    assert!(err.contains("\"old\" of point 2 is not a finite number"), "{err}");
 }
 
 #[test]

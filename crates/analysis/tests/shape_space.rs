@@ -72,7 +72,9 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
     };
     let result = run_mds(&dist_path, Some(&labels_path), &out, &params).unwrap();
     assert_eq!(result.color_by.as_deref(), Some("identity"));
-    assert_eq!(result.files.len(), 5);
+    // with 3 dimensions the scatter matrix too
+    assert_eq!(result.files.len(), 7);
+    assert!(out.join("mds_matrix.png").is_file() && out.join("mds_matrix.svg").is_file());
 
     // mds.csv: header and 40 rows with 3 coordinates.
     let text = std::fs::read_to_string(out.join("mds.csv")).unwrap();
@@ -123,6 +125,12 @@ fn run_mds_writes_all_outputs_with_consistent_statistics() {
     for ext in ["png", "svg"] {
         assert!(std::fs::metadata(out.join(format!("mds.{ext}"))).unwrap().len() > 5000);
     }
+
+    // two dimensions into the same folder: the earlier scatter matrix would describe another
+    // embedding, and is removed
+    let two = run_mds(&dist_path, Some(&labels_path), &out, &MdsParams::default()).unwrap();
+    assert_eq!(two.files.len(), 5);
+    assert!(!out.join("mds_matrix.png").exists() && !out.join("mds_matrix.svg").exists());
 }
 
 #[test]

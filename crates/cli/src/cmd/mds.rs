@@ -1,24 +1,36 @@
-//! `shapespace mds DIST.csv --out DIR [--labels labels.csv] [--dims 2] [--color-by COL] [--marker-by COL]`:
+//! `shapespace mds DIST.csv --out DIR [--labels labels.csv] [--dims 2] [--color-by COL] [--marker-by COL]
+//! [--color-scale auto|categorical|continuous] [--point-labels]`:
 //! classical MDS of a distance matrix, with plots and shape-space statistics.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
+use shapespace_analysis::plot::ColorScale;
 use shapespace_analysis::shape_space::{run_mds, MdsParams, MdsResult};
+
+/// `--color-scale` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum ColorScaleArg {
+    Auto,
+    Categorical,
+    Continuous,
+}
 
 /// Arguments of `shapespace mds`.
 #[derive(clap::Args)]
 pub struct MdsArgs {
     /// Square distance matrix CSV (header `name,<names>`; empty or NaN cells are missing).
     pub distances: PathBuf,
-    /// Output directory (mds.csv, eigenvalues.csv, mds.png, mds.svg, stats.json).
+    /// Output directory (mds.csv, eigenvalues.csv, mds.png, mds.svg, stats.json; mds_matrix.png
+    /// and .svg from --dims 3 on).
     #[arg(long)]
     pub out: PathBuf,
     /// Labels CSV: first column `file` or `name` (a shape name, or a file path ending with one), then label columns (an empty cell: unknown).
     #[arg(long)]
     pub labels: Option<PathBuf>,
-    /// Number of MDS dimensions written to mds.csv (the plot shows the first two).
+    /// Number of MDS dimensions written to mds.csv; the plot shows the first two, and from 3 on
+    /// mds_matrix.png/.svg plot the first k (at most 8) as a scatter matrix.
     #[arg(long, default_value_t = 2)]
     pub dims: usize,
     /// Label column for point colours (default: the first label column).
@@ -27,6 +39,14 @@ pub struct MdsArgs {
     /// Label column for marker shapes (default: the second label column, if any).
     #[arg(long)]
     pub marker_by: Option<String>,
+    /// How the colour column becomes colours: `auto` (a continuous scale when every value is a
+    /// number and there are at least 6 distinct ones, else one colour per value),
+    /// `categorical` or `continuous`.
+    #[arg(long, value_enum, default_value_t = ColorScaleArg::Auto)]
+    pub color_scale: ColorScaleArg,
+    /// Write each shape's name beside its point.
+    #[arg(long)]
+    pub point_labels: bool,
     /// Label columns whose cross-column 1-NN accuracies (one per ordered pair) stats.json gets
     /// (default: all columns when there are at most 8, else none: their number is quadratic).
     #[arg(long, value_delimiter = ',')]
@@ -43,6 +63,12 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
         dims: args.dims,
         color_by: args.color_by.clone(),
         marker_by: args.marker_by.clone(),
+        color_scale: match args.color_scale {
+            ColorScaleArg::Auto => ColorScale::Auto,
+            ColorScaleArg::Categorical => ColorScale::Categorical,
+            ColorScaleArg::Continuous => ColorScale::Continuous,
+        },
+        point_labels: args.point_labels,
         cross_columns: args.cross_columns.clone(),
         ..MdsParams::default()
     };
