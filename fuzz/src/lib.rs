@@ -59,6 +59,15 @@ pub fn check_power_diagram(data: &[u8]) {
     if let Err(e) = diagram.sanity_check() {
         panic!("power diagram invariant broken: {e}");
     }
+    // the integrator's precondition: sites within MAX_SITE_DISTANCE diameters of the source
+    // (farther ones are refused by `solve_ot`; see `restricted`'s module docs)
+    let reach = shapespace_omt::restricted::MAX_SITE_DISTANCE * 8f64.sqrt();
+    if sites
+        .iter()
+        .any(|p| (p[0].abs() - 1.0).max(0.0).hypot((p[1].abs() - 1.0).max(0.0)) > reach)
+    {
+        return;
+    }
     // the unit square as two triangles, uniform density
     let measure = shapespace_omt::SourceMeasure::new(
         vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]],

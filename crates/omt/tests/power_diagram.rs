@@ -560,3 +560,35 @@ fn subnormal_sites_are_refused() {
     let diagram = PowerDiagram::new(&sites, &vec![0.0; sites.len()]).unwrap();
     diagram.sanity_check().unwrap();
 }
+
+/// Sites far from the source. The integrator clips relative to each site, so a lone site at
+/// 1e28 beside the square [-1, 1]² (a libFuzzer find) saw the square's triangles round to
+/// points and gave them no mass. Within `MAX_SITE_DISTANCE` source diameters the whole mass
+/// is found to 1e-9; `solve_ot` refuses a farther target, naming it.
+#[test]
+fn sites_far_from_the_source() {
+    use shapespace_omt::restricted::{RestrictedIntegrator, MAX_SITE_DISTANCE};
+    use shapespace_omt::{solve_ot, NewtonParams, OmtError, SourceMeasure};
+    let square = SourceMeasure::new(
+        vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]],
+        vec![[0, 1, 2], [0, 2, 3]],
+        vec![1.0, 1.0],
+    )
+    .unwrap();
+    let diameter = 8f64.sqrt();
+    for r in [0.0, 10.0, 1e3, MAX_SITE_DISTANCE] {
+        let site = [-1.0 - r * diameter, 0.3];
+        let d = PowerDiagram::new(&[site, [-1.0 - r * diameter, 2.3]], &[0.0, 0.0]).unwrap();
+        let m: f64 = RestrictedIntegrator::new(&square).integrate(&d).masses.iter().sum();
+        assert!((m - 4.0).abs() < 4e-9, "distance {r} diameters: mass {m}");
+    }
+    let mut points = vec![[0.5, 0.5], [-0.5, -0.5]];
+    assert!(solve_ot(&square, &points, &[2.0, 2.0], &NewtonParams::default()).is_ok());
+    points[1] = [-1.3476554649880077e28, -1.3476555094338099e28];
+    match solve_ot(&square, &points, &[2.0, 2.0], &NewtonParams::default()) {
+        Err(OmtError::InvalidInput(m)) => {
+            assert!(m.contains("target point 1") && m.contains("source diameters"), "{m}")
+        }
+        other => panic!("{:?}", other.map(|s| s.cost)),
+    }
+}

@@ -1076,6 +1076,26 @@ fn validate(
             points[i][0], points[i][1]
         )));
     }
+    // Cells are clipped relative to their sites (`restricted`): a target far beyond the source
+    // would see its triangles round to points.
+    let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+    let diameter = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
+    let reach = crate::restricted::MAX_SITE_DISTANCE * diameter;
+    let outside = |p: &[f64; 2]| {
+        let dx = (lo[0] - p[0]).max(p[0] - hi[0]).max(0.0);
+        let dy = (lo[1] - p[1]).max(p[1] - hi[1]).max(0.0);
+        dx.hypot(dy)
+    };
+    if let Some(i) = points.iter().position(|p| outside(p) > reach) {
+        return Err(OmtError::InvalidInput(format!(
+            "target point {i} = ({:e}, {:e}) lies {:e} from the source, beyond {:e} source diameters ({:e}); move the points nearer or rescale the source",
+            points[i][0],
+            points[i][1],
+            outside(&points[i]),
+            crate::restricted::MAX_SITE_DISTANCE,
+            diameter
+        )));
+    }
     if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
         return Err(OmtError::InvalidInput(format!(
             "target mass {i} is {} (must be finite and > 0)",
