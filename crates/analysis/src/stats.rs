@@ -280,8 +280,15 @@ pub fn class_distances(d: &DistanceMatrix, labels: &Labels, col: &str) -> Result
 /// Asymmetry of a distance matrix.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SymmetryGap {
-    /// Unordered pairs `i < j` with both directions present.
+    /// Unordered pairs `i < j` with both directions present and different: the pairs the gap
+    /// is measured on.
     pub pairs: usize,
+    /// Pairs whose two directions are equal to the last bit. Two directions computed apart are
+    /// never that (the discretization is not symmetric); such entries come from a matrix
+    /// written with one value per pair (`shapespace distances` writes one direction, or with
+    /// `--symmetrize` the mean, to both cells; its `report.json` has the measured asymmetry), so
+    /// they carry no asymmetry to measure and are left out of the gap.
+    pub identical_pairs: usize,
     /// Mean of all present off-diagonal entries (the normalizer).
     pub mean_distance: Option<f64>,
     /// `max |d_ij − d_ji| / mean(d)` over those pairs.
@@ -292,9 +299,10 @@ pub struct SymmetryGap {
     pub worst_pair: Option<(String, String)>,
 }
 
-/// Symmetry gap `|d_ij − d_ji| / mean(d)` (max and median over pairs with both directions
-/// present). `mean(d)` is the mean of all present off-diagonal entries. Fields are `None` when no
-/// pair has both directions or every distance is 0.
+/// Symmetry gap `|d_ij − d_ji| / mean(d)` (max and median over the pairs with both directions
+/// present and not identical, [`SymmetryGap::identical_pairs`]). `mean(d)` is the mean of all
+/// present off-diagonal entries. Fields are `None` when no pair has two different directions or
+/// every distance is 0.
 pub fn symmetry_gap(d: &DistanceMatrix) -> SymmetryGap {
     let n = d.len();
     let (mut sum, mut count) = (0.0, 0usize);
@@ -309,11 +317,16 @@ pub fn symmetry_gap(d: &DistanceMatrix) -> SymmetryGap {
     }
     let mean = (count > 0).then(|| sum / count as f64);
     let mut gaps = Vec::new();
+    let mut identical = 0;
     let mut worst: Option<(f64, usize, usize)> = None;
     for i in 0..n {
         for j in i + 1..n {
             let (a, b) = (d.get(i, j), d.get(j, i));
             if a.is_nan() || b.is_nan() {
+                continue;
+            }
+            if a.to_bits() == b.to_bits() {
+                identical += 1;
                 continue;
             }
             let g = (a - b).abs();
@@ -326,6 +339,7 @@ pub fn symmetry_gap(d: &DistanceMatrix) -> SymmetryGap {
     let normalizer = mean.filter(|&m| m > 0.0);
     SymmetryGap {
         pairs: gaps.len(),
+        identical_pairs: identical,
         mean_distance: mean,
         max_relative: normalizer.and_then(|m| worst.map(|(g, _, _)| g / m)),
         median_relative: normalizer.and_then(|m| median(&gaps).map(|g| g / m)),
