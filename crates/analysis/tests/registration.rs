@@ -87,6 +87,10 @@ fn self_registration_is_the_identity() {
         "{:?}",
         met.area_distortion_summary
     );
+    // and |ln J| is 0 to the same order, over every vertex
+    let log = &met.log_area_distortion_summary;
+    assert_eq!((log.count, log.non_finite), (met.area_distortion_summary.count, 0));
+    assert!(log.max < 1e-6 && log.mean >= 0.0, "{log:?}");
     // curvature ratios interpolated at points displaced by ~1e-9: within 1e-4 of 1 (measured 3.3e-6)
     assert!(met.curvature_summary.max < 1.0 + 1e-4, "{:?}", met.curvature_summary);
 }

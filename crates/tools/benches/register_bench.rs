@@ -27,7 +27,7 @@ fn main() {
     .expect("bench");
     for r in &res.rows {
         println!(
-            "{} {}->{} {:9} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3} geo {:.4}/{:.4} {:.2}s {}",
+            "{} {}->{} {:9} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s {}",
             r.class,
             r.source,
             r.target,
@@ -37,7 +37,8 @@ fn main() {
             r.curvature_median,
             r.curvature_mean,
             r.area_distortion_median,
-            r.area_distortion_mean,
+            r.area_distortion_p95,
+            r.area_distortion_mean_abs_log,
             r.geodesic_median,
             r.geodesic_mean,
             r.seconds,

@@ -186,8 +186,12 @@ pub struct BenchRow {
     pub harmonic_folded: usize,
     pub curvature_median: f64,
     pub curvature_mean: f64,
+    /// Median of max(J, 1/J) over the vertices.
     pub area_distortion_median: f64,
-    pub area_distortion_mean: f64,
+    /// 95th percentile of max(J, 1/J).
+    pub area_distortion_p95: f64,
+    /// Mean of |ln J| (the mean of max(J, 1/J) is dominated by a few collapsed one-rings).
+    pub area_distortion_mean_abs_log: f64,
     pub geodesic_median: f64,
     pub geodesic_mean: f64,
     pub seconds: f64,
@@ -205,8 +209,12 @@ pub struct MethodSummary {
     pub flipped_ratio_3d: f64,
     pub curvature_median: f64,
     pub curvature_mean: f64,
+    /// Median of max(J, 1/J) over the vertices.
     pub area_distortion_median: f64,
-    pub area_distortion_mean: f64,
+    /// 95th percentile of max(J, 1/J).
+    pub area_distortion_p95: f64,
+    /// Mean of |ln J| (the mean of max(J, 1/J) is dominated by a few collapsed one-rings).
+    pub area_distortion_mean_abs_log: f64,
     pub geodesic_median: f64,
     pub geodesic_mean: f64,
     pub seconds: f64,
@@ -332,7 +340,8 @@ pub fn register_bench(
                         curvature_median: f64::NAN,
                         curvature_mean: f64::NAN,
                         area_distortion_median: f64::NAN,
-                        area_distortion_mean: f64::NAN,
+                        area_distortion_p95: f64::NAN,
+                        area_distortion_mean_abs_log: f64::NAN,
                         geodesic_median: f64::NAN,
                         geodesic_mean: f64::NAN,
                         seconds: f64::NAN,
@@ -364,7 +373,8 @@ pub fn register_bench(
                             row.curvature_median = met.curvature_summary.median;
                             row.curvature_mean = met.curvature_summary.mean;
                             row.area_distortion_median = met.area_distortion_summary.median;
-                            row.area_distortion_mean = met.area_distortion_summary.mean;
+                            row.area_distortion_p95 = met.area_distortion_summary.p95;
+                            row.area_distortion_mean_abs_log = met.log_area_distortion_summary.mean;
                             if let Some(g) = &met.geodesic {
                                 row.geodesic_median = g.summary.median;
                                 row.geodesic_mean = g.summary.mean;
@@ -438,7 +448,8 @@ pub fn register_bench(
                 curvature_median: mean(&|r| r.curvature_median),
                 curvature_mean: mean(&|r| r.curvature_mean),
                 area_distortion_median: mean(&|r| r.area_distortion_median),
-                area_distortion_mean: mean(&|r| r.area_distortion_mean),
+                area_distortion_p95: mean(&|r| r.area_distortion_p95),
+                area_distortion_mean_abs_log: mean(&|r| r.area_distortion_mean_abs_log),
                 geodesic_median: mean(&|r| r.geodesic_median),
                 geodesic_mean: mean(&|r| r.geodesic_mean),
                 seconds: mean(&|r| r.seconds),

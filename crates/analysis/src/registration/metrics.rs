@@ -163,8 +163,11 @@ pub struct RegistrationMetrics {
     /// Area distortion max(J, 1/J) per vertex of S₁, #V₁.
     #[serde(skip)]
     pub area_distortion: Vec<f64>,
-    /// Summary of the area distortion.
+    /// Summary of the area distortion max(J, 1/J): read its median and quantiles; its mean is
+    /// dominated by a few collapsed one-rings (1e10 on real pairs) and says little.
     pub area_distortion_summary: ValueSummary,
+    /// Summary of |ln J| = ln max(J, 1/J) per vertex: its mean is the meaningful average.
+    pub log_area_distortion_summary: ValueSummary,
     /// Geodesic errors (when a ground truth is available).
     pub geodesic: Option<GeodesicErrors>,
     /// Vertices snapped onto φ₂(S₂) during the composition.
@@ -360,6 +363,7 @@ pub fn registration_metrics(
         curvature_clamped,
         curvature_floors: floors,
         area_distortion_summary: ValueSummary::of(&area_distortion),
+        log_area_distortion_summary: ValueSummary::of(&area_distortion.iter().map(|a| a.ln()).collect::<Vec<_>>()),
         area_distortion,
         geodesic,
         num_snapped: reg.num_snapped,

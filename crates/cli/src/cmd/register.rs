@@ -268,13 +268,14 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         reg.timings.source_map, reg.timings.target_map, reg.timings.harmonic, reg.timings.composition, reg.num_snapped
     );
     eprintln!(
-        "register: flipped area {:.4} (disk) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion median {:.3} mean {:.3}",
+        "register: flipped area {:.4} (disk) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion max(J, 1/J) median {:.3} p95 {:.3}, mean |ln J| {:.3}",
         met.flipped_area_ratio,
         met.flipped_area_ratio_3d,
         met.curvature_summary.median,
         met.curvature_summary.mean,
         met.area_distortion_summary.median,
-        met.area_distortion_summary.mean
+        met.area_distortion_summary.p95,
+        met.log_area_distortion_summary.mean
     );
     if let Some(g) = &met.geodesic {
         eprintln!(
@@ -326,12 +327,12 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     )
     .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
-        "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. mean | geodesic err. median | geodesic err. mean | s/pair |"
+        "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. p95 | mean abs. ln area dist. | geodesic err. median | geodesic err. mean | s/pair |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for s in &res.summaries {
         println!(
-            "| {} | {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
+            "| {} | {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
             s.class,
             s.method,
             s.pairs_ok,
@@ -341,7 +342,8 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
             s.curvature_median,
             s.curvature_mean,
             s.area_distortion_median,
-            s.area_distortion_mean,
+            s.area_distortion_p95,
+            s.area_distortion_mean_abs_log,
             s.geodesic_median,
             s.geodesic_mean,
             s.seconds
