@@ -1,7 +1,7 @@
 //! Measured comparison of the two disk-map constructions (release:
 //! `cargo run --release -p shapespace-tools --bin compare_methods`): the Green's
-//! function map ([`disk_map`], default parameters) and Boundary First Flattening with the disk
-//! target ([`bff_disk_map`], default parameters), both with the same markers, the same
+//! function map (`disk_map`, default parameters) and Boundary First Flattening with the disk
+//! target (`bff_disk_map`, default parameters), both with the same markers, the same
 //! intrinsic Delaunay Laplacian, the same Möbius normalization, fold repair and densities.
 //!
 //! Cases: hemispheres (p = pole, exact map = stereographic projection), the same with every

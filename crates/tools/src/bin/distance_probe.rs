@@ -1,5 +1,5 @@
 //! Probe: Newton iteration logs of one face pair with the pairwise distances' solver settings
-//! (`PairwiseOptions::default()`; args A B [CONTINUATION]; env `FLUX`: the Newton evaluations'
+//! (`PairwiseOptions::default()`; args A B \[CONTINUATION\]; env `FLUX`: the Newton evaluations'
 //! masses by the flux form).
 use shapespace_omt::NewtonParams;
 use shapespace_tools::faces;
