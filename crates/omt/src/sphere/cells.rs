@@ -3,18 +3,22 @@
 //! The Laguerre cell of y_i at heights h is W_i = {x : ⟨x, y_i⟩ + h_i ≥ ⟨x, y_j⟩ + h_j ∀j}, the
 //! 3D power cell with weight w_i = 2h_i + |y_i|². Per flat source triangle T (plane P):
 //!
-//! 1. **Candidates.** A bounding-volume tree over the sites (built once per target, its height
-//!    bounds refreshed per evaluation) gives the best site at T's centroid c,
-//!    b = max_i ⟨c, y_i⟩ + h_i, and then every site j with ⟨c, y_j⟩ + h_j ≥ b − 2r (r the largest
-//!    distance from c to a corner of T, |y_j| = 1): for x ∈ T, ⟨x, y_j⟩ + h_j ≤ ⟨c, y_j⟩ + h_j + r
-//!    and the best site at c keeps at least b − r, so no other site can own a point of T. The
-//!    bound is conservative (a margin of 1e-10 is added), so the candidates are a superset.
+//! 1. **Candidates.** A bounding-volume tree over the sites (spherical caps, built once per
+//!    target; its height bounds refreshed per evaluation) gives the best site k_v at every
+//!    vertex v of the source (branch and bound, vertices in Morton order so each search starts
+//!    from the previous answer). ℓ_k(x) = ⟨x, y_k⟩ + h_k is a minorant of
+//!    u_h = max_i ℓ_i for any k, and ℓ_j − ℓ_k is affine, so a site j can own a point of T only
+//!    if ℓ_j − ℓ_k ≥ 0 at some corner of T. The tree lists the sites passing this test for
+//!    k = k_a (corner a; a margin of 1e-10 keeps it conservative), and the list is filtered by
+//!    the same test for k_b and k_c. The candidates are a superset of the cells meeting T
+//!    (1.8–8 per triangle in the measured cases).
 //! 2. **Clipping.** Each candidate's piece is T clipped by the half-spaces
-//!    ⟨x, y_i − y_j⟩ ≥ h_j − h_i of the other candidates (most competitive at c first, so that
+//!    ⟨x, y_i − y_j⟩ ≥ h_j − h_i of the other candidates (largest ℓ_j at T's centroid first, so that
 //!    losing candidates are dropped after one or two clips). Within P this is the 2D power
 //!    diagram of the sites projected on P with weights w_i − dist(y_i, P)². Each polygon edge
 //!    carries the site whose half-space made it, which names the neighbour of an edge.
-//! 3. **Integrals.** Piece masses and first moments are exact on the flat triangle; an edge
+//! 3. **Integrals.** Piece masses, first moments and ∫|x − y_i|² are exact on the flat
+//!    triangle (fan triangulation); an edge
 //!    between i and j in T of length ℓ adds ρ_T ℓ to the edge mass and ρ_T ℓ / |Π_P(y_i − y_j)|
 //!    to −H_ij, Π_P the projection on P: raising h_j by t moves that edge into W_i by
 //!    t / |Π_P(y_i − y_j)| within P. (On S² itself the factor is the tangential component
@@ -25,8 +29,8 @@
 //! has to agree (docs/decisions/0019-spherical-laguerre-cells.md says why, and what exact
 //! predicates would add).
 //!
-//! Triangles are processed in parallel in fixed chunks and reduced in triangle order, so the
-//! results do not depend on the thread count.
+//! Triangles are processed in parallel in fixed chunks of a fixed (Morton) order and reduced in
+//! that order, so the results do not depend on the thread count.
 
 use rayon::prelude::*;
 
