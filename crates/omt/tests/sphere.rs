@@ -407,6 +407,38 @@ fn random_points_converge_quickly() {
     assert!((total / measure.total_mass() - 1.0).abs() < 1e-12);
 }
 
+/// A density ratio of 400 (ρ ∝ exp(3z)) takes the density continuation (two softened stages)
+/// and converges to the same cells as the plain solve, which converges here too.
+#[test]
+fn contrasting_density_converges_through_the_continuation() {
+    let (v, t) = icosphere(4);
+    let measure = SphereMeasure::from_spherical_density(v, t, |x| (3.0 * x[2]).exp()).unwrap();
+    let n = 1000;
+    let points = random_sphere_points(n, 13);
+    let masses = vec![1.0; n];
+    let with = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
+    assert_eq!(with.stop, StopReason::Converged);
+    assert_eq!(with.continuation_stages, 2);
+    let plain = solve_sphere_ot(
+        &measure,
+        &points,
+        &masses,
+        &SphereOtParams {
+            density_continuation: None,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(plain.stop, StopReason::Converged);
+    assert_eq!(plain.continuation_stages, 0);
+    assert!(
+        (with.cost / plain.cost - 1.0).abs() < 1e-6,
+        "{} against {}",
+        with.cost,
+        plain.cost
+    );
+}
+
 #[test]
 fn bad_inputs_are_errors_that_say_what() {
     let measure = SphereMeasure::uniform_icosphere(2).unwrap();

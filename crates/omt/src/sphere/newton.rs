@@ -4,16 +4,30 @@
 //! The same iteration as the planar solver's plain KMT step (conventions, "Damping and
 //! stopping"): start from the Voronoi diagram (h = 0, all sites on S²), solve H δ = −G with the
 //! unknown of the largest target pinned, and halve τ from 1 until every cell keeps at least
-//! ε₀ = ½ min(min ν, min μ(W_i(h₀))) and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. Heights are plain f64
-//! (no double-double, no intermediate targets, no coarse-to-fine start): the sphere has no
-//! boundary to crowd points against, and a uniform-like source converges from the Voronoi
-//! start in a few steps.
+//! ε₀ = ½ min(min ν, min μ(W_i(h₀))) and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. As in the plane, a step
+//! aims at soft-capped intermediate targets ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln 32,
+//! while some cell is far from its target (decision 0004), and plain KMT steps once such a step
+//! is accepted below τ = 0.01. Heights are plain f64 (no double-double, no coarse-to-fine
+//! start): the sphere has no boundary to crowd points against. Above a density ratio of 10 a
+//! density continuation solves softened densities ρ^t first ([`SphereOtParams::density_continuation`]).
+//!
+//! Measured (`examples/sphere_contrast.rs`, 5,000 random equal-mass points, ρ ∝ exp(k z) on
+//! 20,480 triangles; steps of all stages): ratio 2.7 and 7.4: 5 steps; 55: 9; 400: 13 (2
+//! stages); 3,000: 97 steps, 525 evaluations (3 stages); 22,000: 172 steps, 958 evaluations
+//! (4 stages). Without the continuation (with or without the intermediate targets) the last two
+//! stopped at 100 steps with mass errors of 360–430 % and 1,060 %. High contrast with points spread evenly
+//! (the low-density cells must reach far from their sites) is this solver's weak case; a
+//! coarse-to-fine start as in the plane is not built.
 
 use std::time::Instant;
 
 use crate::error::OmtError;
 use crate::linear::{LinearSolver, NewtonSystem};
-use crate::newton::StopReason;
+use crate::newton::{intermediate_targets, StopReason};
+
+/// A step aimed at intermediate targets and accepted below this τ switches them off (as in the
+/// plane).
+const TARGET_CAP_MIN_TAU: f64 = 0.01;
 
 use super::cells::{SphereCells, SphereIntegrator};
 use super::measure::{norm, SphereMeasure, SPHERE_TOLERANCE};
@@ -35,6 +49,14 @@ pub struct SphereOtParams {
     pub deadline: Option<Instant>,
     /// Integrate with every site a candidate in every triangle (the O(N·M) oracle; tests).
     pub brute_force: bool,
+    /// Density continuation (default `Some(10)`): without a warm start and with a density ratio
+    /// max/min above r, solve first for ρ^t, t = 1/K, 2/K, …, (K−1)/K with
+    /// K = ⌈ln(max/min)/ln r⌉ (each stage to max(tolerance, 1e-3), warm-starting the next), as
+    /// the planar [`crate::NewtonParams::density_continuation`]. `None` disables it.
+    pub density_continuation: Option<f64>,
+    /// Soft cap κ on the mass ratio a step aims for (default `Some(32)`, as in the plane:
+    /// [`crate::NewtonParams::target_ratio_cap`]); `None`: plain KMT steps.
+    pub target_ratio_cap: Option<f64>,
 }
 
 impl Default for SphereOtParams {
@@ -47,6 +69,8 @@ impl Default for SphereOtParams {
             initial_heights: None,
             deadline: None,
             brute_force: false,
+            target_ratio_cap: Some(crate::newton::TARGET_RATIO_CAP),
+            density_continuation: Some(10.0),
         }
     }
 }
@@ -62,6 +86,8 @@ pub struct SphereIteration {
     pub step: f64,
     /// Rejected trials.
     pub halvings: usize,
+    /// Cells whose target this step replaced by an intermediate one.
+    pub intermediate_targets: usize,
     /// min_i μ(W_i) after the step.
     pub min_cell_mass: f64,
     /// Seconds integrating cells (all trials) and solving the Newton system.
@@ -83,8 +109,12 @@ pub struct SphereOtSolution {
     /// Transport cost Σ_i ∫_{W_i} |x − y_i|² dμ on the flat triangles
     /// ([`SphereCells::transport_cost`]).
     pub cost: f64,
-    /// Newton steps taken.
+    /// Newton steps taken (with a density continuation, of the last stage).
     pub iterations: usize,
+    /// Stages of a density continuation before the problem itself (0 without one) and their
+    /// Newton steps.
+    pub continuation_stages: usize,
+    pub continuation_iterations: usize,
     /// Cell integrations, the initial one included.
     pub evaluations: usize,
     /// max_i |μ(W_i) − ν_i| / ν_i at the final heights (ν rescaled).
@@ -209,6 +239,15 @@ pub fn solve_sphere_ot(
         )));
     }
     let points = normalize_sphere_points(points)?;
+    if params.initial_heights.is_none() {
+        if let Some(r) = params.density_continuation.filter(|&r| r > 1.0) {
+            let lo = measure.densities.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = measure.densities.iter().copied().fold(0.0, f64::max);
+            if hi / lo > r {
+                return continuation(measure, &points, masses, params, (hi / lo).ln() / r.ln(), t_start);
+            }
+        }
+    }
     let total = measure.total_mass();
     let sum: f64 = masses.iter().sum();
     let mass_scale = total / sum;
@@ -261,6 +300,7 @@ pub fn solve_sphere_ot(
     let mut log = Vec::new();
     let mut stop = StopReason::IterationCap;
     let mut iterations = 0;
+    let mut target_cap = params.target_ratio_cap;
     loop {
         if rel <= params.tolerance {
             stop = StopReason::Converged;
@@ -280,8 +320,23 @@ pub fn solve_sphere_ot(
             break;
         }
         let t0 = Instant::now();
-        let delta = system.newton_direction_from_coefficients(n, &cells.hessian, &gradient)?;
+        let step = target_cap.and_then(|cap| intermediate_targets(&cells.masses, &targets, cap));
+        let (step_targets, step_gradient, step_norm) = match &step {
+            Some((t, _)) => {
+                let g: Vec<f64> = cells.masses.iter().zip(t).map(|(m, t)| m - t).collect();
+                let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+                (t, g, norm)
+            }
+            None => (&targets, gradient.clone(), gnorm),
+        };
+        let delta = system.newton_direction_from_coefficients(n, &cells.hessian, &step_gradient)?;
         let t_solve = t0.elapsed().as_secs_f64();
+        if delta.iter().any(|d| !d.is_finite()) {
+            stop = StopReason::Stalled {
+                reason: "the Newton direction is not finite".into(),
+            };
+            break;
+        }
         let t1 = Instant::now();
         let mut tau = 1.0;
         let mut halvings = 0;
@@ -290,8 +345,15 @@ pub fn solve_sphere_ot(
             let trial_cells = integrator.integrate(&trial);
             evaluations += 1;
             let min_mass = trial_cells.masses.iter().copied().fold(f64::INFINITY, f64::min);
-            let (g, r, gn) = errors(&trial_cells);
-            if min_mass >= epsilon0 && gn <= (1.0 - tau / 2.0) * gnorm {
+            let trial_norm = trial_cells
+                .masses
+                .iter()
+                .zip(step_targets)
+                .map(|(m, t)| (m - t) * (m - t))
+                .sum::<f64>()
+                .sqrt();
+            if min_mass >= epsilon0 && trial_norm <= (1.0 - tau / 2.0) * step_norm {
+                let (g, r, gn) = errors(&trial_cells);
                 break Some((trial, trial_cells, g, r, gn, min_mass));
             }
             halvings += 1;
@@ -301,6 +363,14 @@ pub fn solve_sphere_ot(
             tau *= 0.5;
         };
         let t_integration = t1.elapsed().as_secs_f64();
+        if step.is_some() && (accepted.is_none() || tau < TARGET_CAP_MIN_TAU) {
+            // intermediate targets that do not pay: plain KMT steps from here on
+            target_cap = None;
+            if accepted.is_none() {
+                iterations += 1;
+                continue;
+            }
+        }
         let Some((trial, trial_cells, g, r, gn, min_mass)) = accepted else {
             stop = StopReason::Stalled {
                 reason: format!("no acceptable step after {} halvings", params.max_halvings),
@@ -316,6 +386,7 @@ pub fn solve_sphere_ot(
             gradient_norm: gnorm,
             step: tau,
             halvings,
+            intermediate_targets: step.as_ref().map_or(0, |s| s.1),
             min_cell_mass: min_mass,
             t_integration,
             t_solve,
@@ -335,9 +406,58 @@ pub fn solve_sphere_ot(
         tolerance: params.tolerance,
         stop,
         log,
+        continuation_stages: 0,
+        continuation_iterations: 0,
         mass_scale,
         target_masses: targets,
         epsilon0,
         t_total: t_start.elapsed().as_secs_f64(),
     })
+}
+
+/// The density continuation of [`SphereOtParams::density_continuation`]: K = ⌈`stages`⌉ stages.
+fn continuation(
+    measure: &SphereMeasure,
+    points: &[[f64; 3]],
+    masses: &[f64],
+    params: &SphereOtParams,
+    stages: f64,
+    t_start: Instant,
+) -> Result<SphereOtSolution, OmtError> {
+    let k = stages.ceil().max(1.0) as usize;
+    let mut heights: Option<Vec<f64>> = None;
+    let mut iterations = 0;
+    let mut evaluations = 0;
+    for stage in 1..k {
+        let t = stage as f64 / k as f64;
+        let softened = SphereMeasure {
+            vertices: measure.vertices.clone(),
+            triangles: measure.triangles.clone(),
+            densities: measure.densities.iter().map(|d| d.powf(t)).collect(),
+        };
+        let stage_params = SphereOtParams {
+            tolerance: params.tolerance.max(1e-3),
+            initial_heights: heights.take(),
+            density_continuation: None,
+            ..params.clone()
+        };
+        let solution = solve_sphere_ot(&softened, points, masses, &stage_params)?;
+        iterations += solution.iterations;
+        evaluations += solution.evaluations;
+        if solution.stop == StopReason::TimeLimit {
+            return Ok(solution);
+        }
+        heights = Some(solution.heights);
+    }
+    let last = SphereOtParams {
+        initial_heights: heights,
+        density_continuation: None,
+        ..params.clone()
+    };
+    let mut solution = solve_sphere_ot(measure, points, masses, &last)?;
+    solution.continuation_stages = k - 1;
+    solution.continuation_iterations = iterations;
+    solution.evaluations += evaluations;
+    solution.t_total = t_start.elapsed().as_secs_f64();
+    Ok(solution)
 }
