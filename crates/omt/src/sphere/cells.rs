@@ -217,6 +217,23 @@ impl SiteTree {
         r * best + 1e-12 + bounds[id]
     }
 
+    /// Whether max ⟨v, y⟩ over the node's cap (|v| = `norm` > 0) can reach `level`: the test
+    /// |v| cos(max(0, θ − α)) + 1e-12 ≥ level of [`Self::upper_bound`] without its square root
+    /// (sin θ sin α ≥ level/|v| − cos θ cos α, squared when both sides are positive).
+    fn cap_reaches(&self, id: usize, v: [f64; 3], norm: f64, level: f64) -> bool {
+        let n = &self.nodes[id];
+        let level = (level - 1e-12) / norm;
+        if level > 1.0 {
+            return false;
+        }
+        let cos_t = dot(v, n.axis) / norm;
+        if cos_t >= n.cos_radius {
+            return true;
+        }
+        let rest = level - cos_t * n.cos_radius;
+        rest <= 0.0 || (1.0 - cos_t * cos_t) * n.sin_radius * n.sin_radius >= rest * rest
+    }
+
     /// max_i ⟨c, y_i⟩ + h_i and its site (the first one in tree order among equal values
     /// larger than the guess's), branch and bound from the site `guess`'s value.
     fn best(&self, c: [f64; 3], guess: u32, heights: &[f64], bounds: &[f64], stack: &mut Vec<u32>) -> (f64, u32) {
@@ -258,6 +275,7 @@ impl SiteTree {
     fn beating(
         &self,
         corners: &[[f64; 3]; 3],
+        norms: [f64; 3],
         lower: [f64; 3],
         margin: f64,
         centroid: [f64; 3],
@@ -271,10 +289,7 @@ impl SiteTree {
         stack.push(0);
         while let Some(id) = stack.pop() {
             let id = id as usize;
-            let bound = (0..3)
-                .map(|v| self.upper_bound(id, corners[v], bounds) - lower[v])
-                .fold(f64::NEG_INFINITY, f64::max);
-            if bound < -margin {
+            if !(0..3).any(|v| self.cap_reaches(id, corners[v], norms[v], lower[v] - bounds[id] - margin)) {
                 continue;
             }
             let n = &self.nodes[id];
@@ -496,6 +511,7 @@ impl<'a> SphereIntegrator<'a> {
             let lower_of = |k: u32| corners.map(|v| dot(v, self.points[k as usize]) + heights[k as usize]);
             self.tree.beating(
                 &corners,
+                corners.map(norm),
                 lower_of(ka),
                 margin,
                 centroid,
