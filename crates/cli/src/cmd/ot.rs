@@ -66,7 +66,8 @@ pub struct OtArgs {
     #[arg(long, default_value_t = 100)]
     pub max_iterations: usize,
     /// Initial heights: `auto` (coarse-to-fine for a density ratio above 10 or crowded points,
-    /// else Voronoi), `voronoi` or `coarse-to-fine`.
+    /// else Voronoi), `voronoi` or `coarse-to-fine`. Planar domains only: the sphere starts
+    /// from its Voronoi diagram (with a density continuation above a density ratio of 10).
     #[arg(long, value_enum, default_value_t = StartArg::Auto)]
     pub start: StartArg,
     /// Solve the Newton systems by Jacobi-preconditioned CG instead of sparse Cholesky.
