@@ -182,6 +182,109 @@ fn ot_on_a_point_file() {
     assert!(report.to_string().contains("onverged"), "{report}");
 }
 
+/// `shapespace ot --domain sphere`: Fibonacci points on S² with masses 1 and 3 alternating, the
+/// uniform source; the cells carry 4π·ν_i/Σν, the centroids lie on S² near their points, the
+/// cells CSV lists pieces whose corners lie on the source triangles (inside the unit ball), and
+/// a density mesh with a vertex off the sphere or a point off it is refused, naming the file.
+#[test]
+fn ot_on_the_sphere() {
+    let dir = scratch("ot_sphere");
+    let points = dir.join("points.csv");
+    let n = 300;
+    let mut text = String::from("x,y,z,mass\n");
+    for k in 0..n {
+        let z = 1.0 - (2 * k + 1) as f64 / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let t = k as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        text.push_str(&format!("{},{},{},{}\n", r * t.cos(), r * t.sin(), z, 1 + 2 * (k % 2)));
+    }
+    std::fs::write(&points, text).unwrap();
+    let result = dir.join("result.csv");
+    let cells = dir.join("cells.csv");
+    let report = dir.join("report.json");
+    let out = shapespace(&[
+        "ot",
+        "--domain",
+        "sphere",
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        result.to_str().unwrap(),
+        "--cells",
+        cells.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "--tol",
+        "1e-8",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut rows = csv::Reader::from_path(&result).unwrap();
+    assert_eq!(rows.headers().unwrap(), vec!["i", "height", "mass", "cx", "cy", "cz"]);
+    let unit = 4.0 * std::f64::consts::PI / (2.0 * n as f64);
+    let mut count = 0;
+    for row in rows.records() {
+        let row = row.unwrap();
+        let v: Vec<f64> = (0..6).map(|k| row[k].parse().unwrap()).collect();
+        let k = v[0] as usize;
+        let target = unit * (1 + 2 * (k % 2)) as f64;
+        assert!(
+            (v[2] / target - 1.0).abs() < 1e-7,
+            "cell {k}: mass {} against {target}",
+            v[2]
+        );
+        assert!(((v[3] * v[3] + v[4] * v[4] + v[5] * v[5]).sqrt() - 1.0).abs() < 1e-12);
+        count += 1;
+    }
+    assert_eq!(count, n);
+    let mut pieces = csv::Reader::from_path(&cells).unwrap();
+    assert_eq!(pieces.headers().unwrap(), vec!["i", "t", "k", "x", "y", "z"]);
+    for row in pieces.records() {
+        let row = row.unwrap();
+        let p: Vec<f64> = (3..6).map(|k| row[k].parse().unwrap()).collect();
+        let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        assert!(r <= 1.0 + 1e-12 && r > 0.99, "{r}");
+    }
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(report["converged"], serde_json::json!(true), "{report}");
+
+    let off = dir.join("off.csv");
+    std::fs::write(&off, "x,y,z\n0,0,1\n0,0.5,0.5\n").unwrap();
+    let out = shapespace(&[
+        "ot",
+        "--domain",
+        "sphere",
+        "--points",
+        off.to_str().unwrap(),
+        "--out",
+        dir.join("o.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("off.csv:3") && stderr(&out).contains("not on the unit sphere"),
+        "{}",
+        stderr(&out)
+    );
+    let mesh = dir.join("flat.obj");
+    std::fs::write(&mesh, "v 0 0 1\nv 1 0 0\nv 0 1 0.5\nf 1 2 3\n").unwrap();
+    let out = shapespace(&[
+        "ot",
+        "--domain",
+        "sphere",
+        "--density-mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        dir.join("o.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("flat.obj") && stderr(&out).contains("vertex 3"),
+        "{}",
+        stderr(&out)
+    );
+}
+
 /// `shapespace ot --start coarse-to-fine` takes the coarse-to-fine start (1,200 points: one
 /// coarse level) and reaches the same masses; `--start voronoi` the Voronoi start; the report says
 /// which.

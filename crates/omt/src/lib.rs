@@ -1,7 +1,7 @@
 //! # shapespace-omt
 //!
-//! Semi-discrete optimal mass transport on convex planar domains: power diagrams restricted to a
-//! triangulated density, exact cell integrals, and a damped Newton solver on the heights
+//! Semi-discrete optimal mass transport on convex planar domains and on the unit sphere: power
+//! diagrams restricted to a triangulated density, exact cell integrals, and a damped Newton solver on the heights
 //! [Gu, Luo, Sun, Yau 2013; Kitagawa, Mérigot, Thibert 2019]. See `ARCHITECTURE.md`.
 //!
 //! ```
@@ -35,6 +35,7 @@ pub mod quantization;
 #[doc(hidden)]
 pub mod reference;
 pub mod restricted;
+pub mod sphere;
 #[doc(hidden)]
 pub mod synthetic;
 
@@ -42,3 +43,4 @@ pub use cells::CellIntegrals;
 pub use error::OmtError;
 pub use measure::SourceMeasure;
 pub use newton::{solve_ot, NewtonParams, OtSolution, StartStrategy, StopReason};
+pub use sphere::{solve_sphere_ot, SphereMeasure, SphereOtParams, SphereOtSolution};

@@ -250,10 +250,41 @@ impl NewtonSystem {
             return Ok(vec![0.0; n]);
         }
         let t0 = std::time::Instant::now();
-        let mut edges = pattern_edges(cells, |a, b, m| {
+        let edges = pattern_edges(cells, |a, b, m| {
             let (p, q) = (points[a as usize], points[b as usize]);
             m / (p[0] - q[0]).hypot(p[1] - q[1])
         });
+        self.t_assembly += t0.elapsed().as_secs_f64();
+        self.direction_from_edges(n, edges, gradient)
+    }
+
+    /// Newton direction δ (#N, δ_pinned = 0) solving H δ = −G, with the off-diagonal entries
+    /// given directly: `coefficients` lists (i, j, −H_ij) for neighbouring i ≠ j (any order,
+    /// repeated pairs summed, non-positive values dropped). The spherical solver uses it, whose
+    /// coefficients are not edge masses over planar distances.
+    pub fn newton_direction_from_coefficients(
+        &mut self,
+        n: usize,
+        coefficients: &[(u32, u32, f64)],
+        gradient: &[f64],
+    ) -> Result<Vec<f64>, OmtError> {
+        if n <= 1 {
+            return Ok(vec![0.0; n]);
+        }
+        let t0 = std::time::Instant::now();
+        let edges = normalized_edges(coefficients.iter().copied(), |_, _, c| c);
+        self.t_assembly += t0.elapsed().as_secs_f64();
+        self.direction_from_edges(n, edges, gradient)
+    }
+
+    /// The direction for the off-diagonal magnitudes `edges` (i < j, sorted, distinct).
+    fn direction_from_edges(
+        &mut self,
+        n: usize,
+        mut edges: Vec<(u32, u32, f64)>,
+        gradient: &[f64],
+    ) -> Result<Vec<f64>, OmtError> {
+        let t0 = std::time::Instant::now();
         // For Cholesky, assemble on the pattern of the current symbolic factorization (explicit
         // zeros for absent pairs) when it contains every pair of this one, reusing the symbolic
         // factorization. Otherwise a new symbolic factorization, on the union of both patterns
@@ -515,11 +546,17 @@ fn amd_symbolic(structure: faer::sparse::SymbolicSparseColMatRef<'_, u32>) -> Re
 /// The pairs of `cells.edge_masses` with positive mass, each once as (i, j) with i < j, sorted,
 /// with value the sum of `value(i, j, mass)` over its entries.
 fn pattern_edges(cells: &CellIntegrals, value: impl Fn(u32, u32, f64) -> f64) -> Vec<(u32, u32, f64)> {
-    let mut edges: Vec<(u32, u32, f64)> = cells
-        .edge_masses
-        .iter()
+    normalized_edges(cells.edge_masses.iter().copied(), value)
+}
+
+/// `raw` pairs with a positive value, as (i < j, value(i, j, m)), sorted, repeated pairs summed.
+fn normalized_edges(
+    raw: impl Iterator<Item = (u32, u32, f64)>,
+    value: impl Fn(u32, u32, f64) -> f64,
+) -> Vec<(u32, u32, f64)> {
+    let mut edges: Vec<(u32, u32, f64)> = raw
         .filter(|e| e.2 > 0.0 && e.0 != e.1)
-        .map(|&(i, j, m)| {
+        .map(|(i, j, m)| {
             let (a, b) = if i < j { (i, j) } else { (j, i) };
             (a, b, value(a, b, m))
         })

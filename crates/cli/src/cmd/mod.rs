@@ -7,6 +7,7 @@ pub mod info;
 pub mod markers;
 pub mod mds;
 pub mod ot;
+pub mod ot_sphere;
 pub mod param;
 pub mod prepare;
 pub mod register;

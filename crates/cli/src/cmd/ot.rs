@@ -2,6 +2,9 @@
 //! [--density FACE_DENSITIES.csv]] [--tol 1e-6] [--max-iterations N] --out RESULT.csv
 //! [--report R.json] [--cells CELLS.csv]`: semi-discrete optimal transport from a source density
 //! to weighted points (damped Newton, `shapespace_omt::solve_ot`). Exit code 1 if not converged.
+//!
+//! `--domain sphere`: points `x,y,z[,mass]` on the unit sphere, the source uniform on S² (an
+//! icosphere) or `--density-mesh` with vertices on S² (`shapespace_omt::solve_sphere_ot`).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -35,16 +38,21 @@ impl StartArg {
 /// Arguments of `shapespace ot`.
 #[derive(clap::Args)]
 pub struct OtArgs {
-    /// Target points CSV with header `x,y,mass` (masses > 0; rescaled to the source mass).
+    /// Target points CSV with header `x,y,mass` (masses > 0; rescaled to the source mass); with
+    /// `--domain sphere`, `x,y,z` and an optional `mass` column (equal masses without it), every
+    /// point within 1e-6 of the unit sphere (then normalized).
     #[arg(long)]
     pub points: PathBuf,
     /// Source domain with uniform density: `disk` (unit disk as a 512-gon), `square` (unit
-    /// square) or a CSV of a convex polygon (header `x,y`, counter-clockwise). Ignored with
+    /// square), a CSV of a convex polygon (header `x,y`, counter-clockwise), or `sphere` (the
+    /// unit sphere S² with the chordal cost |x − y|²). Planar domains are ignored with
     /// `--density-mesh`.
     #[arg(long, default_value = "disk")]
     pub domain: String,
     /// Planar triangulation of a convex domain (OBJ/OFF/PLY; texture coordinates if present,
-    /// else x, y of the positions; triangles counter-clockwise).
+    /// else x, y of the positions; triangles counter-clockwise). With `--domain sphere`, a
+    /// triangulation of the unit sphere (positions within 1e-6 of S²; masses on the flat
+    /// triangles: density × flat area).
     #[arg(long)]
     pub density_mesh: Option<PathBuf>,
     /// Per-face densities for `--density-mesh` (CSV with header `density`, one row per face);
@@ -58,19 +66,27 @@ pub struct OtArgs {
     #[arg(long, default_value_t = 100)]
     pub max_iterations: usize,
     /// Initial heights: `auto` (coarse-to-fine for a density ratio above 10 or crowded points,
-    /// else Voronoi), `voronoi` or `coarse-to-fine`.
+    /// else Voronoi), `voronoi` or `coarse-to-fine`. Planar domains only: the sphere starts
+    /// from its Voronoi diagram (with a density continuation above a density ratio of 10).
     #[arg(long, value_enum, default_value_t = StartArg::Auto)]
     pub start: StartArg,
     /// Solve the Newton systems by Jacobi-preconditioned CG instead of sparse Cholesky.
     #[arg(long)]
     pub cg: bool,
-    /// Output CSV `i,height,mass,cx,cy` (mass of the cell, μ-centroid).
+    /// Subdivisions of the icosphere carrying the uniform source with `--domain sphere` and no
+    /// `--density-mesh` (20·4^s triangles); default: the fewest from 5 on with at least half as
+    /// many triangles as points, at most 7.
+    #[arg(long)]
+    pub sphere_subdivisions: Option<usize>,
+    /// Output CSV `i,height,mass,cx,cy` (mass of the cell, μ-centroid); with `--domain sphere`
+    /// `i,height,mass,cx,cy,cz`, the centroid projected radially on S².
     #[arg(long)]
     pub out: PathBuf,
     /// JSON report: cost, iterations, final error, stop reason, per-iteration log, timings.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// CSV of the restricted cells, one row per polygon vertex: `i,k,x,y`.
+    /// CSV of the restricted cells, one row per polygon vertex: `i,k,x,y`; with `--domain
+    /// sphere` one row per corner of each cell's piece of a source triangle: `i,t,k,x,y,z`.
     #[arg(long)]
     pub cells: Option<PathBuf>,
 }
@@ -89,11 +105,11 @@ struct XyRow {
 }
 
 #[derive(serde::Deserialize)]
-struct DensityRow {
-    density: f64,
+pub(crate) struct DensityRow {
+    pub(crate) density: f64,
 }
 
-fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<Vec<T>> {
+pub(crate) fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<Vec<T>> {
     // read the whole file first: the csv reader takes a directory for an empty file
     let data = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let mut reader = csv::ReaderBuilder::new()
@@ -167,6 +183,9 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
             args.density.as_deref(),
         ],
     )?;
+    if args.domain == "sphere" {
+        return super::ot_sphere::run(args);
+    }
     let measure = source_measure(args)?;
     let rows: Vec<PointRow> = read_rows(&args.points)?;
     let points: Vec<[f64; 2]> = rows.iter().map(|r| [r.x, r.y]).collect();
@@ -288,6 +307,6 @@ pub fn run(args: &OtArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// Flushes a CSV writer and puts its file in place.
-fn commit_csv(w: csv::Writer<AtomicFile>) -> std::io::Result<()> {
+pub(crate) fn commit_csv(w: csv::Writer<AtomicFile>) -> std::io::Result<()> {
     w.into_inner().map_err(|e| e.into_error())?.commit()
 }

@@ -1,0 +1,681 @@
+//! Laguerre cells on the sphere restricted to the flat source triangles, and their integrals.
+//!
+//! The Laguerre cell of y_i at heights h is W_i = {x : ⟨x, y_i⟩ + h_i ≥ ⟨x, y_j⟩ + h_j ∀j}, the
+//! 3D power cell with weight w_i = 2h_i + |y_i|². Per flat source triangle T (plane P):
+//!
+//! 1. **Candidates.** A bounding-volume tree over the sites (spherical caps, built once per
+//!    target; its height bounds refreshed per evaluation) gives the best site k_v at every
+//!    vertex v of the source (branch and bound, vertices in Morton order so each search starts
+//!    from the previous answer). ℓ_k(x) = ⟨x, y_k⟩ + h_k is a minorant of
+//!    u_h = max_i ℓ_i for any k, and ℓ_j − ℓ_k is affine, so a site j can own a point of T only
+//!    if ℓ_j − ℓ_k ≥ 0 at some corner of T. The tree lists the sites passing this test for
+//!    k = k_a (corner a; a margin of 1e-10 keeps it conservative), and the list is filtered by
+//!    the same test for k_b and k_c. The candidates are a superset of the cells meeting T
+//!    (1.8–8 per triangle in the measured cases).
+//! 2. **Clipping.** Each candidate's piece is T clipped by the half-spaces
+//!    ⟨x, y_i − y_j⟩ ≥ h_j − h_i of the other candidates (largest ℓ_j at T's centroid first, so that
+//!    losing candidates are dropped after one or two clips). Within P this is the 2D power
+//!    diagram of the sites projected on P with weights w_i − dist(y_i, P)². Each polygon edge
+//!    carries the site whose half-space made it, which names the neighbour of an edge.
+//! 3. **Integrals.** Piece masses, first moments and ∫|x − y_i|² are exact on the flat
+//!    triangle (fan triangulation); an edge
+//!    between i and j in T of length ℓ adds ρ_T ℓ to the edge mass and ρ_T ℓ / |Π_P(y_i − y_j)|
+//!    to −H_ij, Π_P the projection on P: raising h_j by t moves that edge into W_i by
+//!    t / |Π_P(y_i − y_j)| within P. (On S² itself the factor is the tangential component
+//!    √(|y_i − y_j|² − (h_i − h_j)²); |y_i − y_j| alone holds only where h_i = h_j.)
+//!
+//! The combinatorics are floating point: each triangle is partitioned independently, so the
+//! pieces of one triangle agree with each other up to round-off, and nothing across triangles
+//! has to agree (docs/decisions/0021-spherical-laguerre-cells.md says why, and what exact
+//! predicates would add).
+//!
+//! Triangles are processed in parallel in fixed chunks of a fixed (Morton) order and reduced in
+//! that order, so the results do not depend on the thread count.
+
+use rayon::prelude::*;
+
+use super::measure::{cross, dot, norm, sub, SphereMeasure};
+
+/// Integrals over the Laguerre cells W_i restricted to the flat source triangles.
+#[derive(Clone, Debug, Default)]
+pub struct SphereCells {
+    /// μ(W_i), #N.
+    pub masses: Vec<f64>,
+    /// ∫_{W_i} x dμ(x) on the flat triangles, #N (divide by the mass for the centroid; it lies
+    /// inside the ball, project it radially for a point on S²).
+    pub first_moments: Vec<[f64; 3]>,
+    /// ∫_{W_i} |x − y_i|² dμ(x) on the flat triangles, #N: the transport cost of cell i.
+    pub second_moments: Vec<f64>,
+    /// For each pair i < j of cells sharing an edge inside some source triangle:
+    /// (i, j, ∫_{e_ij} μ ds), the μ-weighted length of the common edge, summed over triangles.
+    pub edge_masses: Vec<(u32, u32, f64)>,
+    /// For the same pairs (i, j, −H_ij) = Σ_T ρ_T ℓ_T(e_ij) / |Π_T(y_i − y_j)|, the off-diagonal
+    /// Hessian magnitudes of the Kantorovich energy in the heights (module docs).
+    pub hessian: Vec<(u32, u32, f64)>,
+    /// Source triangles processed, and the mean number of candidate sites per triangle.
+    pub triangles: usize,
+    pub mean_candidates: f64,
+}
+
+impl SphereCells {
+    /// μ-centroids of the cells projected radially on S² (#N; `None` for an empty cell).
+    pub fn centroids_on_sphere(&self) -> Vec<Option<[f64; 3]>> {
+        self.first_moments
+            .iter()
+            .zip(&self.masses)
+            .map(|(m, &mass)| {
+                let r = norm(*m);
+                (mass > 0.0 && r > 0.0).then(|| [m[0] / r, m[1] / r, m[2] / r])
+            })
+            .collect()
+    }
+
+    /// The transport cost Σ_i ∫_{W_i} |x − y_i|² dμ(x), x on the flat triangles. For x = (1 − δ) x̂
+    /// with x̂ on S², |x − y|² = (1 − δ)|x̂ − y|² + δ²: within a relative O(h²) of the chordal
+    /// cost of the radial projection. (The linear form ∫ (2 − 2⟨x, y_i⟩) dμ has the same
+    /// optimal cells but is off by ≈ 2δ per unit mass, as large as the whole cost of 1e5
+    /// equal cells on a 82k-triangle icosphere.)
+    pub fn transport_cost(&self) -> f64 {
+        self.second_moments.iter().sum()
+    }
+}
+
+/// One clipped piece: its site, source triangle and polygon (corners on the triangle's plane).
+#[derive(Clone, Debug)]
+pub struct CellPiece {
+    pub site: u32,
+    pub triangle: u32,
+    pub polygon: Vec<[f64; 3]>,
+}
+
+const LEAF: usize = 8;
+const NONE: u32 = u32::MAX;
+
+#[derive(Clone, Debug)]
+struct Node {
+    /// A spherical cap holding the node's sites: unit axis, cos and sin of its angular radius.
+    axis: [f64; 3],
+    cos_radius: f64,
+    sin_radius: f64,
+    start: u32,
+    end: u32,
+    left: u32,
+    right: u32,
+}
+
+/// A bounding-volume tree over the sites on S² (median splits along the widest axis, leaves of
+/// at most 8 sites; each node bounded by a spherical cap), with per-node maxima of the heights.
+/// Caps, not boxes: near its maximum ⟨c, y⟩ is quadratic in the distance, and a box's corners
+/// overestimate it to first order (with boxes, a query visited ~500 sites at N = 1e4).
+#[derive(Clone, Debug)]
+pub struct SiteTree {
+    points: Vec<[f64; 3]>,
+    nodes: Vec<Node>,
+    order: Vec<u32>,
+}
+
+impl SiteTree {
+    /// The tree of `points` (unit vectors).
+    pub fn new(points: &[[f64; 3]]) -> Self {
+        let mut tree = SiteTree {
+            points: points.to_vec(),
+            nodes: Vec::new(),
+            order: (0..points.len() as u32).collect(),
+        };
+        if !points.is_empty() {
+            tree.build(0, points.len());
+        }
+        tree
+    }
+
+    fn build(&mut self, start: usize, end: usize) -> u32 {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut sum = [0.0; 3];
+        for &i in &self.order[start..end] {
+            let p = self.points[i as usize];
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+                sum[k] += p[k];
+            }
+        }
+        let r = norm(sum);
+        let (axis, cos_radius) = if r > 1e-9 * (end - start) as f64 {
+            let axis = [sum[0] / r, sum[1] / r, sum[2] / r];
+            let c = self.order[start..end]
+                .iter()
+                .map(|&i| dot(axis, self.points[i as usize]))
+                .fold(1.0, f64::min);
+            // (a hair wider than measured, against rounding)
+            (axis, (c - 1e-12).max(-1.0))
+        } else {
+            ([0.0, 0.0, 1.0], -1.0)
+        };
+        let sin_radius = (1.0 - cos_radius * cos_radius).max(0.0).sqrt();
+        let id = self.nodes.len();
+        self.nodes.push(Node {
+            axis,
+            cos_radius,
+            sin_radius,
+            start: start as u32,
+            end: end as u32,
+            left: NONE,
+            right: NONE,
+        });
+        if end - start > LEAF {
+            let axis = (0..3)
+                .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+                .unwrap_or(0);
+            let mid = (start + end) / 2;
+            let points = &self.points;
+            self.order[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
+                points[a as usize][axis]
+                    .total_cmp(&points[b as usize][axis])
+                    .then(a.cmp(&b))
+            });
+            let left = self.build(start, mid);
+            let right = self.build(mid, end);
+            self.nodes[id].left = left;
+            self.nodes[id].right = right;
+        }
+        id as u32
+    }
+
+    /// Maximum height per node (children come after their parent).
+    fn height_bounds(&self, heights: &[f64]) -> Vec<f64> {
+        let mut bound = vec![f64::NEG_INFINITY; self.nodes.len()];
+        for id in (0..self.nodes.len()).rev() {
+            let n = &self.nodes[id];
+            bound[id] = if n.left == NONE {
+                self.order[n.start as usize..n.end as usize]
+                    .iter()
+                    .map(|&i| heights[i as usize])
+                    .fold(f64::NEG_INFINITY, f64::max)
+            } else {
+                bound[n.left as usize].max(bound[n.right as usize])
+            };
+        }
+        bound
+    }
+
+    /// An upper bound of ⟨c, y⟩ + h over the node's sites: |c| cos(max(0, θ − α)) + max h, θ the
+    /// angle from c to the cap's axis, α its radius.
+    fn upper_bound(&self, id: usize, c: [f64; 3], bounds: &[f64]) -> f64 {
+        let n = &self.nodes[id];
+        let r = norm(c);
+        if r == 0.0 {
+            return bounds[id];
+        }
+        let cos_t = dot(c, n.axis) / r;
+        let best = if cos_t >= n.cos_radius {
+            1.0
+        } else {
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            cos_t * n.cos_radius + sin_t * n.sin_radius
+        };
+        r * best + 1e-12 + bounds[id]
+    }
+
+    /// Whether max ⟨v, y⟩ over the node's cap (|v| = `norm` > 0) can reach `level`: the test
+    /// |v| cos(max(0, θ − α)) + 1e-12 ≥ level of [`Self::upper_bound`] without its square root
+    /// (sin θ sin α ≥ level/|v| − cos θ cos α, squared when both sides are positive).
+    fn cap_reaches(&self, id: usize, v: [f64; 3], norm: f64, level: f64) -> bool {
+        let n = &self.nodes[id];
+        let level = (level - 1e-12) / norm;
+        if level > 1.0 {
+            return false;
+        }
+        let cos_t = dot(v, n.axis) / norm;
+        if cos_t >= n.cos_radius {
+            return true;
+        }
+        let rest = level - cos_t * n.cos_radius;
+        rest <= 0.0 || (1.0 - cos_t * cos_t) * n.sin_radius * n.sin_radius >= rest * rest
+    }
+
+    /// max_i ⟨c, y_i⟩ + h_i and its site (the first one in tree order among equal values
+    /// larger than the guess's), branch and bound from the site `guess`'s value.
+    fn best(&self, c: [f64; 3], guess: u32, heights: &[f64], bounds: &[f64], stack: &mut Vec<u32>) -> (f64, u32) {
+        let g = guess as usize;
+        let mut best = (dot(c, self.points[g]) + heights[g], guess);
+        stack.clear();
+        stack.push(0);
+        while let Some(id) = stack.pop() {
+            let id = id as usize;
+            if self.upper_bound(id, c, bounds) <= best.0 {
+                continue;
+            }
+            let n = &self.nodes[id];
+            if n.left == NONE {
+                for &i in &self.order[n.start as usize..n.end as usize] {
+                    let v = dot(c, self.points[i as usize]) + heights[i as usize];
+                    if v > best.0 {
+                        best = (v, i);
+                    }
+                }
+            } else {
+                // the more promising child last, so it is popped first
+                let (l, r) = (n.left, n.right);
+                if self.upper_bound(l as usize, c, bounds) > self.upper_bound(r as usize, c, bounds) {
+                    stack.extend([r, l]);
+                } else {
+                    stack.extend([l, r]);
+                }
+            }
+        }
+        best
+    }
+
+    /// Every site j that beats the affine minorant ℓ_k of u_h somewhere on the triangle with
+    /// corners `corners`, given `lower[v]` = ℓ_k(corner v): since ℓ_j − ℓ_k is affine, that is
+    /// max_v ⟨corner_v, y_j⟩ + h_j − lower[v] ≥ −margin. Output as (⟨c, y_j⟩ + h_j, j) for the
+    /// centroid c.
+    #[allow(clippy::too_many_arguments)]
+    fn beating(
+        &self,
+        corners: &[[f64; 3]; 3],
+        norms: [f64; 3],
+        lower: [f64; 3],
+        margin: f64,
+        centroid: [f64; 3],
+        heights: &[f64],
+        bounds: &[f64],
+        stack: &mut Vec<u32>,
+        out: &mut Vec<(f64, u32)>,
+    ) {
+        out.clear();
+        stack.clear();
+        stack.push(0);
+        while let Some(id) = stack.pop() {
+            let id = id as usize;
+            if !(0..3).any(|v| self.cap_reaches(id, corners[v], norms[v], lower[v] - bounds[id] - margin)) {
+                continue;
+            }
+            let n = &self.nodes[id];
+            if n.left == NONE {
+                for &i in &self.order[n.start as usize..n.end as usize] {
+                    let (y, h) = (self.points[i as usize], heights[i as usize]);
+                    let gain = (0..3)
+                        .map(|v| dot(corners[v], y) + h - lower[v])
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    if gain >= -margin {
+                        out.push((dot(centroid, y) + h, i));
+                    }
+                }
+            } else {
+                stack.extend([n.left, n.right]);
+            }
+        }
+    }
+}
+
+/// Integrates the Laguerre cells of fixed sites over a fixed spherical source, for any heights.
+pub struct SphereIntegrator<'a> {
+    measure: &'a SphereMeasure,
+    points: Vec<[f64; 3]>,
+    tree: SiteTree,
+    /// Triangles and vertices in Morton order of their positions (cache and search locality).
+    triangle_order: Vec<u32>,
+    vertex_order: Vec<u32>,
+    /// Use every site as a candidate in every triangle (the brute-force oracle, O(N·M)).
+    brute_force: bool,
+}
+
+/// Triangles per parallel chunk (fixed, so the reduction order does not depend on threads).
+const CHUNK: usize = 512;
+
+#[derive(Default)]
+struct ChunkOut {
+    masses: Vec<(u32, f64, [f64; 3], f64)>,
+    edges: Vec<(u32, u32, f64, f64)>,
+    candidates: usize,
+    pieces: Vec<CellPiece>,
+}
+
+struct Scratch {
+    stack: Vec<u32>,
+    cand: Vec<(f64, u32)>,
+    poly: Vec<([f64; 3], i64)>,
+    next: Vec<([f64; 3], i64)>,
+}
+
+impl<'a> SphereIntegrator<'a> {
+    /// An integrator for the sites `points` (unit vectors) over `measure`.
+    pub fn new(measure: &'a SphereMeasure, points: &[[f64; 3]]) -> Self {
+        let centroids: Vec<[f64; 3]> = measure
+            .triangles
+            .iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+                [a[0] + b[0] + c[0], a[1] + b[1] + c[1], a[2] + b[2] + c[2]].map(|x| x / 3.0)
+            })
+            .collect();
+        SphereIntegrator {
+            measure,
+            points: points.to_vec(),
+            tree: SiteTree::new(points),
+            triangle_order: morton_order(&centroids),
+            vertex_order: morton_order(&measure.vertices),
+            brute_force: false,
+        }
+    }
+
+    /// The brute-force variant: every site is a candidate in every triangle (tests, N ≲ 1000).
+    pub fn brute_force(measure: &'a SphereMeasure, points: &[[f64; 3]]) -> Self {
+        SphereIntegrator {
+            brute_force: true,
+            ..SphereIntegrator::new(measure, points)
+        }
+    }
+
+    /// The sites.
+    pub fn points(&self) -> &[[f64; 3]] {
+        &self.points
+    }
+
+    /// Cell integrals at `heights` (#N).
+    pub fn integrate(&self, heights: &[f64]) -> SphereCells {
+        let n = self.points.len();
+        let outs = self.run(heights, false);
+        let mut cells = SphereCells {
+            masses: vec![0.0; n],
+            first_moments: vec![[0.0; 3]; n],
+            second_moments: vec![0.0; n],
+            triangles: self.measure.triangles.len(),
+            ..Default::default()
+        };
+        let mut edges = Vec::new();
+        let mut candidates = 0usize;
+        for out in outs {
+            for (i, m, f, q) in out.masses {
+                let i = i as usize;
+                cells.masses[i] += m;
+                cells.second_moments[i] += q;
+                for k in 0..3 {
+                    cells.first_moments[i][k] += f[k];
+                }
+            }
+            edges.extend(out.edges);
+            candidates += out.candidates;
+        }
+        cells.mean_candidates = candidates as f64 / cells.triangles.max(1) as f64;
+        // stable: equal pairs keep the triangle order, so the sums are deterministic
+        edges.sort_by_key(|e| (e.0, e.1));
+        let mut k = 0;
+        while k < edges.len() {
+            let (i, j) = (edges[k].0, edges[k].1);
+            let (mut em, mut hc) = (0.0, 0.0);
+            while k < edges.len() && edges[k].0 == i && edges[k].1 == j {
+                em += edges[k].2;
+                hc += edges[k].3;
+                k += 1;
+            }
+            cells.edge_masses.push((i, j, em));
+            cells.hessian.push((i, j, hc));
+        }
+        cells
+    }
+
+    /// The clipped pieces at `heights` (for output and plots), in triangle order.
+    pub fn pieces(&self, heights: &[f64]) -> Vec<CellPiece> {
+        self.run(heights, true).into_iter().flat_map(|o| o.pieces).collect()
+    }
+
+    fn run(&self, heights: &[f64], keep_pieces: bool) -> Vec<ChunkOut> {
+        let bounds = self.tree.height_bounds(heights);
+        // the best site at every vertex (in spatial order, each search starting from the
+        // previous vertex's site)
+        let nv = self.measure.vertices.len();
+        let mut vertex_best = vec![0u32; nv];
+        if !self.brute_force && !self.points.is_empty() {
+            let found: Vec<Vec<(u32, u32)>> = self
+                .vertex_order
+                .par_chunks(CHUNK)
+                .map(|chunk| {
+                    let mut stack = Vec::new();
+                    let mut guess = 0u32;
+                    chunk
+                        .iter()
+                        .map(|&v| {
+                            let (_, k) =
+                                self.tree
+                                    .best(self.measure.vertices[v as usize], guess, heights, &bounds, &mut stack);
+                            guess = k;
+                            (v, k)
+                        })
+                        .collect()
+                })
+                .collect();
+            for (v, k) in found.into_iter().flatten() {
+                vertex_best[v as usize] = k;
+            }
+        }
+        self.triangle_order
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut out = ChunkOut::default();
+                let mut scratch = Scratch {
+                    stack: Vec::new(),
+                    cand: Vec::new(),
+                    poly: Vec::new(),
+                    next: Vec::new(),
+                };
+                for &t in chunk {
+                    self.triangle(
+                        t as usize,
+                        heights,
+                        &bounds,
+                        &vertex_best,
+                        &mut scratch,
+                        &mut out,
+                        keep_pieces,
+                    );
+                }
+                out
+            })
+            .collect()
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn triangle(
+        &self,
+        t: usize,
+        heights: &[f64],
+        bounds: &[f64],
+        vertex_best: &[u32],
+        s: &mut Scratch,
+        out: &mut ChunkOut,
+        keep_pieces: bool,
+    ) {
+        let tri = self.measure.triangles[t];
+        let rho = self.measure.densities[t];
+        let [a, b, c] = tri.map(|i| self.measure.vertices[i as usize]);
+        let centroid = [
+            (a[0] + b[0] + c[0]) / 3.0,
+            (a[1] + b[1] + c[1]) / 3.0,
+            (a[2] + b[2] + c[2]) / 3.0,
+        ];
+        if self.brute_force {
+            s.cand.clear();
+            for (i, y) in self.points.iter().enumerate() {
+                s.cand.push((dot(centroid, *y) + heights[i], i as u32));
+            }
+        } else {
+            // the best site at corner a gives an affine minorant of u_h; the best sites at the
+            // other corners give two more necessary conditions, checked on the list
+            let corners = [a, b, c];
+            let [ka, kb, kc] = tri.map(|v| vertex_best[v as usize]);
+            let scale = 1.0 + heights[ka as usize].abs();
+            let margin = 1e-10 * scale;
+            let lower_of = |k: u32| corners.map(|v| dot(v, self.points[k as usize]) + heights[k as usize]);
+            self.tree.beating(
+                &corners,
+                corners.map(norm),
+                lower_of(ka),
+                margin,
+                centroid,
+                heights,
+                bounds,
+                &mut s.stack,
+                &mut s.cand,
+            );
+            for kv in [kb, kc] {
+                if kv != ka {
+                    let lower = lower_of(kv);
+                    s.cand.retain(|&(_, j)| {
+                        let (y, h) = (self.points[j as usize], heights[j as usize]);
+                        (0..3).any(|w| dot(corners[w], y) + h - lower[w] >= -margin)
+                    });
+                }
+            }
+        }
+        // most competitive first; ties by site index (deterministic)
+        s.cand.sort_unstable_by(|p, q| q.0.total_cmp(&p.0).then(p.1.cmp(&q.1)));
+        out.candidates += s.cand.len();
+        let normal = cross(sub(b, a), sub(c, a));
+        let nn = norm(normal);
+        let unit_normal = [normal[0] / nn, normal[1] / nn, normal[2] / nn];
+        for ci in 0..s.cand.len() {
+            let i = s.cand[ci].1 as usize;
+            let yi = self.points[i];
+            s.poly.clear();
+            s.poly.extend([(a, -1), (b, -1), (c, -1)]);
+            let mut empty = false;
+            for cj in 0..s.cand.len() {
+                if cj == ci {
+                    continue;
+                }
+                let j = s.cand[cj].1 as usize;
+                let d = sub(yi, self.points[j]);
+                let offset = heights[i] - heights[j];
+                // keep ⟨x, d⟩ + offset ≥ 0
+                if !clip(&s.poly, &mut s.next, d, offset, j as i64) {
+                    empty = true;
+                    break;
+                }
+                std::mem::swap(&mut s.poly, &mut s.next);
+            }
+            if empty || s.poly.len() < 3 {
+                continue;
+            }
+            // fan from the first corner: area (along the normal), first moment
+            let p0 = s.poly[0].0;
+            let (mut area, mut moment, mut second) = (0.0, [0.0; 3], 0.0);
+            let e0 = sub(p0, yi);
+            for k in 1..s.poly.len() - 1 {
+                let (p1, p2) = (s.poly[k].0, s.poly[k + 1].0);
+                let ar = 0.5 * dot(cross(sub(p1, p0), sub(p2, p0)), unit_normal);
+                area += ar;
+                for q in 0..3 {
+                    moment[q] += ar * (p0[q] + p1[q] + p2[q]) / 3.0;
+                }
+                let (e1, e2) = (sub(p1, yi), sub(p2, yi));
+                second +=
+                    ar * (dot(e0, e0) + dot(e1, e1) + dot(e2, e2) + dot(e0, e1) + dot(e1, e2) + dot(e2, e0)) / 6.0;
+            }
+            // (clipping keeps the triangle's orientation, so the fan's areas are positive)
+            if area > 0.0 {
+                out.masses.push((
+                    i as u32,
+                    rho * area,
+                    [rho * moment[0], rho * moment[1], rho * moment[2]],
+                    rho * second,
+                ));
+            }
+            for k in 0..s.poly.len() {
+                let label = s.poly[k].1;
+                if label > i as i64 {
+                    let j = label as usize;
+                    let len = norm(sub(s.poly[(k + 1) % s.poly.len()].0, s.poly[k].0));
+                    if len > 0.0 {
+                        let d = sub(yi, self.points[j]);
+                        let dn = dot(d, unit_normal);
+                        let tangential = (dot(d, d) - dn * dn).max(0.0).sqrt();
+                        if tangential > 0.0 {
+                            out.edges.push((i as u32, j as u32, rho * len, rho * len / tangential));
+                        }
+                    }
+                }
+            }
+            if keep_pieces {
+                out.pieces.push(CellPiece {
+                    site: i as u32,
+                    triangle: t as u32,
+                    polygon: s.poly.iter().map(|p| p.0).collect(),
+                });
+            }
+        }
+    }
+}
+
+/// Sutherland–Hodgman: the part of `poly` (corners with the label of the edge that starts
+/// there) where ⟨x, d⟩ + offset ≥ 0, into `next`; the new edge along the plane gets `label`.
+/// Returns false when nothing is left.
+fn clip(poly: &[([f64; 3], i64)], next: &mut Vec<([f64; 3], i64)>, d: [f64; 3], offset: f64, label: i64) -> bool {
+    next.clear();
+    let values: [f64; 8] = {
+        let mut v = [0.0; 8];
+        for (k, p) in poly.iter().enumerate().take(8) {
+            v[k] = dot(p.0, d) + offset;
+        }
+        v
+    };
+    let value = |k: usize| if k < 8 { values[k] } else { dot(poly[k].0, d) + offset };
+    let len = poly.len();
+    let mut inside = 0;
+    for k in 0..len {
+        if value(k) >= 0.0 {
+            inside += 1;
+        }
+    }
+    if inside == len {
+        next.extend_from_slice(poly);
+        return true;
+    }
+    if inside == 0 {
+        return false;
+    }
+    for k in 0..len {
+        let (p, lp) = poly[k];
+        let q = poly[(k + 1) % len].0;
+        let (sp, sq) = (value(k), value((k + 1) % len));
+        if sp >= 0.0 {
+            next.push((p, lp));
+            if sq < 0.0 {
+                next.push((lerp(p, q, sp / (sp - sq)), label));
+            }
+        } else if sq >= 0.0 {
+            next.push((lerp(p, q, sp / (sp - sq)), lp));
+        }
+    }
+    next.len() >= 3
+}
+
+/// Indices of `points` (in [−1, 1]³) sorted by their 3D Morton codes (10 bits per axis).
+fn morton_order(points: &[[f64; 3]]) -> Vec<u32> {
+    let spread = |x: f64| -> u64 {
+        let mut v = (((x.clamp(-1.0, 1.0) + 1.0) * 511.5) as u64).min(1023);
+        let mut out = 0u64;
+        for bit in 0..10 {
+            out |= (v & 1) << (3 * bit);
+            v >>= 1;
+        }
+        out
+    };
+    let mut keyed: Vec<(u64, u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (spread(p[0]) | spread(p[1]) << 1 | spread(p[2]) << 2, i as u32))
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+fn lerp(p: [f64; 3], q: [f64; 3], t: f64) -> [f64; 3] {
+    [
+        p[0] + t * (q[0] - p[0]),
+        p[1] + t * (q[1] - p[1]),
+        p[2] + t * (q[2] - p[2]),
+    ]
+}
