@@ -11,7 +11,7 @@
 //! start): the sphere has no boundary to crowd points against. Above a density ratio of 10 a
 //! density continuation solves softened densities ρ^t first ([`SphereOtParams::density_continuation`]).
 //!
-//! Measured (`examples/sphere_contrast.rs`, 5,000 random equal-mass points, ρ ∝ exp(k z) on
+//! Measured (`crates/tools/src/bin/sphere_contrast.rs`, 5,000 random equal-mass points, ρ ∝ exp(k z) on
 //! 20,480 triangles; steps of all stages): ratio 2.7 and 7.4: 5 steps; 55: 9; 400: 13 (2
 //! stages); 3,000: 97 steps, 525 evaluations (3 stages); 22,000: 172 steps, 958 evaluations
 //! (4 stages). Without the continuation (with or without the intermediate targets) the last two

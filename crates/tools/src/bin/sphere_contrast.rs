@@ -1,6 +1,6 @@
 //! Spherical OT against contrasting zonal densities ρ ∝ exp(k z) (ratio e^{2k}) from the
 //! Voronoi start: Newton steps, evaluations and the stop, per k.
-//! `cargo run --release -p shapespace-omt --example sphere_contrast [N]` (default 5000 points).
+//! `cargo run --release -p shapespace-tools --bin sphere_contrast [N]` (default 5000 points).
 
 use shapespace_omt::sphere::{icosphere, random_sphere_points, solve_sphere_ot, SphereMeasure, SphereOtParams};
 

@@ -1,5 +1,5 @@
 //! Spherical semi-discrete OT timings: uniform density on an icosphere to N random equal-mass
-//! points on S². `cargo run --release -p shapespace-omt --example sphere_bench [N ...]`
+//! points on S². `cargo bench -p shapespace-omt --bench sphere_bench [-- N ...]`
 //! (default 1e4 and 1e5).
 
 use shapespace_omt::sphere::{random_sphere_points, solve_sphere_ot, SphereMeasure, SphereOtParams};
