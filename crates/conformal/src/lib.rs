@@ -14,7 +14,9 @@
 //! * [`markers`]: interior/boundary markers, parsing and automatic choices;
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;
 //! * [`harmonic`]: harmonic maps with boundary and landmark constraints;
-//! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips.
+//! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips;
+//! * [`sphere`]: conformal maps of closed genus-0 surfaces onto the unit sphere
+//!   ([`sphere_map()`]), three-marker and Möbius-centering normalizations.
 
 // `!(x > 0.0)` is used on purpose: it also rejects NaN. Index loops mirror the mathematics.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
@@ -30,6 +32,7 @@ pub mod markers;
 pub mod mobius;
 pub mod quality;
 pub mod repair;
+pub mod sphere;
 
 pub use bff::{bff_disk_coordinates, bff_disk_map, BffCoordinates, BffDiskMap, BffInfo, BffParams};
 pub use disk_map::{disk_map, resolve_markers_of, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
@@ -37,3 +40,4 @@ pub use error::ConformalError;
 pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};
 pub use markers::{BoundaryMarker, CenterMarker, MarkerFile, Markers};
 pub use mobius::Mobius;
+pub use sphere::{sphere_map, SphereMap, SphereMapInfo, SphereMapParams, SphereNormalization};
