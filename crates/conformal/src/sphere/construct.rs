@@ -129,7 +129,7 @@ impl Chart {
             rhs[0][row as usize] += w * b.re;
             rhs[1][row as usize] += w * b.im;
         }
-        self.solver.solve(&mut rhs);
+        self.solver.solve_sequential(&mut rhs);
         let mut change: f64 = 0.0;
         for (i, &v) in self.members.iter().enumerate() {
             let x = Complex::new(rhs[0][i], rhs[1][i]);
@@ -298,7 +298,7 @@ pub(crate) fn punctured_plane_map(
             }
         }
     }
-    solver.solve(&mut rhs);
+    solver.solve_sequential(&mut rhs);
     let mut z = vec![Complex::default(); n];
     for v in 0..n {
         z[v] = match value[v] {
@@ -363,7 +363,7 @@ pub(crate) fn cap_correction(
         rhs[0][row as usize] += w * wv.re;
         rhs[1][row as usize] += w * wv.im;
     }
-    solver.solve(&mut rhs);
+    solver.solve_sequential(&mut rhs);
     for v in 0..n {
         if in_cap[v] {
             let i = index[v] as usize;

@@ -202,6 +202,28 @@ pub fn check_sphere(mesh: &TriMesh) -> Result<(), ConformalError> {
     Ok(())
 }
 
+/// The fast test behind [`sphere_map`]'s check (the triangulation is already manifold and
+/// consistently oriented): closed, every vertex used, one component, χ = 2.
+fn is_sphere(tri: &IntrinsicTriangulation, faces: &[[u32; 3]]) -> bool {
+    let n = tri.num_vertices;
+    if tri.twin.contains(&crate::intrinsic::NONE) {
+        return false;
+    }
+    let mut used = vec![false; n];
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for f in faces {
+        for k in 0..3 {
+            used[f[k] as usize] = true;
+            shapespace_geometry::topology::union(&mut parent, f[k], f[(k + 1) % 3]);
+        }
+    }
+    let components = (0..n as u32)
+        .filter(|&v| shapespace_geometry::topology::find(&mut parent, v) == v)
+        .count();
+    let chi = n as i64 - (3 * faces.len() / 2) as i64 + faces.len() as i64;
+    used.iter().all(|&u| u) && components == 1 && chi == 2
+}
+
 /// First and second moments of points on S²: Σ m x and Σ m x xᵀ.
 type Moments = ([f64; 3], [[f64; 3]; 3]);
 
@@ -372,7 +394,13 @@ fn marker_rotation(a: [f64; 3], b: [f64; 3]) -> Option<[[f64; 3]; 3]> {
 pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap, ConformalError> {
     let t0 = Instant::now();
     let mut timings = SphereMapTimings::default();
-    check_sphere(mesh)?;
+    mesh.validate()?;
+    if mesh.faces.is_empty() {
+        return Err(ConformalError::NotSphere {
+            reason: "the mesh has no faces".into(),
+        });
+    }
+    check_coordinate_range(mesh)?;
     let n = mesh.num_vertices();
     match params.normalization {
         SphereNormalization::ThreeMarkers(p) => {
@@ -398,6 +426,13 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
         SphereNormalization::Centered { rotation: None } => {}
     }
     let mut tri = IntrinsicTriangulation::from_mesh(mesh)?;
+    if !is_sphere(&tri, &mesh.faces) {
+        // the reasons, from the full report
+        check_sphere(mesh)?;
+        return Err(ConformalError::NotSphere {
+            reason: "not a closed genus-0 surface".into(),
+        });
+    }
     if params.intrinsic_delaunay {
         tri.make_delaunay()?;
     }
