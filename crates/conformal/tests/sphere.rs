@@ -310,6 +310,45 @@ fn the_schwarz_iteration_removes_the_error_of_the_puncture() {
 }
 
 #[test]
+fn the_map_is_invariant_under_scaling_and_translation() {
+    let mut mesh = jittered_sphere(3, 0.25, 21);
+    for p in &mut mesh.positions {
+        *p = [p[0], 0.6 * p[1], 1.3 * p[2]];
+    }
+    let base = map(&mesh, &SphereMapParams::default());
+    for (scale, shift) in [(1e-6, [3e-6, 0.0, -1e-6]), (1e6, [0.0, 2e6, 5e5])] {
+        let mut moved = mesh.clone();
+        for p in &mut moved.positions {
+            *p = [0, 1, 2].map(|k| scale * p[k] + shift[k]);
+        }
+        let m = map(&moved, &SphereMapParams::default());
+        let worst = base
+            .positions
+            .iter()
+            .zip(&m.positions)
+            .map(|(a, b)| angle(*a, *b))
+            .fold(0.0, f64::max);
+        eprintln!("scale {scale:e}: largest change {worst:.3e} rad");
+        assert!(worst < 1e-9, "scale {scale:e}: {worst}");
+    }
+}
+
+#[test]
+fn tiny_closed_meshes_do_not_panic() {
+    let tetra = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
+    )
+    .unwrap();
+    for mesh in [tetra, icosphere(0)] {
+        match sphere_map(&mesh, &SphereMapParams::default()) {
+            Ok(m) => assert_eq!(m.quality.num_flipped, 0),
+            Err(e) => eprintln!("{} V: {e}", mesh.num_vertices()),
+        }
+    }
+}
+
+#[test]
 fn non_spheres_are_refused_with_the_reason() {
     // a disk
     let cap = shapespace_geometry::primitives::spherical_cap(1.0, 6);

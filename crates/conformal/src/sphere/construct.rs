@@ -167,6 +167,11 @@ pub(crate) fn schwarz(
     let mut w: Vec<Complex> = u.iter().map(|x| x.recip()).collect();
     let south_in: Vec<bool> = u.iter().map(|x| x.abs() < 1.0 / SCHWARZ_INNER_RADIUS).collect();
     let north_in: Vec<bool> = u.iter().map(|x| x.abs() > SCHWARZ_INNER_RADIUS).collect();
+    // a chart that is empty or has no boundary (tiny meshes): pass 1 as it is
+    let proper = |inside: &[bool]| inside.iter().any(|&b| b) && !inside.iter().all(|&b| b);
+    if !proper(&south_in) || !proper(&north_in) {
+        return cap_correction(tri, z, zc, masses, false);
+    }
     let south = Chart::new(tri, &south_in, "the south chart's Laplacian")?;
     let north = Chart::new(tri, &north_in, "the north chart's Laplacian")?;
     let mut iterations = 0;
