@@ -25,7 +25,7 @@ enum Command {
     Demo(cmd::demo::DemoArgs),
     /// Conformal Wasserstein distances between disk surfaces: distances.csv, pairs.csv, report.json.
     Distances(cmd::distances::DistancesArgs),
-    /// Conformal map of a disk-type mesh onto the unit disk (OBJ with vt, factors CSV, report JSON).
+    /// Conformal map of a disk onto the unit disk (OBJ with vt) or of a closed genus-0 mesh onto the unit sphere (positions on S²); factors CSV, report JSON.
     Conformal(cmd::conformal::ConformalArgs),
     /// Print mesh statistics (V, F, components, boundary loops, χ, genus, manifoldness, class).
     Info(cmd::info::InfoArgs),

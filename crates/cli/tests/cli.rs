@@ -365,7 +365,7 @@ fn bad_input_exits_cleanly_and_names_the_file() {
     let cases: Vec<(Vec<&str>, &Path, &str)> = vec![
         (vec!["conformal"], &truncated, "has 2 vertices"),
         (vec!["param"], &truncated, "has 2 vertices"),
-        (vec!["conformal"], &not_a_disk, "not a disk"),
+        (vec!["conformal", "--domain", "disk"], &not_a_disk, "not a disk"),
         (vec!["param"], &not_a_disk, "not a disk"),
         (vec!["conformal", "--method", "bff"], &nan, "non-finite"),
         (
@@ -697,9 +697,12 @@ fn prepare_makes_disks_that_conformal_accepts() {
     let mesh = shapespace_geometry::primitives::icosphere(1);
     let closed = dir.join("sphere.obj");
     shapespace_geometry::io::write_mesh(&closed, &mesh).unwrap();
+    // the disk map refuses it with the hint (the default `--domain auto` maps it onto the sphere)
     let out = shapespace(&[
         "conformal",
         closed.to_str().unwrap(),
+        "--domain",
+        "disk",
         "--out",
         dir.join("x.obj").to_str().unwrap(),
     ]);
@@ -2140,4 +2143,111 @@ fn ot_names_the_points_file_when_it_stops_unconverged() {
         .find(|l| l.contains("after 1 steps"))
         .unwrap_or_else(|| panic!("{err}"));
     assert!(status.contains(points.to_str().unwrap()), "{status}");
+}
+
+/// `conformal` on a closed genus-0 mesh maps onto the unit sphere (chosen automatically): the
+/// output keeps the faces and puts every vertex on S², the factors CSV has one row per vertex,
+/// three markers land on the poles and (1, 0, 0); a torus is refused naming the file and its
+/// genus; disk markers are refused for the sphere.
+#[test]
+fn conformal_maps_a_closed_mesh_onto_the_sphere() {
+    let dir = scratch("sphere");
+    let mut mesh = shapespace_geometry::primitives::icosphere(3);
+    for p in &mut mesh.positions {
+        *p = [p[0], 0.8 * p[1], 1.5 * p[2]];
+    }
+    let input = dir.join("egg.obj");
+    shapespace_geometry::io::write_mesh(&input, &mesh).unwrap();
+    let out_obj = dir.join("egg_sphere.obj");
+    let factors = dir.join("factors.csv");
+    let report = dir.join("report.json");
+    let out = shapespace(&[
+        "conformal",
+        input.to_str().unwrap(),
+        "--out",
+        out_obj.to_str().unwrap(),
+        "--factors",
+        factors.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "--sphere-markers",
+        "0,7,3",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(stderr(&out).contains("sphere"), "{}", stderr(&out));
+    let mapped = shapespace_geometry::io::read_mesh(&out_obj).unwrap();
+    assert_eq!(mapped.faces, mesh.faces);
+    for p in &mapped.positions {
+        let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        assert!((r - 1.0).abs() < 1e-12, "{r}");
+    }
+    assert_eq!(mapped.positions[0], [0.0, 0.0, -1.0]);
+    assert_eq!(mapped.positions[7], [1.0, 0.0, 0.0]);
+    assert_eq!(mapped.positions[3], [0.0, 0.0, 1.0]);
+    let csv = std::fs::read_to_string(&factors).unwrap();
+    assert!(csv.starts_with("vertex,x,y,z,lambda\n"), "{csv}");
+    assert_eq!(csv.lines().count(), mesh.num_vertices() + 1);
+    let text = std::fs::read_to_string(&report).unwrap();
+    assert!(text.contains("\"domain\": \"sphere\""), "{text}");
+    assert!(text.contains("\"num_flipped\": 0"), "{text}");
+
+    // a torus
+    let (nu, nv) = (12usize, 8usize);
+    let mut text = String::new();
+    for i in 0..nu {
+        for j in 0..nv {
+            let (u, v) = (
+                2.0 * std::f64::consts::PI * i as f64 / nu as f64,
+                2.0 * std::f64::consts::PI * j as f64 / nv as f64,
+            );
+            text.push_str(&format!(
+                "v {} {} {}\n",
+                (2.0 + v.cos()) * u.cos(),
+                (2.0 + v.cos()) * u.sin(),
+                v.sin()
+            ));
+        }
+    }
+    let id = |i: usize, j: usize| (i % nu) * nv + (j % nv) + 1;
+    for i in 0..nu {
+        for j in 0..nv {
+            text.push_str(&format!("f {} {} {}\n", id(i, j), id(i + 1, j), id(i + 1, j + 1)));
+            text.push_str(&format!("f {} {} {}\n", id(i, j), id(i + 1, j + 1), id(i, j + 1)));
+        }
+    }
+    let torus = dir.join("torus.obj");
+    std::fs::write(&torus, text).unwrap();
+    for extra in [&[][..], &["--domain", "sphere"][..]] {
+        let mut args = vec!["conformal", torus.to_str().unwrap(), "--out", out_obj.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let out = shapespace(&args);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{msg}");
+        assert!(msg.contains("torus.obj") && msg.contains("genus 1"), "{msg}");
+    }
+    // disk markers on a sphere, and sphere markers on a disk
+    let out = shapespace(&[
+        "conformal",
+        input.to_str().unwrap(),
+        "--out",
+        out_obj.to_str().unwrap(),
+        "--center",
+        "0",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("egg.obj") && stderr(&out).contains("--sphere-markers"),
+        "{}",
+        stderr(&out)
+    );
+    let out = shapespace(&[
+        "conformal",
+        "datasets/faces/id00_neutral.obj",
+        "--out",
+        out_obj.to_str().unwrap(),
+        "--sphere-markers",
+        "0,1,2",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("sphere map only"), "{}", stderr(&out));
 }

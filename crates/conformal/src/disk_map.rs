@@ -579,34 +579,7 @@ pub(crate) fn finish(
         }
         face_densities.push(mu);
     }
-    // e^{2λ} = Σ A3 / Σ A2 over the one ring, with A2 = A3·e^{Υ} summed by log-sum-exp
-    let n = mesh.num_vertices();
-    let mut ring3 = vec![0.0; n];
-    let mut ring_max = vec![f64::NEG_INFINITY; n];
-    let ln_a3: Vec<f64> = areas.iter().map(|x| (x * scale * scale).ln()).collect();
-    for (f, face) in mesh.faces.iter().enumerate() {
-        let l2 = ln_a3[f] + dist.area_distortion[f];
-        for &v in face {
-            ring3[v as usize] += areas[f] * scale * scale;
-            ring_max[v as usize] = ring_max[v as usize].max(l2);
-        }
-    }
-    let mut ring2 = vec![0.0; n];
-    for (f, face) in mesh.faces.iter().enumerate() {
-        let l2 = ln_a3[f] + dist.area_distortion[f];
-        for &v in face {
-            ring2[v as usize] += (l2 - ring_max[v as usize]).exp();
-        }
-    }
-    let conformal_factor: Vec<f64> = (0..n)
-        .map(|v| 0.5 * (ring3[v].ln() - (ring_max[v] + ring2[v].ln())))
-        .collect();
-    if let Some(v) = conformal_factor.iter().position(|x| !x.is_finite()) {
-        return Err(ConformalError::NonFinite {
-            stage: "conformal factor",
-            vertex: v,
-        });
-    }
+    let conformal_factor = crate::quality::vertex_conformal_factors(mesh, &areas, scale, &dist.area_distortion)?;
     Ok(Finished {
         uv,
         mobius,

@@ -16,6 +16,10 @@ pub enum ConformalError {
     /// The mesh is not a topological disk (one boundary loop, χ = 1, manifold, oriented).
     #[error("not a disk: {reason} (hint: `shapespace prepare` keeps the largest component, fills holes and cuts closed surfaces open)")]
     NotDisk { reason: String },
+    /// The mesh is not a closed genus-0 surface (one component, manifold, oriented, no
+    /// boundary, χ = 2, every vertex used), which the sphere map needs.
+    #[error("not a closed genus-0 surface: {reason}")]
+    NotSphere { reason: String },
     /// Two faces traverse edge (v0, v1) in the same direction: the orientation is inconsistent.
     #[error("inconsistent face orientation at edge ({v0}, {v1}) (hint: orient the faces consistently)")]
     InconsistentOrientation { v0: u32, v1: u32 },
@@ -62,7 +66,7 @@ pub enum ConformalError {
     /// A value of the map is not representable in f64: the conformal factor range of the surface
     /// (e.g. a long protrusion, which shrinks like e^{−H/ρ}) exceeds what f64 coordinates or
     /// densities can hold. `log10_value` is the decimal exponent that was needed.
-    #[error("{what} out of the f64 range at {element} (log10 = {log10_value:.1}); the surface has a protrusion too long for a disk map in double precision")]
+    #[error("{what} out of the f64 range at {element} (log10 = {log10_value:.1}); the surface has a protrusion too long for a conformal map in double precision")]
     OutOfRange {
         what: &'static str,
         element: String,

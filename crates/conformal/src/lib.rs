@@ -14,7 +14,9 @@
 //! * [`markers`]: interior/boundary markers, parsing and automatic choices;
 //! * [`quality`]: area, quasi-conformal and angle distortion, flips;
 //! * [`harmonic`]: harmonic maps with boundary and landmark constraints;
-//! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips.
+//! * [`intrinsic`]: intrinsic triangulations and Delaunay edge flips;
+//! * [`sphere`]: conformal maps of closed genus-0 surfaces onto the unit sphere
+//!   ([`sphere_map()`]), three-marker and Möbius-centering normalizations.
 //!
 //! ```
 //! use shapespace_conformal::{disk_map, DiskMapParams, Markers};
@@ -46,6 +48,7 @@ pub mod markers;
 pub mod mobius;
 pub mod quality;
 pub mod repair;
+pub mod sphere;
 
 pub use bff::{bff_disk_coordinates, bff_disk_map, BffCoordinates, BffDiskMap, BffInfo, BffParams};
 pub use disk_map::{disk_map, resolve_markers_of, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
@@ -53,3 +56,4 @@ pub use error::ConformalError;
 pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};
 pub use markers::{BoundaryMarker, CenterMarker, MarkerFile, Markers};
 pub use mobius::Mobius;
+pub use sphere::{sphere_map, SphereMap, SphereMapInfo, SphereMapParams, SphereNormalization};

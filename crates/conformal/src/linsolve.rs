@@ -39,6 +39,25 @@ impl SpdSolver {
     }
 }
 
+/// A one-thread rayon pool: faer's sparse triangular solves run with the global parallelism,
+/// and on a loaded 2-core machine their parallel version took 0.3–0.8 s per solve of a
+/// 130k-unknown chart where the sequential one took 0.07 s (`crates/tools/benches/sphere_map_bench.rs`).
+fn sequential_pool() -> Option<&'static rayon::ThreadPool> {
+    static POOL: std::sync::OnceLock<Option<rayon::ThreadPool>> = std::sync::OnceLock::new();
+    POOL.get_or_init(|| rayon::ThreadPoolBuilder::new().num_threads(1).build().ok())
+        .as_ref()
+}
+
+impl SpdSolver {
+    /// [`SpdSolver::solve`] on one thread (see `sequential_pool`).
+    pub fn solve_sequential(&self, rhs: &mut [Vec<f64>]) {
+        match sequential_pool() {
+            Some(pool) => pool.install(|| self.solve(rhs)),
+            None => self.solve(rhs),
+        }
+    }
+}
+
 /// A matrix row's coupling to an excluded vertex: (row, vertex, w), the entry being −w.
 pub(crate) type Coupling = (u32, u32, f64);
 

@@ -286,6 +286,47 @@ pub fn evaluate(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<(FaceDistortions, Qua
     Ok((d, s))
 }
 
+/// Per-vertex log conformal factors λ (#V) of a map with per-face area distortions Υ (#F):
+/// e^{2λ_v} = Σ A₃ / Σ A_image over the faces around v, with A₃ = `face_areas`·s² and
+/// A_image = A₃·e^{Υ}, summed by log-sum-exp so that images far below or above f64's range
+/// of areas still give a finite λ. Errors: a non-finite λ (a vertex in no face, or Υ = ±∞
+/// on its whole one-ring).
+pub fn vertex_conformal_factors(
+    mesh: &TriMesh,
+    face_areas: &[f64],
+    scale: f64,
+    area_distortion: &[f64],
+) -> Result<Vec<f64>, ConformalError> {
+    let n = mesh.num_vertices();
+    let mut ring3 = vec![0.0; n];
+    let mut ring_max = vec![f64::NEG_INFINITY; n];
+    let ln_a3: Vec<f64> = face_areas.iter().map(|x| (x * scale * scale).ln()).collect();
+    for (f, face) in mesh.faces.iter().enumerate() {
+        let l2 = ln_a3[f] + area_distortion[f];
+        for &v in face {
+            ring3[v as usize] += face_areas[f] * scale * scale;
+            ring_max[v as usize] = ring_max[v as usize].max(l2);
+        }
+    }
+    let mut ring2 = vec![0.0; n];
+    for (f, face) in mesh.faces.iter().enumerate() {
+        let l2 = ln_a3[f] + area_distortion[f];
+        for &v in face {
+            ring2[v as usize] += (l2 - ring_max[v as usize]).exp();
+        }
+    }
+    let conformal_factor: Vec<f64> = (0..n)
+        .map(|v| 0.5 * (ring3[v].ln() - (ring_max[v] + ring2[v].ln())))
+        .collect();
+    if let Some(v) = conformal_factor.iter().position(|x| !x.is_finite()) {
+        return Err(ConformalError::NonFinite {
+            stage: "conformal factor",
+            vertex: v,
+        });
+    }
+    Ok(conformal_factor)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
