@@ -17,6 +17,7 @@ pub mod registration;
 pub mod report_path;
 pub mod resume;
 pub mod shape_space;
+pub mod shard;
 pub mod shared_markers;
 pub mod stats;
 
