@@ -15,7 +15,7 @@ def face(name: str) -> str:
     return str(FACES / f"{name}.obj")
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def shapespace_bin() -> str:
     """The command-line binary: $SHAPESPACE_BIN, else the release build in the target folder
     ($CARGO_TARGET_DIR or target/), else `shapespace` on the PATH. Missing is a failure (the
