@@ -108,6 +108,9 @@ pub struct DistancesOptions {
     /// Compute only this shard of the pairs ([`crate::shard`]); `merge_shards` assembles the
     /// shards' folders. Not with `pairwise.warm_start` or `pairwise.debias`.
     pub shard: Option<crate::shard::Shard>,
+    /// Keep each shape's per-shape work in this folder and take it from there when the same
+    /// file, markers, settings and executable come again ([`crate::shape_cache`]).
+    pub cache: Option<PathBuf>,
 }
 
 /// Per-file outcome of the preparation stage.
@@ -221,6 +224,9 @@ pub struct DistancesRun {
     pub matrix: DistanceMatrix,
     pub pairs: Vec<PairRecord>,
     pub report: DistancesReport,
+    /// Shapes taken from [`DistancesOptions::cache`] (not in the report, so that a run with and
+    /// without the cache writes the same files).
+    pub cache_hits: usize,
 }
 
 /// Shape name of a file: its stem, or, when stems repeat, the shortest suffix of its path
@@ -379,6 +385,18 @@ pub struct PreparedInputs {
     pub inputs: Vec<ShapeReport>,
     pub marker_warnings: Vec<String>,
     pub seconds: f64,
+    /// Shapes taken from [`DistancesOptions::cache`] (not prepared again).
+    pub cache_hits: usize,
+}
+
+/// A file prepared (or taken from the cache) by [`prepare_inputs`].
+struct PreparedFile {
+    shape: PreparedShape,
+    choice: MarkerChoice,
+    vertices: usize,
+    faces: usize,
+    figures: crate::shape_cache::CachedFigures,
+    hit: bool,
 }
 
 /// SHA-256 (hex) of a mesh in memory: its positions' and faces' little-endian bytes.
@@ -469,6 +487,11 @@ pub fn prepare_inputs(
         }
     }
     let done = std::sync::atomic::AtomicUsize::new(0);
+    let hits = std::sync::atomic::AtomicUsize::new(0);
+    if let Some(dir) = &options.cache {
+        std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
+    }
+    let cache_settings = format!("{:?}|target_points {:?}", options.disk_map, options.target_points);
     let prepared: Vec<(Option<PreparedShape>, ShapeReport)> = paths
         .par_iter()
         .zip(names)
@@ -476,33 +499,75 @@ pub fn prepare_inputs(
         .map(|((path, name), (sha256, load_seconds, loaded))| {
             let t = Instant::now();
             let outcome = loaded.and_then(|(mesh, markers, source)| {
-                crate::distance::guarded(
-                    || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                        let mut shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
-                            AnalysisError::Shape {
-                                name: path.display().to_string(),
-                                message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                crate::distance::guarded(|| -> Result<PreparedFile, AnalysisError> {
+                    let key = match (&options.cache, &sha256) {
+                        (Some(_), Some(sha)) => Some(crate::shape_cache::entry_key(&cache_settings, sha, &markers)),
+                        _ => None,
+                    };
+                    let cached = match (&options.cache, &key) {
+                        (Some(dir), Some(key)) => crate::shape_cache::load(dir, key, name),
+                        _ => None,
+                    };
+                    let hit = cached.is_some();
+                    let (shape, figures) = match cached {
+                        Some(entry) => entry,
+                        None => {
+                            let mut shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
+                                AnalysisError::Shape {
+                                    name: path.display().to_string(),
+                                    message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                                }
+                            })?;
+                            if let Some(n) = options.target_points {
+                                shape = crate::distance::quantize_target(shape, n);
                             }
-                        })?;
-                        if let Some(n) = options.target_points {
-                            shape = crate::distance::quantize_target(shape, n);
+                            let figures = crate::shape_cache::CachedFigures {
+                                flipped_faces: shape.disk.quality.num_flipped,
+                                bff_fallback_after_green_folds: shape
+                                    .disk
+                                    .info
+                                    .bff_fallback
+                                    .as_ref()
+                                    .map(|f| f.green_folds),
+                            };
+                            if let (Some(dir), Some(key)) = (&options.cache, &key) {
+                                crate::shape_cache::store(dir, key, &shape, &figures)?;
+                            }
+                            (shape, figures)
                         }
-                        let resolved = shape.disk.info.markers;
-                        let choice = MarkerChoice {
-                            center: resolved.center,
-                            boundary: resolved.boundary_vertex,
-                            source,
-                            axis: crate::shared_markers::marker_axis(&mesh, &resolved),
-                        };
-                        Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
-                    },
-                )
+                    };
+                    let resolved = shape.disk.info.markers;
+                    let choice = MarkerChoice {
+                        center: resolved.center,
+                        boundary: resolved.boundary_vertex,
+                        source,
+                        axis: crate::shared_markers::marker_axis(&mesh, &resolved),
+                    };
+                    Ok(PreparedFile {
+                        shape,
+                        choice,
+                        vertices: mesh.num_vertices(),
+                        faces: mesh.num_faces(),
+                        figures,
+                        hit,
+                    })
+                })
             });
             let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(k, n, "prepare");
             let seconds = load_seconds + t.elapsed().as_secs_f64();
             match outcome {
-                Ok((shape, choice, v, f)) => {
+                Ok(PreparedFile {
+                    shape,
+                    choice,
+                    vertices: v,
+                    faces: f,
+                    figures,
+                    hit,
+                }) => {
+                    if hit {
+                        hits.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    }
                     let (lo, hi) = shape
                         .disk
                         .face_densities
@@ -519,8 +584,8 @@ pub fn prepare_inputs(
                         markers: Some(choice),
                         seconds,
                         density_range: Some([lo, hi]),
-                        flipped_faces: Some(shape.disk.quality.num_flipped),
-                        bff_fallback_after_green_folds: shape.disk.info.bff_fallback.as_ref().map(|f| f.green_folds),
+                        flipped_faces: Some(figures.flipped_faces),
+                        bff_fallback_after_green_folds: figures.bff_fallback_after_green_folds,
                     };
                     (Some(shape), report)
                 }
@@ -572,6 +637,7 @@ pub fn prepare_inputs(
         inputs,
         marker_warnings,
         seconds: prepare_wall,
+        cache_hits: hits.into_inner(),
     })
 }
 
@@ -634,11 +700,12 @@ pub fn run_distances(
     let _lock = lock_output_folder(out)?;
     let n = paths.len();
     let prepared = prepare_inputs(paths, None, &names, options, progress)?;
-    let (shapes, inputs, marker_warnings, prepare_wall) = (
+    let (shapes, inputs, marker_warnings, prepare_wall, cache_hits) = (
         prepared.shapes,
         prepared.inputs,
         prepared.marker_warnings,
         prepared.seconds,
+        prepared.cache_hits,
     );
 
     let t_pairs = Instant::now();
@@ -698,7 +765,7 @@ pub fn run_distances(
         write: 0.0,
         total: 0.0,
     };
-    let written = write_run(
+    let mut written = write_run(
         out,
         RunParts {
             inputs,
@@ -726,6 +793,7 @@ pub fn run_distances(
     // pairs.csv's rows, so that is not an error.)
     let _ = std::fs::remove_file(out.join(PARTIAL_PAIRS));
     let _ = std::fs::remove_file(out.join(PARTIAL_IDENTITY));
+    written.cache_hits = cache_hits;
     Ok(written)
 }
 
@@ -847,7 +915,12 @@ fn write_run(out: &Path, parts: RunParts, t_total: Instant) -> Result<DistancesR
         message: e.to_string(),
     })?;
     write_atomically(&report_path, json.as_bytes()).map_err(|e| AnalysisError::io(&report_path, e))?;
-    Ok(DistancesRun { matrix, pairs, report })
+    Ok(DistancesRun {
+        matrix,
+        pairs,
+        report,
+        cache_hits: 0,
+    })
 }
 
 /// Assembles the output folders of `distances --shard K/N` runs (all N shards of one run) into

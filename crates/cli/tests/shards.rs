@@ -220,3 +220,71 @@ fn bad_shard_arguments() {
     assert!(stderr(&out).contains("nothing/report.json"), "{}", stderr(&out));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `--cache DIR`: the first run stores every shape, a second run and the shards take them all
+/// from there, and their files are those of a run without the cache (but the timings).
+#[test]
+fn the_shape_cache_is_reused_with_the_same_results() {
+    let dir = scratch("cache");
+    let files = faces();
+    let cache = dir.join("cache").display().to_string();
+    let run = |out: &str, extra: &[&str]| {
+        let mut args: Vec<&str> = vec!["distances"];
+        args.extend(files.iter().map(String::as_str));
+        args.extend(["--out", out, "--quiet"]);
+        args.extend(extra);
+        let output = shapespace(&dir, &args);
+        assert!(output.status.success(), "{}", stderr(&output));
+        stderr(&output)
+    };
+    run("plain", &[]);
+    let first = run("first", &["--cache", &cache]);
+    assert!(first.contains("0 of 4 shapes taken from the cache"), "{first}");
+    let entries = std::fs::read_dir(dir.join("cache")).unwrap().count();
+    assert_eq!(entries, 4);
+    let second = run("second", &["--cache", &cache]);
+    assert!(second.contains("4 of 4 shapes taken from the cache"), "{second}");
+    let shard = run("shard", &["--cache", &cache, "--shard", "2/3"]);
+    assert!(shard.contains("4 of 4 shapes taken from the cache"), "{shard}");
+    for out in ["first", "second"] {
+        let (a, b) = (dir.join("plain"), dir.join(out));
+        assert_eq!(
+            std::fs::read(a.join("distances.csv")).unwrap(),
+            std::fs::read(b.join("distances.csv")).unwrap(),
+            "{out}"
+        );
+        assert_eq!(
+            pairs_without_seconds(&a.join("pairs.csv")),
+            pairs_without_seconds(&b.join("pairs.csv"))
+        );
+        let strip = |p: &Path| {
+            let mut v = without_timings(p);
+            v.as_object_mut().unwrap().remove("files");
+            v
+        };
+        assert_eq!(strip(&a.join("report.json")), strip(&b.join("report.json")), "{out}");
+    }
+    // a damaged entry is prepared again (and replaced), with the same results
+    let entry = std::fs::read_dir(dir.join("cache"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let mut bytes = std::fs::read(&entry).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0x55;
+    std::fs::write(&entry, &bytes).unwrap();
+    let third = run("third", &["--cache", &cache]);
+    assert!(third.contains("3 of 4 shapes taken from the cache"), "{third}");
+    assert_eq!(
+        std::fs::read(dir.join("plain/distances.csv")).unwrap(),
+        std::fs::read(dir.join("third/distances.csv")).unwrap()
+    );
+    let fourth = run("fourth", &["--cache", &cache]);
+    assert!(fourth.contains("4 of 4 shapes taken from the cache"), "{fourth}");
+    // other settings are other entries
+    let other = run("other", &["--cache", &cache, "--target-points", "2000"]);
+    assert!(other.contains("0 of 4 shapes taken from the cache"), "{other}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -72,6 +72,12 @@ pub struct SolverArgs {
     /// N = 10000 changes the distances by well under 1 % (README, "Speed").
     #[arg(long, value_name = "N")]
     pub target_points: Option<usize>,
+    /// Keep each shape's per-shape work (conformal map, density, target points) in this folder,
+    /// one file per shape keyed by the file's SHA-256, its markers, the settings and the
+    /// executable, and take it from there when they come again: shards and later runs do not
+    /// compute it again. The results are the same with and without it.
+    #[arg(long, value_name = "DIR")]
+    pub cache: Option<PathBuf>,
     /// No progress bar (one line with the estimated time of the pairs after the first ones).
     #[arg(long)]
     pub quiet: bool,
@@ -311,6 +317,7 @@ pub fn compute_shard(
         resume: solver.resume,
         target_points: solver.target_points,
         shard,
+        cache: solver.cache.clone(),
         ..DistancesOptions::default()
     };
     if let Some(n) = solver.target_points {
@@ -383,6 +390,14 @@ pub fn compute_shard(
     }
     if let Some(shard) = shard {
         eprintln!("distances: shard {} of {}", shard.index, shard.count);
+    }
+    if let Some(dir) = &solver.cache {
+        eprintln!(
+            "distances: {} of {} shapes taken from the cache {}",
+            run.cache_hits,
+            r.inputs.len(),
+            dir.display()
+        );
     }
     eprintln!(
         "distances: {} shapes ({} failed), {} directed pairs ({} failed) in {:.1} s (prepare {:.1} s, pairs {:.1} s on {} threads)",
