@@ -111,8 +111,9 @@ impl Reader<'_> {
     }
 }
 
-/// The bytes of an entry for `shape` and its report figures.
-fn encode(shape: &PreparedShape, figures: &CachedFigures) -> Vec<u8> {
+/// The bytes of an entry for `shape` and its report figures (also how the Python package
+/// ships prepared shapes to Dask workers).
+pub fn encode(shape: &PreparedShape, figures: &CachedFigures) -> Vec<u8> {
     let mut w = Writer(MAGIC.to_vec());
     let disk = &shape.disk;
     w.u64(disk.info.method.len() as u64);
@@ -147,7 +148,7 @@ fn encode(shape: &PreparedShape, figures: &CachedFigures) -> Vec<u8> {
 }
 
 /// The shape and figures of an entry's bytes; None when they are not an intact entry.
-fn decode(bytes: &[u8], name: &str) -> Option<(PreparedShape, CachedFigures)> {
+pub fn decode(bytes: &[u8], name: &str) -> Option<(PreparedShape, CachedFigures)> {
     let (body, check) = bytes.split_at(bytes.len().checked_sub(64)?);
     if sha256_hex(body).as_bytes() != check {
         return None;

@@ -455,6 +455,52 @@ impl Prepared {
         })
     }
 
+    /// Each shape's prepared data as bytes (None where it failed): what Dask workers receive.
+    fn shape_bytes<'py>(&self, py: Python<'py>) -> Vec<Option<Bound<'py, pyo3::types::PyBytes>>> {
+        let figures = shapespace_analysis::shape_cache::CachedFigures {
+            flipped_faces: 0,
+            bff_fallback_after_green_folds: None,
+        };
+        self.shapes
+            .iter()
+            .map(|s| {
+                s.as_ref()
+                    .map(|s| pyo3::types::PyBytes::new(py, &shapespace_analysis::shape_cache::encode(s, &figures)))
+            })
+            .collect()
+    }
+
+    /// The shapes of [`Prepared::shape_bytes`] (on a worker), under `names`, with the settings of
+    /// the run that prepared them.
+    #[staticmethod]
+    fn from_shape_bytes(names: Vec<String>, shapes: Vec<Option<Vec<u8>>>, settings: Settings) -> PyResult<Self> {
+        let options = settings.options()?;
+        if names.len() != shapes.len() {
+            return Err(error(format!("{} names and {} shapes", names.len(), shapes.len())));
+        }
+        let shapes = shapes
+            .iter()
+            .zip(&names)
+            .map(|(bytes, name)| {
+                bytes
+                    .as_ref()
+                    .map(|b| {
+                        shapespace_analysis::shape_cache::decode(b, name)
+                            .map(|(shape, _)| shape)
+                            .ok_or_else(|| error(format!("{name}: damaged prepared-shape data")))
+                    })
+                    .transpose()
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok(Prepared {
+            names,
+            options,
+            shapes,
+            inputs: "[]".into(),
+            warnings: Vec::new(),
+        })
+    }
+
     /// The shape names (as `distances.csv` names them).
     #[getter]
     fn names(&self) -> Vec<String> {

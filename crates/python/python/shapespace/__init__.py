@@ -272,15 +272,16 @@ def shard_pairs(n: int, index: int, count: int, symmetrize: bool = False) -> Lis
 _WORKER_PREPARED: Dict[Any, Any] = {}
 
 
-def _worker_tile(spec: Tuple[Tuple[str, ...], Tuple[Tuple[str, Any], ...]], tile: List[Tuple[int, int]]) -> List[tuple]:
-    """A Dask task: the records of a tile of pairs. The shapes are prepared once per worker
-    process (kept for the later tiles of the same run)."""
-    prepared = _WORKER_PREPARED.get(spec)
+def _worker_tile(run: Tuple[str, List[str], List[Optional[bytes]], Dict[str, Any]], tile: List[Tuple[int, int]]) -> List[tuple]:
+    """A Dask task: the records of a tile of pairs. ``run`` is the scattered run (a token, the
+    names, every shape's prepared data, the settings); each worker process decodes the shapes
+    once per run and keeps them for its later tiles."""
+    token, names, shapes, settings = run
+    prepared = _WORKER_PREPARED.get(token)
     if prepared is None:
-        paths, settings = spec
-        prepared = _native.Prepared(list(paths), None, _Settings(dict(settings)))
+        prepared = _native.Prepared.from_shape_bytes(names, shapes, _Settings(settings))
         _WORKER_PREPARED.clear()
-        _WORKER_PREPARED[spec] = prepared
+        _WORKER_PREPARED[token] = prepared
     return prepared.pairs(tile)
 
 
@@ -303,10 +304,10 @@ def pairwise(
     ``shapespace distances`` computes them: the same matrix, bit for bit.
 
     Without ``client`` the pairs run in this process on all cores (rayon). With a
-    ``dask.distributed`` ``client`` (paths only), the pairs are cut into ``tiles`` tiles
-    (default: 4 per worker thread) of consecutive pairs, as ``--shard`` cuts them; the run's
-    description is scattered to the workers once, each worker prepares the shapes once and
-    computes the tiles it is given. A tile that is lost is computed again with the same result.
+    ``dask.distributed`` ``client``, the shapes are prepared once here (all cores), their data
+    (disk maps, densities, target points) scattered once to every worker, and the pairs cut
+    into ``tiles`` tiles (default: 4 per worker thread) of consecutive pairs, as ``--shard``
+    cuts them, one task each. A task that is lost is run again with the same result.
 
     Settings as the command's flags: ``center``/``boundary`` markers for every shape,
     ``landmarks`` (a marker file for all), ``symmetrize``, ``tol``, ``max_iterations``,
@@ -324,27 +325,24 @@ def pairwise(
         records = prepared.pairs(None)
         ok = prepared.ok
     else:
-        paths, meshes = _inputs(shapes)
-        if meshes is not None:
-            raise ShapespaceError("pairwise with a client takes paths (the workers read the files)")
-        # the inputs are checked here first (errors raise before any task is submitted)
-        prepared = _native.Prepared(paths, None, _Settings(settings))
+        import uuid
+
+        # every shape is prepared once, here (all cores), and its data scattered once
+        prepared = _prepare(shapes, settings)
         ok = prepared.ok
-        n = len(paths)
+        n = len(ok)
         if tiles is None:
             threads = sum(client.nthreads().values()) or 1
             tiles = 4 * threads
         total = n * (n - 1) // 2 * (2 if symmetrize else 1)
         count = max(1, min(int(tiles), total))
-        spec = (tuple(os.path.abspath(p) for p in paths), tuple(sorted(settings.items())))
-        spec_future = client.scatter(spec, broadcast=True)
+        run = (uuid.uuid4().hex, prepared.names, prepared.shape_bytes(), settings)
+        [run_future] = client.scatter([run], broadcast=True)
         futures = [
-            client.submit(_worker_tile, spec_future, _native.shard_pairs(n, symmetrize, k, count), pure=False)
+            client.submit(_worker_tile, run_future, _native.shard_pairs(n, symmetrize, k, count), pure=False)
             for k in range(1, count + 1)
         ]
         records = [r for tile in client.gather(futures) for r in tile]
-        names = prepared.names
-        records = [(names[r[2]], names[r[3]]) + tuple(r[2:]) for r in records]
     D, _ = _native.matrix_of_pairs(ok, [(r[2], r[3], r[4]) for r in records], bool(symmetrize))
     return D, _table(records)
 
