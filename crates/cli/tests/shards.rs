@@ -149,6 +149,33 @@ fn three_shards_merged_equal_one_run() {
         .count();
     assert_eq!(positive, 12, "{text}");
 
+    // a shard run again with --resume (as the Slurm script runs a shard that died) takes its
+    // pairs from its folder, and the merge is unchanged
+    let shard2 = dir.join("shard2").display().to_string();
+    let mut args: Vec<&str> = vec!["distances"];
+    args.extend(files.iter().map(String::as_str));
+    args.extend(["--out", &shard2, "--quiet", "--shard", "2/3", "--resume"]);
+    let out = shapespace(&dir, &args);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("2 of the directed pairs taken from earlier runs"),
+        "{}",
+        stderr(&out)
+    );
+    let out = shapespace(
+        &merged,
+        &["merge", "../shard1", "../shard2", "../shard3", "--out", "again"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(
+        std::fs::read(b.join("distances.csv")).unwrap(),
+        std::fs::read(merged.join("again/distances.csv")).unwrap()
+    );
+    assert_eq!(
+        pairs_without_seconds(&b.join("pairs.csv")),
+        pairs_without_seconds(&merged.join("again/pairs.csv"))
+    );
+
     // a missing shard is named by its number
     let out = shapespace(&merged, &["merge", "../shard1", "../shard3", "--out", "out2"]);
     assert_eq!(out.status.code(), Some(2));
