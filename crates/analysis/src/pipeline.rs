@@ -655,6 +655,10 @@ pub fn prepare_inputs(
 /// its two shapes), except for `seconds`, which is the earlier run's; the taken pairs are
 /// written to the new [`PARTIAL_PAIRS`] first and counted in `report.json`'s `resumed`.
 ///
+/// With [`DistancesOptions::shard`], only that shard's pairs are computed (the others' cells
+/// are empty) and the report names the shard, for [`merge_shards`]; with
+/// [`DistancesOptions::cache`], the per-shape work is taken from and stored in that folder.
+///
 /// Only output failures are errors: per-file and per-pair failures are recorded in the
 /// report, the pair list and as empty matrix cells.
 pub fn run_distances(
