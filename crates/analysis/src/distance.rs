@@ -437,6 +437,22 @@ pub fn pairwise_distances_resuming(
     stop: &std::sync::atomic::AtomicBool,
     progress: &(dyn Fn(&PairRecord) + Sync),
 ) -> PairwiseResult {
+    pairwise_distances_of(shapes, options, None, known, stop, progress)
+}
+
+/// [`pairwise_distances_resuming`] over the directed pairs of `only` (all of
+/// [`directed_pairs`] when None; the others are neither computed nor recorded, and their matrix
+/// cells are NaN): a shard or a tile of a pairwise run. The pairs that are computed give the
+/// same records as in a run over all pairs. With `debias`, the self-costs are those of every
+/// shape.
+pub fn pairwise_distances_of(
+    shapes: &[Option<PreparedShape>],
+    options: &PairwiseOptions,
+    only: Option<&std::collections::HashSet<(usize, usize)>>,
+    known: &HashMap<(usize, usize), PairRecord>,
+    stop: &std::sync::atomic::AtomicBool,
+    progress: &(dyn Fn(&PairRecord) + Sync),
+) -> PairwiseResult {
     let n = shapes.len();
     let names: Vec<String> = shapes
         .iter()
@@ -444,7 +460,7 @@ pub fn pairwise_distances_resuming(
         .map(|(i, s)| s.as_ref().map(|s| s.name.clone()).unwrap_or_else(|| format!("#{i}")))
         .collect();
     let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
-    for (s, t) in directed_pairs(n, options.symmetrize) {
+    for (s, t) in directed_pairs(n, options.symmetrize).filter(|pair| only.is_none_or(|o| o.contains(pair))) {
         match groups.last_mut() {
             Some((last, sources)) if *last == t => sources.push(s),
             _ => groups.push((t, vec![s])),
@@ -569,10 +585,43 @@ pub fn pairwise_distances_resuming(
     };
     let pairs: Vec<PairRecord> = records.into_iter().flatten().collect();
     let self_costs = options.debias.then(|| self_costs(shapes, options));
+    let ok: Vec<bool> = shapes.iter().map(Option::is_some).collect();
+    let (matrix, asymmetries, debias_clamped) =
+        matrix_from_pairs(&ok, &pairs, options.symmetrize, self_costs.as_deref());
+    let pair_seconds = pairs
+        .iter()
+        .filter(|p| !known.contains_key(&(p.source, p.target)))
+        .map(|p| p.seconds)
+        .sum();
+    PairwiseResult {
+        names,
+        matrix,
+        pairs,
+        asymmetries,
+        pair_seconds,
+        self_costs,
+        debias_clamped,
+    }
+}
+
+/// The matrix of a pairwise run from its directed `pairs` over the shapes whose `ok` is true
+/// (the others' rows and columns NaN): the distance of each unordered pair {i, j} (i < j), the
+/// mean of both directions with `symmetrize`, else that of i → j; NaN where a pair is missing or
+/// failed; 0 on the diagonal. With `self_costs`, the debiased distances
+/// ([`debiased_cost`]). Also the relative asymmetries (with `symmetrize`) and the number of
+/// clamped debiased costs. A shard's pairs and the merge of all shards give the same cells as
+/// one run.
+pub fn matrix_from_pairs(
+    ok: &[bool],
+    pairs: &[PairRecord],
+    symmetrize: bool,
+    self_costs: Option<&[f64]>,
+) -> (Vec<f64>, Vec<f64>, usize) {
+    let n = ok.len();
     let mut debias_clamped = 0;
     let mut directed = vec![f64::NAN; n * n];
-    for p in &pairs {
-        directed[p.source * n + p.target] = match &self_costs {
+    for p in pairs {
+        directed[p.source * n + p.target] = match self_costs {
             Some(own) if p.distance.is_finite() => {
                 let (c, clamped) = debiased_cost(p.cost, own[p.target]);
                 debias_clamped += clamped as usize;
@@ -584,9 +633,9 @@ pub fn pairwise_distances_resuming(
     let mut matrix = vec![f64::NAN; n * n];
     let mut asymmetries = Vec::new();
     for i in 0..n {
-        matrix[i * n + i] = if shapes[i].is_some() { 0.0 } else { f64::NAN };
+        matrix[i * n + i] = if ok[i] { 0.0 } else { f64::NAN };
         for j in (i + 1)..n {
-            let d = if options.symmetrize {
+            let d = if symmetrize {
                 let (a, b) = (directed[i * n + j], directed[j * n + i]);
                 if a.is_finite() && b.is_finite() {
                     let mean = 0.5 * (a + b);
@@ -602,20 +651,7 @@ pub fn pairwise_distances_resuming(
             matrix[j * n + i] = d;
         }
     }
-    let pair_seconds = pairs
-        .iter()
-        .filter(|p| !known.contains_key(&(p.source, p.target)))
-        .map(|p| p.seconds)
-        .sum();
-    PairwiseResult {
-        names,
-        matrix,
-        pairs,
-        asymmetries,
-        pair_seconds,
-        self_costs,
-        debias_clamped,
-    }
+    (matrix, asymmetries, debias_clamped)
 }
 
 /// Each shape's self-cost c(s, s), its density against its own points (NaN for a shape that

@@ -63,7 +63,7 @@ pub struct RotationSearch {
 }
 
 /// Which alignments of the target's disk a distance minimizes over.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub enum Invariance {
     /// The markers' alignment: interior marker at 0, boundary marker at 1 (Su et al.).
     #[default]

@@ -30,7 +30,9 @@ pub mod point_location;
 pub mod registration;
 pub mod report_path;
 pub mod resume;
+pub mod shape_cache;
 pub mod shape_space;
+pub mod shard;
 pub mod shared_markers;
 pub mod stats;
 

@@ -16,7 +16,7 @@ use shapespace_geometry::io::{write_atomically, AtomicFile};
 use shapespace_geometry::TriMesh;
 
 use crate::distance::{
-    directed_pairs, pairwise_distances_resuming, prepare_shape, PairRecord, PairwiseOptions, PreparedShape,
+    directed_pairs, matrix_from_pairs, pairwise_distances_of, prepare_shape, PairRecord, PairwiseOptions, PreparedShape,
 };
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
@@ -37,7 +37,7 @@ pub struct MarkerOptions {
 
 /// A file's resolved markers and where they came from, for the report. `center` and `boundary`
 /// serialize as in a marker file (`123` or `{"face": f, "bary": [..]}`, and a vertex index).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct MarkerChoice {
     pub center: shapespace_conformal::markers::ResolvedCenter,
     pub boundary: u32,
@@ -105,10 +105,16 @@ pub struct DistancesOptions {
     /// Quantize each shape's target measure to at most this many points
     /// ([`crate::distance::quantize_target`]): faster pairs at a measured loss of accuracy.
     pub target_points: Option<usize>,
+    /// Compute only this shard of the pairs ([`crate::shard`]); `merge_shards` assembles the
+    /// shards' folders. Not with `pairwise.warm_start` or `pairwise.debias`.
+    pub shard: Option<crate::shard::Shard>,
+    /// Keep each shape's per-shape work in this folder and take it from there when the same
+    /// file, markers, settings and executable come again ([`crate::shape_cache`]).
+    pub cache: Option<PathBuf>,
 }
 
 /// Per-file outcome of the preparation stage.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct ShapeReport {
     pub name: String,
     #[serde(serialize_with = "crate::report_path::one")]
@@ -132,7 +138,7 @@ pub struct ShapeReport {
 }
 
 /// Timing of the stages, seconds (wall clock, except `pairs_cpu`: the sum over pairs).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct StageTimings {
     pub prepare_wall: f64,
     pub pairs_wall: f64,
@@ -142,7 +148,7 @@ pub struct StageTimings {
 }
 
 /// Everything `report.json` holds.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct DistancesReport {
     pub shapespace_version: String,
     pub inputs: Vec<ShapeReport>,
@@ -173,10 +179,14 @@ pub struct DistancesReport {
     pub resume_key: RunIdentity,
     #[serde(serialize_with = "crate::report_path::many")]
     pub files: Vec<PathBuf>,
+    /// The shard of the pairs this run computed (`distances --shard K/N`); absent for a whole
+    /// run and for the merge of the shards.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<crate::shard::Shard>,
 }
 
 /// The options as recorded in the report.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct ReportOptions {
     pub symmetrize: bool,
     /// Relative mass tolerance of the finest level (the distances' accuracy).
@@ -200,7 +210,7 @@ pub struct ReportOptions {
 
 /// Each shape's self-cost c(s, s) and the pairs clamped at 0 by the debiasing
 /// ([`crate::distance::PairwiseOptions::debias`]).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct DebiasReport {
     /// Self-cost per input, in the order of `inputs` (null where the shape failed).
     pub self_costs: Vec<Option<f64>>,
@@ -214,6 +224,9 @@ pub struct DistancesRun {
     pub matrix: DistanceMatrix,
     pub pairs: Vec<PairRecord>,
     pub report: DistancesReport,
+    /// Shapes taken from [`DistancesOptions::cache`] (not in the report, so that a run with and
+    /// without the cache writes the same files).
+    pub cache_hits: usize,
 }
 
 /// Shape name of a file: its stem, or, when stems repeat, the shortest suffix of its path
@@ -365,72 +378,82 @@ impl PartialPairs {
     }
 }
 
-/// Reads, maps and compares all `paths`; writes `out/distances.csv`, `out/pairs.csv` and
-/// `out/report.json`. `progress(done, total, stage)` is called as work finishes. While the pairs
-/// run, each finished one is also appended to `out/`[`PARTIAL_PAIRS`] before its progress call,
-/// so that a run killed before the end keeps the pairs it finished; such a file found at the
-/// start is moved to `out/`[`PREVIOUS_PARTIAL_PAIRS`] first (with its [`PARTIAL_IDENTITY`]).
-///
-/// With [`DistancesOptions::resume`], the directed pairs found in those files or in an earlier
-/// `out/pairs.csv` ([`crate::resume`]) are taken from there when their two files (by content,
-/// [`RunIdentity`]), markers, the executable and the solver settings are the same: a stopped run
-/// goes on where it stopped, and a finished one extended by more files computes only the new
-/// pairs. The results are those of a run from scratch (every pair is computed on its own, from
-/// its two shapes), except for `seconds`, which is the earlier run's; the taken pairs are
-/// written to the new [`PARTIAL_PAIRS`] first and counted in `report.json`'s `resumed`.
-///
-/// Only output failures are errors: per-file and per-pair failures are recorded in the
-/// report, the pair list and as empty matrix cells.
-pub fn run_distances(
-    paths: &[PathBuf],
-    out: &Path,
-    options: &DistancesOptions,
-    progress: &(dyn Fn(usize, usize, &str) + Sync),
-) -> Result<DistancesRun, AnalysisError> {
-    let t_total = Instant::now();
-    if options.resume && options.pairwise.warm_start {
-        return Err(AnalysisError::InvalidInput(
-            "resume cannot be combined with warm start (a warm-started pair depends on the pairs solved before it)"
-                .into(),
-        ));
-    }
-    if paths.len() < 2 {
-        return Err(AnalysisError::InvalidInput(format!(
-            "distances need at least 2 mesh files, got {}",
-            paths.len()
-        )));
-    }
-    let names = shape_names(paths);
-    // (the same file given twice, also under two spellings: refused before any work, not
-    // after all pairs)
-    let canonical: Vec<Option<PathBuf>> = paths.iter().map(|p| std::fs::canonicalize(p).ok()).collect();
-    for (i, name) in names.iter().enumerate() {
-        let same_file = |j: usize| canonical[i].is_some() && canonical[j] == canonical[i];
-        if let Some(j) = (0..i).find(|&j| names[j] == *name || same_file(j)) {
-            return Err(AnalysisError::InvalidInput(format!(
-                "{} and {} are the same file or have the same shape name \"{name}\"",
-                paths[j].display(),
-                paths[i].display()
-            )));
+/// The per-shape stage of a run ([`prepare_inputs`]): each input's prepared shape (None where
+/// it failed) and its report, the warnings about automatic markers, and the wall-clock seconds.
+pub struct PreparedInputs {
+    pub shapes: Vec<Option<PreparedShape>>,
+    pub inputs: Vec<ShapeReport>,
+    pub marker_warnings: Vec<String>,
+    pub seconds: f64,
+    /// Shapes taken from [`DistancesOptions::cache`] (not prepared again).
+    pub cache_hits: usize,
+}
+
+/// A file prepared (or taken from the cache) by [`prepare_inputs`].
+struct PreparedFile {
+    shape: PreparedShape,
+    choice: MarkerChoice,
+    vertices: usize,
+    faces: usize,
+    figures: crate::shape_cache::CachedFigures,
+    hit: bool,
+}
+
+/// SHA-256 (hex) of a mesh in memory: its positions' and faces' little-endian bytes.
+pub fn mesh_sha256(mesh: &TriMesh) -> String {
+    let mut bytes = Vec::with_capacity(mesh.positions.len() * 24 + mesh.faces.len() * 12);
+    for p in &mesh.positions {
+        for x in p {
+            bytes.extend_from_slice(&x.to_le_bytes());
         }
     }
-    std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
-    let _lock = lock_output_folder(out)?;
-    let n = paths.len();
+    for f in &mesh.faces {
+        for v in f {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    sha256_hex(&bytes)
+}
 
+/// The per-shape work of [`run_distances`]: reads `paths` (or, with `meshes`, takes those
+/// meshes, one per path; the paths then only name them and locate marker sidecars), resolves
+/// the markers (automatic ones shared by the files with the same faces), and maps and
+/// prepares each shape (`names` as [`shape_names`] gives them). A file that fails is reported
+/// in its [`ShapeReport`]; only an inconsistent call is an error.
+pub fn prepare_inputs(
+    paths: &[PathBuf],
+    meshes: Option<&[TriMesh]>,
+    names: &[String],
+    options: &DistancesOptions,
+    progress: &(dyn Fn(usize, usize, &str) + Sync),
+) -> Result<PreparedInputs, AnalysisError> {
+    let n = paths.len();
+    if names.len() != n || meshes.is_some_and(|m| m.len() != n) {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{n} paths, {} names and {} meshes",
+            names.len(),
+            meshes.map_or(n, |m| m.len())
+        )));
+    }
     let t_prepare = Instant::now();
     // (a panic, i.e. a bug, fails this file only, as it fails a pair only in the pairs)
     let loaded: Vec<LoadedFile> = paths
         .par_iter()
-        .map(|path| {
+        .enumerate()
+        .map(|(i, path)| {
             let t = Instant::now();
-            // (the bytes hashed are the bytes parsed)
-            let bytes = shapespace_geometry::io::read_mesh_bytes(path);
-            let sha256 = bytes.as_ref().ok().map(|bytes| sha256_hex(bytes));
+            // (the bytes hashed are the bytes parsed; a mesh in memory hashes its arrays)
+            let (sha256, mesh) = match meshes {
+                Some(meshes) => (Some(mesh_sha256(&meshes[i])), Ok(meshes[i].clone())),
+                None => {
+                    let bytes = shapespace_geometry::io::read_mesh_bytes(path);
+                    let sha256 = bytes.as_ref().ok().map(|bytes| sha256_hex(bytes));
+                    let mesh = bytes.and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path));
+                    (sha256, mesh)
+                }
+            };
             let outcome = crate::distance::guarded(|| -> Result<(TriMesh, Markers, String), AnalysisError> {
-                let mesh = bytes
-                    .and_then(|bytes| shapespace_geometry::io::parse_mesh(bytes, path))
-                    .map_err(|e| AnalysisError::Mesh(e.with_path(path)))?;
+                let mesh = mesh.map_err(|e| AnalysisError::Mesh(e.with_path(path)))?;
                 let (markers, source) = markers_for(path, &options.markers, mesh.num_vertices())?;
                 Ok((mesh, markers, source))
             });
@@ -464,40 +487,87 @@ pub fn run_distances(
         }
     }
     let done = std::sync::atomic::AtomicUsize::new(0);
+    let hits = std::sync::atomic::AtomicUsize::new(0);
+    if let Some(dir) = &options.cache {
+        std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
+    }
+    let cache_settings = format!("{:?}|target_points {:?}", options.disk_map, options.target_points);
     let prepared: Vec<(Option<PreparedShape>, ShapeReport)> = paths
         .par_iter()
-        .zip(&names)
+        .zip(names)
         .zip(loaded)
         .map(|((path, name), (sha256, load_seconds, loaded))| {
             let t = Instant::now();
             let outcome = loaded.and_then(|(mesh, markers, source)| {
-                crate::distance::guarded(
-                    || -> Result<(PreparedShape, MarkerChoice, usize, usize), AnalysisError> {
-                        let mut shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
-                            AnalysisError::Shape {
-                                name: path.display().to_string(),
-                                message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                crate::distance::guarded(|| -> Result<PreparedFile, AnalysisError> {
+                    let key = match (&options.cache, &sha256) {
+                        (Some(_), Some(sha)) => Some(crate::shape_cache::entry_key(&cache_settings, sha, &markers)),
+                        _ => None,
+                    };
+                    let cached = match (&options.cache, &key) {
+                        (Some(dir), Some(key)) => crate::shape_cache::load(dir, key, name),
+                        _ => None,
+                    };
+                    let hit = cached.is_some();
+                    let (shape, figures) = match cached {
+                        Some(entry) => entry,
+                        None => {
+                            let mut shape = prepare_shape(name, &mesh, &markers, &options.disk_map).map_err(|e| {
+                                AnalysisError::Shape {
+                                    name: path.display().to_string(),
+                                    message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                                }
+                            })?;
+                            if let Some(n) = options.target_points {
+                                shape = crate::distance::quantize_target(shape, n);
                             }
-                        })?;
-                        if let Some(n) = options.target_points {
-                            shape = crate::distance::quantize_target(shape, n);
+                            let figures = crate::shape_cache::CachedFigures {
+                                flipped_faces: shape.disk.quality.num_flipped,
+                                bff_fallback_after_green_folds: shape
+                                    .disk
+                                    .info
+                                    .bff_fallback
+                                    .as_ref()
+                                    .map(|f| f.green_folds),
+                            };
+                            if let (Some(dir), Some(key)) = (&options.cache, &key) {
+                                crate::shape_cache::store(dir, key, &shape, &figures)?;
+                            }
+                            (shape, figures)
                         }
-                        let resolved = shape.disk.info.markers;
-                        let choice = MarkerChoice {
-                            center: resolved.center,
-                            boundary: resolved.boundary_vertex,
-                            source,
-                            axis: crate::shared_markers::marker_axis(&mesh, &resolved),
-                        };
-                        Ok((shape, choice, mesh.num_vertices(), mesh.num_faces()))
-                    },
-                )
+                    };
+                    let resolved = shape.disk.info.markers;
+                    let choice = MarkerChoice {
+                        center: resolved.center,
+                        boundary: resolved.boundary_vertex,
+                        source,
+                        axis: crate::shared_markers::marker_axis(&mesh, &resolved),
+                    };
+                    Ok(PreparedFile {
+                        shape,
+                        choice,
+                        vertices: mesh.num_vertices(),
+                        faces: mesh.num_faces(),
+                        figures,
+                        hit,
+                    })
+                })
             });
             let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(k, n, "prepare");
             let seconds = load_seconds + t.elapsed().as_secs_f64();
             match outcome {
-                Ok((shape, choice, v, f)) => {
+                Ok(PreparedFile {
+                    shape,
+                    choice,
+                    vertices: v,
+                    faces: f,
+                    figures,
+                    hit,
+                }) => {
+                    if hit {
+                        hits.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    }
                     let (lo, hi) = shape
                         .disk
                         .face_densities
@@ -514,8 +584,8 @@ pub fn run_distances(
                         markers: Some(choice),
                         seconds,
                         density_range: Some([lo, hi]),
-                        flipped_faces: Some(shape.disk.quality.num_flipped),
-                        bff_fallback_after_green_folds: shape.disk.info.bff_fallback.as_ref().map(|f| f.green_folds),
+                        flipped_faces: Some(figures.flipped_faces),
+                        bff_fallback_after_green_folds: figures.bff_fallback_after_green_folds,
                     };
                     (Some(shape), report)
                 }
@@ -562,10 +632,92 @@ pub fn run_distances(
             )
         })
         .collect();
+    Ok(PreparedInputs {
+        shapes,
+        inputs,
+        marker_warnings,
+        seconds: prepare_wall,
+        cache_hits: hits.into_inner(),
+    })
+}
+
+/// Reads, maps and compares all `paths`; writes `out/distances.csv`, `out/pairs.csv` and
+/// `out/report.json`. `progress(done, total, stage)` is called as work finishes. While the pairs
+/// run, each finished one is also appended to `out/`[`PARTIAL_PAIRS`] before its progress call,
+/// so that a run killed before the end keeps the pairs it finished; such a file found at the
+/// start is moved to `out/`[`PREVIOUS_PARTIAL_PAIRS`] first (with its [`PARTIAL_IDENTITY`]).
+///
+/// With [`DistancesOptions::resume`], the directed pairs found in those files or in an earlier
+/// `out/pairs.csv` ([`crate::resume`]) are taken from there when their two files (by content,
+/// [`RunIdentity`]), markers, the executable and the solver settings are the same: a stopped run
+/// goes on where it stopped, and a finished one extended by more files computes only the new
+/// pairs. The results are those of a run from scratch (every pair is computed on its own, from
+/// its two shapes), except for `seconds`, which is the earlier run's; the taken pairs are
+/// written to the new [`PARTIAL_PAIRS`] first and counted in `report.json`'s `resumed`.
+///
+/// With [`DistancesOptions::shard`], only that shard's pairs are computed (the others' cells
+/// are empty) and the report names the shard, for [`merge_shards`]; with
+/// [`DistancesOptions::cache`], the per-shape work is taken from and stored in that folder.
+///
+/// Only output failures are errors: per-file and per-pair failures are recorded in the
+/// report, the pair list and as empty matrix cells.
+pub fn run_distances(
+    paths: &[PathBuf],
+    out: &Path,
+    options: &DistancesOptions,
+    progress: &(dyn Fn(usize, usize, &str) + Sync),
+) -> Result<DistancesRun, AnalysisError> {
+    let t_total = Instant::now();
+    if options.resume && options.pairwise.warm_start {
+        return Err(AnalysisError::InvalidInput(
+            "resume cannot be combined with warm start (a warm-started pair depends on the pairs solved before it)"
+                .into(),
+        ));
+    }
+    if options.shard.is_some() && (options.pairwise.warm_start || options.pairwise.debias) {
+        return Err(AnalysisError::InvalidInput(
+            "a shard cannot be computed with warm start or debiasing (their pairs depend on other pairs or on every shape's self-cost)"
+                .into(),
+        ));
+    }
+    if paths.len() < 2 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "distances need at least 2 mesh files, got {}",
+            paths.len()
+        )));
+    }
+    let names = shape_names(paths);
+    // (the same file given twice, also under two spellings: refused before any work, not
+    // after all pairs)
+    let canonical: Vec<Option<PathBuf>> = paths.iter().map(|p| std::fs::canonicalize(p).ok()).collect();
+    for (i, name) in names.iter().enumerate() {
+        let same_file = |j: usize| canonical[i].is_some() && canonical[j] == canonical[i];
+        if let Some(j) = (0..i).find(|&j| names[j] == *name || same_file(j)) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "{} and {} are the same file or have the same shape name \"{name}\"",
+                paths[j].display(),
+                paths[i].display()
+            )));
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
+    let _lock = lock_output_folder(out)?;
+    let n = paths.len();
+    let prepared = prepare_inputs(paths, None, &names, options, progress)?;
+    let (shapes, inputs, marker_warnings, prepare_wall, cache_hits) = (
+        prepared.shapes,
+        prepared.inputs,
+        prepared.marker_warnings,
+        prepared.seconds,
+        prepared.cache_hits,
+    );
 
     let t_pairs = Instant::now();
     let identity = run_identity(options, &inputs);
-    let needed: HashSet<(usize, usize)> = directed_pairs(n, options.pairwise.symmetrize).collect();
+    let needed: HashSet<(usize, usize)> = match options.shard {
+        Some(shard) => shard.pairs(n, options.pairwise.symmetrize).into_iter().collect(),
+        None => directed_pairs(n, options.pairwise.symmetrize).collect(),
+    };
     let (known, resume_notes) = if options.resume {
         earlier_pairs(out, &identity, &needed)
     } else {
@@ -596,7 +748,8 @@ pub fn run_distances(
     for (_, record) in taken {
         partial.append(record);
     }
-    let mut result = pairwise_distances_resuming(&shapes, &options.pairwise, &known, &partial.failed, &|record| {
+    let only = options.shard.map(|_| &needed);
+    let result = pairwise_distances_of(&shapes, &options.pairwise, only, &known, &partial.failed, &|record| {
         // (the file names, as below)
         partial.append(&PairRecord {
             a: names[record.source].clone(),
@@ -608,107 +761,369 @@ pub fn run_distances(
     });
     partial.finish()?;
     let pairs_wall = t_pairs.elapsed().as_secs_f64();
+
+    let timings = StageTimings {
+        prepare_wall,
+        pairs_wall,
+        pairs_cpu: result.pair_seconds,
+        write: 0.0,
+        total: 0.0,
+    };
+    let mut written = write_run(
+        out,
+        RunParts {
+            inputs,
+            options: report_options(options),
+            threads: rayon::current_num_threads(),
+            timings,
+            pairs: result.pairs,
+            matrix: result.matrix,
+            asymmetries: result.asymmetries,
+            debias: result.self_costs.as_ref().map(|own| DebiasReport {
+                self_costs: own.iter().map(|c| c.is_finite().then_some(*c)).collect(),
+                clamped_pairs: result.debias_clamped,
+            }),
+            resumed: options.resume.then_some(ResumeReport {
+                pairs: known.len(),
+                sources: resume_notes,
+            }),
+            marker_warnings,
+            identity,
+            shard: options.shard,
+        },
+        t_total,
+    )?;
+    // Everything it held is in pairs.csv now. (A file that cannot be removed only repeats
+    // pairs.csv's rows, so that is not an error.)
+    let _ = std::fs::remove_file(out.join(PARTIAL_PAIRS));
+    let _ = std::fs::remove_file(out.join(PARTIAL_IDENTITY));
+    written.cache_hits = cache_hits;
+    Ok(written)
+}
+
+/// The options of a run as its report records them.
+fn report_options(options: &DistancesOptions) -> ReportOptions {
+    ReportOptions {
+        symmetrize: options.pairwise.symmetrize,
+        tolerance: options.pairwise.newton.tolerance,
+        coarse_tolerance: options.pairwise.newton.coarse_tolerance,
+        linear_solver: format!("{:?}", options.pairwise.newton.linear_solver),
+        max_iterations: options.pairwise.newton.max_iterations,
+        warm_start: options.pairwise.warm_start,
+        intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
+        pair_time_limit: options.pairwise.time_limit.map(|l| l.as_secs_f64()),
+        invariance: options.pairwise.invariance,
+        debias: options.pairwise.debias,
+        target_points: options.target_points,
+    }
+}
+
+/// What [`write_run`] writes: a run's (or the merged shards') inputs, options, pairs and matrix.
+struct RunParts {
+    inputs: Vec<ShapeReport>,
+    options: ReportOptions,
+    threads: usize,
+    timings: StageTimings,
+    /// By target, then source (pair names are replaced by the inputs' names).
+    pairs: Vec<PairRecord>,
+    matrix: Vec<f64>,
+    asymmetries: Vec<f64>,
+    debias: Option<DebiasReport>,
+    resumed: Option<ResumeReport>,
+    marker_warnings: Vec<String>,
+    identity: RunIdentity,
+    shard: Option<crate::shard::Shard>,
+}
+
+/// Writes `out/distances.csv`, `out/pairs.csv` and `out/report.json` (each atomically) from
+/// `parts`; the report's summaries (failures, iterations, asymmetry, dual gaps) are computed
+/// here from the pairs, so a run and the merge of its shards write the same bytes.
+fn write_run(out: &Path, parts: RunParts, t_total: Instant) -> Result<DistancesRun, AnalysisError> {
+    let t_write = Instant::now();
+    let RunParts {
+        inputs,
+        options,
+        threads,
+        mut timings,
+        mut pairs,
+        matrix,
+        asymmetries,
+        debias,
+        resumed,
+        marker_warnings,
+        identity,
+        shard,
+    } = parts;
+    let names: Vec<String> = inputs.iter().map(|i| i.name.clone()).collect();
     // `pairwise_distances` knows only the prepared shapes' names (a failed one is `#i`): use the
     // file names throughout, as in distances.csv.
-    for r in &mut result.pairs {
+    for r in &mut pairs {
         r.a.clone_from(&names[r.source]);
         r.b.clone_from(&names[r.target]);
     }
-
-    let t_write = Instant::now();
     // An earlier report.json goes first: pairs.csv is read by a resumed run against the
     // report's resume_key, so a run stopped between the two writes must not leave the new
     // pairs beside the old key (its partial file, removed last, still has them).
     let report_path = out.join("report.json");
     remove_if_present(&report_path)?;
-    let matrix = DistanceMatrix::new(names.clone(), result.matrix.clone())?;
+    let matrix = DistanceMatrix::new(names, matrix)?;
     let mut files = Vec::new();
     let matrix_path = out.join("distances.csv");
     write_distance_matrix(&matrix_path, &matrix)?;
     files.push(matrix_path);
     let pairs_path = out.join("pairs.csv");
-    write_pairs_csv(&pairs_path, &result.pairs, &identity)?;
+    write_pairs_csv(&pairs_path, &pairs, &identity)?;
     files.push(pairs_path);
 
     let mut failures: Vec<String> = inputs.iter().filter_map(|r| r.error.clone()).collect();
     failures.extend(
-        result
-            .pairs
+        pairs
             .iter()
             .filter(|p| !p.distance.is_finite())
             .map(|p| format!("{} -> {}: {}", p.a, p.b, p.status)),
     );
-    let iterations: Vec<f64> = result
-        .pairs
+    let iterations: Vec<f64> = pairs
         .iter()
         .filter(|p| p.distance.is_finite())
         .map(|p| p.iterations as f64)
         .collect();
-    let gaps: Vec<f64> = result
-        .pairs
+    let gaps: Vec<f64> = pairs
         .iter()
         .filter(|p| p.distance.is_finite() && p.cost > 0.0)
         .map(|p| (p.cost - p.dual_cost).abs() / p.cost)
         .collect();
     files.push(report_path.clone());
-    let mut report = DistancesReport {
+    timings.write = t_write.elapsed().as_secs_f64();
+    timings.total = t_total.elapsed().as_secs_f64();
+    let report = DistancesReport {
         shapespace_version: env!("CARGO_PKG_VERSION").to_string(),
         inputs,
-        options: ReportOptions {
-            symmetrize: options.pairwise.symmetrize,
-            tolerance: options.pairwise.newton.tolerance,
-            coarse_tolerance: options.pairwise.newton.coarse_tolerance,
-            linear_solver: format!("{:?}", options.pairwise.newton.linear_solver),
-            max_iterations: options.pairwise.newton.max_iterations,
-            warm_start: options.pairwise.warm_start,
-            intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
-            pair_time_limit: options.pairwise.time_limit.map(|l| l.as_secs_f64()),
-            invariance: options.pairwise.invariance,
-            debias: options.pairwise.debias,
-            target_points: options.target_points,
-        },
-        threads: rayon::current_num_threads(),
-        timings: StageTimings {
-            prepare_wall,
-            pairs_wall,
-            pairs_cpu: result.pair_seconds,
-            write: 0.0,
-            total: 0.0,
-        },
-        pairs_computed: result.pairs.len(),
-        pairs_failed: result.pairs.iter().filter(|p| !p.distance.is_finite()).count(),
+        options,
+        threads,
+        timings,
+        pairs_computed: pairs.len(),
+        pairs_failed: pairs.iter().filter(|p| !p.distance.is_finite()).count(),
         failures,
         iterations: (!iterations.is_empty()).then(|| summarize(&iterations)),
-        asymmetry: (!result.asymmetries.is_empty()).then(|| summarize(&result.asymmetries)),
-        debias: result.self_costs.as_ref().map(|own| DebiasReport {
-            self_costs: own.iter().map(|c| c.is_finite().then_some(*c)).collect(),
-            clamped_pairs: result.debias_clamped,
-        }),
+        asymmetry: (!asymmetries.is_empty()).then(|| summarize(&asymmetries)),
+        debias,
         cost_dual_gap: (!gaps.is_empty()).then(|| summarize(&gaps)),
-        resumed: options.resume.then_some(ResumeReport {
-            pairs: known.len(),
-            sources: resume_notes,
-        }),
+        resumed,
         marker_warnings,
         resume_key: identity,
         files,
+        shard,
     };
-    report.timings.write = t_write.elapsed().as_secs_f64();
-    report.timings.total = t_total.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&report).map_err(|e| AnalysisError::Serialize {
         path: report_path.clone(),
         message: e.to_string(),
     })?;
     write_atomically(&report_path, json.as_bytes()).map_err(|e| AnalysisError::io(&report_path, e))?;
-    // Everything it held is in pairs.csv now. (A file that cannot be removed only repeats
-    // pairs.csv's rows, so that is not an error.)
-    let _ = std::fs::remove_file(out.join(PARTIAL_PAIRS));
-    let _ = std::fs::remove_file(out.join(PARTIAL_IDENTITY));
     Ok(DistancesRun {
         matrix,
-        pairs: result.pairs,
+        pairs,
         report,
+        cache_hits: 0,
     })
+}
+
+/// Assembles the output folders of `distances --shard K/N` runs (all N shards of one run) into
+/// `out`: distances.csv, pairs.csv and report.json as one run over all pairs writes them, byte
+/// for byte but for the timings (report.json's `timings` and inputs' `seconds`, pairs.csv's
+/// `seconds` and the `check` that covers them; the merged report's `threads`, inputs, marker
+/// warnings and `seconds` are those of shard 1, its wall times the largest of the shards' and
+/// `pairs_cpu` their sum).
+///
+/// Refused, before anything is written: a folder that is not a shard's, shards of different
+/// runs (inputs, markers, settings, executable or shard count), a shard given twice, missing
+/// shards (named by number), a pairs.csv row changed after it was written or a pairs.csv
+/// without exactly its shard's pairs, and an `out` that is one of the shard folders.
+pub fn merge_shards(dirs: &[PathBuf], out: &Path) -> Result<DistancesRun, AnalysisError> {
+    let t_total = Instant::now();
+    let invalid = |message: String| AnalysisError::InvalidInput(message);
+    if dirs.is_empty() {
+        return Err(invalid("merge needs the shard folders".into()));
+    }
+    let out_canonical = std::fs::canonicalize(out).ok();
+    let mut shards: Vec<(PathBuf, DistancesReport, crate::shard::Shard)> = Vec::new();
+    for dir in dirs {
+        if out_canonical.is_some() && std::fs::canonicalize(dir).ok() == out_canonical {
+            return Err(invalid(format!(
+                "{}: the output folder is one of the shard folders (merge never writes over its inputs)",
+                dir.display()
+            )));
+        }
+        let path = dir.join("report.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| AnalysisError::io(&path, e))?;
+        let report: DistancesReport = serde_json::from_str(&text)
+            .map_err(|e| invalid(format!("{}: not a report of shapespace distances: {e}", path.display())))?;
+        let Some(shard) = report.shard else {
+            return Err(invalid(format!(
+                "{}: not a shard (a run without --shard K/N)",
+                path.display()
+            )));
+        };
+        shards.push((dir.clone(), report, shard));
+    }
+    shards.sort_by_key(|(_, _, shard)| shard.index);
+    let (first_dir, first, first_shard) = &shards[0];
+    let count = first_shard.count;
+    let described = |dir: &Path| dir.join("report.json").display().to_string();
+    for (dir, report, shard) in &shards[1..] {
+        let differs = if shard.count != count {
+            Some(format!("it is one of {} shards, not {count}", shard.count))
+        } else if report.resume_key.shapespace_version != first.resume_key.shapespace_version
+            || report.resume_key.build != first.resume_key.build
+        {
+            Some("another shapespace executable computed it".into())
+        } else if report.resume_key.settings != first.resume_key.settings
+            || serde_json::to_string(&report.options).ok() != serde_json::to_string(&first.options).ok()
+        {
+            Some("its solver or conformal-map settings differ".into())
+        } else if report.resume_key.inputs != first.resume_key.inputs
+            || report
+                .inputs
+                .iter()
+                .map(|i| &i.path)
+                .ne(first.inputs.iter().map(|i| &i.path))
+        {
+            Some("its input files, their contents or their markers differ".into())
+        } else {
+            None
+        };
+        if let Some(why) = differs {
+            return Err(invalid(format!(
+                "{} is not a shard of the same run as {}: {why}",
+                described(dir),
+                described(first_dir)
+            )));
+        }
+    }
+    for pair in shards.windows(2) {
+        if pair[0].2.index == pair[1].2.index {
+            return Err(invalid(format!(
+                "shard {} of {count} is given twice: {} and {}",
+                pair[0].2.index,
+                pair[0].0.display(),
+                pair[1].0.display()
+            )));
+        }
+    }
+    let present: HashSet<usize> = shards.iter().map(|(_, _, s)| s.index).collect();
+    let missing: Vec<String> = (1..=count)
+        .filter(|k| !present.contains(k))
+        .map(|k| k.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(invalid(format!(
+            "missing shard{} {} of {count} (the folders given hold shards {})",
+            if missing.len() > 1 { "s" } else { "" },
+            missing.join(", "),
+            shards
+                .iter()
+                .map(|(_, _, s)| s.index.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
+    let identity = first.resume_key.clone();
+    let n = first.inputs.len();
+    let symmetrize = first.options.symmetrize;
+    let index: HashMap<&str, usize> = first
+        .inputs
+        .iter()
+        .enumerate()
+        .map(|(i, input)| (input.name.as_str(), i))
+        .collect();
+    let mut pairs: Vec<PairRecord> = Vec::new();
+    for (dir, _, shard) in &shards {
+        let path = dir.join("pairs.csv");
+        let records = read_shard_pairs(&path, &identity, &index)?;
+        let expected = shard.pairs(n, symmetrize);
+        let got: Vec<(usize, usize)> = records.iter().map(|r| (r.source, r.target)).collect();
+        if got != expected {
+            return Err(invalid(format!(
+                "{}: {} pairs, not the {} pairs of shard {} of {count} (was it written by another run?)",
+                path.display(),
+                got.len(),
+                expected.len(),
+                shard.index
+            )));
+        }
+        pairs.extend(records);
+    }
+    let ok: Vec<bool> = first.inputs.iter().map(|i| i.ok).collect();
+    let (matrix, asymmetries, _) = matrix_from_pairs(&ok, &pairs, symmetrize, None);
+    let max = |f: fn(&StageTimings) -> f64| shards.iter().map(|(_, r, _)| f(&r.timings)).fold(0.0, f64::max);
+    let timings = StageTimings {
+        prepare_wall: max(|t| t.prepare_wall),
+        pairs_wall: max(|t| t.pairs_wall),
+        pairs_cpu: shards.iter().map(|(_, r, _)| r.timings.pairs_cpu).sum(),
+        write: 0.0,
+        total: 0.0,
+    };
+    let first = first.clone();
+    std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
+    let _lock = lock_output_folder(out)?;
+    write_run(
+        out,
+        RunParts {
+            inputs: first.inputs,
+            options: first.options,
+            threads: first.threads,
+            timings,
+            pairs,
+            matrix,
+            asymmetries,
+            debias: None,
+            resumed: None,
+            marker_warnings: first.marker_warnings,
+            identity,
+            shard: None,
+        },
+        t_total,
+    )
+}
+
+/// The rows of a shard's pairs.csv, with their indices among the inputs `index` (by name), in
+/// the file's order; a row that does not match its check is refused, naming its line.
+fn read_shard_pairs(
+    path: &Path,
+    identity: &RunIdentity,
+    index: &HashMap<&str, usize>,
+) -> Result<Vec<PairRecord>, AnalysisError> {
+    let mut reader = csv::Reader::from_path(path).map_err(|e| AnalysisError::csv(path, e))?;
+    let headers = reader.headers().map_err(|e| AnalysisError::csv(path, e))?.clone();
+    if headers.iter().ne(PAIRS_HEADER) {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{}: not a pairs.csv of shapespace distances (columns {})",
+            path.display(),
+            headers.iter().collect::<Vec<_>>().join(",")
+        )));
+    }
+    let mut records = Vec::new();
+    for row in reader.records() {
+        let row = row.map_err(|e| AnalysisError::csv(path, e))?;
+        let line = row.position().map_or(0, |p| p.line());
+        let bad = |why: &str| AnalysisError::InvalidInput(format!("{}:{line}: {why}", path.display()));
+        let record: PairRecord = row
+            .deserialize(Some(&headers))
+            .map_err(|e| bad(&format!("unreadable row: {e}")))?;
+        let fields: Vec<&str> = row.iter().take(PAIRS_HEADER.len() - 1).collect();
+        let check = crate::resume::row_check(identity, &fields).unwrap_or_default();
+        if row.get(PAIRS_HEADER.len() - 1) != Some(check.as_str()) {
+            return Err(bad("the row does not match its check (changed after it was written)"));
+        }
+        let (Some(&source), Some(&target)) = (index.get(record.a.as_str()), index.get(record.b.as_str())) else {
+            return Err(bad(&format!("{} -> {}: not shapes of this run", record.a, record.b)));
+        };
+        records.push(PairRecord {
+            source,
+            target,
+            ..record
+        });
+    }
+    Ok(records)
 }
 
 /// The lock file of an output folder ([`lock_output_folder`]).

@@ -22,7 +22,7 @@ use crate::pipeline::{
 };
 
 /// The pairs a resumed run took from earlier runs.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ResumeReport {
     /// Directed pairs taken from earlier files (not computed by this run).
     pub pairs: usize,

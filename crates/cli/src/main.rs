@@ -27,6 +27,8 @@ enum Command {
     Distances(cmd::distances::DistancesArgs),
     /// Conformal map of a disk onto the unit disk (OBJ with vt) or of a closed genus-0 mesh onto the unit sphere (positions on S²); factors CSV, report JSON.
     Conformal(cmd::conformal::ConformalArgs),
+    /// Assemble the folders of `distances --shard K/N` runs into one run's distances.csv, pairs.csv, report.json.
+    Merge(cmd::distances::MergeArgs),
     /// Print mesh statistics (V, F, components, boundary loops, χ, genus, manifoldness, class).
     Info(cmd::info::InfoArgs),
     /// Classical MDS of a distance matrix: coordinates, eigenvalues, plots, 1-NN and silhouette statistics.
@@ -50,6 +52,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => cmd::demo::run(args),
         Command::Distances(args) => cmd::distances::run(args),
         Command::Info(args) => cmd::info::run(args),
+        Command::Merge(args) => cmd::distances::run_merge(args),
         Command::Mds(args) => cmd::mds::run(args),
         Command::Ot(args) => cmd::ot::run(args),
         Command::Param(args) => cmd::param::run(args),

@@ -76,7 +76,7 @@ pub struct MarkerFile {
 
 /// The resolved interior marker: a vertex, or a point inside a face. Serialized as in a marker
 /// file (`123` or `{"face": f, "bary": [..]}`), so a report's markers can be fed back.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(untagged)]
 pub enum ResolvedCenter {
     /// A mesh vertex.

@@ -72,6 +72,12 @@ pub struct SolverArgs {
     /// N = 10000 changes the distances by well under 1 % (README, "Speed").
     #[arg(long, value_name = "N")]
     pub target_points: Option<usize>,
+    /// Keep each shape's per-shape work (conformal map, density, target points) in this folder,
+    /// one file per shape keyed by the file's SHA-256, its markers, the settings and the
+    /// executable, and take it from there when they come again: shards and later runs do not
+    /// compute it again. The results are the same with and without it.
+    #[arg(long, value_name = "DIR")]
+    pub cache: Option<PathBuf>,
     /// No progress bar (one line with the estimated time of the pairs after the first ones).
     #[arg(long)]
     pub quiet: bool,
@@ -98,6 +104,60 @@ pub struct DistancesArgs {
     /// distances are computed, so a bad labels file fails at once.
     #[arg(long, requires = "mds")]
     pub labels: Option<PathBuf>,
+    /// Compute only shard K of N of the pairs (1 <= K <= N): the pairs, numbered by target then
+    /// source, in N contiguous ranges of equal size (up to one pair). Each shard writes its own
+    /// folder (a partial matrix, its pairs, a report that names the shard); `shapespace merge`
+    /// assembles the N folders into the files of one run. Every shard prepares every shape
+    /// (the automatic markers are chosen over all files). Not with --warm-start, --debias or
+    /// --mds.
+    #[arg(long, value_name = "K/N", conflicts_with_all = ["mds", "warm_start", "debias"])]
+    pub shard: Option<String>,
+}
+
+/// Arguments of `shapespace merge`.
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The output folders of `distances --shard K/N` runs, all N shards of one run.
+    #[arg(required = true)]
+    pub shards: Vec<PathBuf>,
+    /// Output folder: distances.csv, pairs.csv, report.json as one run writes them.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also run MDS and statistics on the result (as `shapespace mds`).
+    #[arg(long)]
+    pub mds: bool,
+}
+
+/// `shapespace merge`: the shards' folders assembled into one run's files.
+pub fn run_merge(args: &MergeArgs) -> anyhow::Result<ExitCode> {
+    let mut names = vec!["distances.csv", "pairs.csv", "report.json"];
+    if args.mds {
+        names.extend(shapespace_analysis::shape_space::MDS_OUTPUTS);
+    }
+    let inputs: Vec<PathBuf> = args
+        .shards
+        .iter()
+        .flat_map(|d| ["distances.csv", "pairs.csv", "report.json"].map(|f| d.join(f)))
+        .collect();
+    super::check_output_folder(&args.out, &names, inputs.iter().map(|p| Some(p.as_path())))?;
+    let run = shapespace_analysis::pipeline::merge_shards(&args.shards, &args.out)
+        .with_context(|| format!("merge into {}", args.out.display()))?;
+    let r = &run.report;
+    eprintln!(
+        "merge: {} shards, {} shapes ({} failed), {} directed pairs ({} failed)",
+        args.shards.len(),
+        r.inputs.len(),
+        r.inputs.iter().filter(|i| !i.ok).count(),
+        r.pairs_computed,
+        r.pairs_failed
+    );
+    for f in &r.files {
+        eprintln!("merge: wrote {}", f.display());
+    }
+    if args.mds {
+        mds_unless_failed(&run, &args.out, None)?;
+    }
+    Ok(exit_code(&run))
 }
 
 pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
@@ -105,7 +165,13 @@ pub fn run(args: &DistancesArgs) -> anyhow::Result<ExitCode> {
     if let Some(labels) = &args.labels {
         check_labels(labels, &args.files)?;
     }
-    let run = compute(&args.files, &args.out, &args.solver)?;
+    let shard = args
+        .shard
+        .as_deref()
+        .map(shapespace_analysis::shard::Shard::parse)
+        .transpose()
+        .context("--shard")?;
+    let run = compute_shard(&args.files, &args.out, &args.solver, shard)?;
     if args.mds {
         mds_unless_failed(&run, &args.out, args.labels.as_deref())?;
     }
@@ -192,6 +258,16 @@ const MAX_THREADS_PER_CORE: usize = 4;
 
 /// Runs the distances with a progress bar; prints a summary to stderr.
 pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) -> anyhow::Result<DistancesRun> {
+    compute_shard(files, out, solver, None)
+}
+
+/// [`compute`], of one shard of the pairs when `shard` is given.
+pub fn compute_shard(
+    files: &[PathBuf],
+    out: &std::path::Path,
+    solver: &SolverArgs,
+    shard: Option<shapespace_analysis::shard::Shard>,
+) -> anyhow::Result<DistancesRun> {
     if let Some(requested) = solver.threads {
         // More threads than a few per core only cost their creation (10,000 threads took over a
         // minute to start on 2 cores), so the request is capped.
@@ -240,6 +316,8 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         },
         resume: solver.resume,
         target_points: solver.target_points,
+        shard,
+        cache: solver.cache.clone(),
         ..DistancesOptions::default()
     };
     if let Some(n) = solver.target_points {
@@ -309,6 +387,17 @@ pub fn compute(files: &[PathBuf], out: &std::path::Path, solver: &SolverArgs) ->
         .filter(|f| !f.ends_with("shape failed to prepare"))
     {
         eprintln!("shapespace: pair {failure}");
+    }
+    if let Some(shard) = shard {
+        eprintln!("distances: shard {} of {}", shard.index, shard.count);
+    }
+    if let Some(dir) = &solver.cache {
+        eprintln!(
+            "distances: {} of {} shapes taken from the cache {}",
+            run.cache_hits,
+            r.inputs.len(),
+            dir.display()
+        );
     }
     eprintln!(
         "distances: {} shapes ({} failed), {} directed pairs ({} failed) in {:.1} s (prepare {:.1} s, pairs {:.1} s on {} threads)",
