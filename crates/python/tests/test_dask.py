@@ -30,3 +30,37 @@ def test_pairwise_on_a_local_cluster_equals_the_command(shapespace_bin, tmp_path
     # the same matrix in process
     D_local, _ = shapespace.pairwise(FOUR)
     assert (D_local == D).all()
+
+
+class _DieOnceInATile(distributed.WorkerPlugin):
+    """Kills the worker process the first time any worker starts a tile (an exclusive marker
+    file makes it once across restarts): the nanny restarts the worker and the scheduler reruns
+    the tile elsewhere."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def transition(self, key, start, finish, **kwargs):
+        import os
+
+        name = key[0] if isinstance(key, tuple) else key
+        if finish == "executing" and str(name).startswith("_worker_tile"):
+            try:
+                os.close(os.open(self.marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            except FileExistsError:
+                return
+            os._exit(1)
+
+
+def test_a_worker_dying_in_a_tile_changes_no_result(shapespace_bin, tmp_path):
+    run_distances(shapespace_bin, FOUR, tmp_path / "out")
+    names, rows = read_matrix(tmp_path / "out" / "distances.csv")
+    marker = tmp_path / "died"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            client.register_plugin(_DieOnceInATile(marker))
+            D, _ = shapespace.pairwise(FOUR, client=client, tiles=4)
+    assert marker.exists(), "no worker died: the test did not test anything"
+    for i in range(4):
+        for j in range(4):
+            assert D[i, j].hex() == float(rows[i][j]).hex(), (i, j)
