@@ -85,6 +85,9 @@ pub enum AnalysisError {
     /// The conformal disk map (or its distortion evaluation) failed.
     #[error("conformal disk map")]
     DiskMap(#[source] shapespace_conformal::ConformalError),
+    /// The conformal sphere map of a closed genus-0 surface failed.
+    #[error("conformal sphere map")]
+    SphereMap(#[source] shapespace_conformal::ConformalError),
     /// The optimal transport step of an area-preserving map failed or did not converge.
     #[error("optimal transport")]
     Transport(#[source] shapespace_omt::OmtError),

@@ -34,6 +34,7 @@ pub mod shape_cache;
 pub mod shape_space;
 pub mod shard;
 pub mod shared_markers;
+pub mod sphere_param;
 pub mod stats;
 
 pub use error::AnalysisError;

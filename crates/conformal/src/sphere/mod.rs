@@ -30,7 +30,7 @@
 pub mod construct;
 pub mod mobius;
 pub mod quality;
-mod repair;
+pub mod repair;
 
 use std::time::Instant;
 

@@ -49,10 +49,11 @@ fn to_south(c: [f64; 3]) -> [[f64; 3]; 3] {
     [e1, e2, e3]
 }
 
-/// Repairs folded faces of the sphere map `x` (#V) in place (module docs); `fixed` (#V)
+/// Repairs folded faces of a map `x` (#V) of the mesh onto S² in place (module docs): the
+/// conformal sphere map, and the area-preserving sphere map of the analysis crate; `fixed` (#V)
 /// vertices never move. Returns the number of vertex moves; folds that could not be repaired
 /// remain (the caller checks again).
-pub(crate) fn repair_sphere_folds(mesh: &TriMesh, x: &mut [[f64; 3]], fixed: &[bool]) -> usize {
+pub fn repair_sphere_folds(mesh: &TriMesh, x: &mut [[f64; 3]], fixed: &[bool]) -> usize {
     let mut bad = folded(mesh, x);
     if bad.is_empty() {
         return 0;
