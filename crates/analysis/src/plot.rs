@@ -1005,7 +1005,7 @@ pub fn histograms(
             message: "no histogram series".into(),
         });
     }
-    let kind = backend_kind(path)?;
+    backend_kind(path)?;
     ensure_font()?;
     let hist = histogram_counts(series, bins, range)?;
     let fractions = hist
@@ -1025,25 +1025,7 @@ pub fn histograms(
         title,
         x_label,
     };
-    let result = match kind {
-        "png" => replace_atomically(
-            path,
-            |temp| {
-                draw_histograms(BitMapBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-                    .map_err(|e| plot_err(path, e))
-            },
-            |e| AnalysisError::io(path, e),
-        ),
-        _ => replace_atomically(
-            path,
-            |temp| {
-                draw_histograms(SVGBackend::new(temp, (WIDTH, HEIGHT)).into_drawing_area(), &input)
-                    .map_err(|e| plot_err(path, e))
-            },
-            |e| AnalysisError::io(path, e),
-        ),
-    };
-    result?;
+    render!(path, (WIDTH, HEIGHT), |area| draw_histograms(area, &input))?;
     Ok(input.hist)
 }
 
