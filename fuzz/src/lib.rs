@@ -154,3 +154,23 @@ pub fn replay_or_sweep(target: &str, seeds: &[&Path], count: usize, check: impl 
         std::process::exit(1);
     }
 }
+
+/// The plain-binary run of a reader target `read_<ext>`: replays the files given, or sweeps
+/// mutations of the corpus `tests/bad_input/*.<ext>` and one public mesh of the shared datasets
+/// (`shared_seed`, relative to `../shared/datasets`; left out when absent) through
+/// [`check_mesh_reader`].
+pub fn mesh_reader_sweep(ext: &str, shared_seed: &str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut corpus: Vec<std::path::PathBuf> = std::fs::read_dir(root.join("tests/bad_input"))
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    corpus.sort();
+    corpus.push(root.join("../shared/datasets").join(shared_seed));
+    let seeds: Vec<&Path> = corpus
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == ext))
+        .map(|p| p.as_path())
+        .collect();
+    let name = Path::new("fuzz").with_extension(ext);
+    replay_or_sweep(&format!("read_{ext}"), &seeds, 2000, |data| check_mesh_reader(data, &name));
+}
