@@ -64,6 +64,33 @@ pub struct FaceDistortions {
     pub orientation: Vec<i8>,
 }
 
+impl FaceDistortions {
+    /// Gathers per-face values `(Υ, Λ, angle distortion, orientation)` (#F), `None` for a face of
+    /// zero 3D area, which is an error naming the first such face.
+    pub(crate) fn from_faces(per_face: Vec<Option<(f64, f64, f64, i8)>>) -> Result<Self, ConformalError> {
+        let nf = per_face.len();
+        let mut out = FaceDistortions {
+            area_distortion: Vec::with_capacity(nf),
+            quasi_conformal_distortion: Vec::with_capacity(nf),
+            angle_distortion: Vec::with_capacity(nf),
+            orientation: Vec::with_capacity(nf),
+        };
+        for (f, values) in per_face.into_iter().enumerate() {
+            let Some((area, quasi_conformal, angle, orientation)) = values else {
+                return Err(ConformalError::DegenerateFace {
+                    face: f,
+                    reason: "zero 3D area".into(),
+                });
+            };
+            out.area_distortion.push(area);
+            out.quasi_conformal_distortion.push(quasi_conformal);
+            out.angle_distortion.push(angle);
+            out.orientation.push(orientation);
+        }
+        Ok(out)
+    }
+}
+
 /// Summary statistics of a per-face quantity.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Stats {
@@ -217,25 +244,7 @@ pub fn face_distortions(mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<FaceDistortio
             Some((area_distortion, quasi_conformal, sum / 3.0, orientation))
         })
         .collect();
-    let mut out = FaceDistortions {
-        area_distortion: Vec::with_capacity(nf),
-        quasi_conformal_distortion: Vec::with_capacity(nf),
-        angle_distortion: Vec::with_capacity(nf),
-        orientation: Vec::with_capacity(nf),
-    };
-    for (f, values) in per_face.into_iter().enumerate() {
-        let Some((area, quasi_conformal, angle, orientation)) = values else {
-            return Err(ConformalError::DegenerateFace {
-                face: f,
-                reason: "zero 3D area".into(),
-            });
-        };
-        out.area_distortion.push(area);
-        out.quasi_conformal_distortion.push(quasi_conformal);
-        out.angle_distortion.push(angle);
-        out.orientation.push(orientation);
-    }
-    Ok(out)
+    FaceDistortions::from_faces(per_face)
 }
 
 fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

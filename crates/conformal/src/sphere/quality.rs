@@ -112,26 +112,7 @@ pub fn sphere_face_distortions(mesh: &TriMesh, positions: &[[f64; 3]]) -> Result
             Some((area_distortion, quasi_conformal, angle, orientation))
         })
         .collect();
-    let nf = mesh.num_faces();
-    let mut out = FaceDistortions {
-        area_distortion: Vec::with_capacity(nf),
-        quasi_conformal_distortion: Vec::with_capacity(nf),
-        angle_distortion: Vec::with_capacity(nf),
-        orientation: Vec::with_capacity(nf),
-    };
-    for (f, values) in per_face.into_iter().enumerate() {
-        let Some((area, qc, angle, orientation)) = values else {
-            return Err(ConformalError::DegenerateFace {
-                face: f,
-                reason: "zero 3D area".into(),
-            });
-        };
-        out.area_distortion.push(area);
-        out.quasi_conformal_distortion.push(qc);
-        out.angle_distortion.push(angle);
-        out.orientation.push(orientation);
-    }
-    Ok(out)
+    FaceDistortions::from_faces(per_face)
 }
 
 #[cfg(test)]
