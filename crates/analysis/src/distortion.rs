@@ -16,7 +16,8 @@
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
-use shapespace_conformal::quality::{face_distortions, Stats};
+use shapespace_conformal::quality::{face_distortions, FaceDistortions, Stats};
+use shapespace_conformal::sphere::quality::sphere_face_distortions;
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::TriMesh;
 
@@ -68,7 +69,6 @@ pub struct DistortionReport {
 /// a zero-area 3D face.
 pub fn map_distortion(name: &str, mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<MapDistortion, AnalysisError> {
     let d = face_distortions(mesh, uv).map_err(AnalysisError::DiskMap)?;
-    let areas3 = face_areas(mesh);
     let areas2: Vec<f64> = mesh
         .faces
         .iter()
@@ -77,6 +77,36 @@ pub fn map_distortion(name: &str, mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<Map
             0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).abs()
         })
         .collect();
+    Ok(gather(name, mesh, d, &areas2))
+}
+
+/// Distortion of the map `positions` (#V points on the unit sphere) of a closed `mesh`: the
+/// same quantities as [`map_distortion`], the image faces taken as flat chordal triangles and
+/// the surface scaled to area 4π; a face is flipped when det(a, b, c) < 0 (exact), i.e. when
+/// the image triangle turns clockwise seen from outside the sphere. Errors: `positions` of the
+/// wrong length, a zero-area 3D face.
+pub fn sphere_map_distortion(
+    name: &str,
+    mesh: &TriMesh,
+    positions: &[[f64; 3]],
+) -> Result<MapDistortion, AnalysisError> {
+    let d = sphere_face_distortions(mesh, positions).map_err(AnalysisError::SphereMap)?;
+    let image = mesh.faces.iter().map(|f| {
+        let [a, b, c] = f.map(|v| positions[v as usize]);
+        let (u, w) = ([0, 1, 2].map(|k| b[k] - a[k]), [0, 1, 2].map(|k| c[k] - a[k]));
+        let n = [
+            u[1] * w[2] - u[2] * w[1],
+            u[2] * w[0] - u[0] * w[2],
+            u[0] * w[1] - u[1] * w[0],
+        ];
+        0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+    });
+    Ok(gather(name, mesh, d, &image.collect::<Vec<_>>()))
+}
+
+/// [`MapDistortion`] from the per-face values `d` and the unsigned image areas `areas2` (#F).
+fn gather(name: &str, mesh: &TriMesh, d: FaceDistortions, areas2: &[f64]) -> MapDistortion {
+    let areas3 = face_areas(mesh);
     let (total3, total2): (f64, f64) = (areas3.iter().sum(), areas2.iter().sum());
     let n = mesh.num_vertices();
     let (mut ring3, mut ring2) = (vec![0.0; n], vec![0.0; n]);
@@ -102,7 +132,7 @@ pub fn map_distortion(name: &str, mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<Map
     let abs_ups: Vec<f64> = d.area_distortion.iter().map(|x| x.abs()).collect();
     let abs_eps: Vec<f64> = vertex_log_area_ratio.iter().map(|x| x.abs()).collect();
     let angle_deg: Vec<f64> = d.angle_distortion.iter().map(|x| x.to_degrees()).collect();
-    Ok(MapDistortion {
+    MapDistortion {
         name: name.to_string(),
         abs_area_distortion: Stats::of(&abs_ups),
         quasi_conformal_distortion: Stats::of(&d.quasi_conformal_distortion),
@@ -116,7 +146,7 @@ pub fn map_distortion(name: &str, mesh: &TriMesh, uv: &[[f64; 2]]) -> Result<Map
         face_quasi_conformal_distortion: d.quasi_conformal_distortion,
         face_angle_distortion_deg: angle_deg,
         vertex_log_area_ratio,
-    })
+    }
 }
 
 /// The side-by-side report of the conformal map `conformal_uv` and the area-preserving map
@@ -132,6 +162,23 @@ pub fn distortion_report(
         maps: vec![
             map_distortion("conformal", mesh, conformal_uv)?,
             map_distortion("area-preserving", mesh, area_preserving_uv)?,
+        ],
+    })
+}
+
+/// [`distortion_report`] for two maps onto the unit sphere (#V points each, see
+/// [`sphere_map_distortion`]).
+pub fn sphere_distortion_report(
+    mesh: &TriMesh,
+    conformal: &[[f64; 3]],
+    area_preserving: &[[f64; 3]],
+) -> Result<DistortionReport, AnalysisError> {
+    Ok(DistortionReport {
+        num_vertices: mesh.num_vertices(),
+        num_faces: mesh.num_faces(),
+        maps: vec![
+            sphere_map_distortion("conformal", mesh, conformal)?,
+            sphere_map_distortion("area-preserving", mesh, area_preserving)?,
         ],
     })
 }

@@ -120,6 +120,10 @@ pub struct FoldRepairParams {
     /// The retraction never makes a face smaller than e^{-τ} times its share of the 3D area
     /// (or its input area, if smaller and valid), unless it already is (default τ = 1).
     pub retraction_log_floor: f64,
+    /// The image area each face should have (#F), for the retraction's floor; default (`None`):
+    /// its share of the 3D area, scaled to the image's total area. A chart whose scale varies
+    /// over the image (a stereographic chart of the sphere) gives each face its own.
+    pub target_face_areas: Option<Vec<f64>>,
 }
 
 impl Default for FoldRepairParams {
@@ -131,6 +135,7 @@ impl Default for FoldRepairParams {
             initial_rings: 2,
             retraction_sweeps: 200,
             retraction_log_floor: 1.0,
+            target_face_areas: None,
         }
     }
 }
@@ -808,6 +813,15 @@ pub(crate) fn repair_folds_with(
             is_boundary.len()
         )));
     }
+    if let Some(t) = &params.target_face_areas {
+        if t.len() != mesh.num_faces() {
+            return Err(AnalysisError::InvalidInput(format!(
+                "fold repair: {} target face areas for {} faces",
+                t.len(),
+                mesh.num_faces()
+            )));
+        }
+    }
     let (flipped, degenerate, mut bad) = folded_faces(&mesh.faces, uv);
     let mut info = FoldRepairInfo {
         enabled: params.enabled,
@@ -913,7 +927,8 @@ pub(crate) fn repair_folds_with(
     };
     info.region_vertices = region_size;
     let movable: Vec<usize> = (0..n).filter(|&v| in_region[v]).collect();
-    // floors: 2 · e^{-τ} · A3D_f · A2D_total / A3D_total, lowered to the input's valid area
+    // floors: 2 · e^{-τ} · A3D_f · A2D_total / A3D_total (or 2 · e^{-τ} times the face's given
+    // target area), lowered to the input's valid area
     let areas3 = face_areas(mesh);
     let total3: f64 = areas3.iter().sum();
     let total2: f64 = mesh
@@ -928,8 +943,13 @@ pub(crate) fn repair_folds_with(
         .faces
         .iter()
         .zip(&areas3)
-        .map(|(f, a3)| {
-            let share = 2.0 * a3 * total2 / total3 * (-params.retraction_log_floor).exp();
+        .enumerate()
+        .map(|(i, (f, a3))| {
+            let target = match &params.target_face_areas {
+                Some(t) => t.get(i).copied().unwrap_or(0.0),
+                None => a3 * total2 / total3,
+            };
+            let share = 2.0 * target * (-params.retraction_log_floor).exp();
             let [a, b, c] = f.map(|v| original[v as usize]);
             doubled_area(a, b, c).map_or(share, |l| l.min(share))
         })

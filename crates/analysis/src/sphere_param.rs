@@ -8,23 +8,34 @@
 //! the vertex moves to its cell's centroid, projected back onto S². Areas are then preserved up
 //! to the discretization, and the map stays close to the conformal one where the conformal map
 //! already preserved area. Centroids of neighbouring cells can fold a sliver, as in the plane;
-//! such folds get the sphere map's local repair (a stereographic chart around each cluster).
+//! such folds get the disk's fold repair ([`crate::fold_repair`]) in a gnomonic chart around
+//! each cluster (`repair_in_charts`).
 //!
 //! Measured (`tests/sphere_param.rs`): an ellipsoid 1:1:2 of 2,562 vertices goes from a 95th
 //! percentile |ln(one-ring area ratio)| of 1.50 (conformal) to 0.027, with no flipped face;
-//! TOSCA wolf0 from 24.9 to 0.40, but its centroid map folds 132 faces and the local repair
-//! leaves 4 of 8,684: the disk's patch re-embedding ([`crate::fold_repair`]) is not yet
-//! available on the sphere.
+//! TOSCA wolf0 from 24.9 to 0.39, its centroid map folding 132 of 8,684 faces, which the
+//! repair unfolds in 30 charts moving 141 vertices. Where the conformal sphere map itself
+//! fails (limbs crowded beyond double precision: the TOSCA centaur, the lion poses) or the
+//! OT does not converge, there is no map: `benches/sphere_param_bench.rs` in the tools crate
+//! lists them (`docs/sphere.md`).
 
+use std::collections::{HashMap, HashSet};
+use std::time::Instant;
+
+use rayon::prelude::*;
 use shapespace_conformal::sphere::quality::orientation_on_sphere;
-use shapespace_conformal::sphere::repair::repair_sphere_folds;
+use shapespace_conformal::sphere::repair::rotation_to_south;
 use shapespace_conformal::{sphere_map, SphereMap, SphereMapParams};
-use shapespace_geometry::quantities::vertex_dual_areas;
+use shapespace_geometry::connectivity::Connectivity;
+use shapespace_geometry::quantities::{face_areas, vertex_dual_areas};
+use shapespace_geometry::topology::euler_characteristic;
 use shapespace_geometry::TriMesh;
 use shapespace_omt::sphere::{solve_sphere_ot, SphereMeasure, SphereOtParams};
 use shapespace_omt::OmtError;
 
+use crate::area_preserving::weighted_target_masses;
 use crate::error::AnalysisError;
+use crate::fold_repair::{repair_folds, FoldRepairParams};
 
 /// Options of [`area_preserving_sphere_map`].
 #[derive(Clone, Debug, Default)]
@@ -36,6 +47,11 @@ pub struct SphereParamParams {
     /// Subdivisions of the icosphere carrying the uniform source (20·4^s flat triangles);
     /// default: the smallest s ≥ 4 with at least two triangles per vertex.
     pub source_subdivisions: Option<usize>,
+    /// Per-vertex importance weights w_i > 0 (#V) multiplying the masses, as on the disk
+    /// ([`weighted_target_masses`]); `None`: all 1.
+    pub weights: Option<Vec<f64>>,
+    /// Skip the fold repair after the centroid map (the folds are only counted).
+    pub no_fold_repair: bool,
 }
 
 /// The result of [`area_preserving_sphere_map`].
@@ -57,11 +73,26 @@ pub struct SphereAreaPreservingMap {
     /// Image faces not positively oriented on S² after the fold repair (exact `orient_3d`
     /// against the centre).
     pub num_flipped: usize,
-    /// Vertex moves of the fold repair (the moved vertices' cells no longer have their exact
-    /// areas).
-    pub fold_repairs: usize,
     /// Subdivisions of the icosphere source.
     pub source_subdivisions: usize,
+    /// Faces folded by the centroid map, before the repair.
+    pub flipped_before_repair: usize,
+    /// The fold repair, when it ran (the moved vertices' cells no longer have their exact
+    /// areas).
+    pub fold_repair: Option<SphereFoldRepairInfo>,
+    /// Wall-clock seconds of the stages.
+    pub timings: SphereParamTimings,
+}
+
+/// Wall-clock seconds of the stages of [`area_preserving_sphere_map`].
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct SphereParamTimings {
+    /// The conformal sphere map.
+    pub conformal: f64,
+    /// The OT solve.
+    pub ot: f64,
+    /// Centroids and fold repair.
+    pub output: f64,
 }
 
 /// The area-preserving map of a closed genus-0 `mesh` onto the unit sphere (module docs).
@@ -72,7 +103,13 @@ pub fn area_preserving_sphere_map(
     mesh: &TriMesh,
     params: &SphereParamParams,
 ) -> Result<SphereAreaPreservingMap, AnalysisError> {
+    let clock = Instant::now();
     let conformal = sphere_map(mesh, &params.sphere_map).map_err(AnalysisError::SphereMap)?;
+    let mut timings = SphereParamTimings {
+        conformal: clock.elapsed().as_secs_f64(),
+        ..Default::default()
+    };
+    let clock = Instant::now();
     let n = mesh.num_vertices();
     let subdivisions = params.source_subdivisions.unwrap_or_else(|| {
         let mut s = 4;
@@ -82,12 +119,17 @@ pub fn area_preserving_sphere_map(
         s
     });
     let source = SphereMeasure::uniform_icosphere(subdivisions).map_err(AnalysisError::Transport)?;
-    let thirds = vertex_dual_areas(mesh);
-    let total: f64 = thirds.iter().sum();
-    let masses: Vec<f64> = thirds.iter().map(|a| a * source.total_mass() / total).collect();
+    // the disk's masses (Σ = π) scaled to the source's total (4π up to the icosphere's chords)
+    let scale = source.total_mass() / std::f64::consts::PI;
+    let masses: Vec<f64> = weighted_target_masses(&vertex_dual_areas(mesh), params.weights.as_deref())?
+        .into_iter()
+        .map(|m| m * scale)
+        .collect();
     let solution = solve_sphere_ot(&source, &conformal.positions, &masses, &params.ot)
         .and_then(|s| s.into_result())
         .map_err(AnalysisError::Transport)?;
+    timings.ot = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
     let mut positions = solution
         .centroids_on_sphere()
         .into_iter()
@@ -100,30 +142,14 @@ pub fn area_preserving_sphere_map(
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
-    // the centroid map can fold slivers, as in the plane: the local repair of the sphere map,
-    // in a stereographic chart around each cluster of folded faces
-    // (rounds while it still moves vertices: a repaired cluster can leave a fold beside it)
-    let flipped = |x: &[[f64; 3]]| {
-        mesh.faces
-            .iter()
-            .filter(|f| {
-                let [a, b, c] = f.map(|v| x[v as usize]);
-                orientation_on_sphere(a, b, c) != 1
-            })
-            .count()
+    // the centroid map can fold slivers, as in the plane: the disk's repair in a chart
+    let flipped_before_repair = folded_on_sphere(mesh, &positions).len();
+    let fold_repair = if params.no_fold_repair {
+        None
+    } else {
+        Some(repair_in_charts(mesh, &mut positions))
     };
-    let mut fold_repairs = 0;
-    for _ in 0..8 {
-        if flipped(&positions) == 0 {
-            break;
-        }
-        let moves = repair_sphere_folds(mesh, &mut positions, &vec![false; n]);
-        if moves == 0 {
-            break;
-        }
-        fold_repairs += moves;
-    }
-    let num_flipped = flipped(&positions);
+    let num_flipped = folded_on_sphere(mesh, &positions).len();
     Ok(SphereAreaPreservingMap {
         positions,
         conformal,
@@ -132,7 +158,342 @@ pub fn area_preserving_sphere_map(
         heights: solution.heights.clone(),
         iterations: solution.iterations,
         num_flipped,
-        fold_repairs,
         source_subdivisions: subdivisions,
+        flipped_before_repair,
+        fold_repair,
+        timings: SphereParamTimings {
+            output: clock.elapsed().as_secs_f64(),
+            ..timings
+        },
     })
+}
+
+/// Faces of `mesh` whose image `x` on S² is not positively oriented (exact `orient_3d` against
+/// the centre).
+fn folded_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
+    (0..mesh.num_faces())
+        .into_par_iter()
+        .filter(|&f| {
+            let [a, b, c] = mesh.faces[f].map(|v| x[v as usize]);
+            orientation_on_sphere(a, b, c) != 1
+        })
+        .collect()
+}
+
+/// Rings of faces around a fold cluster in its first chart; ×1.5 after each failure.
+const CHART_RINGS: usize = 3;
+/// A chart holds at most this fraction of the faces.
+const CHART_MAX_FRACTION: f64 = 0.25;
+/// A chart's vertices lie within this angle of its centre (radians; the gnomonic projection
+/// reaches infinity at π/2; the area factor there is 1/cos³θ ≈ 700).
+const CHART_MAX_ANGLE: f64 = 1.45;
+
+/// What the fold repair of [`area_preserving_sphere_map`] did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SphereFoldRepairInfo {
+    /// Clusters of folded faces (connected through shared vertices) found.
+    pub clusters: usize,
+    /// Clusters whose chart repair was kept.
+    pub repaired: usize,
+    /// Vertices moved.
+    pub vertices_moved: usize,
+    /// The largest chart used, in rings around its cluster.
+    pub max_rings: usize,
+}
+
+/// Re-embeds the folded faces of the map `x` (#V points on S²) by the disk's fold repair
+/// ([`crate::fold_repair::repair_folds`]: untangling, Tutte re-embedding in growing regions,
+/// retraction) in a gnomonic chart around each cluster of folded faces.
+///
+/// The gnomonic (central) projection onto the tangent plane at the cluster's mean direction c
+/// maps great circles to straight lines, so a planar face turns counter-clockwise exactly when
+/// det(a, b, c) > 0 on S², the test of a fold on the sphere (the stereographic chart does not
+/// have this: a sliver along a great circle can turn over in it). A chart holds the faces
+/// within k rings of the cluster plus the holes they enclose (a ring around a leg encloses its
+/// tip), must be a disk (one boundary loop, Euler characteristic 1) and keeps its boundary
+/// fixed, so no face outside it changes. The retraction's floors are each face's share of 4π
+/// times the projection's area factor 1/cos³θ at the face. A chart whose repair fails or
+/// leaves a fold on S² (checked exactly) is discarded, and the next one has ⌈1.5k⌉ rings, until
+/// a chart passes a quarter of the faces or 1.45 rad from its centre.
+fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
+    let mut info = SphereFoldRepairInfo::default();
+    let conn = Connectivity::of(mesh);
+    let mut given_up: HashSet<usize> = HashSet::new();
+    loop {
+        let bad = folded_on_sphere(mesh, x);
+        let Some(&f0) = bad.iter().find(|f| !given_up.contains(f)) else {
+            return info;
+        };
+        info.clusters += 1;
+        let is_bad: HashSet<usize> = bad.iter().copied().collect();
+        let mut cluster = vec![f0];
+        let mut seen: HashSet<usize> = [f0].into_iter().collect();
+        let mut i = 0;
+        while i < cluster.len() {
+            for &v in &mesh.faces[cluster[i]] {
+                for &g in &conn.vertex_faces[v as usize] {
+                    if is_bad.contains(&(g as usize)) && seen.insert(g as usize) {
+                        cluster.push(g as usize);
+                    }
+                }
+            }
+            i += 1;
+        }
+        let mut rings = CHART_RINGS;
+        let mut kept = false;
+        while let Some(patch) = chart_patch(mesh, &conn, &cluster, rings) {
+            if let Some(moved) = repair_patch(mesh, x, &patch) {
+                info.vertices_moved += moved.len();
+                for (v, p) in moved {
+                    x[v as usize] = p;
+                }
+                info.max_rings = info.max_rings.max(rings);
+                kept = true;
+                break;
+            }
+            rings += rings.div_ceil(2);
+        }
+        if kept {
+            info.repaired += 1;
+        } else {
+            given_up.extend(cluster);
+        }
+    }
+}
+
+/// The faces within `rings` rings of `cluster` (through shared vertices), plus every hole they
+/// enclose: the connected components of the other faces (through shared edges) but the
+/// largest. `None` when that passes [`CHART_MAX_FRACTION`] of the faces.
+fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: usize) -> Option<Vec<usize>> {
+    let nf = mesh.num_faces();
+    let limit = (CHART_MAX_FRACTION * nf as f64) as usize;
+    let mut inside = vec![false; nf];
+    let mut patch: Vec<usize> = Vec::new();
+    for &f in cluster {
+        if !std::mem::replace(&mut inside[f], true) {
+            patch.push(f);
+        }
+    }
+    let mut front = patch.clone();
+    for _ in 0..rings {
+        let mut next = Vec::new();
+        for &f in &front {
+            for &v in &mesh.faces[f] {
+                for &g in &conn.vertex_faces[v as usize] {
+                    if !std::mem::replace(&mut inside[g as usize], true) {
+                        next.push(g as usize);
+                    }
+                }
+            }
+        }
+        patch.extend_from_slice(&next);
+        if patch.len() > limit {
+            return None;
+        }
+        front = next;
+    }
+    // the components of the outside, through shared edges
+    let mut component = vec![usize::MAX; nf];
+    let mut sizes: Vec<usize> = Vec::new();
+    for start in 0..nf {
+        if inside[start] || component[start] != usize::MAX {
+            continue;
+        }
+        let id = sizes.len();
+        let mut stack = vec![start];
+        component[start] = id;
+        let mut size = 0;
+        while let Some(f) = stack.pop() {
+            size += 1;
+            for &e in &conn.face_edges[f] {
+                for &g in &conn.edge_faces[e as usize] {
+                    let g = g as usize;
+                    if !inside[g] && component[g] == usize::MAX {
+                        component[g] = id;
+                        stack.push(g);
+                    }
+                }
+            }
+        }
+        sizes.push(size);
+    }
+    let largest = (0..sizes.len()).max_by_key(|&c| sizes[c])?;
+    patch.extend((0..nf).filter(|&f| !inside[f] && component[f] != largest));
+    (patch.len() <= limit).then_some(patch)
+}
+
+/// The disk's fold repair on the faces `patch` of `mesh` in the gnomonic chart at their mean
+/// direction. Returns the new positions of the vertices it moved, or `None` when the patch is
+/// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
+/// patch folded on S².
+fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize]) -> Option<HashMap<u32, [f64; 3]>> {
+    let mut local = HashMap::new();
+    let mut verts: Vec<u32> = Vec::new();
+    let faces: Vec<[u32; 3]> = patch
+        .iter()
+        .map(|&f| {
+            mesh.faces[f].map(|v| {
+                *local.entry(v).or_insert_with(|| {
+                    verts.push(v);
+                    verts.len() as u32 - 1
+                })
+            })
+        })
+        .collect();
+    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces).ok()?;
+    let sub_conn = Connectivity::of(&sub);
+    let loops = sub_conn.boundary_loops(&sub.faces);
+    if loops.len() != 1 || euler_characteristic(&sub, &sub_conn) != 1 {
+        return None;
+    }
+    let mut is_boundary = vec![false; verts.len()];
+    for &v in &loops[0] {
+        is_boundary[v as usize] = true;
+    }
+    let mut c = [0.0; 3];
+    for &v in &verts {
+        for (ck, xk) in c.iter_mut().zip(x[v as usize]) {
+            *ck += xk;
+        }
+    }
+    let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+    if l.is_nan() || l <= 0.0 {
+        return None;
+    }
+    let c = c.map(|t| t / l);
+    let min_cos = CHART_MAX_ANGLE.cos();
+    if verts.iter().any(|&v| dot(x[v as usize], c) < min_cos) {
+        return None;
+    }
+    let rot = rotation_to_south(c);
+    let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| gnomonic(&rot, x[v as usize])).collect();
+    // each face's share of 4π times the area factor 1/cos³θ at its centroid
+    let total3: f64 = face_areas(mesh).iter().sum();
+    let target_face_areas: Vec<f64> = sub
+        .faces
+        .iter()
+        .zip(face_areas(&sub))
+        .map(|(f, a)| {
+            let [p, q, r] = f.map(|v| uv[v as usize]);
+            let m = [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0];
+            let cos = 1.0 / (1.0 + m[0] * m[0] + m[1] * m[1]).sqrt();
+            a / total3 * 4.0 * std::f64::consts::PI / (cos * cos * cos)
+        })
+        .collect();
+    let before = uv.clone();
+    let params = FoldRepairParams {
+        target_face_areas: Some(target_face_areas),
+        ..Default::default()
+    };
+    let repaired = repair_folds(&sub, &is_boundary, &mut uv, &params).ok()?;
+    if repaired.folded_after > 0 {
+        return None;
+    }
+    let moved: HashMap<u32, [f64; 3]> = verts
+        .iter()
+        .zip(uv.iter().zip(&before))
+        .filter(|(_, (p, q))| p != q)
+        .map(|(&v, (&p, _))| (v, from_gnomonic(&rot, p)))
+        .collect();
+    let valid = patch.iter().all(|&f| {
+        let [a, b, c] = mesh.faces[f].map(|v| moved.get(&v).copied().unwrap_or(x[v as usize]));
+        orientation_on_sphere(a, b, c) == 1
+    });
+    valid.then_some(moved)
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The gnomonic chart centred at the point that `rot` ([`rotation_to_south`]) takes to the
+/// south pole, orientation-preserving as the sphere map's stereographic chart: `rot`, then (x₁, −x₂)/(−x₃).
+fn gnomonic(rot: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 2] {
+    let q = rot.map(|r| dot(r, p));
+    [q[0] / -q[2], -q[1] / -q[2]]
+}
+
+/// The inverse of [`gnomonic`].
+fn from_gnomonic(rot: &[[f64; 3]; 3], uv: [f64; 2]) -> [f64; 3] {
+    let q = [uv[0], -uv[1], -1.0];
+    let l = dot(q, q).sqrt();
+    let q = q.map(|t| t / l);
+    [0, 1, 2].map(|k| rot[0][k] * q[0] + rot[1][k] * q[1] + rot[2][k] * q[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The gnomonic chart and its inverse agree, and the chart turns a face counter-clockwise
+    /// exactly when it is positively oriented on S².
+    #[test]
+    fn gnomonic_chart_round_trip_and_orientation() {
+        let rot = rotation_to_south([0.6, -0.64, 0.48]);
+        let mesh = shapespace_geometry::primitives::icosphere(3);
+        let c = [0.6, -0.64, 0.48];
+        for p in mesh.positions.iter().filter(|p| dot(**p, c) > 0.2) {
+            let q = from_gnomonic(&rot, gnomonic(&rot, *p));
+            assert!((0..3).all(|k| (q[k] - p[k]).abs() < 1e-14), "{p:?} → {q:?}");
+        }
+        let mut tested = 0;
+        for f in &mesh.faces {
+            let x = f.map(|v| mesh.positions[v as usize]);
+            if x.iter().all(|p| dot(*p, c) > 0.2) {
+                let [a, b, d] = x.map(|p| gnomonic(&rot, p));
+                let planar = (b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0]);
+                assert_eq!(planar > 0.0, orientation_on_sphere(x[0], x[1], x[2]) == 1);
+                let [a, b, d] = [x[0], x[2], x[1]].map(|p| gnomonic(&rot, p));
+                let planar = (b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0]);
+                assert!(planar < 0.0);
+                tested += 1;
+            }
+        }
+        assert!(tested > 100);
+    }
+
+    /// Folds made on a sphere mesh (a vertex pushed across its neighbours, in several places)
+    /// are all unfolded, no face is left folded on S², and vertices far from the folds stay.
+    #[test]
+    fn charts_unfold_pushed_vertices() {
+        let mesh = shapespace_geometry::primitives::icosphere(4);
+        let conn = Connectivity::of(&mesh);
+        let neighbors = conn.vertex_neighbors(mesh.num_vertices());
+        let mut x = mesh.positions.clone();
+        let pushed = [7usize, 400, 1500, 2200];
+        for &v in &pushed {
+            // past the far side of its one-ring: beyond the farthest neighbour
+            let w = neighbors[v][0] as usize;
+            let q = [0, 1, 2].map(|k| x[v][k] + 1.6 * (x[w][k] - x[v][k]));
+            let l = dot(q, q).sqrt();
+            x[v] = q.map(|t| t / l);
+        }
+        let before = folded_on_sphere(&mesh, &x).len();
+        assert!(before >= 2 * pushed.len(), "{before} folded");
+        let reference = x.clone();
+        let info = repair_in_charts(&mesh, &mut x);
+        assert_eq!(folded_on_sphere(&mesh, &x).len(), 0, "{info:?}");
+        assert_eq!(info.clusters, info.repaired);
+        for p in &x {
+            assert!((dot(*p, *p).sqrt() - 1.0).abs() < 1e-14);
+        }
+        // a vertex 6 rings or more from every pushed vertex does not move
+        let mut far = vec![true; mesh.num_vertices()];
+        let mut front: Vec<usize> = pushed.to_vec();
+        for _ in 0..6 {
+            let mut next = Vec::new();
+            for v in front {
+                far[v] = false;
+                next.extend(neighbors[v].iter().map(|&w| w as usize).filter(|&w| far[w]));
+            }
+            front = next;
+        }
+        for v in front {
+            far[v] = false;
+        }
+        let unmoved = (0..mesh.num_vertices())
+            .filter(|&v| far[v])
+            .all(|v| x[v] == reference[v]);
+        assert!(unmoved && info.vertices_moved < 200, "{info:?}");
+    }
 }

@@ -72,12 +72,11 @@ fn tosca_wolf_becomes_area_preserving_without_flips() {
     };
     let mesh = read_mesh(&path).unwrap();
     let map = area_preserving_sphere_map(&mesh, &SphereParamParams::default()).unwrap();
-    // The goal is 0 flipped faces. The centroid map folds 132 faces here, and the sphere map's
-    // local repair leaves 4 (of 8,684); the disk's patch re-embedding is not yet on the sphere.
-    // Until it is, at most 0.1 % of the faces.
-    let (conformal, preserving) = check(&mesh, &map, 0.2, mesh.num_faces() / 1000);
+    // the centroid map folds faces here; the repairs must leave none
+    assert!(map.flipped_before_repair > 0);
+    let (conformal, preserving) = check(&mesh, &map, 0.2, 0);
     eprintln!(
-        "wolf0: {} flipped after {} repair moves; p95 |ln area ratio| conformal {conformal:.3}, area-preserving {preserving:.4}",
-        map.num_flipped, map.fold_repairs
+        "wolf0: {} folded by the centroid map, {} after the chart repair ({} vertices moved, {} charts); p95 |ln area ratio| conformal {conformal:.3}, area-preserving {preserving:.4}",
+        map.flipped_before_repair, map.num_flipped, map.fold_repair.as_ref().map_or(0, |i| i.vertices_moved), map.fold_repair.as_ref().map_or(0, |i| i.repaired)
     );
 }

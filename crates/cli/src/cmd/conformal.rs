@@ -47,14 +47,8 @@ pub struct ConformalArgs {
     /// `sphere` (closed genus-0 meshes only).
     #[arg(long, default_value = "auto", value_parser = ["auto", "disk", "sphere"])]
     pub domain: String,
-    /// Sphere: three distinct vertices `P1,P2,P3` sent to the south pole, (1, 0, 0) and the
-    /// north pole (0, 1, ∞ of the extended plane), exactly. Default: Möbius centering.
-    #[arg(long = "sphere-markers")]
-    pub sphere_markers: Option<String>,
-    /// Sphere with Möbius centering: two vertices `A,B`; A goes to the south pole and B onto
-    /// the half meridian y = 0, x > 0 (without them the rotation is the construction's).
-    #[arg(long = "rotation-markers")]
-    pub rotation_markers: Option<String>,
+    #[command(flatten)]
+    pub sphere: SphereMarkerArgs,
     #[command(flatten)]
     pub markers: MarkerArgs,
     /// Write per-vertex `vertex,u,v,lambda` (disk) or `vertex,x,y,z,lambda` (sphere) as CSV (λ:
@@ -110,6 +104,45 @@ fn write_factors(path: &Path, map: &MapOutput) -> Result<()> {
     Ok(())
 }
 
+/// The normalization of a sphere map (`conformal` and `param` with `--domain sphere`).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct SphereMarkerArgs {
+    /// Sphere: three distinct vertices `P1,P2,P3` sent to the south pole, (1, 0, 0) and the
+    /// north pole (0, 1, ∞ of the extended plane), exactly. Default: Möbius centering.
+    #[arg(long = "sphere-markers")]
+    pub sphere_markers: Option<String>,
+    /// Sphere with Möbius centering: two vertices `A,B`; A goes to the south pole and B onto
+    /// the half meridian y = 0, x > 0 (without them the rotation is the construction's).
+    #[arg(long = "rotation-markers")]
+    pub rotation_markers: Option<String>,
+}
+
+impl SphereMarkerArgs {
+    /// Whether either flag is given.
+    pub fn is_given(&self) -> bool {
+        self.sphere_markers.is_some() || self.rotation_markers.is_some()
+    }
+
+    /// The normalization the flags ask for (Möbius centering without them).
+    pub fn normalization(&self) -> Result<shapespace_conformal::SphereNormalization> {
+        use shapespace_conformal::SphereNormalization;
+        Ok(match (&self.sphere_markers, &self.rotation_markers) {
+            (Some(_), Some(_)) => anyhow::bail!("--sphere-markers and --rotation-markers exclude each other"),
+            (Some(t), None) => {
+                let v = parse_vertices(t, 3, "sphere-markers")?;
+                SphereNormalization::ThreeMarkers([v[0], v[1], v[2]])
+            }
+            (None, Some(t)) => {
+                let v = parse_vertices(t, 2, "rotation-markers")?;
+                SphereNormalization::Centered {
+                    rotation: Some([v[0], v[1]]),
+                }
+            }
+            (None, None) => SphereNormalization::Centered { rotation: None },
+        })
+    }
+}
+
 /// Vertex indices `a,b,…` (exactly `n` of them) of the flag `flag`.
 fn parse_vertices(text: &str, n: usize, flag: &str) -> Result<Vec<u32>> {
     let v: Vec<u32> = text
@@ -125,27 +158,14 @@ fn parse_vertices(text: &str, n: usize, flag: &str) -> Result<Vec<u32>> {
 
 /// The sphere route of [`run`].
 fn run_sphere(args: &ConformalArgs, mesh: shapespace_geometry::TriMesh, t0: Instant) -> Result<ExitCode> {
-    use shapespace_conformal::{sphere_map, SphereMapParams, SphereNormalization};
+    use shapespace_conformal::{sphere_map, SphereMapParams};
     if args.markers.center.is_some() || args.markers.boundary_marker.is_some() || args.markers.landmarks.is_some() {
         anyhow::bail!(
             "{}: --center, --boundary-marker and --landmarks are disk markers; the sphere takes --sphere-markers P1,P2,P3 or --rotation-markers A,B",
             args.input.display()
         );
     }
-    let normalization = match (&args.sphere_markers, &args.rotation_markers) {
-        (Some(_), Some(_)) => anyhow::bail!("--sphere-markers and --rotation-markers exclude each other"),
-        (Some(t), None) => {
-            let v = parse_vertices(t, 3, "sphere-markers")?;
-            SphereNormalization::ThreeMarkers([v[0], v[1], v[2]])
-        }
-        (None, Some(t)) => {
-            let v = parse_vertices(t, 2, "rotation-markers")?;
-            SphereNormalization::Centered {
-                rotation: Some([v[0], v[1]]),
-            }
-        }
-        (None, None) => SphereNormalization::Centered { rotation: None },
-    };
+    let normalization = args.sphere.normalization()?;
     let params = SphereMapParams {
         intrinsic_delaunay: !args.no_intrinsic_delaunay,
         normalization,
@@ -227,7 +247,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
     if sphere {
         return run_sphere(args, mesh, t0);
     }
-    if args.sphere_markers.is_some() || args.rotation_markers.is_some() {
+    if args.sphere.is_given() {
         anyhow::bail!(
             "{}: --sphere-markers and --rotation-markers apply to the sphere map only (a closed genus-0 mesh, --domain sphere)",
             args.input.display()

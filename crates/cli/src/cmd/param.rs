@@ -1,7 +1,11 @@
 //! `shapespace param IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
-//! [--landmarks FILE.json] [--domain disk|square] [--weights W.csv] [--report R.json]
+//! [--landmarks FILE.json] [--domain disk|square|sphere] [--weights W.csv] [--report R.json]
 //! [--plots DIR] [--no-fold-repair]`: the area-preserving parameterization of a disk-type mesh by optimal mass
-//! transport ([`shapespace_analysis::area_preserving::area_preserving_map`]).
+//! transport ([`shapespace_analysis::area_preserving::area_preserving_map`]), or with
+//! `--domain sphere` of a closed genus-0 mesh onto the unit sphere
+//! ([`shapespace_analysis::sphere_param::area_preserving_sphere_map`]; normalized by
+//! `--sphere-markers` or `--rotation-markers` as in `shapespace conformal`; OUT (.obj, .ply or
+//! .off) is the input mesh with every vertex moved to its image on S²).
 //!
 //! Markers as in `shapespace conformal` (marker file, else sidecar, then `--center` /
 //! `--boundary-marker` overrides). OUT.obj is the input mesh with one `vt u v` per vertex.
@@ -28,14 +32,17 @@ use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
 /// Arguments of `shapespace param`.
 #[derive(clap::Args)]
 pub struct ParamArgs {
-    /// Input mesh (OBJ, OFF, PLY) with disk topology.
+    /// Input mesh (OBJ, OFF, PLY) with disk topology (closed genus-0 for `--domain sphere`).
     pub input: PathBuf,
     /// Output mesh (.obj or .ply): the input mesh with per-vertex texture coordinates (the area-preserving map).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
     pub markers: MarkerArgs,
-    /// Target domain: `disk` (unit disk) or `square` (side √π, centered at 0).
+    #[command(flatten)]
+    pub sphere: super::conformal::SphereMarkerArgs,
+    /// Target domain: `disk` (unit disk), `square` (side √π, centered at 0) or `sphere` (the
+    /// unit sphere, for a closed genus-0 mesh).
     #[arg(long, default_value = "disk")]
     pub domain: String,
     /// Importance weights: CSV with header and rows `vertex,weight` (unlisted vertices: 1).
@@ -101,7 +108,9 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 /// Runs the subcommand.
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
-    super::check_map_output(&args.out)?;
+    if args.domain != "sphere" {
+        super::check_map_output(&args.out)?;
+    }
     super::check_output_files(
         [Some(args.out.as_path()), args.report.as_deref()],
         [
@@ -112,6 +121,15 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     )?;
     if let Some(dir) = &args.plots {
         super::create_output_folder(dir)?;
+    }
+    if args.domain == "sphere" {
+        return run_sphere(args, t0);
+    }
+    if args.sphere.is_given() {
+        anyhow::bail!(
+            "{}: --sphere-markers and --rotation-markers apply to --domain sphere only",
+            args.input.display()
+        );
     }
     let domain: Domain = args.domain.parse()?;
     // (its errors name the file)
@@ -239,6 +257,127 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         if map.ot.stop.contains("crowded") {
             print_seam_hint();
         }
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The sphere route of [`run`].
+fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
+    use shapespace_analysis::distortion::sphere_distortion_report;
+    use shapespace_analysis::sphere_param::{area_preserving_sphere_map, SphereParamParams};
+    // an unknown output extension is named before the input is read
+    shapespace_geometry::io::MeshFormat::from_path(&args.out)?;
+    if args.markers.center.is_some() || args.markers.boundary_marker.is_some() || args.markers.landmarks.is_some() {
+        anyhow::bail!(
+            "{}: --center, --boundary-marker and --landmarks are disk markers; the sphere takes --sphere-markers P1,P2,P3 or --rotation-markers A,B",
+            args.input.display()
+        );
+    }
+    if args.start != super::ot::StartArg::Auto {
+        anyhow::bail!("--start applies to the disk only (the sphere's OT starts from the Voronoi cells with density continuation)");
+    }
+    let mesh = read_mesh(&args.input)?;
+    let class = shapespace_geometry::topology::classify(&mesh)?;
+    if class.class != shapespace_geometry::topology::MeshClass::Sphere {
+        anyhow::bail!(
+            "{} is not a closed genus-0 surface ({}), so it has no map onto the sphere: {}",
+            args.input.display(),
+            class.class,
+            class.reasons.join("; ")
+        );
+    }
+    let mut params = SphereParamParams {
+        weights: match &args.weights {
+            Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),
+            None => None,
+        },
+        no_fold_repair: args.no_fold_repair,
+        ..Default::default()
+    };
+    params.sphere_map.normalization = args.sphere.normalization()?;
+    params.ot.tolerance = args.tolerance;
+    let message = format!(
+        "area-preserving sphere map of {} ({} vertices)",
+        args.input.display(),
+        mesh.num_vertices()
+    );
+    let map = with_spinner(message, || area_preserving_sphere_map(&mesh, &params))
+        .with_context(|| format!("mapping {} onto the sphere", args.input.display()))?;
+    let mut out_mesh = mesh.clone();
+    out_mesh.positions = map.positions.clone();
+    out_mesh.uvs = None;
+    write_mesh(&args.out, &out_mesh).with_context(|| format!("writing {}", args.out.display()))?;
+    let report = sphere_distortion_report(&mesh, &map.conformal.positions, &map.positions)?;
+    let (c, ap) = (&report.maps[0], &report.maps[1]);
+    let repair = match &map.fold_repair {
+        None if args.no_fold_repair => format!("{} folded faces (fold repair off)", map.flipped_before_repair),
+        Some(r) if map.flipped_before_repair > 0 => format!(
+            "fold repair: {} folded before, {} after, {} vertices moved in {} of {} charts",
+            map.flipped_before_repair, map.num_flipped, r.vertices_moved, r.repaired, r.clusters
+        ),
+        _ => "no folded faces".to_string(),
+    };
+    eprintln!(
+        "{}: {} V, {} F; sphere OT after {} iterations on {} icosphere subdivisions; |ε| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); angle distortion p95 {:.2}° (conformal {:.2}°); {} flipped; {}; conformal {:.2} s, OT {:.2} s, output {:.2} s",
+        args.input.display(),
+        mesh.num_vertices(),
+        mesh.num_faces(),
+        map.iterations,
+        map.source_subdivisions,
+        ap.abs_vertex_log_area_ratio.median,
+        ap.abs_vertex_log_area_ratio.p95,
+        c.abs_vertex_log_area_ratio.median,
+        c.abs_vertex_log_area_ratio.p95,
+        ap.angle_distortion_deg.p95,
+        c.angle_distortion_deg.p95,
+        ap.num_flipped + ap.num_degenerate,
+        repair,
+        map.timings.conformal,
+        map.timings.ot,
+        map.timings.output,
+    );
+    if let Some(dir) = &args.plots {
+        write_distortion_histograms(&report, dir, 60)
+            .with_context(|| format!("writing plots into {}", dir.display()))?;
+    }
+    if let Some(p) = &args.report {
+        let json = serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.out.display().to_string(),
+            "domain": "sphere",
+            "normalization": format!("{:?}", params.sphere_map.normalization),
+            "weights": args.weights.as_ref().map(|p| p.display().to_string()),
+            "num_vertices": mesh.num_vertices(),
+            "num_faces": mesh.num_faces(),
+            "conformal": map.conformal.info,
+            "ot": {
+                "iterations": map.iterations,
+                "tolerance": args.tolerance,
+                "source_subdivisions": map.source_subdivisions,
+                "max_relative_error": map
+                    .cell_areas
+                    .iter()
+                    .zip(&map.target_masses)
+                    .map(|(a, m)| ((a - m) / m).abs())
+                    .fold(0.0f64, f64::max),
+            },
+            "flipped_before_repair": map.flipped_before_repair,
+            "fold_repair": map.fold_repair,
+            "num_flipped": map.num_flipped,
+            "timings": map.timings,
+            "wall_seconds": t0.elapsed().as_secs_f64(),
+            "distortion": report,
+        });
+        let text = serde_json::to_string_pretty(&json)?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
+    }
+    if map.num_flipped > 0 {
+        eprintln!(
+            "shapespace: {}: {} faces are still folded on the sphere after the fold repair; the map was written",
+            args.input.display(),
+            map.num_flipped
+        );
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)

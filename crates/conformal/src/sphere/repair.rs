@@ -30,7 +30,7 @@ fn folded(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
 }
 
 /// A rotation (rows) taking the unit vector c to the south pole (0, 0, −1).
-fn to_south(c: [f64; 3]) -> [[f64; 3]; 3] {
+pub fn rotation_to_south(c: [f64; 3]) -> [[f64; 3]; 3] {
     let e3 = c.map(|x| -x);
     let t = if e3[0].abs() < 0.9 {
         [1.0, 0.0, 0.0]
@@ -47,6 +47,21 @@ fn to_south(c: [f64; 3]) -> [[f64; 3]; 3] {
         e3[0] * e1[1] - e3[1] * e1[0],
     ];
     [e1, e2, e3]
+}
+
+/// The orientation-preserving stereographic chart of S² centred at the point that `rot`
+/// ([`rotation_to_south`]) takes to the south pole: `rot`, then (x₁, −x₂)/(1 − x₃).
+pub fn to_chart(rot: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 2] {
+    let q = rot.map(|r| r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
+    [q[0] / (1.0 - q[2]), -q[1] / (1.0 - q[2])]
+}
+
+/// The inverse of [`to_chart`]: the point of S² at chart position `uv`.
+pub fn from_chart(rot: &[[f64; 3]; 3], uv: [f64; 2]) -> [f64; 3] {
+    let (a, b) = (uv[0], -uv[1]);
+    let r2 = a * a + b * b;
+    let q = [2.0 * a / (1.0 + r2), 2.0 * b / (1.0 + r2), (r2 - 1.0) / (r2 + 1.0)];
+    [0, 1, 2].map(|k| rot[0][k] * q[0] + rot[1][k] * q[1] + rot[2][k] * q[2])
 }
 
 /// Repairs folded faces of a map `x` (#V) of the mesh onto S² in place (module docs): the
@@ -126,15 +141,8 @@ pub fn repair_sphere_folds(mesh: &TriMesh, x: &mut [[f64; 3]], fixed: &[bool]) -
                 });
             }
         }
-        let rot = to_south(c0);
-        let mut uv: Vec<[f64; 2]> = verts
-            .iter()
-            .map(|&v| {
-                let p = x[v as usize];
-                let q = rot.map(|r| r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
-                [q[0] / (1.0 - q[2]), -q[1] / (1.0 - q[2])]
-            })
-            .collect();
+        let rot = rotation_to_south(c0);
+        let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| to_chart(&rot, x[v as usize])).collect();
         let local_fixed: Vec<bool> = verts
             .iter()
             .map(|&v| fixed[v as usize] || vertex_faces[v as usize].iter().any(|&g| !in_patch[g as usize]))
@@ -156,11 +164,7 @@ pub fn repair_sphere_folds(mesh: &TriMesh, x: &mut [[f64; 3]], fixed: &[bool]) -
         moves += m;
         for (i, &v) in verts.iter().enumerate() {
             if uv[i] != before[i] {
-                // inverse of (x₁, −x₂)/(1 − x₃), then the inverse rotation
-                let (a, b) = (uv[i][0], -uv[i][1]);
-                let r2 = a * a + b * b;
-                let q = [2.0 * a / (1.0 + r2), 2.0 * b / (1.0 + r2), (r2 - 1.0) / (r2 + 1.0)];
-                x[v as usize] = [0, 1, 2].map(|k| rot[0][k] * q[0] + rot[1][k] * q[1] + rot[2][k] * q[2]);
+                x[v as usize] = from_chart(&rot, uv[i]);
             }
         }
         bad = folded(mesh, x);
