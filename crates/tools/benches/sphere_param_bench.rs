@@ -1,7 +1,8 @@
 //! The area-preserving sphere map on the closed meshes of the shared datasets, as a table.
 //!
-//! `cargo bench -p shapespace-tools --bench sphere_param_bench [-- FILTER]`: every TOSCA mesh
-//! and lion pose under `../shared/datasets` (those whose path contains FILTER, when given), and
+//! `cargo bench -p shapespace-tools --bench sphere_param_bench [-- FILTER]`: the meshes of the
+//! TOSCA, lion, GOAST cactus and finger, Sumner cat, libigl and common-3d-test-models folders
+//! under `../shared/datasets` (those whose path contains FILTER, when given), and
 //! an ellipsoid of revolution (semi-axes 1, 1, 2; 40,962 vertices) as the synthetic reference.
 //! Columns: the stages' wall-clock seconds, Newton steps, faces folded by the centroid map and
 //! after the fold repair (exact test on S²), the vertices the repair moved, and the 95th
@@ -23,7 +24,15 @@ fn main() {
     )
     .expect("the ellipsoid is a valid mesh");
     let mut meshes: Vec<(String, TriMesh)> = vec![("ellipsoid 1:1:2".into(), ellipsoid)];
-    for dir in ["tosca", "outside/lion_poses"] {
+    for dir in [
+        "tosca",
+        "outside/lion_poses",
+        "goast/cactus",
+        "goast/finger",
+        "common_3d_test_models",
+        "libigl_tutorial_data",
+        "sumner_deformation_transfer/cat-poses",
+    ] {
         let Some(root) = shapespace_test_support::shared_dir(dir) else {
             eprintln!("{dir}: not found beside the repository; skipped");
             continue;
