@@ -478,3 +478,67 @@ fn bad_inputs_are_errors_that_say_what() {
     );
     assert!(matches!(&bad_density, Err(OmtError::InvalidInput(m)) if m.contains("triangle 0")));
 }
+
+/// The unit sphere as a subdivided octahedron (`subdivisions` midpoint steps, vertices
+/// normalized): the same set under the quarter turn (x, y, z) ↦ (−y, x, z), exactly in f64.
+fn octahedral_sphere(subdivisions: usize) -> SphereMeasure {
+    let mut vertices: Vec<[f64; 3]> = vec![
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let mut triangles: Vec<[u32; 3]> = (0..4u32)
+        .flat_map(|k| [[k, (k + 1) % 4, 4], [(k + 1) % 4, k, 5]])
+        .collect();
+    for _ in 0..subdivisions {
+        let mut middle = std::collections::HashMap::new();
+        let mut next = Vec::new();
+        for t in &triangles {
+            let mut mid = |a: u32, b: u32| {
+                *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                    let (p, q) = (vertices[a as usize], vertices[b as usize]);
+                    vertices.push(unit([p[0] + q[0], p[1] + q[1], p[2] + q[2]]));
+                    vertices.len() as u32 - 1
+                })
+            };
+            let [a, b, c] = *t;
+            let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = next;
+    }
+    let n = triangles.len();
+    SphereMeasure::new(vertices, triangles, vec![1.0; n]).unwrap()
+}
+
+/// Four sites 1e-9 apart around each pole (a quarter turn maps the sites and the source onto
+/// themselves), one of them lengthened by 2⁻⁵² (radially, to 1e-25): the unit vectors the
+/// points stand for keep the symmetry, so the four cells of a cluster have equal masses. The
+/// bisector margins |y_i − y_j|²/2 ≈ 5e-19 lie far below such f64 radial errors: without the
+/// integrator's radial corrections the lengthened site takes the others' cells (an empty cell
+/// on the TOSCA centaur and the GOAST fingers, whose conformal images crowd sites 3e-11 apart).
+#[test]
+fn sites_crowded_far_below_f64_resolution_keep_their_cells() {
+    let measure = octahedral_sphere(4);
+    let r = 1e-9;
+    let mut points = Vec::new();
+    for z in [1.0, -1.0] {
+        for [x, y] in [[r, 0.0], [0.0, r], [-r, 0.0], [0.0, -r]] {
+            points.push(unit([x, y, z]));
+        }
+    }
+    points[1] = points[1].map(|c| c * (1.0 + f64::EPSILON));
+    points[6] = points[6].map(|c| c * (1.0 - f64::EPSILON / 2.0));
+    let cells = SphereIntegrator::new(&measure, &points).integrate(&[0.0; 8]);
+    let total = measure.total_mass();
+    for cluster in [&cells.masses[..4], &cells.masses[4..]] {
+        let sum: f64 = cluster.iter().sum();
+        assert!((sum - total / 2.0).abs() < 1e-6 * total, "{:?}", cells.masses);
+        for m in cluster {
+            assert!((m - sum / 4.0).abs() < 1e-9 * sum, "{:?}", cells.masses);
+        }
+    }
+}

@@ -16,7 +16,13 @@
 //!    ⟨x, y_i − y_j⟩ ≥ h_j − h_i of the other candidates (largest ℓ_j at T's centroid first, so that
 //!    losing candidates are dropped after one or two clips). Within P this is the 2D power
 //!    diagram of the sites projected on P with weights w_i − dist(y_i, P)². Each polygon edge
-//!    carries the site whose half-space made it, which names the neighbour of an edge.
+//!    carries the site whose half-space made it, which names the neighbour of an edge. The
+//!    normal y_i − y_j is that of the unit vectors the f64 sites stand for: the stored
+//!    difference (exact for close sites) plus the difference of each site's radial correction
+//!    onto S² (double-double, `radial_corrections`). Sites 3e-11 apart (a fingertip's
+//!    conformal image) have bisector margins of 5e-22, far below the 1e-16 by which f64 points
+//!    miss the sphere; uncorrected, such a site falls inside its neighbours' hull and loses
+//!    its cell.
 //! 3. **Integrals.** Piece masses, first moments and ∫|x − y_i|² are exact on the flat
 //!    triangle (fan triangulation); an edge
 //!    between i and j in T of length ℓ adds ρ_T ℓ to the edge mass and ρ_T ℓ / |Π_P(y_i − y_j)|
@@ -314,6 +320,9 @@ impl SiteTree {
 pub struct SphereIntegrator<'a> {
     measure: &'a SphereMeasure,
     points: Vec<[f64; 3]>,
+    /// Each site's correction onto the unit sphere: `points[i] + radial[i]` is a unit vector to
+    /// about 1e-32 ([`radial_corrections`]); the bisectors use both.
+    radial: Vec<[f64; 3]>,
     tree: SiteTree,
     /// Triangles and vertices in Morton order of their positions (cache and search locality).
     triangle_order: Vec<u32>,
@@ -354,6 +363,7 @@ impl<'a> SphereIntegrator<'a> {
         SphereIntegrator {
             measure,
             points: points.to_vec(),
+            radial: radial_corrections(points),
             tree: SiteTree::new(points),
             triangle_order: morton_order(&centroids),
             vertex_order: morton_order(&measure.vertices),
@@ -477,6 +487,14 @@ impl<'a> SphereIntegrator<'a> {
             .collect()
     }
 
+    /// y_i − y_j of the unit vectors `points + radial`: the difference of the stored points is
+    /// exact for close points (Sterbenz), and the corrections restore what rounding the points
+    /// onto the sphere left (|y| − 1 ≈ 1e-16, beside a bisector's margin |y_i − y_j|²/2).
+    fn difference(&self, i: usize, j: usize) -> [f64; 3] {
+        let (d, r) = (sub(self.points[i], self.points[j]), sub(self.radial[i], self.radial[j]));
+        [d[0] + r[0], d[1] + r[1], d[2] + r[2]]
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn triangle(
         &self,
@@ -547,7 +565,7 @@ impl<'a> SphereIntegrator<'a> {
                     continue;
                 }
                 let j = s.cand[cj].1 as usize;
-                let d = sub(yi, self.points[j]);
+                let d = self.difference(i, j);
                 let offset = heights[i] - heights[j];
                 // keep ⟨x, d⟩ + offset ≥ 0
                 if !clip(&s.poly, &mut s.next, d, offset, j as i64) {
@@ -589,7 +607,7 @@ impl<'a> SphereIntegrator<'a> {
                     let j = label as usize;
                     let len = norm(sub(s.poly[(k + 1) % s.poly.len()].0, s.poly[k].0));
                     if len > 0.0 {
-                        let d = sub(yi, self.points[j]);
+                        let d = self.difference(i, j);
                         let dn = dot(d, unit_normal);
                         let tangential = (dot(d, d) - dn * dn).max(0.0).sqrt();
                         if tangential > 0.0 {
@@ -607,6 +625,37 @@ impl<'a> SphereIntegrator<'a> {
             }
         }
     }
+}
+
+/// For each point p (|p| ≈ 1), the vector r with |p + r| = 1 to about 1e-32: r = −p·e/2 with
+/// e = |p|² − 1 in double-double arithmetic.
+///
+/// Sites closer than about 1e-8 (conformal images of protrusions) have bisector margins
+/// |y_i − y_j|²/2 below the 1e-16 by which f64 misses the sphere; without the correction such a
+/// site can fall inside the convex hull of its neighbours and lose its cell entirely.
+fn radial_corrections(points: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let two_prod = |a: f64, b: f64| {
+        let p = a * b;
+        (p, a.mul_add(b, -p))
+    };
+    let two_sum = |a: f64, b: f64| {
+        let s = a + b;
+        let v = s - a;
+        (s, (a - (s - v)) + (b - v))
+    };
+    points
+        .iter()
+        .map(|p| {
+            let (x, ex) = two_prod(p[0], p[0]);
+            let (y, ey) = two_prod(p[1], p[1]);
+            let (z, ez) = two_prod(p[2], p[2]);
+            let (s1, e1) = two_sum(x, y);
+            let (s2, e2) = two_sum(s1, z);
+            // (s2 − 1 is exact for s2 near 1)
+            let e = (s2 - 1.0) + (ex + ey + ez + e1 + e2);
+            p.map(|c| -0.5 * e * c)
+        })
+        .collect()
 }
 
 /// Sutherland–Hodgman: the part of `poly` (corners with the label of the edge that starts
