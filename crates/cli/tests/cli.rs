@@ -2251,3 +2251,46 @@ fn conformal_maps_a_closed_mesh_onto_the_sphere() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("sphere map only"), "{}", stderr(&out));
 }
+
+/// `mds --method smacof` on the bundled faces40 matrix: exit 0, stats.json says smacof with a
+/// stress-1 below the classical embedding's, and the summary line reports both; an iteration
+/// cap of 1 stops short of the tolerance: exit 1, the configuration still written.
+#[test]
+fn mds_smacof_reports_the_stress() {
+    let dir = scratch("mds_smacof");
+    let matrix = root().join("tests/data/faces40/distances.csv");
+    let out = dir.join("m");
+    let run = shapespace(&[
+        "mds",
+        matrix.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--method",
+        "smacof",
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(stderr(&run).contains("SMACOF stress-1"), "{}", stderr(&run));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    let m = &stats["mds"];
+    assert_eq!(m["method"], "smacof");
+    let (s, c) = (
+        m["stress"]["stress1"].as_f64().unwrap(),
+        m["classical_stress"]["stress1"].as_f64().unwrap(),
+    );
+    assert!(s > 0.0 && s < c, "{m}");
+    let capped = dir.join("capped");
+    let run = shapespace(&[
+        "mds",
+        matrix.to_str().unwrap(),
+        "--out",
+        capped.to_str().unwrap(),
+        "--method",
+        "smacof",
+        "--max-iterations",
+        "1",
+    ]);
+    assert_eq!(run.status.code(), Some(1), "{}", stderr(&run));
+    assert!(capped.join("mds.csv").is_file());
+    std::fs::remove_dir_all(&dir).ok();
+}
