@@ -22,6 +22,7 @@ pub mod error;
 pub mod fold_repair;
 pub mod geodesic;
 pub mod invariance;
+pub mod lie_advection;
 pub mod matrix_io;
 pub mod mds;
 pub mod pipeline;
