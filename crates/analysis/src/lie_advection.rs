@@ -33,7 +33,8 @@
 //!    `tolerance` × the square root of the image area of the vertex's faces at that time.
 //! 2. **Fold repair.** The straight-line triangles between the advected vertices can fold
 //!    where the field varies within a face of the crowded conformal image; the fold repair of
-//!    the OMT map ([`crate::fold_repair`]) re-embeds the vertices around them.
+//!    the OMT map ([`crate::fold_repair`]) re-embeds the vertices around them. When it fails,
+//!    the advected map is kept with its folds ([`LieAdvectionInfo::fold_repair_error`]).
 //! 3. **Correction** (this implementation's addition). The interpolated field is not
 //!    exactly divergence-consistent, so the advected map keeps an error of the order of the
 //!    mesh's (rim one-rings worst). From the unfolded map, the same Moser flow is run again,
@@ -110,6 +111,8 @@ pub struct LieAdvectionInfo {
     pub rejected_steps: usize,
     /// The fold repair of the advected map.
     pub fold_repair: FoldRepairInfo,
+    /// Why the fold repair failed, if it did (the map is then the advected one, with its folds).
+    pub fold_repair_error: Option<String>,
     /// The correction flow.
     pub correction: CorrectionInfo,
 }
@@ -163,7 +166,7 @@ pub struct LieAdvectionMap {
 /// et al. 2011): the conformal disk map, the advection of its vertices by the Moser flow of
 /// its area form to the uniform one, the fold repair, and the correction flow.
 ///
-/// Errors: those of the conformal map and the fold repair; [`AnalysisError::InvalidInput`]
+/// Errors: those of the conformal map; [`AnalysisError::InvalidInput`]
 /// for a zero-area face, a bad tolerance, a failed Poisson solve or a non-finite velocity;
 /// [`AnalysisError::FlowStalled`] when a vertex's trajectory needs more than `max_attempts`
 /// steps.
@@ -180,7 +183,15 @@ pub fn lie_advection_map(
     let areas = face_areas(mesh);
     let (mut uv, mut info) = advect(&mesh.faces, &areas, &is_boundary, &conformal.uv, params)?;
     let t2 = Instant::now();
-    info.fold_repair = repair_folds_with(mesh, Some(&conn), &is_boundary, &mut uv, &params.fold_repair)?;
+    // (a repair that fails leaves the advected map, folds and all, and says why)
+    let mut repaired = uv.clone();
+    match repair_folds_with(mesh, Some(&conn), &is_boundary, &mut repaired, &params.fold_repair) {
+        Ok(repair) => {
+            info.fold_repair = repair;
+            uv = repaired;
+        }
+        Err(e) => info.fold_repair_error = Some(e.to_string()),
+    }
     let t3 = Instant::now();
     info.correction = if params.correction_steps == 0 {
         CorrectionInfo {
@@ -439,13 +450,16 @@ impl<'a> MoserField<'a> {
 }
 
 /// Most attempted steps (accepted and halved) of the correction flow.
-pub const CORRECTION_ATTEMPTS: usize = 400;
+pub const CORRECTION_ATTEMPTS: usize = 64;
+
+/// Smallest time step of the correction flow: a step halved below it stops the correction.
+pub const CORRECTION_MIN_STEP: f64 = 1e-4;
 
 /// The correction flow (module docs, "Correction") from the unfolded map `start`: `steps`
 /// midpoint steps over [0, 1] of the Moser flow evaluated on the current mesh, halved when a
 /// step would fold a face or change a face's area more than twofold. A correction that needs
-/// more than [`CORRECTION_ATTEMPTS`] attempted steps stops, and the input map is kept
-/// (`applied` false).
+/// more than [`CORRECTION_ATTEMPTS`] attempted steps or a step below [`CORRECTION_MIN_STEP`]
+/// stops, and the input map is kept (`applied` false).
 fn correct(
     faces: &[[u32; 3]],
     surface_areas: &[f64],
@@ -460,7 +474,7 @@ fn correct(
     let (mut t, mut h) = (0.0f64, nominal);
     while 1.0 - t > 1e-12 {
         h = h.min(1.0 - t);
-        if info.steps + info.halvings >= CORRECTION_ATTEMPTS {
+        if info.steps + info.halvings >= CORRECTION_ATTEMPTS || (h < CORRECTION_MIN_STEP && h < 1.0 - t) {
             info.skipped = Some(format!("stalled at t = {t:.3} (step {h:.1e})"));
             return Ok((x, info));
         }

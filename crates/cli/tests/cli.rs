@@ -345,6 +345,52 @@ fn param_on_a_face() {
     assert!(text.contains("\"num_flipped\":0"), "{text}");
 }
 
+/// `shapespace param --method lie` writes the Lie-advection map: one `vt` per vertex, boundary
+/// vertices on the unit circle, a report with the method, the flow's steps and a distortion
+/// block whose map has no flipped face and a |Υ| median below the conformal map's; the square
+/// and weights are refused with status 2.
+#[test]
+fn param_lie_on_a_face() {
+    let dir = scratch("param_lie");
+    let obj = dir.join("lie.obj");
+    let json = dir.join("lie.json");
+    let out = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        obj.to_str().unwrap(),
+        "--report",
+        json.to_str().unwrap(),
+        "--method",
+        "lie",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("Lie advection"), "{}", stderr(&out));
+    let (vt, nv) = read_vt(&obj);
+    assert_eq!(vt.len(), nv);
+    let on_circle = vt.iter().filter(|p| (p[0].hypot(p[1]) - 1.0).abs() < 1e-9).count();
+    assert!(on_circle > 100, "{on_circle} vertices on the circle");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["method"], "lie");
+    assert!(report["lie_advection"]["mean_steps"].as_f64().unwrap() > 1.0);
+    let maps = &report["distortion"]["maps"];
+    assert_eq!(maps[1]["num_flipped"], 0);
+    let median = |k: usize| maps[k]["abs_area_distortion"]["median"].as_f64().unwrap();
+    assert!(median(1) < 0.2 * median(0), "{} vs {}", median(1), median(0));
+    let square = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        dir.join("sq.obj").to_str().unwrap(),
+        "--method",
+        "lie",
+        "--domain",
+        "square",
+    ]);
+    assert_eq!(square.status.code(), Some(2), "{}", stderr(&square));
+    assert!(stderr(&square).contains("disk only"), "{}", stderr(&square));
+}
+
 /// Bad input: exit status 2 (not a panic's 101), and a message naming the file and the problem.
 #[test]
 fn bad_input_exits_cleanly_and_names_the_file() {
