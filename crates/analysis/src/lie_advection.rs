@@ -256,7 +256,7 @@ pub fn advect(
         )));
     }
     let field = MoserField::new(faces, surface_areas, is_boundary, start)?;
-    let results: Vec<Result<([f64; 2], usize, usize), AnalysisError>> = (0..start.len())
+    let results: Vec<Result<Trajectory, AnalysisError>> = (0..start.len())
         .into_par_iter()
         .map(|i| field.trajectory(i, params))
         .collect();
@@ -276,6 +276,9 @@ pub fn advect(
     info.mean_steps = info.total_steps as f64 / start.len().max(1) as f64;
     Ok((uv, info))
 }
+
+/// A trajectory's end point, accepted and rejected steps.
+type Trajectory = ([f64; 2], usize, usize);
 
 /// The time-dependent field v_t = ∇f / ((1 − t) ρ_0 + t) on the starting mesh (module docs):
 /// ∇f averaged to the vertices by area and ρ_0 as one-ring ratios, both interpolated
@@ -376,7 +379,7 @@ impl<'a> MoserField<'a> {
     /// bound `tolerance · √(image area at p)` (the image area of the vertex's faces at time t
     /// near p being `end_area / ρ_t(p)`). Rim vertices move on the unit circle by their angle,
     /// dθ/dt = v_t · e_θ.
-    fn trajectory(&self, i: usize, params: &LieAdvectionParams) -> Result<([f64; 2], usize, usize), AnalysisError> {
+    fn trajectory(&self, i: usize, params: &LieAdvectionParams) -> Result<Trajectory, AnalysisError> {
         let rim = self.is_boundary[i];
         let p0 = self.start[i];
         // state: the point, or (θ, 0) on the rim
