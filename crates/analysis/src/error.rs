@@ -117,6 +117,9 @@ pub enum AnalysisError {
     /// The fold repair of a planar map could not produce an embedding; `folded` faces remain.
     #[error("fold repair: {message} ({folded} folded faces)")]
     FoldRepair { folded: usize, message: String },
+    /// An area-correcting flow could not take a step without folding a face.
+    #[error("the flow stalled at t = {time}: every step down to {step:e} folded a face ({attempts} attempts)")]
+    FlowStalled { time: f64, step: f64, attempts: usize },
 }
 
 impl AnalysisError {

@@ -22,6 +22,7 @@ pub mod error;
 pub mod fold_repair;
 pub mod geodesic;
 pub mod invariance;
+pub mod lie_advection;
 pub mod matrix_io;
 pub mod mds;
 pub mod pipeline;
@@ -39,8 +40,9 @@ pub mod stats;
 
 pub use error::AnalysisError;
 pub use matrix_io::{read_distance_matrix, read_labels, write_distance_matrix, DistanceMatrix, Labels};
+pub use mds::smacof::{smacof_mds, stress, SmacofInfo, SmacofParams, Stress};
 pub use mds::{classical_mds, Mds};
-pub use shape_space::{run_mds, MdsParams, MdsResult};
+pub use shape_space::{run_mds, MdsMethod, MdsParams, MdsResult};
 
 /// The code blocks of the repository's README, compiled as doctests so that its library
 /// example keeps building.

@@ -1,5 +1,5 @@
 //! The `shapespace mds` pipeline in one call: read a distance matrix (and labels), embed it with
-//! classical MDS ([`crate::mds`]), compute the statistics of [`crate::stats`], and write the
+//! classical MDS ([`crate::mds`]) or metric MDS by SMACOF ([`crate::mds::smacof`]), compute the statistics of [`crate::stats`], and write the
 //! tables, plots and `stats.json` to an output directory.
 
 use std::collections::BTreeMap;
@@ -10,6 +10,7 @@ use shapespace_geometry::io::{write_atomically, AtomicFile};
 
 use crate::error::AnalysisError;
 use crate::matrix_io::{read_distance_matrix, read_labels, DistanceMatrix, Labels};
+use crate::mds::smacof::{smacof_mds, stress, SmacofParams, Stress};
 use crate::mds::{classical_mds, Mds};
 use crate::plot::{mds_scatter, mds_scatter_matrix, ColorScale, ScatterLabels, MAX_MATRIX_AXES};
 use crate::stats::{
@@ -17,9 +18,27 @@ use crate::stats::{
     ClassDistances, NnAccuracy, SymmetryGap, TriangleViolations,
 };
 
+/// The embedding method of [`run_mds`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MdsMethod {
+    /// Classical (Torgerson) MDS ([`classical_mds`]).
+    #[default]
+    Classical,
+    /// Metric MDS minimizing the raw stress by SMACOF, started from the classical embedding
+    /// ([`smacof_mds`]).
+    Smacof,
+}
+
 /// Options of [`run_mds`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MdsParams {
+    /// Classical MDS (default) or SMACOF.
+    #[serde(default)]
+    pub method: MdsMethod,
+    /// Tolerance and iteration cap of SMACOF (read only with [`MdsMethod::Smacof`]).
+    #[serde(default)]
+    pub smacof: SmacofParams,
     /// Embedding dimension `k` (`1 <= k <= #shapes`); the plot shows the first two, and for
     /// k ≥ 3 a scatter matrix the first k (at most [`MAX_MATRIX_AXES`]).
     pub dims: usize,
@@ -47,6 +66,8 @@ pub const MAX_CROSS_COLUMNS: usize = 8;
 impl Default for MdsParams {
     fn default() -> Self {
         MdsParams {
+            method: MdsMethod::Classical,
+            smacof: SmacofParams::default(),
             dims: 2,
             color_by: None,
             marker_by: None,
@@ -97,6 +118,22 @@ pub struct MdsSummary {
     pub negative_count: usize,
     /// Embedding dimensions clamped to 0 (non-positive eigenvalue).
     pub clamped_dims: usize,
+    /// The method of the embedding written.
+    #[serde(default)]
+    pub method: MdsMethod,
+    /// Raw stress Σ_{i<j} (d_ij − |x_i − x_j|)² and Kruskal's stress-1 of the embedding written
+    /// ([`stress`]).
+    #[serde(default)]
+    pub stress: Stress,
+    /// The same of the classical embedding (equal to `stress` for the classical method).
+    #[serde(default)]
+    pub classical_stress: Stress,
+    /// SMACOF's Guttman transforms (None for the classical method).
+    #[serde(default)]
+    pub smacof_iterations: Option<usize>,
+    /// Whether SMACOF reached its tolerance (None for the classical method).
+    #[serde(default)]
+    pub smacof_converged: Option<bool>,
 }
 
 /// Everything written to `stats.json`.
@@ -149,6 +186,7 @@ pub fn shape_space_stats(
     triangle_rel_eps: f64,
     cross_columns: Option<&[String]>,
 ) -> Result<ShapeSpaceStats, AnalysisError> {
+    let embedding_stress = stress(d, &mds.coordinates)?;
     let symmetry = symmetry_gap(d);
     let eps = triangle_rel_eps * symmetry.mean_distance.unwrap_or(0.0);
     let triangle = triangle_violations(d, eps);
@@ -214,6 +252,11 @@ pub fn shape_space_stats(
             },
             negative_count: mds.negative_count,
             clamped_dims: mds.clamped_dims,
+            method: MdsMethod::Classical,
+            stress: embedding_stress,
+            classical_stress: embedding_stress,
+            smacof_iterations: None,
+            smacof_converged: None,
         },
         labels: label_stats,
         cross,
@@ -277,14 +320,15 @@ pub const MDS_OUTPUTS: [&str; 7] = [
 ];
 
 /// `shapespace mds`: reads the distance matrix CSV `distances` (and the labels CSV `labels`,
-/// matched to the shapes as [`read_labels`] says), embeds it with classical MDS in `params.dims`
-/// dimensions, and writes to `out_dir` (created if needed):
+/// matched to the shapes as [`read_labels`] says), embeds it with classical MDS or SMACOF
+/// (`params.method`) in `params.dims` dimensions, and writes to `out_dir` (created if needed):
 ///
 /// - `mds.csv` (name, label columns, x1..xk), `eigenvalues.csv` (k, eigenvalue, share);
 /// - `mds.png` and `mds.svg`: the first two coordinates, coloured by `color_by` and shaped by
 ///   `marker_by` (defaults: first and second label columns);
 /// - `stats.json` ([`ShapeSpaceStats`]): symmetry gap, triangle-inequality violations, the MDS
-///   variance summary, and with labels per column 1-NN LOO accuracy, silhouette, within/between
+///   variance summary, the embedding's raw stress and stress-1 (and the classical
+///   embedding's, and SMACOF's iterations), and with labels per column 1-NN LOO accuracy, silhouette, within/between
 ///   distances, and the cross-column accuracies for every ordered pair of columns (of the
 ///   columns chosen, [`MdsParams::cross_columns`]: by default all of at most
 ///   [`MAX_CROSS_COLUMNS`], so that the file stays linear in the number of columns).
@@ -321,7 +365,13 @@ pub fn run_mds(
     let color_by = pick(&params.color_by, 0, "colouring by a label column")?;
     let marker_by = pick(&params.marker_by, 1, "choosing markers by a label column")?;
 
-    let mds = classical_mds(&d, params.dims)?;
+    let (mds, smacof) = match params.method {
+        MdsMethod::Classical => (classical_mds(&d, params.dims)?, None),
+        MdsMethod::Smacof => {
+            let (mds, info) = smacof_mds(&d, params.dims, &params.smacof)?;
+            (mds, Some(info))
+        }
+    };
     let mut stats = shape_space_stats(
         &d,
         labels.as_ref(),
@@ -329,6 +379,12 @@ pub fn run_mds(
         params.triangle_rel_eps,
         params.cross_columns.as_deref(),
     )?;
+    if let Some(info) = &smacof {
+        stats.mds.method = MdsMethod::Smacof;
+        stats.mds.classical_stress = info.initial;
+        stats.mds.smacof_iterations = Some(info.iterations);
+        stats.mds.smacof_converged = Some(info.converged);
+    }
 
     stats.dropped_shapes = dropped;
     stats.unlabeled_shapes = labels.as_ref().map(|l| l.unlabeled.clone()).unwrap_or_default();
@@ -353,7 +409,11 @@ pub fn run_mds(
     let source = distances
         .file_name()
         .map_or_else(|| distances.display().to_string(), |f| f.to_string_lossy().into_owned());
-    let title = format!("Classical MDS of {source} (n = {})", d.len());
+    let method = match params.method {
+        MdsMethod::Classical => "Classical",
+        MdsMethod::Smacof => "SMACOF",
+    };
+    let title = format!("{method} MDS of {source} (n = {})", d.len());
     let names: Vec<&str> = d.names.iter().map(String::as_str).collect();
     let scatter = ScatterLabels {
         color: colors.as_ref().map(|(c, v)| (c.as_str(), v.as_slice())),

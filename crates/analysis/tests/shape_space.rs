@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use shapespace_analysis::shape_space::{run_mds, MdsParams, ShapeSpaceStats};
+use shapespace_analysis::shape_space::{run_mds, MdsMethod, MdsParams, ShapeSpaceStats};
 use shapespace_analysis::stats::loo_1nn_accuracy_across;
 use shapespace_analysis::{read_labels, write_distance_matrix, AnalysisError, DistanceMatrix};
 
@@ -173,4 +173,57 @@ fn run_mds_errors_name_the_problem() {
     assert!(r.stats.labels.is_empty() && r.stats.cross.is_empty());
     let header = std::fs::read_to_string(out.join("mds.csv")).unwrap();
     assert!(header.starts_with("name,x1,x2\n"));
+}
+
+/// `--method smacof` on the faces matrix (4-dimensional points in 2 dimensions: not exact):
+/// stats.json reports the method, the stress of the configuration written to mds.csv, below
+/// the classical embedding's, and the iterations; the classical run reports its own stress in
+/// both fields.
+#[test]
+fn smacof_reports_a_stress_below_the_classical_one() {
+    let mut rng = ChaCha8Rng::seed_from_u64(42);
+    let (d, _) = faces(&mut rng);
+    let work = dir("smacof");
+    let dist_path = work.join("distances.csv");
+    write_distance_matrix(&dist_path, &d).unwrap();
+    let classical = run_mds(&dist_path, None, &work.join("classical"), &MdsParams::default()).unwrap();
+    let params = MdsParams {
+        method: MdsMethod::Smacof,
+        ..MdsParams::default()
+    };
+    let out = work.join("smacof");
+    let result = run_mds(&dist_path, None, &out, &params).unwrap();
+    let stats: ShapeSpaceStats =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats, result.stats);
+    let m = &stats.mds;
+    assert_eq!(m.method, MdsMethod::Smacof);
+    assert_eq!(classical.stats.mds.method, MdsMethod::Classical);
+    assert_eq!(classical.stats.mds.stress, classical.stats.mds.classical_stress);
+    assert!(classical.stats.mds.smacof_iterations.is_none());
+    // (the same embedding; SMACOF measures it on the distances divided by the largest)
+    let c = classical.stats.mds.stress;
+    assert!((m.classical_stress.raw - c.raw).abs() < 1e-12 * c.raw, "{m:?} vs {c:?}");
+    assert!((m.classical_stress.stress1 - c.stress1).abs() < 1e-12, "{m:?} vs {c:?}");
+    assert!(m.stress.raw < m.classical_stress.raw, "{m:?}");
+    assert!(
+        m.smacof_iterations.unwrap() > 0 && m.smacof_converged == Some(true),
+        "{m:?}"
+    );
+    // the stress of the coordinates in mds.csv (as written, full precision) is the one reported
+    let text = std::fs::read_to_string(out.join("mds.csv")).unwrap();
+    let coordinates: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let check = shapespace_analysis::stress(&d, &coordinates).unwrap();
+    assert!(
+        (check.raw - m.stress.raw).abs() < 1e-9 * m.stress.raw,
+        "{check:?} vs {m:?}"
+    );
+    eprintln!(
+        "faces matrix: classical stress-1 {:.4}, SMACOF {:.4} after {:?} iterations",
+        m.classical_stress.stress1, m.stress.stress1, m.smacof_iterations
+    );
 }

@@ -345,6 +345,52 @@ fn param_on_a_face() {
     assert!(text.contains("\"num_flipped\":0"), "{text}");
 }
 
+/// `shapespace param --method lie` writes the Lie-advection map: one `vt` per vertex, boundary
+/// vertices on the unit circle, a report with the method, the flow's steps and a distortion
+/// block whose map has no flipped face and a |Υ| median below the conformal map's; the square
+/// and weights are refused with status 2.
+#[test]
+fn param_lie_on_a_face() {
+    let dir = scratch("param_lie");
+    let obj = dir.join("lie.obj");
+    let json = dir.join("lie.json");
+    let out = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        obj.to_str().unwrap(),
+        "--report",
+        json.to_str().unwrap(),
+        "--method",
+        "lie",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("Lie advection"), "{}", stderr(&out));
+    let (vt, nv) = read_vt(&obj);
+    assert_eq!(vt.len(), nv);
+    let on_circle = vt.iter().filter(|p| (p[0].hypot(p[1]) - 1.0).abs() < 1e-9).count();
+    assert!(on_circle > 100, "{on_circle} vertices on the circle");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["method"], "lie");
+    assert!(report["lie_advection"]["mean_steps"].as_f64().unwrap() > 1.0);
+    let maps = &report["distortion"]["maps"];
+    assert_eq!(maps[1]["num_flipped"], 0);
+    let median = |k: usize| maps[k]["abs_area_distortion"]["median"].as_f64().unwrap();
+    assert!(median(1) < 0.2 * median(0), "{} vs {}", median(1), median(0));
+    let square = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        dir.join("sq.obj").to_str().unwrap(),
+        "--method",
+        "lie",
+        "--domain",
+        "square",
+    ]);
+    assert_eq!(square.status.code(), Some(2), "{}", stderr(&square));
+    assert!(stderr(&square).contains("disk only"), "{}", stderr(&square));
+}
+
 /// Bad input: exit status 2 (not a panic's 101), and a message naming the file and the problem.
 #[test]
 fn bad_input_exits_cleanly_and_names_the_file() {
@@ -2357,4 +2403,47 @@ fn param_maps_a_closed_mesh_onto_the_sphere_preserving_area() {
         "{}",
         stderr(&out)
     );
+}
+
+/// `mds --method smacof` on the bundled faces40 matrix: exit 0, stats.json says smacof with a
+/// stress-1 below the classical embedding's, and the summary line reports both; an iteration
+/// cap of 1 stops short of the tolerance: exit 1, the configuration still written.
+#[test]
+fn mds_smacof_reports_the_stress() {
+    let dir = scratch("mds_smacof");
+    let matrix = root().join("tests/data/faces40/distances.csv");
+    let out = dir.join("m");
+    let run = shapespace(&[
+        "mds",
+        matrix.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--method",
+        "smacof",
+    ]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(stderr(&run).contains("SMACOF stress-1"), "{}", stderr(&run));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    let m = &stats["mds"];
+    assert_eq!(m["method"], "smacof");
+    let (s, c) = (
+        m["stress"]["stress1"].as_f64().unwrap(),
+        m["classical_stress"]["stress1"].as_f64().unwrap(),
+    );
+    assert!(s > 0.0 && s < c, "{m}");
+    let capped = dir.join("capped");
+    let run = shapespace(&[
+        "mds",
+        matrix.to_str().unwrap(),
+        "--out",
+        capped.to_str().unwrap(),
+        "--method",
+        "smacof",
+        "--max-iterations",
+        "1",
+    ]);
+    assert_eq!(run.status.code(), Some(1), "{}", stderr(&run));
+    assert!(capped.join("mds.csv").is_file());
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -1,7 +1,14 @@
-//! Timing table of the area-preserving map (conformal / OT / output / total, seconds):
-//! `cargo bench -p shapespace-tools --bench param_bench`.
+//! Timing and distortion table of the area-preserving maps, one row per mesh and method:
+//! `cargo bench -p shapespace-tools --bench param_bench`. Methods (env `METHODS`, comma
+//! separated, default `omt,lie`): `omt`, the Newton OMT map
+//! (`area_preserving::area_preserving_map`), and `lie`, the Lie-advection map
+//! (`lie_advection::lie_advection_map`). Columns: wall time, iterations (OMT: Newton steps; Lie:
+//! integration steps per vertex, mean, and the correction's steps), |Υ| = |ln area ratio| per
+//! face (median, p95), the mean corner angle error per face (median, degrees) and the flipped
+//! faces; the last column gives the stages.
 //!
-//! Meshes, all from the shared datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`
+//! Meshes: the bundled face `datasets/faces/id00_neutral.obj` (9.4k V), then, all from the
+//! shared datasets folder (`$SHAPESPACE_DATA`, default `../shared/datasets`
 //! beside the workspace; a missing file is reported as a skipped row): the libigl face (25.9k V,
 //! 51.7k F), camelhead and camelhead subdivided 1-to-4 (45k V, 90.8k F, the ~85k-face size of
 //! the benchmark goal), and TOSCA meshes from `tosca/` made disks as `shapespace prepare`
@@ -22,7 +29,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use shapespace_analysis::area_preserving::{area_preserving_map, AreaPreservingParams};
-use shapespace_analysis::distortion::map_distortion;
+use shapespace_analysis::distortion::{map_distortion, MapDistortion};
+use shapespace_analysis::lie_advection::{lie_advection_map, LieAdvectionParams};
 use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::{prepare_disk, subdivide_midpoint, PrepareOptions};
 use shapespace_geometry::TriMesh;
@@ -52,7 +60,9 @@ fn main() {
         Box::new(move || shapespace_geometry::io::read_mesh(&path).map_err(|e| e.to_string()))
     };
     let camel_path = data.join("libigl_tutorial_data/camelhead.off");
+    let bundled = std::path::PathBuf::from("datasets/faces/id00_neutral.obj");
     let mut meshes: Vec<Case> = vec![
+        ("bundled faces/id00_neutral".into(), read(bundled)),
         (
             "libigl/face.obj".into(),
             read(data.join("libigl_tutorial_data/face.obj")),
@@ -95,8 +105,13 @@ fn main() {
     let nefertiti = data.join("common_3d_test_models/nefertiti.obj");
     meshes.push(("nefertiti (cut)".into(), body(nefertiti.clone(), 0)));
     meshes.push(("nefertiti (cut, seam 1)".into(), body(nefertiti, 1)));
-    println!("| mesh | V | F | conformal s | OT s | output s | repair s | total s | OT iterations | max rel. mass error | median abs(Υ) | flips |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let methods: Vec<String> = std::env::var("METHODS")
+        .unwrap_or_else(|_| "omt,lie".into())
+        .split(',')
+        .map(|m| m.trim().to_string())
+        .collect();
+    println!("| mesh | V | F | method | wall s | iterations | median abs(Υ) | p95 abs(Υ) | median angle distortion ° | flips | stages |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let only: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     for (name, load) in meshes {
         if !only.is_empty() && !only.iter().any(|o| name.contains(o.as_str())) {
@@ -105,41 +120,74 @@ fn main() {
         let mesh = match load() {
             Ok(m) => m,
             Err(e) => {
-                println!("| {name} | | | | | | | load/cut failed: {e} | | | |");
+                println!("| {name} | | | | load/cut failed: {e} | | | | | | |");
                 continue;
             }
         };
-        let t = Instant::now();
-        let mut params = AreaPreservingParams::default();
-        params.newton.flip_updates = std::env::var("NO_FLIPS").is_err();
-        params.newton.flux_masses = std::env::var("FLUX").is_ok();
-        match area_preserving_map(&mesh, &Markers::default(), &params) {
-            Ok(map) => {
-                let wall = t.elapsed().as_secs_f64();
-                let d = map_distortion("ap", &mesh, &map.uv).expect("distortion");
-                println!(
-                    "| {name} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} (wall {wall:.3}) | {} | {:.1e} | {:.3} | {} |",
-                    mesh.num_vertices(),
-                    mesh.num_faces(),
-                    map.timings.conformal,
-                    map.timings.ot,
-                    map.timings.output,
-                    map.timings.repair,
-                    map.timings.total,
-                    map.ot.iterations,
-                    map.ot.max_relative_error,
-                    d.abs_area_distortion.median,
-                    d.num_flipped
-                );
-            }
-            Err(e) => {
-                let source = std::error::Error::source(&e).map(|s| s.to_string()).unwrap_or_default();
-                println!(
-                    "| {name} | {} | {} | failed after {:.2} s: {e}: {source} |",
-                    mesh.num_vertices(),
-                    mesh.num_faces(),
-                    t.elapsed().as_secs_f64()
-                );
+        let (nv, nf) = (mesh.num_vertices(), mesh.num_faces());
+        for method in &methods {
+            let t = Instant::now();
+            let row = match method.as_str() {
+                "omt" => {
+                    let mut params = AreaPreservingParams::default();
+                    params.newton.flip_updates = std::env::var("NO_FLIPS").is_err();
+                    params.newton.flux_masses = std::env::var("FLUX").is_ok();
+                    area_preserving_map(&mesh, &Markers::default(), &params).map(|map| {
+                        let stages = format!(
+                            "conformal {:.3}, OT {:.3}, output {:.3}, repair {:.3} s; max rel. mass error {:.1e}; {} folded before the repair",
+                            map.timings.conformal,
+                            map.timings.ot,
+                            map.timings.output,
+                            map.timings.repair,
+                            map.ot.max_relative_error,
+                            map.fold_repair.info.flipped_before + map.fold_repair.info.degenerate_before
+                        );
+                        (map.uv, map.ot.iterations.to_string(), stages)
+                    })
+                }
+                "lie" => lie_advection_map(&mesh, &Markers::default(), &LieAdvectionParams::default()).map(|map| {
+                    let c = &map.info.correction;
+                    let correction = match &c.skipped {
+                        None => format!("correction applied ({} steps, {} halved)", c.steps, c.halvings),
+                        Some(why) => format!("correction not applied: {why}"),
+                    };
+                    let repair = match &map.info.fold_repair_error {
+                        Some(e) => format!("fold repair failed: {e}"),
+                        None => format!(
+                            "{} folded before the repair",
+                            map.info.fold_repair.flipped_before + map.info.fold_repair.degenerate_before
+                        ),
+                    };
+                    let stages = format!(
+                        "conformal {:.3}, advection {:.3}, repair {:.3}, correction {:.3} s; {repair}; {correction}",
+                        map.timings.conformal, map.timings.advection, map.timings.repair, map.timings.correction,
+                    );
+                    let iterations = format!("{:.1} (max {}) + {}", map.info.mean_steps, map.info.max_steps, c.steps);
+                    (map.uv, iterations, stages)
+                }),
+                other => {
+                    println!("| {name} | {nv} | {nf} | {other} | unknown method | | | | | | |");
+                    continue;
+                }
+            };
+            let wall = t.elapsed().as_secs_f64();
+            match row {
+                Ok((uv, iterations, stages)) => {
+                    let d: MapDistortion = map_distortion(method, &mesh, &uv).expect("distortion");
+                    println!(
+                        "| {name} | {nv} | {nf} | {method} | {wall:.3} | {iterations} | {:.3} | {:.3} | {:.2} | {} | {stages} |",
+                        d.abs_area_distortion.median,
+                        d.abs_area_distortion.p95,
+                        d.angle_distortion_deg.median,
+                        d.num_flipped
+                    );
+                }
+                Err(e) => {
+                    let source = std::error::Error::source(&e).map(|s| s.to_string()).unwrap_or_default();
+                    println!(
+                        "| {name} | {nv} | {nf} | {method} | failed after {wall:.2} s: {e}: {source} | | | | | | |"
+                    );
+                }
             }
         }
     }

@@ -1,13 +1,15 @@
-//! `shapespace mds DIST.csv --out DIR [--labels labels.csv] [--dims 2] [--color-by COL] [--marker-by COL]
-//! [--color-scale auto|categorical|continuous] [--point-labels]`:
-//! classical MDS of a distance matrix, with plots and shape-space statistics.
+//! `shapespace mds DIST.csv --out DIR [--method classical|smacof] [--labels labels.csv] [--dims 2]
+//! [--color-by COL] [--marker-by COL] [--color-scale auto|categorical|continuous] [--point-labels]`:
+//! classical MDS (or metric MDS by SMACOF) of a distance matrix, with plots, the stress and
+//! shape-space statistics. Exit code 1 when SMACOF stopped at its iteration cap (the last
+//! configuration is still written).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
 use shapespace_analysis::plot::ColorScale;
-use shapespace_analysis::shape_space::{run_mds, MdsParams, MdsResult};
+use shapespace_analysis::shape_space::{run_mds, MdsMethod, MdsParams, MdsResult};
 
 /// `--color-scale` values.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -15,6 +17,13 @@ pub enum ColorScaleArg {
     Auto,
     Categorical,
     Continuous,
+}
+
+/// `--method` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum MethodArg {
+    Classical,
+    Smacof,
 }
 
 /// Arguments of `shapespace mds`.
@@ -26,6 +35,14 @@ pub struct MdsArgs {
     /// and .svg from --dims 3 on).
     #[arg(long)]
     pub out: PathBuf,
+    /// `classical` (Torgerson) MDS, or `smacof`: metric MDS minimizing the raw stress by the
+    /// Guttman transform, started from the classical embedding. Both report the raw stress and
+    /// the stress-1 (stats.json, `mds.stress`).
+    #[arg(long, value_enum, default_value_t = MethodArg::Classical)]
+    pub method: MethodArg,
+    /// SMACOF's iteration cap.
+    #[arg(long, default_value_t = 1000)]
+    pub max_iterations: usize,
     /// Labels CSV: first column `file` or `name` (a shape name, or a file path ending with one), then label columns (an empty cell: unknown).
     #[arg(long)]
     pub labels: Option<PathBuf>,
@@ -59,7 +76,11 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
         &shapespace_analysis::shape_space::MDS_OUTPUTS,
         [Some(args.distances.as_path()), args.labels.as_deref()],
     )?;
-    let params = MdsParams {
+    let mut params = MdsParams {
+        method: match args.method {
+            MethodArg::Classical => MdsMethod::Classical,
+            MethodArg::Smacof => MdsMethod::Smacof,
+        },
         dims: args.dims,
         color_by: args.color_by.clone(),
         marker_by: args.marker_by.clone(),
@@ -72,9 +93,17 @@ pub fn run(args: &MdsArgs) -> anyhow::Result<ExitCode> {
         cross_columns: args.cross_columns.clone(),
         ..MdsParams::default()
     };
+    params.smacof.max_iterations = args.max_iterations;
     let result = run_mds(&args.distances, args.labels.as_deref(), &args.out, &params)
         .with_context(|| format!("mds of {}", args.distances.display()))?;
     print_summary(&result);
+    if result.stats.mds.smacof_converged == Some(false) {
+        eprintln!(
+            "shapespace: SMACOF stopped at its iteration cap ({}) before its tolerance; the last configuration was written",
+            args.max_iterations
+        );
+        return Ok(ExitCode::from(1));
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -107,6 +136,14 @@ pub fn print_summary(result: &MdsResult) {
         shares.join(", "),
         result.stats.mds.negative_ratio
     );
+    let m = &result.stats.mds;
+    match m.smacof_iterations {
+        Some(iterations) => eprintln!(
+            "mds: SMACOF stress-1 {:.4} (raw {:.4e}) after {iterations} iterations, from the classical {:.4} (raw {:.4e})",
+            m.stress.stress1, m.stress.raw, m.classical_stress.stress1, m.classical_stress.raw
+        ),
+        None => eprintln!("mds: stress-1 {:.4} (raw {:.4e})", m.stress.stress1, m.stress.raw),
+    }
     for (col, s) in &result.stats.labels {
         eprintln!(
             "mds: {col}: 1-NN LOO accuracy {}, silhouette {}",

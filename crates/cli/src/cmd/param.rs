@@ -1,6 +1,6 @@
 //! `shapespace param IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
 //! [--landmarks FILE.json] [--domain disk|square|sphere] [--weights W.csv] [--report R.json]
-//! [--plots DIR] [--no-fold-repair]`: the area-preserving parameterization of a disk-type mesh by optimal mass
+//! [--plots DIR] [--no-fold-repair] [--method omt|lie]`: the area-preserving parameterization of a disk-type mesh by optimal mass
 //! transport ([`shapespace_analysis::area_preserving::area_preserving_map`]), or with
 //! `--domain sphere` of a closed genus-0 mesh onto the unit sphere
 //! ([`shapespace_analysis::sphere_param::area_preserving_sphere_map`]; normalized by
@@ -16,6 +16,11 @@
 //! `--no-fold-repair`; the report's `fold_repair` gives the folded faces before, the vertices
 //! moved, the rounds and the distortion before and after. Exit code 1 when the OT solver did not reach its
 //! tolerance (the map of its last iterate is still written).
+//!
+//! `--method lie` computes the authalic map by Lie advection instead
+//! ([`shapespace_analysis::lie_advection::lie_advection_map`]; disk only, no weights); its
+//! report has the same distortion block, with the flow's steps and timings in place of the OT
+//! summary. Exit code 1 when its fold repair failed (the map is written with its folds).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -27,7 +32,17 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
 use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
+use shapespace_analysis::lie_advection::{lie_advection_map, LieAdvectionParams};
 use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
+
+/// `--method` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ParamMethod {
+    /// Conformal map + semi-discrete OT by Newton's method (Su et al. 2015).
+    Omt,
+    /// Conformal map + Lie advection of the area form (Zou et al. 2011; disk only).
+    Lie,
+}
 
 /// Arguments of `shapespace param`.
 #[derive(clap::Args)]
@@ -41,6 +56,9 @@ pub struct ParamArgs {
     pub markers: MarkerArgs,
     #[command(flatten)]
     pub sphere: super::conformal::SphereMarkerArgs,
+    /// `omt` (default): the Newton OMT map; `lie`: the Lie-advection authalic map (disk only).
+    #[arg(long, value_enum, default_value_t = ParamMethod::Omt)]
+    pub method: ParamMethod,
     /// Target domain: `disk` (unit disk), `square` (side √π, centered at 0) or `sphere` (the
     /// unit sphere, for a closed genus-0 mesh).
     #[arg(long, default_value = "disk")]
@@ -123,6 +141,9 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         super::create_output_folder(dir)?;
     }
     if args.domain == "sphere" {
+        if args.method != ParamMethod::Omt {
+            anyhow::bail!("--method lie maps onto the disk only (--domain sphere takes the Newton OMT map)");
+        }
         return run_sphere(args, t0);
     }
     if args.sphere.is_given() {
@@ -137,6 +158,15 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk parameterization", args.input.display()))?;
     let (markers, marker_source) = args.markers.resolve(&args.input, mesh.num_vertices())?;
+    if args.method == ParamMethod::Lie {
+        if domain != Domain::Disk {
+            anyhow::bail!("--method lie maps onto the disk only (got --domain {})", args.domain);
+        }
+        if args.weights.is_some() {
+            anyhow::bail!("--method lie takes no --weights (the Newton OMT map does)");
+        }
+        return run_lie(args, mesh, markers, marker_source, t0);
+    }
     let weights = match &args.weights {
         Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),
         None => None,
@@ -226,6 +256,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         let json = serde_json::json!({
             "input": args.input.display().to_string(),
             "output": args.out.display().to_string(),
+            "method": "omt",
             "marker_file": marker_source,
             "markers": map.conformal.info.markers,
             "conformal_method": map.conformal.info.method,
@@ -257,6 +288,93 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         if map.ot.stop.contains("crowded") {
             print_seam_hint();
         }
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `--method lie`: the Lie-advection map, its summary line and report.
+fn run_lie(
+    args: &ParamArgs,
+    mut mesh: shapespace_geometry::TriMesh,
+    markers: shapespace_conformal::Markers,
+    marker_source: String,
+    t0: Instant,
+) -> Result<ExitCode> {
+    let mut params = LieAdvectionParams::default();
+    params.fold_repair.enabled = !args.no_fold_repair;
+    let message = format!(
+        "Lie-advection map of {} ({} vertices)",
+        args.input.display(),
+        mesh.num_vertices()
+    );
+    let map = with_spinner(message, || lie_advection_map(&mesh, &markers, &params))
+        .with_context(|| format!("parameterizing {}", args.input.display()))?;
+    mesh.uvs = Some(map.uv.clone());
+    write_mesh(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
+    let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
+    let lie = &report.maps[1];
+    let correction = match &map.info.correction.skipped {
+        None => format!(
+            "correction {} steps ({} halved)",
+            map.info.correction.steps, map.info.correction.halvings
+        ),
+        Some(why) => format!("correction not applied ({why})"),
+    };
+    eprintln!(
+        "{}: {} V, {} F; Lie advection {:.1} steps per vertex (max {}); {}; |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; {}; conformal {:.2} s, advection {:.2} s, repair {:.2} s, correction {:.2} s",
+        args.input.display(),
+        mesh.num_vertices(),
+        mesh.num_faces(),
+        map.info.mean_steps,
+        map.info.max_steps,
+        correction,
+        lie.abs_area_distortion.median,
+        lie.abs_area_distortion.p95,
+        report.maps[0].abs_area_distortion.median,
+        report.maps[0].abs_area_distortion.p95,
+        lie.quasi_conformal_distortion.median,
+        lie.num_flipped,
+        repair_summary(&map.info.fold_repair),
+        map.timings.conformal,
+        map.timings.advection,
+        map.timings.repair,
+        map.timings.correction,
+    );
+    if let Some(e) = &map.info.fold_repair_error {
+        eprintln!(
+            "{}: the fold repair failed ({e}); the advected map was written with its {} folded faces",
+            args.input.display(),
+            lie.num_flipped + lie.num_degenerate
+        );
+    }
+    if let Some(dir) = &args.plots {
+        write_distortion_histograms(&report, dir, 60)
+            .with_context(|| format!("writing plots into {}", dir.display()))?;
+    }
+    if let Some(p) = &args.report {
+        let json = serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.out.display().to_string(),
+            "method": "lie",
+            "marker_file": marker_source,
+            "markers": map.conformal.info.markers,
+            "conformal_method": map.conformal.info.method,
+            "conformal_bff_fallback": map.conformal.info.bff_fallback,
+            "domain": Domain::Disk,
+            "num_vertices": mesh.num_vertices(),
+            "num_faces": mesh.num_faces(),
+            "scale": map.conformal.scale,
+            "lie_advection": map.info,
+            "fold_repair": map.info.fold_repair,
+            "timings": map.timings,
+            "wall_seconds": t0.elapsed().as_secs_f64(),
+            "distortion": report,
+        });
+        let text = serde_json::to_string_pretty(&json)?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
+    }
+    if map.info.fold_repair_error.is_some() {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)

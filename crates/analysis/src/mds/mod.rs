@@ -11,6 +11,10 @@
 //! place shape $i$ at $x_{ik} = v_{ik} \sqrt{\max(\lambda_k, 0)}$, $k = 1..K$. If the distances
 //! are Euclidean in $\mathbb{R}^K$ this recovers the configuration up to a rigid motion; otherwise
 //! $B$ has negative eigenvalues (reported, and clamped to 0 in the coordinates).
+//!
+//! Metric MDS minimizing the stress (SMACOF, started from this embedding) is in [`smacof`].
+
+pub mod smacof;
 
 use serde::{Deserialize, Serialize};
 
