@@ -248,12 +248,8 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             args.input.display()
         );
     }
-    if let Some(dir) = &args.plots {
-        write_distortion_histograms(&report, dir, 60)
-            .with_context(|| format!("writing plots into {}", dir.display()))?;
-    }
-    if let Some(p) = &args.report {
-        let json = serde_json::json!({
+    write_plots_and_report(args, &report, || {
+        serde_json::json!({
             "input": args.input.display().to_string(),
             "output": args.out.display().to_string(),
             "method": "omt",
@@ -275,10 +271,8 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             "timings": map.timings,
             "wall_seconds": t0.elapsed().as_secs_f64(),
             "distortion": report,
-        });
-        let text = serde_json::to_string_pretty(&json)?;
-        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
-    }
+        })
+    })?;
     if !map.ot.converged {
         eprintln!(
             "shapespace: {}: OT did not converge ({}); the map of the last iterate was written",
@@ -348,12 +342,8 @@ fn run_lie(
             lie.num_flipped + lie.num_degenerate
         );
     }
-    if let Some(dir) = &args.plots {
-        write_distortion_histograms(&report, dir, 60)
-            .with_context(|| format!("writing plots into {}", dir.display()))?;
-    }
-    if let Some(p) = &args.report {
-        let json = serde_json::json!({
+    write_plots_and_report(args, &report, || {
+        serde_json::json!({
             "input": args.input.display().to_string(),
             "output": args.out.display().to_string(),
             "method": "lie",
@@ -370,10 +360,8 @@ fn run_lie(
             "timings": map.timings,
             "wall_seconds": t0.elapsed().as_secs_f64(),
             "distortion": report,
-        });
-        let text = serde_json::to_string_pretty(&json)?;
-        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
-    }
+        })
+    })?;
     if map.info.fold_repair_error.is_some() {
         return Ok(ExitCode::from(1));
     }
@@ -455,12 +443,8 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
         map.timings.ot,
         map.timings.output,
     );
-    if let Some(dir) = &args.plots {
-        write_distortion_histograms(&report, dir, 60)
-            .with_context(|| format!("writing plots into {}", dir.display()))?;
-    }
-    if let Some(p) = &args.report {
-        let json = serde_json::json!({
+    write_plots_and_report(args, &report, || {
+        serde_json::json!({
             "input": args.input.display().to_string(),
             "output": args.out.display().to_string(),
             "domain": "sphere",
@@ -486,10 +470,8 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
             "timings": map.timings,
             "wall_seconds": t0.elapsed().as_secs_f64(),
             "distortion": report,
-        });
-        let text = serde_json::to_string_pretty(&json)?;
-        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
-    }
+        })
+    })?;
     if map.num_flipped > 0 {
         eprintln!(
             "shapespace: {}: {} faces are still folded on the sphere after the fold repair; the map was written",
@@ -499,6 +481,24 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Writes the histograms of `report` into `--plots` and the JSON that `json` builds into
+/// `--report` (atomically), for those of the two that are given.
+fn write_plots_and_report(
+    args: &ParamArgs,
+    report: &shapespace_analysis::distortion::DistortionReport,
+    json: impl FnOnce() -> serde_json::Value,
+) -> Result<()> {
+    if let Some(dir) = &args.plots {
+        write_distortion_histograms(report, dir, 60)
+            .with_context(|| format!("writing plots into {}", dir.display()))?;
+    }
+    if let Some(p) = &args.report {
+        let text = serde_json::to_string_pretty(&json())?;
+        write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
+    }
+    Ok(())
 }
 
 /// Whether an error (or one of its sources) is about interior protrusions crowded beyond f64:
