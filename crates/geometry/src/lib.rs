@@ -33,6 +33,7 @@ pub mod primitives;
 pub mod quantities;
 pub mod repair;
 pub mod seam;
+pub mod spectral;
 pub mod topology;
 pub mod vec3;
 

@@ -1,7 +1,7 @@
-//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal]` (same as
+//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal] [none|zoomout] [K_END] [vertex|projected] [EIGEN_TOL]` (same as
 //! `shapespace register-bench`). Prints the per-pair rows and the per-method means.
 use shapespace_analysis::registration::bench::register_bench;
-use shapespace_analysis::registration::{Method, MetricParams};
+use shapespace_analysis::registration::{Method, MetricParams, Refinement, ZoomOutParams};
 use std::path::PathBuf;
 
 fn main() {
@@ -15,23 +15,37 @@ fn main() {
         .split(',')
         .map(|m| m.parse().expect("method"))
         .collect();
+    let refine: Refinement = args.get(4).map_or("none", String::as_str).parse().expect("refinement");
+    let mut zoomout = ZoomOutParams::default();
+    if let Some(k) = args.get(5) {
+        zoomout.k_end = k.parse().expect("k_end");
+    }
+    if let Some(o) = args.get(6) {
+        zoomout.output = o.parse().expect("output");
+    }
+    if let Some(t) = args.get(7) {
+        zoomout.eigen.tolerance = t.parse().expect("eigen tolerance");
+    }
     let res = register_bench(
         &dataset,
         &out,
         &methods,
         &shapespace_analysis::registration::registration_area_params(),
         &shapespace_analysis::registration::HarmonicParams::for_method,
+        refine,
+        &zoomout,
         &MetricParams::default(),
         |m| eprintln!("{m}"),
     )
     .expect("bench");
     for r in &res.rows {
         println!(
-            "{} {}->{} {:9} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s {}",
+            "{} {}->{} {:9} {} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s (refine {:.2}s) {}",
             r.class,
             r.source,
             r.target,
             r.method.name(),
+            r.refine.name(),
             r.flipped_ratio,
             r.flipped_ratio_3d,
             r.curvature_median,
@@ -42,6 +56,7 @@ fn main() {
             r.geodesic_median,
             r.geodesic_mean,
             r.seconds,
+            r.refine_seconds,
             r.status
         );
     }

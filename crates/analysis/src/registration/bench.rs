@@ -15,7 +15,10 @@ use crate::area_preserving::AreaPreservingParams;
 use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics, MetricParams, RegistrationMetrics};
-use crate::registration::{disk_image, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Registration};
+use crate::registration::{
+    disk_image, refine_registration, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Refinement,
+    Registration, SpectralBasis, ZoomOutParams,
+};
 
 /// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
 /// errors per class.
@@ -178,6 +181,8 @@ pub struct BenchRow {
     pub source: String,
     pub target: String,
     pub method: Method,
+    /// The refinement after the disk-map stage.
+    pub refine: Refinement,
     /// `ok`, or the error that stopped this pair.
     pub status: String,
     pub flipped_ratio: f64,
@@ -195,6 +200,8 @@ pub struct BenchRow {
     pub geodesic_median: f64,
     pub geodesic_mean: f64,
     pub seconds: f64,
+    /// Of `seconds`: the refinement (both surfaces' eigenpairs and the iterations; 0 without).
+    pub refine_seconds: f64,
 }
 
 /// Means over the successful pairs of one method (in one class, or `all`).
@@ -203,6 +210,7 @@ pub struct MethodSummary {
     /// The class folder, or `all` for every class together.
     pub class: String,
     pub method: Method,
+    pub refine: Refinement,
     pub pairs_ok: usize,
     pub pairs_failed: usize,
     pub flipped_ratio: f64,
@@ -218,6 +226,8 @@ pub struct MethodSummary {
     pub geodesic_median: f64,
     pub geodesic_mean: f64,
     pub seconds: f64,
+    /// Of `seconds`: the refinement.
+    pub refine_seconds: f64,
 }
 
 /// Result of [`register_bench`].
@@ -264,14 +274,19 @@ fn stem(p: &Path) -> String {
 /// `curvature_difference.{png,svg}` and `area_distortion.{png,svg}` into `out`. A pair whose
 /// disk map fails is recorded with its error and NaN measures; the benchmark continues.
 /// g of each method: `harmonic(method)` (e.g. [`HarmonicParams::for_method`]).
-/// `seconds` of a pair = both disk maps + harmonic map + composition (a registration from
-/// scratch), not the metrics.
+/// With `refine` = [`Refinement::ZoomOut`] each registration is refined
+/// ([`refine_registration`] with `zoomout`; eigenpairs computed once per mesh).
+/// `seconds` of a pair = both disk maps + harmonic map + composition (+ both surfaces'
+/// eigenpairs + the ZoomOut iterations): a registration from scratch, not the metrics.
+#[allow(clippy::too_many_arguments)]
 pub fn register_bench(
     dataset: &Path,
     out: &Path,
     methods: &[Method],
     params: &AreaPreservingParams,
     harmonic: &dyn Fn(Method) -> HarmonicParams,
+    refine: Refinement,
+    zoomout: &ZoomOutParams,
     metric_params: &MetricParams,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchResult, AnalysisError> {
@@ -311,6 +326,18 @@ pub fn register_bench(
             meshes.push(mesh);
             markers.push((side, mf));
         }
+        let bases: Vec<Result<SpectralBasis, String>> = if refine == Refinement::ZoomOut {
+            meshes
+                .iter()
+                .zip(&files)
+                .map(|(m, f)| {
+                    progress(&format!("{class}: eigenpairs of {}", stem(f)));
+                    SpectralBasis::of(m, zoomout.k_end, &zoomout.eigen).map_err(|e| error_chain(&e))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         for (mi, &method) in methods.iter().enumerate() {
             let maps: Vec<Result<DiskImage, String>> = meshes
                 .iter()
@@ -333,6 +360,7 @@ pub fn register_bench(
                         source: src,
                         target: tgt,
                         method,
+                        refine,
                         status: "ok".into(),
                         flipped_ratio: f64::NAN,
                         flipped_ratio_3d: f64::NAN,
@@ -345,6 +373,7 @@ pub fn register_bench(
                         geodesic_median: f64::NAN,
                         geodesic_mean: f64::NAN,
                         seconds: f64::NAN,
+                        refine_seconds: 0.0,
                     };
                     let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
                         let phi1 = maps[i]
@@ -359,8 +388,18 @@ pub fn register_bench(
                             &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let reg = register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method))
-                            .map_err(|e| error_chain(&e))?;
+                        let mut reg =
+                            register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method))
+                                .map_err(|e| error_chain(&e))?;
+                        if refine == Refinement::ZoomOut {
+                            let basis = |m: usize| {
+                                bases[m]
+                                    .as_ref()
+                                    .map_err(|e| format!("eigenpairs of {}: {e}", stem(&files[m])))
+                            };
+                            refine_registration(&meshes[i], &meshes[j], &mut reg, basis(i)?, basis(j)?, zoomout)
+                                .map_err(|e| error_chain(&e))?;
+                        }
                         let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params)
                             .map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
@@ -381,6 +420,7 @@ pub fn register_bench(
                                 pooled[mi].3.push((class.clone(), g.fractions.clone()));
                             }
                             row.seconds = reg.timings.total;
+                            row.refine_seconds = reg.timings.refine;
                             pooled[mi].1.extend_from_slice(&met.curvature_difference);
                             pooled[mi].2.extend_from_slice(&met.area_distortion);
                         }
@@ -442,6 +482,7 @@ pub fn register_bench(
                 pairs_failed: rows.iter().filter(in_group).filter(|r| r.status != "ok").count(),
                 class,
                 method: m,
+                refine,
                 pairs_ok: ok.len(),
                 flipped_ratio: mean(&|r| r.flipped_ratio),
                 flipped_ratio_3d: mean(&|r| r.flipped_ratio_3d),
@@ -453,6 +494,7 @@ pub fn register_bench(
                 geodesic_median: mean(&|r| r.geodesic_median),
                 geodesic_mean: mean(&|r| r.geodesic_mean),
                 seconds: mean(&|r| r.seconds),
+                refine_seconds: mean(&|r| r.refine_seconds),
             }
         })
         .collect();

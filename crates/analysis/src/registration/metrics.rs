@@ -19,7 +19,11 @@
 //!   corners' g-images, located in φ₂(S₂)), over the total area. This sees folds of the whole
 //!   composition, including those of φ₂. (Vertex normals would not do: at a sharp crease a
 //!   face's own normal can point away from its corners' averaged normals, and the identity map
-//!   would count as folded.)
+//!   would count as folded.) A refined registration (ZoomOut) is not g: its corners' points
+//!   are carried into the disk by φ₂ (their faces' φ₂ images, barycentrically), which is g's
+//!   image again for an unrefined one, and the mean of the three is located in φ₂(S₂). An image
+//!   triangle with two corners on the same point (a vertex map can collapse faces) has a zero
+//!   normal and is not counted: a collapse, not a flip (it shows in the area distortion).
 //! * **Curvature difference** per interior vertex v of S₁: max(|c₁|/|c₂|, |c₂|/|c₁|) with c the
 //!   signed mean curvature (`shapespace_geometry::curvature::vertex_mean_curvatures`), c₁ at v,
 //!   c₂ interpolated at f(v) from the corners of its face. Near-zero curvatures are clamped:
@@ -245,6 +249,23 @@ pub fn registration_metrics(
         cross(sub(p[1], p[0]), sub(p[2], p[0]))
     };
     let (mut flipped, mut flipped_area, mut flipped3, mut flipped_area3) = (0usize, 0.0, 0usize, 0.0);
+    // φ₂(f(v)): the harmonic image itself, or for a refined map its point mapped by φ₂
+    let image_uv: Vec<[f64; 2]> = if reg.refinement.is_some() {
+        (0..n1)
+            .map(|v| {
+                let t = target.faces[reg.faces[v] as usize];
+                let mut u = [0.0; 2];
+                for k in 0..3 {
+                    for d in 0..2 {
+                        u[d] += reg.bary[v][k] * reg.target_uv[t[k] as usize][d];
+                    }
+                }
+                u
+            })
+            .collect()
+    } else {
+        reg.harmonic_uv.clone()
+    };
     let mut ring_image = vec![0.0; n1];
     let mut ring_source = vec![0.0; n1];
     for (fi, f) in source.faces.iter().enumerate() {
@@ -256,7 +277,7 @@ pub fn registration_metrics(
         }
         let (pa, pb, pc) = (reg.points[a], reg.points[b], reg.points[c]);
         let nimg = cross(sub(pb, pa), sub(pc, pa));
-        let (ha, hb, hc) = (reg.harmonic_uv[a], reg.harmonic_uv[b], reg.harmonic_uv[c]);
+        let (ha, hb, hc) = (image_uv[a], image_uv[b], image_uv[c]);
         let centroid = [(ha[0] + hb[0] + hc[0]) / 3.0, (ha[1] + hb[1] + hc[1]) / 3.0];
         let nref = locator
             .locate(centroid)

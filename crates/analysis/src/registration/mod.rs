@@ -44,6 +44,7 @@
 pub mod bench;
 pub mod landmarks;
 pub mod metrics;
+pub mod zoomout;
 
 use std::time::Instant;
 
@@ -58,6 +59,7 @@ use crate::point_location::PointLocator;
 
 pub use landmarks::Landmarks;
 pub use metrics::{registration_metrics, MetricParams, RegistrationMetrics};
+pub use zoomout::{Refinement, SpectralBasis, ZoomOutOutput, ZoomOutParams};
 
 /// Weights of the harmonic map g.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -218,6 +220,10 @@ pub struct RegistrationParams {
     /// Weights, landmark steps and untangling of the harmonic map g (set it with
     /// [`HarmonicParams::for_method`] when changing `method`).
     pub harmonic: HarmonicParams,
+    /// Refinement of f after the disk-map stage (default none).
+    pub refine: Refinement,
+    /// Parameters of the ZoomOut refinement.
+    pub zoomout: ZoomOutParams,
 }
 
 impl Default for RegistrationParams {
@@ -228,6 +234,8 @@ impl Default for RegistrationParams {
             target_markers: Markers::default(),
             area_preserving: registration_area_params(),
             harmonic: HarmonicParams::for_method(Method::Omt),
+            refine: Refinement::None,
+            zoomout: ZoomOutParams::default(),
         }
     }
 }
@@ -332,8 +340,27 @@ pub struct RegistrationTimings {
     pub harmonic: f64,
     /// Point location and barycentric images.
     pub composition: f64,
+    /// Refinement: the eigenpairs of both surfaces and the ZoomOut iterations (0 without).
+    pub refine: f64,
     /// Sum of the above (what one registration from scratch costs).
     pub total: f64,
+}
+
+/// What a refinement did ([`refine_registration`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RefinementInfo {
+    /// The refinement applied.
+    pub refinement: Refinement,
+    /// Spectral sizes visited.
+    pub sizes: Vec<usize>,
+    /// Vertex map or projected points.
+    pub output: ZoomOutOutput,
+    /// Seconds of the eigenpairs of S₁ and S₂ (as computed, possibly once for many pairs).
+    pub eigen_seconds: [f64; 2],
+    /// Seconds of the iterations.
+    pub iteration_seconds: f64,
+    /// Source vertices whose nearest target vertex changed from the first stage's.
+    pub vertices_moved: usize,
 }
 
 /// A registration f: S₁ → S₂ (module docs).
@@ -364,6 +391,9 @@ pub struct Registration {
     pub harmonic_steps: usize,
     /// What the fold repair of g did (when [`HarmonicParams::fold_repair`] is on).
     pub harmonic_fold_repair: Option<UntangleInfo>,
+    /// The refinement applied after the disk-map stage, if any: `faces`, `bary` and `points` are
+    /// then the refined map's, while `harmonic_uv` stays the first stage's.
+    pub refinement: Option<RefinementInfo>,
     /// Stage timings.
     pub timings: RegistrationTimings,
 }
@@ -397,7 +427,63 @@ pub fn register(
     );
     let phi1 = phi1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
     let phi2 = phi2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
-    register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
+    let mut reg = register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)?;
+    if params.refine == Refinement::ZoomOut {
+        let (b1, b2) = rayon::join(
+            || SpectralBasis::of(source, params.zoomout.k_end, &params.zoomout.eigen),
+            || SpectralBasis::of(target, params.zoomout.k_end, &params.zoomout.eigen),
+        );
+        let b1 = b1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
+        let b2 = b2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
+        refine_registration(source, target, &mut reg, &b1, &b2, &params.zoomout)?;
+    }
+    Ok(reg)
+}
+
+/// Refines a first-stage registration by ZoomOut ([`zoomout`]) seeded with its vertex map
+/// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
+/// S₂: replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds the bases'
+/// and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
+pub fn refine_registration(
+    source: &TriMesh,
+    target: &TriMesh,
+    reg: &mut Registration,
+    source_basis: &SpectralBasis,
+    target_basis: &SpectralBasis,
+    params: &ZoomOutParams,
+) -> Result<(), AnalysisError> {
+    let seed = zoomout::nearest_corner_map(target, &reg.faces, &reg.bary);
+    let refined = zoomout::zoomout(source, target, source_basis, target_basis, &seed, params)?;
+    let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
+    reg.points = refined
+        .faces
+        .iter()
+        .zip(&refined.bary)
+        .map(|(&f, b)| {
+            let t = target.faces[f as usize];
+            let mut x = [0.0; 3];
+            for k in 0..3 {
+                let q = target.positions[t[k] as usize];
+                for d in 0..3 {
+                    x[d] += b[k] * q[d];
+                }
+            }
+            x
+        })
+        .collect();
+    reg.faces = refined.faces;
+    reg.bary = refined.bary;
+    reg.refinement = Some(RefinementInfo {
+        refinement: Refinement::ZoomOut,
+        sizes: refined.sizes,
+        output: params.output,
+        eigen_seconds: [source_basis.seconds, target_basis.seconds],
+        iteration_seconds: refined.seconds,
+        vertices_moved,
+    });
+    reg.timings.refine = source_basis.seconds + target_basis.seconds + refined.seconds;
+    reg.timings.total += reg.timings.refine;
+    Ok(())
 }
 
 fn check_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
@@ -526,11 +612,13 @@ pub fn register_with_maps(
         harmonic_folded,
         harmonic_steps: steps_used,
         harmonic_fold_repair,
+        refinement: None,
         timings: RegistrationTimings {
             source_map: phi1.seconds,
             target_map: phi2.seconds,
             harmonic,
             composition,
+            refine: 0.0,
             total: phi1.seconds + phi2.seconds + harmonic + composition,
         },
     })

@@ -1,7 +1,8 @@
-//! `shapespace register SOURCE TARGET [--landmarks pairs.csv] [--method omt|conformal] --out DIR`
-//! and `shapespace register-bench DATASET_DIR --out DIR [--methods omt,conformal]`:
+//! `shapespace register SOURCE TARGET [--landmarks pairs.csv] [--method omt|conformal] [--refine none|zoomout] --out DIR`
+//! and `shapespace register-bench DATASET_DIR --out DIR [--methods omt,conformal] [--refine none|zoomout]`:
 //! registration f = φ₂⁻¹ ∘ g ∘ φ₁ through disk maps and a landmark-constrained harmonic map
-//! (Su et al. 2015, Alg. 4), its quality measures, and the benchmark over pose sets.
+//! (Su et al. 2015, Alg. 4), optionally refined by ZoomOut, its quality measures, and the
+//! benchmark over pose sets.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -11,7 +12,7 @@ use anyhow::Context;
 use shapespace_analysis::registration::bench::{register_bench, write_registration};
 use shapespace_analysis::registration::{
     register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
-    RegistrationParams,
+    Refinement, RegistrationParams, ZoomOutParams,
 };
 use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
 use shapespace_conformal::{resolve_markers_of, BoundaryMarker, CenterMarker, MarkerFile};
@@ -52,6 +53,10 @@ pub struct RegisterArgs {
     /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
     #[arg(long)]
     pub out: PathBuf,
+    /// Refinement after the disk-map stage: `none` or `zoomout` (spectral refinement, Melzi et
+    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 to 120).
+    #[arg(long, default_value = "none")]
+    pub refine: String,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
     /// signed; default), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
@@ -89,6 +94,10 @@ pub struct RegisterBenchArgs {
     /// Comma-separated methods.
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
+    /// Refinement after the disk-map stage: `none` or `zoomout` (spectral refinement, Melzi et
+    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 to 120).
+    #[arg(long, default_value = "none")]
+    pub refine: String,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
     /// signed; default), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
@@ -237,8 +246,14 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
             args.untangle_g.as_deref(),
             args.landmark_steps,
         )?,
+        refine: args.refine.parse()?,
+        zoomout: ZoomOutParams::default(),
     };
-    eprintln!("register: {} landmark pairs, method {method}", landmarks.len());
+    eprintln!(
+        "register: {} landmark pairs, method {method}, refinement {}",
+        landmarks.len(),
+        params.refine
+    );
     if landmarks.is_empty() {
         eprintln!(
             "register: no landmark pairs ({} names none shared by both meshes): the harmonic map is held by the boundary and the markers only",
@@ -260,12 +275,17 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
         "geodesic_samples": args.samples, "seed": args.seed, "harmonic": params.harmonic,
-        "markers": markers_json,
+        "markers": markers_json, "refinement": reg.refinement,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
     eprintln!(
-        "register: {secs:.2}s (maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s); snapped {}",
-        reg.timings.source_map, reg.timings.target_map, reg.timings.harmonic, reg.timings.composition, reg.num_snapped
+        "register: {secs:.2}s (maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s, refinement {:.2}s); snapped {}",
+        reg.timings.source_map,
+        reg.timings.target_map,
+        reg.timings.harmonic,
+        reg.timings.composition,
+        reg.timings.refine,
+        reg.num_snapped
     );
     eprintln!(
         "register: flipped area {:.4} (disk) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion max(J, 1/J) median {:.3} p95 {:.3}, mean |ln J| {:.3}",
@@ -293,6 +313,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
+    let refine: Refinement = args.refine.parse()?;
     super::create_output_folder(&args.out)?;
     let mp = MetricParams {
         geodesic_samples: args.samples,
@@ -322,19 +343,22 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         &methods,
         &registration_area_params(),
         &harmonic,
+        refine,
+        &ZoomOutParams::default(),
         &mp,
         |m| eprintln!("register-bench: {m}"),
     )
     .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
-        "| class | method | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. p95 | mean abs. ln area dist. | geodesic err. median | geodesic err. mean | s/pair |"
+        "| class | method | refine | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. p95 | mean abs. ln area dist. | geodesic err. median | geodesic err. mean | s/pair |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for s in &res.summaries {
         println!(
-            "| {} | {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
+            "| {} | {} | {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
             s.class,
             s.method,
+            s.refine,
             s.pairs_ok,
             s.pairs_failed,
             s.flipped_ratio,

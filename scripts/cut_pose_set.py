@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Cut a closed genus-0 pose set (one connectivity) to disks for `register-bench`.
+
+The rules of make_poses.py, for any set of poses that share their face list (lion poses,
+Sumner & Popovic's cat poses): faces oriented consistently and outward on pose 0, a geodesic
+ball of radius 0.05 sqrt(area) (`--radius`) removed around the vertex nearest the area centroid of pose 0
+(grown until the rest is a disk), unreferenced vertices dropped with one index map, OFF with
+6 significant digits. Landmarks are K extremities by farthest-point sampling from the cut
+(named x0, x1, ... in the order found; the same indices in every pose), `center` the vertex
+farthest from the cut and the extremities, `boundary` the boundary vertex of largest z.
+
+The output is derived from public research data: write it outside the repository.
+
+Usage: python3 scripts/cut_pose_set.py --out DIR/CLASS [--landmarks 6] [--radius 0.05] POSE0 POSE1 ...
+"""
+
+import argparse
+import json
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import meshtools as mt  # noqa: E402
+from make_poses import RADIUS_FACTOR, cut_disk  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", required=True, help="class folder to write (created)")
+    ap.add_argument("--landmarks", type=int, default=6)
+    ap.add_argument("--radius", type=float, default=RADIUS_FACTOR, help="cut radius over sqrt(area)")
+    ap.add_argument("poses", nargs="+")
+    args = ap.parse_args()
+    Vs, F0 = [], None
+    for p in args.poses:
+        V, F = mt.read_mesh(p)
+        if F0 is None:
+            F0 = F
+        elif not np.array_equal(np.sort(F0, axis=1), np.sort(F, axis=1)):
+            raise SystemExit("%s: connectivity differs from %s" % (p, args.poses[0]))
+        Vs.append(V)
+    F, _ = mt.orient_consistently(F0)
+    if mt.signed_volume(Vs[0], F) < 0:
+        F = F[:, [0, 2, 1]]
+    t0 = mt.topology(Vs[0], F)
+    if t0["class"] != "sphere":
+        raise SystemExit("pose 0 is not a closed genus-0 surface: %s" % t0)
+    V0 = Vs[0]
+    A = mt.triangle_areas(V0, F)
+    area = A.sum()
+    centroid = (A[:, None] * V0[F].mean(axis=1)).sum(axis=0) / area
+    seed = int(np.argmin(np.linalg.norm(V0 - centroid, axis=1)))
+    keep, repairs, _ = cut_disk(V0, F, seed, args.radius * np.sqrt(area))
+    Fk = F[keep]
+    used = np.unique(Fk)
+    newidx = np.full(len(V0), -1, dtype=np.int64)
+    newidx[used] = np.arange(len(used))
+    Fn = newidx[Fk]
+    os.makedirs(args.out, exist_ok=True)
+    cls = os.path.basename(os.path.normpath(args.out))
+    for i, V in enumerate(Vs):
+        path = os.path.join(args.out, "%s%d.off" % (cls, i))
+        mt.write_off(path, V[used], Fn)
+        Vr, Fr = mt.read_off(path)
+        mt.check_disk(Vr, Fr, path)
+    Vc = V0[used]
+    adj = mt.vertex_adjacency(Vc, Fn)
+    loop = mt.boundary_loops(Fn)[0]
+    dmin = mt.dijkstra(Vc, Fn, loop, adj)
+    d_bnd = dmin.copy()
+    ext = []
+    for _ in range(args.landmarks):
+        j = int(np.argmax(dmin))
+        ext.append(j)
+        dmin = np.minimum(dmin, mt.dijkstra(Vc, Fn, [j], adj))
+    d_lm = mt.dijkstra(Vc, Fn, ext, adj)
+    center = int(np.argmax(np.minimum(d_bnd, d_lm)))
+    lz = np.array([Vc[v, 2] for v in loop])
+    boundary = int(min(v for v in loop if Vc[v, 2] == lz.max()))
+    lm = {"center": center, "boundary": boundary, "landmarks": {"x%d" % i: int(v) for i, v in enumerate(ext)}}
+    with open(os.path.join(args.out, "landmarks.json"), "w") as fh:
+        json.dump(lm, fh, indent=1)
+    print("%s: %d poses, V=%d F=%d, %d repairs of the cut, landmarks %s" % (
+        cls, len(Vs), len(used), len(Fn), repairs, lm))
+
+
+if __name__ == "__main__":
+    main()
