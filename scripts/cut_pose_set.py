@@ -66,19 +66,7 @@ def main():
         Vr, Fr = mt.read_off(path)
         mt.check_disk(Vr, Fr, path)
     Vc = V0[used]
-    adj = mt.vertex_adjacency(Vc, Fn)
-    loop = mt.boundary_loops(Fn)[0]
-    dmin = mt.dijkstra(Vc, Fn, loop, adj)
-    d_bnd = dmin.copy()
-    ext = []
-    for _ in range(args.landmarks):
-        j = int(np.argmax(dmin))
-        ext.append(j)
-        dmin = np.minimum(dmin, mt.dijkstra(Vc, Fn, [j], adj))
-    d_lm = mt.dijkstra(Vc, Fn, ext, adj)
-    center = int(np.argmax(np.minimum(d_bnd, d_lm)))
-    lz = np.array([Vc[v, 2] for v in loop])
-    boundary = int(min(v for v in loop if Vc[v, 2] == lz.max()))
+    ext, center, boundary, _ = mt.cut_markers(Vc, Fn, args.landmarks)
     lm = {"center": center, "boundary": boundary, "landmarks": {"x%d" % i: int(v) for i, v in enumerate(ext)}}
     with open(os.path.join(args.out, "landmarks.json"), "w") as fh:
         json.dump(lm, fh, indent=1)

@@ -172,22 +172,8 @@ def process(src, cls, poses, K, out):
         fh.write("".join("%d\n" % i for i in used))
     # landmarks on pose 0 (cut mesh)
     Vc = V0[used]
-    adj = mt.vertex_adjacency(Vc, Fn)
-    loop = mt.boundary_loops(Fn)
-    assert len(loop) == 1
-    loop = loop[0]
-    dmin = mt.dijkstra(Vc, Fn, loop, adj)
-    d_bnd = dmin.copy()
-    ext = []
-    for _ in range(K):
-        j = int(np.argmax(dmin))
-        ext.append(j)
-        dmin = np.minimum(dmin, mt.dijkstra(Vc, Fn, [j], adj))
-    d_lm = mt.dijkstra(Vc, Fn, ext, adj)
-    center = int(np.argmax(np.minimum(d_bnd, d_lm)))
-    lz = np.array([Vc[v, 2] for v in loop])
-    cand = [v for v in loop if Vc[v, 2] == lz.max()]
-    boundary = int(min(cand))
+    ext, center, boundary, center_to_boundary = mt.cut_markers(Vc, Fn, K)
+    loop = mt.boundary_loops(Fn)[0]
     named = name_landmarks(Vc, ext)
     lm = {"center": center, "boundary": boundary, "landmarks": named}
     with open(os.path.join(out, cls, "landmarks.json"), "w") as fh:
@@ -203,7 +189,7 @@ def process(src, cls, poses, K, out):
         "landmarks": lm,
         "landmark_positions_pose0": {k: Vc[v].round(2).tolist() for k, v in named.items()},
         "center_position_pose0": Vc[center].round(2).tolist(),
-        "center_dist_to_boundary": float(d_bnd[center]),
+        "center_dist_to_boundary": center_to_boundary,
     }
     return rows, info
 

@@ -379,3 +379,27 @@ def check_disk(V, F, name=""):
         raise AssertionError("%s is not an oriented manifold disk: %r" % (name, t))
     t["min_area"] = float(triangle_areas(V, F).min())
     return t
+
+
+def cut_markers(V, F, k):
+    """Markers of a cut disk (V, F; one boundary loop): k landmarks by farthest-point sampling
+    from the boundary (geodesic, Dijkstra on edges), the center marker at the vertex farthest
+    from both the boundary and the landmarks, and the boundary marker at the smallest index
+    among the boundary vertices of largest z. Returns (landmarks, center, boundary, the center's
+    distance to the boundary)."""
+    adj = vertex_adjacency(V, F)
+    loops = boundary_loops(F)
+    assert len(loops) == 1
+    loop = loops[0]
+    dmin = dijkstra(V, F, loop, adj)
+    d_bnd = dmin.copy()
+    ext = []
+    for _ in range(k):
+        j = int(np.argmax(dmin))
+        ext.append(j)
+        dmin = np.minimum(dmin, dijkstra(V, F, [j], adj))
+    d_lm = dijkstra(V, F, ext, adj)
+    center = int(np.argmax(np.minimum(d_bnd, d_lm)))
+    top = max(V[v, 2] for v in loop)
+    boundary = int(min(v for v in loop if V[v, 2] == top))
+    return ext, center, boundary, float(d_bnd[center])
