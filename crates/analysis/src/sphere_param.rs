@@ -218,6 +218,10 @@ pub struct SphereFoldRepairInfo {
 fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
+    // each face's share of the sphere's 4π (the charts scale it by their area factor)
+    let areas = face_areas(mesh);
+    let total: f64 = areas.iter().sum();
+    let shares: Vec<f64> = areas.iter().map(|a| a / total * 4.0 * std::f64::consts::PI).collect();
     let mut given_up: HashSet<usize> = HashSet::new();
     loop {
         let bad = folded_on_sphere(mesh, x);
@@ -242,7 +246,7 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
         let mut rings = CHART_RINGS;
         let mut kept = false;
         while let Some(patch) = chart_patch(mesh, &conn, &cluster, rings) {
-            if let Some(moved) = repair_patch(mesh, x, &patch) {
+            if let Some(moved) = repair_patch(mesh, x, &patch, &shares) {
                 info.vertices_moved += moved.len();
                 for (v, p) in moved {
                     x[v as usize] = p;
@@ -325,8 +329,8 @@ fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: us
 /// The disk's fold repair on the faces `patch` of `mesh` in the gnomonic chart at their mean
 /// direction. Returns the new positions of the vertices it moved, or `None` when the patch is
 /// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
-/// patch folded on S².
-fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize]) -> Option<HashMap<u32, [f64; 3]>> {
+/// patch folded on S². `shares`: each face's share of 4π (#F).
+fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64]) -> Option<HashMap<u32, [f64; 3]>> {
     let mut local = HashMap::new();
     let mut verts: Vec<u32> = Vec::new();
     let faces: Vec<[u32; 3]> = patch
@@ -367,17 +371,17 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize]) -> Option<HashM
     }
     let rot = rotation_to_south(c);
     let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| gnomonic(&rot, x[v as usize])).collect();
-    // each face's share of 4π times the area factor 1/cos³θ at its centroid
-    let total3: f64 = face_areas(mesh).iter().sum();
+    // each face's share of 4π times the area factor 1/cos³θ at its centroid (the patch's faces
+    // are `patch` in order)
     let target_face_areas: Vec<f64> = sub
         .faces
         .iter()
-        .zip(face_areas(&sub))
-        .map(|(f, a)| {
+        .zip(patch)
+        .map(|(f, &g)| {
             let [p, q, r] = f.map(|v| uv[v as usize]);
             let m = [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0];
             let cos = 1.0 / (1.0 + m[0] * m[0] + m[1] * m[1]).sqrt();
-            a / total3 * 4.0 * std::f64::consts::PI / (cos * cos * cos)
+            shares[g] / (cos * cos * cos)
         })
         .collect();
     let before = uv.clone();
