@@ -123,8 +123,19 @@ impl SphereMarkerArgs {
         self.sphere_markers.is_some() || self.rotation_markers.is_some()
     }
 
-    /// The normalization the flags ask for (Möbius centering without them).
-    pub fn normalization(&self) -> Result<shapespace_conformal::SphereNormalization> {
+    /// The normalization the flags ask for (Möbius centering without them), for the sphere map
+    /// of `input`; the disk's markers (`disk`) given as well are an error naming the file.
+    pub fn normalization_for(
+        &self,
+        input: &Path,
+        disk: &MarkerArgs,
+    ) -> Result<shapespace_conformal::SphereNormalization> {
+        if disk.center.is_some() || disk.boundary_marker.is_some() || disk.landmarks.is_some() {
+            anyhow::bail!(
+                "{}: --center, --boundary-marker and --landmarks are disk markers; the sphere takes --sphere-markers P1,P2,P3 or --rotation-markers A,B",
+                input.display()
+            );
+        }
         use shapespace_conformal::SphereNormalization;
         Ok(match (&self.sphere_markers, &self.rotation_markers) {
             (Some(_), Some(_)) => anyhow::bail!("--sphere-markers and --rotation-markers exclude each other"),
@@ -159,13 +170,7 @@ fn parse_vertices(text: &str, n: usize, flag: &str) -> Result<Vec<u32>> {
 /// The sphere route of [`run`].
 fn run_sphere(args: &ConformalArgs, mesh: shapespace_geometry::TriMesh, t0: Instant) -> Result<ExitCode> {
     use shapespace_conformal::{sphere_map, SphereMapParams};
-    if args.markers.center.is_some() || args.markers.boundary_marker.is_some() || args.markers.landmarks.is_some() {
-        anyhow::bail!(
-            "{}: --center, --boundary-marker and --landmarks are disk markers; the sphere takes --sphere-markers P1,P2,P3 or --rotation-markers A,B",
-            args.input.display()
-        );
-    }
-    let normalization = args.sphere.normalization()?;
+    let normalization = args.sphere.normalization_for(&args.input, &args.markers)?;
     let params = SphereMapParams {
         intrinsic_delaunay: !args.no_intrinsic_delaunay,
         normalization,

@@ -374,12 +374,7 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     use shapespace_analysis::sphere_param::{area_preserving_sphere_map, SphereParamParams};
     // an unknown output extension is named before the input is read
     shapespace_geometry::io::MeshFormat::from_path(&args.out)?;
-    if args.markers.center.is_some() || args.markers.boundary_marker.is_some() || args.markers.landmarks.is_some() {
-        anyhow::bail!(
-            "{}: --center, --boundary-marker and --landmarks are disk markers; the sphere takes --sphere-markers P1,P2,P3 or --rotation-markers A,B",
-            args.input.display()
-        );
-    }
+    let normalization = args.sphere.normalization_for(&args.input, &args.markers)?;
     if args.start != super::ot::StartArg::Auto {
         anyhow::bail!("--start applies to the disk only (the sphere's OT starts from the Voronoi cells with density continuation)");
     }
@@ -401,7 +396,7 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
         no_fold_repair: args.no_fold_repair,
         ..Default::default()
     };
-    params.sphere_map.normalization = args.sphere.normalization()?;
+    params.sphere_map.normalization = normalization;
     params.ot.tolerance = args.tolerance;
     let message = format!(
         "area-preserving sphere map of {} ({} vertices)",
