@@ -576,7 +576,7 @@ pub fn area_preserving_map(
         || map_quality(mesh, &input),
         || repair_folds_with(mesh, Some(&conn), &is_boundary, &mut uv, &params.fold_repair),
     );
-    let (before, info) = (before?, info?);
+    let (before, info) = (before?, info.map_err(AnalysisError::from_fold_repair)?);
     let after = if info.vertices_moved > 0 {
         map_quality(mesh, &uv)?
     } else {

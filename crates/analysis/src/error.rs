@@ -123,6 +123,17 @@ pub enum AnalysisError {
 }
 
 impl AnalysisError {
+    /// An error of [`crate::fold_repair`] (a conformal-crate routine) as this crate's error:
+    /// its own input and repair failures keep their kind, anything else is a disk-map error.
+    pub fn from_fold_repair(e: shapespace_conformal::ConformalError) -> Self {
+        use shapespace_conformal::ConformalError as C;
+        match e {
+            C::InvalidInput(message) => AnalysisError::InvalidInput(message),
+            C::FoldRepair { folded, message } => AnalysisError::FoldRepair { folded, message },
+            other => AnalysisError::DiskMap(other),
+        }
+    }
+
     /// Wraps an I/O error with the path it concerns.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         AnalysisError::Io {

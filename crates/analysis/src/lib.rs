@@ -19,7 +19,8 @@ pub mod area_preserving;
 pub mod distance;
 pub mod distortion;
 pub mod error;
-pub mod fold_repair;
+/// The fold repair of planar maps lives in the conformal crate (the disk map uses it too).
+pub use shapespace_conformal::fold_repair;
 pub mod geodesic;
 pub mod invariance;
 pub mod lie_advection;

@@ -211,6 +211,8 @@ pub fn decode(bytes: &[u8], name: &str) -> Option<(PreparedShape, CachedFigures)
             linear_solves: 0,
             timings: Default::default(),
             bff_fallback: None,
+            // the method string keeps the region repair's note
+            region_repair: None,
         },
         quality: Default::default(),
     };

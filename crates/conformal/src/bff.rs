@@ -81,6 +81,9 @@ pub struct BffParams {
     /// [`ConformalError::OutOfRange`]. 0 disables the check (for measurements: the map is
     /// then returned even where f64 cannot resolve its shape).
     pub crowding_limit: f64,
+    /// Re-embed the region around folds that survive the local repair
+    /// ([`crate::DiskMapParams::region_repair`]; default true, only with `repair_folds`).
+    pub region_repair: bool,
 }
 
 impl Default for BffParams {
@@ -91,6 +94,7 @@ impl Default for BffParams {
             tolerance: 1e-11,
             repair_folds: true,
             crowding_limit: CROWDING_LIMIT,
+            region_repair: true,
         }
     }
 }
@@ -153,6 +157,8 @@ pub struct BffInfo {
     pub negative_weights_after: usize,
     /// Vertices moved by the fold repair.
     pub fold_repairs: usize,
+    /// The region repair of folds left by the local one ([`BffParams::region_repair`]).
+    pub region_repair: Option<crate::fold_repair::FoldRepairInfo>,
     /// Smallest 1 − |z| over the interior vertices of the normalized map (boundary crowding).
     pub min_interior_gap: f64,
     /// Stage timings.
@@ -458,7 +464,14 @@ pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Re
     let raw = bff_disk_coordinates(&tri, resolved.boundary_vertex, params)?;
     let t3 = Instant::now();
     let n = mesh.num_vertices();
-    let fin = finish(mesh, &tri.is_boundary[..n], &resolved, &raw.z[..n], params.repair_folds)?;
+    let fin = finish(
+        mesh,
+        &tri.is_boundary[..n],
+        &resolved,
+        &raw.z[..n],
+        params.repair_folds,
+        params.region_repair,
+    )?;
     // boundary crowding (module docs of crate::disk_map): the same limit as the Green's map
     let (gap_vertex, min_interior_gap) = fin
         .uv
@@ -483,13 +496,14 @@ pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Re
         scale: fin.scale,
         info: BffInfo {
             method: format!(
-                "bff-disk ({} cotan Laplacian, scale factors iterated to {:.0e}, harmonic extension)",
+                "bff-disk ({} cotan Laplacian, scale factors iterated to {:.0e}, harmonic extension{})",
                 if params.intrinsic_delaunay {
                     "intrinsic Delaunay"
                 } else {
                     "plain"
                 },
-                params.tolerance
+                params.tolerance,
+                crate::disk_map::region_repair_note(fin.region_repair.as_ref())
             ),
             markers: resolved,
             mobius: fin.mobius,
@@ -499,6 +513,7 @@ pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Re
             inserted_vertices,
             negative_weights_after,
             fold_repairs: fin.fold_repairs,
+            region_repair: fin.region_repair,
             min_interior_gap,
             timings: BffTimings {
                 setup: secs(t0, t1),

@@ -45,6 +45,12 @@ pub enum ConformalError {
     InvalidConstraint(String),
     /// Sparse Cholesky factorization failed (matrix not positive definite: e.g. a disconnected
     /// mesh or a component without any Dirichlet vertex).
+    /// Malformed input to a lower-level routine (lengths that do not match, bad indices).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// The fold repair of a planar map could not produce an embedding; `folded` faces remain.
+    #[error("fold repair: {message} ({folded} folded faces)")]
+    FoldRepair { folded: usize, message: String },
     #[error("linear algebra: {0}")]
     LinearAlgebra(String),
     /// The intrinsic Delaunay flip loop did not finish within its flip budget.

@@ -71,6 +71,8 @@ fn interior_vertex_outside_the_circle_is_named() {
     };
     let params = DiskMapParams {
         intrinsic_delaunay: false,
+        bff_fallback: false,
+        region_repair: false,
         ..DiskMapParams::default()
     };
     match disk_map(&m, &markers, &params) {
@@ -80,6 +82,22 @@ fn interior_vertex_outside_the_circle_is_named() {
         }
         other => panic!("{:?}", other.map(|d| d.quality)),
     }
+    // with the fallback allowed, the vertex outside the circle sends the map to BFF, whose map
+    // of the same Laplacian keeps every vertex inside and folds nothing
+    let fallback = disk_map(
+        &m,
+        &markers,
+        &DiskMapParams {
+            intrinsic_delaunay: false,
+            ..DiskMapParams::default()
+        },
+    )
+    .unwrap();
+    let reason = &fallback.info.method;
+    assert!(reason.contains("put vertex 6 outside the circle"), "{reason}");
+    assert_eq!(fallback.info.bff_fallback.as_ref().unwrap().green_folds, 0);
+    assert_eq!(fallback.quality.num_flipped + fallback.quality.num_degenerate, 0);
+    assert!(fallback.uv[6][0].hypot(fallback.uv[6][1]) < 1.0);
 }
 
 /// Interior vertices that only a path through boundary vertices joins to the centre (an edge

@@ -309,6 +309,7 @@ fn folds_of_the_green_map_fall_back_to_bff() {
         &Markers::default(),
         &DiskMapParams {
             bff_fallback: false,
+            region_repair: false,
             ..Default::default()
         },
     ) {
@@ -318,4 +319,26 @@ fn folds_of_the_green_map_fall_back_to_bff() {
             other.map(|d| d.quality)
         ),
     }
+    // without BFF, the region repair re-embeds the Green's map around its folds: no fold, and
+    // the rest of the map is the Green's map (most vertices do not move, none far)
+    let repaired = disk_map(
+        &slit,
+        &Markers::default(),
+        &DiskMapParams {
+            bff_fallback: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let region = repaired.info.region_repair.as_ref().expect("a region repair");
+    assert_eq!(region.flipped_before + region.degenerate_before, fallback.green_folds);
+    assert_eq!(repaired.quality.num_flipped + repaired.quality.num_degenerate, 0);
+    assert!(region.vertices_moved * 4 < slit.num_vertices(), "{region:?}");
+    assert!(region.max_displacement < 0.02, "{region:?}");
+    eprintln!(
+        "centaur0 slit: Green's map region repair moved {} of {} vertices, at most {:.2e}",
+        region.vertices_moved,
+        region.max_displacement,
+        slit.num_vertices()
+    );
 }

@@ -650,7 +650,7 @@ fn harmonic_step(
             for &(v, p) in boundary.iter().chain(&pins) {
                 fixed[v as usize] = Some(p);
             }
-            mean_value_tutte_map(source, layout, &fixed)
+            mean_value_tutte_map(source, layout, &fixed).map_err(AnalysisError::from_fold_repair)
         }
     }
 }

@@ -108,7 +108,7 @@ pub(super) fn tutte_weights(
     is_boundary: &[bool],
     uv: &[[f64; 2]],
     kind: RepairWeights,
-) -> Result<Vec<Vec<f64>>, AnalysisError> {
+) -> Result<Vec<Vec<f64>>, ConformalError> {
     let (mut surface, layout) = rayon::join(
         || mean_value_weights(&mesh.faces, vertex_faces, neighbors, is_boundary, &mesh.positions),
         || {
@@ -118,7 +118,7 @@ pub(super) fn tutte_weights(
     );
     for (i, row) in surface.iter_mut().enumerate() {
         if !is_boundary[i] && !normalize_row(row) {
-            return Err(AnalysisError::InvalidInput(format!(
+            return Err(ConformalError::InvalidInput(format!(
                 "fold repair: degenerate 3D one-ring at vertex {i} (zero-length edge or zero-area face)"
             )));
         }

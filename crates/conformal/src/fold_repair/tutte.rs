@@ -20,7 +20,7 @@ pub(super) fn solve_region(
     in_region: &[bool],
     fixed: &[[f64; 2]],
     earlier: Option<&mut ComponentSolutions>,
-) -> Result<Vec<[f64; 2]>, AnalysisError> {
+) -> Result<Vec<[f64; 2]>, ConformalError> {
     let n = fixed.len();
     // the components, each listed in breadth-first order from its smallest vertex, and every
     // region vertex's index within its component
@@ -88,7 +88,7 @@ pub(super) fn solve_component(
     fixed: &[[f64; 2]],
     local: &[u32],
     comp: &[usize],
-) -> Result<Vec<[f64; 2]>, AnalysisError> {
+) -> Result<Vec<[f64; 2]>, ConformalError> {
     // reference point: mean of the fixed neighbours
     let (mut c, mut count) = ([0.0f64; 2], 0usize);
     for &v in comp {
@@ -101,7 +101,7 @@ pub(super) fn solve_component(
         }
     }
     if count == 0 {
-        return Err(AnalysisError::InvalidInput(format!(
+        return Err(ConformalError::InvalidInput(format!(
             "fold repair: region component of vertex {} touches no fixed vertex",
             comp[0]
         )));
@@ -123,9 +123,10 @@ pub(super) fn solve_component(
         }
     }
     let a = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
-        .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: assembling the Tutte system: {e:?}")))?;
-    lu_solve_in_place(a.as_ref(), rhs.as_mut())
-        .map_err(|e| AnalysisError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e}")))?;
+        .map_err(|e| ConformalError::InvalidInput(format!("fold repair: assembling the Tutte system: {e:?}")))?;
+    lu_solve_in_place(a.as_ref(), rhs.as_mut()).map_err(|e| {
+        ConformalError::InvalidInput(format!("fold repair: LU of the Tutte system ({m} unknowns): {e}"))
+    })?;
     comp.iter()
         .enumerate()
         .map(|(li, &v)| {
@@ -133,7 +134,7 @@ pub(super) fn solve_component(
             if p[0].is_finite() && p[1].is_finite() {
                 Ok(p)
             } else {
-                Err(AnalysisError::InvalidInput(format!(
+                Err(ConformalError::InvalidInput(format!(
                     "fold repair: non-finite position of vertex {v}"
                 )))
             }
@@ -195,10 +196,10 @@ pub fn mean_value_tutte_map(
     mesh: &TriMesh,
     layout: &[[f64; 2]],
     fixed: &[Option<[f64; 2]>],
-) -> Result<Vec<[f64; 2]>, AnalysisError> {
+) -> Result<Vec<[f64; 2]>, ConformalError> {
     let n = mesh.num_vertices();
     if layout.len() != n || fixed.len() != n {
-        return Err(AnalysisError::InvalidInput(format!(
+        return Err(ConformalError::InvalidInput(format!(
             "mean-value map: {} layout points and {} constraints for {n} vertices",
             layout.len(),
             fixed.len()
@@ -207,7 +208,7 @@ pub fn mean_value_tutte_map(
     let conn = Connectivity::of(mesh);
     let on_boundary = conn.boundary_vertices(n);
     if let Some(v) = (0..n).find(|&v| on_boundary[v] && fixed[v].is_none()) {
-        return Err(AnalysisError::InvalidInput(format!(
+        return Err(ConformalError::InvalidInput(format!(
             "mean-value map: boundary vertex {v} is not fixed"
         )));
     }

@@ -72,6 +72,7 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
+use crate::quality::{orient_scaled, power_of_two_scale};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuSymbolicParams, NumericLu};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -79,7 +80,6 @@ use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use faer::{Conj, Par};
 use geogram_predicates::Sign;
 use serde::Serialize;
-use shapespace_conformal::quality::{orient_scaled, power_of_two_scale};
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 
@@ -96,7 +96,7 @@ use tutte::*;
 pub use untangle::{untangle_kernels, UntangleInfo};
 use weights::*;
 
-use crate::error::AnalysisError;
+use crate::error::ConformalError;
 
 /// Smallest doubled image area of a valid face (relative to a domain of area π).
 pub const MIN_DOUBLED_AREA: f64 = 1e-300;
@@ -303,22 +303,22 @@ pub fn repair_folds(
     is_boundary: &[bool],
     uv: &mut [[f64; 2]],
     params: &FoldRepairParams,
-) -> Result<FoldRepairInfo, AnalysisError> {
+) -> Result<FoldRepairInfo, ConformalError> {
     repair_folds_with(mesh, None, is_boundary, uv, params)
 }
 
 /// [`repair_folds`] with the mesh's connectivity when the caller has it (built here otherwise,
 /// once a fold that moving interior vertices can repair is found).
-pub(crate) fn repair_folds_with(
+pub fn repair_folds_with(
     mesh: &TriMesh,
     connectivity: Option<&Connectivity>,
     is_boundary: &[bool],
     uv: &mut [[f64; 2]],
     params: &FoldRepairParams,
-) -> Result<FoldRepairInfo, AnalysisError> {
+) -> Result<FoldRepairInfo, ConformalError> {
     let n = mesh.num_vertices();
     if uv.len() != n || is_boundary.len() != n {
-        return Err(AnalysisError::InvalidInput(format!(
+        return Err(ConformalError::InvalidInput(format!(
             "fold repair: {} uv and {} boundary flags for {n} vertices",
             uv.len(),
             is_boundary.len()
@@ -326,7 +326,7 @@ pub(crate) fn repair_folds_with(
     }
     if let Some(t) = &params.target_face_areas {
         if t.len() != mesh.num_faces() {
-            return Err(AnalysisError::InvalidInput(format!(
+            return Err(ConformalError::InvalidInput(format!(
                 "fold repair: {} target face areas for {} faces",
                 t.len(),
                 mesh.num_faces()
@@ -352,7 +352,7 @@ pub(crate) fn repair_folds_with(
     for &f in bad.iter().filter(|&&f| on_boundary(f)) {
         let [a, b, c] = mesh.faces[f].map(|v| uv[v as usize]);
         if !is_flat(a, b, c) {
-            return Err(AnalysisError::FoldRepair {
+            return Err(ConformalError::FoldRepair {
                 folded: bad.len(),
                 message: format!(
                     "face {f} is folded and has only boundary vertices (boundary out of order or coincident)"
@@ -429,7 +429,7 @@ pub(crate) fn repair_folds_with(
                     break candidate;
                 }
             }
-            return Err(AnalysisError::FoldRepair {
+            return Err(ConformalError::FoldRepair {
                 folded: bad.len(),
                 message: "the whole-disk Tutte map still folds with layout and surface weights (floating point)".into(),
             });
