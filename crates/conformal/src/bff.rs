@@ -55,8 +55,8 @@ use std::time::Instant;
 use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
-use crate::disk_map::{center_vertex, check_disk, count_negative, finish, neighbors, CROWDING_LIMIT};
 use crate::error::ConformalError;
+use crate::finish::{center_vertex, check_disk, count_negative, finish, neighbors, CROWDING_LIMIT};
 use crate::intrinsic::{next, prev, triangle_area_from_lengths, IntrinsicTriangulation, NONE};
 use crate::linsolve::restricted_laplacian;
 use crate::markers::{resolve_markers, Markers, ResolvedMarkers};
@@ -503,7 +503,7 @@ pub fn bff_disk_map(mesh: &TriMesh, markers: &Markers, params: &BffParams) -> Re
                     "plain"
                 },
                 params.tolerance,
-                crate::disk_map::region_repair_note(fin.region_repair.as_ref())
+                crate::finish::region_repair_note(fin.region_repair.as_ref())
             ),
             markers: resolved,
             mobius: fin.mobius,

@@ -40,6 +40,7 @@
 pub mod bff;
 pub mod disk_map;
 pub mod error;
+mod finish;
 pub mod fold_repair;
 pub mod green;
 pub mod harmonic;

@@ -1,0 +1,338 @@
+//! What every disk construction shares ([`crate::disk_map()`] and [`crate::bff_disk_map`]):
+//! the input checks (a disk, the interior joined to the center), the center's image, the
+//! normalization of a raw map into the unit disk, its fold repair and its densities
+//! ([`finish`]). Keeping them here lets the Green's-function construction fall back to BFF
+//! without the two modules importing each other.
+
+use shapespace_geometry::topology::{find, union};
+use shapespace_geometry::TriMesh;
+
+use crate::error::ConformalError;
+use crate::fold_repair::{FoldRepairInfo, FoldRepairParams};
+use crate::intrinsic::IntrinsicTriangulation;
+use crate::markers::{ResolvedCenter, ResolvedMarkers};
+use crate::mobius::Mobius;
+use crate::quality::{face_distortions, summarize, QualitySummary};
+use crate::repair::repair_folds;
+
+/// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit).
+pub const CROWDING_LIMIT: f64 = 1e-10;
+
+/// Interior edges with a negative cotangent weight.
+pub(crate) fn count_negative(tri: &IntrinsicTriangulation) -> usize {
+    (0..tri.tail.len() as u32)
+        .filter(|&h| {
+            let t = tri.twin[h as usize];
+            t != crate::intrinsic::NONE && h < t && tri.edge_cotan_weight(h) < 0.0
+        })
+        .count()
+}
+
+/// Checks that the intrinsic triangulation is a single disk: one boundary loop, Euler
+/// characteristic 1, one component, every vertex used.
+pub(crate) fn check_disk(mesh: &TriMesh, tri: &IntrinsicTriangulation) -> Result<(), ConformalError> {
+    let n = mesh.num_vertices();
+    let nf = mesh.num_faces();
+    if nf == 0 {
+        return Err(ConformalError::NotDisk {
+            reason: "the mesh has no faces".into(),
+        });
+    }
+    let mut used = vec![false; n];
+    for f in &mesh.faces {
+        for &v in f {
+            used[v as usize] = true;
+        }
+    }
+    if let Some(v) = used.iter().position(|u| !u) {
+        return Err(ConformalError::NotDisk {
+            reason: format!("vertex {v} is not used by any face"),
+        });
+    }
+    let nh = tri.tail.len();
+    let nb = tri.twin.iter().filter(|&&t| t == crate::intrinsic::NONE).count();
+    let ne = (nh + nb) / 2;
+    let chi = n as i64 - ne as i64 + nf as i64;
+    // components via union-find over vertices
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for h in 0..nh as u32 {
+        union(&mut parent, tri.tail[h as usize], tri.head(h));
+    }
+    let comps = (0..n as u32).filter(|&v| find(&mut parent, v) == v).count();
+    // boundary loops: a boundary vertex with two boundary half-edges out of it would be
+    // non-manifold; count loops by walking
+    let mut out_b = vec![crate::intrinsic::NONE; n];
+    for h in 0..nh {
+        if tri.twin[h] == crate::intrinsic::NONE {
+            let t = tri.tail[h] as usize;
+            if out_b[t] != crate::intrinsic::NONE {
+                return Err(ConformalError::NotDisk {
+                    reason: format!("non-manifold boundary vertex {t}"),
+                });
+            }
+            out_b[t] = h as u32;
+        }
+    }
+    let mut seen = vec![false; n];
+    let mut loops = 0;
+    for v in 0..n {
+        if out_b[v] != crate::intrinsic::NONE && !seen[v] {
+            loops += 1;
+            let mut x = v;
+            while !seen[x] {
+                seen[x] = true;
+                x = tri.head(out_b[x]) as usize;
+                if out_b[x] == crate::intrinsic::NONE {
+                    break;
+                }
+            }
+        }
+    }
+    if comps != 1 || loops != 1 || chi != 1 {
+        return Err(ConformalError::NotDisk {
+            reason: format!(
+                "{comps} component(s), {loops} boundary loop(s), Euler characteristic {chi} (a disk has 1, 1, 1)"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Boundary edges a → b (surface on the left) whose images turn clockwise around the origin
+/// (arg(z_b / z_a) < 0): the boundary is out of order on the circle there, and the face at the
+/// edge folds whatever the interior vertices do.
+pub(crate) fn boundary_out_of_order(mesh: &TriMesh, uv: &[[f64; 2]]) -> usize {
+    clockwise_edges(
+        shapespace_geometry::Connectivity::of(mesh)
+            .boundary_halfedges(&mesh.faces)
+            .into_iter(),
+        uv,
+    )
+}
+
+/// How many of the directed edges a → b turn clockwise around the origin.
+pub(crate) fn clockwise_edges(edges: impl Iterator<Item = [u32; 2]>, uv: &[[f64; 2]]) -> usize {
+    edges
+        .filter(|[a, b]| {
+            let (p, q) = (uv[*a as usize], uv[*b as usize]);
+            p[0] * q[1] - p[1] * q[0] < 0.0
+        })
+        .count()
+}
+
+/// The interior vertex the center marker stands on: its vertex, or for a point inside a face
+/// the interior corner of largest barycentric weight (the pole of the Green's function at p,
+/// and the vertex the interior is connected to by [`IntrinsicTriangulation::connect_interior`]).
+pub(crate) fn center_vertex(
+    mesh: &TriMesh,
+    is_boundary: &[bool],
+    center: ResolvedCenter,
+) -> Result<u32, ConformalError> {
+    match center {
+        ResolvedCenter::Vertex(v) => Ok(v),
+        ResolvedCenter::Face { face, bary } => {
+            let corners = mesh.faces[face as usize];
+            (0..3)
+                .filter(|&k| !is_boundary[corners[k] as usize])
+                .max_by(|&i, &j| bary[i].total_cmp(&bary[j]).then(j.cmp(&i)))
+                .map(|k| corners[k])
+                .ok_or_else(|| ConformalError::InvalidMarker(format!("face {face} has no interior corner")))
+        }
+    }
+}
+
+/// Vertex adjacency from the (unflipped) triangulation, each list sorted. Every edge is listed
+/// from its half-edge whose twin comes later (or is missing, on the boundary), in both lists.
+pub(crate) fn neighbors(tri: &IntrinsicTriangulation) -> Vec<Vec<u32>> {
+    let mut degree = vec![0u32; tri.num_vertices];
+    for h in 0..tri.tail.len() {
+        if tri.twin[h] == crate::intrinsic::NONE || tri.twin[h] as usize > h {
+            degree[tri.tail[h] as usize] += 1;
+            degree[tri.head(h as u32) as usize] += 1;
+        }
+    }
+    let mut adj: Vec<Vec<u32>> = degree.iter().map(|&d| Vec::with_capacity(d as usize)).collect();
+    for h in 0..tri.tail.len() {
+        if tri.twin[h] == crate::intrinsic::NONE || tri.twin[h] as usize > h {
+            let (a, b) = (tri.tail[h], tri.head(h as u32));
+            adj[a as usize].push(b);
+            adj[b as usize].push(a);
+        }
+    }
+    for l in &mut adj {
+        l.sort_unstable();
+        l.dedup();
+    }
+    adj
+}
+
+/// The image of the center marker under the vertex map z: z(p) for a vertex, the barycentric
+/// interpolation for a point inside a face.
+pub(crate) fn center_image(mesh: &TriMesh, center: ResolvedCenter, z: &[[f64; 2]]) -> [f64; 2] {
+    match center {
+        ResolvedCenter::Vertex(v) => z[v as usize],
+        ResolvedCenter::Face { face, bary } => {
+            let c = mesh.faces[face as usize];
+            let mut s = [0.0, 0.0];
+            for k in 0..3 {
+                s[0] += bary[k] * z[c[k] as usize][0];
+                s[1] += bary[k] * z[c[k] as usize][1];
+            }
+            s
+        }
+    }
+}
+
+/// A normalized disk map with its densities: the common last stage of every construction.
+pub(crate) struct Finished {
+    pub uv: Vec<[f64; 2]>,
+    pub mobius: Mobius,
+    pub conformal_factor: Vec<f64>,
+    pub face_densities: Vec<f64>,
+    pub scale: f64,
+    pub quality: QualitySummary,
+    pub fold_repairs: usize,
+    pub region_repair: Option<FoldRepairInfo>,
+}
+
+/// The method name's note on a region repair: empty without one.
+pub(crate) fn region_repair_note(info: Option<&FoldRepairInfo>) -> String {
+    info.map_or(String::new(), |r| {
+        format!(
+            "; {} folded faces re-embedded as a Tutte map over {} vertices, {} moved: not conformal there",
+            r.flipped_before + r.degenerate_before,
+            r.region_vertices,
+            r.vertices_moved
+        )
+    })
+}
+
+/// Steps 3–5 of the module docs for any map z (#V) of the mesh into the closed unit disk with
+/// the boundary on the circle: the Möbius normalization p ↦ 0, q ↦ 1 (a fixed-point iteration
+/// for a barycentric p), boundary vertices snapped to |z| = 1, fold repair (if `repair`: local,
+/// then with `region_repair` a Tutte re-embedding of the region around the folds that remain),
+/// densities and conformal factors on the original faces.
+///
+/// Errors: the center's image on the circle, a fold left after the repair, a density beyond
+/// the f64 range, a non-finite conformal factor.
+pub(crate) fn finish(
+    mesh: &TriMesh,
+    is_boundary: &[bool],
+    resolved: &ResolvedMarkers,
+    z: &[[f64; 2]],
+    repair: bool,
+    region_repair: bool,
+) -> Result<Finished, ConformalError> {
+    let a_img = center_image(mesh, resolved.center, z);
+    if a_img[0].hypot(a_img[1]) >= 1.0 - 1e-12 {
+        return Err(ConformalError::InvalidMarker(
+            "the center maps onto the boundary circle".into(),
+        ));
+    }
+    let q_img = z[resolved.boundary_vertex as usize];
+    let mut mobius = Mobius::normalizing(a_img, q_img);
+    if let ResolvedCenter::Face { face, bary } = resolved.center {
+        // make the piecewise-linear image of p exactly 0: a ← M⁻¹(Σ_k b_k M(z_k))
+        let c = mesh.faces[face as usize];
+        for _ in 0..20 {
+            let mut g = [0.0, 0.0];
+            for k in 0..3 {
+                let w = mobius.apply(z[c[k] as usize]);
+                g[0] += bary[k] * w[0];
+                g[1] += bary[k] * w[1];
+            }
+            if g[0].hypot(g[1]) < 1e-15 {
+                break;
+            }
+            mobius = Mobius::normalizing(mobius.inverse().apply(g), q_img);
+        }
+    }
+    let mut uv: Vec<[f64; 2]> = z.iter().map(|&p| mobius.apply(p)).collect();
+    for (v, p) in uv.iter_mut().enumerate() {
+        if is_boundary[v] {
+            let r = p[0].hypot(p[1]);
+            *p = [p[0] / r, p[1] / r];
+        }
+    }
+    uv[resolved.boundary_vertex as usize] = [1.0, 0.0];
+    if let ResolvedCenter::Vertex(v) = resolved.center {
+        uv[v as usize] = [0.0, 0.0];
+    }
+
+    // densities and factors on the original faces; fold repair first if needed (crate::repair)
+    let mut dist = face_distortions(mesh, &uv)?;
+    let mut fold_repairs = 0;
+    let mut region = None;
+    if repair && dist.orientation.iter().any(|&o| o <= 0) {
+        let mut vertex_faces = vec![Vec::new(); mesh.num_vertices()];
+        for (f, face) in mesh.faces.iter().enumerate() {
+            for &v in face {
+                vertex_faces[v as usize].push(f as u32);
+            }
+        }
+        let mut fixed = is_boundary.to_vec();
+        if let ResolvedCenter::Vertex(v) = resolved.center {
+            fixed[v as usize] = true;
+        }
+        if let ResolvedCenter::Face { face, .. } = resolved.center {
+            // the face containing p keeps its corners so that p still maps to 0
+            for &v in &mesh.faces[face as usize] {
+                fixed[v as usize] = true;
+            }
+        }
+        let angles = shapespace_geometry::quantities::corner_angles(mesh);
+        fold_repairs = repair_folds(&mesh.faces, &vertex_faces, &angles, &fixed, &mut uv);
+        dist = face_distortions(mesh, &uv)?;
+        if region_repair && dist.orientation.iter().any(|&o| o <= 0) {
+            // the markers stay where they are: they are fixed like the boundary
+            let mut repaired = uv.clone();
+            if let Ok(info) =
+                crate::fold_repair::repair_folds(mesh, &fixed, &mut repaired, &FoldRepairParams::default())
+            {
+                let repaired_dist = face_distortions(mesh, &repaired)?;
+                if repaired_dist.orientation.iter().all(|&o| o > 0) {
+                    uv = repaired;
+                    dist = repaired_dist;
+                    region = Some(info);
+                }
+            }
+        }
+    }
+    let areas = shapespace_geometry::quantities::face_areas(mesh);
+    let total: f64 = areas.iter().sum();
+    let scale = (std::f64::consts::PI / total).sqrt();
+    let summary = summarize(&dist, &areas);
+    if summary.num_flipped + summary.num_degenerate > 0 {
+        let first = dist.orientation.iter().position(|&o| o <= 0).unwrap_or(0);
+        return Err(ConformalError::FoldedImage {
+            num_flipped: summary.num_flipped + summary.num_degenerate,
+            first_face: first,
+            flipped_area_fraction: summary.flipped_area_fraction,
+            boundary_out_of_order: boundary_out_of_order(mesh, &uv),
+            bff_fallback_error: None,
+        });
+    }
+    let mut face_densities = Vec::with_capacity(mesh.num_faces());
+    for (f, &ups) in dist.area_distortion.iter().enumerate() {
+        let mu = (-ups).exp();
+        if !(mu.is_finite() && mu > 0.0) {
+            return Err(ConformalError::OutOfRange {
+                what: "face density",
+                element: format!("face {f}"),
+                log10_value: -ups / std::f64::consts::LN_10,
+            });
+        }
+        face_densities.push(mu);
+    }
+    let conformal_factor = crate::quality::vertex_conformal_factors(mesh, &areas, scale, &dist.area_distortion)?;
+    Ok(Finished {
+        uv,
+        mobius,
+        conformal_factor,
+        face_densities,
+        scale,
+        quality: summary,
+        fold_repairs,
+        region_repair: region,
+    })
+}
