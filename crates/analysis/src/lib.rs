@@ -32,6 +32,7 @@ pub mod point_location;
 pub mod registration;
 pub mod report_path;
 pub mod resume;
+pub mod run_settings;
 pub mod shape_cache;
 pub mod shape_space;
 pub mod shard;

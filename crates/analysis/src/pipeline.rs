@@ -11,42 +11,22 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 use serde::Serialize;
-use shapespace_conformal::{BoundaryMarker, CenterMarker, DiskMapParams, MarkerFile, Markers};
+use shapespace_conformal::{MarkerFile, Markers};
 use shapespace_geometry::io::{write_atomically, AtomicFile};
 use shapespace_geometry::TriMesh;
 
 use crate::distance::{
-    directed_pairs, matrix_from_pairs, pairwise_distances_of, prepare_shape, PairRecord, PairwiseOptions, PreparedShape,
+    directed_pairs, matrix_from_pairs, pairwise_distances_of, prepare_shape, PairRecord, PreparedShape,
 };
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
 pub use crate::resume::{build_identity, InputIdentity, ResumeReport, RunIdentity};
 use crate::resume::{earlier_pairs, pair_row, run_identity, sha256_hex, PAIRS_HEADER};
+pub use crate::run_settings::{
+    DistancesOptions, MarkerChoice, MarkerOptions, ShapeReport, PARTIAL_IDENTITY, PARTIAL_PAIRS,
+    PREVIOUS_PARTIAL_IDENTITY, PREVIOUS_PARTIAL_PAIRS,
+};
 use crate::stats::{summarize, Summary};
-
-/// How markers are chosen for each file.
-#[derive(Clone, Debug, Default)]
-pub struct MarkerOptions {
-    /// `--center` for every file (overrides marker files).
-    pub center: Option<CenterMarker>,
-    /// `--boundary-marker` for every file (overrides marker files).
-    pub boundary: Option<BoundaryMarker>,
-    /// One marker file for all files (a set with shared vertex order).
-    pub marker_file: Option<PathBuf>,
-}
-
-/// A file's resolved markers and where they came from, for the report. `center` and `boundary`
-/// serialize as in a marker file (`123` or `{"face": f, "bary": [..]}`, and a vertex index).
-#[derive(Clone, Debug, Serialize, serde::Deserialize)]
-pub struct MarkerChoice {
-    pub center: shapespace_conformal::markers::ResolvedCenter,
-    pub boundary: u32,
-    pub source: String,
-    /// Unit 3D direction from the center marker to the boundary marker (for
-    /// [`crate::shared_markers::marker_outliers`]).
-    #[serde(skip)]
-    pub axis: Option<[f64; 3]>,
-}
 
 /// The markers of one mesh file of `num_vertices` vertices: command-line values first, then
 /// `marker_file`, then the sidecar (`NAME.landmarks.json`, else `landmarks.json` beside the
@@ -90,52 +70,6 @@ pub fn markers_for(
 /// A file read for [`run_distances`]: its SHA-256, the seconds spent, and its mesh with its
 /// markers and their source (or why it could not be read).
 type LoadedFile = (Option<String>, f64, Result<(TriMesh, Markers, String), String>);
-
-/// Options of [`run_distances`].
-#[derive(Clone, Debug, Default)]
-pub struct DistancesOptions {
-    pub markers: MarkerOptions,
-    pub pairwise: PairwiseOptions,
-    pub disk_map: DiskMapParams,
-    /// Take the directed pairs that earlier runs in the output folder computed from the same
-    /// files, markers and solver settings, with the same executable, from their files instead
-    /// of computing them again (see [`run_distances`]). Not with `pairwise.warm_start` (a warm-started pair depends on
-    /// the pairs solved before it).
-    pub resume: bool,
-    /// Quantize each shape's target measure to at most this many points
-    /// ([`crate::distance::quantize_target`]): faster pairs at a measured loss of accuracy.
-    pub target_points: Option<usize>,
-    /// Compute only this shard of the pairs ([`crate::shard`]); `merge_shards` assembles the
-    /// shards' folders. Not with `pairwise.warm_start` or `pairwise.debias`.
-    pub shard: Option<crate::shard::Shard>,
-    /// Keep each shape's per-shape work in this folder and take it from there when the same
-    /// file, markers, settings and executable come again ([`crate::shape_cache`]).
-    pub cache: Option<PathBuf>,
-}
-
-/// Per-file outcome of the preparation stage.
-#[derive(Clone, Debug, Serialize, serde::Deserialize)]
-pub struct ShapeReport {
-    pub name: String,
-    #[serde(serialize_with = "crate::report_path::one")]
-    pub path: PathBuf,
-    /// SHA-256 of the file's bytes (hex, as `sha256sum` prints it); None when it cannot be read.
-    pub sha256: Option<String>,
-    pub ok: bool,
-    /// Why the file failed, starting with its path.
-    pub error: Option<String>,
-    pub vertices: Option<usize>,
-    pub faces: Option<usize>,
-    pub markers: Option<MarkerChoice>,
-    pub seconds: f64,
-    /// Range of the pushed-forward density (min, max) on the disk.
-    pub density_range: Option<[f64; 2]>,
-    /// Flipped image triangles of the conformal map.
-    pub flipped_faces: Option<usize>,
-    /// Faces the Green's-function map folded when the conformal map is BFF's instead
-    /// (`DiskMapParams::bff_fallback`); None for the Green's-function map.
-    pub bff_fallback_after_green_folds: Option<usize>,
-}
 
 /// Timing of the stages, seconds (wall clock, except `pairs_cpu`: the sum over pairs).
 #[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
@@ -304,21 +238,6 @@ fn escaped(s: &std::ffi::OsStr) -> String {
         s.to_string_lossy().into_owned()
     }
 }
-
-/// The file in the output folder that holds the pairs finished so far while a run is going on,
-/// one `pairs.csv` row each, in the order they finish, flushed row by row: what a run that is
-/// killed or crashes leaves behind. Removed once `pairs.csv` and `report.json` are written.
-pub const PARTIAL_PAIRS: &str = "pairs.partial.csv";
-
-/// Where a run moves a [`PARTIAL_PAIRS`] file it finds (left by a run that was stopped), so that
-/// starting again in the same folder does not erase those pairs (an older one is replaced).
-pub const PREVIOUS_PARTIAL_PAIRS: &str = "pairs.partial.prev.csv";
-
-/// The [`RunIdentity`] of the run writing [`PARTIAL_PAIRS`], written before its first row.
-pub const PARTIAL_IDENTITY: &str = "pairs.partial.json";
-
-/// Where [`PARTIAL_IDENTITY`] goes with [`PREVIOUS_PARTIAL_PAIRS`].
-pub const PREVIOUS_PARTIAL_IDENTITY: &str = "pairs.partial.prev.json";
 
 /// [`PARTIAL_PAIRS`], appended to from the worker threads: its writer, or after the first
 /// failed write, that failure; `failed` is set with it (the run's stop signal).

@@ -17,7 +17,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::distance::PairRecord;
-use crate::pipeline::{
+use crate::run_settings::{
     DistancesOptions, ShapeReport, PARTIAL_IDENTITY, PARTIAL_PAIRS, PREVIOUS_PARTIAL_IDENTITY, PREVIOUS_PARTIAL_PAIRS,
 };
 

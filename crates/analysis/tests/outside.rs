@@ -118,3 +118,48 @@ fn expressions_sharing_one_connectivity_share_their_auto_markers() {
     assert!(hi / lo < 1.6, "distances {off:?}");
     std::fs::remove_dir_all(&tmp).ok();
 }
+
+/// The Sumner face pose 6: its conformal map crushes the creases of the closed mouth so far that
+/// vertices land 1e-16 apart, and transport into it stalled ("points too crowded for double
+/// precision"). Its prepared target merges them (`COINCIDENT_POINTS`), and the pair from pose 1
+/// converges with a cost whose dual gap is small; the merge's own cost is negligible.
+#[test]
+fn a_target_with_coincident_vertex_images_converges() {
+    let Some(dir) = shapespace_test_support::shared_root() else {
+        return;
+    };
+    let shape = |name: &str| {
+        let mesh =
+            shapespace_geometry::io::read_mesh(&dir.join(format!("outside/sumner_face_poses/{name}.obj"))).unwrap();
+        let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
+        let shape = shapespace_analysis::distance::prepare_shape(
+            name,
+            &prepared,
+            &Markers::default(),
+            &DiskMapParams::default(),
+        )
+        .unwrap();
+        (shape, prepared.num_vertices())
+    };
+    let ((source, _), (target, n)) = (shape("pose1"), shape("pose6"));
+    assert!(
+        target.points.len() < n,
+        "nothing merged: {} points",
+        target.points.len()
+    );
+    assert!(target.quantization_variance < 1e-20, "{}", target.quantization_variance);
+    let (d, _) = shapespace_analysis::distance::directed_distance(&source, &target, &Default::default()).unwrap();
+    assert!(d.converged, "{}", d.status);
+    assert!(
+        d.cost > 0.0 && (d.cost - d.dual_cost).abs() < 1e-3 * d.cost,
+        "{} {}",
+        d.cost,
+        d.dual_cost
+    );
+    eprintln!(
+        "pose1 -> pose6: {} of {n} target points after merging, cost {:.6}, {} steps",
+        target.points.len(),
+        d.cost,
+        d.iterations
+    );
+}
