@@ -19,7 +19,8 @@ fn files(dir: &Path, sub: &str, ext: &str) -> Vec<PathBuf> {
     out
 }
 
-/// Every outside disk prepares and maps with no flipped triangle and finite positive densities.
+/// Every outside mesh of the corpus (54: composite faces, expressions, GOAST's faces, cacti,
+/// fingers and plates) prepares and maps with no flipped triangle and finite positive densities.
 /// The Sumner face poses are the hard part: their closed mouths are flattened pockets whose
 /// creases have angle sums of 0.8–3 rad; the Green's map folds 300–500 faces or puts a crease
 /// vertex outside the circle, BFF's map folds 50–130 faces, and the region repair re-embeds them
@@ -33,7 +34,11 @@ fn outside_disks_prepare_and_map_without_flips() {
     let mut corpus = files(&dir, "outside/facefuns", "ply");
     corpus.extend(files(&dir, "outside/sumner_face_poses", "obj"));
     corpus.extend(files(&dir, "goast/faces", "ply"));
-    assert_eq!(corpus.len(), 12 + 9 + 4, "the corpus changed");
+    // closed shapes (a disk cut out at the centroid) and open plates of another kind
+    corpus.extend(files(&dir, "goast/cactus", "ply"));
+    corpus.extend(files(&dir, "goast/finger", "ply"));
+    corpus.extend(files(&dir, "goast/plate", "ply"));
+    assert_eq!(corpus.len(), 12 + 9 + 4 + 19 + 3 + 7, "the corpus changed");
     use rayon::prelude::*;
     let region_repaired: Vec<String> = corpus
         .par_iter()
@@ -148,7 +153,8 @@ fn a_target_with_coincident_vertex_images_converges() {
         target.points.len()
     );
     assert!(target.quantization_variance < 1e-20, "{}", target.quantization_variance);
-    let (d, _) = shapespace_analysis::distance::directed_distance(&source, &target, &Default::default()).unwrap();
+    let newton = shapespace_analysis::distance::PairwiseOptions::default().newton;
+    let (d, _) = shapespace_analysis::distance::directed_distance(&source, &target, &newton).unwrap();
     assert!(d.converged, "{}", d.status);
     assert!(
         d.cost > 0.0 && (d.cost - d.dual_cost).abs() < 1e-3 * d.cost,
