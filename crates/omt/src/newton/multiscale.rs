@@ -2,7 +2,8 @@
 //! transport"], with a prolongation that provably leaves no cell empty.
 //!
 //! **Coarsening.** The points are merged pairwise along their shortest Delaunay edges (a greedy
-//! matching, shortest first), in rounds, until at most N/4 groups remain; a group is the coarse
+//! matching, shortest first), in rounds, until at most N/4 groups remain (N/2 from 20,000 points
+//! on: two rounds); a group is the coarse
 //! point at its members' mass-weighted mean, with their total mass. Closest pairs merge first,
 //! so a cluster of near-coincident points (the conformal image of a long protrusion) becomes one
 //! coarse point before well-spread points are grouped. The coarse problem is solved the same
@@ -78,8 +79,27 @@ const RINGS: usize = 3;
 /// Density-continuation ratio of the retry of a coarse level that its own coarse-to-fine start
 /// did not solve (when the caller's parameters have none; the distances' fallback uses the same).
 pub const RETRY_CONTINUATION: f64 = 10.0;
-/// Fine-to-coarse ratio: pairwise merging rounds continue until at most N/RATIO groups remain.
+/// Fine-to-coarse ratio: pairwise merging rounds continue until at most N/RATIO groups remain
+/// (levels below [`LARGE_LEVEL`] points).
 const RATIO: usize = 4;
+/// The ratio for levels of at least [`LARGE_LEVEL`] points: rounds continue until at most N/2
+/// groups remain (two rounds, about 3.5 points per group). From the 30k-point facefuns scans,
+/// RATIO 4 gave 6.5 points per group (30,205 → 4,601) and a finest level of 9–23 Newton steps
+/// (median 12; the 23-step pair took 65 evaluations); with the 8.6k-point level in between, 7–13
+/// steps (median 9–11). `docs/decisions/0024-finer-levels-for-large-targets.md`.
+const RATIO_LARGE: usize = 2;
+/// Levels of at least this many points are coarsened by [`RATIO_LARGE`] (the bundled faces,
+/// 9,412 points, are not: their finest level takes 6–7 steps from the RATIO 4 level).
+const LARGE_LEVEL: usize = 20_000;
+
+/// The fine-to-coarse ratio of a level of `n` points.
+fn level_ratio(n: usize) -> usize {
+    if n >= LARGE_LEVEL {
+        RATIO_LARGE
+    } else {
+        RATIO
+    }
+}
 /// After the first round of a level, two groups merge only if each group of several points has
 /// a radius ≥ SCALE_MATCH × their distance (see `coarsen`).
 const SCALE_MATCH: f64 = 1e-3;
@@ -95,11 +115,16 @@ const SPREAD: f64 = 0.9;
 /// triangulation of a sample of its vertices ([`crate::averaging`]) of size V/2^k (V vertices,
 /// k ≥ 1; quantized so that the copy is shared by the pairs of one source, whose coarse levels
 /// differ slightly) in [AVERAGING_MIN_SAMPLE·n, 2·AVERAGING_MIN_SAMPLE·n), when that copy has at
-/// most half the measure's triangles (never on the uniform disk of 512 triangles). Measured on
-/// face pairs (`analysis/examples/pair_cost.rs`): the copy for a level of 1,349
-/// points has 4.7k triangles instead of 18.6k, the coarse levels cost a third of what they did,
-/// and the finest level takes as many steps.
+/// most [`AVERAGING_MAX_SHARE`] of the measure's triangles (never on the uniform disk of 512
+/// triangles). Measured on face pairs (`analysis/examples/pair_cost.rs`): the copy for a level
+/// of 1,349 points has 4.7k triangles instead of 18.6k, the coarse levels cost a third of what
+/// they did, and the finest level takes as many steps.
 const AVERAGING_MIN_SAMPLE: f64 = 1.5;
+/// The largest share of the measure's triangles an averaged copy may have. 0.6 rather than a
+/// half: the 8.6k-point level of a 30k-point scan ([`RATIO_LARGE`]) gets the copy on V/2 =
+/// 15,102 vertices, 31.8k triangles for 59.7k (53 %); solved on the measure itself, that level
+/// cost as much as the finest level's steps it saved.
+const AVERAGING_MAX_SHARE: f64 = 0.6;
 
 /// The sample size of the averaged measure for a coarse level of `coarse_n` points (see
 /// [`AVERAGING_MIN_SAMPLE`]), `None` when averaging would not pay.
@@ -114,7 +139,7 @@ fn averaging_sample(measure: &SourceMeasure, coarse_n: usize, hull_size: usize) 
         sample /= 2;
     }
     // The averaged triangulation has about 2·sample triangles plus one per hull vertex.
-    (4 * sample + 2 * hull_size <= measure.triangles.len()).then_some(sample)
+    ((2 * sample + hull_size) as f64 <= AVERAGING_MAX_SHARE * measure.triangles.len() as f64).then_some(sample)
 }
 /// Rounds of the check of the anchors after the prolongation.
 const REPAIR_ROUNDS: usize = 8;
@@ -225,7 +250,8 @@ impl std::fmt::Debug for TargetCoarsening {
 }
 
 /// Merges the points pairwise along their shortest Delaunay edges (greedy matching, shortest
-/// first), in rounds, until at most N/RATIO groups remain (or a round merges nothing). Closest
+/// first), in rounds, until at most N/ratio groups remain (`level_ratio`: RATIO, or RATIO_LARGE
+/// from LARGE_LEVEL points on), or a round merges nothing. Closest
 /// pairs merge first, so clusters of near-coincident points become one coarse point before
 /// well-spread points are grouped. After the first round, a group of several points whose radius
 /// is below SCALE_MATCH × the distance to its partner does not merge: its members would be
@@ -249,7 +275,7 @@ fn coarsen(
     let mut closest = f64::INFINITY;
     let mut fine_delaunay = None;
     for round in 0..MAX_ROUNDS {
-        if round > 0 && reps.len() * RATIO <= n {
+        if round > 0 && reps.len() * level_ratio(n) <= n {
             break;
         }
         // (taken in the first round: later rounds triangulate the merged points)
@@ -782,5 +808,22 @@ mod tests {
         // same heights from either start: 1.6e-7, still far above rounding)
         let other = start(Some(second));
         assert!(gap(&other, &own) > 1e-10, "{:e}", gap(&other, &own));
+    }
+
+    /// A level of at least `LARGE_LEVEL` points is merged to at most N/2 groups, a smaller one to
+    /// at most N/4; a round at most halves the groups, so neither overshoots by more than 2×.
+    /// Every point belongs to a group and the groups keep the total mass.
+    #[test]
+    fn large_levels_are_coarsened_to_half() {
+        for (n, ratio) in [(LARGE_LEVEL, RATIO_LARGE), (LARGE_LEVEL - 1, RATIO)] {
+            let points = random_disk_points(n, 7);
+            let masses: Vec<f64> = (0..n).map(|i| 1.0 + (i % 3) as f64).collect();
+            let c = coarsen(&points, &masses, None).unwrap();
+            let m = c.points.len();
+            assert!(m * ratio <= n && 2 * m * ratio > n, "{n} points → {m} groups");
+            assert!(c.group.iter().all(|&g| g < m));
+            let total: f64 = masses.iter().sum();
+            assert!((c.masses.iter().sum::<f64>() - total).abs() <= 1e-12 * total);
+        }
     }
 }

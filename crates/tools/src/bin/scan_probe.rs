@@ -10,7 +10,8 @@
 //! Env `STEPS=1` prints every finest step, `START=1` the start's m/ν by radius; experiments on
 //! the measures (applied after `prepare_shape`): `CAP=k` caps the densities at k × the median
 //! (mass is lost), `SPREAD=k` spreads them at k × the median, `NUFLOOR=k` floors the target
-//! masses at k × their median.
+//! masses at k × their median. `PREPARE=1` prepares each file as `shapespace prepare` does
+//! first (the raw scans of `outside/facefuns`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -32,7 +33,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let steps = std::env::var("STEPS").is_ok();
     let mut shapes = Vec::new();
     for f in &files {
-        let mesh = shapespace_geometry::io::read_mesh(f)?;
+        let mut mesh = shapespace_geometry::io::read_mesh(f)?;
+        if std::env::var("PREPARE").is_ok() {
+            mesh = shapespace_tools::scans::disk_mesh(f);
+        }
         let (markers, _) = markers_for(f, &MarkerOptions::default(), mesh.positions.len())?;
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
         let mut shape = prepare_shape(&name, &mesh, &markers, &DiskMapParams::default())?;
@@ -146,6 +150,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             integ,
             solve,
             taus.join(" ")
+        );
+        println!(
+            "  linear algebra: assembly {:.2} s, symbolic {:.2} s ({} factorizations, {} orderings), numeric + solve {:.2} s",
+            sol.t_assembly, sol.t_symbolic, sol.symbolic_factorizations, sol.orderings, sol.t_numeric
         );
         if std::env::var("START").is_ok() {
             // the start alone (no Newton step): m/ν by radius of the target point
