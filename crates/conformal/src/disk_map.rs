@@ -494,7 +494,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                     Err(e) => bff_error = Some(e.to_string()),
                 }
             }
-            let refusal = match e {
+            let refusal = |e: ConformalError, region_repair_error: Option<String>| match e {
                 ConformalError::FoldedImage {
                     num_flipped,
                     first_face,
@@ -506,17 +506,20 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                     first_face,
                     flipped_area_fraction,
                     boundary_out_of_order,
-                    bff_fallback_error: bff_error,
+                    bff_fallback_error: bff_error.clone(),
+                    region_repair_error,
                 },
                 other => other,
             };
             match (&z, params.region_repair) {
                 (Some(z), true) => match finish(mesh, &tri.is_boundary[..n], &resolved, &z[..n], true, true) {
                     Ok(fin) => fin,
-                    Err(ConformalError::FoldedImage { .. }) => return Err(refusal),
+                    Err(ConformalError::FoldedImage {
+                        region_repair_error, ..
+                    }) => return Err(refusal(e, region_repair_error)),
                     Err(other) => return Err(other),
                 },
-                _ => return Err(refusal),
+                _ => return Err(refusal(e, None)),
             }
         }
         other => other?,

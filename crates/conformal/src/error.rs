@@ -60,14 +60,17 @@ pub enum ConformalError {
     /// `boundary_out_of_order`: boundary edges whose images run clockwise on the circle (the
     /// Green's construction's harmonic conjugate is not monotone there; no interior repair can
     /// unfold their faces). `bff_fallback_error`: why the BFF fallback
-    /// ([`crate::DiskMapParams::bff_fallback`]) failed too, when it was tried.
-    #[error("{num_flipped} image triangles are flipped or degenerate (first: face {first_face}; flipped area fraction {flipped_area_fraction:.3e}){}{}", if *boundary_out_of_order > 0 { format!("; {boundary_out_of_order} boundary edges run clockwise on the circle (boundary order lost there; `--method bff` places the boundary by its own iteration)") } else { String::new() }, bff_fallback_error.as_ref().map(|e| format!("; the BFF fallback failed too: {e}")).unwrap_or_default())]
+    /// ([`crate::DiskMapParams::bff_fallback`]) failed too, when it was tried;
+    /// `region_repair_error`: why the region repair ([`crate::DiskMapParams::region_repair`])
+    /// left folds, when it was tried.
+    #[error("{num_flipped} image triangles are flipped or degenerate (first: face {first_face}; flipped area fraction {flipped_area_fraction:.3e}){}{}{}", if *boundary_out_of_order > 0 { format!("; {boundary_out_of_order} boundary edges run clockwise on the circle (boundary order lost there; `--method bff` places the boundary by its own iteration)") } else { String::new() }, bff_fallback_error.as_ref().map(|e| format!("; the BFF fallback failed too: {e}")).unwrap_or_default(), region_repair_error.as_ref().map(|e| format!("; the region repair failed: {e}")).unwrap_or_default())]
     FoldedImage {
         num_flipped: usize,
         first_face: usize,
         flipped_area_fraction: f64,
         boundary_out_of_order: usize,
         bff_fallback_error: Option<String>,
+        region_repair_error: Option<String>,
     },
     /// A value of the map is not representable in f64: the conformal factor range of the surface
     /// (e.g. a long protrusion, which shrinks like e^{−H/ρ}) exceeds what f64 coordinates or

@@ -263,6 +263,7 @@ pub(crate) fn finish(
     let mut dist = face_distortions(mesh, &uv)?;
     let mut fold_repairs = 0;
     let mut region = None;
+    let mut region_error = None;
     if repair && dist.orientation.iter().any(|&o| o <= 0) {
         let mut vertex_faces = vec![Vec::new(); mesh.num_vertices()];
         for (f, face) in mesh.faces.iter().enumerate() {
@@ -286,15 +287,22 @@ pub(crate) fn finish(
         if region_repair && dist.orientation.iter().any(|&o| o <= 0) {
             // the markers stay where they are: they are fixed like the boundary
             let mut repaired = uv.clone();
-            if let Ok(info) =
-                crate::fold_repair::repair_folds(mesh, &fixed, &mut repaired, &FoldRepairParams::default())
-            {
-                let repaired_dist = face_distortions(mesh, &repaired)?;
-                if repaired_dist.orientation.iter().all(|&o| o > 0) {
-                    uv = repaired;
-                    dist = repaired_dist;
-                    region = Some(info);
+            match crate::fold_repair::repair_folds(mesh, &fixed, &mut repaired, &FoldRepairParams::default()) {
+                Ok(info) => {
+                    let repaired_dist = face_distortions(mesh, &repaired)?;
+                    let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
+                    if left == 0 {
+                        uv = repaired;
+                        dist = repaired_dist;
+                        region = Some(info);
+                    } else {
+                        region_error = Some(format!(
+                            "{left} faces fold by the map's own orientation test after it (its rings: {} vertices)",
+                            info.region_vertices
+                        ));
+                    }
                 }
+                Err(e) => region_error = Some(e.to_string()),
             }
         }
     }
@@ -310,6 +318,7 @@ pub(crate) fn finish(
             flipped_area_fraction: summary.flipped_area_fraction,
             boundary_out_of_order: boundary_out_of_order(mesh, &uv),
             bff_fallback_error: None,
+            region_repair_error: region_error,
         });
     }
     let mut face_densities = Vec::with_capacity(mesh.num_faces());

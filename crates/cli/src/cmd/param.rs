@@ -561,6 +561,7 @@ mod tests {
             flipped_area_fraction: 8.4e-4,
             boundary_out_of_order,
             bff_fallback_error: None,
+            region_repair_error: None,
         })
     }
 

@@ -587,6 +587,7 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
             flipped_area_fraction: summary.flipped_area_fraction,
             boundary_out_of_order: 0,
             bff_fallback_error: None,
+            region_repair_error: None,
         });
     }
     let mut face_densities = Vec::with_capacity(mesh.num_faces());
