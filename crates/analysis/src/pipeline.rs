@@ -505,6 +505,7 @@ pub fn prepare_inputs(
                         density_range: Some([lo, hi]),
                         flipped_faces: Some(figures.flipped_faces),
                         bff_fallback_after_green_folds: figures.bff_fallback_after_green_folds,
+                        conformal_method: Some(shape.disk.info.method.clone()),
                     };
                     (Some(shape), report)
                 }
@@ -528,6 +529,7 @@ pub fn prepare_inputs(
                         density_range: None,
                         flipped_faces: None,
                         bff_fallback_after_green_folds: None,
+                        conformal_method: None,
                     },
                 ),
             }

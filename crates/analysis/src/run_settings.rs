@@ -78,6 +78,10 @@ pub struct ShapeReport {
     /// Faces the Green's-function map folded when the conformal map is BFF's instead
     /// (`DiskMapParams::bff_fallback`); None for the Green's-function map.
     pub bff_fallback_after_green_folds: Option<usize>,
+    /// The conformal map's construction, as `DiskMapInfo::method` names it (a region repair and
+    /// the vertices it moved included); None for a file that failed.
+    #[serde(default)]
+    pub conformal_method: Option<String>,
 }
 
 /// The file in the output folder that holds the pairs finished so far while a run is going on,
