@@ -13,10 +13,6 @@ divided by sqrt(area of the target). The heat method is reimplemented here exact
 crates/analysis/src/geodesic.rs (t = mean edge length squared, lumped masses, Neumann, the
 Poisson solve pinned at vertex 0).
 
-With `--remeshed DIR` (a folder written by `scripts/remesh_targets.py`) the targets are the
-remeshed poses and the true partner of v is a barycentric point on the remeshed target: the
-heat source is that point's barycentric delta, and the distance is measured from it.
-
 `--check OUT SOURCE TARGET` instead reads a `shapespace register --out OUT` result
 (`correspondence.csv`, `metrics.json`) and compares this script's error of shapespace's own map
 with the per-sample errors in `metrics.json` (the cross-check of the error definition).
@@ -26,7 +22,7 @@ it (`python3 -m venv VENV && VENV/bin/pip install pyfmaps`). Without it the scri
 message and exits with status 0 (nothing measured); `--check` needs only NumPy and SciPy.
 
 Usage:
-  python3 scripts/pyfmaps_bench.py DATASET --out RESULTS.csv [--remeshed DIR] [--classes wolf,centaur] [--pairs N]
+  python3 scripts/pyfmaps_bench.py DATASET --out RESULTS.csv [--classes wolf,centaur] [--pairs N]
   python3 scripts/pyfmaps_bench.py --check OUT SOURCE TARGET
 """
 
@@ -37,10 +33,14 @@ import os
 import sys
 import time
 
-import numpy as np
+try:
+    import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import meshtools as mt  # noqa: E402
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import meshtools as mt
+except ImportError:
+    print("pyfmaps_bench: NumPy is not installed (pip install numpy scipy pyfmaps in a virtual environment); skipped")
+    sys.exit(0)
 
 MASK64 = (1 << 64) - 1
 SAMPLES = 300
@@ -207,17 +207,6 @@ def pyfmaps_map(src_mesh, tgt_mesh, lm_src, lm_tgt):
     return p2p, time.perf_counter() - t0
 
 
-def read_ground_truth(path):
-    """`remesh_targets.py`'s ground truth: per original vertex, a face and barycentric
-    coordinates on the remeshed mesh."""
-    face, bary = [], []
-    with open(path) as fh:
-        for row in csv.DictReader(fh):
-            face.append(int(row["face"]))
-            bary.append([float(row["b0"]), float(row["b1"]), float(row["b2"])])
-    return np.asarray(face, dtype=np.int64), np.asarray(bary)
-
-
 def bench(args):
     try:
         import pyFM  # noqa: F401
@@ -239,20 +228,9 @@ def bench(args):
         meshes = [mt.read_mesh(f) for f in files]
         shapes = [pyfmaps_shape(f) for f in files]
         targets = {}
-        for j, f in enumerate(files):
-            if args.remeshed:
-                rfolder = os.path.join(args.remeshed, cls)
-                tpath = os.path.join(rfolder, stem(f) + ".off")
-                V2, F2 = mt.read_mesh(tpath)
-                gt_face, gt_bary = read_ground_truth(os.path.join(rfolder, stem(f) + ".truth.csv"))
-                tl = read_landmarks(os.path.join(rfolder, "landmarks.json"))[stem(f)]
-                truth = (lambda gf, gb: (lambda v: (int(gf[v]), gb[v])))(gt_face, gt_bary)
-            else:
-                tpath, (V2, F2) = f, meshes[j]
-                tl = lms
-                truth = lambda v: int(v)  # noqa: E731
-            tshape = pyfmaps_shape(tpath) if args.remeshed else shapes[j]
-            targets[j] = (tshape, V2, F2, [tl[n] for n in names], HeatGeodesics(V2, F2), truth)
+        for j in range(len(files)):
+            V2, F2 = meshes[j]
+            targets[j] = (shapes[j], V2, F2, [lms[n] for n in names], HeatGeodesics(V2, F2), int)
         for i, src in enumerate(files):
             samples = sample_indices(len(meshes[i][0]), SAMPLES, SEED)
             for j in range(len(files)):
@@ -266,7 +244,6 @@ def bench(args):
                     "class": cls,
                     "source": stem(src),
                     "target": stem(files[j]),
-                    "targets": "remeshed" if args.remeshed else "same",
                     "geodesic_mean": float(err.mean()),
                     "geodesic_median": float(np.median(err)),
                     # from scratch: both shapes' eigenpairs and this pair's work
@@ -274,7 +251,7 @@ def bench(args):
                     "pair_seconds": secs,
                 }
                 print(
-                    "{class} {source}->{target} ({targets}) geo {geodesic_mean:.4f}/{geodesic_median:.4f} "
+                    "{class} {source}->{target} geo {geodesic_mean:.4f}/{geodesic_median:.4f} "
                     "{seconds:.1f}s (pair {pair_seconds:.1f}s)".format(**row),
                     flush=True,
                 )
@@ -329,7 +306,6 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dataset", nargs="?", help="folder of class folders (as register-bench)")
     ap.add_argument("--out", help="results CSV (written atomically)")
-    ap.add_argument("--remeshed", help="folder of remeshed targets (scripts/remesh_targets.py)")
     ap.add_argument("--classes", help="comma-separated class folders (default: all)")
     ap.add_argument("--pairs", type=int, help="at most this many ordered pairs per class (default: all)")
     ap.add_argument("--check", nargs=3, metavar=("OUT", "SOURCE", "TARGET"))

@@ -216,6 +216,8 @@ pub struct BenchRow {
     /// ([`crate::registration::untangle`]; 0 and 0 without refinement).
     pub untangle_flipped_before: usize,
     pub untangle_flipped_after: usize,
+    /// Of `refine_seconds`: the untangling.
+    pub untangle_seconds: f64,
 }
 
 /// Means over the successful pairs of one method (in one class, or `all`).
@@ -406,6 +408,7 @@ pub fn register_bench(
                         stage1_amortized_seconds: f64::NAN,
                         untangle_flipped_before: 0,
                         untangle_flipped_after: 0,
+                        untangle_seconds: 0.0,
                     };
                     let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
                         let phi1 = maps[i]
@@ -460,6 +463,7 @@ pub fn register_bench(
                                 row.pair_seconds -= row.eigen_seconds;
                                 row.untangle_flipped_before = info.untangle.flipped_before;
                                 row.untangle_flipped_after = info.untangle.flipped_after;
+                                row.untangle_seconds = info.untangle.seconds;
                             }
                             let eigen = |k: usize| reg.refinement.as_ref().map_or(0.0, |r| r.eigen_seconds[k]);
                             mesh_seconds[i] = t.source_map + eigen(0);

@@ -74,6 +74,8 @@ pub struct VertexMapUntangleInfo {
     pub vertices_moved: usize,
     /// Sweeps run.
     pub sweeps: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
 }
 
 /// Orientation of one image triangle: 1 flipped, 0 fine, and collapsed separately.
@@ -195,6 +197,7 @@ pub fn untangle_vertex_map(
     cost: &(dyn Fn(usize, u32) -> f64 + Sync),
     params: &VertexMapUntangleParams,
 ) -> VertexMapUntangleInfo {
+    let t0 = std::time::Instant::now();
     let g = Geometry::of(target, params.compact);
     let (flipped_before, collapsed_before) = count(source, &g, map);
     let mut info = VertexMapUntangleInfo {
@@ -356,6 +359,7 @@ pub fn untangle_vertex_map(
     info.flipped_after = flipped_after;
     info.collapsed_after = collapsed_after;
     info.vertices_moved = map.iter().zip(&original).filter(|(a, b)| a != b).count();
+    info.seconds = t0.elapsed().as_secs_f64();
     info
 }
 
