@@ -1,4 +1,4 @@
-//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal] [none|zoomout] [K_END] [vertex|projected] [EIGEN_TOL]` (same as
+//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal] [none|zoomout] [K_END] [vertex|projected] [EIGEN_TOL] [UNTANGLE_SWEEPS] [UNTANGLE_RING] [K_STEP] [SAMPLES] [compact|flips]` (same as
 //! `shapespace register-bench`). Prints the per-pair rows and the per-method means.
 use shapespace_analysis::registration::bench::register_bench;
 use shapespace_analysis::registration::{Method, MetricParams, Refinement, ZoomOutParams};
@@ -26,6 +26,21 @@ fn main() {
     if let Some(t) = args.get(7) {
         zoomout.eigen.tolerance = t.parse().expect("eigen tolerance");
     }
+    if let Some(s) = args.get(8) {
+        zoomout.untangle.sweeps = s.parse().expect("untangle sweeps");
+    }
+    if let Some(r) = args.get(9) {
+        zoomout.untangle.ring = r.parse().expect("untangle ring");
+    }
+    if let Some(k) = args.get(10) {
+        zoomout.k_step = k.parse().expect("k_step");
+    }
+    if let Some(n) = args.get(11) {
+        zoomout.samples = n.parse().expect("samples");
+    }
+    if let Some(c) = args.get(12) {
+        zoomout.untangle.compact = c == "compact";
+    }
     let res = register_bench(
         &dataset,
         &out,
@@ -40,7 +55,7 @@ fn main() {
     .expect("bench");
     for r in &res.rows {
         println!(
-            "{} {}->{} {:9} {} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s (refine {:.2}s) {}",
+            "{} {}->{} {:9} {} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s (refine {:.2}s, eigen {:.2}s, pair {:.2}s, amortized {:.2}s) untangle {}->{} {}",
             r.class,
             r.source,
             r.target,
@@ -57,6 +72,11 @@ fn main() {
             r.geodesic_mean,
             r.seconds,
             r.refine_seconds,
+            r.eigen_seconds,
+            r.pair_seconds,
+            r.amortized_seconds,
+            r.untangle_flipped_before,
+            r.untangle_flipped_after,
             r.status
         );
     }

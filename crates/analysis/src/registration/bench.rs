@@ -202,6 +202,22 @@ pub struct BenchRow {
     pub seconds: f64,
     /// Of `seconds`: the refinement (both surfaces' eigenpairs and the iterations; 0 without).
     pub refine_seconds: f64,
+    /// Of `refine_seconds`: both surfaces' eigenpairs.
+    pub eigen_seconds: f64,
+    /// Of `seconds`, the pair's own work: `seconds` without the per-mesh disk maps and
+    /// eigenpairs (which the benchmark computes once per mesh and shares by all its pairs).
+    pub pair_seconds: f64,
+    /// `pair_seconds` plus the class's per-mesh work (disk maps, eigenpairs) over its number of
+    /// pairs: the cost per pair of registering every ordered pair of the class.
+    pub amortized_seconds: f64,
+    /// `amortized_seconds` of the first stage alone (no eigenpairs, no ZoomOut iterations).
+    pub stage1_amortized_seconds: f64,
+    /// Flipped 3D source faces of the refined vertex map before and after its untangling
+    /// ([`crate::registration::untangle`]; 0 and 0 without refinement).
+    pub untangle_flipped_before: usize,
+    pub untangle_flipped_after: usize,
+    /// Of `refine_seconds`: the untangling.
+    pub untangle_seconds: f64,
 }
 
 /// Means over the successful pairs of one method (in one class, or `all`).
@@ -228,6 +244,15 @@ pub struct MethodSummary {
     pub seconds: f64,
     /// Of `seconds`: the refinement.
     pub refine_seconds: f64,
+    /// Of `refine_seconds`: both surfaces' eigenpairs.
+    pub eigen_seconds: f64,
+    /// Of `seconds`: the pair's own work (no disk maps, no eigenpairs).
+    pub pair_seconds: f64,
+    /// The cost per pair of registering every ordered pair of the class (`pair_seconds` plus
+    /// the per-mesh work over the number of pairs).
+    pub amortized_seconds: f64,
+    /// `amortized_seconds` of the first stage alone.
+    pub stage1_amortized_seconds: f64,
 }
 
 /// Result of [`register_bench`].
@@ -348,6 +373,9 @@ pub fn register_bench(
                     disk_image(m, &mf.markers, method, params).map_err(|e| error_chain(&e))
                 })
                 .collect();
+            let first_row = rows.len();
+            let mut mesh_seconds = vec![0.0; meshes.len()];
+            let mut mesh_eigen_seconds = vec![0.0; meshes.len()];
             for i in 0..meshes.len() {
                 for j in 0..meshes.len() {
                     if i == j {
@@ -374,6 +402,13 @@ pub fn register_bench(
                         geodesic_mean: f64::NAN,
                         seconds: f64::NAN,
                         refine_seconds: 0.0,
+                        eigen_seconds: 0.0,
+                        pair_seconds: f64::NAN,
+                        amortized_seconds: f64::NAN,
+                        stage1_amortized_seconds: f64::NAN,
+                        untangle_flipped_before: 0,
+                        untangle_flipped_after: 0,
+                        untangle_seconds: 0.0,
                     };
                     let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
                         let phi1 = maps[i]
@@ -421,6 +456,20 @@ pub fn register_bench(
                             }
                             row.seconds = reg.timings.total;
                             row.refine_seconds = reg.timings.refine;
+                            let t = &reg.timings;
+                            row.pair_seconds = t.total - t.source_map - t.target_map;
+                            if let Some(info) = &reg.refinement {
+                                row.eigen_seconds = info.eigen_seconds[0] + info.eigen_seconds[1];
+                                row.pair_seconds -= row.eigen_seconds;
+                                row.untangle_flipped_before = info.untangle.flipped_before;
+                                row.untangle_flipped_after = info.untangle.flipped_after;
+                                row.untangle_seconds = info.untangle.seconds;
+                            }
+                            let eigen = |k: usize| reg.refinement.as_ref().map_or(0.0, |r| r.eigen_seconds[k]);
+                            mesh_seconds[i] = t.source_map + eigen(0);
+                            mesh_seconds[j] = t.target_map + eigen(1);
+                            mesh_eigen_seconds[i] = eigen(0);
+                            mesh_eigen_seconds[j] = eigen(1);
                             pooled[mi].1.extend_from_slice(&met.curvature_difference);
                             pooled[mi].2.extend_from_slice(&met.area_distortion);
                         }
@@ -428,6 +477,16 @@ pub fn register_bench(
                     }
                     rows.push(row);
                 }
+            }
+            // the per-mesh work shared out over the class's pairs
+            let pairs = (rows.len() - first_row).max(1) as f64;
+            let share = mesh_seconds.iter().sum::<f64>() / pairs;
+            let eigen_share = mesh_eigen_seconds.iter().sum::<f64>() / pairs;
+            for r in &mut rows[first_row..] {
+                r.amortized_seconds = r.pair_seconds + share;
+                // without the refinement: no eigenpairs, no iterations
+                let iterations = r.refine_seconds - r.eigen_seconds;
+                r.stage1_amortized_seconds = r.amortized_seconds - eigen_share - iterations;
             }
         }
     }
@@ -495,6 +554,10 @@ pub fn register_bench(
                 geodesic_mean: mean(&|r| r.geodesic_mean),
                 seconds: mean(&|r| r.seconds),
                 refine_seconds: mean(&|r| r.refine_seconds),
+                eigen_seconds: mean(&|r| r.eigen_seconds),
+                pair_seconds: mean(&|r| r.pair_seconds),
+                amortized_seconds: mean(&|r| r.amortized_seconds),
+                stage1_amortized_seconds: mean(&|r| r.stage1_amortized_seconds),
             }
         })
         .collect();

@@ -44,6 +44,7 @@
 pub mod bench;
 pub mod landmarks;
 pub mod metrics;
+pub mod untangle;
 pub mod zoomout;
 
 use std::time::Instant;
@@ -361,6 +362,8 @@ pub struct RefinementInfo {
     pub iteration_seconds: f64,
     /// Source vertices whose nearest target vertex changed from the first stage's.
     pub vertices_moved: usize,
+    /// The 3D untangling of the vertex map ([`untangle`]).
+    pub untangle: untangle::VertexMapUntangleInfo,
 }
 
 /// A registration f: S₁ → S₂ (module docs).
@@ -480,6 +483,7 @@ pub fn refine_registration(
         eigen_seconds: [source_basis.seconds, target_basis.seconds],
         iteration_seconds: refined.seconds,
         vertices_moved,
+        untangle: refined.untangle,
     });
     reg.timings.refine = source_basis.seconds + target_basis.seconds + refined.seconds;
     reg.timings.total += reg.timings.refine;
