@@ -324,6 +324,39 @@ impl SiteTree {
         }
     }
 
+    /// The site nearest to the direction of `c` (largest ⟨c, y⟩).
+    pub(crate) fn nearest_to(&self, c: [f64; 3], stack: &mut Vec<u32>) -> usize {
+        if self.points.is_empty() {
+            return 0;
+        }
+        let mut best = (f64::NEG_INFINITY, 0u32);
+        stack.clear();
+        stack.push(0);
+        while let Some(id) = stack.pop() {
+            let id = id as usize;
+            if self.cap_max(id, c) <= best.0 {
+                continue;
+            }
+            let n = &self.nodes[id];
+            if n.left == NONE {
+                for &i in &self.order[n.start as usize..n.end as usize] {
+                    let v = dot(c, self.points[i as usize]);
+                    if v > best.0 {
+                        best = (v, i);
+                    }
+                }
+            } else {
+                let (l, r) = (n.left, n.right);
+                if self.cap_max(l as usize, c) > self.cap_max(r as usize, c) {
+                    stack.extend([r, l]);
+                } else {
+                    stack.extend([l, r]);
+                }
+            }
+        }
+        best.1 as usize
+    }
+
     /// An upper bound of ⟨c, y⟩ over the node's cap (heights left out), with a 1e-12 margin.
     fn cap_max(&self, id: usize, c: [f64; 3]) -> f64 {
         let n = &self.nodes[id];

@@ -234,6 +234,65 @@ pub(crate) fn inner_radius(measure: &SphereMeasure) -> f64 {
         .reduce(|| f64::INFINITY, f64::min)
 }
 
+/// Triangles per point of a coarse level's source: a level of n points is solved against an
+/// icosphere of the fewest subdivisions with at least COARSE_TRIANGLES·n triangles when that has at
+/// most half the measure's triangles.
+const COARSE_TRIANGLES: usize = 2;
+
+/// The source of a coarse level of `coarse_n` points (`None`: the measure itself): an icosphere
+/// of at least [`COARSE_TRIANGLES`]·n triangles whose density per unit sphere area is the
+/// measure's at the nearest triangle centroid (a uniform density stays uniform). Only the
+/// coarse cells' centroids and adjacency enter the prolongation, and its guarantee uses the
+/// fine measure's inner radius, so it holds whatever the coarse source; the finest level
+/// always integrates the measure itself. (The area-preserving map of Nefertiti, 50k points on
+/// 327,680 triangles, otherwise integrates its 12.5k-point level on all of them.)
+fn coarse_measure(measure: &SphereMeasure, coarse_n: usize) -> Option<SphereMeasure> {
+    let mut s = 0;
+    while 20 * 4usize.pow(s as u32) < COARSE_TRIANGLES * coarse_n {
+        s += 1;
+    }
+    if 2 * 20 * 4usize.pow(s as u32) > measure.triangles.len() {
+        return None;
+    }
+    let (vertices, triangles) = super::measure::icosphere(s);
+    // the measure's density per unit area of the sphere, at each triangle's centroid direction
+    let centroid = |tri: &[u32; 3], v: &[[f64; 3]]| -> [f64; 3] {
+        let [a, b, c] = tri.map(|i| v[i as usize]);
+        let m = [0, 1, 2].map(|k| a[k] + b[k] + c[k]);
+        let r = norm(m);
+        m.map(|x| x / r)
+    };
+    let fine_centroids: Vec<[f64; 3]> = measure
+        .triangles
+        .iter()
+        .map(|t| centroid(t, &measure.vertices))
+        .collect();
+    let fine_density: Vec<f64> = measure
+        .triangles
+        .iter()
+        .zip(&measure.densities)
+        .map(|(tri, d)| {
+            let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+            d * super::measure::flat_area(a, b, c) / super::measure::spherical_area(a, b, c)
+        })
+        .collect();
+    let uniform = fine_density.iter().all(|&d| d == fine_density[0]);
+    let tree = SiteTree::new(&fine_centroids);
+    let densities: Vec<f64> = triangles
+        .par_iter()
+        .map_init(Vec::new, |stack, tri| {
+            let [a, b, c] = tri.map(|i| vertices[i as usize]);
+            let sphere_density = if uniform {
+                fine_density[0]
+            } else {
+                fine_density[tree.nearest_to(centroid(tri, &vertices), stack)]
+            };
+            sphere_density * super::measure::spherical_area(a, b, c) / super::measure::flat_area(a, b, c)
+        })
+        .collect();
+    SphereMeasure::new(vertices, triangles, densities).ok()
+}
+
 /// The coarse-to-fine start of [`coarse_to_fine_heights`].
 pub(crate) struct SphereCoarseStart {
     pub heights: Heights,
@@ -318,7 +377,9 @@ pub(crate) fn coarse_to_fine_heights(
         )))
     };
     let mut levels = Vec::new();
-    let solution = match solve_sphere_ot(measure, &coarse.points, &coarse.masses, &coarse_params) {
+    let averaged = coarse_measure(measure, coarse_n);
+    let level_measure = averaged.as_ref().unwrap_or(measure);
+    let solution = match solve_sphere_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
         Err(e @ OmtError::TimeLimit(_)) => return Err(e),
         _ if past_deadline() => return timed_out(),
@@ -329,7 +390,7 @@ pub(crate) fn coarse_to_fine_heights(
                 start: SphereStart::Voronoi,
                 ..coarse_params.clone()
             };
-            match solve_sphere_ot(measure, &coarse.points, &coarse.masses, &retry) {
+            match solve_sphere_ot(level_measure, &coarse.points, &coarse.masses, &retry) {
                 Ok(mut s) if s.converged() => {
                     s.iterations += first_steps;
                     s

@@ -100,6 +100,12 @@ impl Default for SphereOtParams {
     }
 }
 
+/// The line search's first trial is min(1, STEP_GROWTH·τ_prev), τ_prev the last accepted step
+/// (the planar solver's rule with a faster growth, decision 0006): the first steps from a
+/// coarse-to-fine start of a crowded image are accepted near τ = 1e-2 and would each re-try
+/// the same rejected trials from 1, while τ still returns to 1 within a few steps.
+const STEP_GROWTH: f64 = 4.0;
+
 /// One Newton step.
 #[derive(Clone, Debug, Default)]
 pub struct SphereIteration {
@@ -418,6 +424,7 @@ impl Problem<'_, '_> {
         let mut stop = StopReason::IterationCap;
         let mut iterations = 0;
         let mut target_cap = params.target_ratio_cap;
+        let mut last_tau: f64 = 1.0;
         loop {
             if rel <= params.tolerance {
                 stop = StopReason::Converged;
@@ -455,7 +462,7 @@ impl Problem<'_, '_> {
                 break;
             }
             let t1 = Instant::now();
-            let mut tau = 1.0;
+            let mut tau = (STEP_GROWTH * last_tau).min(1.0);
             let mut halvings = 0;
             let accepted = loop {
                 let trial = heights.step(&delta, tau);
@@ -494,6 +501,7 @@ impl Problem<'_, '_> {
                 };
                 break;
             };
+            last_tau = tau;
             heights = trial;
             cells = trial_cells;
             (gradient, rel, gnorm) = (g, r, gn);

@@ -37,6 +37,8 @@ fn main() {
             it.max_relative_error, it.gradient_norm, it.step, it.halvings, it.intermediate_targets, it.min_cell_mass
         );
     }
+    let fine: f64 = sol.log.iter().map(|it| it.t_integration + it.t_solve).sum();
+    println!("finest level's steps: {fine:.2} s");
     println!("coarse levels (points, steps): {:?}; start rechecked {}", sol.coarse_levels, sol.start_rechecked);
     println!(
         "{}: V {n}, subdivisions {s}, stop {}, steps {} (+{} in {} continuation stages), evaluations {}, rel {:.3e}, {:.2} s",
