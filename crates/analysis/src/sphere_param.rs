@@ -199,6 +199,22 @@ pub struct SphereFoldRepairInfo {
     pub vertices_moved: usize,
     /// The largest chart used, in rings around its cluster.
     pub max_rings: usize,
+    /// Charts tried and discarded, by reason: not a disk, wider than 1.45 rad, the planar
+    /// repair failed or left a fold, a face folded on S² after it.
+    pub charts_not_disk: usize,
+    pub charts_too_wide: usize,
+    pub charts_repair_failed: usize,
+    pub charts_folded_on_sphere: usize,
+    /// Clusters given up because the next chart would pass a quarter of the faces.
+    pub clusters_too_large: usize,
+}
+
+/// Why a chart was discarded.
+enum ChartFailure {
+    NotDisk,
+    TooWide,
+    RepairFailed,
+    FoldedOnSphere,
 }
 
 /// Re-embeds the folded faces of the map `x` (#V points on S²) by the disk's fold repair
@@ -246,7 +262,15 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
         let mut rings = CHART_RINGS;
         let mut kept = false;
         while let Some(patch) = chart_patch(mesh, &conn, &cluster, rings) {
-            if let Some(moved) = repair_patch(mesh, x, &patch, &shares) {
+            let attempt = repair_patch(mesh, x, &patch, &shares);
+            match &attempt {
+                Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
+                Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
+                Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
+                Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
+                Ok(_) => {}
+            }
+            if let Ok(moved) = attempt {
                 info.vertices_moved += moved.len();
                 for (v, p) in moved {
                     x[v as usize] = p;
@@ -260,6 +284,7 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
         if kept {
             info.repaired += 1;
         } else {
+            info.clusters_too_large += 1;
             given_up.extend(cluster);
         }
     }
@@ -330,7 +355,12 @@ fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: us
 /// direction. Returns the new positions of the vertices it moved, or `None` when the patch is
 /// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
 /// patch folded on S². `shares`: each face's share of 4π (#F).
-fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64]) -> Option<HashMap<u32, [f64; 3]>> {
+fn repair_patch(
+    mesh: &TriMesh,
+    x: &[[f64; 3]],
+    patch: &[usize],
+    shares: &[f64],
+) -> Result<HashMap<u32, [f64; 3]>, ChartFailure> {
     let mut local = HashMap::new();
     let mut verts: Vec<u32> = Vec::new();
     let faces: Vec<[u32; 3]> = patch
@@ -344,11 +374,12 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
             })
         })
         .collect();
-    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces).ok()?;
+    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces)
+        .map_err(|_| ChartFailure::NotDisk)?;
     let sub_conn = Connectivity::of(&sub);
     let loops = sub_conn.boundary_loops(&sub.faces);
     if loops.len() != 1 || euler_characteristic(&sub, &sub_conn) != 1 {
-        return None;
+        return Err(ChartFailure::NotDisk);
     }
     let mut is_boundary = vec![false; verts.len()];
     for &v in &loops[0] {
@@ -362,12 +393,12 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
     }
     let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
     if l.is_nan() || l <= 0.0 {
-        return None;
+        return Err(ChartFailure::TooWide);
     }
     let c = c.map(|t| t / l);
     let min_cos = CHART_MAX_ANGLE.cos();
     if verts.iter().any(|&v| dot(x[v as usize], c) < min_cos) {
-        return None;
+        return Err(ChartFailure::TooWide);
     }
     let rot = rotation_to_south(c);
     let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| gnomonic(&rot, x[v as usize])).collect();
@@ -389,9 +420,10 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
         target_face_areas: Some(target_face_areas),
         ..Default::default()
     };
-    let repaired = repair_folds(&sub, &is_boundary, &mut uv, &params).ok()?;
+    // (a whole-patch Tutte solve can fold: the chart's boundary polygon need not be convex)
+    let repaired = repair_folds(&sub, &is_boundary, &mut uv, &params).map_err(|_| ChartFailure::RepairFailed)?;
     if repaired.folded_after > 0 {
-        return None;
+        return Err(ChartFailure::RepairFailed);
     }
     let moved: HashMap<u32, [f64; 3]> = verts
         .iter()
@@ -403,7 +435,11 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
         let [a, b, c] = mesh.faces[f].map(|v| moved.get(&v).copied().unwrap_or(x[v as usize]));
         orientation_on_sphere(a, b, c) == 1
     });
-    valid.then_some(moved)
+    if valid {
+        Ok(moved)
+    } else {
+        Err(ChartFailure::FoldedOnSphere)
+    }
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {

@@ -1,11 +1,12 @@
 //! Probe: the Newton log of the area-preserving OT on the sphere of one closed mesh, as
 //! `shapespace param --domain sphere` sets it up (conformal sphere map, uniform icosphere source,
 //! vertex area shares as masses). `sphere_ot_log PATH` (a path relative to the shared datasets
-//! folder, `$SHAPESPACE_DATA`, default `../shared/datasets`, or an existing path).
+//! folder, `$SHAPESPACE_DATA`, default `../shared/datasets`, or an existing path) [START: `auto`
+//! (default), `voronoi` or `c2f`].
 use shapespace_analysis::area_preserving::weighted_target_masses;
 use shapespace_conformal::{sphere_map, SphereMapParams};
 use shapespace_geometry::quantities::vertex_dual_areas;
-use shapespace_omt::sphere::{solve_sphere_ot, SphereMeasure, SphereOtParams};
+use shapespace_omt::sphere::{solve_sphere_ot, SphereMeasure, SphereOtParams, SphereStart};
 
 fn main() {
     shapespace_tools::at_repository_root();
@@ -30,7 +31,16 @@ fn main() {
         .map(|m| m * scale)
         .collect();
     let t = std::time::Instant::now();
-    let sol = solve_sphere_ot(&source, &map.positions, &masses, &SphereOtParams::default()).unwrap();
+    let start = match std::env::args().nth(2).as_deref() {
+        Some("voronoi") => SphereStart::Voronoi,
+        Some("c2f") => SphereStart::CoarseToFine,
+        _ => SphereStart::Auto,
+    };
+    let params = SphereOtParams {
+        start,
+        ..Default::default()
+    };
+    let sol = solve_sphere_ot(&source, &map.positions, &masses, &params).unwrap();
     for (k, it) in sol.log.iter().enumerate() {
         println!(
             "step {k:3}: rel {:.3e} |G| {:.3e} tau {:.3e} halvings {:2} capped {:5} min cell {:.3e}",
