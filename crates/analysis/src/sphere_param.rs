@@ -205,6 +205,9 @@ pub struct SphereFoldRepairInfo {
     pub charts_too_wide: usize,
     pub charts_repair_failed: usize,
     pub charts_folded_on_sphere: usize,
+    /// Charts whose planar repair failed and that were grown around their boundary's reflex
+    /// corners for a second try.
+    pub charts_convexified: usize,
     /// Clusters given up because the next chart would pass a quarter of the faces.
     pub clusters_too_large: usize,
 }
@@ -261,8 +264,12 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
         }
         let mut rings = CHART_RINGS;
         let mut kept = false;
-        while let Some(patch) = chart_patch(mesh, &conn, &cluster, rings) {
-            let attempt = repair_patch(mesh, x, &patch, &shares);
+        while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings) {
+            let mut attempt = repair_patch(mesh, x, &patch, &shares);
+            if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch) {
+                info.charts_convexified += 1;
+                attempt = repair_patch(mesh, x, &patch, &shares);
+            }
             match &attempt {
                 Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
                 Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
@@ -288,6 +295,79 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
             given_up.extend(cluster);
         }
     }
+}
+
+/// Rounds of [`convexify`].
+const CONVEX_ROUNDS: usize = 8;
+
+/// Grows `patch` by the faces around its boundary's reflex corners (turning against the loop's
+/// majority on S², i.e. in the gnomonic chart, where great circles are straight) for up to
+/// [`CONVEX_ROUNDS`] rounds, while it stays below [`CHART_MAX_FRACTION`] of the faces: the
+/// planar repair keeps the chart's boundary fixed, and its whole-patch Tutte solve unfolds
+/// only when that boundary is convex (Floater's theorem; on the GOAST fingers the solve over
+/// a 3-ring chart left 91 of 240 faces folded).
+/// Returns whether the patch grew.
+fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Vec<usize>) -> bool {
+    let start = patch.len();
+    let limit = (CHART_MAX_FRACTION * mesh.num_faces() as f64) as usize;
+    let mut inside = vec![false; mesh.num_faces()];
+    for &f in patch.iter() {
+        inside[f] = true;
+    }
+    for _ in 0..CONVEX_ROUNDS {
+        let mut local = HashMap::new();
+        let mut verts: Vec<u32> = Vec::new();
+        let faces: Vec<[u32; 3]> = patch
+            .iter()
+            .map(|&f| {
+                mesh.faces[f].map(|v| {
+                    *local.entry(v).or_insert_with(|| {
+                        verts.push(v);
+                        verts.len() as u32 - 1
+                    })
+                })
+            })
+            .collect();
+        let Ok(sub) = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces) else {
+            break;
+        };
+        let loops = Connectivity::of(&sub).boundary_loops(&sub.faces);
+        if loops.len() != 1 {
+            break;
+        }
+        let ring: Vec<u32> = loops[0].iter().map(|&v| verts[v as usize]).collect();
+        let m = ring.len();
+        let turns: Vec<i8> = (0..m)
+            .map(|k| {
+                let [p, v, q] = [ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]].map(|u| x[u as usize]);
+                orientation_on_sphere(p, v, q)
+            })
+            .collect();
+        let sign = if turns.iter().filter(|&&t| t > 0).count() >= turns.iter().filter(|&&t| t < 0).count() {
+            1
+        } else {
+            -1
+        };
+        let reflex: Vec<u32> = (0..m).filter(|&k| turns[k] == -sign).map(|k| ring[k]).collect();
+        if reflex.is_empty() {
+            break;
+        }
+        let (mut grown, mut grown_inside) = (patch.clone(), inside.clone());
+        for v in reflex {
+            for &g in &conn.vertex_faces[v as usize] {
+                if !std::mem::replace(&mut grown_inside[g as usize], true) {
+                    grown.push(g as usize);
+                }
+            }
+        }
+        fill_holes(mesh, conn, &mut grown_inside, &mut grown);
+        if grown.len() > limit {
+            break;
+        }
+        *patch = grown;
+        inside = grown_inside;
+    }
+    patch.len() > start
 }
 
 /// The faces within `rings` rings of `cluster` (through shared vertices), plus every hole they
@@ -321,6 +401,14 @@ fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: us
         }
         front = next;
     }
+    fill_holes(mesh, conn, &mut inside, &mut patch);
+    (patch.len() <= limit).then_some(patch)
+}
+
+/// Adds to `patch` (with its indicator `inside`, #F) every hole it encloses: the connected
+/// components of the other faces (through shared edges) but the largest.
+fn fill_holes(mesh: &TriMesh, conn: &Connectivity, inside: &mut [bool], patch: &mut Vec<usize>) {
+    let nf = mesh.num_faces();
     // the components of the outside, through shared edges
     let mut component = vec![usize::MAX; nf];
     let mut sizes: Vec<usize> = Vec::new();
@@ -346,13 +434,19 @@ fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: us
         }
         sizes.push(size);
     }
-    let largest = (0..sizes.len()).max_by_key(|&c| sizes[c])?;
-    patch.extend((0..nf).filter(|&f| !inside[f] && component[f] != largest));
-    (patch.len() <= limit).then_some(patch)
+    let Some(largest) = (0..sizes.len()).max_by_key(|&c| sizes[c]) else {
+        return;
+    };
+    for f in 0..nf {
+        if !inside[f] && component[f] != largest {
+            inside[f] = true;
+            patch.push(f);
+        }
+    }
 }
 
 /// The disk's fold repair on the faces `patch` of `mesh` in the gnomonic chart at their mean
-/// direction. Returns the new positions of the vertices it moved, or `None` when the patch is
+/// direction. Returns the new positions of the vertices it moved, or the reason when the patch is
 /// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
 /// patch folded on S². `shares`: each face's share of 4π (#F).
 fn repair_patch(

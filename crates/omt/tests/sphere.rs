@@ -1,10 +1,10 @@
 //! Semi-discrete OT on the sphere: closed forms, oracles, derivatives, invariances and errors.
 
+use shapespace_omt::sphere::SphereStart;
 use shapespace_omt::sphere::{
     fibonacci_sphere, icosphere, random_sphere_points, spherical_area, SphereIntegrator, SphereMeasure,
 };
 use shapespace_omt::synthetic::uniform01;
-use shapespace_omt::sphere::SphereStart;
 use shapespace_omt::{solve_sphere_ot, OmtError, SphereOtParams, StopReason};
 
 use std::f64::consts::PI;
@@ -554,7 +554,11 @@ fn flat_area_above(measure: &SphereMeasure, z0: f64) -> f64 {
                 [p[k][0] - p[0][0], p[k][1] - p[0][1], p[k][2] - p[0][2]],
                 [p[k + 1][0] - p[0][0], p[k + 1][1] - p[0][1], p[k + 1][2] - p[0][2]],
             );
-            let c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            let c = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
             s += 0.5 * dot(c, c).sqrt();
         }
         s
@@ -615,7 +619,12 @@ fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
     assert!(!voronoi.converged(), "{:e}", voronoi.max_relative_error);
     assert!(voronoi.max_relative_error > 0.5, "{:e}", voronoi.max_relative_error);
     let solution = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
-    assert!(solution.converged(), "{} {:e}", solution.stop, solution.max_relative_error);
+    assert!(
+        solution.converged(),
+        "{} {:e}",
+        solution.stop,
+        solution.max_relative_error
+    );
     assert!(!solution.coarse_levels.is_empty());
     assert!(solution.max_relative_error <= 1e-6);
     // z₀ by bisection on the exact flat area above the plane
@@ -648,7 +657,8 @@ fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
         for k in 0..6 {
             for l in 0..6 {
                 let (i, j) = (36 * c + 6 * k + l, 36 * c + 6 * (5 - l) + k);
-                let gap = (solution.heights[i] - solution.heights[j]) + (solution.heights_lo[i] - solution.heights_lo[j]);
+                let gap =
+                    (solution.heights[i] - solution.heights[j]) + (solution.heights_lo[i] - solution.heights_lo[j]);
                 assert!(gap.abs() < 1e-12, "sites {i}, {j}: {gap:e} (spread {spread:e})");
                 worst_gap = worst_gap.max(gap.abs());
             }

@@ -582,7 +582,10 @@ impl<'a> SphereIntegrator<'a> {
 
     /// The clipped pieces at `heights` (for output and plots), in triangle order.
     pub fn pieces(&self, heights: &[f64]) -> Vec<CellPiece> {
-        self.run(heights, None, true).into_iter().flat_map(|o| o.pieces).collect()
+        self.run(heights, None, true)
+            .into_iter()
+            .flat_map(|o| o.pieces)
+            .collect()
     }
 
     fn run(&self, heights: &[f64], lo: Option<&[f64]>, keep_pieces: bool) -> Vec<ChunkOut> {

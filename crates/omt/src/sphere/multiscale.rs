@@ -229,7 +229,10 @@ pub(crate) fn inner_radius(measure: &SphereMeasure) -> f64 {
             let r = norm(nrm);
             // (the plane through a, b, c; its distance from 0 is |⟨n̂, a⟩|, at most that of
             // any point of the triangle)
-            (dot(nrm, a) / r).abs().min((dot(nrm, b) / r).abs()).min((dot(nrm, c) / r).abs())
+            (dot(nrm, a) / r)
+                .abs()
+                .min((dot(nrm, b) / r).abs())
+                .min((dot(nrm, c) / r).abs())
         })
         .reduce(|| f64::INFINITY, f64::min)
 }

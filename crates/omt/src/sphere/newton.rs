@@ -2,22 +2,25 @@
 //! Mérigot, Meyron, Thibert 2018 for sources on triangle soups].
 //!
 //! The same iteration as the planar solver's plain KMT step (conventions, "Damping and
-//! stopping"): start from the Voronoi diagram (h = 0, all sites on S²), solve H δ = −G with the
-//! unknown of the largest target pinned, and halve τ from 1 until every cell keeps at least
-//! ε₀ = ½ min(min ν, min μ(W_i(h₀))) and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. As in the plane, a step
-//! aims at soft-capped intermediate targets ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln 32,
-//! while some cell is far from its target (decision 0004), and plain KMT steps once such a step
-//! is accepted below τ = 0.01. Heights are plain f64 (no double-double, no coarse-to-fine
-//! start): the sphere has no boundary to crowd points against. Above a density ratio of 10 a
-//! density continuation solves softened densities ρ^t first ([`SphereOtParams::density_continuation`]).
+//! stopping"): solve H δ = −G with the unknown of the largest target pinned, and shrink τ from
+//! min(1, 4τ_prev) by halving until every cell keeps at least ε₀ = ½ min(min ν, min μ(W_i(h₀)))
+//! and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. As in the plane, a step aims at soft-capped intermediate
+//! targets ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln 32, while some cell is far from its
+//! target (decision 0004), and plain KMT steps once such a step is accepted below τ = 0.01.
+//! Heights are double-double (the bisector offsets of sites 1e-11 apart need more than an ulp
+//! of heights of order one, decision 0005). The start ([`SphereStart`]): the Voronoi diagram
+//! (h = 0, all sites on S²), or the coarse-to-fine start of [`super::multiscale`] when a
+//! Voronoi cell holds less than 1e-8 or more than 100 times its target (the conformal images
+//! of limbs, docs/decisions/0025-sphere-coarse-to-fine-start.md). Above a density ratio of 10
+//! a density continuation solves softened densities ρ^t first
+//! ([`SphereOtParams::density_continuation`]).
 //!
 //! Measured (`crates/tools/src/bin/sphere_contrast.rs`, 5,000 random equal-mass points, ρ ∝ exp(k z) on
 //! 20,480 triangles; steps of all stages): ratio 2.7 and 7.4: 5 steps; 55: 9; 400: 13 (2
 //! stages); 3,000: 97 steps, 525 evaluations (3 stages); 22,000: 172 steps, 958 evaluations
 //! (4 stages). Without the continuation (with or without the intermediate targets) the last two
 //! stopped at 100 steps with mass errors of 360–430 % and 1,060 %. High contrast with points spread evenly
-//! (the low-density cells must reach far from their sites) is this solver's weak case; a
-//! coarse-to-fine start as in the plane is not built.
+//! (the low-density cells must reach far from their sites) is this solver's weak case.
 
 use std::time::Instant;
 
@@ -30,9 +33,9 @@ use crate::newton::{intermediate_targets, StopReason};
 const TARGET_CAP_MIN_TAU: f64 = 0.01;
 
 use super::cells::{SphereCells, SphereIntegrator};
+use super::measure::{norm, SphereMeasure, SPHERE_TOLERANCE};
 use super::multiscale::coarse_to_fine_heights;
 use crate::newton::Heights;
-use super::measure::{norm, SphereMeasure, SPHERE_TOLERANCE};
 
 /// Parameters of [`solve_sphere_ot`].
 #[derive(Clone, Debug)]
@@ -344,7 +347,10 @@ pub fn solve_sphere_ot(
             let empty = cells.masses.iter().any(|&m| !(m > 0.0));
             if !empty {
                 let solution = problem.iterate(start.heights, Some(cells), record)?;
-                if solution.converged() || params.start == SphereStart::CoarseToFine || solution.stop == StopReason::TimeLimit {
+                if solution.converged()
+                    || params.start == SphereStart::CoarseToFine
+                    || solution.stop == StopReason::TimeLimit
+                {
                     return Ok(solution);
                 }
                 // Auto: the Voronoi path too, and the better result
@@ -518,7 +524,12 @@ impl Problem<'_, '_> {
             });
         }
         let cost = cells.transport_cost();
-        let weights = heights.hi.iter().zip(&heights.lo).map(|(h, l)| 2.0 * h + 2.0 * l + 1.0).collect();
+        let weights = heights
+            .hi
+            .iter()
+            .zip(&heights.lo)
+            .map(|(h, l)| 2.0 * h + 2.0 * l + 1.0)
+            .collect();
         Ok(SphereOtSolution {
             points: points.to_vec(),
             heights: heights.hi,

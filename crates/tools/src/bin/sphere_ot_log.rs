@@ -49,7 +49,10 @@ fn main() {
     }
     let fine: f64 = sol.log.iter().map(|it| it.t_integration + it.t_solve).sum();
     println!("finest level's steps: {fine:.2} s");
-    println!("coarse levels (points, steps): {:?}; start rechecked {}", sol.coarse_levels, sol.start_rechecked);
+    println!(
+        "coarse levels (points, steps): {:?}; start rechecked {}",
+        sol.coarse_levels, sol.start_rechecked
+    );
     println!(
         "{}: V {n}, subdivisions {s}, stop {}, steps {} (+{} in {} continuation stages), evaluations {}, rel {:.3e}, {:.2} s",
         path.display(),
