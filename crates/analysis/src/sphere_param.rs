@@ -14,9 +14,11 @@
 //! Measured (`tests/sphere_param.rs`): an ellipsoid 1:1:2 of 2,562 vertices goes from a 95th
 //! percentile |ln(one-ring area ratio)| of 1.50 (conformal) to 0.027, with no flipped face;
 //! TOSCA wolf0 from 24.9 to 0.39, its centroid map folding 132 of 8,684 faces, which the
-//! repair unfolds in 30 charts moving 141 vertices. Where the conformal sphere map itself
-//! fails (limbs crowded beyond double precision: the TOSCA centaur, the lion poses) or the
-//! OT does not converge, there is no map: `benches/sphere_param_bench.rs` in the tools crate
+//! repair unfolds in 30 charts moving 141 vertices; GOAST finger0, whose conformal image crowds
+//! the tip's vertices 3e-11 apart, converges from the OT's coarse-to-fine start and the
+//! repair leaves no fold. Where the conformal sphere map itself fails (the lion poses' tails,
+//! beyond double precision) or the OT does not converge, there is no map; where charts cannot
+//! unfold a cluster the map keeps it folded: `benches/sphere_param_bench.rs` in the tools crate
 //! lists them (`docs/sphere.md`).
 
 use std::collections::{HashMap, HashSet};
@@ -231,7 +233,8 @@ enum ChartFailure {
 /// within k rings of the cluster plus the holes they enclose (a ring around a leg encloses its
 /// tip), must be a disk (one boundary loop, Euler characteristic 1) and keeps its boundary
 /// fixed, so no face outside it changes. The retraction's floors are each face's share of 4π
-/// times the projection's area factor 1/cos³θ at the face. A chart whose repair fails or
+/// times the projection's area factor 1/cos³θ at the face. A chart whose planar repair fails is
+/// grown around its boundary's reflex corners ([`convexify`]) and repaired once more. A chart whose repair fails or
 /// leaves a fold on S² (checked exactly) is discarded, and the next one has ⌈1.5k⌉ rings, until
 /// a chart passes a quarter of the faces or 1.45 rad from its centre.
 fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
