@@ -4,13 +4,13 @@
 //! docs/decisions/0025-sphere-coarse-to-fine-start.md says what differs and why).
 //!
 //! **Coarsening.** Points are merged pairwise along their shortest nearest-neighbour edges (the
-//! [`NEIGHBOURS`] nearest of each point by chord, computed from differences of the points so
+//! 6 nearest of each point by chord, computed from differences of the points so
 //! that points 1e-11 apart keep their order; a greedy matching, shortest first) in rounds, until
 //! at most N/4 groups remain. A group's coarse point is its members' mass-weighted mean
 //! projected on S², with their total mass. As in the plane, a group of several points whose
-//! radius is below [`SCALE_MATCH`] × the distance to its partner waits: its members would be
-//! children at two scales at once. Levels recurse down to [`MIN_FINE`] points, or to
-//! [`MIN_COARSE`] when the points are crowded (two closer than [`CROWDED`] × the mean
+//! radius is below 1e-3 × the distance to its partner waits: its members would be
+//! children at two scales at once. Levels recurse down to 1,000 points, or to
+//! 16 when the points are crowded (two closer than 1e-6 × the mean
 //! spacing √(4π/N)); a coarse level is solved to max(tol, 1e-3) from its own coarse-to-fine
 //! start, else from the Voronoi start, else there is no coarse start.
 //!
@@ -41,7 +41,7 @@
 //! so a ball about c_g inside K has a radius of order r², while a disk normal to n_g reaches
 //! √(2ε) ≈ 0.7 r.
 //!
-//! The maximum is taken over the groups within [`RINGS`] rings of the coarse cells' adjacency;
+//! The maximum is taken over the groups within 2 rings of the coarse cells' adjacency;
 //! the start is then checked (each point must win at its anchor p against every site scoring
 //! within 1e-12 of it there, the comparison taken from differences of the points, their radial
 //! corrections and double-double heights) and the maximum over all groups is taken for each

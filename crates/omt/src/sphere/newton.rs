@@ -331,7 +331,7 @@ pub fn solve_sphere_ot(
             let cells = integrator.integrate(&vec![0.0; n]);
             let poor = cells.masses.iter().zip(&targets).any(|(&m, &t)| {
                 let r = m / t;
-                !(r >= AUTO_MIN_START && r <= AUTO_MAX_START)
+                !(AUTO_MIN_START..=AUTO_MAX_START).contains(&r)
             });
             (Some(cells), poor)
         }
