@@ -136,7 +136,7 @@ pub struct SphereOtSolution {
     pub points: Vec<[f64; 3]>,
     /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i, the high parts of double-double values.
     pub heights: Vec<f64>,
-    /// The low parts (#N): h_i = heights[i] + heights_lo[i].
+    /// The low parts (#N): h_i = `heights[i] + heights_lo[i]`.
     pub heights_lo: Vec<f64>,
     /// Power weights w_i = 2h_i + |y_i|² = 2h_i + 1 (#N).
     pub weights: Vec<f64>,
