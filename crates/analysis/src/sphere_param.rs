@@ -14,9 +14,11 @@
 //! Measured (`tests/sphere_param.rs`): an ellipsoid 1:1:2 of 2,562 vertices goes from a 95th
 //! percentile |ln(one-ring area ratio)| of 1.50 (conformal) to 0.027, with no flipped face;
 //! TOSCA wolf0 from 24.9 to 0.39, its centroid map folding 132 of 8,684 faces, which the
-//! repair unfolds in 30 charts moving 141 vertices. Where the conformal sphere map itself
-//! fails (limbs crowded beyond double precision: the TOSCA centaur, the lion poses) or the
-//! OT does not converge, there is no map: `benches/sphere_param_bench.rs` in the tools crate
+//! repair unfolds in 30 charts moving 141 vertices; GOAST finger0, whose conformal image crowds
+//! the tip's vertices 3e-11 apart, converges from the OT's coarse-to-fine start and the
+//! repair leaves no fold. Where the conformal sphere map itself fails (the lion poses' tails,
+//! beyond double precision) or the OT does not converge, there is no map; where charts cannot
+//! unfold a cluster the map keeps it folded: `benches/sphere_param_bench.rs` in the tools crate
 //! lists them (`docs/sphere.md`).
 
 use std::collections::{HashMap, HashSet};
@@ -199,6 +201,25 @@ pub struct SphereFoldRepairInfo {
     pub vertices_moved: usize,
     /// The largest chart used, in rings around its cluster.
     pub max_rings: usize,
+    /// Charts tried and discarded, by reason: not a disk, wider than 1.45 rad, the planar
+    /// repair failed or left a fold, a face folded on S² after it.
+    pub charts_not_disk: usize,
+    pub charts_too_wide: usize,
+    pub charts_repair_failed: usize,
+    pub charts_folded_on_sphere: usize,
+    /// Charts whose planar repair failed and that were grown around their boundary's reflex
+    /// corners for a second try.
+    pub charts_convexified: usize,
+    /// Clusters given up because the next chart would pass a quarter of the faces.
+    pub clusters_too_large: usize,
+}
+
+/// Why a chart was discarded.
+enum ChartFailure {
+    NotDisk,
+    TooWide,
+    RepairFailed,
+    FoldedOnSphere,
 }
 
 /// Re-embeds the folded faces of the map `x` (#V points on S²) by the disk's fold repair
@@ -212,7 +233,8 @@ pub struct SphereFoldRepairInfo {
 /// within k rings of the cluster plus the holes they enclose (a ring around a leg encloses its
 /// tip), must be a disk (one boundary loop, Euler characteristic 1) and keeps its boundary
 /// fixed, so no face outside it changes. The retraction's floors are each face's share of 4π
-/// times the projection's area factor 1/cos³θ at the face. A chart whose repair fails or
+/// times the projection's area factor 1/cos³θ at the face. A chart whose planar repair fails is
+/// grown around its boundary's reflex corners ([`convexify`]) and repaired once more. A chart whose repair fails or
 /// leaves a fold on S² (checked exactly) is discarded, and the next one has ⌈1.5k⌉ rings, until
 /// a chart passes a quarter of the faces or 1.45 rad from its centre.
 fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
@@ -245,8 +267,20 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
         }
         let mut rings = CHART_RINGS;
         let mut kept = false;
-        while let Some(patch) = chart_patch(mesh, &conn, &cluster, rings) {
-            if let Some(moved) = repair_patch(mesh, x, &patch, &shares) {
+        while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings) {
+            let mut attempt = repair_patch(mesh, x, &patch, &shares);
+            if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch) {
+                info.charts_convexified += 1;
+                attempt = repair_patch(mesh, x, &patch, &shares);
+            }
+            match &attempt {
+                Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
+                Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
+                Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
+                Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
+                Ok(_) => {}
+            }
+            if let Ok(moved) = attempt {
                 info.vertices_moved += moved.len();
                 for (v, p) in moved {
                     x[v as usize] = p;
@@ -260,9 +294,83 @@ fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo 
         if kept {
             info.repaired += 1;
         } else {
+            info.clusters_too_large += 1;
             given_up.extend(cluster);
         }
     }
+}
+
+/// Rounds of [`convexify`].
+const CONVEX_ROUNDS: usize = 8;
+
+/// Grows `patch` by the faces around its boundary's reflex corners (turning against the loop's
+/// majority on S², i.e. in the gnomonic chart, where great circles are straight) for up to
+/// [`CONVEX_ROUNDS`] rounds, while it stays below [`CHART_MAX_FRACTION`] of the faces: the
+/// planar repair keeps the chart's boundary fixed, and its whole-patch Tutte solve unfolds
+/// only when that boundary is convex (Floater's theorem; on the GOAST fingers the solve over
+/// a 3-ring chart left 91 of 240 faces folded).
+/// Returns whether the patch grew.
+fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Vec<usize>) -> bool {
+    let start = patch.len();
+    let limit = (CHART_MAX_FRACTION * mesh.num_faces() as f64) as usize;
+    let mut inside = vec![false; mesh.num_faces()];
+    for &f in patch.iter() {
+        inside[f] = true;
+    }
+    for _ in 0..CONVEX_ROUNDS {
+        let mut local = HashMap::new();
+        let mut verts: Vec<u32> = Vec::new();
+        let faces: Vec<[u32; 3]> = patch
+            .iter()
+            .map(|&f| {
+                mesh.faces[f].map(|v| {
+                    *local.entry(v).or_insert_with(|| {
+                        verts.push(v);
+                        verts.len() as u32 - 1
+                    })
+                })
+            })
+            .collect();
+        let Ok(sub) = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces) else {
+            break;
+        };
+        let loops = Connectivity::of(&sub).boundary_loops(&sub.faces);
+        if loops.len() != 1 {
+            break;
+        }
+        let ring: Vec<u32> = loops[0].iter().map(|&v| verts[v as usize]).collect();
+        let m = ring.len();
+        let turns: Vec<i8> = (0..m)
+            .map(|k| {
+                let [p, v, q] = [ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]].map(|u| x[u as usize]);
+                orientation_on_sphere(p, v, q)
+            })
+            .collect();
+        let sign = if turns.iter().filter(|&&t| t > 0).count() >= turns.iter().filter(|&&t| t < 0).count() {
+            1
+        } else {
+            -1
+        };
+        let reflex: Vec<u32> = (0..m).filter(|&k| turns[k] == -sign).map(|k| ring[k]).collect();
+        if reflex.is_empty() {
+            break;
+        }
+        let (mut grown, mut grown_inside) = (patch.clone(), inside.clone());
+        for v in reflex {
+            for &g in &conn.vertex_faces[v as usize] {
+                if !std::mem::replace(&mut grown_inside[g as usize], true) {
+                    grown.push(g as usize);
+                }
+            }
+        }
+        fill_holes(mesh, conn, &mut grown_inside, &mut grown);
+        if grown.len() > limit {
+            break;
+        }
+        *patch = grown;
+        inside = grown_inside;
+    }
+    patch.len() > start
 }
 
 /// The faces within `rings` rings of `cluster` (through shared vertices), plus every hole they
@@ -296,6 +404,14 @@ fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: us
         }
         front = next;
     }
+    fill_holes(mesh, conn, &mut inside, &mut patch);
+    (patch.len() <= limit).then_some(patch)
+}
+
+/// Adds to `patch` (with its indicator `inside`, #F) every hole it encloses: the connected
+/// components of the other faces (through shared edges) but the largest.
+fn fill_holes(mesh: &TriMesh, conn: &Connectivity, inside: &mut [bool], patch: &mut Vec<usize>) {
+    let nf = mesh.num_faces();
     // the components of the outside, through shared edges
     let mut component = vec![usize::MAX; nf];
     let mut sizes: Vec<usize> = Vec::new();
@@ -321,16 +437,27 @@ fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: us
         }
         sizes.push(size);
     }
-    let largest = (0..sizes.len()).max_by_key(|&c| sizes[c])?;
-    patch.extend((0..nf).filter(|&f| !inside[f] && component[f] != largest));
-    (patch.len() <= limit).then_some(patch)
+    let Some(largest) = (0..sizes.len()).max_by_key(|&c| sizes[c]) else {
+        return;
+    };
+    for f in 0..nf {
+        if !inside[f] && component[f] != largest {
+            inside[f] = true;
+            patch.push(f);
+        }
+    }
 }
 
 /// The disk's fold repair on the faces `patch` of `mesh` in the gnomonic chart at their mean
-/// direction. Returns the new positions of the vertices it moved, or `None` when the patch is
+/// direction. Returns the new positions of the vertices it moved, or the reason when the patch is
 /// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
 /// patch folded on S². `shares`: each face's share of 4π (#F).
-fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64]) -> Option<HashMap<u32, [f64; 3]>> {
+fn repair_patch(
+    mesh: &TriMesh,
+    x: &[[f64; 3]],
+    patch: &[usize],
+    shares: &[f64],
+) -> Result<HashMap<u32, [f64; 3]>, ChartFailure> {
     let mut local = HashMap::new();
     let mut verts: Vec<u32> = Vec::new();
     let faces: Vec<[u32; 3]> = patch
@@ -344,11 +471,12 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
             })
         })
         .collect();
-    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces).ok()?;
+    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces)
+        .map_err(|_| ChartFailure::NotDisk)?;
     let sub_conn = Connectivity::of(&sub);
     let loops = sub_conn.boundary_loops(&sub.faces);
     if loops.len() != 1 || euler_characteristic(&sub, &sub_conn) != 1 {
-        return None;
+        return Err(ChartFailure::NotDisk);
     }
     let mut is_boundary = vec![false; verts.len()];
     for &v in &loops[0] {
@@ -362,12 +490,12 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
     }
     let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
     if l.is_nan() || l <= 0.0 {
-        return None;
+        return Err(ChartFailure::TooWide);
     }
     let c = c.map(|t| t / l);
     let min_cos = CHART_MAX_ANGLE.cos();
     if verts.iter().any(|&v| dot(x[v as usize], c) < min_cos) {
-        return None;
+        return Err(ChartFailure::TooWide);
     }
     let rot = rotation_to_south(c);
     let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| gnomonic(&rot, x[v as usize])).collect();
@@ -389,9 +517,10 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
         target_face_areas: Some(target_face_areas),
         ..Default::default()
     };
-    let repaired = repair_folds(&sub, &is_boundary, &mut uv, &params).ok()?;
+    // (a whole-patch Tutte solve can fold: the chart's boundary polygon need not be convex)
+    let repaired = repair_folds(&sub, &is_boundary, &mut uv, &params).map_err(|_| ChartFailure::RepairFailed)?;
     if repaired.folded_after > 0 {
-        return None;
+        return Err(ChartFailure::RepairFailed);
     }
     let moved: HashMap<u32, [f64; 3]> = verts
         .iter()
@@ -403,7 +532,11 @@ fn repair_patch(mesh: &TriMesh, x: &[[f64; 3]], patch: &[usize], shares: &[f64])
         let [a, b, c] = mesh.faces[f].map(|v| moved.get(&v).copied().unwrap_or(x[v as usize]));
         orientation_on_sphere(a, b, c) == 1
     });
-    valid.then_some(moved)
+    if valid {
+        Ok(moved)
+    } else {
+        Err(ChartFailure::FoldedOnSphere)
+    }
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {

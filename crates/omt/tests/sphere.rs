@@ -1,5 +1,6 @@
 //! Semi-discrete OT on the sphere: closed forms, oracles, derivatives, invariances and errors.
 
+use shapespace_omt::sphere::SphereStart;
 use shapespace_omt::sphere::{
     fibonacci_sphere, icosphere, random_sphere_points, spherical_area, SphereIntegrator, SphereMeasure,
 };
@@ -541,4 +542,136 @@ fn sites_crowded_far_below_f64_resolution_keep_their_cells() {
             assert!((m - sum / 4.0).abs() < 1e-9 * sum, "{:?}", cells.masses);
         }
     }
+}
+
+/// The flat area of the source's triangles (density 1) in the half-space z ≥ z0: each triangle
+/// clipped by the plane, exactly.
+fn flat_area_above(measure: &SphereMeasure, z0: f64) -> f64 {
+    let area = |p: &[[f64; 3]]| -> f64 {
+        let mut s = 0.0;
+        for k in 1..p.len().saturating_sub(1) {
+            let (u, v) = (
+                [p[k][0] - p[0][0], p[k][1] - p[0][1], p[k][2] - p[0][2]],
+                [p[k + 1][0] - p[0][0], p[k + 1][1] - p[0][1], p[k + 1][2] - p[0][2]],
+            );
+            let c = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            s += 0.5 * dot(c, c).sqrt();
+        }
+        s
+    };
+    let mut total = 0.0;
+    for tri in &measure.triangles {
+        let corners = tri.map(|i| measure.vertices[i as usize]);
+        let mut clipped = Vec::new();
+        for k in 0..3 {
+            let (p, q) = (corners[k], corners[(k + 1) % 3]);
+            let (a, b) = (p[2] - z0, q[2] - z0);
+            if a >= 0.0 {
+                clipped.push(p);
+            }
+            if (a >= 0.0) != (b >= 0.0) {
+                let t = a / (a - b);
+                clipped.push([0, 1, 2].map(|c| p[c] + t * (q[c] - p[c])));
+            }
+        }
+        total += area(&clipped);
+    }
+    total
+}
+
+/// Two 6×6 grids of sites 1e-9 apart at the poles, the northern one with three quarters of
+/// the mass (the conformal image of two fingertips, in miniature). From the Voronoi start the
+/// 32 inner sites hold ~1e-18 of the sphere against targets of 0.2, and Newton cannot grow
+/// them: the solve does not converge. The coarse-to-fine start converges, and the solution
+/// has the closed form the geometry dictates: up to the grids' size, the two clusters' cells
+/// meet on the plane z = z₀ below which the source holds a quarter of its mass, so
+/// (h_south − h_north)/2 = z₀ for every pair (the bisector ⟨x, y_n − y_s⟩ = h_s − h_n with
+/// y_n − y_s = 2e_z); and the quarter turn (x, y, z) ↦ (−y, x, z), which maps the source
+/// and the sites onto themselves exactly, maps the heights onto themselves.
+#[test]
+fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
+    let measure = octahedral_sphere(5);
+    let d = 1e-9;
+    let mut points = Vec::new();
+    let mut masses = Vec::new();
+    for (z, mass) in [(1.0, 3.0), (-1.0, 1.0)] {
+        for k in 0..6 {
+            for l in 0..6 {
+                points.push(unit([(k as f64 - 2.5) * d, (l as f64 - 2.5) * d, z]));
+                masses.push(mass);
+            }
+        }
+    }
+    let voronoi = solve_sphere_ot(
+        &measure,
+        &points,
+        &masses,
+        &SphereOtParams {
+            start: SphereStart::Voronoi,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(!voronoi.converged(), "{:e}", voronoi.max_relative_error);
+    assert!(voronoi.max_relative_error > 0.5, "{:e}", voronoi.max_relative_error);
+    let solution = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
+    assert!(
+        solution.converged(),
+        "{} {:e}",
+        solution.stop,
+        solution.max_relative_error
+    );
+    assert!(!solution.coarse_levels.is_empty());
+    assert!(solution.max_relative_error <= 1e-6);
+    // z₀ by bisection on the exact flat area above the plane
+    let total = measure.total_mass();
+    let (mut lo, mut hi) = (-1.0, 1.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if flat_area_above(&measure, mid) > 0.75 * total {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let z0 = 0.5 * (lo + hi);
+    let h = |i: usize| solution.heights[i] + solution.heights_lo[i];
+    let mut worst_z: f64 = 0.0;
+    for i in 0..36 {
+        for j in 36..72 {
+            let z = 0.5 * (h(j) - h(i));
+            assert!((z - z0).abs() < 1e-5, "({i}, {j}): {z} against z0 = {z0}");
+            worst_z = worst_z.max((z - z0).abs());
+        }
+    }
+    // the quarter turn maps grid site (k, l) to (5 − l, k); heights agree far below the
+    // siblings' height differences (~1e-9)
+    let spread = (0..36).map(h).fold(f64::NEG_INFINITY, f64::max) - (0..36).map(h).fold(f64::INFINITY, f64::min);
+    assert!(spread > 1e-10, "{spread:e}");
+    let mut worst_gap: f64 = 0.0;
+    for c in 0..2 {
+        for k in 0..6 {
+            for l in 0..6 {
+                let (i, j) = (36 * c + 6 * k + l, 36 * c + 6 * (5 - l) + k);
+                let gap =
+                    (solution.heights[i] - solution.heights[j]) + (solution.heights_lo[i] - solution.heights_lo[j]);
+                assert!(gap.abs() < 1e-12, "sites {i}, {j}: {gap:e} (spread {spread:e})");
+                worst_gap = worst_gap.max(gap.abs());
+            }
+        }
+    }
+    eprintln!(
+        "Voronoi start: {} after {} steps, error {:.2e}; coarse-to-fine: levels {:?}, {} steps, error {:.2e}; \
+         |z − z0| ≤ {worst_z:.1e} (z0 = {z0:.6}), quarter-turn height gaps ≤ {worst_gap:.1e} against a spread of {spread:.1e}",
+        voronoi.stop,
+        voronoi.iterations,
+        voronoi.max_relative_error,
+        solution.coarse_levels,
+        solution.iterations,
+        solution.max_relative_error
+    );
 }

@@ -273,6 +273,142 @@ impl SiteTree {
         best
     }
 
+    /// Heights bounds for [`Self::above`] (per node, the maximum height of its sites).
+    pub(crate) fn bounds(&self, heights: &[f64]) -> Vec<f64> {
+        self.height_bounds(heights)
+    }
+
+    /// The `k` sites nearest to site `i` (other than i), as (|y_i − y_j|², j) ascending; the
+    /// squared distances are taken from the differences of the points (exact for close
+    /// points, where 1 − ⟨y_i, y_j⟩ would be lost to rounding).
+    pub(crate) fn nearest(&self, i: usize, k: usize, stack: &mut Vec<u32>, out: &mut Vec<(f64, u32)>) {
+        out.clear();
+        if k == 0 || self.nodes.is_empty() {
+            return;
+        }
+        let c = self.points[i];
+        stack.clear();
+        stack.push(0);
+        while let Some(id) = stack.pop() {
+            let id = id as usize;
+            // ⟨c, y⟩ ≥ 1 − d²/2 for a site within chord d of c
+            if out.len() == k {
+                let d2 = out[k - 1].0;
+                if self.cap_max(id, c) < 1.0 - 0.5 * d2 {
+                    continue;
+                }
+            }
+            let n = &self.nodes[id];
+            if n.left == NONE {
+                for &j in &self.order[n.start as usize..n.end as usize] {
+                    if j as usize == i {
+                        continue;
+                    }
+                    let d = sub(c, self.points[j as usize]);
+                    let d2 = dot(d, d);
+                    if out.len() == k && d2 >= out[k - 1].0 {
+                        continue;
+                    }
+                    let at = out.partition_point(|e| (e.0, e.1) < (d2, j));
+                    out.insert(at, (d2, j));
+                    out.truncate(k);
+                }
+            } else {
+                let (l, r) = (n.left, n.right);
+                if self.cap_max(l as usize, c) > self.cap_max(r as usize, c) {
+                    stack.extend([r, l]);
+                } else {
+                    stack.extend([l, r]);
+                }
+            }
+        }
+    }
+
+    /// The site nearest to the direction of `c` (largest ⟨c, y⟩).
+    pub(crate) fn nearest_to(&self, c: [f64; 3], stack: &mut Vec<u32>) -> usize {
+        if self.points.is_empty() {
+            return 0;
+        }
+        let mut best = (f64::NEG_INFINITY, 0u32);
+        stack.clear();
+        stack.push(0);
+        while let Some(id) = stack.pop() {
+            let id = id as usize;
+            if self.cap_max(id, c) <= best.0 {
+                continue;
+            }
+            let n = &self.nodes[id];
+            if n.left == NONE {
+                for &i in &self.order[n.start as usize..n.end as usize] {
+                    let v = dot(c, self.points[i as usize]);
+                    if v > best.0 {
+                        best = (v, i);
+                    }
+                }
+            } else {
+                let (l, r) = (n.left, n.right);
+                if self.cap_max(l as usize, c) > self.cap_max(r as usize, c) {
+                    stack.extend([r, l]);
+                } else {
+                    stack.extend([l, r]);
+                }
+            }
+        }
+        best.1 as usize
+    }
+
+    /// An upper bound of ⟨c, y⟩ over the node's cap (heights left out), with a 1e-12 margin.
+    fn cap_max(&self, id: usize, c: [f64; 3]) -> f64 {
+        let n = &self.nodes[id];
+        let r = norm(c);
+        if r == 0.0 {
+            return 1e-12;
+        }
+        let cos_t = dot(c, n.axis) / r;
+        let best = if cos_t >= n.cos_radius {
+            1.0
+        } else {
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            cos_t * n.cos_radius + sin_t * n.sin_radius
+        };
+        r * best + 1e-12
+    }
+
+    /// Every site j with ⟨c, y_j⟩ + h_j ≥ `level`, into `out` (any order); `bounds` from
+    /// [`Self::bounds`] of the same heights.
+    pub(crate) fn above(
+        &self,
+        c: [f64; 3],
+        level: f64,
+        heights: &[f64],
+        bounds: &[f64],
+        stack: &mut Vec<u32>,
+        out: &mut Vec<u32>,
+    ) {
+        out.clear();
+        if self.nodes.is_empty() {
+            return;
+        }
+        stack.clear();
+        stack.push(0);
+        while let Some(id) = stack.pop() {
+            let id = id as usize;
+            if self.upper_bound(id, c, bounds) < level {
+                continue;
+            }
+            let n = &self.nodes[id];
+            if n.left == NONE {
+                for &j in &self.order[n.start as usize..n.end as usize] {
+                    if dot(c, self.points[j as usize]) + heights[j as usize] >= level {
+                        out.push(j);
+                    }
+                }
+            } else {
+                stack.extend([n.left, n.right]);
+            }
+        }
+    }
+
     /// Every site j that beats the affine minorant ℓ_k of u_h somewhere on the triangle with
     /// corners `corners`, given `lower[v]` = ℓ_k(corner v): since ℓ_j − ℓ_k is affine, that is
     /// max_v ⟨corner_v, y_j⟩ + h_j − lower[v] ≥ −margin. Output as (⟨c, y_j⟩ + h_j, j) for the
@@ -384,10 +520,27 @@ impl<'a> SphereIntegrator<'a> {
         &self.points
     }
 
+    /// The sites' radial corrections onto S² ([`radial_corrections`]).
+    pub(crate) fn radial(&self) -> &[[f64; 3]] {
+        &self.radial
+    }
+
+    /// The sites' cap tree.
+    pub(crate) fn tree(&self) -> &SiteTree {
+        &self.tree
+    }
+
     /// Cell integrals at `heights` (#N).
     pub fn integrate(&self, heights: &[f64]) -> SphereCells {
+        self.integrate_dd(heights, None)
+    }
+
+    /// Cell integrals at the double-double heights `hi + lo` (#N each; `lo` `None`: zero). The
+    /// bisector offsets h_i − h_j are taken from both parts; everything else (candidate search,
+    /// ordering) uses `hi` with its margins.
+    pub fn integrate_dd(&self, hi: &[f64], lo: Option<&[f64]>) -> SphereCells {
         let n = self.points.len();
-        let outs = self.run(heights, false);
+        let outs = self.run(hi, lo, false);
         let mut cells = SphereCells {
             masses: vec![0.0; n],
             first_moments: vec![[0.0; 3]; n],
@@ -429,10 +582,13 @@ impl<'a> SphereIntegrator<'a> {
 
     /// The clipped pieces at `heights` (for output and plots), in triangle order.
     pub fn pieces(&self, heights: &[f64]) -> Vec<CellPiece> {
-        self.run(heights, true).into_iter().flat_map(|o| o.pieces).collect()
+        self.run(heights, None, true)
+            .into_iter()
+            .flat_map(|o| o.pieces)
+            .collect()
     }
 
-    fn run(&self, heights: &[f64], keep_pieces: bool) -> Vec<ChunkOut> {
+    fn run(&self, heights: &[f64], lo: Option<&[f64]>, keep_pieces: bool) -> Vec<ChunkOut> {
         let bounds = self.tree.height_bounds(heights);
         // the best site at every vertex (in spatial order, each search starting from the
         // previous vertex's site)
@@ -475,6 +631,7 @@ impl<'a> SphereIntegrator<'a> {
                     self.triangle(
                         t as usize,
                         heights,
+                        lo,
                         &bounds,
                         &vertex_best,
                         &mut scratch,
@@ -500,6 +657,7 @@ impl<'a> SphereIntegrator<'a> {
         &self,
         t: usize,
         heights: &[f64],
+        lo: Option<&[f64]>,
         bounds: &[f64],
         vertex_best: &[u32],
         s: &mut Scratch,
@@ -566,7 +724,11 @@ impl<'a> SphereIntegrator<'a> {
                 }
                 let j = s.cand[cj].1 as usize;
                 let d = self.difference(i, j);
-                let offset = heights[i] - heights[j];
+                // (the low parts: children of a crowded group differ by less than an ulp)
+                let offset = match lo {
+                    Some(lo) => (heights[i] - heights[j]) + (lo[i] - lo[j]),
+                    None => heights[i] - heights[j],
+                };
                 // keep ⟨x, d⟩ + offset ≥ 0
                 if !clip(&s.poly, &mut s.next, d, offset, j as i64) {
                     empty = true;
@@ -633,7 +795,7 @@ impl<'a> SphereIntegrator<'a> {
 /// Sites closer than about 1e-8 (conformal images of protrusions) have bisector margins
 /// |y_i − y_j|²/2 below the 1e-16 by which f64 misses the sphere; without the correction such a
 /// site can fall inside the convex hull of its neighbours and lose its cell entirely.
-fn radial_corrections(points: &[[f64; 3]]) -> Vec<[f64; 3]> {
+pub(crate) fn radial_corrections(points: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let two_prod = |a: f64, b: f64| {
         let p = a * b;
         (p, a.mul_add(b, -p))

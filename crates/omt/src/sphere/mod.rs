@@ -11,8 +11,11 @@
 
 pub mod cells;
 pub mod measure;
+pub mod multiscale;
 pub mod newton;
 
 pub use cells::{CellPiece, SiteTree, SphereCells, SphereIntegrator};
 pub use measure::{fibonacci_sphere, icosphere, random_sphere_points, spherical_area, SphereMeasure};
-pub use newton::{normalize_sphere_points, solve_sphere_ot, SphereIteration, SphereOtParams, SphereOtSolution};
+pub use newton::{
+    normalize_sphere_points, solve_sphere_ot, SphereIteration, SphereOtParams, SphereOtSolution, SphereStart,
+};

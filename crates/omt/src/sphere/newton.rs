@@ -2,22 +2,25 @@
 //! Mérigot, Meyron, Thibert 2018 for sources on triangle soups].
 //!
 //! The same iteration as the planar solver's plain KMT step (conventions, "Damping and
-//! stopping"): start from the Voronoi diagram (h = 0, all sites on S²), solve H δ = −G with the
-//! unknown of the largest target pinned, and halve τ from 1 until every cell keeps at least
-//! ε₀ = ½ min(min ν, min μ(W_i(h₀))) and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. As in the plane, a step
-//! aims at soft-capped intermediate targets ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln 32,
-//! while some cell is far from its target (decision 0004), and plain KMT steps once such a step
-//! is accepted below τ = 0.01. Heights are plain f64 (no double-double, no coarse-to-fine
-//! start): the sphere has no boundary to crowd points against. Above a density ratio of 10 a
-//! density continuation solves softened densities ρ^t first ([`SphereOtParams::density_continuation`]).
+//! stopping"): solve H δ = −G with the unknown of the largest target pinned, and shrink τ from
+//! min(1, 4τ_prev) by halving until every cell keeps at least ε₀ = ½ min(min ν, min μ(W_i(h₀)))
+//! and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. As in the plane, a step aims at soft-capped intermediate
+//! targets ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln 32, while some cell is far from its
+//! target (decision 0004), and plain KMT steps once such a step is accepted below τ = 0.01.
+//! Heights are double-double (the bisector offsets of sites 1e-11 apart need more than an ulp
+//! of heights of order one, decision 0005). The start ([`SphereStart`]): the Voronoi diagram
+//! (h = 0, all sites on S²), or the coarse-to-fine start of [`super::multiscale`] when a
+//! Voronoi cell holds less than 1e-8 or more than 100 times its target (the conformal images
+//! of limbs, docs/decisions/0025-sphere-coarse-to-fine-start.md). Above a density ratio of 10
+//! a density continuation solves softened densities ρ^t first
+//! ([`SphereOtParams::density_continuation`]).
 //!
 //! Measured (`crates/tools/src/bin/sphere_contrast.rs`, 5,000 random equal-mass points, ρ ∝ exp(k z) on
 //! 20,480 triangles; steps of all stages): ratio 2.7 and 7.4: 5 steps; 55: 9; 400: 13 (2
 //! stages); 3,000: 97 steps, 525 evaluations (3 stages); 22,000: 172 steps, 958 evaluations
 //! (4 stages). Without the continuation (with or without the intermediate targets) the last two
 //! stopped at 100 steps with mass errors of 360–430 % and 1,060 %. High contrast with points spread evenly
-//! (the low-density cells must reach far from their sites) is this solver's weak case; a
-//! coarse-to-fine start as in the plane is not built.
+//! (the low-density cells must reach far from their sites) is this solver's weak case.
 
 use std::time::Instant;
 
@@ -31,6 +34,8 @@ const TARGET_CAP_MIN_TAU: f64 = 0.01;
 
 use super::cells::{SphereCells, SphereIntegrator};
 use super::measure::{norm, SphereMeasure, SPHERE_TOLERANCE};
+use super::multiscale::coarse_to_fine_heights;
+use crate::newton::Heights;
 
 /// Parameters of [`solve_sphere_ot`].
 #[derive(Clone, Debug)]
@@ -57,6 +62,27 @@ pub struct SphereOtParams {
     /// Soft cap κ on the mass ratio a step aims for (default `Some(32)`, as in the plane:
     /// [`crate::NewtonParams::target_ratio_cap`]); `None`: plain KMT steps.
     pub target_ratio_cap: Option<f64>,
+    /// How the initial heights are chosen without a warm start (default
+    /// [`SphereStart::Auto`]).
+    pub start: SphereStart,
+    /// Tolerance of the coarse levels of the coarse-to-fine start (default 1e-3; a level is
+    /// solved to max(tolerance, coarse_tolerance)).
+    pub coarse_tolerance: f64,
+}
+
+/// How [`solve_sphere_ot`] chooses its initial heights when no warm start is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SphereStart {
+    /// The coarse-to-fine start ([`super::multiscale`]) when some Voronoi cell holds less than
+    /// 1e-8 or more than 100 times its target (points crowded by a conformal map), the Voronoi
+    /// start otherwise. If the solve from the coarse-to-fine start does not converge, the
+    /// Voronoi path runs too and the better result is returned, with the steps of both.
+    #[default]
+    Auto,
+    /// h = 0.
+    Voronoi,
+    /// The coarse-to-fine start whenever a coarse level applies (else the Voronoi start).
+    CoarseToFine,
 }
 
 impl Default for SphereOtParams {
@@ -71,9 +97,17 @@ impl Default for SphereOtParams {
             brute_force: false,
             target_ratio_cap: Some(crate::newton::TARGET_RATIO_CAP),
             density_continuation: Some(10.0),
+            start: SphereStart::Auto,
+            coarse_tolerance: 1e-3,
         }
     }
 }
+
+/// The line search's first trial is min(1, STEP_GROWTH·τ_prev), τ_prev the last accepted step
+/// (the planar solver's rule with a faster growth, decision 0006): the first steps from a
+/// coarse-to-fine start of a crowded image are accepted near τ = 1e-2 and would each re-try
+/// the same rejected trials from 1, while τ still returns to 1 within a few steps.
+const STEP_GROWTH: f64 = 4.0;
 
 /// One Newton step.
 #[derive(Clone, Debug, Default)]
@@ -100,8 +134,10 @@ pub struct SphereIteration {
 pub struct SphereOtSolution {
     /// The target points as used: normalized to |y_i| = 1 (#N).
     pub points: Vec<[f64; 3]>,
-    /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i.
+    /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i, the high parts of double-double values.
     pub heights: Vec<f64>,
+    /// The low parts (#N): h_i = `heights[i] + heights_lo[i]`.
+    pub heights_lo: Vec<f64>,
     /// Power weights w_i = 2h_i + |y_i|² = 2h_i + 1 (#N).
     pub weights: Vec<f64>,
     /// Cell integrals at the final heights.
@@ -115,6 +151,11 @@ pub struct SphereOtSolution {
     /// Newton steps.
     pub continuation_stages: usize,
     pub continuation_iterations: usize,
+    /// The coarse-to-fine start's coarser levels as (points, Newton steps), next coarser first
+    /// (empty for another start).
+    pub coarse_levels: Vec<(usize, usize)>,
+    /// Points whose prolonged height the start's check recomputed over all coarse groups.
+    pub start_rechecked: usize,
     /// Cell integrations, the initial one included.
     pub evaluations: usize,
     /// max_i |μ(W_i) − ν_i| / ν_i at the final heights (ν rescaled).
@@ -258,161 +299,260 @@ pub fn solve_sphere_ot(
             masses[i]
         )));
     }
-    let mut heights = match &params.initial_heights {
-        Some(h) if h.len() != n => {
-            return Err(OmtError::InvalidInput(format!(
-                "{} initial heights for {n} points",
-                h.len()
-            )))
-        }
-        Some(h) if h.iter().any(|v| !v.is_finite()) => {
-            return Err(OmtError::InvalidInput("the initial heights are not all finite".into()))
-        }
-        Some(h) => h.clone(),
-        None => vec![0.0; n],
-    };
     let integrator = if params.brute_force {
         SphereIntegrator::brute_force(measure, &points)
     } else {
         SphereIntegrator::new(measure, &points)
     };
-    let mut cells = integrator.integrate(&heights);
-    let mut evaluations = 1;
-    if let Some(i) = cells.masses.iter().position(|&m| !(m > 0.0)) {
-        return Err(OmtError::InvalidInput(format!(
-            "cell {i} is empty at the start: the source does not reach the direction of point {i} \
-             ({:.6}, {:.6}, {:.6})",
-            points[i][0], points[i][1], points[i][2]
-        )));
-    }
-    let min_mass = cells.masses.iter().copied().fold(f64::INFINITY, f64::min);
-    let min_target = targets.iter().copied().fold(f64::INFINITY, f64::min);
-    let epsilon0 = 0.5 * min_mass.min(min_target);
-    let pinned = (0..n).max_by(|&a, &b| targets[a].total_cmp(&targets[b])).unwrap_or(0);
-    let mut system = NewtonSystem::new(pinned, params.linear_solver.clone());
-    let errors = |cells: &SphereCells| -> (Vec<f64>, f64, f64) {
-        let g: Vec<f64> = cells.masses.iter().zip(&targets).map(|(m, t)| m - t).collect();
-        let rel = g.iter().zip(&targets).map(|(g, t)| (g / t).abs()).fold(0.0, f64::max);
-        let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
-        (g, rel, norm)
-    };
-    let (mut gradient, mut rel, mut gnorm) = errors(&cells);
-    let mut log = Vec::new();
-    let mut stop = StopReason::IterationCap;
-    let mut iterations = 0;
-    let mut target_cap = params.target_ratio_cap;
-    loop {
-        if rel <= params.tolerance {
-            stop = StopReason::Converged;
-            break;
-        }
-        if !rel.is_finite() {
-            stop = StopReason::Stalled {
-                reason: "a non-finite mass error".into(),
-            };
-            break;
-        }
-        if iterations >= params.max_iterations {
-            break;
-        }
-        if params.deadline.is_some_and(|d| Instant::now() >= d) {
-            stop = StopReason::TimeLimit;
-            break;
-        }
-        let t0 = Instant::now();
-        let step = target_cap.and_then(|cap| intermediate_targets(&cells.masses, &targets, cap));
-        let (step_targets, step_gradient, step_norm) = match &step {
-            Some((t, _)) => {
-                let g: Vec<f64> = cells.masses.iter().zip(t).map(|(m, t)| m - t).collect();
-                let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
-                (t, g, norm)
-            }
-            None => (&targets, gradient.clone(), gnorm),
-        };
-        let delta = system.newton_direction_from_coefficients(n, &cells.hessian, &step_gradient)?;
-        let t_solve = t0.elapsed().as_secs_f64();
-        if delta.iter().any(|d| !d.is_finite()) {
-            stop = StopReason::Stalled {
-                reason: "the Newton direction is not finite".into(),
-            };
-            break;
-        }
-        let t1 = Instant::now();
-        let mut tau = 1.0;
-        let mut halvings = 0;
-        let accepted = loop {
-            let trial: Vec<f64> = heights.iter().zip(&delta).map(|(h, d)| h + tau * d).collect();
-            let trial_cells = integrator.integrate(&trial);
-            evaluations += 1;
-            let min_mass = trial_cells.masses.iter().copied().fold(f64::INFINITY, f64::min);
-            let trial_norm = trial_cells
-                .masses
-                .iter()
-                .zip(step_targets)
-                .map(|(m, t)| (m - t) * (m - t))
-                .sum::<f64>()
-                .sqrt();
-            if min_mass >= epsilon0 && trial_norm <= (1.0 - tau / 2.0) * step_norm {
-                let (g, r, gn) = errors(&trial_cells);
-                break Some((trial, trial_cells, g, r, gn, min_mass));
-            }
-            halvings += 1;
-            if halvings > params.max_halvings {
-                break None;
-            }
-            tau *= 0.5;
-        };
-        let t_integration = t1.elapsed().as_secs_f64();
-        if step.is_some() && (accepted.is_none() || tau < TARGET_CAP_MIN_TAU) {
-            // intermediate targets that do not pay: plain KMT steps from here on
-            target_cap = None;
-            if accepted.is_none() {
-                iterations += 1;
-                continue;
-            }
-        }
-        let Some((trial, trial_cells, g, r, gn, min_mass)) = accepted else {
-            stop = StopReason::Stalled {
-                reason: format!("no acceptable step after {} halvings", params.max_halvings),
-            };
-            break;
-        };
-        heights = trial;
-        cells = trial_cells;
-        (gradient, rel, gnorm) = (g, r, gn);
-        iterations += 1;
-        log.push(SphereIteration {
-            max_relative_error: rel,
-            gradient_norm: gnorm,
-            step: tau,
-            halvings,
-            intermediate_targets: step.as_ref().map_or(0, |s| s.1),
-            min_cell_mass: min_mass,
-            t_integration,
-            t_solve,
-        });
-    }
-    let cost = cells.transport_cost();
-    let weights = heights.iter().map(|h| 2.0 * h + 1.0).collect();
-    Ok(SphereOtSolution {
-        points,
-        heights,
-        weights,
-        cells,
-        cost,
-        iterations,
-        evaluations,
-        max_relative_error: rel,
-        tolerance: params.tolerance,
-        stop,
-        log,
-        continuation_stages: 0,
-        continuation_iterations: 0,
+    let problem = Problem {
+        integrator: &integrator,
+        targets: &targets,
         mass_scale,
-        target_masses: targets,
-        epsilon0,
-        t_total: t_start.elapsed().as_secs_f64(),
-    })
+        params,
+        t_start,
+    };
+    if let Some(h) = &params.initial_heights {
+        if h.len() != n {
+            return Err(OmtError::InvalidInput(format!(
+                "{} initial heights for {n} points",
+                h.len()
+            )));
+        }
+        if h.iter().any(|v| !v.is_finite()) {
+            return Err(OmtError::InvalidInput("the initial heights are not all finite".into()));
+        }
+        return problem.iterate(Heights::from_f64(h.clone()), None, StartRecord::default());
+    }
+    let voronoi = || Heights::from_f64(vec![0.0; n]);
+    let (voronoi_cells, try_coarse) = match params.start {
+        SphereStart::Voronoi => (None, false),
+        SphereStart::CoarseToFine => (None, true),
+        SphereStart::Auto => {
+            let cells = integrator.integrate(&vec![0.0; n]);
+            let poor = cells.masses.iter().zip(&targets).any(|(&m, &t)| {
+                let r = m / t;
+                !(AUTO_MIN_START..=AUTO_MAX_START).contains(&r)
+            });
+            (Some(cells), poor)
+        }
+    };
+    if try_coarse {
+        if let Some(start) = coarse_to_fine_heights(measure, &integrator, &targets, params)? {
+            let record = StartRecord {
+                coarse_levels: start.levels.clone(),
+                start_rechecked: start.rechecked,
+            };
+            let coarse_steps: usize = record.coarse_levels.iter().map(|l| l.1).sum();
+            let cells = integrator.integrate_dd(&start.heights.hi, Some(&start.heights.lo));
+            let empty = cells.masses.iter().any(|&m| !(m > 0.0));
+            if !empty {
+                let solution = problem.iterate(start.heights, Some(cells), record)?;
+                if solution.converged()
+                    || params.start == SphereStart::CoarseToFine
+                    || solution.stop == StopReason::TimeLimit
+                {
+                    return Ok(solution);
+                }
+                // Auto: the Voronoi path too, and the better result
+                let mut other = problem.iterate(voronoi(), voronoi_cells, StartRecord::default())?;
+                let coarse_path = solution.iterations + coarse_steps;
+                if other.converged() || other.max_relative_error < solution.max_relative_error {
+                    other.iterations += coarse_path;
+                    return Ok(other);
+                }
+                let mut solution = solution;
+                solution.iterations += other.iterations;
+                return Ok(solution);
+            }
+        }
+    }
+    problem.iterate(voronoi(), voronoi_cells, StartRecord::default())
+}
+
+/// [`SphereStart::Auto`] takes the coarse-to-fine start when some Voronoi cell holds less than
+/// this fraction of its target…
+const AUTO_MIN_START: f64 = 1e-8;
+/// …or more than this multiple of it (the planar thresholds, decision 0003).
+const AUTO_MAX_START: f64 = 100.0;
+
+/// What the start contributes to the solution's record.
+#[derive(Clone, Debug, Default)]
+struct StartRecord {
+    coarse_levels: Vec<(usize, usize)>,
+    start_rechecked: usize,
+}
+
+/// One solve's fixed data: the integrator over the (normalized) sites, the rescaled targets.
+struct Problem<'a, 'm> {
+    integrator: &'a SphereIntegrator<'m>,
+    targets: &'a [f64],
+    mass_scale: f64,
+    params: &'a SphereOtParams,
+    t_start: Instant,
+}
+
+impl Problem<'_, '_> {
+    /// Damped Newton from `heights` (`cells`: their integrals, when already computed).
+    fn iterate(
+        &self,
+        mut heights: Heights,
+        cells: Option<SphereCells>,
+        record: StartRecord,
+    ) -> Result<SphereOtSolution, OmtError> {
+        let (integrator, targets, params) = (self.integrator, self.targets, self.params);
+        let points = integrator.points();
+        let n = points.len();
+        let mut cells = match cells {
+            Some(c) => c,
+            None => integrator.integrate_dd(&heights.hi, Some(&heights.lo)),
+        };
+        let mut evaluations = 1;
+        if let Some(i) = cells.masses.iter().position(|&m| !(m > 0.0)) {
+            return Err(OmtError::InvalidInput(format!(
+                "cell {i} is empty at the start: the source does not reach the direction of point {i} \
+                 ({:.6}, {:.6}, {:.6})",
+                points[i][0], points[i][1], points[i][2]
+            )));
+        }
+        let min_mass = cells.masses.iter().copied().fold(f64::INFINITY, f64::min);
+        let min_target = targets.iter().copied().fold(f64::INFINITY, f64::min);
+        let epsilon0 = 0.5 * min_mass.min(min_target);
+        let pinned = (0..n).max_by(|&a, &b| targets[a].total_cmp(&targets[b])).unwrap_or(0);
+        let mut system = NewtonSystem::new(pinned, params.linear_solver.clone());
+        let errors = |cells: &SphereCells| -> (Vec<f64>, f64, f64) {
+            let g: Vec<f64> = cells.masses.iter().zip(targets).map(|(m, t)| m - t).collect();
+            let rel = g.iter().zip(targets).map(|(g, t)| (g / t).abs()).fold(0.0, f64::max);
+            let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+            (g, rel, norm)
+        };
+        let (mut gradient, mut rel, mut gnorm) = errors(&cells);
+        let mut log = Vec::new();
+        let mut stop = StopReason::IterationCap;
+        let mut iterations = 0;
+        let mut target_cap = params.target_ratio_cap;
+        let mut last_tau: f64 = 1.0;
+        loop {
+            if rel <= params.tolerance {
+                stop = StopReason::Converged;
+                break;
+            }
+            if !rel.is_finite() {
+                stop = StopReason::Stalled {
+                    reason: "a non-finite mass error".into(),
+                };
+                break;
+            }
+            if iterations >= params.max_iterations {
+                break;
+            }
+            if params.deadline.is_some_and(|d| Instant::now() >= d) {
+                stop = StopReason::TimeLimit;
+                break;
+            }
+            let t0 = Instant::now();
+            let step = target_cap.and_then(|cap| intermediate_targets(&cells.masses, targets, cap));
+            let (step_targets, step_gradient, step_norm) = match &step {
+                Some((t, _)) => {
+                    let g: Vec<f64> = cells.masses.iter().zip(t).map(|(m, t)| m - t).collect();
+                    let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    (&t[..], g, norm)
+                }
+                None => (targets, gradient.clone(), gnorm),
+            };
+            let delta = system.newton_direction_from_coefficients(n, &cells.hessian, &step_gradient)?;
+            let t_solve = t0.elapsed().as_secs_f64();
+            if delta.iter().any(|d| !d.is_finite()) {
+                stop = StopReason::Stalled {
+                    reason: "the Newton direction is not finite".into(),
+                };
+                break;
+            }
+            let t1 = Instant::now();
+            let mut tau = (STEP_GROWTH * last_tau).min(1.0);
+            let mut halvings = 0;
+            let accepted = loop {
+                let trial = heights.step(&delta, tau);
+                let trial_cells = integrator.integrate_dd(&trial.hi, Some(&trial.lo));
+                evaluations += 1;
+                let min_mass = trial_cells.masses.iter().copied().fold(f64::INFINITY, f64::min);
+                let trial_norm = trial_cells
+                    .masses
+                    .iter()
+                    .zip(step_targets)
+                    .map(|(m, t)| (m - t) * (m - t))
+                    .sum::<f64>()
+                    .sqrt();
+                if min_mass >= epsilon0 && trial_norm <= (1.0 - tau / 2.0) * step_norm {
+                    let (g, r, gn) = errors(&trial_cells);
+                    break Some((trial, trial_cells, g, r, gn, min_mass));
+                }
+                halvings += 1;
+                if halvings > params.max_halvings {
+                    break None;
+                }
+                tau *= 0.5;
+            };
+            let t_integration = t1.elapsed().as_secs_f64();
+            if step.is_some() && (accepted.is_none() || tau < TARGET_CAP_MIN_TAU) {
+                // intermediate targets that do not pay: plain KMT steps from here on
+                target_cap = None;
+                if accepted.is_none() {
+                    iterations += 1;
+                    continue;
+                }
+            }
+            let Some((trial, trial_cells, g, r, gn, min_mass)) = accepted else {
+                stop = StopReason::Stalled {
+                    reason: format!("no acceptable step after {} halvings", params.max_halvings),
+                };
+                break;
+            };
+            last_tau = tau;
+            heights = trial;
+            cells = trial_cells;
+            (gradient, rel, gnorm) = (g, r, gn);
+            iterations += 1;
+            log.push(SphereIteration {
+                max_relative_error: rel,
+                gradient_norm: gnorm,
+                step: tau,
+                halvings,
+                intermediate_targets: step.as_ref().map_or(0, |s| s.1),
+                min_cell_mass: min_mass,
+                t_integration,
+                t_solve,
+            });
+        }
+        let cost = cells.transport_cost();
+        let weights = heights
+            .hi
+            .iter()
+            .zip(&heights.lo)
+            .map(|(h, l)| 2.0 * h + 2.0 * l + 1.0)
+            .collect();
+        Ok(SphereOtSolution {
+            points: points.to_vec(),
+            heights: heights.hi,
+            heights_lo: heights.lo,
+            weights,
+            cells,
+            cost,
+            iterations,
+            evaluations,
+            max_relative_error: rel,
+            tolerance: params.tolerance,
+            stop,
+            log,
+            continuation_stages: 0,
+            continuation_iterations: 0,
+            coarse_levels: record.coarse_levels,
+            start_rechecked: record.start_rechecked,
+            mass_scale: self.mass_scale,
+            target_masses: targets.to_vec(),
+            epsilon0,
+            t_total: self.t_start.elapsed().as_secs_f64(),
+        })
+    }
 }
 
 /// The density continuation of [`SphereOtParams::density_continuation`]: K = ⌈`stages`⌉ stages.

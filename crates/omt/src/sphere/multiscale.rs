@@ -1,0 +1,607 @@
+//! Coarse-to-fine start on the sphere [in the spirit of Mérigot 2011, "A multiscale approach to
+//! optimal transport"], with a prolongation that leaves no fine cell empty; the sphere's
+//! version of the planar start (`crate::newton`, docs/decisions/0003-coarse-to-fine-start.md;
+//! docs/decisions/0025-sphere-coarse-to-fine-start.md says what differs and why).
+//!
+//! **Coarsening.** Points are merged pairwise along their shortest nearest-neighbour edges (the
+//! 6 nearest of each point by chord, computed from differences of the points so
+//! that points 1e-11 apart keep their order; a greedy matching, shortest first) in rounds, until
+//! at most N/4 groups remain. A group's coarse point is its members' mass-weighted mean
+//! projected on S², with their total mass. As in the plane, a group of several points whose
+//! radius is below 1e-3 × the distance to its partner waits: its members would be
+//! children at two scales at once. Levels recurse down to 1,000 points, or to
+//! 16 when the points are crowded (two closer than 1e-6 × the mean
+//! spacing √(4π/N)); a coarse level is solved to max(tol, 1e-3) from its own coarse-to-fine
+//! start, else from the Voronoi start, else there is no coarse start.
+//!
+//! **Prolongation.** The cost is c(x, y) = |x − y|² = 2 − 2⟨x, y⟩ for y on S², so the cells are
+//! those of the linear score ⟨x, y_i⟩ + h_i over the source surface S (the flat triangles,
+//! the boundary of a region K star-shaped about 0). Let H_g be the coarse heights, G_g = −H_g,
+//! Y_g the coarse points, W_g the coarse cells, c_g the μ-centroid of W_g (a point of K, inside
+//! the ball), n_g = c_g/|c_g|, P_g = I − n_g n_gᵀ the projection onto the plane normal to n_g,
+//! and ψ_δ(u) = √(δ² + |u|²) − δ (convex, |∇ψ| < 1). With
+//! $$\Phi_g(y) = G_g + \langle \kappa_g c_g, y - Y_g\rangle + s_g\,\psi_{\delta_g}(P_g(y - Y_g)),
+//! \qquad \Phi = \max_g \Phi_g,$$
+//! the fine heights are h_i = −Φ(y_i). Each Φ_g is convex on R³ and its gradient at any y,
+//! p = κ_g c_g + s_g P_g ∇ψ, satisfies |p|² < |κ_g c_g|² + s_g² (the two terms are orthogonal).
+//! The scales are chosen so that |κ_g c_g|² + s_g² < ρ², ρ the distance from 0 to the nearest
+//! plane of a source triangle; then p ∈ int K.
+//!
+//! *No fine cell is empty.* Let g attain the maximum at y_i, p = ∇Φ_g(y_i). Convexity gives
+//! Φ(y_j) ≥ Φ_g(y_j) ≥ Φ_g(y_i) + ⟨p, y_j − y_i⟩ for every j, i.e.
+//! ⟨p, y_i⟩ + h_i ≥ ⟨p, y_j⟩ + h_j. On the ray q_t = p + t y_i (t > 0), since |y_i| = |y_j| = 1,
+//! $$\langle q_t, y_i - y_j\rangle + h_i - h_j \ge t\,(1 - \langle y_i, y_j\rangle)
+//! = \tfrac{t}{2}|y_i - y_j|^2 > 0 \quad (j \ne i):$$
+//! the whole open ray lies where y_i strictly wins. It starts in int K and leaves the bounded K,
+//! so it crosses S at a point with a neighbourhood of S in the fine cell of y_i: μ(W_i) > 0
+//! (every source triangle has a positive density). This is the sphere's form of the planar
+//! argument: there, ∂Φ(y_i) ⊂ Ω; here the anchor p lies inside the ball, and the sites' unit norm
+//! (the chordal cost's |y|² = 1) carries it along y_i onto S. Only the direction tangent to
+//! n_g gets the ψ term: c_g lies at a depth ε ≈ r²/4 below S for a cell of angular radius r,
+//! so a ball about c_g inside K has a radius of order r², while a disk normal to n_g reaches
+//! √(2ε) ≈ 0.7 r.
+//!
+//! The maximum is taken over the groups within 2 rings of the coarse cells' adjacency;
+//! the start is then checked (each point must win at its anchor p against every site scoring
+//! within 1e-12 of it there, the comparison taken from differences of the points, their radial
+//! corrections and double-double heights) and the maximum over all groups is taken for each
+//! point that fails and for the point that beats it, as in the plane. Heights are kept in
+//! double-double form: children of a crowded group differ by less than an ulp of the heights.
+//!
+//! Within W_g the children compete by ⟨x − κ_g c_g, o_i⟩ − s_g ψ(P_g o_i) (o_i = y_i − Y_g): the
+//! coarse cell is split around its centroid in the pattern of the children's offsets,
+//! whatever their scale (δ_g, the RMS of |P_g o_i|, normalizes it); with s_g = 0 and κ_g = 1,
+//! Φ_g would be the supporting plane of the coarse potential's transform at Y_g.
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::cells::{radial_corrections, SiteTree, SphereIntegrator};
+use super::measure::{dot, norm, sub, SphereMeasure};
+use super::newton::{solve_sphere_ot, SphereOtParams, SphereStart};
+use crate::error::OmtError;
+use crate::newton::Heights;
+use crate::predicates::two_sum;
+
+/// Points below which no coarse level is used unless they are crowded.
+const MIN_FINE: usize = 1000;
+/// Points below which no coarse level is used.
+const MIN_COARSE: usize = 16;
+/// Points are crowded when two are closer than CROWDED × the mean spacing √(4π/N).
+const CROWDED: f64 = 1e-6;
+/// Merging rounds continue until at most N/RATIO groups remain.
+const RATIO: usize = 4;
+/// At most this many merging rounds per level.
+const MAX_ROUNDS: usize = 6;
+/// After the first round, two groups merge only if each group of several points has a radius
+/// ≥ SCALE_MATCH × their distance.
+const SCALE_MATCH: f64 = 1e-3;
+/// Nearest neighbours per point offered to the matching.
+pub(crate) const NEIGHBOURS: usize = 6;
+/// Rings of the coarse cells' adjacency whose groups compete for the maximum defining Φ.
+const RINGS: usize = 2;
+/// s_g as a fraction of the distance (within the plane normal to n_g) from c_g to its cell's
+/// bisector planes.
+const SPREAD: f64 = 0.9;
+/// Rounds of the check of the anchors.
+const CHECK_ROUNDS: usize = 8;
+/// Relative safety of the inner-radius condition |κc|² + s² < ρ².
+const RADIUS_MARGIN: f64 = 1e-9;
+
+/// One level down: coarse points (unit vectors), their masses, and each fine point's group.
+pub(crate) struct Coarsening {
+    pub points: Vec<[f64; 3]>,
+    pub masses: Vec<f64>,
+    pub group: Vec<usize>,
+    /// The smallest chord between two fine points.
+    pub closest: f64,
+}
+
+/// Merges `points` (unit vectors) pairwise along nearest-neighbour edges (module docs).
+pub(crate) fn coarsen(points: &[[f64; 3]], point_masses: &[f64]) -> Coarsening {
+    let n = points.len();
+    let mut reps = points.to_vec();
+    let mut masses = point_masses.to_vec();
+    let mut group: Vec<usize> = (0..n).collect();
+    let mut closest = f64::INFINITY;
+    for round in 0..MAX_ROUNDS {
+        if round > 0 && reps.len() * RATIO <= n {
+            break;
+        }
+        let tree = SiteTree::new(&reps);
+        let mut edges: Vec<(f64, u32, u32)> = (0..reps.len())
+            .into_par_iter()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(stack, out), i| {
+                    tree.nearest(i, NEIGHBOURS, stack, out);
+                    out.iter()
+                        .map(|&(d2, j)| {
+                            let (a, b) = (i.min(j as usize) as u32, i.max(j as usize) as u32);
+                            (d2, a, b)
+                        })
+                        .collect::<Vec<_>>()
+                },
+            )
+            .flatten()
+            .collect();
+        edges.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        edges.dedup_by(|a, b| a.1 == b.1 && a.2 == b.2);
+        if round == 0 {
+            closest = edges.first().map_or(f64::INFINITY, |e| e.0.sqrt());
+        }
+        let mut radius = vec![0.0f64; reps.len()];
+        let mut size = vec![0usize; reps.len()];
+        for (i, &g) in group.iter().enumerate() {
+            radius[g] = radius[g].max(norm(sub(points[i], reps[g])));
+            size[g] += 1;
+        }
+        let mut merged_into = vec![usize::MAX; reps.len()];
+        let mut count = 0;
+        for &(d2, i, j) in &edges {
+            let (i, j) = (i as usize, j as usize);
+            let reach = SCALE_MATCH * d2.sqrt();
+            if (size[i] > 1 && radius[i] < reach) || (size[j] > 1 && radius[j] < reach) {
+                continue;
+            }
+            if merged_into[i] == usize::MAX && merged_into[j] == usize::MAX {
+                merged_into[i] = count;
+                merged_into[j] = count;
+                count += 1;
+            }
+        }
+        let merges = count;
+        if merges == 0 {
+            break;
+        }
+        for m in merged_into.iter_mut() {
+            if *m == usize::MAX {
+                *m = count;
+                count += 1;
+            }
+        }
+        // mass-weighted means about the first member (offsets, so close points keep their
+        // precision), projected on S²
+        let mut first = vec![usize::MAX; count];
+        let mut offset = vec![[0.0; 3]; count];
+        let mut next_masses = vec![0.0; count];
+        for (i, &g) in merged_into.iter().enumerate() {
+            if first[g] == usize::MAX {
+                first[g] = i;
+            }
+            let o = sub(reps[i], reps[first[g]]);
+            for k in 0..3 {
+                offset[g][k] += masses[i] * o[k];
+            }
+            next_masses[g] += masses[i];
+        }
+        let next: Vec<[f64; 3]> = (0..count)
+            .map(|g| {
+                let base = reps[first[g]];
+                let p = [0, 1, 2].map(|k| base[k] + offset[g][k] / next_masses[g]);
+                let r = norm(p);
+                p.map(|c| c / r)
+            })
+            .collect();
+        for g in group.iter_mut() {
+            *g = merged_into[*g];
+        }
+        reps = next;
+        masses = next_masses;
+    }
+    Coarsening {
+        points: reps,
+        masses,
+        group,
+        closest,
+    }
+}
+
+/// ψ_δ(u) = √(δ² + |u|²) − δ without cancellation.
+fn pseudo_huber(u: [f64; 3], delta: f64) -> f64 {
+    let r2 = dot(u, u);
+    if r2 == 0.0 {
+        return 0.0;
+    }
+    r2 / ((delta * delta + r2).sqrt() + delta)
+}
+
+/// ∇ψ_δ(u) = u / √(δ² + |u|²) (norm < 1).
+fn pseudo_huber_gradient(u: [f64; 3], delta: f64) -> [f64; 3] {
+    let r = (delta * delta + dot(u, u)).sqrt();
+    if r > 0.0 {
+        u.map(|c| c / r)
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// A lower bound of the distance from the origin to the source surface: the smallest distance
+/// from 0 to the plane of a source triangle.
+pub(crate) fn inner_radius(measure: &SphereMeasure) -> f64 {
+    measure
+        .triangles
+        .par_iter()
+        .map(|tri| {
+            let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+            let nrm = super::measure::cross(sub(b, a), sub(c, a));
+            let r = norm(nrm);
+            // (the plane through a, b, c; its distance from 0 is |⟨n̂, a⟩|, at most that of
+            // any point of the triangle)
+            (dot(nrm, a) / r)
+                .abs()
+                .min((dot(nrm, b) / r).abs())
+                .min((dot(nrm, c) / r).abs())
+        })
+        .reduce(|| f64::INFINITY, f64::min)
+}
+
+/// Triangles per point of a coarse level's source: a level of n points is solved against an
+/// icosphere of the fewest subdivisions with at least COARSE_TRIANGLES·n triangles when that has at
+/// most half the measure's triangles.
+const COARSE_TRIANGLES: usize = 2;
+
+/// The source of a coarse level of `coarse_n` points (`None`: the measure itself): an icosphere
+/// of at least [`COARSE_TRIANGLES`]·n triangles whose density per unit sphere area is the
+/// measure's at the nearest triangle centroid (a uniform density stays uniform). Only the
+/// coarse cells' centroids and adjacency enter the prolongation, and its guarantee uses the
+/// fine measure's inner radius, so it holds whatever the coarse source; the finest level
+/// always integrates the measure itself. (The area-preserving map of Nefertiti, 50k points on
+/// 327,680 triangles, otherwise integrates its 12.5k-point level on all of them.)
+fn coarse_measure(measure: &SphereMeasure, coarse_n: usize) -> Option<SphereMeasure> {
+    let mut s = 0;
+    while 20 * 4usize.pow(s as u32) < COARSE_TRIANGLES * coarse_n {
+        s += 1;
+    }
+    if 2 * 20 * 4usize.pow(s as u32) > measure.triangles.len() {
+        return None;
+    }
+    let (vertices, triangles) = super::measure::icosphere(s);
+    // the measure's density per unit area of the sphere, at each triangle's centroid direction
+    let centroid = |tri: &[u32; 3], v: &[[f64; 3]]| -> [f64; 3] {
+        let [a, b, c] = tri.map(|i| v[i as usize]);
+        let m = [0, 1, 2].map(|k| a[k] + b[k] + c[k]);
+        let r = norm(m);
+        m.map(|x| x / r)
+    };
+    let fine_centroids: Vec<[f64; 3]> = measure
+        .triangles
+        .iter()
+        .map(|t| centroid(t, &measure.vertices))
+        .collect();
+    let fine_density: Vec<f64> = measure
+        .triangles
+        .iter()
+        .zip(&measure.densities)
+        .map(|(tri, d)| {
+            let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+            d * super::measure::flat_area(a, b, c) / super::measure::spherical_area(a, b, c)
+        })
+        .collect();
+    let uniform = fine_density.iter().all(|&d| d == fine_density[0]);
+    let tree = SiteTree::new(&fine_centroids);
+    let densities: Vec<f64> = triangles
+        .par_iter()
+        .map_init(Vec::new, |stack, tri| {
+            let [a, b, c] = tri.map(|i| vertices[i as usize]);
+            let sphere_density = if uniform {
+                fine_density[0]
+            } else {
+                fine_density[tree.nearest_to(centroid(tri, &vertices), stack)]
+            };
+            sphere_density * super::measure::spherical_area(a, b, c) / super::measure::flat_area(a, b, c)
+        })
+        .collect();
+    SphereMeasure::new(vertices, triangles, densities).ok()
+}
+
+/// The coarse-to-fine start of [`coarse_to_fine_heights`].
+pub(crate) struct SphereCoarseStart {
+    pub heights: Heights,
+    /// (points, Newton steps) of each coarser level, next coarser first.
+    pub levels: Vec<(usize, usize)>,
+    /// Points whose maximum the check recomputed over all groups.
+    pub rechecked: usize,
+}
+
+/// The coarse data one group contributes to Φ.
+struct Group {
+    /// Y_g and its radial correction.
+    point: [f64; 3],
+    radial: [f64; 3],
+    /// κ_g c_g.
+    center: [f64; 3],
+    /// n_g (zero when P_g = I).
+    normal: [f64; 3],
+    spread: f64,
+    delta: f64,
+}
+
+impl Group {
+    fn project(&self, o: [f64; 3]) -> [f64; 3] {
+        let t = dot(o, self.normal);
+        [0, 1, 2].map(|k| o[k] - t * self.normal[k])
+    }
+
+    /// y − Y_g with the radial corrections of both (`radial` is y's).
+    fn offset(&self, y: [f64; 3], radial: [f64; 3]) -> [f64; 3] {
+        let d = sub(y, self.point);
+        let r = sub(radial, self.radial);
+        [d[0] + r[0], d[1] + r[1], d[2] + r[2]]
+    }
+
+    /// Φ_g(y) − G_g.
+    fn value(&self, y: [f64; 3], radial: [f64; 3]) -> f64 {
+        let o = self.offset(y, radial);
+        dot(self.center, o) + self.spread * pseudo_huber(self.project(o), self.delta)
+    }
+
+    /// ∇Φ_g(y).
+    fn anchor(&self, y: [f64; 3], radial: [f64; 3]) -> [f64; 3] {
+        let g = self.project(pseudo_huber_gradient(self.project(self.offset(y, radial)), self.delta));
+        [0, 1, 2].map(|k| self.center[k] + self.spread * g[k])
+    }
+}
+
+/// Initial heights (double-double, #N) for the fine `points` (unit vectors, the integrator's
+/// sites) with masses `targets` from a coarse solve (module docs); `None` when N is too small
+/// or not crowded enough for a coarse level, the coarsening merges too little, or the coarse
+/// level is not solved.
+pub(crate) fn coarse_to_fine_heights(
+    measure: &SphereMeasure,
+    integrator: &SphereIntegrator,
+    targets: &[f64],
+    params: &SphereOtParams,
+) -> Result<Option<SphereCoarseStart>, OmtError> {
+    let points = integrator.points();
+    let n = points.len();
+    if n < MIN_COARSE {
+        return Ok(None);
+    }
+    let coarse = coarsen(points, targets);
+    let coarse_n = coarse.points.len();
+    let spacing = (4.0 * std::f64::consts::PI / n as f64).sqrt();
+    let crowded = coarse.closest < CROWDED * spacing;
+    if (n < MIN_FINE && !crowded) || coarse_n * 4 > n * 3 {
+        return Ok(None);
+    }
+    let coarse_params = SphereOtParams {
+        tolerance: params.tolerance.max(params.coarse_tolerance),
+        max_iterations: params.max_iterations.max(SphereOtParams::default().max_iterations),
+        initial_heights: None,
+        start: SphereStart::CoarseToFine,
+        ..params.clone()
+    };
+    let past_deadline = || params.deadline.is_some_and(|d| Instant::now() >= d);
+    let timed_out = || {
+        Err(OmtError::TimeLimit(format!(
+            "solving the {coarse_n}-point level of the coarse-to-fine start on the sphere"
+        )))
+    };
+    let mut levels = Vec::new();
+    let averaged = coarse_measure(measure, coarse_n);
+    let level_measure = averaged.as_ref().unwrap_or(measure);
+    let solution = match solve_sphere_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
+        Ok(s) if s.converged() => s,
+        Err(e @ OmtError::TimeLimit(_)) => return Err(e),
+        _ if past_deadline() => return timed_out(),
+        first => {
+            // the robust path at the level's own small size
+            let first_steps = first.as_ref().map_or(0, |s| s.iterations);
+            let retry = SphereOtParams {
+                start: SphereStart::Voronoi,
+                ..coarse_params.clone()
+            };
+            match solve_sphere_ot(level_measure, &coarse.points, &coarse.masses, &retry) {
+                Ok(mut s) if s.converged() => {
+                    s.iterations += first_steps;
+                    s
+                }
+                Err(e @ OmtError::TimeLimit(_)) => return Err(e),
+                _ if past_deadline() => return timed_out(),
+                _ => return Ok(None),
+            }
+        }
+    };
+    levels.push((coarse_n, solution.iterations));
+    levels.extend(solution.coarse_levels.iter().copied());
+    let cells = &solution.cells;
+    let (hh, hl) = (&solution.heights, &solution.heights_lo);
+    // H_a − H_b from the double-double parts
+    let height_diff = |a: usize, b: usize| (hh[a] - hh[b]) + (hl[a] - hl[b]);
+    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
+    for &(i, j, _) in &cells.edge_masses {
+        neighbours[i as usize].push(j as usize);
+        neighbours[j as usize].push(i as usize);
+    }
+    let coarse_radial = radial_corrections(&coarse.points);
+    let rho = inner_radius(measure);
+    let radial = integrator.radial();
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
+    for (i, &g) in coarse.group.iter().enumerate() {
+        members[g].push(i);
+    }
+    let groups: Vec<Group> = (0..coarse_n)
+        .into_par_iter()
+        .map(|g| {
+            let m = cells.masses[g];
+            let c = cells.first_moments[g].map(|x| x / m);
+            let (y, ry) = (coarse.points[g], coarse_radial[g]);
+            let cn = norm(c);
+            let normal = if cn > 1e-3 { c.map(|x| x / cn) } else { [0.0; 3] };
+            let mut group = Group {
+                point: y,
+                radial: ry,
+                center: c,
+                normal,
+                spread: 0.0,
+                delta: 0.0,
+            };
+            // distance within the plane normal to n_g from c_g to the bisector planes
+            // ⟨x, Y_g − Y_j⟩ + H_g − H_j = 0
+            let mut d = f64::INFINITY;
+            for &j in &neighbours[g] {
+                let gap = {
+                    let a = sub(y, coarse.points[j]);
+                    let b = sub(ry, coarse_radial[j]);
+                    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+                };
+                let along = dot(c, gap) + height_diff(g, j);
+                let t = norm(group.project(gap));
+                if t > 0.0 {
+                    d = d.min(along / t);
+                }
+            }
+            let mut s = if d.is_finite() && d > 0.0 && m > 0.0 {
+                SPREAD * d
+            } else {
+                0.0
+            };
+            // the anchors within the inner ball: |κc|² + s² < ρ² (P_g = I: |κc| + s < ρ)
+            let limit = rho * (1.0 - RADIUS_MARGIN);
+            s = s.min(SPREAD * limit);
+            let kappa = if normal == [0.0; 3] {
+                if cn + s < limit {
+                    1.0
+                } else {
+                    ((limit - s) / cn).max(0.0)
+                }
+            } else if cn * cn + s * s < limit * limit {
+                1.0
+            } else {
+                ((limit * limit - s * s).max(0.0)).sqrt() / cn
+            };
+            group.center = c.map(|x| x * kappa);
+            group.spread = s;
+            let sum: f64 = members[g]
+                .iter()
+                .map(|&i| {
+                    let u = group.project(group.offset(points[i], radial[i]));
+                    dot(u, u)
+                })
+                .sum();
+            group.delta = (sum / members[g].len().max(1) as f64).sqrt();
+            group
+        })
+        .collect();
+    // candidates: the groups within RINGS rings of the coarse adjacency
+    let candidates: Vec<Vec<usize>> = (0..coarse_n)
+        .into_par_iter()
+        .map(|g| {
+            let mut set = vec![g];
+            let mut frontier = vec![g];
+            for _ in 0..RINGS {
+                let mut next = Vec::new();
+                for &a in &frontier {
+                    for &b in &neighbours[a] {
+                        if !set.contains(&b) {
+                            set.push(b);
+                            next.push(b);
+                        }
+                    }
+                }
+                frontier = next;
+            }
+            set
+        })
+        .collect();
+    // max_k Φ_k(y_i) − G_g over `ks` (g first), with the maximizing group's anchor
+    let maximum = |i: usize, ks: &mut dyn Iterator<Item = usize>| -> (f64, [f64; 3]) {
+        let g = coarse.group[i];
+        let (y, r) = (points[i], radial[i]);
+        let mut best = (groups[g].value(y, r), g);
+        for k in ks {
+            if k == g {
+                continue;
+            }
+            let v = height_diff(g, k) + groups[k].value(y, r);
+            if v > best.0 {
+                best = (v, k);
+            }
+        }
+        (best.0, groups[best.1].anchor(y, r))
+    };
+    // h_i = H_g − (Φ(y_i) − G_g), double-double
+    let set = |heights: &mut Heights, i: usize, rel: f64| {
+        let g = coarse.group[i];
+        let (s, e) = two_sum(hh[g], -rel);
+        let r = two_sum(s, e + hl[g]);
+        heights.hi[i] = r.0;
+        heights.lo[i] = r.1;
+    };
+    let mut heights = Heights {
+        hi: vec![0.0; n],
+        lo: vec![0.0; n],
+    };
+    let prolonged: Vec<(f64, [f64; 3])> = (0..n)
+        .into_par_iter()
+        .map(|i| maximum(i, &mut candidates[coarse.group[i]].iter().copied()))
+        .collect();
+    let mut anchors = vec![[0.0; 3]; n];
+    for (i, &(rel, a)) in prolonged.iter().enumerate() {
+        set(&mut heights, i, rel);
+        anchors[i] = a;
+    }
+    // Check: every point must win at its anchor (module docs); for each pair (i, j) where j
+    // scores more than i at i's anchor, the maximum over all groups for both.
+    let tree = integrator.tree();
+    let mut exact_done = vec![false; n];
+    let mut rechecked = 0;
+    for _round in 0..CHECK_ROUNDS {
+        let bounds = tree.bounds(&heights.hi);
+        let failures: Vec<(usize, usize)> = (0..n)
+            .into_par_iter()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(stack, out), i| {
+                    let p = anchors[i];
+                    let value = dot(p, points[i]) + heights.hi[i];
+                    let margin = 1e-12 * (1.0 + value.abs());
+                    tree.above(p, value - margin, &heights.hi, &bounds, stack, out);
+                    let mut worst: Option<(f64, usize)> = None;
+                    for &j in out.iter() {
+                        let j = j as usize;
+                        if j == i {
+                            continue;
+                        }
+                        let d = sub(points[i], points[j]);
+                        let r = sub(radial[i], radial[j]);
+                        let gap = dot(p, [d[0] + r[0], d[1] + r[1], d[2] + r[2]])
+                            + (heights.hi[i] - heights.hi[j])
+                            + (heights.lo[i] - heights.lo[j]);
+                        if gap < 0.0 && worst.is_none_or(|w| gap < w.0) {
+                            worst = Some((gap, j));
+                        }
+                    }
+                    worst.map(|(_, j)| (i, j))
+                },
+            )
+            .flatten()
+            .collect();
+        if failures.is_empty() {
+            break;
+        }
+        let mut changed = false;
+        for (i, j) in failures {
+            for k in [i, j] {
+                if !exact_done[k] {
+                    let (rel, a) = maximum(k, &mut (0..coarse_n));
+                    set(&mut heights, k, rel);
+                    anchors[k] = a;
+                    exact_done[k] = true;
+                    rechecked += 1;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    Ok(Some(SphereCoarseStart {
+        heights,
+        levels,
+        rechecked,
+    }))
+}
