@@ -318,20 +318,8 @@ fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Ve
         inside[f] = true;
     }
     for _ in 0..CONVEX_ROUNDS {
-        let mut local = HashMap::new();
-        let mut verts: Vec<u32> = Vec::new();
-        let faces: Vec<[u32; 3]> = patch
-            .iter()
-            .map(|&f| {
-                mesh.faces[f].map(|v| {
-                    *local.entry(v).or_insert_with(|| {
-                        verts.push(v);
-                        verts.len() as u32 - 1
-                    })
-                })
-            })
-            .collect();
-        let Ok(sub) = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces) else {
+        let (verts, sub) = patch_mesh(mesh, patch);
+        let Some(sub) = sub else {
             break;
         };
         let loops = Connectivity::of(&sub).boundary_loops(&sub.faces);
@@ -458,21 +446,8 @@ fn repair_patch(
     patch: &[usize],
     shares: &[f64],
 ) -> Result<HashMap<u32, [f64; 3]>, ChartFailure> {
-    let mut local = HashMap::new();
-    let mut verts: Vec<u32> = Vec::new();
-    let faces: Vec<[u32; 3]> = patch
-        .iter()
-        .map(|&f| {
-            mesh.faces[f].map(|v| {
-                *local.entry(v).or_insert_with(|| {
-                    verts.push(v);
-                    verts.len() as u32 - 1
-                })
-            })
-        })
-        .collect();
-    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces)
-        .map_err(|_| ChartFailure::NotDisk)?;
+    let (verts, sub) = patch_mesh(mesh, patch);
+    let sub = sub.ok_or(ChartFailure::NotDisk)?;
     let sub_conn = Connectivity::of(&sub);
     let loops = sub_conn.boundary_loops(&sub.faces);
     if loops.len() != 1 || euler_characteristic(&sub, &sub_conn) != 1 {
@@ -556,6 +531,26 @@ fn from_gnomonic(rot: &[[f64; 3]; 3], uv: [f64; 2]) -> [f64; 3] {
     let l = dot(q, q).sqrt();
     let q = q.map(|t| t / l);
     [0, 1, 2].map(|k| rot[0][k] * q[0] + rot[1][k] * q[1] + rot[2][k] * q[2])
+}
+
+/// The faces `patch` of `mesh` as a mesh of their own: the mesh vertex of each local vertex,
+/// and the sub-mesh (None when its faces do not form a valid mesh).
+fn patch_mesh(mesh: &TriMesh, patch: &[usize]) -> (Vec<u32>, Option<TriMesh>) {
+    let mut local = HashMap::new();
+    let mut verts: Vec<u32> = Vec::new();
+    let faces: Vec<[u32; 3]> = patch
+        .iter()
+        .map(|&f| {
+            mesh.faces[f].map(|v| {
+                *local.entry(v).or_insert_with(|| {
+                    verts.push(v);
+                    verts.len() as u32 - 1
+                })
+            })
+        })
+        .collect();
+    let sub = TriMesh::new(verts.iter().map(|&v| mesh.positions[v as usize]).collect(), faces).ok();
+    (verts, sub)
 }
 
 #[cfg(test)]
