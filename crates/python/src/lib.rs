@@ -126,6 +126,8 @@ fn conformal_map<'py>(
                     intrinsic_delaunay,
                     pole,
                     bff_fallback,
+                    // without the fallback: the Green's-function construction alone
+                    region_repair: bff_fallback,
                     ..Default::default()
                 };
                 let map = shapespace_conformal::disk_map(&mesh, &markers, &params).map_err(|e| context(&e))?;

@@ -72,8 +72,9 @@ pub struct ConformalArgs {
     /// compared in `docs/decisions/0001-green-function-disk-map.md`). `--pole` applies to `green` only.
     #[arg(long, default_value = "green", value_parser = ["green", "bff"])]
     pub method: String,
-    /// With `green`: report folds that survive the repair as an error instead of falling back to
-    /// BFF's map (the Green's-function construction alone, for comparisons).
+    /// With `green`: report folds that survive the local repair as an error instead of falling
+    /// back to BFF's map or re-embedding the folded region (the Green's-function construction
+    /// alone, for comparisons).
     #[arg(long)]
     pub no_bff_fallback: bool,
 }
@@ -293,6 +294,7 @@ pub fn run(args: &ConformalArgs) -> Result<ExitCode> {
             intrinsic_delaunay: !args.no_intrinsic_delaunay,
             pole,
             bff_fallback: !args.no_bff_fallback,
+            region_repair: !args.no_bff_fallback,
             ..Default::default()
         };
         let map = disk_map(&mesh, &markers, &params).with_context(context)?;
