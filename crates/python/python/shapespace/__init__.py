@@ -110,7 +110,9 @@ def conformal_map(
     to 0 and the boundary vertex ``boundary`` (or ``"auto"``) to 1. ``method`` is ``"green"``
     (Green's function) or ``"bff"`` (boundary-first flattening). Returns ``(uv, factors,
     report)``: uv of shape (n, 2), the log conformal factor per vertex, and the report (method,
-    markers, quality statistics, timings).
+    markers, quality statistics, timings). Folds that survive the local repair send the
+    Green's map to BFF, then to a region repair (the report says which); ``bff_fallback=False``
+    gives the Green's-function construction alone and raises on its folds.
     """
     uv, factors, report = _native.conformal_map(
         *_mesh(V, F),
