@@ -26,6 +26,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use shapespace_conformal::{disk_map, DiskMap, DiskMapParams, Markers};
 use shapespace_geometry::quantities::vertex_dual_areas;
+use shapespace_geometry::topology::{find, union};
 use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::newton::{TargetCoarsening, RETRY_CONTINUATION};
@@ -140,14 +141,7 @@ pub fn merge_coincident_points(points: &[[f64; 2]], masses: Vec<f64>, radius: f6
     for (i, &p) in points.iter().enumerate() {
         grid.entry(cell(p)).or_default().push(i);
     }
-    let mut parent: Vec<usize> = (0..points.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut parent: Vec<u32> = (0..points.len() as u32).collect();
     let mut merged = false;
     for (i, &p) in points.iter().enumerate() {
         let (cx, cy) = cell(p);
@@ -158,11 +152,7 @@ pub fn merge_coincident_points(points: &[[f64; 2]], masses: Vec<f64>, radius: f6
                 };
                 for &j in others {
                     if j > i && (points[j][0] - p[0]).hypot(points[j][1] - p[1]) < radius {
-                        let (a, b) = (root(&mut parent, i), root(&mut parent, j));
-                        if a != b {
-                            parent[a.max(b)] = a.min(b);
-                            merged = true;
-                        }
+                        merged |= union(&mut parent, i as u32, j as u32);
                     }
                 }
             }
@@ -174,7 +164,7 @@ pub fn merge_coincident_points(points: &[[f64; 2]], masses: Vec<f64>, radius: f6
     let mut group_of = vec![usize::MAX; points.len()];
     let (mut sums, mut group_masses): (Vec<[f64; 2]>, Vec<f64>) = (Vec::new(), Vec::new());
     for i in 0..points.len() {
-        let r = root(&mut parent, i);
+        let r = find(&mut parent, i as u32) as usize;
         if group_of[r] == usize::MAX {
             group_of[r] = sums.len();
             sums.push([0.0, 0.0]);
@@ -191,13 +181,21 @@ pub fn merge_coincident_points(points: &[[f64; 2]], masses: Vec<f64>, radius: f6
         .zip(&group_masses)
         .map(|(s, &m)| [s[0] / m, s[1] / m])
         .collect();
-    let variance = (0..points.len())
-        .map(|i| {
-            let c = centers[group_of[i]];
-            masses[i] * ((points[i][0] - c[0]).powi(2) + (points[i][1] - c[1]).powi(2))
-        })
-        .sum();
+    let variance = grouping_cost(points, &masses, &group_of, &centers);
     (centers, group_masses, variance)
+}
+
+/// The transport cost of a grouping of weighted points onto the groups' points,
+/// Σ_i ν_i |y_i − c_group(i)|²: what a quantized or merged target subtracts from its costs.
+fn grouping_cost(points: &[[f64; 2]], masses: &[f64], group: &[usize], centers: &[[f64; 2]]) -> f64 {
+    group
+        .iter()
+        .enumerate()
+        .map(|(i, &g)| {
+            let (y, c) = (points[i], centers[g]);
+            masses[i] * ((y[0] - c[0]).powi(2) + (y[1] - c[1]).powi(2))
+        })
+        .sum()
 }
 
 /// The shape with its target measure (points and masses) quantized to at most `target_points`
@@ -214,15 +212,7 @@ pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> Prepar
         return shape;
     }
     let q = shapespace_omt::quantization::quantize(&shape.points, &shape.masses, target_points);
-    shape.quantization_variance = q
-        .group
-        .iter()
-        .enumerate()
-        .map(|(i, &g)| {
-            let (y, c) = (shape.points[i], q.points[g]);
-            shape.masses[i] * ((y[0] - c[0]).powi(2) + (y[1] - c[1]).powi(2))
-        })
-        .sum();
+    shape.quantization_variance = grouping_cost(&shape.points, &shape.masses, &q.group, &q.points);
     shape.coarsening = Arc::new(TargetCoarsening::new(&q.points, &q.masses));
     shape.points = q.points;
     shape.masses = q.masses;
