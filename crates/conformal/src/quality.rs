@@ -169,6 +169,28 @@ fn scaled_edges(p: [[f64; 2]; 3]) -> ([f64; 2], [f64; 2], f64) {
     )
 }
 
+/// The pushed-forward density of each face, μ_f = e^{−Υ_f} from the area distortions Υ
+/// ([`face_distortions`]); a density that is zero or not finite is beyond the f64 range
+/// (`OutOfRange`, naming the face).
+pub fn face_densities(area_distortion: &[f64]) -> Result<Vec<f64>, ConformalError> {
+    area_distortion
+        .iter()
+        .enumerate()
+        .map(|(f, &ups)| {
+            let mu = (-ups).exp();
+            if mu.is_finite() && mu > 0.0 {
+                Ok(mu)
+            } else {
+                Err(ConformalError::OutOfRange {
+                    what: "face density",
+                    element: format!("face {f}"),
+                    log10_value: -ups / std::f64::consts::LN_10,
+                })
+            }
+        })
+        .collect()
+}
+
 /// Per-face distortion of the map given by `uv` (#V) on `mesh` (the 3D surface is scaled to
 /// total area π first, so Υ = 0 means the density of an area-π normalization).
 ///

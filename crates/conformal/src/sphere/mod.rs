@@ -590,18 +590,7 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
             region_repair_error: None,
         });
     }
-    let mut face_densities = Vec::with_capacity(mesh.num_faces());
-    for (f, &ups) in dist.area_distortion.iter().enumerate() {
-        let mu = (-ups).exp();
-        if !(mu.is_finite() && mu > 0.0) {
-            return Err(ConformalError::OutOfRange {
-                what: "face density",
-                element: format!("face {f}"),
-                log10_value: -ups / std::f64::consts::LN_10,
-            });
-        }
-        face_densities.push(mu);
-    }
+    let face_densities = crate::quality::face_densities(&dist.area_distortion)?;
     let conformal_factor = crate::quality::vertex_conformal_factors(mesh, &areas, scale, &dist.area_distortion)?;
     let mut centroid = [0.0; 3];
     let mtotal: f64 = masses.iter().sum();
