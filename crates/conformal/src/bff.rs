@@ -77,7 +77,7 @@ pub struct BffParams {
     /// Repair isolated folded original faces as [`crate::disk_map()`] does (default true).
     pub repair_folds: bool,
     /// Smallest accepted 1 − |z| at an interior vertex of the normalized map (default
-    /// [`CROWDING_LIMIT`] = 1e-10, the limit of [`crate::disk_map()`]); below it the result is
+    /// [`CROWDING_LIMIT`] = 1e-14, the limit of [`crate::disk_map()`]); below it the result is
     /// [`ConformalError::OutOfRange`]. 0 disables the check (for measurements: the map is
     /// then returned even where f64 cannot resolve its shape).
     pub crowding_limit: f64,

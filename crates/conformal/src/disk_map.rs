@@ -48,8 +48,12 @@
 //! coordinate would not be representable in f64 and [`ConformalError::OutOfRange`] is
 //! returned, never garbage. Protrusions attached along the boundary (a flat alligator's tail)
 //! crowd instead towards the circle, 1 − |φ| ≈ 2πu → 0; since f64 resolves only ~1.1e-16 near
-//! |z| = 1, an interior vertex with 1 − |φ| < [`CROWDING_LIMIT`] = 1e-10 is an `OutOfRange`
-//! error too (its image triangles would keep at most 6 significant digits and fold).
+//! |z| = 1, an interior vertex with 1 − |φ| < [`CROWDING_LIMIT`] = 1e-14 is an `OutOfRange`
+//! error too (it could not be told from the circle). Crowding inside the disk is judged by the
+//! outcome: when every construction and repair folds and the Green's map has a triangle whose
+//! altitude is below one rounding unit of its coordinates
+//! ([`crate::quality::precision_margin`] < 1), the refusal is that `OutOfRange` error, not the
+//! folds.
 
 use std::time::Instant;
 
@@ -258,8 +262,8 @@ fn exp_map(
             });
         }
     }
-    // boundary crowding: an interior vertex within 1e-10 of the circle has a local image
-    // shape with at most ~6 significant digits (absolute spacing of f64 near 1 is 1.1e-16)
+    // boundary crowding: an interior vertex within 1e-14 of the circle is within ~90 ulps of it
+    // (the absolute spacing of f64 near 1 is 1.1e-16)
     if let Some((v, &x)) = a
         .iter()
         .enumerate()
@@ -494,7 +498,21 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                     Err(e) => bff_error = Some(e.to_string()),
                 }
             }
+            // crowding below the rounding of the coordinates (decision 0014): no construction or
+            // repair in f64 can resolve such a map, and that is the refusal to report
+            let beyond_f64 = z
+                .as_ref()
+                .and_then(|z| crate::quality::precision_margin(mesh, &z[..n]))
+                .filter(|&(_, margin)| margin < 1.0);
             let refusal = |e: ConformalError, region_repair_error: Option<String>| match e {
+                _ if beyond_f64.is_some() => {
+                    let (face, margin) = beyond_f64.expect("checked");
+                    ConformalError::OutOfRange {
+                        what: "smallest altitude of an image triangle, in units of the rounding of its coordinates (crowding inside the disk),",
+                        element: format!("face {face} of the Green's-function map"),
+                        log10_value: margin.log10(),
+                    }
+                }
                 ConformalError::FoldedImage {
                     num_flipped,
                     first_face,
@@ -570,7 +588,7 @@ mod tests {
 
     /// An interior log-radius ≥ 0: with non-negative weights (and a connected interior) the
     /// exact value is < 0, so it is crowding below the rounding of the solve; with negative
-    /// weights the maximum principle itself may fail. Just below 0 (above −1e-10): crowding.
+    /// weights the maximum principle itself may fail. Just below 0 (above −1e-14): crowding.
     #[test]
     fn interior_log_radius_at_or_above_zero_is_classified() {
         let theta = [0.0, 0.5, 1.0];
@@ -579,7 +597,7 @@ mod tests {
             (1e-17, true, true),
             (0.0, true, true),
             (1e-17, false, false),
-            (-1e-12, false, true),
+            (-1e-15, false, true),
         ] {
             let a = [-3.0, x, 0.0];
             match exp_map(&a, &theta, 0, &is_boundary, maximum_principle) {
@@ -588,7 +606,7 @@ mod tests {
                 }) => {
                     assert!(crowding, "{x} {maximum_principle}");
                     assert_eq!(element, "vertex 1");
-                    assert!(log10_value < -10.0, "{log10_value}");
+                    assert!(log10_value < -14.0, "{log10_value}");
                 }
                 Err(ConformalError::InteriorOutsideDisk { vertex: 1, radius }) => {
                     assert!(!crowding, "{x} {maximum_principle}");
@@ -601,6 +619,9 @@ mod tests {
         let z = exp_map(&[-3.0, -0.5, 0.0], &theta, 0, &is_boundary, true).unwrap();
         assert_eq!(z[0], [0.0, 0.0]);
         assert!(((z[1][0].hypot(z[1][1])) - (-0.5f64).exp()).abs() < 1e-15);
+        // 1e-12 from the circle is within the limit (1 − |z| is then 1e4 ulps of 1)
+        let z = exp_map(&[-3.0, -1e-12, 0.0], &theta, 0, &is_boundary, true).unwrap();
+        assert!(1.0 - z[1][0].hypot(z[1][1]) > 0.5e-12);
     }
 
     /// Two neighbouring boundary vertices swapped on the circle: exactly the edge between them

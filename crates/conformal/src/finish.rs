@@ -15,8 +15,12 @@ use crate::mobius::Mobius;
 use crate::quality::{face_distortions, summarize, QualitySummary};
 use crate::repair::repair_folds;
 
-/// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit).
-pub const CROWDING_LIMIT: f64 = 1e-10;
+/// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit): about 90
+/// ulps of 1, so that the vertex stays distinguishable from the circle through the Möbius
+/// normalization and the snapping of the boundary. The local shape of its image triangles then
+/// keeps two to six significant digits (their masses, the 3D areas, are exact; their positions
+/// are off by at most an ulp), and the exact orientation test still rejects any fold.
+pub const CROWDING_LIMIT: f64 = 1e-14;
 
 /// Interior edges with a negative cotangent weight.
 pub(crate) fn count_negative(tri: &IntrinsicTriangulation) -> usize {
@@ -210,7 +214,9 @@ pub(crate) fn region_repair_note(info: Option<&FoldRepairInfo>) -> String {
 /// Steps 3–5 of the module docs for any map z (#V) of the mesh into the closed unit disk with
 /// the boundary on the circle: the Möbius normalization p ↦ 0, q ↦ 1 (a fixed-point iteration
 /// for a barycentric p), boundary vertices snapped to |z| = 1, fold repair (if `repair`: local,
-/// then with `region_repair` a Tutte re-embedding of the region around the folds that remain),
+/// then with `region_repair` a Tutte re-embedding of the region around the folds that remain,
+/// retried with only the boundary fixed and a Möbius map back to p ↦ 0 when the pinned center
+/// keeps it from unfolding),
 /// densities and conformal factors on the original faces.
 ///
 /// Errors: the center's image on the circle, a fold left after the repair, a density beyond
@@ -303,6 +309,40 @@ pub(crate) fn finish(
                     }
                 }
                 Err(e) => region_error = Some(e.to_string()),
+            }
+            // (a center inside a face stays pinned: a Möbius map would not keep its
+            // piecewise-linear image at 0)
+            if region.is_none() && matches!(resolved.center, ResolvedCenter::Vertex(_)) {
+                // a pinned center can lie outside the kernel of its neighbours in the Tutte map
+                // (Floater's theorem holds for the boundary alone): repair with the boundary
+                // fixed only, then move the center back to 0 by a Möbius map of the disk
+                let mut repaired = uv.clone();
+                // (when this fails too, the pinned attempt's error is the one reported)
+                if let Ok(info) =
+                    crate::fold_repair::repair_folds(mesh, is_boundary, &mut repaired, &FoldRepairParams::default())
+                {
+                    let a = center_image(mesh, resolved.center, &repaired);
+                    let renormalize = Mobius::normalizing(a, repaired[resolved.boundary_vertex as usize]);
+                    for (v, p) in repaired.iter_mut().enumerate() {
+                        *p = renormalize.apply(*p);
+                        if is_boundary[v] {
+                            let r = p[0].hypot(p[1]);
+                            *p = [p[0] / r, p[1] / r];
+                        }
+                    }
+                    repaired[resolved.boundary_vertex as usize] = [1.0, 0.0];
+                    if let ResolvedCenter::Vertex(v) = resolved.center {
+                        repaired[v as usize] = [0.0, 0.0];
+                    }
+                    let repaired_dist = face_distortions(mesh, &repaired)?;
+                    let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
+                    if left == 0 {
+                        uv = repaired;
+                        dist = repaired_dist;
+                        mobius = renormalize.compose(&mobius);
+                        region = Some(info);
+                    }
+                }
             }
         }
     }

@@ -169,6 +169,44 @@ fn scaled_edges(p: [[f64; 2]; 3]) -> ([f64; 2], [f64; 2], f64) {
     )
 }
 
+/// The face whose image is smallest relative to the rounding of its own coordinates, and that
+/// ratio: min over faces of (smallest image altitude) / (ε · largest |coordinate| of its corners),
+/// ε = 2^−52. Below about 1e3 the image is crowded within a few digits of what f64 positions
+/// can tell apart: the solves that produce it (whose error grows with the system's condition
+/// number) can fold it and no re-embedding in f64 can unfold it. `None` without faces.
+pub fn precision_margin(mesh: &TriMesh, uv: &[[f64; 2]]) -> Option<(usize, f64)> {
+    mesh.faces
+        .iter()
+        .enumerate()
+        .map(|(f, face)| {
+            let p = face.map(|v| uv[v as usize]);
+            let longest = (0..3)
+                .map(|k| {
+                    let (a, b) = (p[k], p[(k + 1) % 3]);
+                    (b[0] - a[0]).hypot(b[1] - a[1])
+                })
+                .fold(0.0f64, f64::max);
+            let (u, w) = (
+                [p[1][0] - p[0][0], p[1][1] - p[0][1]],
+                [p[2][0] - p[0][0], p[2][1] - p[0][1]],
+            );
+            let cross = u[0] * w[1] - u[1] * w[0];
+            if !(cross > 0.0) {
+                // folded or degenerate: no altitude to speak of
+                return (f, f64::INFINITY);
+            }
+            let height = cross / longest;
+            let scale = p.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+            let ratio = if scale > 0.0 && longest > 0.0 {
+                height / (f64::EPSILON * scale)
+            } else {
+                f64::INFINITY
+            };
+            (f, ratio)
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
 /// The pushed-forward density of each face, μ_f = e^{−Υ_f} from the area distortions Υ
 /// ([`face_distortions`]); a density that is zero or not finite is beyond the f64 range
 /// (`OutOfRange`, naming the face).
@@ -360,6 +398,36 @@ pub fn vertex_conformal_factors(
 
 #[cfg(test)]
 mod tests {
+
+    /// The altitude over the rounding of the coordinates: a triangle of altitude h at distance
+    /// ~1 from the origin has margin h / ε; folded faces are skipped; far from the origin the same
+    /// shape has less margin.
+    #[test]
+    fn precision_margin_measures_altitudes_in_ulps() {
+        let mesh = TriMesh {
+            positions: vec![[0.0; 3]; 6],
+            faces: vec![[0, 1, 2], [3, 5, 4]],
+            uvs: None,
+        };
+        let h = 1e-10;
+        let uv = [
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [1.0 - h, 0.5],
+            [0.0, 0.0],
+            [0.1, 0.0],
+            [0.0, 0.1],
+        ];
+        // face 1 is folded (clockwise), so face 0 decides: altitude h below the edge x = 1
+        let (f, margin) = precision_margin(&mesh, &uv).unwrap();
+        assert_eq!(f, 0);
+        let expect = h / f64::EPSILON;
+        assert!((margin - expect).abs() < 0.02 * expect, "{margin} {expect}");
+        let far: Vec<[f64; 2]> = uv.iter().map(|p| [p[0] + 1e3, p[1]]).collect();
+        let (_, margin_far) = precision_margin(&mesh, &far).unwrap();
+        assert!(margin_far < 2e-3 * margin, "{margin_far} {margin}");
+    }
+
     use super::*;
 
     #[test]
