@@ -84,9 +84,25 @@ pub enum PolePlacement {
     Central,
 }
 
+/// Which construction [`disk_map`] starts from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Construction {
+    /// Green's function and harmonic conjugate (default), with the BFF fallback and the region
+    /// repair when allowed.
+    #[default]
+    Green,
+    /// Boundary First Flattening iterated to the circle ([`crate::bff::bff_disk_map`]) alone,
+    /// with the same normalization, local repair and (when allowed) region repair; `pole` and
+    /// `bff_fallback` do not apply.
+    Bff,
+}
+
 /// Parameters of [`disk_map`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct DiskMapParams {
+    /// The construction (default [`Construction::Green`]).
+    pub construction: Construction,
     /// Build the Laplacian on the intrinsic Delaunay triangulation (default true). Turning it
     /// off gives the plain cotangent Laplacian of the input triangles (for comparisons only:
     /// it folds images of badly shaped meshes).
@@ -118,6 +134,7 @@ pub struct DiskMapParams {
 impl Default for DiskMapParams {
     fn default() -> Self {
         DiskMapParams {
+            construction: Construction::Green,
             intrinsic_delaunay: true,
             pole: PolePlacement::AtCenter,
             repair_folds: true,
@@ -173,7 +190,8 @@ pub struct DiskMapInfo {
     /// ([`crate::green::boundary_angles_from_flux`]) because the least-squares conjugate put
     /// boundary vertices out of order on the circle.
     pub boundary_from_flux: bool,
-    /// Number of sparse linear solves (2, or 4 when the fallback route was needed).
+    /// Number of sparse linear solves of the Green's route (2, or 4 when the fallback route was
+    /// needed; 0 with [`Construction::Bff`]).
     pub linear_solves: usize,
     /// Stage timings (of the Green's-function route; `total` includes a BFF fallback).
     pub timings: DiskMapTimings,
@@ -349,6 +367,41 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
     let resolved = resolve_markers(mesh, &tri.is_boundary, &adj, markers)?;
     let own_pole = center_vertex(mesh, &tri.is_boundary, resolved.center)?;
     let negative_weights_before = count_negative(&tri);
+    if params.construction == Construction::Bff {
+        let bff_params = crate::bff::BffParams {
+            intrinsic_delaunay: params.intrinsic_delaunay,
+            repair_folds: params.repair_folds,
+            region_repair: params.repair_folds && params.region_repair,
+            ..Default::default()
+        };
+        let b = crate::bff::bff_disk_map(mesh, markers, &bff_params)?;
+        return Ok(DiskMap {
+            uv: b.uv,
+            conformal_factor: b.conformal_factor,
+            face_densities: b.face_densities,
+            scale: b.scale,
+            quality: b.quality,
+            info: DiskMapInfo {
+                method: b.info.method.clone(),
+                markers: b.info.markers,
+                pole: own_pole,
+                mobius: b.info.mobius,
+                intrinsic_flips: b.info.intrinsic_flips,
+                inserted_vertices: b.info.inserted_vertices,
+                negative_weights_before,
+                negative_weights_after: b.info.negative_weights_after,
+                fold_repairs: b.info.fold_repairs,
+                boundary_from_flux: false,
+                linear_solves: 0,
+                timings: DiskMapTimings {
+                    total: t0.elapsed().as_secs_f64(),
+                    ..Default::default()
+                },
+                bff_fallback: None,
+                region_repair: b.info.region_repair,
+            },
+        });
+    }
     let t1 = Instant::now();
     let inserted_vertices = tri.connect_interior(own_pole, params.intrinsic_delaunay)?;
     let negative_weights_after = count_negative(&tri);

@@ -53,7 +53,7 @@ pub mod repair;
 pub mod sphere;
 
 pub use bff::{bff_disk_coordinates, bff_disk_map, BffCoordinates, BffDiskMap, BffInfo, BffParams};
-pub use disk_map::{disk_map, resolve_markers_of, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
+pub use disk_map::{disk_map, resolve_markers_of, Construction, DiskMap, DiskMapInfo, DiskMapParams, PolePlacement};
 pub use error::ConformalError;
 pub use harmonic::{harmonic_map, BoundaryConstraint, HarmonicConstraints};
 pub use markers::{BoundaryMarker, CenterMarker, MarkerFile, Markers};

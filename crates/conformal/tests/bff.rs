@@ -20,7 +20,7 @@ use common::*;
 use shapespace_conformal::intrinsic::IntrinsicTriangulation;
 use shapespace_conformal::{
     bff_disk_coordinates, bff_disk_map, disk_map, BffDiskMap, BffParams, BoundaryMarker, CenterMarker, ConformalError,
-    DiskMapParams, MarkerFile, Markers, Mobius,
+    Construction, DiskMapParams, MarkerFile, Markers, Mobius,
 };
 use shapespace_geometry::prepare::subdivide_midpoint;
 use shapespace_geometry::primitives::{icosphere, spherical_cap, unit_disk};
@@ -87,6 +87,27 @@ fn bff_is_more_accurate_than_the_green_map_on_the_hemisphere() {
     let g = map(&m, &markers);
     let (rg, ..) = cap_errors(&m, FRAC_PI_2, &g);
     assert!(rb < rg / 4.0, "bff {rb:.2e}, green {rg:.2e}");
+}
+
+/// `disk_map` with `Construction::Bff` is BFF's map (the same positions and densities), and on
+/// the hemisphere it is the more accurate one, as above.
+#[test]
+fn disk_map_with_the_bff_construction_is_bffs_map() {
+    let m = spherical_cap(FRAC_PI_2, 24);
+    let markers = vertex_markers(0, (m.num_vertices() - 1) as u32);
+    let b = bff(&m, &markers);
+    let params = DiskMapParams {
+        construction: Construction::Bff,
+        ..Default::default()
+    };
+    let d = disk_map(&m, &markers, &params).unwrap();
+    assert_eq!(d.uv, b.uv);
+    assert_eq!(d.face_densities, b.face_densities);
+    assert!(d.info.method.starts_with("bff-disk"), "{}", d.info.method);
+    assert!(d.info.bff_fallback.is_none());
+    let (rb, ..) = cap_errors_of(&m, FRAC_PI_2, &d.uv, &d.face_densities, markers_q(&markers));
+    let (rg, ..) = cap_errors(&m, FRAC_PI_2, &map(&m, &markers));
+    assert!(rb < rg, "bff {rb:.2e}, green {rg:.2e}");
 }
 
 #[test]

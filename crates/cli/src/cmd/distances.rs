@@ -19,6 +19,8 @@ use shapespace_omt::NewtonParams;
 pub struct SolverArgs {
     #[command(flatten)]
     pub markers: MarkerArgs,
+    #[command(flatten)]
+    pub disk_map: super::DiskMapArgs,
     /// Compute both directions of every pair and report their mean and the asymmetry.
     #[arg(long)]
     pub symmetrize: bool,
@@ -318,6 +320,7 @@ pub fn compute_shard(
         target_points: solver.target_points,
         shard,
         cache: solver.cache.clone(),
+        disk_map: solver.disk_map.params(),
         ..DistancesOptions::default()
     };
     if let Some(n) = solver.target_points {

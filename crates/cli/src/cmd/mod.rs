@@ -129,3 +129,48 @@ pub(crate) fn check_map_output(out: &std::path::Path) -> anyhow::Result<()> {
         ),
     }
 }
+
+/// The conformal disk map's choices, as `shapespace conformal` offers them, for the commands
+/// that map disks on the way (`distances`, `demo`, `param`, `register`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct DiskMapArgs {
+    /// Construction of the conformal disk map: `green` (Green's function and harmonic
+    /// conjugate, with the BFF fallback and the region repair; default) or `bff` (boundary-first
+    /// flattening alone; `conformal --method bff`).
+    #[arg(long = "conformal", default_value = "green", value_parser = ["green", "bff"])]
+    pub construction: String,
+    /// Pole of the Green's function: `center` (at the center marker, default) or `central` (the
+    /// vertex farthest from the boundary, then a Möbius map), as for `conformal`.
+    #[arg(long, default_value = "center", value_parser = ["center", "central"])]
+    pub pole: String,
+    /// Use the plain cotangent Laplacian instead of the intrinsic Delaunay one (comparison only).
+    #[arg(long)]
+    pub no_intrinsic_delaunay: bool,
+    /// Refuse a mesh whose Green's-function map folds after the local repair instead of falling
+    /// back to BFF's map or re-embedding the folded region, as `conformal --no-bff-fallback`.
+    #[arg(long)]
+    pub no_bff_fallback: bool,
+}
+
+impl DiskMapArgs {
+    /// The disk map's parameters these flags ask for (the library's defaults without flags).
+    pub fn params(&self) -> shapespace_conformal::DiskMapParams {
+        use shapespace_conformal::{Construction, DiskMapParams, PolePlacement};
+        DiskMapParams {
+            construction: if self.construction == "bff" {
+                Construction::Bff
+            } else {
+                Construction::Green
+            },
+            pole: if self.pole == "central" {
+                PolePlacement::Central
+            } else {
+                PolePlacement::AtCenter
+            },
+            intrinsic_delaunay: !self.no_intrinsic_delaunay,
+            bff_fallback: !self.no_bff_fallback,
+            region_repair: !self.no_bff_fallback,
+            ..DiskMapParams::default()
+        }
+    }
+}

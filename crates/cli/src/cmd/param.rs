@@ -56,6 +56,8 @@ pub struct ParamArgs {
     pub markers: MarkerArgs,
     #[command(flatten)]
     pub sphere: super::conformal::SphereMarkerArgs,
+    #[command(flatten)]
+    pub disk_map: super::DiskMapArgs,
     /// `omt` (default): the Newton OMT map; `lie`: the Lie-advection authalic map (disk only).
     #[arg(long, value_enum, default_value_t = ParamMethod::Omt)]
     pub method: ParamMethod,
@@ -144,6 +146,12 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         if args.method != ParamMethod::Omt {
             anyhow::bail!("--method lie maps onto the disk only (--domain sphere takes the Newton OMT map)");
         }
+        if args.disk_map.params() != shapespace_conformal::DiskMapParams::default() {
+            anyhow::bail!(
+                "{}: --conformal, --pole, --no-intrinsic-delaunay and --no-bff-fallback choose the disk map; they do not apply to --domain sphere",
+                args.input.display()
+            );
+        }
         return run_sphere(args, t0);
     }
     if args.sphere.is_given() {
@@ -175,6 +183,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         domain,
         weights,
         require_convergence: false,
+        disk_map: args.disk_map.params(),
         ..Default::default()
     };
     params.newton.tolerance = args.tolerance;
@@ -297,6 +306,7 @@ fn run_lie(
 ) -> Result<ExitCode> {
     let mut params = LieAdvectionParams::default();
     params.fold_repair.enabled = !args.no_fold_repair;
+    params.disk_map = args.disk_map.params();
     let message = format!(
         "Lie-advection map of {} ({} vertices)",
         args.input.display(),

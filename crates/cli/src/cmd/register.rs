@@ -24,6 +24,8 @@ pub struct RegisterArgs {
     pub source: PathBuf,
     /// Target mesh S₂ (disk topology).
     pub target: PathBuf,
+    #[command(flatten)]
+    pub disk_map: super::DiskMapArgs,
     /// Landmark pairs CSV `source,target` (vertex indices). Default: the named landmarks of the
     /// meshes' marker files, paired by name. Allowed: interior vertices of both meshes, each used
     /// by one landmark per side (boundary vertices are refused: the boundary is mapped onto the
@@ -239,7 +241,11 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         method,
         source_markers: sm,
         target_markers: tm,
-        area_preserving: registration_area_params(),
+        area_preserving: {
+            let mut p = registration_area_params();
+            p.disk_map = args.disk_map.params();
+            p
+        },
         harmonic: harmonic_params(
             method,
             args.weights.as_deref(),
