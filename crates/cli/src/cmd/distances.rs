@@ -299,7 +299,7 @@ pub fn compute_shard(
     // The library's pairwise defaults (linear solver, coarse-level tolerance), which the
     // benchmark measures, with the user's tolerance and cap.
     let defaults = PairwiseOptions::default().newton;
-    let options = DistancesOptions {
+    let mut options = DistancesOptions {
         markers,
         pairwise: PairwiseOptions {
             symmetrize: solver.symmetrize,
@@ -320,9 +320,9 @@ pub fn compute_shard(
         target_points: solver.target_points,
         shard,
         cache: solver.cache.clone(),
-        disk_map: solver.disk_map.params(),
         ..DistancesOptions::default()
     };
+    options.disk_map = solver.disk_map.params();
     if let Some(n) = solver.target_points {
         anyhow::ensure!(n >= 1, "--target-points must be at least 1");
     }
