@@ -87,6 +87,7 @@ fn outside_disks_prepare_and_map_without_flips() {
 /// (1e-11.4). Cut at the disk only, a lion either maps or is refused with the range error of a
 /// map crowded below the rounding of its coordinates, never with a fold: lion5's Green's map
 /// has triangles whose altitude is 0.05 of an ulp of their coordinates.
+/// And TOSCA michael0 slit once, whose folds are scattered slivers.
 #[test]
 fn bodies_map_or_are_refused_as_beyond_f64() {
     let Some(dir) = shapespace_test_support::shared_root() else {
@@ -147,6 +148,18 @@ fn bodies_map_or_are_refused_as_beyond_f64() {
         .fold(1.0f64, f64::min);
     // the legs crowd against the circle, closer than 1e-10
     assert!(closest < 1e-10, "{closest:e}");
+    // TOSCA michael0 slit once: BFF's map leaves 47 scattered slivers after the single-vertex
+    // moves, which the patches repair (the region repair alone left a face of zero area)
+    let michael = dir.join("tosca/michael0.off");
+    let mesh = shapespace_geometry::io::read_mesh(&michael).unwrap();
+    let seam = PrepareOptions {
+        seam_extremities: 1,
+        ..PrepareOptions::default()
+    };
+    let (slit, _, _) = prepare_disk(&mesh, &seam).unwrap();
+    let map =
+        disk_map(&slit, &Markers::default(), &DiskMapParams::default()).unwrap_or_else(|e| panic!("michael0: {e}"));
+    check("michael0 --seam 1", &map);
 }
 
 /// Files that share one connectivity get the same automatic markers, chosen once: GOAST's four

@@ -13,7 +13,7 @@ use crate::intrinsic::IntrinsicTriangulation;
 use crate::markers::{ResolvedCenter, ResolvedMarkers};
 use crate::mobius::Mobius;
 use crate::quality::{face_distortions, summarize, QualitySummary};
-use crate::repair::repair_folds;
+use crate::repair::{repair_folds, repair_folds_with_patches};
 
 /// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit): about 90
 /// ulps of 1, so that the vertex stays distinguishable from the circle through the Möbius
@@ -211,6 +211,12 @@ pub(crate) fn region_repair_note(info: Option<&FoldRepairInfo>) -> String {
     })
 }
 
+/// Whether every face density of a map is representable (a repaired map whose exact orientations
+/// are all positive can still have a face whose area underflows).
+fn finite_densities(dist: &crate::quality::FaceDistortions) -> bool {
+    crate::quality::face_densities(&dist.area_distortion).is_ok()
+}
+
 /// Steps 3–5 of the module docs for any map z (#V) of the mesh into the closed unit disk with
 /// the boundary on the circle: the Möbius normalization p ↦ 0, q ↦ 1 (a fixed-point iteration
 /// for a barycentric p), boundary vertices snapped to |z| = 1, fold repair (if `repair`: local,
@@ -288,6 +294,7 @@ pub(crate) fn finish(
             }
         }
         let angles = shapespace_geometry::quantities::corner_angles(mesh);
+        let unrepaired = uv.clone();
         fold_repairs = repair_folds(&mesh.faces, &vertex_faces, &angles, &fixed, &mut uv);
         dist = face_distortions(mesh, &uv)?;
         if region_repair && dist.orientation.iter().any(|&o| o <= 0) {
@@ -297,10 +304,15 @@ pub(crate) fn finish(
                 Ok(info) => {
                     let repaired_dist = face_distortions(mesh, &repaired)?;
                     let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
-                    if left == 0 {
+                    if left == 0 && finite_densities(&repaired_dist) {
                         uv = repaired;
                         dist = repaired_dist;
                         region = Some(info);
+                    } else if left == 0 {
+                        region_error = Some(format!(
+                            "a face of the re-embedded region has an area below the f64 range (its rings: {} vertices)",
+                            info.region_vertices
+                        ));
                     } else {
                         region_error = Some(format!(
                             "{left} faces fold by the map's own orientation test after it (its rings: {} vertices)",
@@ -336,12 +348,26 @@ pub(crate) fn finish(
                     }
                     let repaired_dist = face_distortions(mesh, &repaired)?;
                     let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
-                    if left == 0 {
+                    if left == 0 && finite_densities(&repaired_dist) {
                         uv = repaired;
                         dist = repaired_dist;
                         mobius = renormalize.compose(&mobius);
                         region = Some(info);
                     }
+                }
+            }
+            if region.is_none() {
+                // scattered slivers rather than a folded region: the local repair again, with
+                // patches without the bound that keeps them from grinding through a folded region
+                let mut repaired = unrepaired;
+                let moves =
+                    repair_folds_with_patches(&mesh.faces, &vertex_faces, &angles, &fixed, &mut repaired, usize::MAX);
+                let repaired_dist = face_distortions(mesh, &repaired)?;
+                if repaired_dist.orientation.iter().all(|&o| o > 0) && finite_densities(&repaired_dist) {
+                    uv = repaired;
+                    dist = repaired_dist;
+                    fold_repairs = moves;
+                    region_error = None;
                 }
             }
         }

@@ -28,13 +28,28 @@ use crate::quality::orient_scaled;
 /// Moves free vertices of folded faces (module docs). `vertex_faces` (#V) lists the original
 /// faces around each vertex, `corner_angles` (#F × 3) the 3D angles, `fixed` (#V) the vertices
 /// that must not move. Returns the number of vertex moves; folds that could not be repaired
-/// remain (the caller checks orientation again).
+/// remain (the caller checks orientation again). Patches only when at most
+/// [`MAX_PATCH_FOLDS`] folds are left after the single-vertex moves
+/// ([`repair_folds_with_patches`] sets that bound).
 pub fn repair_folds(
     faces: &[[u32; 3]],
     vertex_faces: &[Vec<u32>],
     corner_angles: &[[f64; 3]],
     fixed: &[bool],
     uv: &mut [[f64; 2]],
+) -> usize {
+    repair_folds_with_patches(faces, vertex_faces, corner_angles, fixed, uv, MAX_PATCH_FOLDS)
+}
+
+/// [`repair_folds`] with patches re-embedded when at most `max_patch_folds` folds are left
+/// after the single-vertex moves (`usize::MAX`: always).
+pub fn repair_folds_with_patches(
+    faces: &[[u32; 3]],
+    vertex_faces: &[Vec<u32>],
+    corner_angles: &[[f64; 3]],
+    fixed: &[bool],
+    uv: &mut [[f64; 2]],
+    max_patch_folds: usize,
 ) -> usize {
     let ccw = |uv: &[[f64; 2]], f: usize| {
         let [a, b, c] = faces[f];
@@ -100,7 +115,7 @@ pub fn repair_folds(
         }
     }
     let left: Vec<usize> = (0..faces.len()).filter(|&f| !ccw(uv, f)).collect();
-    if left.len() <= MAX_PATCH_FOLDS {
+    if left.len() <= max_patch_folds {
         for f in left {
             if !ccw(uv, f) {
                 moves += repair_by_patch(faces, vertex_faces, corner_angles, fixed, uv, f);
@@ -113,7 +128,9 @@ pub fn repair_folds(
 /// Most folds left after the single-vertex moves that are still re-embedded patch by patch.
 /// More is not a sliver problem but a folded region (the Sumner face poses leave 50–450), which
 /// [`crate::fold_repair`] handles as one region; patch by patch it took 8–20 s on their 29k
-/// vertices and left most folds.
+/// vertices and left most folds. Where the region repair fails, the disk map tries the patches
+/// without this bound (TOSCA michael0 slit once: BFF's map leaves more than 16 scattered
+/// slivers, which the patches repair and the region repair does not).
 pub const MAX_PATCH_FOLDS: usize = 16;
 
 /// Floater's mean value weights of vertex v (normalized, > 0): w_vj ∝ (tan(α/2) + tan(β/2)) /
