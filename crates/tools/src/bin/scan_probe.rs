@@ -14,7 +14,8 @@
 //! first (the raw scans of `outside/facefuns`). `REPEAT=1` solves each pair twice and reports
 //! the second solve (the source's averaged coarse copies built by the first: the first's extra
 //! time is their construction). Costs are printed minus the target's merge cost
-//! (`quantization_variance`), as the distances use them.
+//! (`quantization_variance`), as the distances use them. `KAPPA=k` sets the soft cap of the
+//! intermediate targets (`NewtonParams::target_ratio_cap`, default 32) on every level.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -118,7 +119,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         shapes.push(shape);
     }
-    let params = PairwiseOptions::default().newton;
+    let mut params = PairwiseOptions::default().newton;
+    if let Some(k) = std::env::var("KAPPA").ok().and_then(|s| s.parse::<f64>().ok()) {
+        params.target_ratio_cap = Some(k);
+    }
     for w in shapes.windows(2) {
         let (a, b) = (&w[0], &w[1]);
         let t = Instant::now();
