@@ -239,7 +239,10 @@ fn main() {
                 vm_hwm_mb()
             );
         } else {
-            println!("\npeak memory (VmHWM) of the whole run (no reset): {:.0} MB", vm_hwm_mb());
+            println!(
+                "\npeak memory (VmHWM) of the whole run (no reset): {:.0} MB",
+                vm_hwm_mb()
+            );
         }
     }
 }

@@ -134,7 +134,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut secs = t.elapsed().as_secs_f64();
         if std::env::var("REPEAT").is_ok() {
             // again, with the source's averaged copies built: what the first solve spent on them
-            println!("  first solve {secs:.2} s, start {:.2} s (averaged copies {:?})", sol.t_start, a.measure.averaged_samples());
+            println!(
+                "  first solve {secs:.2} s, start {:.2} s (averaged copies {:?})",
+                sol.t_start,
+                a.measure.averaged_samples()
+            );
             let t = Instant::now();
             sol = shapespace_omt::solve_ot(&a.measure, &b.points, &b.masses, &params)?;
             secs = t.elapsed().as_secs_f64();
