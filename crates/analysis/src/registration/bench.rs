@@ -931,3 +931,92 @@ pub fn peer_comparison(rows: &[BenchRow], peer: &[PeerRow]) -> String {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(source: &str, target: &str, triangulation: Triangulation, mean: f64, flips: f64) -> BenchRow {
+        BenchRow {
+            class: "wolf".into(),
+            source: source.into(),
+            target: target.into(),
+            triangulation,
+            method: Method::Omt,
+            refine: Refinement::ZoomOut,
+            status: "ok".into(),
+            flipped_ratio: 0.0,
+            flipped_ratio_3d: flips,
+            harmonic_folded: 0,
+            curvature_median: 1.0,
+            curvature_mean: 1.0,
+            area_distortion_median: 1.0,
+            area_distortion_p95: 1.0,
+            area_distortion_mean_abs_log: 0.0,
+            geodesic_median: mean / 2.0,
+            geodesic_mean: mean,
+            seconds: 10.0,
+            refine_seconds: 8.0,
+            eigen_seconds: 4.0,
+            pair_seconds: 6.0,
+            amortized_seconds: 6.0,
+            stage1_amortized_seconds: 1.0,
+            untangle_flipped_before: 0,
+            untangle_flipped_after: 0,
+            untangle_seconds: 0.0,
+            truth_max_distance: 0.0,
+        }
+    }
+
+    fn peer(source: &str, target: &str, triangulation: &str, mean: f64) -> PeerRow {
+        PeerRow {
+            class: "wolf".into(),
+            source: source.into(),
+            target: target.into(),
+            triangulation: triangulation.into(),
+            geodesic_mean: mean,
+            geodesic_median: mean / 4.0,
+            seconds: 30.0,
+        }
+    }
+
+    #[test]
+    fn the_peer_table_pairs_rows_by_class_pair_and_triangulation() {
+        let rows = vec![
+            row("a", "b", Triangulation::Same, 0.002, 0.001),
+            row("b", "a", Triangulation::Same, 0.004, 0.003),
+            row("a", "b", Triangulation::Remeshed, 0.008, 0.009),
+            // no peer row for this pair: left out of the means
+            row("b", "a", Triangulation::Remeshed, 1.0, 0.5),
+        ];
+        let peers = vec![
+            peer("a", "b", "same", 0.004),
+            peer("b", "a", "same", 0.004),
+            peer("a", "b", "remeshed", 0.010),
+        ];
+        let table = peer_comparison(&rows, &peers);
+        let lines: Vec<&str> = table.lines().collect();
+        assert_eq!(lines.len(), 4, "{table}");
+        assert_eq!(
+            lines[2],
+            "| wolf | same | omt zoomout | 2 | 0.0030 / 0.0015 | 0.0040 / 0.0010 | 0.75 | 0.20 (0.30) | 10.0 (5.0×) | 30.0 |"
+        );
+        assert_eq!(
+            lines[3],
+            "| wolf | remeshed | omt zoomout | 1 | 0.0080 / 0.0040 | 0.0100 / 0.0025 | 0.80 | 0.90 (0.90) | 10.0 (5.0×) | 30.0 |"
+        );
+    }
+
+    #[test]
+    fn a_bad_peer_csv_names_its_line() {
+        let path = std::env::temp_dir().join(format!("shapespace-peer-{}.csv", std::process::id()));
+        std::fs::write(
+            &path,
+            "class,source,target,triangulation,geodesic_mean,geodesic_median,seconds\nwolf,a,b,same,0.1,0.1,3\nwolf,a,b,same,x,0.1,3\n",
+        )
+        .unwrap();
+        let err = read_peer_rows(&path).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(err.contains(":3:") || err.contains("line 3"), "{err}");
+    }
+}

@@ -130,6 +130,10 @@ pub struct RegisterBenchArgs {
     /// The peer script.
     #[arg(long, default_value = "scripts/pyfmaps_bench.py")]
     pub peer_script: PathBuf,
+    /// What ZoomOut returns per source vertex: `vertex` (a target vertex, default) or
+    /// `projected` (the nearest point of the target's spectral embedding on the faces around it).
+    #[arg(long, default_value = "vertex")]
+    pub zoomout_output: String,
 }
 
 fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(PathBuf, MarkerFile)>> {
@@ -327,6 +331,10 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
+    let zoomout = ZoomOutParams {
+        output: args.zoomout_output.parse()?,
+        ..ZoomOutParams::default()
+    };
     super::create_output_folder(&args.out)?;
     let mp = MetricParams {
         geodesic_samples: args.samples,
@@ -368,7 +376,7 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         &registration_area_params(),
         &harmonic,
         refine,
-        &ZoomOutParams::default(),
+        &zoomout,
         &mp,
         |m| eprintln!("register-bench: {m}"),
     )
