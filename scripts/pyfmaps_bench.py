@@ -243,23 +243,34 @@ def bench(args):
         lms = read_landmarks(os.path.join(folder, "landmarks.json"))
         names = sorted(lms)
         meshes = [mt.read_mesh(f) for f in files]
-        shapes = [pyfmaps_shape(f) for f in files]
+        # eigenpairs and heat solvers once per mesh, when a pair first needs them (--pairs)
+        shapes = {}
+
+        def shape(j):
+            if j not in shapes:
+                shapes[j] = pyfmaps_shape(files[j])
+            return shapes[j]
+
         # targets: (pose index, triangulation) -> (shape, V, F, landmarks, heat, truth)
         targets = {}
-        for j in range(len(files)):
-            V2, F2 = meshes[j]
-            targets[(j, "same")] = (shapes[j], V2, F2, [lms[n] for n in names], HeatGeodesics(V2, F2), int)
-        if args.remeshed:
-            for j, f in enumerate(files):
-                name = stem(f)
-                rpath = [p for p in mesh_files(os.path.join(args.remeshed, cls)) if stem(p) == name]
-                if not rpath:
-                    raise SystemExit("pyfmaps_bench: no remeshed %s in %s" % (name, os.path.join(args.remeshed, cls)))
-                V2, F2 = mt.read_mesh(rpath[0])
-                rl = read_landmarks(os.path.join(args.truth, cls, name + ".landmarks.json"))
-                truth = read_truth(os.path.join(args.truth, cls, name + ".csv"))
-                targets[(j, "remeshed")] = (
-                    pyfmaps_shape(rpath[0]), V2, F2, [rl[n] for n in names], HeatGeodesics(V2, F2), truth)
+
+        def target(j, kind):
+            if (j, kind) in targets:
+                return targets[(j, kind)]
+            if kind == "same":
+                V2, F2 = meshes[j]
+                targets[(j, kind)] = (shape(j), V2, F2, [lms[n] for n in names], HeatGeodesics(V2, F2), int)
+                return targets[(j, kind)]
+            name = stem(files[j])
+            rpath = [p for p in mesh_files(os.path.join(args.remeshed, cls)) if stem(p) == name]
+            if not rpath:
+                raise SystemExit("pyfmaps_bench: no remeshed %s in %s" % (name, os.path.join(args.remeshed, cls)))
+            V2, F2 = mt.read_mesh(rpath[0])
+            rl = read_landmarks(os.path.join(args.truth, cls, name + ".landmarks.json"))
+            truth = read_truth(os.path.join(args.truth, cls, name + ".csv"))
+            targets[(j, kind)] = (pyfmaps_shape(rpath[0]), V2, F2, [rl[n] for n in names], HeatGeodesics(V2, F2), truth)
+            return targets[(j, kind)]
+
         kinds = ["same", "remeshed"] if args.remeshed else ["same"]
         for i, src in enumerate(files):
             samples = sample_indices(len(meshes[i][0]), args.samples, args.seed)
@@ -267,8 +278,8 @@ def bench(args):
                 for j in range(len(files)):
                     if i == j or (args.pairs and sum(r["class"] == cls and r["triangulation"] == kind for r in rows) >= args.pairs):
                         continue
-                    tshape, V2, F2, tl, heat, truth = targets[(j, kind)]
-                    p2p, secs = pyfmaps_map(shapes[i][0], tshape[0], [lms[n] for n in names], tl)
+                    tshape, V2, F2, tl, heat, truth = target(j, kind)
+                    p2p, secs = pyfmaps_map(shape(i)[0], tshape[0], [lms[n] for n in names], tl)
                     face_of, bary_of = vertex_to_face(F2, len(V2))
                     err = geodesic_errors(heat, samples, truth, face_of[p2p], bary_of[p2p], F2)
                     row = {
@@ -279,7 +290,7 @@ def bench(args):
                         "geodesic_mean": float(err.mean()),
                         "geodesic_median": float(np.median(err)),
                         # from scratch: both shapes' eigenpairs and this pair's work
-                        "seconds": shapes[i][1] + tshape[1] + secs,
+                        "seconds": shape(i)[1] + tshape[1] + secs,
                         "pair_seconds": secs,
                     }
                     print(

@@ -176,7 +176,7 @@ pub fn write_colored_obj(path: &Path, mesh: &TriMesh, colors: &[[f64; 3]]) -> Re
 }
 
 /// One row of the benchmark (`results.csv`).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct BenchRow {
     pub class: String,
     pub source: String,
@@ -265,7 +265,7 @@ pub struct MethodSummary {
 }
 
 /// Whether a benchmark pair's target shares the source's triangulation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Triangulation {
     /// The target is a pose of the class (same vertices and faces as the source).
@@ -845,7 +845,8 @@ fn series_name(method: Method, values: &[f64]) -> String {
 pub use crate::error::error_chain;
 
 /// One row of a peer's results (`scripts/pyfmaps_bench.py`'s CSV): the peer's geodesic error
-/// of one ordered pair, scored like [`register_bench`], and its seconds from scratch.
+/// of one ordered pair, scored like [`register_bench`], and its seconds from scratch. Read with
+/// [`read_rows`].
 #[derive(Clone, Debug, serde::Deserialize)]
 pub struct PeerRow {
     pub class: String,
@@ -857,8 +858,9 @@ pub struct PeerRow {
     pub seconds: f64,
 }
 
-/// Reads a peer's results CSV ([`PeerRow`] columns).
-pub fn read_peer_rows(path: &Path) -> Result<Vec<PeerRow>, AnalysisError> {
+/// Reads a CSV of rows (`results.csv` of [`register_bench`] into [`BenchRow`]s, or a peer's
+/// results into [`PeerRow`]s); a malformed row is a `Parse` error naming its line.
+pub fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>, AnalysisError> {
     let mut r = csv::Reader::from_path(path).map_err(|e| AnalysisError::Parse {
         path: path.to_path_buf(),
         line: 0,
@@ -995,6 +997,14 @@ mod tests {
             peer("a", "b", "remeshed", 0.010),
         ];
         let table = peer_comparison(&rows, &peers);
+        // results.csv read back gives the same table
+        let path = std::env::temp_dir().join(format!("shapespace-results-{}.csv", std::process::id()));
+        let mut w = csv::Writer::from_path(&path).unwrap();
+        rows.iter().for_each(|r| w.serialize(r).unwrap());
+        w.flush().unwrap();
+        let back: Vec<BenchRow> = read_rows(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(peer_comparison(&back, &peers), table);
         let lines: Vec<&str> = table.lines().collect();
         assert_eq!(lines.len(), 4, "{table}");
         assert_eq!(
@@ -1015,7 +1025,7 @@ mod tests {
             "class,source,target,triangulation,geodesic_mean,geodesic_median,seconds\nwolf,a,b,same,0.1,0.1,3\nwolf,a,b,same,x,0.1,3\n",
         )
         .unwrap();
-        let err = read_peer_rows(&path).unwrap_err().to_string();
+        let err = read_rows::<PeerRow>(&path).unwrap_err().to_string();
         std::fs::remove_file(&path).unwrap();
         assert!(err.contains(":3:") || err.contains("line 3"), "{err}");
     }

@@ -167,7 +167,7 @@ pub const OMT_LANDMARK_STEPS: usize = 16;
 pub const UNTANGLE_SWEEPS: usize = 200;
 
 /// Which disk maps φ₁, φ₂ the registration uses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Area-preserving maps by optimal mass transport (Su et al. 2015, Alg. 2).

@@ -430,7 +430,7 @@ fn run_peer(
     python: &Path,
     rows: &[shapespace_analysis::registration::bench::BenchRow],
 ) -> anyhow::Result<()> {
-    use shapespace_analysis::registration::bench::{peer_comparison, read_peer_rows};
+    use shapespace_analysis::registration::bench::{peer_comparison, read_rows, PeerRow};
     let peer_csv = args.out.join("peer.csv");
     // a previous run's results must not pass for this one's
     if peer_csv.is_file() {
@@ -462,7 +462,7 @@ fn run_peer(
         eprintln!("register-bench: the peer wrote no results (pyfmaps missing?): no comparison");
         return Ok(());
     }
-    let peer = read_peer_rows(&peer_csv)?;
+    let peer: Vec<PeerRow> = read_rows(&peer_csv)?;
     let table = peer_comparison(rows, &peer);
     let path = args.out.join("comparison.md");
     shapespace_geometry::io::write_atomically(&path, table.as_bytes())
