@@ -2531,7 +2531,10 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     ]);
     let msg = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{msg}");
-    assert!(msg.contains("no-such-remeshed") && msg.contains("not a folder"), "{msg}");
+    assert!(
+        msg.contains("no-such-remeshed") && msg.contains("not a folder"),
+        "{msg}"
+    );
     let out = shapespace(&[
         "register-bench",
         dataset.to_str().unwrap(),
@@ -2544,5 +2547,8 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     ]);
     let msg = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{msg}");
-    assert!(msg.contains("no-such-script.py") && msg.contains("no such file"), "{msg}");
+    assert!(
+        msg.contains("no-such-script.py") && msg.contains("no such file"),
+        "{msg}"
+    );
 }
