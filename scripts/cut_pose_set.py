@@ -9,9 +9,13 @@ ball of radius 0.05 sqrt(area) (`--radius`) removed around the vertex nearest th
 (named x0, x1, ... in the order found; the same indices in every pose), `center` the vertex
 farthest from the cut and the extremities, `boundary` the boundary vertex of largest z.
 
+`--fill-holes` first closes small holes (the Sumner horse poses have a 16-vertex and a
+3-vertex loop): a loop of three vertices by one triangle, a longer one by a fan around a new
+vertex at the loop's centroid (per pose), so that the set is closed genus 0 before the cut.
+
 The output is derived from public research data: write it outside the repository.
 
-Usage: python3 scripts/cut_pose_set.py --out DIR/CLASS [--landmarks 6] [--radius 0.05] POSE0 POSE1 ...
+Usage: python3 scripts/cut_pose_set.py --out DIR/CLASS [--landmarks 6] [--radius 0.05] [--fill-holes] POSE0 POSE1 ...
 """
 
 import argparse
@@ -26,11 +30,32 @@ import meshtools as mt  # noqa: E402
 from make_poses import RADIUS_FACTOR, cut_disk  # noqa: E402
 
 
+def fill_holes(Vs, F):
+    """Closes every boundary loop of the shared connectivity F (oriented consistently): one
+    triangle for a loop of three, else a fan around a new vertex at the loop's centroid in each
+    pose. Returns the new poses and faces."""
+    loops = mt.boundary_loops(F)
+    faces, extra = [F], [[] for _ in Vs]
+    n = len(Vs[0])
+    for loop in loops:
+        # a boundary half-edge a -> b has its face on the left: the cap runs b -> a
+        if len(loop) == 3:
+            faces.append(np.array([[loop[2], loop[1], loop[0]]]))
+            continue
+        c = n + len(extra[0])
+        for k, V in enumerate(Vs):
+            extra[k].append(V[loop].mean(axis=0))
+        faces.append(np.array([[loop[(i + 1) % len(loop)], loop[i], c] for i in range(len(loop))]))
+    Vs = [np.vstack([V] + ([np.array(e)] if e else [])) for V, e in zip(Vs, extra)]
+    return Vs, np.vstack(faces), len(loops)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True, help="class folder to write (created)")
     ap.add_argument("--landmarks", type=int, default=6)
     ap.add_argument("--radius", type=float, default=RADIUS_FACTOR, help="cut radius over sqrt(area)")
+    ap.add_argument("--fill-holes", action="store_true", help="close boundary loops first (see above)")
     ap.add_argument("poses", nargs="+")
     args = ap.parse_args()
     Vs, F0 = [], None
@@ -42,6 +67,9 @@ def main():
             raise SystemExit("%s: connectivity differs from %s" % (p, args.poses[0]))
         Vs.append(V)
     F, _ = mt.orient_consistently(F0)
+    if args.fill_holes:
+        Vs, F, filled = fill_holes(Vs, F)
+        print("filled %d holes" % filled)
     if mt.signed_volume(Vs[0], F) < 0:
         F = F[:, [0, 2, 1]]
     t0 = mt.topology(Vs[0], F)

@@ -13,6 +13,13 @@ divided by sqrt(area of the target). The heat method is reimplemented here exact
 crates/analysis/src/geodesic.rs (t = mean edge length squared, lumped masses, Neumann, the
 Poisson solve pinned at vertex 0).
 
+With `--remeshed DIR --truth DIR` (what `register-bench --remeshed` reads and writes) each
+source is also mapped onto the remeshings of the other poses, DIR/CLASS/NAME.off, with the
+markers and the ground truth register-bench carried over (TRUTH/CLASS/NAME.landmarks.json, and
+TRUTH/CLASS/NAME.csv: per vertex of the pose, the closest point of the remeshing as face and
+barycentric coordinates, a heat source spread over the face's corners as in
+`HeatGeodesics::distances_from_points`). The CSV's `triangulation` column says which.
+
 `--check OUT SOURCE TARGET` instead reads a `shapespace register --out OUT` result
 (`correspondence.csv`, `metrics.json`) and compares this script's error of shapespace's own map
 with the per-sample errors in `metrics.json` (the cross-check of the error definition).
@@ -23,6 +30,7 @@ message and exits with status 0 (nothing measured); `--check` needs only NumPy a
 
 Usage:
   python3 scripts/pyfmaps_bench.py DATASET --out RESULTS.csv [--classes wolf,centaur] [--pairs N]
+      [--remeshed DIR --truth DIR] [--samples 300] [--seed 7]
   python3 scripts/pyfmaps_bench.py --check OUT SOURCE TARGET
 """
 
@@ -160,6 +168,15 @@ def vertex_to_face(F, n):
     return face, bary
 
 
+def read_truth(path):
+    """A ground-truth CSV (vertex,face,b0,b1,b2) as a function v -> (face, [b0, b1, b2])."""
+    points = {}
+    with open(path) as fh:
+        for row in csv.DictReader(fh):
+            points[int(row["vertex"])] = (int(row["face"]), [float(row["b0"]), float(row["b1"]), float(row["b2"])])
+    return lambda v: points[int(v)]
+
+
 def read_landmarks(path):
     with open(path) as fh:
         return json.load(fh).get("landmarks", {})
@@ -226,36 +243,62 @@ def bench(args):
         lms = read_landmarks(os.path.join(folder, "landmarks.json"))
         names = sorted(lms)
         meshes = [mt.read_mesh(f) for f in files]
-        shapes = [pyfmaps_shape(f) for f in files]
+        # eigenpairs and heat solvers once per mesh, when a pair first needs them (--pairs)
+        shapes = {}
+
+        def shape(j):
+            if j not in shapes:
+                shapes[j] = pyfmaps_shape(files[j])
+            return shapes[j]
+
+        # targets: (pose index, triangulation) -> (shape, V, F, landmarks, heat, truth)
         targets = {}
-        for j in range(len(files)):
-            V2, F2 = meshes[j]
-            targets[j] = (shapes[j], V2, F2, [lms[n] for n in names], HeatGeodesics(V2, F2), int)
+
+        def target(j, kind):
+            if (j, kind) in targets:
+                return targets[(j, kind)]
+            if kind == "same":
+                V2, F2 = meshes[j]
+                targets[(j, kind)] = (shape(j), V2, F2, [lms[n] for n in names], HeatGeodesics(V2, F2), int)
+                return targets[(j, kind)]
+            name = stem(files[j])
+            rpath = [p for p in mesh_files(os.path.join(args.remeshed, cls)) if stem(p) == name]
+            if not rpath:
+                raise SystemExit("pyfmaps_bench: no remeshed %s in %s" % (name, os.path.join(args.remeshed, cls)))
+            V2, F2 = mt.read_mesh(rpath[0])
+            rl = read_landmarks(os.path.join(args.truth, cls, name + ".landmarks.json"))
+            truth = read_truth(os.path.join(args.truth, cls, name + ".csv"))
+            targets[(j, kind)] = (pyfmaps_shape(rpath[0]), V2, F2, [rl[n] for n in names], HeatGeodesics(V2, F2), truth)
+            return targets[(j, kind)]
+
+        kinds = ["same", "remeshed"] if args.remeshed else ["same"]
         for i, src in enumerate(files):
-            samples = sample_indices(len(meshes[i][0]), SAMPLES, SEED)
-            for j in range(len(files)):
-                if i == j or (args.pairs and sum(r["class"] == cls for r in rows) >= args.pairs):
-                    continue
-                tshape, V2, F2, tl, heat, truth = targets[j]
-                p2p, secs = pyfmaps_map(shapes[i][0], tshape[0], [lms[n] for n in names], tl)
-                face_of, bary_of = vertex_to_face(F2, len(V2))
-                err = geodesic_errors(heat, samples, truth, face_of[p2p], bary_of[p2p], F2)
-                row = {
-                    "class": cls,
-                    "source": stem(src),
-                    "target": stem(files[j]),
-                    "geodesic_mean": float(err.mean()),
-                    "geodesic_median": float(np.median(err)),
-                    # from scratch: both shapes' eigenpairs and this pair's work
-                    "seconds": shapes[i][1] + tshape[1] + secs,
-                    "pair_seconds": secs,
-                }
-                print(
-                    "{class} {source}->{target} geo {geodesic_mean:.4f}/{geodesic_median:.4f} "
-                    "{seconds:.1f}s (pair {pair_seconds:.1f}s)".format(**row),
-                    flush=True,
-                )
-                rows.append(row)
+            samples = sample_indices(len(meshes[i][0]), args.samples, args.seed)
+            for kind in kinds:
+                for j in range(len(files)):
+                    if i == j or (args.pairs and sum(r["class"] == cls and r["triangulation"] == kind for r in rows) >= args.pairs):
+                        continue
+                    tshape, V2, F2, tl, heat, truth = target(j, kind)
+                    p2p, secs = pyfmaps_map(shape(i)[0], tshape[0], [lms[n] for n in names], tl)
+                    face_of, bary_of = vertex_to_face(F2, len(V2))
+                    err = geodesic_errors(heat, samples, truth, face_of[p2p], bary_of[p2p], F2)
+                    row = {
+                        "class": cls,
+                        "source": stem(src),
+                        "target": stem(files[j]),
+                        "triangulation": kind,
+                        "geodesic_mean": float(err.mean()),
+                        "geodesic_median": float(np.median(err)),
+                        # from scratch: both shapes' eigenpairs and this pair's work
+                        "seconds": shape(i)[1] + tshape[1] + secs,
+                        "pair_seconds": secs,
+                    }
+                    print(
+                        "{class} {source}->{target} ({triangulation}) geo {geodesic_mean:.4f}/{geodesic_median:.4f} "
+                        "{seconds:.1f}s (pair {pair_seconds:.1f}s)".format(**row),
+                        flush=True,
+                    )
+                    rows.append(row)
     if not rows:
         print("pyfmaps_bench: no class folder with two meshes")
         return 1
@@ -265,11 +308,12 @@ def bench(args):
         w.writeheader()
         w.writerows(rows)
     os.replace(tmp, args.out)
-    for cls in sorted({r["class"] for r in rows}):
-        sel = [r for r in rows if r["class"] == cls]
+    for cls, kind in sorted({(r["class"], r["triangulation"]) for r in rows}):
+        sel = [r for r in rows if r["class"] == cls and r["triangulation"] == kind]
         print(
-            "{}: {} pairs, geodesic mean {:.4f}, median {:.4f}, {:.1f} s/pair ({:.1f} s with eigenpairs shared)".format(
+            "{} ({}): {} pairs, geodesic mean {:.4f}, median {:.4f}, {:.1f} s/pair ({:.1f} s with eigenpairs shared)".format(
                 cls,
+                kind,
                 len(sel),
                 np.mean([r["geodesic_mean"] for r in sel]),
                 np.mean([r["geodesic_median"] for r in sel]),
@@ -308,8 +352,14 @@ def main():
     ap.add_argument("--out", help="results CSV (written atomically)")
     ap.add_argument("--classes", help="comma-separated class folders (default: all)")
     ap.add_argument("--pairs", type=int, help="at most this many ordered pairs per class (default: all)")
+    ap.add_argument("--remeshed", help="folder of remeshed poses DIR/CLASS/NAME.off (register-bench --remeshed)")
+    ap.add_argument("--truth", help="register-bench's OUT/truth folder (ground truth and markers of the remeshed poses)")
+    ap.add_argument("--samples", type=int, default=SAMPLES, help="sampled source vertices (default 300)")
+    ap.add_argument("--seed", type=int, default=SEED, help="seed of the sample (default 7)")
     ap.add_argument("--check", nargs=3, metavar=("OUT", "SOURCE", "TARGET"))
     args = ap.parse_args()
+    if bool(args.remeshed) != bool(args.truth):
+        ap.error("--remeshed and --truth go together")
     if args.check:
         return check(*args.check)
     if not args.dataset or not args.out:

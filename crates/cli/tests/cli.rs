@@ -2586,4 +2586,45 @@ fn disk_map_choices_reach_param_and_distances() {
     );
     assert!(bff_methods.iter().all(|m| m.starts_with("bff-disk")), "{bff_methods:?}");
     assert!(((bff - green) / green).abs() < 0.05, "{bff} {green}");
+
+/// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
+/// script: status 2 naming the path, before any registration.
+#[test]
+fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
+    let dir = scratch("bench-remeshed-missing");
+    let dataset = dir.join("dataset");
+    std::fs::create_dir_all(dataset.join("c")).unwrap();
+    std::fs::write(dataset.join("c/a.obj"), grid_obj(1.0)).unwrap();
+    std::fs::write(dataset.join("c/b.obj"), grid_obj(2.0)).unwrap();
+    let missing = dir.join("no-such-remeshed");
+    let out = shapespace(&[
+        "register-bench",
+        dataset.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+        "--remeshed",
+        missing.to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("no-such-remeshed") && msg.contains("not a folder"),
+        "{msg}"
+    );
+    let out = shapespace(&[
+        "register-bench",
+        dataset.to_str().unwrap(),
+        "--out",
+        dir.join("out2").to_str().unwrap(),
+        "--peer",
+        "python3",
+        "--peer-script",
+        dir.join("no-such-script.py").to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("no-such-script.py") && msg.contains("no such file"),
+        "{msg}"
+    );
 }

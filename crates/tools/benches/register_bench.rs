@@ -1,4 +1,4 @@
-//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal] [none|zoomout] [K_END] [vertex|projected] [EIGEN_TOL] [UNTANGLE_SWEEPS] [UNTANGLE_RING] [K_STEP] [SAMPLES] [compact|flips]` (same as
+//! The registration benchmark without the CLI: `cargo bench -p shapespace-tools --bench register_bench -- DATASET_DIR OUT_DIR [omt,conformal] [none|zoomout] [K_END] [vertex|projected] [EIGEN_TOL] [UNTANGLE_SWEEPS] [UNTANGLE_RING] [K_STEP] [SAMPLES] [compact|flips] [REMESHED_DIR]` (same as
 //! `shapespace register-bench`). Prints the per-pair rows and the per-method means.
 use shapespace_analysis::registration::bench::register_bench;
 use shapespace_analysis::registration::{Method, MetricParams, Refinement, ZoomOutParams};
@@ -41,9 +41,11 @@ fn main() {
     if let Some(c) = args.get(12) {
         zoomout.untangle.compact = c == "compact";
     }
+    let remeshed = args.get(13).map(PathBuf::from);
     let res = register_bench(
         &dataset,
         &out,
+        remeshed.as_deref(),
         &methods,
         &shapespace_analysis::registration::registration_area_params(),
         &shapespace_analysis::registration::HarmonicParams::for_method,
@@ -55,10 +57,11 @@ fn main() {
     .expect("bench");
     for r in &res.rows {
         println!(
-            "{} {}->{} {:9} {} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s (refine {:.2}s, eigen {:.2}s, pair {:.2}s, amortized {:.2}s) untangle {}->{} {}",
+            "{} {}->{} {} {:9} {} flip {:.4} flip3d {:.4} curv {:.3}/{:.3} area {:.3}/{:.3}/{:.3} geo {:.4}/{:.4} {:.2}s (refine {:.2}s, eigen {:.2}s, pair {:.2}s, amortized {:.2}s) untangle {}->{} {}",
             r.class,
             r.source,
             r.target,
+            r.triangulation,
             r.method.name(),
             r.refine.name(),
             r.flipped_ratio,

@@ -14,14 +14,15 @@ use shapespace_geometry::TriMesh;
 use crate::area_preserving::AreaPreservingParams;
 use crate::error::AnalysisError;
 use crate::plot::histograms;
-use crate::registration::metrics::{registration_metrics, MetricParams, RegistrationMetrics};
+use crate::registration::metrics::{registration_metrics_against, MetricParams, RegistrationMetrics};
+use crate::registration::truth::{carry_markers, closest_points, marker_file_json, SurfacePoint};
 use crate::registration::{
     disk_image, refine_registration, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Refinement,
     Registration, SpectralBasis, ZoomOutParams,
 };
 
 /// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
-/// errors per class.
+/// errors per class (`CLASS`, or `CLASS/remeshed` for the pairs onto remeshed targets).
 type Pooled = (Method, Vec<f64>, Vec<f64>, Vec<(String, Vec<f64>)>);
 
 /// Histogram range of the curvature difference and the area distortion (Su et al. 2015, Fig. 7).
@@ -175,11 +176,14 @@ pub fn write_colored_obj(path: &Path, mesh: &TriMesh, colors: &[[f64; 3]]) -> Re
 }
 
 /// One row of the benchmark (`results.csv`).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct BenchRow {
     pub class: String,
     pub source: String,
     pub target: String,
+    /// `same` (the target shares the source's triangulation, ground truth v ↔ v) or `remeshed`
+    /// (the target is a remeshing of the pose, ground truth carried over by closest point).
+    pub triangulation: Triangulation,
     pub method: Method,
     /// The refinement after the disk-map stage.
     pub refine: Refinement,
@@ -218,6 +222,9 @@ pub struct BenchRow {
     pub untangle_flipped_after: usize,
     /// Of `refine_seconds`: the untangling.
     pub untangle_seconds: f64,
+    /// For a remeshed target: the largest distance from a vertex of the pose to the remeshed
+    /// surface over √area (the error of the carried ground truth); 0 for the same triangulation.
+    pub truth_max_distance: f64,
 }
 
 /// Means over the successful pairs of one method (in one class, or `all`).
@@ -225,6 +232,8 @@ pub struct BenchRow {
 pub struct MethodSummary {
     /// The class folder, or `all` for every class together.
     pub class: String,
+    /// The pairs' kind of target (`same` or `remeshed`).
+    pub triangulation: Triangulation,
     pub method: Method,
     pub refine: Refinement,
     pub pairs_ok: usize,
@@ -253,6 +262,100 @@ pub struct MethodSummary {
     pub amortized_seconds: f64,
     /// `amortized_seconds` of the first stage alone.
     pub stage1_amortized_seconds: f64,
+}
+
+/// Whether a benchmark pair's target shares the source's triangulation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Triangulation {
+    /// The target is a pose of the class (same vertices and faces as the source).
+    Same,
+    /// The target is a remeshed pose (`register_bench`'s `remeshed` folder).
+    Remeshed,
+}
+
+impl Triangulation {
+    /// `same` or `remeshed`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Triangulation::Same => "same",
+            Triangulation::Remeshed => "remeshed",
+        }
+    }
+}
+
+impl std::fmt::Display for Triangulation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A remeshed pose of a class: the mesh, its markers carried over from the pose, the ground
+/// truth (the point of the remeshed mesh closest to each vertex of the pose) and the largest
+/// closest-point distance over √area.
+struct RemeshedTarget {
+    mesh: TriMesh,
+    markers: MarkerFile,
+    truth: Vec<SurfacePoint>,
+    max_distance: f64,
+}
+
+/// Reads the remeshed poses of a class (`folder/STEM.{off,obj,ply}` for each pose file) and
+/// carries the ground truth and the markers over; writes both into `truth_dir`
+/// (`STEM.csv`: vertex,face,b0,b1,b2 per vertex of the pose; `STEM.landmarks.json`).
+fn remeshed_targets(
+    folder: &Path,
+    files: &[PathBuf],
+    meshes: &[TriMesh],
+    markers: &[(PathBuf, MarkerFile)],
+    truth_dir: &Path,
+) -> Result<Vec<RemeshedTarget>, AnalysisError> {
+    std::fs::create_dir_all(truth_dir).map_err(|e| AnalysisError::io(truth_dir, e))?;
+    let available = mesh_files(folder)?;
+    let mut out = Vec::new();
+    for ((f, pose), (_, mf)) in files.iter().zip(meshes).zip(markers) {
+        let name = stem(f);
+        let path = available
+            .iter()
+            .find(|p| stem(p) == name)
+            .ok_or_else(|| AnalysisError::Shape {
+                name: folder.display().to_string(),
+                message: format!("no remeshed pose `{name}` (.off, .obj or .ply) for {}", f.display()),
+            })?;
+        let mesh = shapespace_geometry::io::read_mesh(path).map_err(|e| AnalysisError::Shape {
+            name: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        let (truth, max) = closest_points(&pose.positions, &mesh)?;
+        let carried = carry_markers(pose, mf, &mesh).map_err(|e| AnalysisError::Shape {
+            name: path.display().to_string(),
+            message: format!("carrying the markers over: {e}"),
+        })?;
+        let csv_path = truth_dir.join(format!("{name}.csv"));
+        {
+            let mut w = create(&csv_path)?;
+            let io = |e| AnalysisError::io(&csv_path, e);
+            writeln!(w, "vertex,face,b0,b1,b2").map_err(io)?;
+            for (v, (face, b)) in truth.iter().enumerate() {
+                writeln!(w, "{v},{face},{:.17},{:.17},{:.17}", b[0], b[1], b[2]).map_err(io)?;
+            }
+            w.commit().map_err(io)?;
+        }
+        let json_path = truth_dir.join(format!("{name}.landmarks.json"));
+        let text = serde_json::to_string_pretty(&marker_file_json(&carried)).map_err(|e| AnalysisError::Serialize {
+            path: json_path.clone(),
+            message: e.to_string(),
+        })?;
+        write_atomically(&json_path, text.as_bytes()).map_err(|e| AnalysisError::io(&json_path, e))?;
+        let area = shapespace_geometry::quantities::total_area(pose);
+        out.push(RemeshedTarget {
+            mesh,
+            markers: carried,
+            truth,
+            max_distance: max / area.sqrt(),
+        });
+    }
+    Ok(out)
 }
 
 /// Result of [`register_bench`].
@@ -303,10 +406,19 @@ fn stem(p: &Path) -> String {
 /// ([`refine_registration`] with `zoomout`; eigenpairs computed once per mesh).
 /// `seconds` of a pair = both disk maps + harmonic map + composition (+ both surfaces'
 /// eigenpairs + the ZoomOut iterations): a registration from scratch, not the metrics.
+///
+/// With `remeshed` = Some(R), each class also registers every pose onto the remeshings of the
+/// other poses, `R/CLASS/NAME.{off,obj,ply}` for each pose `NAME` (no shared triangulation;
+/// e.g. `scripts/remesh_targets.py`): the ground truth of pose i → remeshed pose j is the point
+/// of the remeshed mesh closest to each vertex of pose j, its markers the nearest vertices
+/// ([`crate::registration::truth`]); both are written to `out/truth/CLASS/NAME.csv` and
+/// `NAME.landmarks.json` (for a peer scored on the same ground truth). Those rows have
+/// `triangulation` = `remeshed`; the per-mesh work of a class is shared over all its pairs.
 #[allow(clippy::too_many_arguments)]
 pub fn register_bench(
     dataset: &Path,
     out: &Path,
+    remeshed: Option<&Path>,
     methods: &[Method],
     params: &AreaPreservingParams,
     harmonic: &dyn Fn(Method) -> HarmonicParams,
@@ -351,12 +463,40 @@ pub fn register_bench(
             meshes.push(mesh);
             markers.push((side, mf));
         }
+        let remeshed_poses = match remeshed {
+            Some(dir) => {
+                progress(&format!("{class}: remeshed poses, ground truth by closest point"));
+                remeshed_targets(
+                    &dir.join(&class),
+                    &files,
+                    &meshes,
+                    &markers,
+                    &out.join("truth").join(&class),
+                )?
+            }
+            None => Vec::new(),
+        };
+        // every target: the poses, then their remeshings (k ↦ pose k % n)
+        let n = meshes.len();
+        let all_meshes: Vec<&TriMesh> = meshes.iter().chain(remeshed_poses.iter().map(|r| &r.mesh)).collect();
+        let all_markers: Vec<&MarkerFile> = markers
+            .iter()
+            .map(|m| &m.1)
+            .chain(remeshed_poses.iter().map(|r| &r.markers))
+            .collect();
+        let name_of = |k: usize| {
+            if k < n {
+                stem(&files[k])
+            } else {
+                format!("{} (remeshed)", stem(&files[k - n]))
+            }
+        };
         let bases: Vec<Result<SpectralBasis, String>> = if refine == Refinement::ZoomOut {
-            meshes
+            all_meshes
                 .iter()
-                .zip(&files)
-                .map(|(m, f)| {
-                    progress(&format!("{class}: eigenpairs of {}", stem(f)));
+                .enumerate()
+                .map(|(k, m)| {
+                    progress(&format!("{class}: eigenpairs of {}", name_of(k)));
                     SpectralBasis::of(m, zoomout.k_end, &zoomout.eigen).map_err(|e| error_chain(&e))
                 })
                 .collect()
@@ -364,29 +504,35 @@ pub fn register_bench(
             Vec::new()
         };
         for (mi, &method) in methods.iter().enumerate() {
-            let maps: Vec<Result<DiskImage, String>> = meshes
+            let maps: Vec<Result<DiskImage, String>> = all_meshes
                 .iter()
-                .zip(&markers)
-                .zip(&files)
-                .map(|((m, (_, mf)), f)| {
-                    progress(&format!("{class}: {method} disk map of {}", stem(f)));
+                .zip(&all_markers)
+                .enumerate()
+                .map(|(k, (m, mf))| {
+                    progress(&format!("{class}: {method} disk map of {}", name_of(k)));
                     disk_image(m, &mf.markers, method, params).map_err(|e| error_chain(&e))
                 })
                 .collect();
             let first_row = rows.len();
-            let mut mesh_seconds = vec![0.0; meshes.len()];
-            let mut mesh_eigen_seconds = vec![0.0; meshes.len()];
-            for i in 0..meshes.len() {
-                for j in 0..meshes.len() {
-                    if i == j {
+            let mut mesh_seconds = vec![0.0; all_meshes.len()];
+            let mut mesh_eigen_seconds = vec![0.0; all_meshes.len()];
+            for i in 0..n {
+                for j in 0..all_meshes.len() {
+                    if i == j % n {
                         continue;
                     }
-                    let (src, tgt) = (stem(&files[i]), stem(&files[j]));
-                    progress(&format!("{class}: {method} {src} -> {tgt}"));
+                    let (src, tgt) = (stem(&files[i]), stem(&files[j % n]));
+                    let (triangulation, remeshed_target) = if j < n {
+                        (Triangulation::Same, None)
+                    } else {
+                        (Triangulation::Remeshed, Some(&remeshed_poses[j - n]))
+                    };
+                    progress(&format!("{class}: {method} {src} -> {}", name_of(j)));
                     let mut row = BenchRow {
                         class: class.clone(),
                         source: src,
                         target: tgt,
+                        triangulation,
                         method,
                         refine,
                         status: "ok".into(),
@@ -409,33 +555,44 @@ pub fn register_bench(
                         untangle_flipped_before: 0,
                         untangle_flipped_after: 0,
                         untangle_seconds: 0.0,
+                        truth_max_distance: remeshed_target.map_or(0.0, |r| r.max_distance),
                     };
                     let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
                         let phi1 = maps[i]
                             .as_ref()
-                            .map_err(|e| format!("disk map of {}: {e}", stem(&files[i])))?;
+                            .map_err(|e| format!("disk map of {}: {e}", name_of(i)))?;
                         let phi2 = maps[j]
                             .as_ref()
-                            .map_err(|e| format!("disk map of {}: {e}", stem(&files[j])))?;
+                            .map_err(|e| format!("disk map of {}: {e}", name_of(j)))?;
+                        let target_markers = if j < n {
+                            markers[j].0.display().to_string()
+                        } else {
+                            format!(
+                                "{} carried onto the remeshed {}",
+                                markers[j - n].0.display(),
+                                name_of(j - n)
+                            )
+                        };
                         let landmarks = Landmarks::from_named(
                             &markers[i].1.landmarks,
-                            &markers[j].1.landmarks,
-                            &format!("{} / {}", markers[i].0.display(), markers[j].0.display()),
+                            &all_markers[j].landmarks,
+                            &format!("{} / {target_markers}", markers[i].0.display()),
                         )
                         .map_err(|e| error_chain(&e))?;
-                        let mut reg =
-                            register_with_maps(&meshes[i], &meshes[j], phi1, phi2, &landmarks, &harmonic(method))
-                                .map_err(|e| error_chain(&e))?;
+                        let target = all_meshes[j];
+                        let mut reg = register_with_maps(&meshes[i], target, phi1, phi2, &landmarks, &harmonic(method))
+                            .map_err(|e| error_chain(&e))?;
                         if refine == Refinement::ZoomOut {
                             let basis = |m: usize| {
                                 bases[m]
                                     .as_ref()
-                                    .map_err(|e| format!("eigenpairs of {}: {e}", stem(&files[m])))
+                                    .map_err(|e| format!("eigenpairs of {}: {e}", name_of(m)))
                             };
-                            refine_registration(&meshes[i], &meshes[j], &mut reg, basis(i)?, basis(j)?, zoomout)
+                            refine_registration(&meshes[i], target, &mut reg, basis(i)?, basis(j)?, zoomout)
                                 .map_err(|e| error_chain(&e))?;
                         }
-                        let met = registration_metrics(&meshes[i], &meshes[j], &reg, metric_params)
+                        let truth = remeshed_target.map(|r| r.truth.as_slice());
+                        let met = registration_metrics_against(&meshes[i], target, &reg, metric_params, truth)
                             .map_err(|e| error_chain(&e))?;
                         Ok((reg, met))
                     })();
@@ -452,7 +609,11 @@ pub fn register_bench(
                             if let Some(g) = &met.geodesic {
                                 row.geodesic_median = g.summary.median;
                                 row.geodesic_mean = g.summary.mean;
-                                pooled[mi].3.push((class.clone(), g.fractions.clone()));
+                                let key = match triangulation {
+                                    Triangulation::Same => class.clone(),
+                                    Triangulation::Remeshed => format!("{class}/remeshed"),
+                                };
+                                pooled[mi].3.push((key, g.fractions.clone()));
                             }
                             row.seconds = reg.timings.total;
                             row.refine_seconds = reg.timings.refine;
@@ -520,14 +681,24 @@ pub fn register_bench(
         }
     }
     class_names.push("all".into());
-    let groups: Vec<(String, Method)> = class_names
+    let mut kinds = vec![Triangulation::Same];
+    if rows.iter().any(|r| r.triangulation == Triangulation::Remeshed) {
+        kinds.push(Triangulation::Remeshed);
+    }
+    let groups: Vec<(String, Triangulation, Method)> = class_names
         .iter()
-        .flat_map(|c| methods.iter().map(move |&m| (c.clone(), m)))
+        .flat_map(|c| {
+            kinds
+                .iter()
+                .flat_map(move |&t| methods.iter().map(move |&m| (c.clone(), t, m)))
+        })
         .collect();
     let summaries: Vec<MethodSummary> = groups
         .into_iter()
-        .map(|(class, m)| {
-            let in_group = |r: &&BenchRow| r.method == m && (class == "all" || r.class == class);
+        .map(|(class, triangulation, m)| {
+            let in_group = |r: &&BenchRow| {
+                r.method == m && r.triangulation == triangulation && (class == "all" || r.class == class)
+            };
             let ok: Vec<&BenchRow> = rows.iter().filter(in_group).filter(|r| r.status == "ok").collect();
             let mean = |f: &dyn Fn(&BenchRow) -> f64| {
                 let v: Vec<f64> = ok.iter().map(|r| f(r)).filter(|x| x.is_finite()).collect();
@@ -540,6 +711,7 @@ pub fn register_bench(
             MethodSummary {
                 pairs_failed: rows.iter().filter(in_group).filter(|r| r.status != "ok").count(),
                 class,
+                triangulation,
                 method: m,
                 refine,
                 pairs_ok: ok.len(),
@@ -671,3 +843,190 @@ fn series_name(method: Method, values: &[f64]) -> String {
 }
 
 pub use crate::error::error_chain;
+
+/// One row of a peer's results (`scripts/pyfmaps_bench.py`'s CSV): the peer's geodesic error
+/// of one ordered pair, scored like [`register_bench`], and its seconds from scratch. Read with
+/// [`read_rows`].
+#[derive(Clone, Debug, serde::Deserialize)]
+pub struct PeerRow {
+    pub class: String,
+    pub source: String,
+    pub target: String,
+    pub triangulation: String,
+    pub geodesic_mean: f64,
+    pub geodesic_median: f64,
+    pub seconds: f64,
+}
+
+/// Reads a CSV of rows (`results.csv` of [`register_bench`] into [`BenchRow`]s, or a peer's
+/// results into [`PeerRow`]s); a malformed row is a `Parse` error naming its line.
+pub fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>, AnalysisError> {
+    let mut r = csv::Reader::from_path(path).map_err(|e| AnalysisError::Parse {
+        path: path.to_path_buf(),
+        line: 0,
+        message: e.to_string(),
+    })?;
+    r.deserialize()
+        .enumerate()
+        .map(|(k, row)| {
+            row.map_err(|e| AnalysisError::Parse {
+                path: path.to_path_buf(),
+                line: (k + 2) as u64,
+                message: e.to_string(),
+            })
+        })
+        .collect()
+}
+
+/// The side-by-side table of [`register_bench`]'s rows and a peer's (Markdown), per class,
+/// target triangulation and method, over the ordered pairs both measured: geodesic error mean /
+/// median (means over the pairs), their ratio (shapespace over peer, of the means), the flipped
+/// 3D area (mean and max over the pairs, %), seconds per pair from scratch of both and
+/// shapespace's ratio to its first stage (`seconds` over `seconds − refine_seconds`).
+pub fn peer_comparison(rows: &[BenchRow], peer: &[PeerRow]) -> String {
+    let mut groups: Vec<(String, Triangulation, Method)> = Vec::new();
+    for r in rows.iter().filter(|r| r.status == "ok") {
+        let key = (r.class.clone(), r.triangulation, r.method);
+        if !groups.contains(&key) {
+            groups.push(key);
+        }
+    }
+    let mut out = String::from(
+        "| class | target | method | pairs | shapespace geodesic mean / median | peer geodesic mean / median | ratio of means | flipped 3D area %: mean (max) | s/pair shapespace (× first stage) | s/pair peer |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for (class, tri, method) in groups {
+        let matched: Vec<(&BenchRow, &PeerRow)> = rows
+            .iter()
+            .filter(|r| r.status == "ok" && r.class == class && r.triangulation == tri && r.method == method)
+            .filter_map(|r| {
+                peer.iter()
+                    .find(|p| {
+                        p.class == r.class
+                            && p.source == r.source
+                            && p.target == r.target
+                            && p.triangulation == tri.name()
+                    })
+                    .map(|p| (r, p))
+            })
+            .collect();
+        if matched.is_empty() {
+            continue;
+        }
+        let mean =
+            |f: &dyn Fn(&(&BenchRow, &PeerRow)) -> f64| matched.iter().map(f).sum::<f64>() / matched.len() as f64;
+        let (s_mean, s_median) = (mean(&|m| m.0.geodesic_mean), mean(&|m| m.0.geodesic_median));
+        let (p_mean, p_median) = (mean(&|m| m.1.geodesic_mean), mean(&|m| m.1.geodesic_median));
+        let flip = mean(&|m| m.0.flipped_ratio_3d);
+        let flip_max = matched.iter().map(|m| m.0.flipped_ratio_3d).fold(0.0, f64::max);
+        let secs = mean(&|m| m.0.seconds);
+        let stage1 = mean(&|m| m.0.seconds - m.0.refine_seconds);
+        out += &format!(
+            "| {class} | {tri} | {method} {} | {} | {s_mean:.4} / {s_median:.4} | {p_mean:.4} / {p_median:.4} | {:.2} | {:.2} ({:.2}) | {secs:.1} ({:.1}×) | {:.1} |\n",
+            rows.iter().find(|r| r.class == class).map_or("", |r| r.refine.name()),
+            matched.len(),
+            s_mean / p_mean,
+            100.0 * flip,
+            100.0 * flip_max,
+            secs / stage1,
+            mean(&|m| m.1.seconds),
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(source: &str, target: &str, triangulation: Triangulation, mean: f64, flips: f64) -> BenchRow {
+        BenchRow {
+            class: "wolf".into(),
+            source: source.into(),
+            target: target.into(),
+            triangulation,
+            method: Method::Omt,
+            refine: Refinement::ZoomOut,
+            status: "ok".into(),
+            flipped_ratio: 0.0,
+            flipped_ratio_3d: flips,
+            harmonic_folded: 0,
+            curvature_median: 1.0,
+            curvature_mean: 1.0,
+            area_distortion_median: 1.0,
+            area_distortion_p95: 1.0,
+            area_distortion_mean_abs_log: 0.0,
+            geodesic_median: mean / 2.0,
+            geodesic_mean: mean,
+            seconds: 10.0,
+            refine_seconds: 8.0,
+            eigen_seconds: 4.0,
+            pair_seconds: 6.0,
+            amortized_seconds: 6.0,
+            stage1_amortized_seconds: 1.0,
+            untangle_flipped_before: 0,
+            untangle_flipped_after: 0,
+            untangle_seconds: 0.0,
+            truth_max_distance: 0.0,
+        }
+    }
+
+    fn peer(source: &str, target: &str, triangulation: &str, mean: f64) -> PeerRow {
+        PeerRow {
+            class: "wolf".into(),
+            source: source.into(),
+            target: target.into(),
+            triangulation: triangulation.into(),
+            geodesic_mean: mean,
+            geodesic_median: mean / 4.0,
+            seconds: 30.0,
+        }
+    }
+
+    #[test]
+    fn the_peer_table_pairs_rows_by_class_pair_and_triangulation() {
+        let rows = vec![
+            row("a", "b", Triangulation::Same, 0.002, 0.001),
+            row("b", "a", Triangulation::Same, 0.004, 0.003),
+            row("a", "b", Triangulation::Remeshed, 0.008, 0.009),
+            // no peer row for this pair: left out of the means
+            row("b", "a", Triangulation::Remeshed, 1.0, 0.5),
+        ];
+        let peers = vec![
+            peer("a", "b", "same", 0.004),
+            peer("b", "a", "same", 0.004),
+            peer("a", "b", "remeshed", 0.010),
+        ];
+        let table = peer_comparison(&rows, &peers);
+        // results.csv read back gives the same table
+        let path = std::env::temp_dir().join(format!("shapespace-results-{}.csv", std::process::id()));
+        let mut w = csv::Writer::from_path(&path).unwrap();
+        rows.iter().for_each(|r| w.serialize(r).unwrap());
+        w.flush().unwrap();
+        let back: Vec<BenchRow> = read_rows(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(peer_comparison(&back, &peers), table);
+        let lines: Vec<&str> = table.lines().collect();
+        assert_eq!(lines.len(), 4, "{table}");
+        assert_eq!(
+            lines[2],
+            "| wolf | same | omt zoomout | 2 | 0.0030 / 0.0015 | 0.0040 / 0.0010 | 0.75 | 0.20 (0.30) | 10.0 (5.0×) | 30.0 |"
+        );
+        assert_eq!(
+            lines[3],
+            "| wolf | remeshed | omt zoomout | 1 | 0.0080 / 0.0040 | 0.0100 / 0.0025 | 0.80 | 0.90 (0.90) | 10.0 (5.0×) | 30.0 |"
+        );
+    }
+
+    #[test]
+    fn a_bad_peer_csv_names_its_line() {
+        let path = std::env::temp_dir().join(format!("shapespace-peer-{}.csv", std::process::id()));
+        std::fs::write(
+            &path,
+            "class,source,target,triangulation,geodesic_mean,geodesic_median,seconds\nwolf,a,b,same,0.1,0.1,3\nwolf,a,b,same,x,0.1,3\n",
+        )
+        .unwrap();
+        let err = read_rows::<PeerRow>(&path).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(err.contains(":3:") || err.contains("line 3"), "{err}");
+    }
+}

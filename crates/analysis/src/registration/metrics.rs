@@ -39,7 +39,10 @@
 //!   geodesic distance on S₂ between f(v) and the true partner v, by the heat method
 //!   ([`crate::geodesic`], one heat solve per sampled source, evaluated at f(v) by barycentric
 //!   interpolation), divided by √(area of S₂). Reported with the fraction of samples under the
-//!   thresholds 0, 0.01, …, 0.25 (the correspondence-benchmark curve).
+//!   thresholds 0, 0.01, …, 0.25 (the correspondence-benchmark curve). For a target that does
+//!   not share the source's triangulation ([`registration_metrics_against`]) the true partner
+//!   of v is a given point of S₂ (e.g. carried over by closest point,
+//!   [`crate::registration::truth`]) and the heat source is that point.
 
 use serde::Serialize;
 use shapespace_geometry::curvature::vertex_mean_curvatures;
@@ -49,6 +52,7 @@ use shapespace_geometry::{Connectivity, TriMesh};
 use crate::error::AnalysisError;
 use crate::geodesic::HeatGeodesics;
 use crate::point_location::PointLocator;
+use crate::registration::truth::SurfacePoint;
 use crate::registration::Registration;
 
 /// Parameters of [`registration_metrics`].
@@ -219,7 +223,8 @@ pub fn sample_indices(n: usize, k: usize, seed: u64) -> Vec<u32> {
     out
 }
 
-/// Evaluates the measures of the module docs for a registration of `source` onto `target`.
+/// Evaluates the measures of the module docs for a registration of `source` onto `target`
+/// (the geodesic error against v ↔ v when `params.ground_truth` and the vertex counts agree).
 /// Errors: the registration does not match the meshes, or the heat method fails on S₂.
 pub fn registration_metrics(
     source: &TriMesh,
@@ -227,7 +232,30 @@ pub fn registration_metrics(
     reg: &Registration,
     params: &MetricParams,
 ) -> Result<RegistrationMetrics, AnalysisError> {
+    registration_metrics_against(source, target, reg, params, None)
+}
+
+/// [`registration_metrics`] with the ground truth given as points: `truth[v]` (#V₁ (face of S₂,
+/// barycentric coordinates) pairs) is the true partner of source vertex v, whatever the
+/// triangulations. `None`: v ↔ v as in [`registration_metrics`]. Errors: also a `truth` of
+/// the wrong length or with a face out of range of S₂.
+pub fn registration_metrics_against(
+    source: &TriMesh,
+    target: &TriMesh,
+    reg: &Registration,
+    params: &MetricParams,
+    truth: Option<&[SurfacePoint]>,
+) -> Result<RegistrationMetrics, AnalysisError> {
     let n1 = source.num_vertices();
+    if let Some(t) = truth {
+        if t.len() != n1 {
+            return Err(AnalysisError::InvalidInput(format!(
+                "ground truth has {} points for {} source vertices",
+                t.len(),
+                n1
+            )));
+        }
+    }
     if reg.points.len() != n1 || reg.harmonic_uv.len() != n1 || reg.source_uv.len() != n1 {
         return Err(AnalysisError::InvalidInput(format!(
             "registration has {} points for {} source vertices",
@@ -341,11 +369,14 @@ pub fn registration_metrics(
         }
     }
 
-    // geodesic error against v ↔ v
-    let geodesic = if params.ground_truth && n1 == target.num_vertices() {
+    // geodesic error against v ↔ v, or against the given points
+    let geodesic = if truth.is_some() || (params.ground_truth && n1 == target.num_vertices()) {
         let heat = HeatGeodesics::new(target)?;
         let samples = sample_indices(n1, params.geodesic_samples, params.seed);
-        let dist = heat.distances(&samples)?;
+        let dist = match truth {
+            Some(t) => heat.distances_from_points(&samples.iter().map(|&v| t[v as usize]).collect::<Vec<_>>())?,
+            None => heat.distances(&samples)?,
+        };
         let norm = a2.sqrt();
         let errors: Vec<f64> = samples
             .iter()

@@ -44,6 +44,7 @@
 pub mod bench;
 pub mod landmarks;
 pub mod metrics;
+pub mod truth;
 pub mod untangle;
 pub mod zoomout;
 
@@ -59,7 +60,7 @@ use crate::fold_repair::{count_folded_faces, mean_value_tutte_map, untangle_kern
 use crate::point_location::PointLocator;
 
 pub use landmarks::Landmarks;
-pub use metrics::{registration_metrics, MetricParams, RegistrationMetrics};
+pub use metrics::{registration_metrics, registration_metrics_against, MetricParams, RegistrationMetrics};
 pub use zoomout::{Refinement, SpectralBasis, ZoomOutOutput, ZoomOutParams};
 
 /// Weights of the harmonic map g.
@@ -166,7 +167,7 @@ pub const OMT_LANDMARK_STEPS: usize = 16;
 pub const UNTANGLE_SWEEPS: usize = 200;
 
 /// Which disk maps φ₁, φ₂ the registration uses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Area-preserving maps by optimal mass transport (Su et al. 2015, Alg. 2).

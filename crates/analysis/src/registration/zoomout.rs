@@ -42,7 +42,7 @@ use crate::registration::metrics::sample_indices;
 use crate::registration::untangle::{untangle_vertex_map, VertexMapUntangleInfo, VertexMapUntangleParams};
 
 /// How the first-stage registration is refined.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Refinement {
     /// The first stage as it is.

@@ -119,6 +119,23 @@ pub struct RegisterBenchArgs {
     /// Seed of the vertex sample.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Folder of remeshed poses (`DIR/CLASS/NAME.off` for each pose NAME, e.g. from
+    /// `scripts/remesh_targets.py`): also register every pose onto the remeshings of the other
+    /// poses, the ground truth carried over by closest point (written to OUT/truth/).
+    #[arg(long)]
+    pub remeshed: Option<PathBuf>,
+    /// A Python with pyfmaps: run the functional-map peer (`--peer-script`) on the same pairs
+    /// and ground truth, and write the side-by-side table OUT/comparison.md (skipped with a
+    /// message when the script finds no pyfmaps).
+    #[arg(long)]
+    pub peer: Option<PathBuf>,
+    /// The peer script.
+    #[arg(long, default_value = "scripts/pyfmaps_bench.py")]
+    pub peer_script: PathBuf,
+    /// What ZoomOut returns per source vertex: `vertex` (a target vertex, default) or
+    /// `projected` (the nearest point of the target's spectral embedding on the faces around it).
+    #[arg(long, default_value = "vertex")]
+    pub zoomout_output: String,
 }
 
 fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(PathBuf, MarkerFile)>> {
@@ -320,6 +337,10 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
+    let zoomout = ZoomOutParams {
+        output: args.zoomout_output.parse()?,
+        ..ZoomOutParams::default()
+    };
     super::create_output_folder(&args.out)?;
     let mp = MetricParams {
         geodesic_samples: args.samples,
@@ -343,26 +364,38 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         )
         .unwrap_or_else(|_| HarmonicParams::for_method(m))
     };
+    if let Some(r) = &args.remeshed {
+        anyhow::ensure!(r.is_dir(), "--remeshed {}: not a folder", r.display());
+    }
+    if args.peer.is_some() {
+        anyhow::ensure!(
+            args.peer_script.is_file(),
+            "--peer-script {}: no such file (run from the repository or pass the script's path)",
+            args.peer_script.display()
+        );
+    }
     let res = register_bench(
         &args.dataset,
         &args.out,
+        args.remeshed.as_deref(),
         &methods,
         &registration_area_params(),
         &harmonic,
         refine,
-        &ZoomOutParams::default(),
+        &zoomout,
         &mp,
         |m| eprintln!("register-bench: {m}"),
     )
     .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
     println!(
-        "| class | method | refine | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. p95 | mean abs. ln area dist. | geodesic err. median | geodesic err. mean | s/pair |"
+        "| class | target | method | refine | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. p95 | mean abs. ln area dist. | geodesic err. median | geodesic err. mean | s/pair |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for s in &res.summaries {
         println!(
-            "| {} | {} | {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
+            "| {} | {} | {} | {} | {}/{} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} |",
             s.class,
+            s.triangulation,
             s.method,
             s.refine,
             s.pairs_ok,
@@ -389,6 +422,58 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     for f in &res.files {
         eprintln!("register-bench: wrote {}", f.display());
     }
+    if let Some(python) = &args.peer {
+        run_peer(args, python, &res.rows)?;
+    }
     let failed = res.rows.iter().any(|r| r.status != "ok");
     Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// Runs the peer script on the benchmark's dataset (and remeshed targets with the ground truth
+/// register-bench wrote), then writes OUT/comparison.md from both results.
+fn run_peer(
+    args: &RegisterBenchArgs,
+    python: &Path,
+    rows: &[shapespace_analysis::registration::bench::BenchRow],
+) -> anyhow::Result<()> {
+    use shapespace_analysis::registration::bench::{peer_comparison, read_rows, PeerRow};
+    let peer_csv = args.out.join("peer.csv");
+    // a previous run's results must not pass for this one's
+    if peer_csv.is_file() {
+        std::fs::remove_file(&peer_csv).with_context(|| format!("removing {}", peer_csv.display()))?;
+    }
+    let mut cmd = std::process::Command::new(python);
+    cmd.arg(&args.peer_script)
+        .arg(&args.dataset)
+        .arg("--out")
+        .arg(&peer_csv)
+        .arg("--samples")
+        .arg(args.samples.to_string())
+        .arg("--seed")
+        .arg(args.seed.to_string());
+    if let Some(r) = &args.remeshed {
+        cmd.arg("--remeshed").arg(r).arg("--truth").arg(args.out.join("truth"));
+    }
+    eprintln!("register-bench: peer: {cmd:?}");
+    let status = cmd
+        .stdout(std::process::Stdio::inherit())
+        .status()
+        .with_context(|| format!("running the peer {}", python.display()))?;
+    anyhow::ensure!(
+        status.success(),
+        "the peer {} exited with {status}",
+        args.peer_script.display()
+    );
+    if !peer_csv.is_file() {
+        eprintln!("register-bench: the peer wrote no results (pyfmaps missing?): no comparison");
+        return Ok(());
+    }
+    let peer: Vec<PeerRow> = read_rows(&peer_csv)?;
+    let table = peer_comparison(rows, &peer);
+    let path = args.out.join("comparison.md");
+    shapespace_geometry::io::write_atomically(&path, table.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("{table}");
+    eprintln!("register-bench: wrote {}", path.display());
+    Ok(())
 }
