@@ -2586,6 +2586,7 @@ fn disk_map_choices_reach_param_and_distances() {
     );
     assert!(bff_methods.iter().all(|m| m.starts_with("bff-disk")), "{bff_methods:?}");
     assert!(((bff - green) / green).abs() < 0.05, "{bff} {green}");
+}
 
 /// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
 /// script: status 2 naming the path, before any registration.
