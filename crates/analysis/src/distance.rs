@@ -842,7 +842,7 @@ impl PairShape for PreparedSphere {
 /// before any pair).
 #[derive(Clone, Debug)]
 pub enum Prepared {
-    Disk(PreparedShape),
+    Disk(Box<PreparedShape>),
     Sphere(Box<PreparedSphere>),
 }
 

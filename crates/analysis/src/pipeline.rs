@@ -545,7 +545,10 @@ pub fn prepare_inputs(
         .collect();
     let prepare_wall = t_prepare.elapsed().as_secs_f64();
     let (shapes, inputs): (Vec<Option<PreparedShape>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
-    let shapes: Vec<Option<Prepared>> = shapes.into_iter().map(|s| s.map(Prepared::Disk)).collect();
+    let shapes: Vec<Option<Prepared>> = shapes
+        .into_iter()
+        .map(|s| s.map(|s| Prepared::Disk(Box::new(s))))
+        .collect();
     // automatic markers far from the others' (files of different connectivity)
     let automatic: Vec<(&str, [f64; 3])> = inputs
         .iter()
@@ -616,6 +619,11 @@ fn prepare_spheres(
     if m.center.is_some() || m.boundary.is_some() || m.marker_file.is_some() {
         return Err(AnalysisError::InvalidInput(
             "the center and boundary markers and marker files are disk markers; closed surfaces (the sphere) take three markers p1,p2,p3 (sphere markers) or none (Möbius centering and a search over rotations)".into(),
+        ));
+    }
+    if options.target_points.is_some() {
+        return Err(AnalysisError::InvalidInput(
+            "target points (a quantization in the disk) apply to disks, not to closed surfaces on the sphere".into(),
         ));
     }
     let normalization = match m.sphere_markers {

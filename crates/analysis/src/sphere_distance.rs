@@ -67,6 +67,8 @@ pub const SEEDS: usize = 8;
 pub const SEED_SEPARATION: f64 = 0.5;
 /// Local maxima of the proxy scored by transport solves.
 pub const CANDIDATES: usize = 3;
+/// Relative mass tolerance of the refinement's solves (at most the pair's tolerance).
+pub const REFINEMENT_TOLERANCE: f64 = 1e-7;
 /// Relative mass tolerance of the scoring solves.
 pub const SCORING_TOLERANCE: f64 = 1e-2;
 /// The refinement stops when a step turns by less than this (radians).
@@ -494,19 +496,25 @@ pub fn directed_sphere_distance(
         }
     };
     let t_refine = Instant::now();
+    // (the gradient's error is first order in the mass residual: at 1e-4 it is as large as the
+    // gradient itself near the minimum, so the refinement's solves go further)
+    let refine_tolerance = match alignment {
+        SphereAlignment::Rotation => params.tolerance.min(REFINEMENT_TOLERANCE),
+        SphereAlignment::Fixed => params.tolerance,
+    };
     let (mut solution, _) = match solve(
         source,
         target,
         &rotation,
         warm.take(),
-        params.tolerance,
+        refine_tolerance,
         params,
         &mut tally,
     ) {
         Ok(s) => s,
         // a warm start that cannot start (an empty cell) is solved cold
         Err(_) if alignment == SphereAlignment::Rotation => {
-            solve(source, target, &rotation, None, params.tolerance, params, &mut tally)?
+            solve(source, target, &rotation, None, refine_tolerance, params, &mut tally)?
         }
         Err(e) => return Err(e),
     };
@@ -546,6 +554,11 @@ pub fn directed_sphere_distance(
                 step = step.map(|x| x * MAX_REFINEMENT_TURN / length);
             }
             if norm3(step) < ROTATION_TOLERANCE {
+                // a quasi-Newton step this short may come from a curvature measured at a
+                // smaller scale: one more Horn step decides
+                if inverse.take().is_some() {
+                    continue;
+                }
                 break;
             }
             // halve until the cost falls (at most 4 times)
@@ -553,7 +566,7 @@ pub fn directed_sphere_distance(
             for _ in 0..5 {
                 let next = compose(&exp_rotation(step), &rotation);
                 let warm = Some(solution.heights.clone());
-                if let Ok((s, _)) = solve(source, target, &next, warm, params.tolerance, params, &mut tally) {
+                if let Ok((s, _)) = solve(source, target, &next, warm, refine_tolerance, params, &mut tally) {
                     if s.converged() && s.cost < solution.cost {
                         taken = Some((next, s));
                         break;

@@ -127,7 +127,7 @@ fn turned_image(shape: &PreparedSphere, r: &Rotation) -> PreparedSphere {
 /// transport solve: docs/sphere.md.) Tolerances: the search stops when a quasi-Newton step
 /// turns by less than 1e-4 rad, so the rotation found is within about 1e-3 rad of the minimum
 /// (measured 1.2e-4 and 9.6e-5), where the cost is flat to second order, and each solve's dual
-/// gap is below 1e-9; so the costs agree to 1e-5 relative (measured 6.6e-8 and 5.6e-7).
+/// gap is below 1e-9; so the costs agree to 1e-5 relative (measured 6.2e-8 and 5.6e-7).
 #[test]
 fn the_rotation_search_recovers_an_arbitrary_rotation_of_the_input() {
     let (v, f) = icosphere(4);

@@ -2510,3 +2510,35 @@ fn register_refines_by_zoomout() {
         "{msg}"
     );
 }
+
+/// `distances` with a closed mesh and a disk: refused with status 2 before any work, naming the
+/// closed file and the disk.
+#[test]
+fn distances_refuses_mixing_closed_meshes_and_disks() {
+    let dir = scratch("sphere-mix");
+    let closed = dir.join("octahedron.obj");
+    std::fs::write(
+        &closed,
+        "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n\
+         f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n",
+    )
+    .unwrap();
+    let disk = "datasets/faces/id00_neutral.obj";
+    let out = dir.join("out");
+    let run = shapespace(&[
+        "distances",
+        closed.to_str().unwrap(),
+        disk,
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cannot be mixed") && err.contains("octahedron.obj") && err.contains("id00_neutral.obj"),
+        "{err}"
+    );
+    assert!(!out.join("distances.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -522,7 +522,7 @@ impl Prepared {
                     .as_ref()
                     .map(|b| {
                         shapespace_analysis::shape_cache::decode(b, name)
-                            .map(|(shape, _)| shapespace_analysis::distance::Prepared::Disk(shape))
+                            .map(|(shape, _)| shapespace_analysis::distance::Prepared::Disk(Box::new(shape)))
                             .ok_or_else(|| error(format!("{name}: damaged prepared-shape data")))
                     })
                     .transpose()
