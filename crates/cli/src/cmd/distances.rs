@@ -67,6 +67,8 @@ pub struct SolverArgs {
     /// `rotation`: each directed cost minimized over rotations of the target's disk, so the
     /// boundary marker plays no part (about 2-3× the time of a fixed pair: candidate rotations
     /// from the shapes' angular mass profiles, then secant steps on the cost's derivative).
+    /// Closed meshes on the sphere without --sphere-markers are always minimized over the
+    /// rotations of the target's sphere; with them, `rotation` searches too.
     #[arg(long, default_value = "fixed", value_parser = ["fixed", "rotation"])]
     pub invariance: String,
     /// Write debiased distances √max(0, c(a,b) − c(b,b)) to distances.csv: each shape's own
