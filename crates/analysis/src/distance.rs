@@ -35,6 +35,9 @@ use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy, StopR
 
 use crate::error::AnalysisError;
 use crate::invariance::{rotation_invariant_distance, Invariance};
+use crate::sphere_distance::{directed_sphere_distance, PreparedSphere, SphereAlignment};
+use shapespace_conformal::SphereNormalization;
+use shapespace_omt::sphere::SphereOtParams;
 
 /// A surface ready for distance computations: its conformal disk map, the pushed-forward
 /// density on the disk (as a source measure) and the target points and masses.
@@ -472,8 +475,8 @@ pub struct PairwiseResult {
 /// threads, and `pairs` is in the fixed order by target, then source. `progress` is called once
 /// per finished directed pair, with its record, as it finishes (the order of completion, which
 /// depends on the threads).
-pub fn pairwise_distances(
-    shapes: &[Option<PreparedShape>],
+pub fn pairwise_distances<S: PairShape>(
+    shapes: &[Option<S>],
     options: &PairwiseOptions,
     progress: &(dyn Fn(&PairRecord) + Sync),
 ) -> PairwiseResult {
@@ -499,8 +502,8 @@ pub fn directed_pairs(n: usize, symmetrize: bool) -> impl Iterator<Item = (usize
 /// first does. Once `stop` is set (by `progress`, say, when the pairs can no longer be saved),
 /// no further pair starts: the pairs not yet begun get a failed record (`failed: not
 /// computed: the run was stopped`) and no `progress` call; the pairs under way finish.
-pub fn pairwise_distances_resuming(
-    shapes: &[Option<PreparedShape>],
+pub fn pairwise_distances_resuming<S: PairShape>(
+    shapes: &[Option<S>],
     options: &PairwiseOptions,
     known: &HashMap<(usize, usize), PairRecord>,
     stop: &std::sync::atomic::AtomicBool,
@@ -514,8 +517,8 @@ pub fn pairwise_distances_resuming(
 /// cells are NaN): a shard or a tile of a pairwise run. The pairs that are computed give the
 /// same records as in a run over all pairs. With `debias`, the self-costs are those of every
 /// shape.
-pub fn pairwise_distances_of(
-    shapes: &[Option<PreparedShape>],
+pub fn pairwise_distances_of<S: PairShape>(
+    shapes: &[Option<S>],
     options: &PairwiseOptions,
     only: Option<&std::collections::HashSet<(usize, usize)>>,
     known: &HashMap<(usize, usize), PairRecord>,
@@ -526,7 +529,11 @@ pub fn pairwise_distances_of(
     let names: Vec<String> = shapes
         .iter()
         .enumerate()
-        .map(|(i, s)| s.as_ref().map(|s| s.name.clone()).unwrap_or_else(|| format!("#{i}")))
+        .map(|(i, s)| {
+            s.as_ref()
+                .map(|s| s.shape_name().to_string())
+                .unwrap_or_else(|| format!("#{i}"))
+        })
         .collect();
     let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
     for (s, t) in directed_pairs(n, options.symmetrize).filter(|pair| only.is_none_or(|o| o.contains(pair))) {
@@ -563,29 +570,7 @@ pub fn pairwise_distances_of(
                     params.deadline = Some(params.deadline.map_or(deadline, |d| d.min(deadline)));
                 }
                 let started = Instant::now();
-                let solved = match options.invariance {
-                    Invariance::Fixed => guarded(|| directed_distance(src, tgt, &params)),
-                    Invariance::Rotation => guarded(|| rotation_invariant_distance(src, tgt, &params)).map(|r| {
-                        (
-                            DirectedDistance {
-                                cost: r.cost,
-                                dual_cost: r.dual_cost,
-                                distance: r.distance,
-                                iterations: r.iterations,
-                                max_mass_error: r.max_mass_error,
-                                seconds: started.elapsed().as_secs_f64(),
-                                status: if r.converged {
-                                    format!("converged (target rotated by {:.6} rad; {} solves)", r.theta, r.solves)
-                                } else {
-                                    r.status
-                                },
-                                converged: r.converged,
-                                evaluations: r.evaluations,
-                            },
-                            Vec::new(),
-                        )
-                    }),
-                };
+                let solved = guarded(|| src.directed_pair(tgt, options.invariance, &params));
                 match solved {
                     Ok((d, heights)) => (
                         PairRecord {
@@ -725,14 +710,184 @@ pub fn matrix_from_pairs(
 
 /// Each shape's self-cost c(s, s), its density against its own points (NaN for a shape that
 /// failed or a solve that did not converge), with the pairs' solver settings.
-fn self_costs(shapes: &[Option<PreparedShape>], options: &PairwiseOptions) -> Vec<f64> {
+fn self_costs<S: PairShape>(shapes: &[Option<S>], options: &PairwiseOptions) -> Vec<f64> {
     one_per_thread(shapes.len(), |i| match &shapes[i] {
-        Some(s) => match guarded(|| directed_distance(s, s, &options.newton)) {
+        Some(s) => match guarded(|| s.directed_pair(s, Invariance::Fixed, &options.newton)) {
             Ok((d, _)) if d.converged => d.cost,
             _ => f64::NAN,
         },
         None => f64::NAN,
     })
+}
+
+/// A shape the pairwise run compares: a disk ([`PreparedShape`]), a closed surface on the
+/// sphere ([`PreparedSphere`]) or either ([`Prepared`]).
+pub trait PairShape: Sync {
+    /// Display name.
+    fn shape_name(&self) -> &str;
+    /// One directed pair self → target with the solver settings `params` (with
+    /// `invariance`: the minimum over rotations of the target's domain), and the final heights
+    /// when they can warm-start the next pair with the same target (else empty).
+    fn directed_pair(
+        &self,
+        target: &Self,
+        invariance: Invariance,
+        params: &NewtonParams,
+    ) -> Result<(DirectedDistance, Vec<f64>), AnalysisError>;
+}
+
+impl PairShape for PreparedShape {
+    fn shape_name(&self) -> &str {
+        &self.name
+    }
+
+    fn directed_pair(
+        &self,
+        target: &Self,
+        invariance: Invariance,
+        params: &NewtonParams,
+    ) -> Result<(DirectedDistance, Vec<f64>), AnalysisError> {
+        let started = Instant::now();
+        match invariance {
+            Invariance::Fixed => directed_distance(self, target, params),
+            Invariance::Rotation => rotation_invariant_distance(self, target, params).map(|r| {
+                (
+                    DirectedDistance {
+                        cost: r.cost,
+                        dual_cost: r.dual_cost,
+                        distance: r.distance,
+                        iterations: r.iterations,
+                        max_mass_error: r.max_mass_error,
+                        seconds: started.elapsed().as_secs_f64(),
+                        status: if r.converged {
+                            format!("converged (target rotated by {:.6} rad; {} solves)", r.theta, r.solves)
+                        } else {
+                            r.status
+                        },
+                        converged: r.converged,
+                        evaluations: r.evaluations,
+                    },
+                    Vec::new(),
+                )
+            }),
+        }
+    }
+}
+
+impl PairShape for PreparedSphere {
+    fn shape_name(&self) -> &str {
+        &self.name
+    }
+
+    /// Aligned by the markers when both maps are normalized by markers and `invariance` is
+    /// `Fixed`; otherwise the minimum over rotations of the target's sphere
+    /// ([`crate::sphere_distance`]). The solver takes `params`' tolerance, iteration cap and
+    /// deadline.
+    fn directed_pair(
+        &self,
+        target: &Self,
+        invariance: Invariance,
+        params: &NewtonParams,
+    ) -> Result<(DirectedDistance, Vec<f64>), AnalysisError> {
+        let free = |s: &PreparedSphere| s.normalization() == SphereNormalization::Centered { rotation: None };
+        // (a shape against itself is the quantization floor: no search)
+        let alignment = if std::ptr::eq(self, target) && invariance == Invariance::Fixed {
+            SphereAlignment::Fixed
+        } else if invariance == Invariance::Rotation || free(self) || free(target) {
+            SphereAlignment::Rotation
+        } else {
+            SphereAlignment::Fixed
+        };
+        let sphere_params = SphereOtParams {
+            tolerance: params.tolerance,
+            max_iterations: params.max_iterations,
+            deadline: params.deadline,
+            ..SphereOtParams::default()
+        };
+        let d = directed_sphere_distance(self, target, alignment, &sphere_params)?;
+        let status = match (alignment, d.converged) {
+            (SphereAlignment::Rotation, true) => {
+                let w = crate::rotation::log_rotation(&d.rotation);
+                format!(
+                    "converged (target rotated by ({:.6}, {:.6}, {:.6}) rad; {} solves, {:.2} s of {:.2} s in the rotation search)",
+                    w[0],
+                    w[1],
+                    w[2],
+                    d.solves,
+                    d.seconds_proxy + d.seconds_scoring,
+                    d.seconds
+                )
+            }
+            _ => d.status.clone(),
+        };
+        Ok((
+            DirectedDistance {
+                cost: d.cost,
+                dual_cost: d.dual_cost,
+                distance: d.distance,
+                iterations: d.iterations,
+                max_mass_error: d.max_mass_error,
+                seconds: d.seconds,
+                status,
+                converged: d.converged,
+                evaluations: d.evaluations,
+            },
+            Vec::new(),
+        ))
+    }
+}
+
+/// A prepared shape of either domain (what [`crate::pipeline::prepare_inputs`] returns). A pair
+/// of a disk and a sphere fails with a message saying so (the pipeline refuses such a run
+/// before any pair).
+#[derive(Clone, Debug)]
+pub enum Prepared {
+    Disk(Box<PreparedShape>),
+    Sphere(Box<PreparedSphere>),
+}
+
+impl Prepared {
+    /// The disk shape, if it is one.
+    pub fn as_disk(&self) -> Option<&PreparedShape> {
+        match self {
+            Prepared::Disk(s) => Some(s),
+            Prepared::Sphere(_) => None,
+        }
+    }
+
+    /// The sphere shape, if it is one.
+    pub fn as_sphere(&self) -> Option<&PreparedSphere> {
+        match self {
+            Prepared::Disk(_) => None,
+            Prepared::Sphere(s) => Some(s),
+        }
+    }
+}
+
+impl PairShape for Prepared {
+    fn shape_name(&self) -> &str {
+        match self {
+            Prepared::Disk(s) => &s.name,
+            Prepared::Sphere(s) => &s.name,
+        }
+    }
+
+    fn directed_pair(
+        &self,
+        target: &Self,
+        invariance: Invariance,
+        params: &NewtonParams,
+    ) -> Result<(DirectedDistance, Vec<f64>), AnalysisError> {
+        match (self, target) {
+            (Prepared::Disk(a), Prepared::Disk(b)) => a.directed_pair(b, invariance, params),
+            (Prepared::Sphere(a), Prepared::Sphere(b)) => a.directed_pair(b, invariance, params),
+            _ => Err(AnalysisError::Pair {
+                a: self.shape_name().to_string(),
+                b: target.shape_name().to_string(),
+                message: "a disk and a closed surface (sphere) cannot be compared".into(),
+            }),
+        }
+    }
 }
 
 /// How a pair's status starts (after `failed: `) when it panicked.

@@ -32,11 +32,13 @@ pub mod point_location;
 pub mod registration;
 pub mod report_path;
 pub mod resume;
+pub mod rotation;
 pub mod run_settings;
 pub mod shape_cache;
 pub mod shape_space;
 pub mod shard;
 pub mod shared_markers;
+pub mod sphere_distance;
 pub mod sphere_param;
 pub mod stats;
 

@@ -16,14 +16,14 @@ use shapespace_geometry::io::{write_atomically, AtomicFile};
 use shapespace_geometry::TriMesh;
 
 use crate::distance::{
-    directed_pairs, matrix_from_pairs, pairwise_distances_of, prepare_shape, PairRecord, PreparedShape,
+    directed_pairs, matrix_from_pairs, pairwise_distances_of, prepare_shape, PairRecord, Prepared, PreparedShape,
 };
 use crate::error::AnalysisError;
 use crate::matrix_io::{write_distance_matrix, DistanceMatrix};
 pub use crate::resume::{build_identity, InputIdentity, ResumeReport, RunIdentity};
 use crate::resume::{earlier_pairs, pair_row, run_identity, sha256_hex, PAIRS_HEADER};
 pub use crate::run_settings::{
-    DistancesOptions, MarkerChoice, MarkerOptions, ShapeReport, PARTIAL_IDENTITY, PARTIAL_PAIRS,
+    DistancesOptions, Domain, MarkerChoice, MarkerOptions, ShapeReport, PARTIAL_IDENTITY, PARTIAL_PAIRS,
     PREVIOUS_PARTIAL_IDENTITY, PREVIOUS_PARTIAL_PAIRS,
 };
 use crate::stats::{summarize, Summary};
@@ -140,6 +140,9 @@ pub struct ReportOptions {
     pub invariance: crate::invariance::Invariance,
     /// Whether the matrix holds debiased distances √max(0, c(a, b) − c(b, b)).
     pub debias: bool,
+    /// `sphere` for closed surfaces compared on the sphere (absent for disks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub domain: Option<String>,
 }
 
 /// Each shape's self-cost c(s, s) and the pairs clamped at 0 by the debiasing
@@ -300,7 +303,9 @@ impl PartialPairs {
 /// The per-shape stage of a run ([`prepare_inputs`]): each input's prepared shape (None where
 /// it failed) and its report, the warnings about automatic markers, and the wall-clock seconds.
 pub struct PreparedInputs {
-    pub shapes: Vec<Option<PreparedShape>>,
+    pub shapes: Vec<Option<Prepared>>,
+    /// Whether the shapes are closed surfaces compared on the sphere.
+    pub sphere: bool,
     pub inputs: Vec<ShapeReport>,
     pub marker_warnings: Vec<String>,
     pub seconds: f64,
@@ -379,6 +384,9 @@ pub fn prepare_inputs(
             (sha256, t.elapsed().as_secs_f64(), outcome)
         })
         .collect();
+    if run_domain(paths, &loaded, options)? == Domain::Sphere {
+        return prepare_spheres(paths, names, loaded, options, progress, t_prepare);
+    }
     // automatic markers: one choice per group of files with the same faces
     let mut loaded = loaded;
     let inputs: Vec<crate::shared_markers::MarkerInput> = loaded
@@ -537,6 +545,10 @@ pub fn prepare_inputs(
         .collect();
     let prepare_wall = t_prepare.elapsed().as_secs_f64();
     let (shapes, inputs): (Vec<Option<PreparedShape>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
+    let shapes: Vec<Option<Prepared>> = shapes
+        .into_iter()
+        .map(|s| s.map(|s| Prepared::Disk(Box::new(s))))
+        .collect();
     // automatic markers far from the others' (files of different connectivity)
     let automatic: Vec<(&str, [f64; 3])> = inputs
         .iter()
@@ -555,10 +567,150 @@ pub fn prepare_inputs(
         .collect();
     Ok(PreparedInputs {
         shapes,
+        sphere: false,
         inputs,
         marker_warnings,
         seconds: prepare_wall,
         cache_hits: hits.into_inner(),
+    })
+}
+
+/// The domain of a run: [`DistancesOptions::domain`], or with [`Domain::Auto`] the sphere when
+/// every file that could be read is closed (no boundary edge) and the disk otherwise. A run
+/// with closed files and files with a boundary is an error naming both groups.
+fn run_domain(paths: &[PathBuf], loaded: &[LoadedFile], options: &DistancesOptions) -> Result<Domain, AnalysisError> {
+    if options.domain != Domain::Auto {
+        return Ok(options.domain);
+    }
+    let (mut closed, mut open) = (Vec::new(), Vec::new());
+    for (path, (_, _, r)) in paths.iter().zip(loaded) {
+        if let Ok((mesh, _, _)) = r {
+            let conn = shapespace_geometry::connectivity::Connectivity::of(mesh);
+            if conn.boundary_loops(&mesh.faces).is_empty() {
+                closed.push(path.display().to_string());
+            } else {
+                open.push(path.display().to_string());
+            }
+        }
+    }
+    match (closed.is_empty(), open.is_empty()) {
+        (false, false) => Err(AnalysisError::InvalidInput(format!(
+            "closed surfaces (compared on the sphere) and surfaces with a boundary (compared on the disk) cannot be mixed in one run: closed: {}; with a boundary: {}",
+            closed.join(", "),
+            open.join(", ")
+        ))),
+        (false, true) => Ok(Domain::Sphere),
+        _ => Ok(Domain::Disk),
+    }
+}
+
+/// The per-shape stage of a run on the sphere ([`crate::sphere_distance::prepare_sphere_shape`]):
+/// sphere maps normalized by [`MarkerOptions::sphere_markers`] or by Möbius centering. The
+/// disk's markers (flags, marker files) do not apply, and the shape cache is not used.
+fn prepare_spheres(
+    paths: &[PathBuf],
+    names: &[String],
+    loaded: Vec<LoadedFile>,
+    options: &DistancesOptions,
+    progress: &(dyn Fn(usize, usize, &str) + Sync),
+    t_prepare: Instant,
+) -> Result<PreparedInputs, AnalysisError> {
+    let m = &options.markers;
+    if m.center.is_some() || m.boundary.is_some() || m.marker_file.is_some() {
+        return Err(AnalysisError::InvalidInput(
+            "the center and boundary markers and marker files are disk markers; closed surfaces (the sphere) take three markers p1,p2,p3 (sphere markers) or none (Möbius centering and a search over rotations)".into(),
+        ));
+    }
+    if options.target_points.is_some() {
+        return Err(AnalysisError::InvalidInput(
+            "target points (a quantization in the disk) apply to disks, not to closed surfaces on the sphere".into(),
+        ));
+    }
+    let normalization = match m.sphere_markers {
+        Some(p) => shapespace_conformal::SphereNormalization::ThreeMarkers(p),
+        None => shapespace_conformal::SphereNormalization::Centered { rotation: None },
+    };
+    let params = shapespace_conformal::SphereMapParams {
+        normalization,
+        intrinsic_delaunay: options.disk_map.intrinsic_delaunay,
+        ..Default::default()
+    };
+    let method = match normalization {
+        shapespace_conformal::SphereNormalization::ThreeMarkers([a, b, c]) => {
+            format!("sphere, three markers {a}, {b}, {c}")
+        }
+        _ => "sphere, Möbius centering (rotation searched per pair)".to_string(),
+    };
+    let n = paths.len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let prepared: Vec<(Option<Prepared>, ShapeReport)> = paths
+        .par_iter()
+        .zip(names)
+        .zip(loaded)
+        .map(|((path, name), (sha256, load_seconds, loaded))| {
+            let t = Instant::now();
+            let outcome = loaded.and_then(|(mesh, _, _)| {
+                crate::distance::guarded(|| {
+                    crate::sphere_distance::prepare_sphere_shape(name, &mesh, &params)
+                        .map(|s| (s, mesh.num_vertices(), mesh.num_faces()))
+                        .map_err(|e| AnalysisError::Shape {
+                            name: path.display().to_string(),
+                            message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                        })
+                })
+            });
+            let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(k, n, "prepare");
+            let seconds = load_seconds + t.elapsed().as_secs_f64();
+            let failed = |error: String| ShapeReport {
+                name: name.clone(),
+                path: path.clone(),
+                sha256: sha256.clone(),
+                ok: false,
+                error: Some(error),
+                vertices: None,
+                faces: None,
+                markers: None,
+                seconds,
+                density_range: None,
+                flipped_faces: None,
+                bff_fallback_after_green_folds: None,
+                conformal_method: None,
+            };
+            match outcome {
+                Ok((shape, v, f)) => {
+                    let (lo, hi) = shape
+                        .map
+                        .face_densities
+                        .iter()
+                        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+                    let report = ShapeReport {
+                        ok: true,
+                        error: None,
+                        vertices: Some(v),
+                        faces: Some(f),
+                        density_range: Some([lo, hi]),
+                        flipped_faces: Some(shape.map.quality.num_flipped),
+                        conformal_method: Some(method.clone()),
+                        ..failed(String::new())
+                    };
+                    (Some(Prepared::Sphere(Box::new(shape))), report)
+                }
+                Err(e) if e.starts_with(crate::distance::INTERNAL_ERROR) => {
+                    (None, failed(format!("{}: {e}", path.display())))
+                }
+                Err(e) => (None, failed(e)),
+            }
+        })
+        .collect();
+    let (shapes, inputs): (Vec<Option<Prepared>>, Vec<ShapeReport>) = prepared.into_iter().unzip();
+    Ok(PreparedInputs {
+        shapes,
+        sphere: true,
+        inputs,
+        marker_warnings: Vec::new(),
+        seconds: t_prepare.elapsed().as_secs_f64(),
+        cache_hits: 0,
     })
 }
 
@@ -625,6 +777,7 @@ pub fn run_distances(
     let _lock = lock_output_folder(out)?;
     let n = paths.len();
     let prepared = prepare_inputs(paths, None, &names, options, progress)?;
+    let sphere = prepared.sphere;
     let (shapes, inputs, marker_warnings, prepare_wall, cache_hits) = (
         prepared.shapes,
         prepared.inputs,
@@ -694,7 +847,10 @@ pub fn run_distances(
         out,
         RunParts {
             inputs,
-            options: report_options(options),
+            options: ReportOptions {
+                domain: sphere.then(|| "sphere".to_string()),
+                ..report_options(options)
+            },
             threads: rayon::current_num_threads(),
             timings,
             pairs: result.pairs,
@@ -736,6 +892,7 @@ fn report_options(options: &DistancesOptions) -> ReportOptions {
         invariance: options.pairwise.invariance,
         debias: options.pairwise.debias,
         target_points: options.target_points,
+        domain: None,
     }
 }
 

@@ -402,6 +402,9 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
                     (Some(sha), Some(m), true) => serde_json::to_string(&m.center)
                         .ok()
                         .map(|center| format!("{sha}:{center}:{}", m.boundary)),
+                    // a closed surface on the sphere: its normalization (markers) is in the
+                    // method's name
+                    (Some(sha), None, true) => input.conformal_method.as_ref().map(|m| format!("{sha}:{m}")),
                     _ => None,
                 },
             })

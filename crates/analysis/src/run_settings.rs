@@ -19,6 +19,24 @@ pub struct MarkerOptions {
     pub boundary: Option<BoundaryMarker>,
     /// One marker file for all files (a set with shared vertex order).
     pub marker_file: Option<PathBuf>,
+    /// Closed surfaces (the sphere): vertices p₁, p₂, p₃ ↦ 0, 1, ∞ in every file (a set with
+    /// shared vertex order); without them the sphere maps are Möbius-centred and each pair is
+    /// minimized over rotations.
+    pub sphere_markers: Option<[u32; 3]>,
+}
+
+/// Where a run compares its shapes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Domain {
+    /// The sphere when every readable file is closed, the disk when none is; a run mixing
+    /// the two is refused.
+    #[default]
+    Auto,
+    /// Disk maps (a closed file fails as not a disk).
+    Disk,
+    /// Sphere maps (a file with a boundary fails as not closed).
+    Sphere,
 }
 
 /// A file's resolved markers and where they came from, for the report. `center` and `boundary`
@@ -54,6 +72,8 @@ pub struct DistancesOptions {
     /// Keep each shape's per-shape work in this folder and take it from there when the same
     /// file, markers, settings and executable come again ([`crate::shape_cache`]).
     pub cache: Option<PathBuf>,
+    /// Disk or sphere ([`Domain::Auto`]: from the files).
+    pub domain: Domain,
 }
 
 /// Per-file outcome of the preparation stage.

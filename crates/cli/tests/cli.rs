@@ -2043,7 +2043,16 @@ fn mds_runs_on_the_complete_part_of_an_incomplete_run() {
     let out_dir = dir.join("run");
     let mut args: Vec<&str> = vec!["distances"];
     args.extend(files.iter().map(|s| s.as_str()));
-    args.extend(["--out", out_dir.to_str().unwrap(), "--quiet", "--mds", "--labels"]);
+    // (a closed file among disks refuses the run unless the domain is given: here it fails alone)
+    args.extend([
+        "--domain",
+        "disk",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--quiet",
+        "--mds",
+        "--labels",
+    ]);
     args.push(labels.to_str().unwrap());
     let out = shapespace(&args);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
@@ -2110,6 +2119,9 @@ fn distances_name_a_failed_file_once() {
         closed.to_str().unwrap(),
         bad.to_str().unwrap(),
         "datasets/faces/id00_happy.obj",
+        // (a closed file among disks refuses the run unless the domain is given: here it fails alone)
+        "--domain",
+        "disk",
         "--out",
         dir.join("run").to_str().unwrap(),
         "--quiet",
@@ -2628,4 +2640,36 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         msg.contains("no-such-script.py") && msg.contains("no such file"),
         "{msg}"
     );
+}
+
+/// `distances` with a closed mesh and a disk: refused with status 2 before any work, naming the
+/// closed file and the disk.
+#[test]
+fn distances_refuses_mixing_closed_meshes_and_disks() {
+    let dir = scratch("sphere-mix");
+    let closed = dir.join("octahedron.obj");
+    std::fs::write(
+        &closed,
+        "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n\
+         f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n",
+    )
+    .unwrap();
+    let disk = "datasets/faces/id00_neutral.obj";
+    let out = dir.join("out");
+    let run = shapespace(&[
+        "distances",
+        closed.to_str().unwrap(),
+        disk,
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cannot be mixed") && err.contains("octahedron.obj") && err.contains("id00_neutral.obj"),
+        "{err}"
+    );
+    assert!(!out.join("distances.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }

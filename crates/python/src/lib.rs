@@ -16,7 +16,9 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use shapespace_analysis::distance::{matrix_from_pairs, pairwise_distances_of, PairRecord, PairwiseOptions};
 use shapespace_analysis::invariance::Invariance;
-use shapespace_analysis::pipeline::{prepare_inputs, shape_names, DistancesOptions, MarkerOptions};
+use shapespace_analysis::pipeline::{
+    prepare_inputs, shape_names, DistancesOptions, Domain as RunDomain, MarkerOptions,
+};
 use shapespace_conformal::{BoundaryMarker, CenterMarker, Markers};
 use shapespace_geometry::TriMesh;
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
@@ -284,6 +286,8 @@ struct Settings {
     invariance: String,
     target_points: Option<usize>,
     pair_time_limit: Option<f64>,
+    domain: String,
+    sphere_markers: Option<Vec<u32>>,
 }
 
 impl Settings {
@@ -327,6 +331,16 @@ impl Settings {
                     .transpose()
                     .map_err(error)?,
                 marker_file: self.landmarks.clone(),
+                sphere_markers: match &self.sphere_markers {
+                    None => None,
+                    Some(v) if v.len() == 3 => Some([v[0], v[1], v[2]]),
+                    Some(v) => {
+                        return Err(error(format!(
+                            "sphere_markers: expected 3 vertex indices, got {}",
+                            v.len()
+                        )))
+                    }
+                },
             },
             pairwise: PairwiseOptions {
                 symmetrize: self.symmetrize,
@@ -348,6 +362,16 @@ impl Settings {
                 ..PairwiseOptions::default()
             },
             target_points: self.target_points,
+            domain: match self.domain.as_str() {
+                "auto" => RunDomain::Auto,
+                "disk" => RunDomain::Disk,
+                "sphere" => RunDomain::Sphere,
+                other => {
+                    return Err(error(format!(
+                        "domain {other:?}: expected \"auto\", \"disk\" or \"sphere\""
+                    )))
+                }
+            },
             ..DistancesOptions::default()
         })
     }
@@ -422,7 +446,7 @@ fn meshes_from(
 struct Prepared {
     names: Vec<String>,
     options: DistancesOptions,
-    shapes: Vec<Option<shapespace_analysis::distance::PreparedShape>>,
+    shapes: Vec<Option<shapespace_analysis::distance::Prepared>>,
     inputs: String,
     warnings: Vec<String>,
 }
@@ -458,7 +482,8 @@ impl Prepared {
     }
 
     /// Each shape's prepared data as bytes (None where it failed): what Dask workers receive.
-    fn shape_bytes<'py>(&self, py: Python<'py>) -> Vec<Option<Bound<'py, pyo3::types::PyBytes>>> {
+    /// Closed surfaces (the sphere) have no byte form yet: an error.
+    fn shape_bytes<'py>(&self, py: Python<'py>) -> PyResult<Vec<Option<Bound<'py, pyo3::types::PyBytes>>>> {
         let figures = shapespace_analysis::shape_cache::CachedFigures {
             flipped_faces: 0,
             bff_fallback_after_green_folds: None,
@@ -467,7 +492,16 @@ impl Prepared {
             .iter()
             .map(|s| {
                 s.as_ref()
-                    .map(|s| pyo3::types::PyBytes::new(py, &shapespace_analysis::shape_cache::encode(s, &figures)))
+                    .map(|s| match s.as_disk() {
+                        Some(s) => Ok(pyo3::types::PyBytes::new(
+                            py,
+                            &shapespace_analysis::shape_cache::encode(s, &figures),
+                        )),
+                        None => Err(error(
+                            "closed surfaces (the sphere) cannot be sent to Dask workers yet: run their pairs without a client",
+                        )),
+                    })
+                    .transpose()
             })
             .collect()
     }
@@ -488,7 +522,7 @@ impl Prepared {
                     .as_ref()
                     .map(|b| {
                         shapespace_analysis::shape_cache::decode(b, name)
-                            .map(|(shape, _)| shape)
+                            .map(|(shape, _)| shapespace_analysis::distance::Prepared::Disk(Box::new(shape)))
                             .ok_or_else(|| error(format!("{name}: damaged prepared-shape data")))
                     })
                     .transpose()

@@ -1,5 +1,6 @@
 //! `shapespace distances FILES... --out DIR`: conformal Wasserstein distances between disk
-//! surfaces (Su et al. 2015, Algorithm 3), optionally followed by MDS and statistics.
+//! surfaces (Su et al. 2015, Algorithm 3), or between closed genus-0 surfaces on the sphere,
+//! optionally followed by MDS and statistics.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -10,7 +11,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use shapespace_analysis::distance::PairwiseOptions;
 use shapespace_analysis::invariance::Invariance;
-use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun};
+use shapespace_analysis::pipeline::{run_distances, DistancesOptions, DistancesRun, Domain};
 use shapespace_analysis::shape_space::{run_mds, MdsParams};
 use shapespace_omt::NewtonParams;
 
@@ -21,6 +22,16 @@ pub struct SolverArgs {
     pub markers: MarkerArgs,
     #[command(flatten)]
     pub disk_map: super::DiskMapArgs,
+    /// Closed genus-0 surfaces (compared on the sphere): three vertices `P1,P2,P3` sent to 0, 1
+    /// and ∞ (the south pole, (1, 0, 0), the north pole) in every file (a set with one vertex
+    /// order); one transport solve per pair. Without them each pair is minimized over the
+    /// rotations of the target's sphere (docs/sphere.md).
+    #[arg(long = "sphere-markers", value_name = "P1,P2,P3")]
+    pub sphere_markers: Option<String>,
+    /// `auto`: closed meshes are compared on the sphere, meshes with a boundary on the disk
+    /// (mixing both in one run is an error naming the files); `disk` or `sphere` forces one.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "disk", "sphere"])]
+    pub domain: String,
     /// Compute both directions of every pair and report their mean and the asymmetry.
     #[arg(long)]
     pub symmetrize: bool,
@@ -58,6 +69,8 @@ pub struct SolverArgs {
     /// `rotation`: each directed cost minimized over rotations of the target's disk, so the
     /// boundary marker plays no part (about 2-3× the time of a fixed pair: candidate rotations
     /// from the shapes' angular mass profiles, then secant steps on the cost's derivative).
+    /// Closed meshes on the sphere without --sphere-markers are always minimized over the
+    /// rotations of the target's sphere; with them, `rotation` searches too.
     #[arg(long, default_value = "fixed", value_parser = ["fixed", "rotation"])]
     pub invariance: String,
     /// Write debiased distances √max(0, c(a,b) − c(b,b)) to distances.csv: each shape's own
@@ -88,7 +101,7 @@ pub struct SolverArgs {
 /// Arguments of `shapespace distances`.
 #[derive(clap::Args)]
 pub struct DistancesArgs {
-    /// Disk-topology meshes (OBJ, OFF, PLY).
+    /// Disk-topology meshes, or closed genus-0 meshes (OBJ, OFF, PLY).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Output directory (distances.csv, pairs.csv, report.json; with --mds also the MDS files).
@@ -295,7 +308,24 @@ pub fn compute_shard(
                 .ok_or_else(|| anyhow::anyhow!("--pair-time-limit must be a positive number of seconds, got {s}"))
         })
         .transpose()?;
-    let markers = solver.markers.options()?;
+    let mut markers = solver.markers.options()?;
+    if let Some(text) = &solver.sphere_markers {
+        let v: Vec<u32> = text
+            .split(',')
+            .map(|t| t.trim().parse::<u32>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| anyhow::anyhow!("--sphere-markers {text:?}: expected 3 vertex indices separated by commas"))?;
+        anyhow::ensure!(
+            v.len() == 3,
+            "--sphere-markers {text:?}: expected 3 vertex indices, got {}",
+            v.len()
+        );
+        anyhow::ensure!(
+            solver.domain != "disk",
+            "--sphere-markers apply to closed surfaces (the sphere), not with --domain disk"
+        );
+        markers.sphere_markers = Some([v[0], v[1], v[2]]);
+    }
     // The library's pairwise defaults (linear solver, coarse-level tolerance), which the
     // benchmark measures, with the user's tolerance and cap.
     let defaults = PairwiseOptions::default().newton;
@@ -320,6 +350,11 @@ pub fn compute_shard(
         target_points: solver.target_points,
         shard,
         cache: solver.cache.clone(),
+        domain: match solver.domain.as_str() {
+            "disk" => Domain::Disk,
+            "sphere" => Domain::Sphere,
+            _ => Domain::Auto,
+        },
         ..DistancesOptions::default()
     };
     options.disk_map = solver.disk_map.params();

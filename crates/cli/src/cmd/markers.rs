@@ -30,6 +30,7 @@ impl MarkerArgs {
             center: self.center.as_deref().map(CenterMarker::parse).transpose()?,
             boundary: self.boundary_marker.as_deref().map(BoundaryMarker::parse).transpose()?,
             marker_file: self.landmarks.clone(),
+            sphere_markers: None,
         })
     }
 

@@ -184,6 +184,8 @@ def _settings(
     invariance: str = "fixed",
     target_points: Optional[int] = None,
     pair_time_limit: Optional[float] = None,
+    domain: str = "auto",
+    sphere_markers: Optional[Sequence[int]] = None,
 ) -> Dict[str, Any]:
     return {
         "center": _marker(center, "center"),
@@ -195,6 +197,8 @@ def _settings(
         "invariance": invariance,
         "target_points": target_points,
         "pair_time_limit": pair_time_limit,
+        "domain": domain,
+        "sphere_markers": None if sphere_markers is None else [int(v) for v in sphere_markers],
     }
 
 
@@ -301,6 +305,8 @@ def pairwise(
     invariance: str = "fixed",
     target_points: Optional[int] = None,
     pair_time_limit: Optional[float] = None,
+    domain: str = "auto",
+    sphere_markers: Optional[Sequence[int]] = None,
 ) -> Tuple[np.ndarray, Any]:
     """All pairwise distances among ``shapes`` (paths or ``(V, F)`` pairs), as
     ``shapespace distances`` computes them: the same matrix, bit for bit.
@@ -314,13 +320,26 @@ def pairwise(
     Settings as the command's flags: ``center``/``boundary`` markers for every shape,
     ``landmarks`` (a marker file for all), ``symmetrize``, ``tol``, ``max_iterations``,
     ``invariance`` (``"fixed"`` or ``"rotation"``), ``target_points``, ``pair_time_limit``
-    (seconds). Returns ``(D, pairs)``: the n × n matrix (NaN where a pair or shape failed) and
+    (seconds), ``domain`` (``"auto"``: closed meshes on the sphere, others on the disk;
+    ``"disk"``, ``"sphere"``) and ``sphere_markers`` (three vertices sent to 0, 1, ∞ of every
+    closed mesh; without them each sphere pair is minimized over rotations; sphere shapes run
+    without ``client`` only). Returns ``(D, pairs)``: the n × n matrix (NaN where a pair or shape failed) and
     the table of directed pairs (columns :data:`PAIR_COLUMNS`; a pandas DataFrame when pandas is
     installed, else a dict of numpy arrays). A file that fails leaves its row and column NaN
     and its pairs name the failure, as in the command.
     """
     settings = _settings(
-        center, boundary, landmarks, symmetrize, tol, max_iterations, invariance, target_points, pair_time_limit
+        center,
+        boundary,
+        landmarks,
+        symmetrize,
+        tol,
+        max_iterations,
+        invariance,
+        target_points,
+        pair_time_limit,
+        domain,
+        sphere_markers,
     )
     if client is None:
         prepared = _prepare(shapes, settings)
