@@ -375,32 +375,17 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             ..Default::default()
         };
         let b = crate::bff::bff_disk_map(mesh, markers, &bff_params)?;
-        return Ok(DiskMap {
-            uv: b.uv,
-            conformal_factor: b.conformal_factor,
-            face_densities: b.face_densities,
-            scale: b.scale,
-            quality: b.quality,
-            info: DiskMapInfo {
-                method: b.info.method.clone(),
-                markers: b.info.markers,
-                pole: own_pole,
-                mobius: b.info.mobius,
-                intrinsic_flips: b.info.intrinsic_flips,
-                inserted_vertices: b.info.inserted_vertices,
-                negative_weights_before,
-                negative_weights_after: b.info.negative_weights_after,
-                fold_repairs: b.info.fold_repairs,
-                boundary_from_flux: false,
-                linear_solves: 0,
-                timings: DiskMapTimings {
-                    total: t0.elapsed().as_secs_f64(),
-                    ..Default::default()
-                },
-                bff_fallback: None,
-                region_repair: b.info.region_repair,
+        let route = GreenRoute {
+            pole: own_pole,
+            negative_weights_before,
+            boundary_from_flux: false,
+            linear_solves: 0,
+            timings: DiskMapTimings {
+                total: t0.elapsed().as_secs_f64(),
+                ..Default::default()
             },
-        });
+        };
+        return Ok(bff_as_disk_map(b, route, None));
     }
     let t1 = Instant::now();
     let inserted_vertices = tri.connect_interior(own_pole, params.intrinsic_delaunay)?;
@@ -520,32 +505,14 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                 };
                 match crate::bff::bff_disk_map(mesh, markers, &bff_params) {
                     Ok(b) => {
-                        return Ok(DiskMap {
-                            uv: b.uv,
-                            conformal_factor: b.conformal_factor,
-                            face_densities: b.face_densities,
-                            scale: b.scale,
-                            quality: b.quality,
-                            info: DiskMapInfo {
-                                method: format!("{} (fallback: {reason})", b.info.method),
-                                markers: b.info.markers,
-                                pole,
-                                mobius: b.info.mobius,
-                                intrinsic_flips: b.info.intrinsic_flips,
-                                inserted_vertices: b.info.inserted_vertices,
-                                negative_weights_before,
-                                negative_weights_after: b.info.negative_weights_after,
-                                fold_repairs: b.info.fold_repairs,
-                                boundary_from_flux,
-                                linear_solves,
-                                timings: timings_until(Instant::now()),
-                                region_repair: b.info.region_repair.clone(),
-                                bff_fallback: Some(BffFallback {
-                                    green_folds,
-                                    bff: b.info,
-                                }),
-                            },
-                        });
+                        let route = GreenRoute {
+                            pole,
+                            negative_weights_before,
+                            boundary_from_flux,
+                            linear_solves,
+                            timings: timings_until(Instant::now()),
+                        };
+                        return Ok(bff_as_disk_map(b, route, Some((green_folds, reason))));
                     }
                     // BFF fails too: the Green's-function map with the region repair, if allowed
                     Err(e) => bff_error = Some(e.to_string()),
@@ -632,6 +599,51 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         },
         quality: fin.quality,
     })
+}
+
+/// The Green's route's part of a [`DiskMapInfo`] whose map is BFF's.
+struct GreenRoute {
+    pole: u32,
+    negative_weights_before: usize,
+    boundary_from_flux: bool,
+    linear_solves: usize,
+    timings: DiskMapTimings,
+}
+
+/// BFF's map as [`disk_map`]'s result: with `fallback` = (the Green's map's folds, why it was
+/// given up) the method string and [`DiskMapInfo::bff_fallback`] say so; without, it is the map
+/// of [`Construction::Bff`].
+fn bff_as_disk_map(b: crate::bff::BffDiskMap, route: GreenRoute, fallback: Option<(usize, String)>) -> DiskMap {
+    let method = match &fallback {
+        Some((_, reason)) => format!("{} (fallback: {reason})", b.info.method),
+        None => b.info.method.clone(),
+    };
+    DiskMap {
+        uv: b.uv,
+        conformal_factor: b.conformal_factor,
+        face_densities: b.face_densities,
+        scale: b.scale,
+        quality: b.quality,
+        info: DiskMapInfo {
+            method,
+            markers: b.info.markers,
+            pole: route.pole,
+            mobius: b.info.mobius,
+            intrinsic_flips: b.info.intrinsic_flips,
+            inserted_vertices: b.info.inserted_vertices,
+            negative_weights_before: route.negative_weights_before,
+            negative_weights_after: b.info.negative_weights_after,
+            fold_repairs: b.info.fold_repairs,
+            boundary_from_flux: route.boundary_from_flux,
+            linear_solves: route.linear_solves,
+            timings: route.timings,
+            region_repair: b.info.region_repair.clone(),
+            bff_fallback: fallback.map(|(green_folds, _)| BffFallback {
+                green_folds,
+                bff: b.info,
+            }),
+        },
+    }
 }
 
 #[cfg(test)]
