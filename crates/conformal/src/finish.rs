@@ -211,10 +211,28 @@ pub(crate) fn region_repair_note(info: Option<&FoldRepairInfo>) -> String {
     })
 }
 
-/// Whether every face density of a map is representable (a repaired map whose exact orientations
-/// are all positive can still have a face whose area underflows).
-fn finite_densities(dist: &crate::quality::FaceDistortions) -> bool {
-    crate::quality::face_densities(&dist.area_distortion).is_ok()
+/// Whether a repaired map can be returned: every face counter-clockwise by the exact test and
+/// every face density representable (a map whose orientations are all positive can still have
+/// a face whose area underflows).
+fn usable(dist: &crate::quality::FaceDistortions) -> bool {
+    dist.orientation.iter().all(|&o| o > 0) && crate::quality::face_densities(&dist.area_distortion).is_ok()
+}
+
+/// `mobius` applied to every point of `z`, then the boundary vertices snapped to the circle,
+/// the boundary marker put at 1 and a vertex center at 0 exactly (step 3 of the module docs).
+fn normalized(z: &[[f64; 2]], mobius: &Mobius, is_boundary: &[bool], resolved: &ResolvedMarkers) -> Vec<[f64; 2]> {
+    let mut uv: Vec<[f64; 2]> = z.iter().map(|&p| mobius.apply(p)).collect();
+    for (v, p) in uv.iter_mut().enumerate() {
+        if is_boundary[v] {
+            let r = p[0].hypot(p[1]);
+            *p = [p[0] / r, p[1] / r];
+        }
+    }
+    uv[resolved.boundary_vertex as usize] = [1.0, 0.0];
+    if let ResolvedCenter::Vertex(v) = resolved.center {
+        uv[v as usize] = [0.0, 0.0];
+    }
+    uv
 }
 
 /// Steps 3–5 of the module docs for any map z (#V) of the mesh into the closed unit disk with
@@ -259,17 +277,7 @@ pub(crate) fn finish(
             mobius = Mobius::normalizing(mobius.inverse().apply(g), q_img);
         }
     }
-    let mut uv: Vec<[f64; 2]> = z.iter().map(|&p| mobius.apply(p)).collect();
-    for (v, p) in uv.iter_mut().enumerate() {
-        if is_boundary[v] {
-            let r = p[0].hypot(p[1]);
-            *p = [p[0] / r, p[1] / r];
-        }
-    }
-    uv[resolved.boundary_vertex as usize] = [1.0, 0.0];
-    if let ResolvedCenter::Vertex(v) = resolved.center {
-        uv[v as usize] = [0.0, 0.0];
-    }
+    let mut uv = normalized(z, &mobius, is_boundary, resolved);
 
     // densities and factors on the original faces; fold repair first if needed (crate::repair)
     let mut dist = face_distortions(mesh, &uv)?;
@@ -304,7 +312,7 @@ pub(crate) fn finish(
                 Ok(info) => {
                     let repaired_dist = face_distortions(mesh, &repaired)?;
                     let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
-                    if left == 0 && finite_densities(&repaired_dist) {
+                    if usable(&repaired_dist) {
                         uv = repaired;
                         dist = repaired_dist;
                         region = Some(info);
@@ -335,20 +343,9 @@ pub(crate) fn finish(
                 {
                     let a = center_image(mesh, resolved.center, &repaired);
                     let renormalize = Mobius::normalizing(a, repaired[resolved.boundary_vertex as usize]);
-                    for (v, p) in repaired.iter_mut().enumerate() {
-                        *p = renormalize.apply(*p);
-                        if is_boundary[v] {
-                            let r = p[0].hypot(p[1]);
-                            *p = [p[0] / r, p[1] / r];
-                        }
-                    }
-                    repaired[resolved.boundary_vertex as usize] = [1.0, 0.0];
-                    if let ResolvedCenter::Vertex(v) = resolved.center {
-                        repaired[v as usize] = [0.0, 0.0];
-                    }
+                    let repaired = normalized(&repaired, &renormalize, is_boundary, resolved);
                     let repaired_dist = face_distortions(mesh, &repaired)?;
-                    let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
-                    if left == 0 && finite_densities(&repaired_dist) {
+                    if usable(&repaired_dist) {
                         uv = repaired;
                         dist = repaired_dist;
                         mobius = renormalize.compose(&mobius);
@@ -363,7 +360,7 @@ pub(crate) fn finish(
                 let moves =
                     repair_folds_with_patches(&mesh.faces, &vertex_faces, &angles, &fixed, &mut repaired, usize::MAX);
                 let repaired_dist = face_distortions(mesh, &repaired)?;
-                if repaired_dist.orientation.iter().all(|&o| o > 0) && finite_densities(&repaired_dist) {
+                if usable(&repaired_dist) {
                     uv = repaired;
                     dist = repaired_dist;
                     fold_repairs = moves;
