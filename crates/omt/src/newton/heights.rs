@@ -132,3 +132,65 @@ impl Heights {
             .unzip()
     }
 }
+
+#[cfg(test)]
+mod contraction_tests {
+    use super::*;
+    use crate::measure::SourceMeasure;
+    use crate::power_diagram::{InsertionOrder, PowerDiagram};
+    use crate::restricted::RestrictedIntegrator;
+
+    /// The contracted heights' power diagram is the Voronoi diagram of the contracted points,
+    /// also for a row of points 1.6e-11 apart (as at a limb's tip in a conformal image): no cell
+    /// is empty and every cell mass agrees with that of the Voronoi diagram of the z_i (exact
+    /// here) to 1e-13 (measured 7.6e-15), and the crowded cells (1e-13 … 4e-13 each) to 1e-3 of
+    /// their mass (measured 1.2e-4). With f64 heights −|z_i|²/(2s)
+    /// the masses are off by up to 1.3e-9, 6.3 times the crowded cells' own, and 22 of the
+    /// cells were empty at s = 1/2.
+    #[test]
+    fn contracted_heights_give_the_voronoi_diagram_of_the_contracted_points() {
+        let measure = SourceMeasure::unit_disk(256).unwrap();
+        let mut points = Vec::new();
+        // (dyadic coordinates, center and scales: the contracted points are exact)
+        for k in 0..40 {
+            let d = k as f64 * (2.0f64).powi(-37);
+            points.push([0.5 + 2.0 * d, 0.25 + d + d * d * 1e3]);
+        }
+        for i in 0..7 {
+            for j in 0..7 {
+                let p = [-0.6 + 0.2 * i as f64, -0.6 + 0.2 * j as f64 + 0.01 * i as f64];
+                points.push(p);
+            }
+        }
+        let integrator = RestrictedIntegrator::new(&measure);
+        let center = [0.125, -0.0625];
+        for scale in [0.5, 0.25] {
+            let heights = Heights::contracted(&points, center, scale);
+            let (w, wl) = heights.weights(&points);
+            let order = InsertionOrder::new(&points).unwrap();
+            let ours = integrator.integrate(&PowerDiagram::with_order_dd(&points, &w, Some(&wl), &order).unwrap());
+            let z: Vec<[f64; 2]> = points
+                .iter()
+                .map(|y| {
+                    [
+                        center[0] + scale * (y[0] - center[0]),
+                        center[1] + scale * (y[1] - center[1]),
+                    ]
+                })
+                .collect();
+            let voronoi = integrator.integrate(&PowerDiagram::new(&z, &vec![0.0; z.len()]).unwrap());
+            for i in 0..points.len() {
+                let (a, b) = (ours.masses[i], voronoi.masses[i]);
+                assert!(
+                    a > 0.0 && (a - b).abs() <= 1e-13,
+                    "s = {scale}, cell {i}: {a:e} against {b:e}"
+                );
+                // the row's thin cells also relative to their own mass (measured ≤ 1.2e-4: the
+                // integration's rounding on cells ~1e-11 wide)
+                if i < 40 {
+                    assert!((a - b).abs() <= 1e-3 * b, "s = {scale}, cell {i}: {a:e} against {b:e}");
+                }
+            }
+        }
+    }
+}
