@@ -18,11 +18,13 @@
 //! along a Hilbert curve; point location is a visibility walk from the last created triangle
 //! (it terminates on regular triangulations, Edelsbrunner 1990). The insertion order depends on the
 //! sites only ([`InsertionOrder`]); the Newton solver computes it once per set of points and
-//! rebuilds only the triangulation for every new set of weights ([`PowerDiagram::with_order`]).
+//! rebuilds only the triangulation for every new set of weights ([`DiagramBuilder::order`]).
+//! All constructions go through [`PowerDiagram::builder`], whose options ([`DiagramBuilder`])
+//! only save work: the diagram is the same.
 //!
 //! # Update by flips
 //! Between close weights (the line-search trials of a Newton step, all from the step's start)
-//! [`PowerDiagram::with_order_dd_unless_hidden_from`] repairs the previous triangulation instead:
+//! [`DiagramBuilder::update_from`] repairs the previous triangulation instead:
 //! Lawson's flips lifted to regular triangulations (2-2 flips of non-regular edges of convex
 //! quads, 3-1 flips that remove a reflex vertex of degree three, which is then hidden), then the
 //! previously hidden sites are inserted as above. A triangulation that is locally regular
@@ -57,7 +59,7 @@ const NONE: u32 = u32::MAX;
 pub const MIN_COORDINATE: f64 = 1e-30;
 
 /// A power diagram, or the sites found hidden before its construction was stopped
-/// ([`PowerDiagram::with_order_dd_unless_hidden`]).
+/// ([`DiagramBuilder::stop_past_hidden`]).
 #[derive(Clone, Debug)]
 pub enum Construction {
     /// The complete diagram; with an early stop requested, no site is hidden.
@@ -685,7 +687,7 @@ fn brio_order(hilbert_sorted: &[u32]) -> Vec<u32> {
 /// The order in which [`PowerDiagram`] inserts a set of sites: a biased randomized insertion
 /// order along a Hilbert curve, starting with a non-degenerate triangle. It depends on the sites
 /// only; computing it once (which also validates the sites) saves that part of every diagram of
-/// the same sites ([`PowerDiagram::with_order`]).
+/// the same sites ([`DiagramBuilder::order`]).
 #[derive(Clone, Debug)]
 pub struct InsertionOrder {
     order: Vec<u32>,
@@ -738,67 +740,136 @@ impl InsertionOrder {
     }
 }
 
+/// The options of one power-diagram construction ([`PowerDiagram::builder`]): low parts of the
+/// weights, an insertion order computed beforehand, a previous diagram to update by flips, an
+/// early stop once too many sites are hidden. Every combination gives the same diagram as
+/// [`PowerDiagram::new`] on the exact weights (or the sites found hidden before an early stop);
+/// the options only save work.
+#[derive(Clone, Copy, Debug)]
+pub struct DiagramBuilder<'a> {
+    sites: &'a [[f64; 2]],
+    weights: &'a [f64],
+    weights_lo: Option<&'a [f64]>,
+    order: Option<&'a InsertionOrder>,
+    previous: Option<&'a PowerDiagram>,
+    max_hidden: usize,
+}
+
+impl<'a> DiagramBuilder<'a> {
+    /// Weights in double-double form: w_i = `weights[i]` + `weights_lo[i]` exactly (|lo| at most
+    /// half an ulp of the high part). Every predicate sees the exact sum, so sites closer than
+    /// the weights' ulp still get their cells right. `None`: the weights as given.
+    pub fn low_parts(mut self, weights_lo: Option<&'a [f64]>) -> Self {
+        self.weights_lo = weights_lo;
+        self
+    }
+
+    /// The insertion order of the sites, computed beforehand ([`InsertionOrder::new`]) for many
+    /// diagrams of the same sites with different weights (the Newton iterations): skips the
+    /// validation of the sites and their sorting. The result is the same as without it.
+    pub fn order(mut self, order: &'a InsertionOrder) -> Self {
+        self.order = Some(order);
+        self
+    }
+
+    /// Starts from `previous`, a diagram of the same sites with other weights: its triangulation
+    /// is repaired by flips instead of built by insertion when it can be (Lawson's flip algorithm
+    /// lifted to regular triangulations; Edelsbrunner & Shah 1996). Every non-regular edge is
+    /// flipped (2-2), or its reflex vertex removed when it has three neighbours (3-1: that site
+    /// is hidden); the sites hidden in `previous` are then inserted as by the construction, and
+    /// become visible when they are in conflict. A triangulation that is locally regular
+    /// everywhere, with every hidden site above it, is the regular one, so the result is the
+    /// diagram the construction builds (with the same neighbour lists:
+    /// [`PowerDiagram::neighbors`] depends on the triangulation only). Flips can get stuck on a
+    /// non-regular edge whose reflex vertex has more than three neighbours, and collinear quads
+    /// are not flipped; the construction by insertion is the fallback then, and when `previous`
+    /// is not a 2-D diagram of the same sites with at least four visible sites. (The triangle
+    /// slots, hence the order of [`PowerDiagram::triangles`], do depend on the path.) Cost: one
+    /// predicate per edge plus the flips; between close weights (the Newton steps of an OT
+    /// solve) a fraction of the construction's.
+    pub fn update_from(mut self, previous: &'a PowerDiagram) -> Self {
+        self.previous = Some(previous);
+        self
+    }
+
+    /// Stops as soon as more than `max_hidden` sites are hidden (for the damped Newton step,
+    /// which rejects any trial with an empty cell and only needs to know whether many vanished);
+    /// applies to [`DiagramBuilder::construct`]. A site hidden among the sites inserted so far
+    /// is hidden in the full diagram too: its lifted point lies above the lower hull of a subset
+    /// of the lifted points, hence above the lower hull of all of them. So
+    /// [`Construction::Hidden`] lists more than `max_hidden` sites that are hidden in the complete
+    /// diagram, and [`Construction::Complete`] is that diagram, with at most `max_hidden` hidden
+    /// sites when the sites are not collinear (collinear sites are always built completely).
+    pub fn stop_past_hidden(mut self, max_hidden: usize) -> Self {
+        self.max_hidden = max_hidden;
+        self
+    }
+
+    /// The complete diagram (an early stop of [`DiagramBuilder::stop_past_hidden`] is not
+    /// applied). Errors as [`DiagramBuilder::construct`].
+    pub fn build(self) -> Result<PowerDiagram, OmtError> {
+        Ok(self.stop_past_hidden(usize::MAX).construct()?.0.complete())
+    }
+
+    /// The construction, which stops early past [`DiagramBuilder::stop_past_hidden`] hidden
+    /// sites, and whether it was reached by flips from [`DiagramBuilder::update_from`]'s diagram
+    /// (false: built by insertion).
+    ///
+    /// Errors: [`OmtError::InvalidInput`] for mismatched lengths (of the sites, weights, low
+    /// parts and insertion order), no site, a non-finite coordinate or weight, or one out of
+    /// range (|x| > 1e30, 0 < |x| < 1e-30, |w| > 1e60), naming the index;
+    /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
+    /// With an insertion order, the sites are not checked again.
+    pub fn construct(self) -> Result<(Construction, bool), OmtError> {
+        let computed;
+        let order = match self.order {
+            Some(order) => order,
+            None => {
+                let sorted = validate_and_sort(self.sites, self.weights)?;
+                computed = InsertionOrder::from_sorted(self.sites, sorted);
+                &computed
+            }
+        };
+        PowerDiagram::validate(self.sites, self.weights, self.weights_lo, order)?;
+        let (sites, weights, weights_lo, max_hidden) = (self.sites, self.weights, self.weights_lo, self.max_hidden);
+        if let Some(previous) = self.previous {
+            let visible = previous.hidden.iter().filter(|&&h| !h).count();
+            if previous.dimension == 2 && visible >= 4 && previous.sites.as_slice() == sites {
+                let w = dd_weights(weights, weights_lo);
+                if let Some(updated) = previous.by_flips(w, order, max_hidden) {
+                    return Ok((updated, true));
+                }
+            }
+        }
+        Ok((
+            PowerDiagram::build(sites, weights, weights_lo, order, max_hidden),
+            false,
+        ))
+    }
+}
+
 impl PowerDiagram {
     /// The regular (weighted Delaunay) triangulation of `sites` (#N) with power weights
     /// `weights` (#N), i.e. the power diagram with cells
     /// W_i = {x : |x − y_i|² − w_i ≤ |x − y_j|² − w_j ∀j}. Equal weights give the Voronoi
-    /// diagram. Expected O(N log N) time.
-    ///
-    /// Errors: [`OmtError::InvalidInput`] for mismatched lengths, no site, a non-finite
-    /// coordinate or weight, or one out of range (|x| > 1e30, 0 < |x| < 1e-30, |w| > 1e60),
-    /// naming the index;
-    /// [`OmtError::DuplicatePoints`] `{ i, j }` (i < j) when sites i and j coincide exactly.
+    /// diagram. Expected O(N log N) time. The same as `PowerDiagram::builder(sites,
+    /// weights).build()`; errors as [`DiagramBuilder::construct`].
     pub fn new(sites: &[[f64; 2]], weights: &[f64]) -> Result<Self, OmtError> {
-        let sorted = validate_and_sort(sites, weights)?;
-        Ok(Self::build_complete(
+        Self::builder(sites, weights).build()
+    }
+
+    /// A construction of the diagram of `sites` (#N) with power weights `weights` (#N), with the
+    /// options of [`DiagramBuilder`]; [`DiagramBuilder::build`] or [`DiagramBuilder::construct`]
+    /// runs it.
+    pub fn builder<'a>(sites: &'a [[f64; 2]], weights: &'a [f64]) -> DiagramBuilder<'a> {
+        DiagramBuilder {
             sites,
             weights,
-            None,
-            &InsertionOrder::from_sorted(sites, sorted),
-        ))
-    }
-
-    /// [`PowerDiagram::new`] with the insertion order of the sites computed beforehand
-    /// ([`InsertionOrder::new`]), for many diagrams of the same sites with different weights
-    /// (the Newton iterations): skips the validation of the sites and their sorting. The
-    /// result is the same as with `new`. Errors: [`OmtError::InvalidInput`] for weights of the
-    /// wrong length, non-finite or out of range, or `sites` of another length than the order's.
-    pub fn with_order(sites: &[[f64; 2]], weights: &[f64], order: &InsertionOrder) -> Result<Self, OmtError> {
-        Self::with_order_dd(sites, weights, None, order)
-    }
-
-    /// [`PowerDiagram::with_order`] with weights in double-double form: w_i = `weights[i]` +
-    /// `weights_lo[i]` exactly (|lo| at most half an ulp of the high part). Every predicate
-    /// sees the exact sum, so sites closer than the weights' ulp still get their cells right.
-    pub fn with_order_dd(
-        sites: &[[f64; 2]],
-        weights: &[f64],
-        weights_lo: Option<&[f64]>,
-        order: &InsertionOrder,
-    ) -> Result<Self, OmtError> {
-        Self::validate(sites, weights, weights_lo, order)?;
-        Ok(Self::build_complete(sites, weights, weights_lo, order))
-    }
-
-    fn build_complete(sites: &[[f64; 2]], weights: &[f64], weights_lo: Option<&[f64]>, order: &InsertionOrder) -> Self {
-        Self::build(sites, weights, weights_lo, order, usize::MAX).complete()
-    }
-
-    /// [`PowerDiagram::with_order_dd`], updated by flips from `previous` (a diagram of the same
-    /// sites) where it can be: [`PowerDiagram::with_order_dd_unless_hidden_from`] without an
-    /// early stop. The same diagram either way.
-    pub fn with_order_dd_from(
-        previous: &PowerDiagram,
-        sites: &[[f64; 2]],
-        weights: &[f64],
-        weights_lo: Option<&[f64]>,
-        order: &InsertionOrder,
-    ) -> Result<Self, OmtError> {
-        Ok(
-            Self::with_order_dd_unless_hidden_from(previous, sites, weights, weights_lo, order, usize::MAX)?
-                .0
-                .complete(),
-        )
+            weights_lo: None,
+            order: None,
+            previous: None,
+            max_hidden: usize::MAX,
+        }
     }
 
     fn validate(
@@ -836,64 +907,7 @@ impl PowerDiagram {
         Ok(())
     }
 
-    /// [`PowerDiagram::with_order_dd`] that stops as soon as more than `max_hidden` sites are
-    /// hidden (for the damped Newton step, which rejects any trial with an empty cell and only
-    /// needs to know whether many vanished). A site hidden among the sites inserted so far is
-    /// hidden in the full diagram too: its lifted point lies above the lower hull of a subset of
-    /// the lifted points, hence above the lower hull of all of them. So [`Construction::Hidden`]
-    /// lists more than `max_hidden` sites that are hidden in the diagram `with_order_dd` would
-    /// build, and [`Construction::Complete`] is that diagram, with at most `max_hidden` hidden
-    /// sites when the sites are not collinear (collinear sites are always built completely).
-    /// Same errors as `with_order_dd`.
-    pub fn with_order_dd_unless_hidden(
-        sites: &[[f64; 2]],
-        weights: &[f64],
-        weights_lo: Option<&[f64]>,
-        order: &InsertionOrder,
-        max_hidden: usize,
-    ) -> Result<Construction, OmtError> {
-        Self::validate(sites, weights, weights_lo, order)?;
-        Ok(Self::build(sites, weights, weights_lo, order, max_hidden))
-    }
-
-    /// [`PowerDiagram::with_order_dd_unless_hidden`], starting from `previous`, a diagram of the
-    /// same sites with other weights: its triangulation is repaired by flips instead of built
-    /// by insertion when it can be (Lawson's flip algorithm lifted to regular triangulations;
-    /// Edelsbrunner & Shah 1996). Every non-regular edge is flipped (2-2), or its reflex vertex
-    /// removed when it has three neighbours (3-1: that site is hidden); the sites hidden in
-    /// `previous` are then inserted as by the construction, and become visible when they are in
-    /// conflict. A triangulation that is locally regular everywhere, with every hidden site above
-    /// it, is the regular one, so the result is the diagram `with_order_dd_unless_hidden` builds
-    /// (with the same neighbour lists: [`PowerDiagram::neighbors`] depends on the triangulation
-    /// only). Flips can get stuck on a non-regular edge whose reflex vertex has more than three
-    /// neighbours, and collinear quads are not flipped; the construction by insertion is the
-    /// fallback then, and when `previous` is not a 2-D diagram of `sites` with at least four
-    /// visible sites. (The triangle slots, hence the order of [`PowerDiagram::triangles`], do
-    /// depend on the path.)
-    ///
-    /// Returns the construction and whether the flips reached it (false: built by insertion).
-    /// Cost: one predicate per edge plus the flips; between close weights (the Newton steps of an
-    /// OT solve) a fraction of the construction's. Same errors as `with_order_dd`.
-    pub fn with_order_dd_unless_hidden_from(
-        previous: &PowerDiagram,
-        sites: &[[f64; 2]],
-        weights: &[f64],
-        weights_lo: Option<&[f64]>,
-        order: &InsertionOrder,
-        max_hidden: usize,
-    ) -> Result<(Construction, bool), OmtError> {
-        Self::validate(sites, weights, weights_lo, order)?;
-        let visible = previous.hidden.iter().filter(|&&h| !h).count();
-        if previous.dimension == 2 && visible >= 4 && previous.sites.as_slice() == sites {
-            let w = dd_weights(weights, weights_lo);
-            if let Some(updated) = previous.by_flips(w, order, max_hidden) {
-                return Ok((updated, true));
-            }
-        }
-        Ok((Self::build(sites, weights, weights_lo, order, max_hidden), false))
-    }
-
-    /// The flip update of [`PowerDiagram::with_order_dd_unless_hidden_from`]; None when stuck.
+    /// The flip update of [`DiagramBuilder::update_from`]; None when stuck.
     fn by_flips(&self, weights: Vec<Weight>, order: &InsertionOrder, max_hidden: usize) -> Option<Construction> {
         let n = self.sites.len();
         let inf = n as u32;
@@ -1142,7 +1156,7 @@ impl PowerDiagram {
     /// coherent) order for memory locality, then scatter into CSR by index. Each ring starts
     /// after the infinite vertex (hull sites) or at its smallest index (interior sites), so the
     /// lists depend on the triangulation only, not on how it was reached (built by insertion or
-    /// updated by flips, [`PowerDiagram::with_order_dd_unless_hidden_from`]).
+    /// updated by flips, [`DiagramBuilder::update_from`]).
     fn set_triangulation(
         &mut self,
         order: &[u32],
@@ -1213,7 +1227,7 @@ impl PowerDiagram {
     }
 
     /// Weight `i` in double-double form (low part 0 unless built by
-    /// [`PowerDiagram::with_order_dd`]).
+    /// [`DiagramBuilder::low_parts`]).
     pub fn weight(&self, i: usize) -> Weight {
         self.weights[i]
     }
@@ -1559,21 +1573,29 @@ mod tests {
             let n = sites.len();
             let order = InsertionOrder::new(&sites).unwrap();
             let w0: Vec<f64> = (0..n).map(|_| 1e-3 * uniform(&mut rng)).collect();
-            let d0 = PowerDiagram::with_order(&sites, &w0, &order).unwrap();
+            let d0 = PowerDiagram::builder(&sites, &w0).order(&order).build().unwrap();
             let hidden0 = (0..n).filter(|&i| d0.is_hidden(i)).count();
             assert!(hidden0 > 10, "{hidden0} hidden sites at the start");
             for scale in [1e-9, 1e-6, 1e-4, 1e-3, 1e-2] {
                 let w1: Vec<f64> = w0.iter().map(|w| w + scale * (2.0 * uniform(&mut rng) - 1.0)).collect();
                 let lo = vec![0.0; n];
-                let built = PowerDiagram::with_order_dd(&sites, &w1, Some(&lo), &order).unwrap();
+                let built = PowerDiagram::builder(&sites, &w1)
+                    .low_parts(Some(&lo))
+                    .order(&order)
+                    .build()
+                    .unwrap();
                 let flipped = d0.by_flips(dd_weights(&w1, Some(&lo)), &order, usize::MAX);
                 if random && scale <= 1e-3 {
                     assert!(flipped.is_some(), "scale {scale}: the flips got stuck");
                 }
                 flipped_cases += usize::from(flipped.is_some());
-                let (via, by_flips) =
-                    PowerDiagram::with_order_dd_unless_hidden_from(&d0, &sites, &w1, Some(&lo), &order, usize::MAX)
-                        .unwrap();
+                let (via, by_flips) = PowerDiagram::builder(&sites, &w1)
+                    .low_parts(Some(&lo))
+                    .order(&order)
+                    .update_from(&d0)
+                    .stop_past_hidden(usize::MAX)
+                    .construct()
+                    .unwrap();
                 assert_eq!(by_flips, flipped.is_some());
                 for d in flipped.into_iter().map(Construction::complete).chain([via.complete()]) {
                     d.sanity_check().unwrap();
@@ -1599,14 +1621,21 @@ mod tests {
         let n = 2000;
         let sites: Vec<[f64; 2]> = (0..n).map(|_| [uniform(&mut rng), uniform(&mut rng)]).collect();
         let order = InsertionOrder::new(&sites).unwrap();
-        let d0 = PowerDiagram::with_order(&sites, &vec![0.0; n], &order).unwrap();
+        let d0 = PowerDiagram::builder(&sites, &vec![0.0; n])
+            .order(&order)
+            .build()
+            .unwrap();
         for scale in [1e-5, 1e-4, 3e-4, 1e-3] {
             let w1: Vec<f64> = (0..n).map(|_| scale * uniform(&mut rng)).collect();
-            let built = PowerDiagram::with_order(&sites, &w1, &order).unwrap();
+            let built = PowerDiagram::builder(&sites, &w1).order(&order).build().unwrap();
             let hidden = (0..n).filter(|&i| built.is_hidden(i)).count();
             for max_hidden in [0, hidden / 2, hidden, hidden + 1] {
-                let (via, _) =
-                    PowerDiagram::with_order_dd_unless_hidden_from(&d0, &sites, &w1, None, &order, max_hidden).unwrap();
+                let (via, _) = PowerDiagram::builder(&sites, &w1)
+                    .order(&order)
+                    .update_from(&d0)
+                    .stop_past_hidden(max_hidden)
+                    .construct()
+                    .unwrap();
                 match via {
                     Construction::Complete(d) => {
                         assert!(

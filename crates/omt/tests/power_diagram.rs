@@ -3,7 +3,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use shapespace_omt::power_diagram::{InsertionOrder, PowerDiagram};
+use shapespace_omt::power_diagram::{Construction, InsertionOrder, PowerDiagram};
 use shapespace_omt::OmtError;
 
 /// Brute-force neighbours of site i: j is a neighbour when the part of the bisector line
@@ -195,7 +195,7 @@ fn insertion_order_reuse_gives_the_same_diagram() {
             let weights: Vec<f64> = (0..sites.len()).map(|_| scale * rng.random::<f64>()).collect();
             let (a, b) = (
                 PowerDiagram::new(&sites, &weights).unwrap(),
-                PowerDiagram::with_order(&sites, &weights, &order).unwrap(),
+                PowerDiagram::builder(&sites, &weights).order(&order).build().unwrap(),
             );
             b.sanity_check().unwrap();
             assert_eq!(a.dimension(), b.dimension());
@@ -207,18 +207,66 @@ fn insertion_order_reuse_gives_the_same_diagram() {
             }
             assert_eq!(a.locate([0.37, 0.61], None), b.locate([0.37, 0.61], None));
         }
-        let bad = PowerDiagram::with_order(&sites, &vec![0.0; sites.len() + 1], &order);
+        let bad = PowerDiagram::builder(&sites, &vec![0.0; sites.len() + 1])
+            .order(&order)
+            .build();
         assert!(matches!(bad, Err(OmtError::InvalidInput(_))));
         let mut weights = vec![0.0; sites.len()];
         weights[0] = f64::NAN;
         assert!(matches!(
-            PowerDiagram::with_order(&sites, &weights, &order),
+            PowerDiagram::builder(&sites, &weights).order(&order).build(),
             Err(OmtError::InvalidInput(_))
         ));
     }
     assert!(matches!(
         InsertionOrder::new(&[[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]]),
         Err(OmtError::DuplicatePoints { i: 0, j: 2 })
+    ));
+}
+
+/// Every combination of the builder's options gives the diagram of `PowerDiagram::new` (the
+/// options only save work): low parts, an update by flips without a precomputed order, an
+/// early stop that is not reached; and the brute-force neighbours agree.
+#[test]
+fn builder_options_give_the_same_diagram() {
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    let (sites, w0) = random_input(&mut rng, 400, 1e-3);
+    let w1: Vec<f64> = w0.iter().map(|w| w + 1e-4 * rng.random::<f64>()).collect();
+    let lo = vec![0.0; sites.len()];
+    let previous = PowerDiagram::new(&sites, &w0).unwrap();
+    let reference = PowerDiagram::new(&sites, &w1).unwrap();
+    let order = InsertionOrder::new(&sites).unwrap();
+    let (flipped, by_flips) = PowerDiagram::builder(&sites, &w1)
+        .update_from(&previous)
+        .stop_past_hidden(sites.len())
+        .construct()
+        .unwrap();
+    assert!(by_flips, "close weights: the flips reach the diagram");
+    let flipped = match flipped {
+        Construction::Complete(d) => d,
+        Construction::Hidden { .. } => panic!("no early stop below N hidden sites"),
+    };
+    let with_everything = PowerDiagram::builder(&sites, &w1)
+        .low_parts(Some(&lo))
+        .order(&order)
+        .update_from(&previous)
+        .build()
+        .unwrap();
+    for d in [&flipped, &with_everything] {
+        d.sanity_check().unwrap();
+        assert_eq!(d.neighbor_offsets(), reference.neighbor_offsets());
+        assert_eq!(d.neighbor_list(), reference.neighbor_list());
+    }
+    for i in (0..sites.len()).step_by(37) {
+        let mut ours: Vec<usize> = reference.neighbors(i).iter().map(|&j| j as usize).collect();
+        ours.sort_unstable();
+        assert_eq!(ours, brute_force_neighbors(&sites, &w1, i), "site {i}");
+    }
+    // low parts of the wrong length name the mismatch
+    let short = vec![0.0; sites.len() - 1];
+    assert!(matches!(
+        PowerDiagram::builder(&sites, &w1).low_parts(Some(&short)).build(),
+        Err(OmtError::InvalidInput(_))
     ));
 }
 
@@ -435,10 +483,15 @@ fn early_stop_reports_only_truly_hidden_sites() {
         let n = 30 + 20 * (round % 5);
         let (sites, weights) = random_input(&mut rng, n, [0.0, 0.01, 0.05, 0.2][round % 4]);
         let order = InsertionOrder::new(&sites).unwrap();
-        let full = PowerDiagram::with_order_dd(&sites, &weights, None, &order).unwrap();
+        let full = PowerDiagram::builder(&sites, &weights).order(&order).build().unwrap();
         let total = (0..n).filter(|&i| full.is_hidden(i)).count();
         for max_hidden in [0, 1, 3, total.saturating_sub(1), total, total + 1, usize::MAX] {
-            let c = PowerDiagram::with_order_dd_unless_hidden(&sites, &weights, None, &order, max_hidden).unwrap();
+            let c = PowerDiagram::builder(&sites, &weights)
+                .order(&order)
+                .stop_past_hidden(max_hidden)
+                .construct()
+                .map(|(c, _)| c)
+                .unwrap();
             match c {
                 Construction::Hidden { hidden, inserted } => {
                     stopped += 1;
@@ -486,14 +539,26 @@ fn early_stop_counts_each_hidden_site_once() {
     ];
     let weights = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 5.0];
     let order = InsertionOrder::new(&sites).unwrap();
-    let full = PowerDiagram::with_order_dd(&sites, &weights, None, &order).unwrap();
+    let full = PowerDiagram::builder(&sites, &weights).order(&order).build().unwrap();
     let hidden_full: Vec<usize> = (0..8).filter(|&i| full.is_hidden(i)).collect();
     assert_eq!(hidden_full, vec![3, 4, 5, 6]);
-    match PowerDiagram::with_order_dd_unless_hidden(&sites, &weights, None, &order, 4).unwrap() {
+    match PowerDiagram::builder(&sites, &weights)
+        .order(&order)
+        .stop_past_hidden(4)
+        .construct()
+        .map(|(c, _)| c)
+        .unwrap()
+    {
         Construction::Complete(d) => assert_eq!((0..8).filter(|&i| d.is_hidden(i)).count(), 4),
         Construction::Hidden { hidden, .. } => panic!("4 hidden sites counted as {}", hidden.len()),
     }
-    match PowerDiagram::with_order_dd_unless_hidden(&sites, &weights, None, &order, 3).unwrap() {
+    match PowerDiagram::builder(&sites, &weights)
+        .order(&order)
+        .stop_past_hidden(3)
+        .construct()
+        .map(|(c, _)| c)
+        .unwrap()
+    {
         Construction::Hidden { hidden, .. } => assert_eq!(hidden, vec![3, 4, 5, 6]),
         Construction::Complete(_) => panic!("4 hidden sites allowed with a limit of 3"),
     }

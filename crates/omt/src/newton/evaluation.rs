@@ -97,12 +97,12 @@ pub(super) fn complete_moments(
         None => {
             let order = cached_order(order, points)?;
             let (weights, weights_lo) = heights.weights(points);
-            integrator.integrate(&PowerDiagram::with_order_dd(
-                points,
-                &weights,
-                Some(&weights_lo),
-                &order,
-            )?)
+            integrator.integrate(
+                &PowerDiagram::builder(points, &weights)
+                    .low_parts(Some(&weights_lo))
+                    .order(&order)
+                    .build()?,
+            )
         }
     };
     evaluation.t_integration += t0.elapsed().as_secs_f64();
@@ -172,7 +172,10 @@ pub(super) fn evaluate_keeping_diagram(
     let t0 = Instant::now();
     let order = cached_order(cached, points)?.into_owned();
     let (weights, weights_lo) = heights.weights(points);
-    let diagram = PowerDiagram::with_order_dd(points, &weights, Some(&weights_lo), &order)?;
+    let diagram = PowerDiagram::builder(points, &weights)
+        .low_parts(Some(&weights_lo))
+        .order(&order)
+        .build()?;
     let t_diagram = t0.elapsed().as_secs_f64();
     // The Voronoi heights give weights exactly 0 except for points within ~1e-146 of the origin
     // (subnormal |y|²); only an exact Delaunay triangulation is handed on.
@@ -194,7 +197,7 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Hei
 /// is accepted is computed on another thread while the cells are integrated (the integration
 /// is parallel too, so on two cores the ordering takes about half of one core's share of it).
 /// With `previous` (a diagram of the same points), the power diagram is updated from it by
-/// flips ([`PowerDiagram::with_order_dd_unless_hidden_from`]; the same diagram as built anew).
+/// flips ([`DiagramBuilder::update_from`](crate::power_diagram::DiagramBuilder::update_from); the same diagram as built anew).
 pub(crate) fn evaluate_unless_hidden(
     backend: &Backend<'_>,
     points: &[[f64; 2]],
@@ -238,16 +241,19 @@ pub(crate) fn evaluate_unless_hidden(
                 usize::MAX
             };
             let (construction, by_flips) = match previous {
-                Some(previous) => PowerDiagram::with_order_dd_unless_hidden_from(
-                    previous,
-                    points,
-                    &weights,
-                    Some(&weights_lo),
-                    order,
-                    max_hidden,
-                )?,
+                Some(previous) => PowerDiagram::builder(points, &weights)
+                    .low_parts(Some(&weights_lo))
+                    .order(order)
+                    .update_from(previous)
+                    .stop_past_hidden(max_hidden)
+                    .construct()?,
                 None => (
-                    PowerDiagram::with_order_dd_unless_hidden(points, &weights, Some(&weights_lo), order, max_hidden)?,
+                    PowerDiagram::builder(points, &weights)
+                        .low_parts(Some(&weights_lo))
+                        .order(order)
+                        .stop_past_hidden(max_hidden)
+                        .construct()
+                        .map(|(c, _)| c)?,
                     false,
                 ),
             };

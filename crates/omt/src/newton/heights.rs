@@ -8,7 +8,7 @@
 /// h_i − h_j to ~1e-17, below one ulp of heights of order one. With plain f64 heights the
 /// solve then ends at a floor of the mass error (≈ 1e-6 on the wolf of the area-preserving
 /// tests, `docs/decisions/0005-double-double-heights.md`); in double-double form the weights reach the predicates and
-/// the clipping exactly ([`PowerDiagram::with_order_dd`]). The Newton directions stay f64: an
+/// the clipping exactly ([`DiagramBuilder::low_parts`](crate::power_diagram::DiagramBuilder::low_parts)). The Newton directions stay f64: an
 /// error of a few ulps in δ only perturbs the step, it does not set a floor.
 #[derive(Clone, Debug)]
 pub(crate) struct Heights {
@@ -168,7 +168,13 @@ mod contraction_tests {
             let heights = Heights::contracted(&points, center, scale);
             let (w, wl) = heights.weights(&points);
             let order = InsertionOrder::new(&points).unwrap();
-            let ours = integrator.integrate(&PowerDiagram::with_order_dd(&points, &w, Some(&wl), &order).unwrap());
+            let ours = integrator.integrate(
+                &PowerDiagram::builder(&points, &w)
+                    .low_parts(Some(&wl))
+                    .order(&order)
+                    .build()
+                    .unwrap(),
+            );
             let z: Vec<[f64; 2]> = points
                 .iter()
                 .map(|y| {

@@ -44,7 +44,7 @@
 //! fine diagram) and, for each point that fails and for the point whose cell holds its anchor,
 //! recomputed over all groups. Each check round's fine diagram is updated by flips from the
 //! previous round's, the first from the Delaunay triangulation of the first coarsening round
-//! (the same diagrams as built anew, [`PowerDiagram::with_order_dd_unless_hidden_from`]).
+//! (the same diagrams as built anew, [`DiagramBuilder::update_from`](crate::power_diagram::DiagramBuilder::update_from)).
 //! (A check for hidden points only is not enough: a point whose cell exists but lies outside Ω
 //! passes it; two slit copies on the unit circle of the bundled wolf0 slit three times are
 //! such points.)
@@ -551,7 +551,10 @@ pub(crate) fn coarse_to_fine_heights(
                 &built
             }
         };
-        let regular = PowerDiagram::with_order_dd(&coarse.points, &w, Some(&wl), order)?;
+        let regular = PowerDiagram::builder(&coarse.points, &w)
+            .low_parts(Some(&wl))
+            .order(order)
+            .build()?;
         (0..coarse_n)
             .into_par_iter()
             .map(|g| {
@@ -701,8 +704,15 @@ pub(crate) fn coarse_to_fine_heights(
     for _round in 0..REPAIR_ROUNDS {
         let (w, wl) = heights.weights(points);
         let diagram = match previous.take().filter(|_| params.flip_updates) {
-            Some(previous) => PowerDiagram::with_order_dd_from(&previous, points, &w, Some(&wl), &order)?,
-            None => PowerDiagram::with_order_dd(points, &w, Some(&wl), &order)?,
+            Some(previous) => PowerDiagram::builder(points, &w)
+                .low_parts(Some(&wl))
+                .order(&order)
+                .update_from(&previous)
+                .build()?,
+            None => PowerDiagram::builder(points, &w)
+                .low_parts(Some(&wl))
+                .order(&order)
+                .build()?,
         };
         // (a walk from j stops at j unless j is hidden or a neighbour is strictly closer)
         let outside: Vec<usize> = (0..n)

@@ -61,7 +61,7 @@ pub struct NewtonParams {
     /// "Intermediate targets"). `None`: every step aims at ν (KMT's algorithm as published).
     pub target_ratio_cap: Option<f64>,
     /// Build each line-search trial's power diagram from the current one by flips
-    /// ([`PowerDiagram::with_order_dd_unless_hidden_from`]) instead of by insertion (default
+    /// ([`DiagramBuilder::update_from`](crate::power_diagram::DiagramBuilder::update_from)) instead of by insertion (default
     /// `true`). The diagrams, hence every result, are the same either way; `false` is for
     /// comparisons.
     pub flip_updates: bool,
