@@ -31,7 +31,7 @@ use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::newton::{TargetCoarsening, RETRY_CONTINUATION};
 use shapespace_omt::peaks::{spread_density_peaks, PeakSpreading};
-use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy, StopReason};
+use shapespace_omt::{solve_ot_prepared, NewtonParams, PreparedMeasure, SourceMeasure, StartStrategy, StopReason};
 
 use crate::error::AnalysisError;
 use crate::invariance::{rotation_invariant_distance, Invariance};
@@ -50,7 +50,8 @@ pub struct PreparedShape {
     /// (D, μ): the image triangulation with per-face densities 3D area / 2D area, density
     /// peaks above [`DENSITY_PEAK_RATIO`] × the median spread over small patches
     /// ([`shapespace_omt::peaks::spread_density_peaks`]; what it did is `peak_spreading`).
-    pub measure: SourceMeasure,
+    /// Prepared: the solver's averaged copies of it are built once and serve every pair.
+    pub measure: PreparedMeasure,
     /// What the spreading of the density peaks changed (nothing on the bundled faces).
     pub peak_spreading: PeakSpreading,
     /// Target points y_i = φ(v_i), #V.
@@ -117,7 +118,7 @@ pub fn prepare_shape(
         name: name.to_string(),
         points,
         disk,
-        measure,
+        measure: PreparedMeasure::new(measure),
         peak_spreading,
         masses,
         coarsening,
@@ -303,7 +304,7 @@ pub fn directed_distance(
             e => format!("time limit ({what} stopped: {e}){after}"),
         },
     };
-    let direct = solve_ot(&source.measure, &target.points, &target.masses, &direct_params);
+    let direct = solve_ot_prepared(&source.measure, &target.points, &target.masses, &direct_params);
     let (mut solution, mut note) = match direct {
         Ok(solution) if solution.converged() => (solution, String::new()),
         Ok(solution) if params.past_deadline() => (solution, String::new()),
@@ -319,16 +320,15 @@ pub fn directed_distance(
                 density_continuation: params.density_continuation.or(Some(RETRY_CONTINUATION)),
                 ..params.clone()
             };
-            let mut solution = solve_ot(&source.measure, &target.points, &target.masses, &fallback_params).map_err(
-                |e| match params.past_deadline() {
+            let mut solution = solve_ot_prepared(&source.measure, &target.points, &target.masses, &fallback_params)
+                .map_err(|e| match params.past_deadline() {
                     true => timed_out(
                         e,
                         "the fallback",
                         format!(" (after a direct solve that stopped: {why})"),
                     ),
                     false => pair_error(e),
-                },
-            )?;
+                })?;
             solution.iterations += first_iterations;
             solution.evaluations += first_evaluations;
             (solution, format!(" (after a direct solve that stopped: {why})"))

@@ -23,7 +23,7 @@
 use std::f64::consts::{PI, TAU};
 
 use serde::Serialize;
-use shapespace_omt::{solve_ot, NewtonParams, OtSolution};
+use shapespace_omt::{solve_ot_prepared, NewtonParams, OtSolution};
 
 use crate::distance::PreparedShape;
 use crate::error::AnalysisError;
@@ -169,7 +169,7 @@ pub fn rotation_invariant_distance(
                 },
                 ..params.clone()
             };
-            let s = solve_ot(&source.measure, &points, &target.masses, &p).map_err(pair_error)?;
+            let s = solve_ot_prepared(&source.measure, &points, &target.masses, &p).map_err(pair_error)?;
             solves += 1;
             iterations += s.all_iterations();
             evaluations += s.evaluations;

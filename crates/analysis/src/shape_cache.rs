@@ -22,7 +22,7 @@ use std::sync::Arc;
 use shapespace_conformal::markers::{ResolvedCenter, ResolvedMarkers};
 use shapespace_conformal::{DiskMap, DiskMapInfo, Markers, Mobius};
 use shapespace_omt::newton::TargetCoarsening;
-use shapespace_omt::SourceMeasure;
+use shapespace_omt::{PreparedMeasure, SourceMeasure};
 
 use crate::distance::PreparedShape;
 use crate::error::AnalysisError;
@@ -184,7 +184,7 @@ pub fn decode(bytes: &[u8], name: &str) -> Option<(PreparedShape, CachedFigures)
     if !r.0.is_empty() || points.len() != masses.len() {
         return None;
     }
-    let measure = SourceMeasure::new(vertices, triangles, densities).ok()?;
+    let measure = PreparedMeasure::new(SourceMeasure::new(vertices, triangles, densities).ok()?);
     let coarsening = Arc::new(TargetCoarsening::new(&points, &masses));
     let disk = DiskMap {
         uv,

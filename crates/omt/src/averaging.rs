@@ -20,9 +20,9 @@
 //! a non-positive area), `averaged_measure` returns `None` and the caller keeps μ.
 
 use crate::measure::SourceMeasure;
+use crate::polygon::convex_hull;
 use crate::power_diagram::{hilbert_order, PowerDiagram};
 use crate::predicates::orient;
-use crate::restricted::convex_hull;
 
 /// No neighbour across a coarse edge (a hull edge; [`PowerDiagram::triangle_neighbors`]).
 const NONE: u32 = u32::MAX;

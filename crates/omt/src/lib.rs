@@ -27,8 +27,10 @@ pub mod linear;
 pub mod measure;
 pub mod newton;
 pub mod peaks;
+mod polygon;
 pub mod power_diagram;
 pub mod predicates;
+pub mod prepared;
 pub mod quantization;
 // Test oracles and synthetic inputs: public for the integration tests, benchmarks and probes
 // (and the brute-force backend), not part of the API: hidden from the docs.
@@ -42,5 +44,6 @@ pub mod synthetic;
 pub use cells::CellIntegrals;
 pub use error::OmtError;
 pub use measure::SourceMeasure;
-pub use newton::{solve_ot, NewtonParams, OtSolution, StartStrategy, StopReason};
+pub use newton::{solve_ot, solve_ot_prepared, NewtonParams, OtSolution, StartStrategy, StopReason};
+pub use prepared::PreparedMeasure;
 pub use sphere::{solve_sphere_ot, SphereMeasure, SphereOtParams, SphereOtSolution};

@@ -2,8 +2,6 @@
 //! planar triangulation whose union Ω is convex (the unit disk as an inscribed polygon, a square,
 //! a convex polygon, or the conformal image of a mesh).
 
-use std::sync::{Arc, Mutex};
-
 use crate::error::OmtError;
 
 /// A piecewise-constant density on a planar triangulation covering a convex domain Ω.
@@ -11,38 +9,19 @@ use crate::error::OmtError;
 /// `vertices` (#M), `triangles` (#T, counter-clockwise) and `densities` (#T, > 0, mass per unit
 /// area). The measure of a set A is Σ_t `densities[t]`·|A ∩ t|.
 ///
-/// A measure also keeps the averaged copies that the coarse levels of the multiscale start use
-/// ([`SourceMeasure::averaged`]), so that pairwise runs, which solve from one source measure
-/// many times, build each once. Clones share them; each is stored with a fingerprint of the
-/// fields it was built from, so changing the public fields never lets a stale copy be used.
-#[derive(Clone, Debug)]
+/// Plain data: what a solve builds from a measure and could reuse lives in a
+/// [`crate::PreparedMeasure`].
+#[derive(Clone, Debug, PartialEq)]
 pub struct SourceMeasure {
     pub vertices: Vec<[f64; 2]>,
     pub triangles: Vec<[u32; 3]>,
     pub densities: Vec<f64>,
-    averaged: Arc<Mutex<Vec<AveragedCopy>>>,
-    /// The flux form's field ([`crate::restricted`]), built by the first integrator that needs
-    /// it, with the fingerprint of the fields it was built from.
-    pub(crate) flux: FluxSlot,
-}
-
-/// Shared slot of a measure's flux field: (fingerprint, field or `None` where the form
-/// declines the measure).
-pub(crate) type FluxSlot = Arc<Mutex<Option<(u64, Option<Arc<crate::restricted::FluxField>>)>>>;
-
-/// An averaged copy of a measure: the fingerprint of the fields it was built from, the sample
-/// size asked for, and the copy (`None`: averaging declined, see [`crate::averaging`]).
-#[derive(Debug)]
-struct AveragedCopy {
-    fingerprint: u64,
-    sample: usize,
-    measure: Option<Arc<SourceMeasure>>,
 }
 
 /// Signed area of a polygon (positive counter-clockwise): the fan sum of
-/// [`crate::restricted::polygon_integrals`].
+/// [`crate::polygon::polygon_integrals`].
 fn signed_area(p: &[[f64; 2]]) -> f64 {
-    crate::restricted::polygon_integrals(p).0
+    crate::polygon::polygon_integrals(p).0
 }
 
 impl SourceMeasure {
@@ -86,61 +65,17 @@ impl SourceMeasure {
             vertices,
             triangles,
             densities,
-            averaged: Arc::default(),
-            flux: Arc::default(),
         })
     }
 
-    /// The measure with the same fields and no averaged copies yet, for measures derived
-    /// inside the crate from checked ones (no validation).
+    /// The measure with these fields, for measures derived inside the crate from checked ones
+    /// (no validation).
     pub(crate) fn from_checked_parts(vertices: Vec<[f64; 2]>, triangles: Vec<[u32; 3]>, densities: Vec<f64>) -> Self {
         SourceMeasure {
             vertices,
             triangles,
             densities,
-            averaged: Arc::default(),
-            flux: Arc::default(),
         }
-    }
-
-    /// The measure averaged over the Delaunay triangulation of about `sample` of its vertices
-    /// ([`crate::averaging::averaged_measure`]), built on the first call for this sample size and
-    /// kept; `None` where averaging declines. Concurrent callers wait for one build.
-    pub fn averaged(&self, sample: usize) -> Option<Arc<SourceMeasure>> {
-        let fingerprint = self.fingerprint();
-        let mut copies = self.averaged.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        if let Some(c) = copies
-            .iter()
-            .find(|c| c.fingerprint == fingerprint && c.sample == sample)
-        {
-            return c.measure.clone();
-        }
-        copies.retain(|c| c.fingerprint == fingerprint);
-        let measure = crate::averaging::averaged_measure(self, sample).map(Arc::new);
-        copies.push(AveragedCopy {
-            fingerprint,
-            sample,
-            measure: measure.clone(),
-        });
-        measure
-    }
-
-    /// The sample sizes of the averaged copies built so far for the current fields (for reports
-    /// and tests).
-    pub fn averaged_samples(&self) -> Vec<usize> {
-        let fingerprint = self.fingerprint();
-        let copies = self.averaged.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        copies
-            .iter()
-            .filter(|c| c.fingerprint == fingerprint && c.measure.is_some())
-            .map(|c| c.sample)
-            .collect()
-    }
-
-    /// A 64-bit hash of the bits of all fields (FxHash-style multiply–rotate), to recognise a
-    /// measure whose fields were changed after an averaged copy was built.
-    fn fingerprint(&self) -> u64 {
-        fingerprint(&self.vertices, &self.triangles, &self.densities)
     }
 
     /// Uniform density `density` on a convex polygon given counter-clockwise, triangulated as a
@@ -151,10 +86,7 @@ impl SourceMeasure {
         if polygon.len() < 3 {
             return Err(OmtError::InvalidInput("a polygon needs at least 3 vertices".into()));
         }
-        let (area, hull) = (
-            signed_area(polygon),
-            signed_area(&crate::restricted::convex_hull(polygon)),
-        );
+        let (area, hull) = (signed_area(polygon), signed_area(&crate::polygon::convex_hull(polygon)));
         if !((area - hull).abs() <= 1e-9 * hull.abs()) {
             return Err(OmtError::InvalidInput(format!(
                 "the polygon is not convex and counter-clockwise: its signed area {area:e} differs from its convex hull's {hull:e}"
@@ -205,7 +137,7 @@ impl SourceMeasure {
             .filter(|(_, &u)| u)
             .map(|(p, _)| *p)
             .collect();
-        crate::restricted::convex_hull(&points)
+        crate::polygon::convex_hull(&points)
     }
 
     /// How far the triangles fall short of covering the convex hull of the vertices they use:
@@ -236,33 +168,4 @@ impl SourceMeasure {
             })
             .sum()
     }
-}
-
-/// [`SourceMeasure::fingerprint`] of these fields (also for integrators, which keep copies).
-pub(crate) fn fingerprint(vertices: &[[f64; 2]], triangles: &[[u32; 3]], densities: &[f64]) -> u64 {
-    let mut h = 0u64;
-    let mut mix = |x: u64| h = (h.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-    mix(vertices.len() as u64);
-    mix(triangles.len() as u64);
-    for p in vertices {
-        mix(p[0].to_bits());
-        mix(p[1].to_bits());
-    }
-    for t in triangles {
-        mix(u64::from(t[0]) | u64::from(t[1]) << 32);
-        mix(u64::from(t[2]));
-    }
-    for d in densities {
-        mix(d.to_bits());
-    }
-    h
-}
-
-/// Componentwise minimum and maximum of `points` (([∞, ∞], [−∞, −∞]) when empty).
-pub(crate) fn bounding_box(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
-    points
-        .iter()
-        .fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
-            ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
-        })
 }

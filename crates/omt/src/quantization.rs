@@ -44,7 +44,7 @@ pub fn quantize(points: &[[f64; 2]], masses: &[f64], k: usize) -> Quantized {
         };
     }
     let k = k.max(1);
-    let (lo, hi) = crate::measure::bounding_box(points);
+    let (lo, hi) = crate::polygon::bounding_box(points);
     let span = [
         (hi[0] - lo[0]).max(f64::MIN_POSITIVE),
         (hi[1] - lo[1]).max(f64::MIN_POSITIVE),

@@ -81,7 +81,7 @@ impl LabelledPolygon {
     }
 
     fn bounding_box(&self) -> ([f64; 2], [f64; 2]) {
-        crate::measure::bounding_box(&self.vertices)
+        crate::polygon::bounding_box(&self.vertices)
     }
 }
 
@@ -133,7 +133,7 @@ fn power_cell_in_box(sites: &[[f64; 2]], weights: &[f64], i: usize, lo: [f64; 2]
 
 /// Bounding box of the source domain, enlarged by 1% of its diagonal (plus a tiny absolute margin).
 fn domain_box(measure: &SourceMeasure) -> ([f64; 2], [f64; 2]) {
-    let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
     let margin = 0.01 * ((hi[0] - lo[0]).hypot(hi[1] - lo[1])) + 1e-300;
     ([lo[0] - margin, lo[1] - margin], [hi[0] + margin, hi[1] + margin])
 }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use common::{disk_measure, Rng};
 use shapespace_omt::averaging::averaged_measure;
-use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure, StartStrategy};
+use shapespace_omt::{solve_ot_prepared, NewtonParams, PreparedMeasure, SourceMeasure, StartStrategy};
 
 /// Area of the convex polygon `a` ∩ triangle `t` (both counter-clockwise), by Sutherland–Hodgman
 /// in absolute coordinates: an implementation independent of the library's.
@@ -106,32 +106,36 @@ fn averaging_declines_when_the_sample_is_not_smaller() {
     assert!(averaged_measure(&fine, 2).is_none());
 }
 
+/// A prepared measure builds an averaged copy once per sample size and shares it with its clones;
+/// a prepared measure of other fields builds its own, with the mass of those fields.
 #[test]
-fn averaged_copies_are_kept_and_rebuilt_when_the_fields_change() {
-    let fine = disk_measure(16, &contrast);
+fn averaged_copies_are_kept_and_shared_by_clones() {
+    let fine = PreparedMeasure::new(disk_measure(16, &contrast));
     let a = fine.averaged(100).expect("averaging applies");
     let b = fine.averaged(100).expect("averaging applies");
     assert!(Arc::ptr_eq(&a, &b), "the second call reuses the copy");
-    let mut changed = fine.clone();
     assert!(
-        Arc::ptr_eq(&a, &changed.averaged(100).unwrap()),
+        Arc::ptr_eq(&a, &fine.clone().averaged(100).unwrap()),
         "clones share the copies"
     );
-    changed.densities.iter_mut().for_each(|d| *d *= 2.0);
-    let c = changed.averaged(100).expect("averaging applies");
-    assert!(!Arc::ptr_eq(&a, &c), "changed fields rebuild the copy");
+    assert_eq!(fine.averaged_samples(), vec![100]);
+    // the copy is exact per coarse triangle: the same total mass
+    assert!((a.total_mass() - fine.total_mass()).abs() < 1e-12 * fine.total_mass());
+    let mut doubled = fine.measure().clone();
+    doubled.densities.iter_mut().for_each(|d| *d *= 2.0);
+    let doubled = PreparedMeasure::new(doubled);
+    let c = doubled.averaged(100).expect("averaging applies");
+    assert!(!Arc::ptr_eq(&a, &c));
     assert!((c.total_mass() - 2.0 * a.total_mass()).abs() < 1e-12 * c.total_mass());
-    // the original still gets its own
-    assert!((fine.averaged(100).unwrap().total_mass() - a.total_mass()).abs() == 0.0);
 }
 
 /// 4,000 random points against a 12k-triangle measure: the coarse levels (about 600 and 150
 /// points) are solved on averaged copies, and the solve reaches the solution of the Voronoi start.
 #[test]
 fn coarse_levels_on_averaged_measures_reach_the_same_solution() {
-    let fine = disk_measure(45, &|x| {
+    let fine = PreparedMeasure::new(disk_measure(45, &|x| {
         0.3 + (x[0] + 0.2).max(0.0) + 2.0 * (-10.0 * (x[0] * x[0] + x[1] * x[1])).exp()
-    });
+    }));
     assert!(fine.triangles.len() > 12_000);
     let mut rng = Rng(7);
     let points: Vec<[f64; 2]> = (0..4000).map(|_| rng.in_disk(0.97)).collect();
@@ -141,7 +145,7 @@ fn coarse_levels_on_averaged_measures_reach_the_same_solution() {
             start_strategy: start,
             ..NewtonParams::default()
         };
-        solve_ot(&fine, &points, &masses, &params).expect("solve")
+        solve_ot_prepared(&fine, &points, &masses, &params).expect("solve")
     };
     let multiscale = solve(StartStrategy::CoarseToFine);
     let plain = solve(StartStrategy::Voronoi);

@@ -40,7 +40,7 @@ fn solve(a: &PreparedShape, b: &PreparedShape) -> Solve {
         ..PairwiseOptions::default().newton
     };
     let t = Instant::now();
-    let sol = shapespace_omt::solve_ot(&a.measure, &b.points, &b.masses, &params).unwrap();
+    let sol = shapespace_omt::solve_ot_prepared(&a.measure, &b.points, &b.masses, &params).unwrap();
     let seconds = t.elapsed().as_secs_f64();
     assert!(sol.converged(), "{} -> {}: {}", a.name, b.name, sol.stop_description());
     let coarse = match &sol.start {
@@ -128,7 +128,8 @@ fn main() {
             raw.measure.triangles.clone(),
             raw.disk.face_densities.clone(),
         )
-        .unwrap();
+        .unwrap()
+        .into();
         let r = solve(&raw, &scan_shapes[k + 1]);
         eprintln!(
             "pair {k}: bundled {:.2} s {} finest (+{} coarse) | scan {} -> {} {:.2} s {} finest (+{} coarse) | unspread {:.2} s {} finest (+{} coarse), distance {:+.1e} relative",

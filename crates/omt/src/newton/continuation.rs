@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use super::damped::solve_single;
 use super::*;
+use crate::prepared::PreparedMeasure;
 
 /// Smallest continuation increment Δt before the density continuation gives up.
 const MIN_CONTINUATION_STEP: f64 = 1.0 / 512.0;
@@ -17,7 +18,7 @@ const MIN_CONTINUATION_STEP: f64 = 1.0 / 512.0;
 /// The last stage (t = 1) is the problem itself with the full iteration budget; if it does not
 /// converge, Δt is halved and the path continues from the last converged stage.
 pub(super) fn solve_density_continuation(
-    measure: &SourceMeasure,
+    measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,
@@ -36,11 +37,11 @@ pub(super) fn solve_density_continuation(
         let stage_source = if last {
             measure
         } else {
-            stage_measure = SourceMeasure::from_checked_parts(
+            stage_measure = PreparedMeasure::new(SourceMeasure::from_checked_parts(
                 measure.vertices.clone(),
                 measure.triangles.clone(),
                 measure.densities.iter().map(|d| d.powf(t_next)).collect(),
-            );
+            ));
             &stage_measure
         };
         let stage_params = NewtonParams {
@@ -97,7 +98,7 @@ pub(super) fn solve_density_continuation(
 
 /// The mass continuation of [`NewtonParams::mass_continuation`].
 pub(super) fn solve_mass_continuation(
-    measure: &SourceMeasure,
+    measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,

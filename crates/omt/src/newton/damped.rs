@@ -9,6 +9,7 @@ use super::targets::TARGET_CAP_MIN_TAU;
 use super::*;
 use crate::cells::CellIntegrals;
 use crate::linear::NewtonSystem;
+use crate::prepared::PreparedMeasure;
 
 /// The line search of a step starts at min(1, g × the previous accepted τ), with g =
 /// TAU_GROWTH_FREE when that step was accepted at its first trial and TAU_GROWTH otherwise.
@@ -35,7 +36,7 @@ const FLAT_GROWTH: f64 = 2.0;
 /// integration seeds). The caller guarantees that the evaluation is of those heights: a
 /// mismatched one would be taken as the start.
 pub(super) fn solve_single(
-    measure: &SourceMeasure,
+    measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,
@@ -70,7 +71,7 @@ pub(super) fn solve_single(
     let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
         let center = domain_centroid(measure);
-        let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+        let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
         let empty_at = |cells: &CellIntegrals| cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
         let mut fewest_empty = empty_at(&current.cells);
         let first_empty: Vec<usize> = (0..n).filter(|&i| !(current.cells.masses[i] > 0.0)).collect();
@@ -248,7 +249,7 @@ pub(super) fn solve_single(
                     None
                 };
                 if let Some(what) = what {
-                    let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+                    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
                     stop = StopReason::Stalled {
                         reason: format!(
                             "no progress: {what} left the max relative mass error at {max_rel:e}{}",
@@ -260,7 +261,7 @@ pub(super) fn solve_single(
             }
             None => {
                 log.push(record);
-                let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+                let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
                 stop = StopReason::Stalled {
                     reason: format!(
                         "no step τ ≥ 2^-{} satisfied the damping conditions (max relative mass error {max_rel:e}){}",
@@ -278,7 +279,7 @@ pub(super) fn solve_single(
     let weights = heights.weights(points).0;
     let cost = current.cells.transport_cost();
     let diagnosis = if stop == StopReason::IterationCap {
-        let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+        let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
         Some(stall_diagnosis(points, &current.cells.masses, lo, hi)).filter(|d| !d.is_empty())
     } else {
         None

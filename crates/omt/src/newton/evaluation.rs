@@ -11,6 +11,7 @@ use crate::error::OmtError;
 use crate::linear::{NewtonSystem, SpeculativeSymbolic};
 use crate::measure::SourceMeasure;
 use crate::power_diagram::{Construction, InsertionOrder, PowerDiagram};
+use crate::prepared::PreparedMeasure;
 use crate::restricted::RestrictedIntegrator;
 
 /// Cell integrals with timings (diagram, integration) in seconds.
@@ -37,7 +38,7 @@ pub fn integrate_at_heights(
     integrator: CellIntegrator,
 ) -> Result<CellIntegrals, OmtError> {
     evaluate(
-        &Backend::new(measure, integrator, None),
+        &Backend::plain(measure, integrator),
         points,
         &Heights::from_f64(heights.to_vec()),
     )
@@ -65,12 +66,22 @@ pub(crate) enum Backend<'a> {
 impl<'a> Backend<'a> {
     /// `flux_bound`: the flux form's error bound relative to each cell's mass (`None`: every
     /// evaluation integrated in full); see [`NewtonParams::flux_masses`] and [`flux_bound`].
-    pub(crate) fn new(measure: &'a SourceMeasure, integrator: CellIntegrator, flux_bound: Option<f64>) -> Self {
+    pub(crate) fn new(measure: &'a PreparedMeasure, integrator: CellIntegrator, flux_bound: Option<f64>) -> Self {
         match integrator {
             CellIntegrator::Restricted => Backend::Restricted(
-                RestrictedIntegrator::new(measure).with_flux_form(flux_bound),
+                RestrictedIntegrator::new(measure)
+                    .with_flux_slot(measure.flux_slot())
+                    .with_flux_form(flux_bound),
                 OnceLock::new(),
             ),
+            CellIntegrator::BruteForce => Backend::BruteForce(measure),
+        }
+    }
+
+    /// The backend of a plain measure, without the flux form (nothing to keep between solves).
+    pub(crate) fn plain(measure: &'a SourceMeasure, integrator: CellIntegrator) -> Self {
+        match integrator {
+            CellIntegrator::Restricted => Backend::Restricted(RestrictedIntegrator::new(measure), OnceLock::new()),
             CellIntegrator::BruteForce => Backend::BruteForce(measure),
         }
     }

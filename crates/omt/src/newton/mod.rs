@@ -117,6 +117,7 @@ pub(crate) use targets::intermediate_targets;
 
 use crate::error::OmtError;
 use crate::measure::SourceMeasure;
+use crate::prepared::PreparedMeasure;
 
 /// The area centroid of Ω (the density ignored), the center of the contracted starts. It lies
 /// deep inside the convex Ω (it cuts every chord through it at most 2 : 1). Not the
@@ -143,6 +144,18 @@ fn domain_centroid(measure: &SourceMeasure) -> [f64; 2] {
 /// (N = 0, non-finite values, masses ≤ 0, coincident points) and linear-algebra failures.
 pub fn solve_ot(
     measure: &SourceMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    params: &NewtonParams,
+) -> Result<OtSolution, OmtError> {
+    solve_ot_prepared(&PreparedMeasure::new(measure.clone()), points, masses, params)
+}
+
+/// [`solve_ot`] from a prepared measure, which keeps what the solve builds from the measure
+/// (the coarse levels' averaged copies, the flux form's field) for the next solves from it:
+/// the same solution, faster when many solves share one source (pairwise runs).
+pub fn solve_ot_prepared(
+    measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,
@@ -243,7 +256,7 @@ pub fn solve_ot(
 /// The rest of [`solve_ot`] without the coarse-to-fine start: mass continuation, density
 /// continuation or a single solve from the Voronoi (or warm) start.
 fn solve_from_voronoi(
-    measure: &SourceMeasure,
+    measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     params: &NewtonParams,

@@ -58,10 +58,11 @@
 //! is already good (uniform density and well-spread points) it is slower than the Voronoi start,
 //! hence [`super::StartStrategy::Auto`].
 
-use super::{solve_ot, Heights, NewtonParams};
+use super::{solve_ot_prepared, Heights, NewtonParams};
 use crate::error::OmtError;
 use crate::measure::SourceMeasure;
 use crate::power_diagram::{InsertionOrder, PowerDiagram};
+use crate::prepared::PreparedMeasure;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::sync::Arc;
@@ -429,7 +430,7 @@ pub(crate) struct CoarseStart {
 /// needed when `params.target_coarsening` matches: the hierarchy has its own) and
 /// the check's order, and change nothing else.
 pub(crate) fn coarse_to_fine_heights(
-    measure: &SourceMeasure,
+    measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     targets: &[f64],
@@ -467,7 +468,7 @@ pub(crate) fn coarse_to_fine_heights(
         },
     };
     let coarse_n = coarse.points.len();
-    let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
     let spacing = ((hi[0] - lo[0]) * (hi[1] - lo[1]) / n as f64).sqrt();
     let crowded = coarse.closest < CROWDED * spacing;
     if (n < MIN_FINE && !crowded) || coarse_n * 4 > n * 3 {
@@ -495,7 +496,7 @@ pub(crate) fn coarse_to_fine_heights(
             "solving the {coarse_n}-point level of the coarse-to-fine start"
         )))
     };
-    let solution = match solve_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
+    let solution = match solve_ot_prepared(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
         Ok(s) if s.converged() => s,
         Err(e @ OmtError::TimeLimit(_)) => return Err(e),
         // (a level stopped on the deadline included: `StopReason::TimeLimit` means it has passed)
@@ -514,7 +515,7 @@ pub(crate) fn coarse_to_fine_heights(
                 density_continuation: Some(params.density_continuation.unwrap_or(RETRY_CONTINUATION)),
                 ..coarse_params.clone()
             };
-            match solve_ot(level_measure, &coarse.points, &coarse.masses, &retry) {
+            match solve_ot_prepared(level_measure, &coarse.points, &coarse.masses, &retry) {
                 Ok(mut s) if s.converged() => {
                     s.iterations += first_iterations;
                     s
@@ -767,6 +768,7 @@ pub(crate) fn coarse_to_fine_heights(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::newton::solve_ot;
     use crate::synthetic::{disk_rings_measure, random_disk_points};
     use crate::OtSolution;
 

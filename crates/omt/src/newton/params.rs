@@ -18,7 +18,7 @@ pub enum CellIntegrator {
     BruteForce,
 }
 
-/// Parameters of [`solve_ot`].
+/// Parameters of [`solve_ot`](crate::newton::solve_ot).
 #[derive(Clone, Debug)]
 pub struct NewtonParams {
     /// Stop when max_i |μ(W_i) − ν_i| / ν_i ≤ tolerance (default 1e-6).
@@ -35,7 +35,7 @@ pub struct NewtonParams {
     /// Warm start (#N heights), e.g. the solution of a previous problem with the same target.
     pub initial_heights: Option<Vec<f64>>,
     /// Low parts of a double-double warm start (#N; with `initial_heights` as the high parts,
-    /// e.g. [`OtSolution::heights_lo`]): the start is then h_i = hi_i + lo_i exactly, which
+    /// e.g. [`OtSolution::heights_lo`](crate::newton::OtSolution::heights_lo)): the start is then h_i = hi_i + lo_i exactly, which
     /// matters for points closer together than ~1e-8 of Ω's extent. Ignored without
     /// `initial_heights`.
     pub initial_heights_lo: Option<Vec<f64>>,
@@ -66,7 +66,7 @@ pub struct NewtonParams {
     /// comparisons.
     pub flip_updates: bool,
     /// Integrate the masses and edge masses of the Newton evaluations by the flux form
-    /// ([`RestrictedIntegrator::integrate_masses`]; where it declines, the full integration), and
+    /// ([`RestrictedIntegrator::integrate_masses`](crate::restricted::RestrictedIntegrator::integrate_masses); where it declines, the full integration), and
     /// the moments only once at the end; the convergence test always uses the full integrals.
     /// Default `false`: on face pairs it saves 7 % of the instructions (its field built once per
     /// source face) but was slower in wall time (30 faces, 2 threads: 134 and 149 s against 129
@@ -87,7 +87,7 @@ pub struct NewtonParams {
     /// in rounding (which can also flip a discrete choice of a later merging round) and the
     /// solves agree within their tolerance.
     pub target_coarsening: Option<Arc<TargetCoarsening>>,
-    /// Stop as [`StopReason::TimeLimit`] at the first Newton step that would begin after this
+    /// Stop as [`StopReason::TimeLimit`](crate::newton::StopReason::TimeLimit) at the first Newton step that would begin after this
     /// instant (checked before each step, so a step under way is finished). It holds for the
     /// whole solve: every coarse level, continuation stage and start, none of which begins
     /// another attempt once it has passed; when it passes before the finest level has a start
@@ -127,7 +127,7 @@ impl Default for NewtonParams {
     }
 }
 
-/// How [`solve_ot`] chooses its initial heights when no warm start is given.
+/// How [`solve_ot`](crate::newton::solve_ot) chooses its initial heights when no warm start is given.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum StartStrategy {
     /// The coarse-to-fine start when the source density's max/min exceeds 10 or the Voronoi

@@ -13,7 +13,7 @@ pub enum StopReason {
     IterationCap,
     /// No acceptable step could be found, or a non-finite value appeared.
     Stalled { reason: String },
-    /// [`NewtonParams::deadline`] passed before the solve ended.
+    /// [`NewtonParams::deadline`](crate::newton::NewtonParams::deadline) passed before the solve ended.
     TimeLimit,
 }
 
@@ -75,7 +75,7 @@ pub struct IterationRecord {
     /// Rejected trials with every mass ≥ ε₀ but ‖G(h + τδ)‖ > (1 − τ/2)‖G(h)‖.
     pub rejected_norm: usize,
     /// Trials whose power diagram was updated by flips from the step's start (the others were
-    /// built by insertion; [`NewtonParams::flip_updates`]).
+    /// built by insertion; [`NewtonParams::flip_updates`](crate::newton::NewtonParams::flip_updates)).
     pub flip_updates: usize,
     /// min_i μ(W_i) after the step.
     pub min_cell_mass: f64,
@@ -86,18 +86,18 @@ pub struct IterationRecord {
     /// Seconds assembling and solving the Newton system.
     pub t_solve: f64,
     /// Cells whose target this step replaced by an intermediate one (0: the plain KMT step;
-    /// see [`NewtonParams::target_ratio_cap`]).
+    /// see [`NewtonParams::target_ratio_cap`](crate::newton::NewtonParams::target_ratio_cap)).
     pub intermediate_targets: usize,
 }
 
-/// The result of [`solve_ot`], converged or not (see [`OtSolution::into_result`]).
+/// The result of [`solve_ot`](crate::newton::solve_ot), converged or not (see [`OtSolution::into_result`]).
 #[derive(Clone, Debug)]
 pub struct OtSolution {
     /// Heights h (#N): u_h(x) = max_i ⟨x, y_i⟩ + h_i (the high parts of the solver's
     /// double-double heights).
     pub heights: Vec<f64>,
     /// Low parts of the heights (#N): the solver's heights are `heights[i] + heights_lo[i]`
-    /// exactly. Pass both back as a warm start ([`NewtonParams::initial_heights_lo`]) to resume
+    /// exactly. Pass both back as a warm start ([`NewtonParams::initial_heights_lo`](crate::newton::NewtonParams::initial_heights_lo)) to resume
     /// without rounding.
     pub heights_lo: Vec<f64>,
     /// Power weights w_i = 2h_i + |y_i|² (#N).

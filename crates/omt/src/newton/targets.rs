@@ -1,7 +1,7 @@
 //! Intermediate targets: the soft cap on a step's target/mass ratios (module docs of
 //! `newton`, "Intermediate targets"; `docs/decisions/0004-intermediate-targets.md`).
 
-/// Default of [`NewtonParams::target_ratio_cap`]. Measured (`docs/decisions/0004-intermediate-targets.md`): on 8
+/// Default of [`NewtonParams::target_ratio_cap`](crate::newton::NewtonParams::target_ratio_cap). Measured (`docs/decisions/0004-intermediate-targets.md`): on 8
 /// faces (28 distance pairs) 16, 24, 32, 64, 128 and 256 with a hard cap all cut the finest
 /// level's evaluations by about a fifth, 4 and 1000 less; the soft cap at 32 cut the steps over
 /// all levels 697 → 603 and the evaluations of the finest level 450 → 315.

@@ -38,7 +38,7 @@ pub(super) fn validate(
     }
     // Cells are clipped relative to their sites (`restricted`): a target far beyond the source
     // would see its triangles round to points.
-    let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
     let diameter = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
     let reach = crate::restricted::MAX_SITE_DISTANCE * diameter;
     let outside = |p: &[f64; 2]| {

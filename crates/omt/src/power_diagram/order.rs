@@ -9,7 +9,7 @@ use crate::predicates::orient;
 /// ties by index: an order in which consecutive points are close, for short point-location
 /// walks and stratified samples.
 pub(crate) fn hilbert_order(points: &[[f64; 2]]) -> Vec<u32> {
-    let (lo, hi) = crate::measure::bounding_box(points);
+    let (lo, hi) = crate::polygon::bounding_box(points);
     let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
     let mut keyed: Vec<(u64, u32)> = points
@@ -88,7 +88,7 @@ pub(super) fn validate_and_sort(sites: &[[f64; 2]], weights: &[f64]) -> Result<V
             )));
         }
     }
-    let (lo, hi) = crate::measure::bounding_box(sites);
+    let (lo, hi) = crate::polygon::bounding_box(sites);
     let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
     let quantize = |v: f64, c: usize| (((v - lo[c]) * scale).clamp(0.0, 65535.0)) as u32;
@@ -133,10 +133,10 @@ pub(super) fn brio_order(hilbert_sorted: &[u32]) -> Vec<u32> {
     buckets.into_iter().flatten().collect()
 }
 
-/// The order in which [`PowerDiagram`] inserts a set of sites: a biased randomized insertion
+/// The order in which [`PowerDiagram`](crate::power_diagram::PowerDiagram) inserts a set of sites: a biased randomized insertion
 /// order along a Hilbert curve, starting with a non-degenerate triangle. It depends on the sites
 /// only; computing it once (which also validates the sites) saves that part of every diagram of
-/// the same sites ([`DiagramBuilder::order`]).
+/// the same sites ([`DiagramBuilder::order`](crate::power_diagram::DiagramBuilder::order)).
 #[derive(Clone, Debug)]
 pub struct InsertionOrder {
     pub(super) order: Vec<u32>,
@@ -147,7 +147,7 @@ pub struct InsertionOrder {
 }
 
 impl InsertionOrder {
-    /// The insertion order of `sites`. Errors as [`PowerDiagram::new`] for the sites: no site,
+    /// The insertion order of `sites`. Errors as [`PowerDiagram::new`](crate::power_diagram::PowerDiagram::new) for the sites: no site,
     /// a non-finite one or one out of range, coincident sites.
     pub fn new(sites: &[[f64; 2]]) -> Result<Self, OmtError> {
         let sorted = validate_and_sort(sites, &vec![0.0; sites.len()])?;

@@ -66,8 +66,9 @@ pub const MAX_SITE_DISTANCE: f64 = 1e6;
 mod boundary;
 mod flux;
 use crate::measure::SourceMeasure;
+use crate::polygon::polygon_integrals;
 use crate::power_diagram::{hilbert_order, PowerDiagram};
-use crate::predicates::{orient, two_product, two_sum};
+use crate::predicates::{two_product, two_sum};
 use boundary::{BoundaryScratch, CellPolygons};
 pub(crate) use flux::FluxField;
 
@@ -258,37 +259,9 @@ fn clip(src: &mut Polygon, dst: &mut Polygon, h: &Line, values: &mut [f64]) -> b
     true
 }
 
-/// Exact integrals of the (unit-density) convex polygon relative to the site: area, ∫ z, ∫ |z|².
-/// (The area, a signed fan sum, is the signed area of any polygon.)
-pub(crate) fn polygon_integrals(v: &[[f64; 2]]) -> (f64, [f64; 2], f64) {
-    let (mut area, mut m1, mut m2) = (0.0, [0.0; 2], 0.0);
-    if v.len() < 3 {
-        return (area, m1, m2);
-    }
-    let a = v[0];
-    let aa = a[0] * a[0] + a[1] * a[1];
-    for k in 1..v.len() - 1 {
-        let (b, c) = (v[k], v[k + 1]);
-        let t = 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]));
-        area += t;
-        m1[0] += t * (a[0] + b[0] + c[0]) / 3.0;
-        m1[1] += t * (a[1] + b[1] + c[1]) / 3.0;
-        let s = aa
-            + b[0] * b[0]
-            + b[1] * b[1]
-            + c[0] * c[0]
-            + c[1] * c[1]
-            + (a[0] * b[0] + a[1] * b[1])
-            + (b[0] * c[0] + b[1] * c[1])
-            + (c[0] * a[0] + c[1] * a[1]);
-        m2 += t * s / 6.0;
-    }
-    (area, m1, m2)
-}
-
 /// Squared diagonal of the bounding box of the points.
 fn diameter_squared(points: &[[f64; 2]]) -> f64 {
-    let (lo, hi) = crate::measure::bounding_box(points);
+    let (lo, hi) = crate::polygon::bounding_box(points);
     (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)
 }
 
@@ -375,13 +348,10 @@ pub struct RestrictedIntegrator {
     /// little), so it never changes a result; relaxed atomics, as concurrent integrations may
     /// race on it harmlessly.
     seeds: Vec<AtomicU32>,
-    /// The Raviart–Thomas field of the flux form (module `flux`), taken at its first use from
-    /// the measure's slot (built there if the slot holds none for these fields: once per
-    /// measure, shared by all its solves); `None` inside when the measure is not a convex disk.
-    flux: OnceLock<Option<Arc<FluxField>>>,
-    /// The measure's slot (checked against the fingerprint of this integrator's copies of its
-    /// fields, computed at the first use).
-    flux_slot: crate::measure::FluxSlot,
+    /// The Raviart–Thomas field of the flux form (module `flux`), built at its first use; shared
+    /// by the integrators of one [`crate::PreparedMeasure`] ([`Self::with_flux_slot`]), so built
+    /// once per measure for all its solves; `None` inside when the measure is not a convex disk.
+    flux: FluxSlot,
     /// The sites of the last flux-form integration and a source triangle at or near each.
     site_triangles: Mutex<Option<SiteTriangles>>,
     /// The error bound relative to each cell's mass under which [`Self::integrate_masses`]
@@ -391,6 +361,10 @@ pub struct RestrictedIntegrator {
     /// through the full integration directly.
     flux_declines: AtomicUsize,
 }
+
+/// The flux field of a measure, built by the first integrator that needs it (`None` inside: the
+/// form declines the measure).
+pub(crate) type FluxSlot = Arc<OnceLock<Option<Arc<FluxField>>>>;
 
 /// Sites and, per site, a source triangle at or near it (see `flux::FluxField::locate_sites`).
 type SiteTriangles = (Vec<[f64; 2]>, Arc<Vec<u32>>);
@@ -412,7 +386,6 @@ impl Clone for RestrictedIntegrator {
             order: self.order.clone(),
             seeds: self.seeds.iter().map(|a| AtomicU32::new(a.load(Relaxed))).collect(),
             flux: self.flux.clone(),
-            flux_slot: self.flux_slot.clone(),
             flux_bound: self.flux_bound,
             site_triangles: Mutex::new(self.site_triangles.lock().map(|g| g.clone()).unwrap_or(None)),
             flux_declines: AtomicUsize::new(self.flux_declines.load(Relaxed)),
@@ -440,7 +413,7 @@ impl RestrictedIntegrator {
                 [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
             })
             .collect();
-        let (lo, hi) = crate::measure::bounding_box(&measure.vertices);
+        let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
         let span = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(f64::MIN_POSITIVE);
         let (lo, hi) = ([lo[0] - span, lo[1] - span], [hi[0] + span, hi[1] + span]);
         RestrictedIntegrator {
@@ -454,12 +427,18 @@ impl RestrictedIntegrator {
             // (of the vertices the triangles use: an unreferenced one would widen the cells)
             boundary: measure.domain_hull(),
             seeds: (0..measure.triangles.len()).map(|_| AtomicU32::new(NO_SEED)).collect(),
-            flux: OnceLock::new(),
-            flux_slot: measure.flux.clone(),
+            flux: Default::default(),
             flux_bound: Some(1e-8),
             site_triangles: Mutex::new(None),
             flux_declines: AtomicUsize::new(0),
         }
+    }
+
+    /// Takes its flux field (when the flux form is on) from `slot`, which the integrators of one
+    /// measure share ([`crate::PreparedMeasure`]): the first that needs the field builds it.
+    pub(crate) fn with_flux_slot(mut self, slot: FluxSlot) -> Self {
+        self.flux = slot;
+        self
     }
 
     /// The boundary of Ω (convex hull of the measure's vertices), counter-clockwise.
@@ -788,18 +767,7 @@ impl RestrictedIntegrator {
         let field = self
             .flux
             .get_or_init(|| {
-                let fingerprint = crate::measure::fingerprint(&self.vertices, &self.triangles, &self.densities);
-                let mut slot = self.flux_slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-                match slot.as_ref() {
-                    Some((f, field)) if *f == fingerprint => field.clone(),
-                    _ => {
-                        let field =
-                            FluxField::new(&self.vertices, &self.triangles, &self.densities, &self.triangle_areas)
-                                .map(Arc::new);
-                        *slot = Some((fingerprint, field.clone()));
-                        field
-                    }
-                }
+                FluxField::new(&self.vertices, &self.triangles, &self.densities, &self.triangle_areas).map(Arc::new)
             })
             .as_ref()?;
         let sites = diagram.sites();
@@ -846,34 +814,6 @@ impl RestrictedIntegrator {
             )
             .collect()
     }
-}
-
-/// Convex hull (counter-clockwise, no collinear vertices) by Andrew's monotone chain with the
-/// exact orientation predicate.
-pub(crate) fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
-    let mut p: Vec<[f64; 2]> = points.to_vec();
-    p.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    p.dedup();
-    if p.len() < 3 {
-        return p;
-    }
-    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while hull.len() >= start + 2 && orient(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0 {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
-    }
-    hull
 }
 
 /// Exact integrals over the restricted power cells W_i ∩ Ω of the piecewise-constant measure

@@ -50,12 +50,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let med = quantiles(shape.measure.densities.clone(), &[0.5])[0];
             let d: Vec<f64> = shape.measure.densities.iter().map(|&d| d.min(k * med)).collect();
             shape.measure =
-                shapespace_omt::SourceMeasure::new(shape.measure.vertices.clone(), shape.measure.triangles.clone(), d)?;
+                shapespace_omt::SourceMeasure::new(shape.measure.vertices.clone(), shape.measure.triangles.clone(), d)?
+                    .into();
         }
         if let Some(k) = std::env::var("SPREAD").ok().and_then(|s| s.parse::<f64>().ok()) {
             let (m, info) = shapespace_omt::peaks::spread_density_peaks(&shape.measure, k)?;
             println!("{name}: spread {info:?}");
-            shape.measure = m;
+            shape.measure = m.into();
         }
         if let Some(k) = std::env::var("NUFLOOR").ok().and_then(|s| s.parse::<f64>().ok()) {
             let med = quantiles(shape.masses.clone(), &[0.5])[0];
@@ -130,7 +131,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             target_coarsening: Some(b.coarsening.clone()),
             ..params.clone()
         };
-        let mut sol = shapespace_omt::solve_ot(&a.measure, &b.points, &b.masses, &params)?;
+        let mut sol = shapespace_omt::solve_ot_prepared(&a.measure, &b.points, &b.masses, &params)?;
         let mut secs = t.elapsed().as_secs_f64();
         if std::env::var("REPEAT").is_ok() {
             // again, with the source's averaged copies built: what the first solve spent on them
@@ -140,7 +141,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 a.measure.averaged_samples()
             );
             let t = Instant::now();
-            sol = shapespace_omt::solve_ot(&a.measure, &b.points, &b.masses, &params)?;
+            sol = shapespace_omt::solve_ot_prepared(&a.measure, &b.points, &b.masses, &params)?;
             secs = t.elapsed().as_secs_f64();
         }
         let levels = match &sol.start {
