@@ -13,8 +13,6 @@
 //! test of the image) are counted with their 3D area fraction; their ε and Υ are still computed
 //! from the unsigned image area.
 
-use std::path::{Path, PathBuf};
-
 use serde::Serialize;
 use shapespace_conformal::quality::{face_distortions, FaceDistortions, Stats};
 use shapespace_conformal::sphere::quality::sphere_face_distortions;
@@ -181,50 +179,4 @@ pub fn sphere_distortion_report(
             sphere_map_distortion("area-preserving", mesh, area_preserving)?,
         ],
     })
-}
-
-/// A histogram to write: file stem, title, x label and the values it plots.
-type PlotSpec = (&'static str, &'static str, &'static str, fn(&MapDistortion) -> &[f64]);
-
-/// Writes the distortion histograms of every map of `report` into `dir` (created if missing),
-/// each as PNG and SVG, as in Su et al. 2015, Fig. 2 (e)–(h): `area_distortion` (Υ per face),
-/// `angle_distortion` (degrees per face) and `quasi_conformal_distortion` (Λ per face), all maps
-/// overlaid. Returns the written paths. Ranges: min..max of all maps' finite values (Υ and Λ
-/// of flipped faces are finite; an infinite Λ of a degenerate face is left out of the plot).
-pub fn write_distortion_histograms(
-    report: &DistortionReport,
-    dir: &Path,
-    bins: usize,
-) -> Result<Vec<PathBuf>, AnalysisError> {
-    std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
-    let mut written = Vec::new();
-    let plots: [PlotSpec; 3] = [
-        (
-            "area_distortion",
-            "Area distortion",
-            "Υ = ln(A_2D / A_3D) per face",
-            |m| &m.face_area_distortion,
-        ),
-        (
-            "angle_distortion",
-            "Angle distortion",
-            "mean |θ_3D − θ_2D| per face (degrees)",
-            |m| &m.face_angle_distortion_deg,
-        ),
-        (
-            "quasi_conformal_distortion",
-            "Quasi-conformal distortion",
-            "Λ = ln(γ_max / γ_min) per face",
-            |m| &m.face_quasi_conformal_distortion,
-        ),
-    ];
-    for (stem, title, x_label, get) in plots {
-        let series: Vec<(&str, &[f64])> = report.maps.iter().map(|m| (m.name.as_str(), get(m))).collect();
-        for ext in ["png", "svg"] {
-            let path = dir.join(format!("{stem}.{ext}"));
-            crate::plot::histograms(&path, &series, bins, None, title, x_label)?;
-            written.push(path);
-        }
-    }
-    Ok(written)
 }

@@ -7,7 +7,7 @@
 //!
 //! Layout: the legend sits in its own panel right of the plot, so it never covers data.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use plotters::coord::Shift;
@@ -15,6 +15,7 @@ use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 use shapespace_geometry::io::replace_atomically;
 
+use crate::distortion::{DistortionReport, MapDistortion};
 use crate::error::AnalysisError;
 use crate::mds::Mds;
 
@@ -1027,6 +1028,52 @@ pub fn histograms(
     };
     render!(path, (WIDTH, HEIGHT), |area| draw_histograms(area, &input))?;
     Ok(input.hist)
+}
+
+/// A histogram to write: file stem, title, x label and the values it plots.
+type PlotSpec = (&'static str, &'static str, &'static str, fn(&MapDistortion) -> &[f64]);
+
+/// Writes the distortion histograms of every map of `report` into `dir` (created if missing),
+/// each as PNG and SVG, as in Su et al. 2015, Fig. 2 (e)–(h): `area_distortion` (Υ per face),
+/// `angle_distortion` (degrees per face) and `quasi_conformal_distortion` (Λ per face), all maps
+/// overlaid. Returns the written paths. Ranges: min..max of all maps' finite values (Υ and Λ
+/// of flipped faces are finite; an infinite Λ of a degenerate face is left out of the plot).
+pub fn write_distortion_histograms(
+    report: &DistortionReport,
+    dir: &Path,
+    bins: usize,
+) -> Result<Vec<PathBuf>, AnalysisError> {
+    std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
+    let mut written = Vec::new();
+    let plots: [PlotSpec; 3] = [
+        (
+            "area_distortion",
+            "Area distortion",
+            "Υ = ln(A_2D / A_3D) per face",
+            |m| &m.face_area_distortion,
+        ),
+        (
+            "angle_distortion",
+            "Angle distortion",
+            "mean |θ_3D − θ_2D| per face (degrees)",
+            |m| &m.face_angle_distortion_deg,
+        ),
+        (
+            "quasi_conformal_distortion",
+            "Quasi-conformal distortion",
+            "Λ = ln(γ_max / γ_min) per face",
+            |m| &m.face_quasi_conformal_distortion,
+        ),
+    ];
+    for (stem, title, x_label, get) in plots {
+        let series: Vec<(&str, &[f64])> = report.maps.iter().map(|m| (m.name.as_str(), get(m))).collect();
+        for ext in ["png", "svg"] {
+            let path = dir.join(format!("{stem}.{ext}"));
+            histograms(&path, &series, bins, None, title, x_label)?;
+            written.push(path);
+        }
+    }
+    Ok(written)
 }
 
 #[cfg(test)]

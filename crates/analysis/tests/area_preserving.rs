@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use shapespace_analysis::area_preserving::{
     area_preserving_map, read_vertex_weights, region_weights, AreaPreservingParams, Domain,
 };
-use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
+use shapespace_analysis::distortion::distortion_report;
+use shapespace_analysis::plot::write_distortion_histograms;
 use shapespace_analysis::AnalysisError;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, MarkerFile, Markers};
 use shapespace_geometry::io::read_mesh;

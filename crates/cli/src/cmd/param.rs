@@ -31,8 +31,9 @@ use super::markers::MarkerArgs;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
-use shapespace_analysis::distortion::{distortion_report, write_distortion_histograms};
+use shapespace_analysis::distortion::distortion_report;
 use shapespace_analysis::lie_advection::{lie_advection_map, LieAdvectionParams};
+use shapespace_analysis::plot::write_distortion_histograms;
 use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
 
 /// `--method` values.
