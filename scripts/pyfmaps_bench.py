@@ -10,7 +10,7 @@ w_orient = 1, then ZoomOut with 16 iterations of step 5), and scored like `regis
 for 300 source vertices v sampled by shapespace's `sample_indices` (splitmix64, seed 7), the
 heat-method geodesic distance on the target between the image of v and its true partner,
 divided by sqrt(area of the target). The heat method is reimplemented here exactly as in
-crates/analysis/src/geodesic.rs (t = mean edge length squared, lumped masses, Neumann, the
+crates/analysis/src/registration/geodesic.rs (t = mean edge length squared, lumped masses, Neumann, the
 Poisson solve pinned at vertex 0).
 
 With `--remeshed DIR --truth DIR` (what `register-bench --remeshed` reads and writes) each
@@ -74,7 +74,7 @@ def sample_indices(n, k, seed):
 
 
 class HeatGeodesics:
-    """Crane et al. 2013 as in crates/analysis/src/geodesic.rs."""
+    """Crane et al. 2013 as in crates/analysis/src/registration/geodesic.rs."""
 
     def __init__(self, V, F):
         import scipy.sparse as sp

@@ -1,5 +1,11 @@
-//! Shape-space analysis: distance matrices and labels, classical MDS, nearest-neighbour and
-//! silhouette statistics, metric checks, and plots.
+//! Shape analysis on the conformal disk and sphere, in four parts:
+//! - [`param`]: area-preserving parameterizations (OMT, Lie advection, on the sphere) and their
+//!   distortion;
+//! - [`distances`]: conformal Wasserstein distances and the pairwise pipeline;
+//! - [`registration`]: Su et al.'s registration, its refinement, metrics and benchmark;
+//! - [`shape_space`]: distance matrices, MDS, statistics;
+//!
+//! and [`plot`], the figures of all of them.
 //!
 //! ```
 //! use shapespace_analysis::{classical_mds, DistanceMatrix};
@@ -15,32 +21,24 @@
 //! # Ok::<(), shapespace_analysis::AnalysisError>(())
 //! ```
 
-pub mod area_preserving;
-pub mod distance;
-pub mod distortion;
+pub mod distances;
 pub mod error;
+pub mod param;
+pub mod plot;
+pub mod registration;
+pub mod shape_space;
+
 /// The fold repair of planar maps lives in the conformal crate (the disk map uses it too).
 pub use shapespace_conformal::fold_repair;
-pub mod geodesic;
-pub mod invariance;
-pub mod lie_advection;
-pub mod matrix_io;
-pub mod mds;
-pub mod pipeline;
-pub mod plot;
-pub mod point_location;
-pub mod registration;
-pub mod report_path;
-pub mod resume;
-pub mod rotation;
-pub mod run_settings;
-pub mod shape_cache;
-pub mod shape_space;
-pub mod shard;
-pub mod shared_markers;
-pub mod sphere_distance;
-pub mod sphere_param;
-pub mod stats;
+
+// The parts' modules also under their short paths (`shapespace_analysis::distance`, …).
+pub use distances::{
+    distance, invariance, pipeline, report_path, resume, rotation, run_settings, shape_cache, shard, shared_markers,
+    sphere_distance,
+};
+pub use param::{area_preserving, distortion, lie_advection, sphere_param};
+pub use registration::{geodesic, point_location};
+pub use shape_space::{matrix_io, mds, stats};
 
 pub use error::AnalysisError;
 pub use matrix_io::{read_distance_matrix, read_labels, write_distance_matrix, DistanceMatrix, Labels};

@@ -42,8 +42,10 @@
 //! fold it (`docs/conventions.md`, "Registration"), and the disk maps themselves may fold: [`metrics`] measures flips.
 
 pub mod bench;
+pub mod geodesic;
 pub mod landmarks;
 pub mod metrics;
+pub mod point_location;
 pub mod truth;
 pub mod untangle;
 pub mod zoomout;

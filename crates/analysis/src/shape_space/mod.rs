@@ -1,6 +1,12 @@
 //! The `shapespace mds` pipeline in one call: read a distance matrix (and labels), embed it with
 //! classical MDS ([`crate::mds`]) or metric MDS by SMACOF ([`crate::mds::smacof`]), compute the statistics of [`crate::stats`], and write the
-//! tables, plots and `stats.json` to an output directory.
+//! tables, plots and `stats.json` to an output directory. The submodules are the parts: distance
+//! matrices and labels as CSV ([`matrix_io`]), MDS ([`mds`]) and statistics ([`stats`]). The
+//! `mds` command.
+
+pub mod matrix_io;
+pub mod mds;
+pub mod stats;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
