@@ -70,60 +70,10 @@ pub(super) fn solve_single(
     };
     let mut start_evaluations = 1;
     if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
-        let center = domain_centroid(measure);
-        let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
-        let empty_at = |cells: &CellIntegrals| cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
-        let mut fewest_empty = empty_at(&current.cells);
-        let first_empty: Vec<usize> = (0..n).filter(|&i| !(current.cells.masses[i] > 0.0)).collect();
-        let first_start = start.clone();
-        // Plain Voronoi first (if that was not the start), then contracted ones. Contraction
-        // brings points from outside Ω in; once every contracted point lies in Ω's bounding box
-        // and four more halvings empty no fewer cells, the empty cells come from points too close
-        // together for f64 (crowding), which contraction cannot cure: stop there.
-        let mut scale = if start == Start::Voronoi { 1.0 } else { 2.0 };
-        let mut stale = 0;
-        loop {
-            if params.past_deadline() {
-                return Err(OmtError::TimeLimit(
-                    "searching for a start with no empty cell (contracted Voronoi diagrams)".into(),
-                ));
-            }
-            scale *= 0.5;
-            heights = Heights::contracted(points, center, scale);
-            current = evaluate(&backend, points, &heights)?;
-            start_evaluations += 1;
-            let empty = empty_at(&current.cells);
-            if empty == 0 {
-                break;
-            }
-            if empty < fewest_empty {
-                fewest_empty = empty;
-                stale = 0;
-            } else {
-                stale += 1;
-            }
-            let inside = points.iter().all(|y| {
-                (0..2).all(|d| {
-                    let z = center[d] + scale * (y[d] - center[d]);
-                    lo[d] <= z && z <= hi[d]
-                })
-            });
-            if (inside && stale >= 4) || scale < 1e-30 {
-                return Err(OmtError::InvalidInput(no_start_diagnosis(
-                    points,
-                    &first_empty,
-                    first_start,
-                    lo,
-                    hi,
-                    scale,
-                )));
-            }
-        }
-        start = if scale == 1.0 {
-            Start::Voronoi
-        } else {
-            Start::Contracted { scale }
-        };
+        let (contracted_start, contracted, evaluation, evaluations) =
+            start_without_empty_cells(&backend, measure, points, params, start, &current)?;
+        (start, heights, current) = (contracted_start, contracted, evaluation);
+        start_evaluations += evaluations;
     }
     let t_start = t_begin.elapsed().as_secs_f64();
 
@@ -309,6 +259,77 @@ pub(super) fn solve_single(
         t_numeric: system.t_numeric,
         diagnosis,
     })
+}
+
+/// The start when the first one (`start`, evaluated as `first`) has an empty cell: the plain
+/// Voronoi diagram (unless that was the first), then the Voronoi diagrams of the points contracted
+/// toward Ω's area centroid by 1/2, 1/4, … (module docs, "Start"), until no cell is empty.
+/// Returns that start, its heights and evaluation, and the evaluations it took; an input error
+/// with a diagnosis when contraction cannot help (points too close together for f64).
+fn start_without_empty_cells(
+    backend: &Backend<'_>,
+    measure: &PreparedMeasure,
+    points: &[[f64; 2]],
+    params: &NewtonParams,
+    start: Start,
+    first: &Evaluation,
+) -> Result<(Start, Heights, Evaluation, usize), OmtError> {
+    let n = points.len();
+    let center = domain_centroid(measure);
+    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
+    let empty_at = |cells: &CellIntegrals| cells.masses.iter().filter(|&&m| !(m > 0.0)).count();
+    let mut fewest_empty = empty_at(&first.cells);
+    let first_empty: Vec<usize> = (0..n).filter(|&i| !(first.cells.masses[i] > 0.0)).collect();
+    let first_start = start.clone();
+    let mut evaluations = 0;
+    // Plain Voronoi first (if that was not the start), then contracted ones. Contraction
+    // brings points from outside Ω in; once every contracted point lies in Ω's bounding box
+    // and four more halvings empty no fewer cells, the empty cells come from points too close
+    // together for f64 (crowding), which contraction cannot cure: stop there.
+    let mut scale = if start == Start::Voronoi { 1.0 } else { 2.0 };
+    let mut stale = 0;
+    loop {
+        if params.past_deadline() {
+            return Err(OmtError::TimeLimit(
+                "searching for a start with no empty cell (contracted Voronoi diagrams)".into(),
+            ));
+        }
+        scale *= 0.5;
+        let heights = Heights::contracted(points, center, scale);
+        let current = evaluate(backend, points, &heights)?;
+        evaluations += 1;
+        let empty = empty_at(&current.cells);
+        if empty == 0 {
+            let start = if scale == 1.0 {
+                Start::Voronoi
+            } else {
+                Start::Contracted { scale }
+            };
+            return Ok((start, heights, current, evaluations));
+        }
+        if empty < fewest_empty {
+            fewest_empty = empty;
+            stale = 0;
+        } else {
+            stale += 1;
+        }
+        let inside = points.iter().all(|y| {
+            (0..2).all(|d| {
+                let z = center[d] + scale * (y[d] - center[d]);
+                lo[d] <= z && z <= hi[d]
+            })
+        });
+        if (inside && stale >= 4) || scale < 1e-30 {
+            return Err(OmtError::InvalidInput(no_start_diagnosis(
+                points,
+                &first_empty,
+                first_start,
+                lo,
+                hi,
+                scale,
+            )));
+        }
+    }
 }
 
 /// Whether the last [`STALL_WINDOW`] steps of `log` were all cut by the damping to

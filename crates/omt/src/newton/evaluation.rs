@@ -81,7 +81,9 @@ impl<'a> Backend<'a> {
     /// The backend of a plain measure, without the flux form (nothing to keep between solves).
     pub(crate) fn plain(measure: &'a SourceMeasure, integrator: CellIntegrator) -> Self {
         match integrator {
-            CellIntegrator::Restricted => Backend::Restricted(RestrictedIntegrator::new(measure), OnceLock::new()),
+            CellIntegrator::Restricted => {
+                Backend::Restricted(RestrictedIntegrator::new(measure).with_flux_form(None), OnceLock::new())
+            }
             CellIntegrator::BruteForce => Backend::BruteForce(measure),
         }
     }
