@@ -22,6 +22,7 @@ pub mod error;
 /// The fold repair of planar maps lives in the conformal crate (the disk map uses it too).
 pub use shapespace_conformal::fold_repair;
 pub mod geodesic;
+pub mod gradient_flow;
 pub mod invariance;
 pub mod lie_advection;
 pub mod matrix_io;
