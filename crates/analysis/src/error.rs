@@ -119,7 +119,9 @@ pub enum AnalysisError {
     FoldRepair { folded: usize, message: String },
     /// The OMT gradient flow (`gradient_flow`) cannot start: the fold repair of its first
     /// mass-preserving map (the Lie-advection map) failed and `folded` faces stay folded.
-    #[error("the OMT gradient flow cannot start: its first mass-preserving map keeps {folded} folded faces ({reason})")]
+    #[error(
+        "the OMT gradient flow cannot start: its first mass-preserving map keeps {folded} folded faces ({reason})"
+    )]
     FlowStartFolded { folded: usize, reason: String },
     /// An area-correcting flow could not take a step without folding a face.
     #[error("the flow stalled at t = {time}: every step down to {step:e} folded a face ({attempts} attempts)")]

@@ -50,8 +50,8 @@
 //!
 //! The flow stops when $\|\zeta\|/\|u\|$ (L² norms on $\Omega_0$) falls below `tolerance`,
 //! after `max_steps` steps, or when a step halved below [`MIN_TIME_STEP`] × `max_time_step`
-//! still folds (a sliver of the start collapsing: the bundled face, where a sliver left by the
-//! Lie map's fold repair shrinks at every step and stops the flow after about ten). Dominitz & Tannenbaum
+//! still folds. On real meshes the last happens within a few steps: a sliver left by the Lie
+//! map's fold repair collapses at any step size (docs/benchmarks.md). Dominitz & Tannenbaum
 //! accelerate the flow by a multiresolution scheme (spherical wavelets on their sphere); this
 //! implementation flows on the full mesh only.
 
@@ -563,7 +563,11 @@ pub fn area_errors(faces: &[[u32; 3]], surface_areas: &[f64], u: &[[f64; 2]]) ->
     let scale = image.iter().sum::<f64>() / total;
     let (mut max, mut sum) = (0.0f64, 0.0);
     for (a, i) in surface_areas.iter().zip(&image) {
-        let e = if *i > 0.0 { (i / (scale * a)).ln() } else { f64::INFINITY };
+        let e = if *i > 0.0 {
+            (i / (scale * a)).ln()
+        } else {
+            f64::INFINITY
+        };
         max = max.max(e.abs());
         sum += a * e * e;
     }
@@ -576,7 +580,12 @@ fn transport_cost(faces: &[[u32; 3]], masses: &[f64], domain: &[[f64; 2]], u: &[
         .iter()
         .zip(masses)
         .map(|(f, m)| {
-            let d = f.map(|v| [u[v as usize][0] - domain[v as usize][0], u[v as usize][1] - domain[v as usize][1]]);
+            let d = f.map(|v| {
+                [
+                    u[v as usize][0] - domain[v as usize][0],
+                    u[v as usize][1] - domain[v as usize][1],
+                ]
+            });
             let sq: f64 = d.iter().map(|d| d[0] * d[0] + d[1] * d[1]).sum();
             let s = [d[0][0] + d[1][0] + d[2][0], d[0][1] + d[1][1] + d[2][1]];
             m * (sq + s[0] * s[0] + s[1] * s[1]) / 12.0
@@ -597,7 +606,7 @@ pub struct CurlPart {
 
 enum Factor {
     Llt(Llt<usize, f64>),
-    Lu(Lu<usize, f64>),
+    Lu(Box<Lu<usize, f64>>),
 }
 
 impl CurlPart {
@@ -654,11 +663,9 @@ impl CurlPart {
             .map_err(|e| AnalysisError::InvalidInput(format!("symbolic Cholesky of the Dirichlet Laplacian: {e:?}")))?;
         let solver = match Llt::try_new_with_symbolic(symbolic, a.as_ref(), faer::Side::Lower) {
             Ok(llt) => Factor::Llt(llt),
-            Err(_) => Factor::Lu(
-                assemble(&full)?
-                    .sp_lu()
-                    .map_err(|e| AnalysisError::InvalidInput(format!("LU of the Dirichlet Laplacian: {e:?}")))?,
-            ),
+            Err(_) => Factor::Lu(Box::new(assemble(&full)?.sp_lu().map_err(|e| {
+                AnalysisError::InvalidInput(format!("LU of the Dirichlet Laplacian: {e:?}"))
+            })?)),
         };
         Ok(CurlPart {
             faces: faces.to_vec(),
@@ -680,7 +687,10 @@ impl CurlPart {
                     continue;
                 };
                 // |f| ∇λ_k = rot90(p_{k+2} − p_{k+1}) / 2
-                let (a, b) = (self.domain[f[(k + 1) % 3] as usize], self.domain[f[(k + 2) % 3] as usize]);
+                let (a, b) = (
+                    self.domain[f[(k + 1) % 3] as usize],
+                    self.domain[f[(k + 2) % 3] as usize],
+                );
                 let g = [-(b[1] - a[1]) / 2.0, (b[0] - a[0]) / 2.0];
                 rhs[(r, 0)] += mean[1] * g[0] - mean[0] * g[1];
             }

@@ -122,7 +122,12 @@ fn swirl_flows_back_to_the_identity() {
             .map(|&p| rotate(p, 0.5 * (1.0 - p[0] * p[0] - p[1] * p[1])))
             .collect();
         let (u, info) = flow(&mesh.faces, &areas, &rim, &x, &start, &GradientFlowParams::default()).unwrap();
-        rows.push((max_distance(&start, &x), max_distance(&u, &x), info.steps, info.final_curl));
+        rows.push((
+            max_distance(&start, &x),
+            max_distance(&u, &x),
+            info.steps,
+            info.final_curl,
+        ));
         assert!(info.final_cost < 0.05 * info.start_cost, "{info:?}");
     }
     eprintln!("swirl (max |u0 − x|, max |u − x|, steps, final curl): {rows:?}");

@@ -2719,5 +2719,9 @@ fn param_flow_on_a_face() {
         "sphere",
     ]);
     assert_eq!(sphere.status.code(), Some(2), "{}", stderr(&sphere));
-    assert!(stderr(&sphere).contains("--method flow maps onto the disk only"), "{}", stderr(&sphere));
+    assert!(
+        stderr(&sphere).contains("--method flow maps onto the disk only"),
+        "{}",
+        stderr(&sphere)
+    );
 }
