@@ -117,6 +117,12 @@ pub enum AnalysisError {
     /// The fold repair of a planar map could not produce an embedding; `folded` faces remain.
     #[error("fold repair: {message} ({folded} folded faces)")]
     FoldRepair { folded: usize, message: String },
+    /// The OMT gradient flow (`gradient_flow`) cannot start: the fold repair of its first
+    /// mass-preserving map (the Lie-advection map) failed and `folded` faces stay folded.
+    #[error(
+        "the OMT gradient flow cannot start: its first mass-preserving map keeps {folded} folded faces ({reason})"
+    )]
+    FlowStartFolded { folded: usize, reason: String },
     /// An area-correcting flow could not take a step without folding a face.
     #[error("the flow stalled at t = {time}: every step down to {step:e} folded a face ({attempts} attempts)")]
     FlowStalled { time: f64, step: f64, attempts: usize },

@@ -2673,3 +2673,55 @@ fn distances_refuses_mixing_closed_meshes_and_disks() {
     assert!(!out.join("distances.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `shapespace param --method flow` writes the gradient-flow OMT map: one `vt` per vertex, rim
+/// vertices on the unit circle, a report with the method, the flow's curl norms and costs (the
+/// cost not above the start's) and a distortion block whose map has no flipped face and a |Υ|
+/// median below a fifth of the conformal map's; `--domain sphere` is refused with status 2.
+#[test]
+fn param_flow_on_a_face() {
+    let dir = scratch("param_flow");
+    let obj = dir.join("flow.obj");
+    let json = dir.join("flow.json");
+    let out = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        obj.to_str().unwrap(),
+        "--report",
+        json.to_str().unwrap(),
+        "--method",
+        "flow",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("gradient flow"), "{}", stderr(&out));
+    let (vt, nv) = read_vt(&obj);
+    assert_eq!(vt.len(), nv);
+    let on_circle = vt.iter().filter(|p| (p[0].hypot(p[1]) - 1.0).abs() < 1e-9).count();
+    assert!(on_circle > 100, "{on_circle} vertices on the circle");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["method"], "flow");
+    let flow = &report["gradient_flow"];
+    assert!(flow["start_curl"].as_f64().unwrap() > 0.0);
+    assert!(flow["final_cost"].as_f64().unwrap() <= flow["start_cost"].as_f64().unwrap());
+    let maps = &report["distortion"]["maps"];
+    assert_eq!(maps[1]["num_flipped"], 0);
+    let median = |k: usize| maps[k]["abs_area_distortion"]["median"].as_f64().unwrap();
+    assert!(median(1) < 0.2 * median(0), "{} vs {}", median(1), median(0));
+    let sphere = shapespace(&[
+        "param",
+        "datasets/faces/id01_sad.obj",
+        "--out",
+        dir.join("sphere.obj").to_str().unwrap(),
+        "--method",
+        "flow",
+        "--domain",
+        "sphere",
+    ]);
+    assert_eq!(sphere.status.code(), Some(2), "{}", stderr(&sphere));
+    assert!(
+        stderr(&sphere).contains("--method flow maps onto the disk only"),
+        "{}",
+        stderr(&sphere)
+    );
+}

@@ -1,9 +1,10 @@
 //! Timing and distortion table of the area-preserving maps, one row per mesh and method:
 //! `cargo bench -p shapespace-tools --bench param_bench`. Methods (env `METHODS`, comma
 //! separated, default `omt,lie`): `omt`, the Newton OMT map
-//! (`area_preserving::area_preserving_map`), and `lie`, the Lie-advection map
-//! (`lie_advection::lie_advection_map`). Columns: wall time, iterations (OMT: Newton steps; Lie:
-//! integration steps per vertex, mean, and the correction's steps), |Υ| = |ln area ratio| per
+//! (`area_preserving::area_preserving_map`), `lie`, the Lie-advection map
+//! (`lie_advection::lie_advection_map`), and `flow`, the gradient-flow OMT map from the Lie map
+//! (`gradient_flow::gradient_flow_map`). Columns: wall time, iterations (OMT: Newton steps; Lie:
+//! integration steps per vertex, mean, and the correction's steps; flow: flow steps), |Υ| = |ln area ratio| per
 //! face (median, p95), the mean corner angle error per face (median, degrees) and the flipped
 //! faces; the last column gives the stages.
 //!
@@ -30,6 +31,7 @@ use std::time::Instant;
 
 use shapespace_analysis::area_preserving::{area_preserving_map, AreaPreservingParams};
 use shapespace_analysis::distortion::{map_distortion, MapDistortion};
+use shapespace_analysis::gradient_flow::{gradient_flow_map, GradientFlowParams};
 use shapespace_analysis::lie_advection::{lie_advection_map, LieAdvectionParams};
 use shapespace_conformal::Markers;
 use shapespace_geometry::prepare::{prepare_disk, subdivide_midpoint, PrepareOptions};
@@ -164,6 +166,21 @@ fn main() {
                     );
                     let iterations = format!("{:.1} (max {}) + {}", map.info.mean_steps, map.info.max_steps, c.steps);
                     (map.uv, iterations, stages)
+                }),
+                "flow" => gradient_flow_map(&mesh, &Markers::default(), &GradientFlowParams::default()).map(|map| {
+                    let f = &map.info.flow;
+                    let stages = format!(
+                        "conformal {:.3}, Lie map {:.3}, flow {:.3} s; ‖ζ‖/‖u‖ {:.1e} -> {:.1e}; cost {:.4} -> {:.4}; {}",
+                        map.timings.conformal,
+                        map.timings.start,
+                        map.timings.flow,
+                        f.start_curl,
+                        f.final_curl,
+                        f.start_cost,
+                        f.final_cost,
+                        f.stop
+                    );
+                    (map.uv, f.steps.to_string(), stages)
                 }),
                 other => {
                     println!("| {name} | {nv} | {nf} | {other} | unknown method | | | | | | |");

@@ -518,7 +518,7 @@ fn correct(
 
 /// Whether every face of `next` is counter-clockwise with an area within a factor 2 of its
 /// area in `x`.
-fn acceptable(faces: &[[u32; 3]], x: &[[f64; 2]], next: &[[f64; 2]]) -> bool {
+pub(crate) fn acceptable(faces: &[[u32; 3]], x: &[[f64; 2]], next: &[[f64; 2]]) -> bool {
     faces.iter().all(|f| {
         if !face_is_ccw(next, f) {
             return false;
@@ -529,7 +529,7 @@ fn acceptable(faces: &[[u32; 3]], x: &[[f64; 2]], next: &[[f64; 2]]) -> bool {
 }
 
 /// `x + h v`, rim vertices put back on the unit circle.
-fn moved(x: &[[f64; 2]], v: &[[f64; 2]], h: f64, is_boundary: &[bool]) -> Vec<[f64; 2]> {
+pub(crate) fn moved(x: &[[f64; 2]], v: &[[f64; 2]], h: f64, is_boundary: &[bool]) -> Vec<[f64; 2]> {
     x.iter()
         .zip(v)
         .zip(is_boundary)
@@ -597,7 +597,7 @@ fn current_velocity(
 }
 
 /// The part of `v` tangent to the circle through `p` about the origin.
-fn tangential(p: [f64; 2], v: [f64; 2]) -> [f64; 2] {
+pub(crate) fn tangential(p: [f64; 2], v: [f64; 2]) -> [f64; 2] {
     let r2 = p[0] * p[0] + p[1] * p[1];
     if r2 == 0.0 {
         return v;
@@ -606,18 +606,18 @@ fn tangential(p: [f64; 2], v: [f64; 2]) -> [f64; 2] {
     [v[0] - dot * p[0], v[1] - dot * p[1]]
 }
 
-fn face_is_ccw(x: &[[f64; 2]], f: &[u32; 3]) -> bool {
+pub(crate) fn face_is_ccw(x: &[[f64; 2]], f: &[u32; 3]) -> bool {
     orient(x[f[0] as usize], x[f[1] as usize], x[f[2] as usize]) > 0
 }
 
-fn signed_area(x: &[[f64; 2]], f: &[u32; 3]) -> f64 {
+pub(crate) fn signed_area(x: &[[f64; 2]], f: &[u32; 3]) -> f64 {
     let [a, b, c] = f.map(|v| x[v as usize]);
     0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
 }
 
 /// Gradient of the piecewise-linear `u` on the counter-clockwise face `f` of area `area`:
 /// Σ_k u_k ∇λ_k, ∇λ_k = rot90(p_{k+2} − p_{k+1}) / (2 area).
-fn face_gradient(x: &[[f64; 2]], f: &[u32; 3], u: &[f64], area: f64) -> [f64; 2] {
+pub(crate) fn face_gradient(x: &[[f64; 2]], f: &[u32; 3], u: &[f64], area: f64) -> [f64; 2] {
     let mut g = [0.0; 2];
     for k in 0..3 {
         let (a, b) = (x[f[(k + 1) % 3] as usize], x[f[(k + 2) % 3] as usize]);

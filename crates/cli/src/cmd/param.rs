@@ -1,6 +1,6 @@
 //! `shapespace param IN --out OUT.obj [--center V|x,y,z|auto] [--boundary-marker V|auto]
 //! [--landmarks FILE.json] [--domain disk|square|sphere] [--weights W.csv] [--report R.json]
-//! [--plots DIR] [--no-fold-repair] [--method omt|lie]`: the area-preserving parameterization of a disk-type mesh by optimal mass
+//! [--plots DIR] [--no-fold-repair] [--method omt|lie|flow]`: the area-preserving parameterization of a disk-type mesh by optimal mass
 //! transport ([`shapespace_analysis::area_preserving::area_preserving_map`]), or with
 //! `--domain sphere` of a closed genus-0 mesh onto the unit sphere
 //! ([`shapespace_analysis::sphere_param::area_preserving_sphere_map`]; normalized by
@@ -21,6 +21,11 @@
 //! ([`shapespace_analysis::lie_advection::lie_advection_map`]; disk only, no weights); its
 //! report has the same distortion block, with the flow's steps and timings in place of the OT
 //! summary. Exit code 1 when its fold repair failed (the map is written with its folds).
+//!
+//! `--method flow` computes the L²-optimal map by the Angenent–Haker–Tannenbaum gradient flow
+//! from the Lie-advection map ([`shapespace_analysis::gradient_flow::gradient_flow_map`];
+//! Dominitz & Tannenbaum 2010; disk only, no weights); its report has the same distortion
+//! block, with the flow's steps, curl norms and transport costs.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -32,6 +37,7 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shapespace_analysis::area_preserving::{area_preserving_map, read_vertex_weights, AreaPreservingParams, Domain};
 use shapespace_analysis::distortion::distortion_report;
+use shapespace_analysis::gradient_flow::{gradient_flow_map, GradientFlowParams};
 use shapespace_analysis::lie_advection::{lie_advection_map, LieAdvectionParams};
 use shapespace_analysis::plot::write_distortion_histograms;
 use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
@@ -43,6 +49,19 @@ pub enum ParamMethod {
     Omt,
     /// Conformal map + Lie advection of the area form (Zou et al. 2011; disk only).
     Lie,
+    /// Conformal map + Lie advection + the Angenent–Haker–Tannenbaum gradient flow to the
+    /// L²-optimal map (Dominitz & Tannenbaum 2010; disk only).
+    Flow,
+}
+
+impl ParamMethod {
+    fn name(self) -> &'static str {
+        match self {
+            ParamMethod::Omt => "omt",
+            ParamMethod::Lie => "lie",
+            ParamMethod::Flow => "flow",
+        }
+    }
 }
 
 /// Arguments of `shapespace param`.
@@ -59,7 +78,8 @@ pub struct ParamArgs {
     pub sphere: super::conformal::SphereMarkerArgs,
     #[command(flatten)]
     pub disk_map: super::DiskMapArgs,
-    /// `omt` (default): the Newton OMT map; `lie`: the Lie-advection authalic map (disk only).
+    /// `omt` (default): the Newton OMT map; `lie`: the Lie-advection authalic map; `flow`: the
+    /// OMT map by the gradient flow from the Lie map (`lie` and `flow`: disk only).
     #[arg(long, value_enum, default_value_t = ParamMethod::Omt)]
     pub method: ParamMethod,
     /// Target domain: `disk` (unit disk), `square` (side √π, centered at 0) or `sphere` (the
@@ -145,7 +165,10 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     }
     if args.domain == "sphere" {
         if args.method != ParamMethod::Omt {
-            anyhow::bail!("--method lie maps onto the disk only (--domain sphere takes the Newton OMT map)");
+            anyhow::bail!(
+                "--method {} maps onto the disk only (--domain sphere takes the Newton OMT map)",
+                args.method.name()
+            );
         }
         if args.disk_map.params() != shapespace_conformal::DiskMapParams::default() {
             anyhow::bail!(
@@ -167,12 +190,16 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     shapespace_geometry::topology::require_disk(&mesh)
         .with_context(|| format!("{} is not usable for a disk parameterization", args.input.display()))?;
     let (markers, marker_source) = args.markers.resolve(&args.input, mesh.num_vertices())?;
-    if args.method == ParamMethod::Lie {
+    if args.method != ParamMethod::Omt {
+        let name = args.method.name();
         if domain != Domain::Disk {
-            anyhow::bail!("--method lie maps onto the disk only (got --domain {})", args.domain);
+            anyhow::bail!("--method {name} maps onto the disk only (got --domain {})", args.domain);
         }
         if args.weights.is_some() {
-            anyhow::bail!("--method lie takes no --weights (the Newton OMT map does)");
+            anyhow::bail!("--method {name} takes no --weights (the Newton OMT map does)");
+        }
+        if args.method == ParamMethod::Flow {
+            return run_flow(args, mesh, markers, marker_source, t0);
         }
         return run_lie(args, mesh, markers, marker_source, t0);
     }
@@ -376,6 +403,73 @@ fn run_lie(
     if map.info.fold_repair_error.is_some() {
         return Ok(ExitCode::from(1));
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `--method flow`: the gradient-flow OMT map, its summary line and report.
+fn run_flow(
+    args: &ParamArgs,
+    mut mesh: shapespace_geometry::TriMesh,
+    markers: shapespace_conformal::Markers,
+    marker_source: String,
+    t0: Instant,
+) -> Result<ExitCode> {
+    let mut params = GradientFlowParams::default();
+    params.start.fold_repair.enabled = !args.no_fold_repair;
+    params.start.disk_map = args.disk_map.params();
+    let message = format!(
+        "gradient-flow OMT map of {} ({} vertices)",
+        args.input.display(),
+        mesh.num_vertices()
+    );
+    let map = with_spinner(message, || gradient_flow_map(&mesh, &markers, &params))
+        .with_context(|| format!("parameterizing {}", args.input.display()))?;
+    mesh.uvs = Some(map.uv.clone());
+    write_mesh(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
+    let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
+    let flow = &report.maps[1];
+    let f = &map.info.flow;
+    eprintln!(
+        "{}: {} V, {} F; gradient flow {} steps from the Lie map (‖ζ‖/‖u‖ {:.2e} -> {:.2e}, transport cost {:.4e} -> {:.4e}; {}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; conformal {:.2} s, Lie map {:.2} s, flow {:.2} s",
+        args.input.display(),
+        mesh.num_vertices(),
+        mesh.num_faces(),
+        f.steps,
+        f.start_curl,
+        f.final_curl,
+        f.start_cost,
+        f.final_cost,
+        f.stop,
+        flow.abs_area_distortion.median,
+        flow.abs_area_distortion.p95,
+        report.maps[0].abs_area_distortion.median,
+        report.maps[0].abs_area_distortion.p95,
+        flow.quasi_conformal_distortion.median,
+        flow.num_flipped,
+        map.timings.conformal,
+        map.timings.start,
+        map.timings.flow,
+    );
+    write_plots_and_report(args, &report, || {
+        serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.out.display().to_string(),
+            "method": "flow",
+            "marker_file": marker_source,
+            "markers": map.conformal.info.markers,
+            "conformal_method": map.conformal.info.method,
+            "conformal_bff_fallback": map.conformal.info.bff_fallback,
+            "domain": Domain::Disk,
+            "num_vertices": mesh.num_vertices(),
+            "num_faces": mesh.num_faces(),
+            "scale": map.conformal.scale,
+            "lie_advection": map.info.start,
+            "gradient_flow": map.info.flow,
+            "timings": map.timings,
+            "wall_seconds": t0.elapsed().as_secs_f64(),
+            "distortion": report,
+        })
+    })?;
     Ok(ExitCode::SUCCESS)
 }
 
