@@ -44,7 +44,7 @@ fn zoomout_refines_the_wolf_pair() {
     let zp = ZoomOutParams::default();
     let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
     let b2 = SpectralBasis::of(&t, zp.k_end, &zp.eigen).unwrap();
-    refine_registration(&s, &t, &mut reg, &b1, &b2, &zp).unwrap();
+    refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, &zp).unwrap();
     let after = registration_metrics(&s, &t, &reg, &mp).unwrap();
     let (g0, g1) = (
         before.geodesic.as_ref().unwrap().summary,
@@ -126,7 +126,7 @@ fn the_untangling_removes_most_3d_flips_on_the_wolf_pair() {
     let mp = MetricParams::default();
     let run = |zp: &ZoomOutParams| {
         let mut reg = first.clone();
-        refine_registration(&s, &t, &mut reg, &b1, &b2, zp).unwrap();
+        refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, zp).unwrap();
         let m = registration_metrics(&s, &t, &reg, &mp).unwrap();
         (m, reg.refinement.unwrap().untangle)
     };
@@ -161,11 +161,11 @@ fn shared_eigenpairs_give_the_same_maps() {
         let first = register(&s, t, &lm, &params).unwrap();
         let bt = SpectralBasis::of(t, zp.k_end, &zp.eigen).unwrap();
         let mut with_shared = first.clone();
-        refine_registration(&s, t, &mut with_shared, &shared, &bt, &zp).unwrap();
+        refine_registration(&s, t, &mut with_shared, &lm, &shared, &bt, &zp).unwrap();
         let fresh = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
         let bt_fresh = SpectralBasis::of(t, zp.k_end, &zp.eigen).unwrap();
         let mut with_fresh = first.clone();
-        refine_registration(&s, t, &mut with_fresh, &fresh, &bt_fresh, &zp).unwrap();
+        refine_registration(&s, t, &mut with_fresh, &lm, &fresh, &bt_fresh, &zp).unwrap();
         assert_eq!(with_shared.faces, with_fresh.faces);
         assert_eq!(with_shared.bary, with_fresh.bary);
         assert!(with_shared.faces.iter().zip(&first.faces).any(|(a, b)| a != b));
@@ -185,11 +185,12 @@ fn mismatched_bases_are_errors() {
     let seed: Vec<u32> = (0..s.num_vertices() as u32).collect();
     let small = TriMesh::new(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]).unwrap();
     let zoomout = shapespace_analysis::registration::zoomout::zoomout;
-    assert!(zoomout(&s, &small, &b, &b, &seed, &zp).is_err());
+    assert!(zoomout(&s, &small, &b, &b, &seed, &[], &zp).is_err());
     let too_far = ZoomOutParams { k_end: 9, ..zp.clone() };
-    assert!(zoomout(&s, &t, &b, &b, &seed, &too_far).is_err());
+    assert!(zoomout(&s, &t, &b, &b, &seed, &[], &too_far).is_err());
     let mut bad_seed = seed.clone();
     bad_seed[5] = t.num_vertices() as u32;
-    assert!(zoomout(&s, &t, &b, &b, &bad_seed, &zp).is_err());
-    assert!(zoomout(&s, &t, &b, &b, &seed, &zp).is_ok());
+    assert!(zoomout(&s, &t, &b, &b, &bad_seed, &[], &zp).is_err());
+    assert!(zoomout(&s, &t, &b, &b, &seed, &[(0, t.num_vertices() as u32)], &zp).is_err());
+    assert!(zoomout(&s, &t, &b, &b, &seed, &[], &zp).is_ok());
 }

@@ -588,8 +588,16 @@ pub fn register_bench(
                                     .as_ref()
                                     .map_err(|e| format!("eigenpairs of {}: {e}", name_of(m)))
                             };
-                            refine_registration(&meshes[i], target, &mut reg, basis(i)?, basis(j)?, zoomout)
-                                .map_err(|e| error_chain(&e))?;
+                            refine_registration(
+                                &meshes[i],
+                                target,
+                                &mut reg,
+                                &landmarks,
+                                basis(i)?,
+                                basis(j)?,
+                                zoomout,
+                            )
+                            .map_err(|e| error_chain(&e))?;
                         }
                         let truth = remeshed_target.map(|r| r.truth.as_slice());
                         let met = registration_metrics_against(&meshes[i], target, &reg, metric_params, truth)

@@ -441,25 +441,34 @@ pub fn register(
         );
         let b1 = b1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
         let b2 = b2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
-        refine_registration(source, target, &mut reg, &b1, &b2, &params.zoomout)?;
+        refine_registration(source, target, &mut reg, landmarks, &b1, &b2, &params.zoomout)?;
     }
     Ok(reg)
 }
 
 /// Refines a first-stage registration by ZoomOut ([`zoomout`]) seeded with its vertex map
 /// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
-/// S₂: replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds the bases'
+/// S₂ and the landmarks (their geodesic distances join the embeddings): replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds the bases'
 /// and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
 pub fn refine_registration(
     source: &TriMesh,
     target: &TriMesh,
     reg: &mut Registration,
+    landmarks: &Landmarks,
     source_basis: &SpectralBasis,
     target_basis: &SpectralBasis,
     params: &ZoomOutParams,
 ) -> Result<(), AnalysisError> {
     let seed = zoomout::nearest_corner_map(target, &reg.faces, &reg.bary);
-    let refined = zoomout::zoomout(source, target, source_basis, target_basis, &seed, params)?;
+    let refined = zoomout::zoomout(
+        source,
+        target,
+        source_basis,
+        target_basis,
+        &seed,
+        &landmarks.pairs,
+        params,
+    )?;
     let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
     reg.points = refined
         .faces

@@ -13,6 +13,17 @@
 //! 0.0150 against 0.0021 at k = 80. k grows from `k_start` to `k_end` by `k_step`. The seed T
 //! is the first stage's map (the corner of largest barycentric weight of each f(v)).
 //!
+//! Landmarks: both embeddings of the nearest-neighbour step carry, after the k spectral
+//! coordinates, w · d(v, l_i) / √area for each landmark pair (l_i on S₁, its partner on S₂; d the
+//! heat-method geodesic distance of each surface, [`crate::geodesic`]; w =
+//! [`ZoomOutParams::landmark_weight`], default 3). The spectral coordinates alone do not tell a
+//! limb from its mirror image, and the first stage's map, the only thing that does, is forgotten
+//! after the first steps: on the Sumner cat pair cat0 → cat1 a leg drifted onto the other one
+//! (samples 0.006 from a landmark 0.21 of √area off) when the first stage changed slightly, mean
+//! error 0.0318 against 0.0168 before the change; with the landmark coordinates 0.0172 (w = 1:
+//! 0.0322, w = 10: 0.0203, w = 30: 0.0837; the wolf pair 0.0010 for w = 0, 1 and 3, 0.0013 for
+//! w = 10; decision 0031).
+//!
 //! Speed: the steps below `k_end` fit C on a fixed sample of `samples` source vertices (mass-
 //! weighted least squares); the last step maps every source vertex. The nearest neighbour of a
 //! query is searched approximately: the [`STARTS`] nearest of `samples` target samples (exact,
@@ -38,6 +49,7 @@ use shapespace_geometry::spectral::{laplace_beltrami_eigenpairs, EigenParams};
 use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
+use crate::geodesic::HeatGeodesics;
 use crate::registration::metrics::sample_indices;
 use crate::registration::untangle::{untangle_vertex_map, VertexMapUntangleInfo, VertexMapUntangleParams};
 
@@ -138,6 +150,11 @@ pub struct ZoomOutParams {
     /// The 3D untangling of the final vertex map ([`crate::registration::untangle`]), ranked by
     /// the spectral distance (`sweeps` = 0 turns it off).
     pub untangle: VertexMapUntangleParams,
+    /// Weight w of the landmark coordinates appended to both embeddings of the nearest-neighbour
+    /// step: w · d(v, l_i) / √area per landmark pair (heat-method geodesic distance on each
+    /// surface), so that a limb cannot drift onto its mirror image (module docs; 0 turns them
+    /// off; default 3).
+    pub landmark_weight: f64,
 }
 
 impl Default for ZoomOutParams {
@@ -154,6 +171,7 @@ impl Default for ZoomOutParams {
                 ..EigenParams::default()
             },
             untangle: VertexMapUntangleParams::default(),
+            landmark_weight: LANDMARK_WEIGHT,
         }
     }
 }
@@ -209,19 +227,27 @@ pub struct RefinedMap {
     pub sizes: Vec<usize>,
     /// What the 3D untangling of the vertex map did.
     pub untangle: VertexMapUntangleInfo,
+    /// Landmarks whose coordinates were left out because their distance fields disagreed
+    /// along the seed map ([`LANDMARK_DISAGREEMENT`]).
+    pub landmarks_dropped: usize,
     /// Wall-clock seconds of the iterations (eigenpairs excluded).
     pub seconds: f64,
 }
 
+/// Default [`ZoomOutParams::landmark_weight`].
+pub const LANDMARK_WEIGHT: f64 = 3.0;
+
 /// ZoomOut from the vertex map `seed` (#V₁ target vertices) with the bases of `source` and
-/// `target` (module docs). Errors: sizes that do not match, `k_start` = 0 or `k_end` beyond the
-/// bases, a seed vertex out of range.
+/// `target` and the landmark pairs `landmarks` (vertex of S₁, vertex of S₂; module docs).
+/// Errors: sizes that do not match, `k_start` = 0 or `k_end` beyond the bases, a seed vertex or
+/// a landmark out of range, the heat method failing on a surface.
 pub fn zoomout(
     source: &TriMesh,
     target: &TriMesh,
     source_basis: &SpectralBasis,
     target_basis: &SpectralBasis,
     seed: &[u32],
+    landmarks: &[(u32, u32)],
     params: &ZoomOutParams,
 ) -> Result<RefinedMap, AnalysisError> {
     let t0 = Instant::now();
@@ -254,6 +280,31 @@ pub fn zoomout(
             seed[v]
         )));
     }
+    if let Some(&(a, b)) = landmarks.iter().find(|&&(a, b)| a as usize >= n1 || b as usize >= n2) {
+        return Err(AnalysisError::InvalidInput(format!(
+            "zoomout: landmark pair ({a}, {b}) out of range ({n1} and {n2} vertices)"
+        )));
+    }
+    // landmark coordinates: w · d(v, l_i) / √area on each surface (#V × L)
+    let use_landmarks = params.landmark_weight > 0.0 && !landmarks.is_empty();
+    let landmark_coordinates = |mesh: &TriMesh, vertices: Vec<u32>| -> Result<Mat<f64>, AnalysisError> {
+        if !use_landmarks {
+            return Ok(Mat::zeros(mesh.num_vertices(), 0));
+        }
+        let scale = params.landmark_weight / shapespace_geometry::quantities::total_area(mesh).sqrt();
+        let d = HeatGeodesics::new(mesh)?.distances(&vertices)?;
+        Ok(Mat::from_fn(mesh.num_vertices(), d.len(), |v, i| scale * d[i][v]))
+    };
+    let (lm_s, lm_t) = rayon::join(
+        || landmark_coordinates(source, landmarks.iter().map(|p| p.0).collect()),
+        || landmark_coordinates(target, landmarks.iter().map(|p| p.1).collect()),
+    );
+    let (mut lm_s, mut lm_t) = (lm_s?, lm_t?);
+    // a landmark whose two distance fields disagree along the seed map (median difference above
+    // LANDMARK_DISAGREEMENT of √area) is left out: its field is wrong on one surface (the heat
+    // method's field of a far tip on a remeshed horse pose was off by 1.9 √area)
+    let landmarks_dropped = drop_disagreeing_landmarks(&mut lm_s, &mut lm_t, seed, params.landmark_weight);
+    let nl = lm_s.ncols();
     let mut sizes: Vec<usize> = (params.k_start..k_end).step_by(params.k_step).collect();
     sizes.push(k_end);
     let samples: Vec<u32> = sample_indices(n1, params.samples.max(1), 0x200d_0017);
@@ -263,21 +314,35 @@ pub fn zoomout(
     let phi_s = source_basis.vectors.as_ref();
     let phi_t = target_basis.vectors.as_ref();
     let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
-    // (queries, points) of the nearest-neighbour step: Φ_S[rows] against the rows of Φ_T Cᵀ
+    // (queries, points) of the nearest-neighbour step: Φ_S[rows] against the rows of Φ_T Cᵀ,
+    // each followed by the landmark coordinates
     let embed = |rows: Option<&[u32]>, c: &Mat<f64>, k: usize| -> (Mat<f64>, Mat<f64>) {
-        let queries = match rows {
-            Some(r) => sample_rows(phi_s, r, k),
-            None => phi_s.subcols(0, k).to_owned(),
+        let all: Vec<u32>;
+        let rows = match rows {
+            Some(r) => r,
+            None => {
+                all = (0..n1 as u32).collect();
+                &all
+            }
         };
-        let mut points = Mat::<f64>::zeros(n2, k);
+        let queries = Mat::<f64>::from_fn(rows.len(), k + nl, |i, j| {
+            let v = rows[i] as usize;
+            if j < k {
+                phi_s[(v, j)]
+            } else {
+                lm_s[(v, j - k)]
+            }
+        });
+        let mut points = Mat::<f64>::zeros(n2, k + nl);
         matmul(
-            points.as_mut(),
+            points.as_mut().subcols_mut(0, k),
             Accum::Replace,
             phi_t.subcols(0, k),
             c.transpose(),
             1.0,
             Par::rayon(0),
         );
+        points.as_mut().subcols_mut(k, nl).copy_from(lm_t.as_ref());
         (queries, points)
     };
     // steepest descent along the target's edges from the nearest target samples and from the
@@ -331,8 +396,34 @@ pub fn zoomout(
         bary,
         sizes,
         untangle,
+        landmarks_dropped,
         seconds: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// Median disagreement (over √area) above which a landmark's coordinates are left out.
+pub const LANDMARK_DISAGREEMENT: f64 = 0.5;
+
+/// Removes the landmark columns i of `lm_s` (#V₁ × L) and `lm_t` (#V₂ × L), both scaled by
+/// `weight`, whose median over the source vertices v of |lm_s[v, i] − lm_t[seed[v], i]| exceeds
+/// `weight` · [`LANDMARK_DISAGREEMENT`]. Returns how many were removed.
+fn drop_disagreeing_landmarks(lm_s: &mut Mat<f64>, lm_t: &mut Mat<f64>, seed: &[u32], weight: f64) -> usize {
+    let keep: Vec<usize> = (0..lm_s.ncols())
+        .filter(|&i| {
+            let mut d: Vec<f64> = (0..lm_s.nrows())
+                .map(|v| (lm_s[(v, i)] - lm_t[(seed[v] as usize, i)]).abs())
+                .collect();
+            let mid = d.len() / 2;
+            d.select_nth_unstable_by(mid, f64::total_cmp);
+            d[mid] <= weight * LANDMARK_DISAGREEMENT
+        })
+        .collect();
+    let dropped = lm_s.ncols() - keep.len();
+    if dropped > 0 {
+        *lm_s = Mat::from_fn(lm_s.nrows(), keep.len(), |v, j| lm_s[(v, keep[j])]);
+        *lm_t = Mat::from_fn(lm_t.nrows(), keep.len(), |v, j| lm_t[(v, keep[j])]);
+    }
+    dropped
 }
 
 /// Steepest descent of w ↦ ‖points[w] − query‖ along the edges (`neighbors`) from `start`:

@@ -82,6 +82,10 @@ pub struct RegisterArgs {
     /// Seed of the vertex sample.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
+    /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
+    #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
+    pub landmark_weight: f64,
 }
 
 /// Arguments of `shapespace register-bench`.
@@ -136,6 +140,10 @@ pub struct RegisterBenchArgs {
     /// `projected` (the nearest point of the target's spectral embedding on the faces around it).
     #[arg(long, default_value = "vertex")]
     pub zoomout_output: String,
+    /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
+    /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
+    #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
+    pub landmark_weight: f64,
 }
 
 fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(PathBuf, MarkerFile)>> {
@@ -270,7 +278,10 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
             args.landmark_steps,
         )?,
         refine: args.refine.parse()?,
-        zoomout: ZoomOutParams::default(),
+        zoomout: ZoomOutParams {
+            landmark_weight: args.landmark_weight,
+            ..ZoomOutParams::default()
+        },
     };
     eprintln!(
         "register: {} landmark pairs, method {method}, refinement {}",
@@ -339,6 +350,7 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let refine: Refinement = args.refine.parse()?;
     let zoomout = ZoomOutParams {
         output: args.zoomout_output.parse()?,
+        landmark_weight: args.landmark_weight,
         ..ZoomOutParams::default()
     };
     super::create_output_folder(&args.out)?;
