@@ -675,3 +675,65 @@ fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
         solution.max_relative_error
     );
 }
+
+/// A crowded source and crowded sites: the density e^{8z} (contrast 9e6) against two 6×6 grids
+/// of sites 1e-9 apart at the poles and 200 spread sites. The coarse-to-fine start with
+/// averaged coarse measures, without a continuation, and the density continuation (7 stages)
+/// reach the same transport cost; a warm start from the solution's double-double heights is
+/// converged at once, with the same cost.
+#[test]
+fn crowded_source_gives_the_same_cost_from_either_path() {
+    let (v, t) = icosphere(4);
+    let measure = SphereMeasure::from_spherical_density(v, t, |x| (8.0 * x[2]).exp()).unwrap();
+    let d = 1e-9;
+    let mut points = random_sphere_points(200, 7);
+    let mut masses = vec![1.0; 200];
+    for (z, mass) in [(1.0, 3.0), (-1.0, 0.5)] {
+        for k in 0..6 {
+            for l in 0..6 {
+                points.push(unit([(k as f64 - 2.5) * d, (l as f64 - 2.5) * d, z]));
+                masses.push(mass);
+            }
+        }
+    }
+    let continued = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
+    assert!(
+        continued.converged(),
+        "{} {:e}",
+        continued.stop,
+        continued.max_relative_error
+    );
+    assert!(continued.continuation_stages > 0);
+    let direct = solve_sphere_ot(
+        &measure,
+        &points,
+        &masses,
+        &SphereOtParams {
+            density_continuation: None,
+            start: SphereStart::CoarseToFine,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(direct.converged(), "{} {:e}", direct.stop, direct.max_relative_error);
+    assert!(!direct.coarse_levels.is_empty());
+    assert!(
+        (direct.cost / continued.cost - 1.0).abs() < 1e-6,
+        "{} against {}",
+        direct.cost,
+        continued.cost
+    );
+    let warm = solve_sphere_ot(
+        &measure,
+        &points,
+        &masses,
+        &SphereOtParams {
+            initial_heights: Some(direct.heights.clone()),
+            initial_heights_lo: Some(direct.heights_lo.clone()),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(warm.iterations, 0);
+    assert_eq!(warm.cost, direct.cost);
+}
