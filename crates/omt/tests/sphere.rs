@@ -679,7 +679,7 @@ fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
 /// A crowded source and crowded sites: the density e^{8z} (contrast 9e6) against two 6×6 grids
 /// of sites 1e-9 apart at the poles and 200 spread sites converges through the density
 /// continuation; a warm start from the solution's double-double heights
-/// (`initial_heights_lo`) is converged at once, with the same cost and heights.
+/// (`initial_heights_lo`) is converged at once, with the same heights and cost.
 #[test]
 fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
     let (v, t) = icosphere(4);
@@ -696,7 +696,12 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
         }
     }
     let continued = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
-    assert!(continued.converged(), "{} {:e}", continued.stop, continued.max_relative_error);
+    assert!(
+        continued.converged(),
+        "{} {:e}",
+        continued.stop,
+        continued.max_relative_error
+    );
     assert!(continued.continuation_stages > 0);
     let warm = solve_sphere_ot(
         &measure,
@@ -710,7 +715,13 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
     )
     .unwrap();
     assert_eq!(warm.iterations, 0);
-    assert_eq!(warm.cost, continued.cost);
+    // (the cost is summed in parallel: equal to rounding)
+    assert!(
+        (warm.cost / continued.cost - 1.0).abs() < 1e-13,
+        "{} {}",
+        warm.cost,
+        continued.cost
+    );
     assert_eq!(warm.heights, continued.heights);
     assert_eq!(warm.heights_lo, continued.heights_lo);
     // a length mismatch of the low parts is an input error
@@ -724,5 +735,8 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
             ..Default::default()
         },
     );
-    assert!(matches!(bad, Err(OmtError::InvalidInput(ref m)) if m.contains("low parts")), "{bad:?}");
+    assert!(
+        matches!(bad, Err(OmtError::InvalidInput(ref m)) if m.contains("low parts")),
+        "{bad:?}"
+    );
 }
