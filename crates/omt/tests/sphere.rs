@@ -675,3 +675,68 @@ fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
         solution.max_relative_error
     );
 }
+
+/// A crowded source and crowded sites: the density e^{8z} (contrast 9e6) against two 6×6 grids
+/// of sites 1e-9 apart at the poles and 200 spread sites converges through the density
+/// continuation; a warm start from the solution's double-double heights
+/// (`initial_heights_lo`) is converged at once, with the same heights and cost.
+#[test]
+fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
+    let (v, t) = icosphere(4);
+    let measure = SphereMeasure::from_spherical_density(v, t, |x| (8.0 * x[2]).exp()).unwrap();
+    let d = 1e-9;
+    let mut points = random_sphere_points(200, 7);
+    let mut masses = vec![1.0; 200];
+    for (z, mass) in [(1.0, 3.0), (-1.0, 0.5)] {
+        for k in 0..6 {
+            for l in 0..6 {
+                points.push(unit([(k as f64 - 2.5) * d, (l as f64 - 2.5) * d, z]));
+                masses.push(mass);
+            }
+        }
+    }
+    let continued = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
+    assert!(
+        continued.converged(),
+        "{} {:e}",
+        continued.stop,
+        continued.max_relative_error
+    );
+    assert!(continued.continuation_stages > 0);
+    let warm = solve_sphere_ot(
+        &measure,
+        &points,
+        &masses,
+        &SphereOtParams {
+            initial_heights: Some(continued.heights.clone()),
+            initial_heights_lo: Some(continued.heights_lo.clone()),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(warm.iterations, 0);
+    // (the cost is summed in parallel: equal to rounding)
+    assert!(
+        (warm.cost / continued.cost - 1.0).abs() < 1e-13,
+        "{} {}",
+        warm.cost,
+        continued.cost
+    );
+    assert_eq!(warm.heights, continued.heights);
+    assert_eq!(warm.heights_lo, continued.heights_lo);
+    // a length mismatch of the low parts is an input error
+    let bad = solve_sphere_ot(
+        &measure,
+        &points,
+        &masses,
+        &SphereOtParams {
+            initial_heights: Some(continued.heights.clone()),
+            initial_heights_lo: Some(vec![0.0; 3]),
+            ..Default::default()
+        },
+    );
+    assert!(
+        matches!(bad, Err(OmtError::InvalidInput(ref m)) if m.contains("low parts")),
+        "{bad:?}"
+    );
+}

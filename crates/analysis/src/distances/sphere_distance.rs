@@ -415,7 +415,7 @@ fn solve(
     source: &PreparedSphere,
     target: &PreparedSphere,
     r: &Rotation,
-    warm: Option<Vec<f64>>,
+    warm: Option<(Vec<f64>, Vec<f64>)>,
     tolerance: f64,
     params: &SphereOtParams,
     tally: &mut Tally,
@@ -427,9 +427,11 @@ fn solve(
     };
     let points: Vec<[f64; 3]> = target.points.iter().map(|&y| apply(r, y)).collect();
     let cold = warm.is_none();
+    let (warm_hi, warm_lo) = warm.unzip();
     let direct = SphereOtParams {
         tolerance,
-        initial_heights: warm,
+        initial_heights: warm_hi,
+        initial_heights_lo: warm_lo,
         density_continuation: None,
         ..params.clone()
     };
@@ -442,6 +444,7 @@ fn solve(
             let fallback = SphereOtParams {
                 tolerance,
                 initial_heights: None,
+                initial_heights_lo: None,
                 density_continuation: params.density_continuation.or(Some(10.0)),
                 ..params.clone()
             };
@@ -489,7 +492,10 @@ pub fn directed_sphere_distance(
             // (the grid always yields a candidate; a scoring solve stopped by the deadline passes
             // no heights on)
             let (r, warm) = match best {
-                Some((r, s)) => (r, (s.stop != StopReason::TimeLimit).then_some(s.heights)),
+                Some((r, s)) => (
+                    r,
+                    (s.stop != StopReason::TimeLimit).then_some((s.heights, s.heights_lo)),
+                ),
                 None => (IDENTITY, None),
             };
             (r, warm, seconds_proxy, start.elapsed().as_secs_f64() - seconds_proxy)
@@ -565,7 +571,7 @@ pub fn directed_sphere_distance(
             let mut taken = None;
             for _ in 0..5 {
                 let next = compose(&exp_rotation(step), &rotation);
-                let warm = Some(solution.heights.clone());
+                let warm = Some((solution.heights.clone(), solution.heights_lo.clone()));
                 if let Ok((s, _)) = solve(source, target, &next, warm, refine_tolerance, params, &mut tally) {
                     if s.converged() && s.cost < solution.cost {
                         taken = Some((next, s));

@@ -241,24 +241,43 @@ pub(crate) fn inner_radius(measure: &SphereMeasure) -> f64 {
 /// icosphere of the fewest subdivisions with at least COARSE_TRIANGLES·n triangles when that has at
 /// most half the measure's triangles.
 const COARSE_TRIANGLES: usize = 2;
+/// A coarse level's icosphere is used when it has at most 1/COARSE_SHARE of the measure's
+/// triangles (else the measure itself).
+const COARSE_SHARE: usize = 2;
 
 /// The source of a coarse level of `coarse_n` points (`None`: the measure itself): an icosphere
-/// of at least [`COARSE_TRIANGLES`]·n triangles whose density per unit sphere area is the
-/// measure's at the nearest triangle centroid (a uniform density stays uniform). Only the
-/// coarse cells' centroids and adjacency enter the prolongation, and its guarantee uses the
-/// fine measure's inner radius, so it holds whatever the coarse source; the finest level
-/// always integrates the measure itself. (The area-preserving map of Nefertiti, 50k points on
-/// 327,680 triangles, otherwise integrates its 12.5k-point level on all of them.)
+/// of at least [`COARSE_TRIANGLES`]·n triangles (at most half the measure's) carrying the measure's mass averaged over each
+/// triangle (decision 0011's averaged coarse measures, on S²): each fine triangle's mass goes to
+/// the icosphere triangle whose centroid is nearest to its own, and an icosphere triangle that
+/// receives none (it lies within a fine triangle larger than itself) takes the measure's
+/// density at its centroid instead, the total then rescaled to the measure's (a uniform density
+/// stays uniform). Sampling the density at the centroids alone
+/// misplaces the mass of crowded sources: a conformal image holds a limb's area in a region
+/// of 1e-10 of the sphere that no coarse centroid meets, or multiplies 1e11 densities by a whole
+/// coarse triangle (docs/decisions/0030-crowded-sphere-sources.md). Only the coarse cells'
+/// centroids and adjacency enter the prolongation, and its guarantee uses the fine measure's
+/// inner radius, so it holds whatever the coarse source; the finest level always integrates the
+/// measure itself. (The area-preserving map of Nefertiti, 50k points on 327,680 triangles,
+/// otherwise integrates its 12.5k-point level on all of them.)
 fn coarse_measure(measure: &SphereMeasure, coarse_n: usize) -> Option<SphereMeasure> {
     let mut s = 0;
     while 20 * 4usize.pow(s as u32) < COARSE_TRIANGLES * coarse_n {
         s += 1;
     }
-    if 2 * 20 * 4usize.pow(s as u32) > measure.triangles.len() {
+    if COARSE_SHARE * 20 * 4usize.pow(s as u32) > measure.triangles.len() {
         return None;
     }
     let (vertices, triangles) = super::measure::icosphere(s);
-    // the measure's density per unit area of the sphere, at each triangle's centroid direction
+    averaged_measure(measure, vertices, triangles)
+}
+
+/// `measure`'s mass averaged over the triangles of `triangles` (a triangulation of S² with
+/// vertices `vertices`), as [`coarse_measure`] says.
+pub(crate) fn averaged_measure(
+    measure: &SphereMeasure,
+    vertices: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+) -> Option<SphereMeasure> {
     let centroid = |tri: &[u32; 3], v: &[[f64; 3]]| -> [f64; 3] {
         let [a, b, c] = tri.map(|i| v[i as usize]);
         let m = [0, 1, 2].map(|k| a[k] + b[k] + c[k]);
@@ -270,27 +289,60 @@ fn coarse_measure(measure: &SphereMeasure, coarse_n: usize) -> Option<SphereMeas
         .iter()
         .map(|t| centroid(t, &measure.vertices))
         .collect();
+    let fine_masses = measure.triangle_masses();
     let fine_density: Vec<f64> = measure
         .triangles
         .iter()
-        .zip(&measure.densities)
-        .map(|(tri, d)| {
+        .zip(&fine_masses)
+        .map(|(tri, m)| {
             let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
-            d * super::measure::flat_area(a, b, c) / super::measure::spherical_area(a, b, c)
+            m / super::measure::spherical_area(a, b, c)
         })
         .collect();
     let uniform = fine_density.iter().all(|&d| d == fine_density[0]);
-    let tree = SiteTree::new(&fine_centroids);
-    let densities: Vec<f64> = triangles
-        .par_iter()
-        .map_init(Vec::new, |stack, tri| {
+    let coarse_centroids: Vec<[f64; 3]> = triangles.iter().map(|t| centroid(t, &vertices)).collect();
+    let spherical: Vec<f64> = triangles
+        .iter()
+        .map(|tri| {
             let [a, b, c] = tri.map(|i| vertices[i as usize]);
-            let sphere_density = if uniform {
-                fine_density[0]
-            } else {
-                fine_density[tree.nearest_to(centroid(tri, &vertices), stack)]
-            };
-            sphere_density * super::measure::spherical_area(a, b, c) / super::measure::flat_area(a, b, c)
+            super::measure::spherical_area(a, b, c)
+        })
+        .collect();
+    let mut masses = vec![0.0; triangles.len()];
+    if uniform {
+        for (m, a) in masses.iter_mut().zip(&spherical) {
+            *m = *a;
+        }
+    } else {
+        let coarse_tree = SiteTree::new(&coarse_centroids);
+        let owner: Vec<usize> = fine_centroids
+            .par_iter()
+            .map_init(Vec::new, |stack, &c| coarse_tree.nearest_to(c, stack))
+            .collect();
+        for (&k, &m) in owner.iter().zip(&fine_masses) {
+            masses[k] += m;
+        }
+        let empty: Vec<usize> = (0..triangles.len()).filter(|&k| !(masses[k] > 0.0)).collect();
+        if !empty.is_empty() {
+            let fine_tree = SiteTree::new(&fine_centroids);
+            let sampled: Vec<f64> = empty
+                .par_iter()
+                .map_init(Vec::new, |stack, &k| {
+                    fine_density[fine_tree.nearest_to(coarse_centroids[k], stack)] * spherical[k]
+                })
+                .collect();
+            for (&k, m) in empty.iter().zip(sampled) {
+                masses[k] = m;
+            }
+        }
+    }
+    let scale = measure.total_mass() / masses.iter().sum::<f64>();
+    let densities: Vec<f64> = triangles
+        .iter()
+        .zip(&masses)
+        .map(|(tri, m)| {
+            let [a, b, c] = tri.map(|i| vertices[i as usize]);
+            m * scale / super::measure::flat_area(a, b, c)
         })
         .collect();
     SphereMeasure::new(vertices, triangles, densities).ok()
@@ -370,6 +422,7 @@ pub(crate) fn coarse_to_fine_heights(
         tolerance: params.tolerance.max(params.coarse_tolerance),
         max_iterations: params.max_iterations.max(SphereOtParams::default().max_iterations),
         initial_heights: None,
+        initial_heights_lo: None,
         start: SphereStart::CoarseToFine,
         ..params.clone()
     };
@@ -604,4 +657,75 @@ pub(crate) fn coarse_to_fine_heights(
         levels,
         rechecked,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::measure::icosphere;
+
+    fn first_moment(measure: &SphereMeasure) -> [f64; 3] {
+        let mut m = [0.0; 3];
+        for (tri, mass) in measure.triangles.iter().zip(measure.triangle_masses()) {
+            let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+            for k in 0..3 {
+                m[k] += mass * (a[k] + b[k] + c[k]) / 3.0;
+            }
+        }
+        m
+    }
+
+    /// A fine triangle holding 99.8 % of the mass, placed as far as possible from the coarse
+    /// triangles' centroids (a limb's image in miniature): the averaged coarse measure keeps
+    /// the total mass and puts the first moment within a coarse triangle of the spike, where
+    /// the density sampled at the coarse centroids misses the spike altogether.
+    #[test]
+    fn averaged_coarse_measure_keeps_a_spike_between_coarse_centroids() {
+        let (fv, ft) = icosphere(4);
+        let (cv, ct) = icosphere(1);
+        let centroid = |tri: &[u32; 3], v: &[[f64; 3]]| {
+            let [a, b, c] = tri.map(|i| v[i as usize]);
+            let m = [0, 1, 2].map(|k| a[k] + b[k] + c[k]);
+            let r = norm(m);
+            m.map(|x| x / r)
+        };
+        let coarse_centroids: Vec<[f64; 3]> = ct.iter().map(|t| centroid(t, &cv)).collect();
+        let spike = (0..ft.len())
+            .max_by(|&a, &b| {
+                let gap = |f: usize| {
+                    let c = centroid(&ft[f], &fv);
+                    coarse_centroids
+                        .iter()
+                        .map(|&d| norm(sub(c, d)))
+                        .fold(f64::INFINITY, f64::min)
+                };
+                gap(a).total_cmp(&gap(b))
+            })
+            .unwrap();
+        let direction = centroid(&ft[spike], &fv);
+        let densities: Vec<f64> = (0..ft.len()).map(|f| if f == spike { 1e6 } else { 1.0 }).collect();
+        let fine = SphereMeasure::new(fv, ft, densities).unwrap();
+        let coarse = averaged_measure(&fine, cv, ct).unwrap();
+        assert!((coarse.total_mass() / fine.total_mass() - 1.0).abs() < 1e-12);
+        let m = first_moment(&coarse);
+        let (mf, mc) = (norm(first_moment(&fine)), norm(m));
+        // the fine measure's first moment is 99.8 % of its mass at the spike's centroid depth
+        assert!(mc > 0.9 * mf, "{mc} against {mf}");
+        let angle = (dot(m, direction) / mc).clamp(-1.0, 1.0).acos();
+        assert!(angle < 0.4, "{angle} rad from the spike");
+    }
+
+    /// A uniform source stays uniform: the averaged icosphere of a uniform fine icosphere has
+    /// the coarse uniform icosphere's densities.
+    #[test]
+    fn averaged_coarse_measure_of_a_uniform_source_is_uniform() {
+        let fine = SphereMeasure::uniform_icosphere(4).unwrap();
+        let (cv, ct) = icosphere(2);
+        let coarse = averaged_measure(&fine, cv, ct).unwrap();
+        let reference = SphereMeasure::uniform_icosphere(2).unwrap();
+        let scale = fine.total_mass() / reference.total_mass();
+        for (a, b) in coarse.densities.iter().zip(&reference.densities) {
+            assert!((a / (b * scale) - 1.0).abs() < 1e-12, "{a} {b}");
+        }
+    }
 }

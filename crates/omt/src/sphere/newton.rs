@@ -50,6 +50,11 @@ pub struct SphereOtParams {
     pub linear_solver: LinearSolver,
     /// Warm start heights (#N); the Voronoi start h = 0 without them.
     pub initial_heights: Option<Vec<f64>>,
+    /// The low parts of the warm start's double-double heights (#N, with `initial_heights`;
+    /// [`SphereOtSolution::heights_lo`]): without them a warm start rounds the heights to f64,
+    /// which moves the bisectors of sites 1e-11 apart by 1e-5 of their spacing' reciprocal
+    /// (decision 0005) and costs every warm-started solve of a crowded image its first steps.
+    pub initial_heights_lo: Option<Vec<f64>>,
     /// Stop as [`StopReason::TimeLimit`] at the first step that would begin after this.
     pub deadline: Option<Instant>,
     /// Integrate with every site a candidate in every triangle (the O(N·M) oracle; tests).
@@ -93,6 +98,7 @@ impl Default for SphereOtParams {
             max_halvings: 40,
             linear_solver: LinearSolver::Cholesky,
             initial_heights: None,
+            initial_heights_lo: None,
             deadline: None,
             brute_force: false,
             target_ratio_cap: Some(crate::newton::TARGET_RATIO_CAP),
@@ -321,7 +327,20 @@ pub fn solve_sphere_ot(
         if h.iter().any(|v| !v.is_finite()) {
             return Err(OmtError::InvalidInput("the initial heights are not all finite".into()));
         }
-        return problem.iterate(Heights::from_f64(h.clone()), None, StartRecord::default());
+        let heights = match &params.initial_heights_lo {
+            None => Heights::from_f64(h.clone()),
+            Some(lo) if lo.len() == n && lo.iter().all(|v| v.is_finite()) => Heights {
+                hi: h.clone(),
+                lo: lo.clone(),
+            },
+            Some(lo) => {
+                return Err(OmtError::InvalidInput(format!(
+                    "{} low parts of the initial heights for {n} points, or not all finite",
+                    lo.len()
+                )))
+            }
+        };
+        return problem.iterate(heights, None, StartRecord::default());
     }
     let voronoi = || Heights::from_f64(vec![0.0; n]);
     let (voronoi_cells, try_coarse) = match params.start {
@@ -565,7 +584,7 @@ fn continuation(
     t_start: Instant,
 ) -> Result<SphereOtSolution, OmtError> {
     let k = stages.ceil().max(1.0) as usize;
-    let mut heights: Option<Vec<f64>> = None;
+    let mut heights: Option<(Vec<f64>, Vec<f64>)> = None;
     let mut iterations = 0;
     let mut evaluations = 0;
     for stage in 1..k {
@@ -575,9 +594,11 @@ fn continuation(
             triangles: measure.triangles.clone(),
             densities: measure.densities.iter().map(|d| d.powf(t)).collect(),
         };
+        let (hi, lo) = heights.take().unzip();
         let stage_params = SphereOtParams {
             tolerance: params.tolerance.max(1e-3),
-            initial_heights: heights.take(),
+            initial_heights: hi,
+            initial_heights_lo: lo,
             density_continuation: None,
             ..params.clone()
         };
@@ -587,10 +608,12 @@ fn continuation(
         if solution.stop == StopReason::TimeLimit {
             return Ok(solution);
         }
-        heights = Some(solution.heights);
+        heights = Some((solution.heights, solution.heights_lo));
     }
+    let (hi, lo) = heights.unzip();
     let last = SphereOtParams {
-        initial_heights: heights,
+        initial_heights: hi,
+        initial_heights_lo: lo,
         density_continuation: None,
         ..params.clone()
     };
