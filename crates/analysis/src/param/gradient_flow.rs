@@ -68,8 +68,8 @@ use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
 use crate::lie_advection::{
-    acceptable, face_gradient, face_is_ccw, lie_advection_map, moved, signed_area, tangential, LieAdvectionInfo,
-    LieAdvectionParams, PlanarPoisson,
+    acceptable, face_gradient, face_is_ccw, lie_advection_map, moved, signed_area, tangential, vertex_velocities,
+    LieAdvectionInfo, LieAdvectionParams, PlanarPoisson,
 };
 use crate::point_location::PointLocator;
 
@@ -480,27 +480,7 @@ fn project(
         }
         let potential = poisson.solve(u, &rhs)?;
         info.projection_solves += 1;
-        let mut flux = vec![[0.0; 2]; n];
-        let mut mass = vec![0.0; n];
-        for (f, face) in faces.iter().enumerate() {
-            let g = face_gradient(u, face, &potential, image[f]);
-            for &v in face {
-                let v = v as usize;
-                flux[v][0] += image[f] * g[0];
-                flux[v][1] += image[f] * g[1];
-                mass[v] += scale * surface_areas[f];
-            }
-        }
-        let velocity: Vec<[f64; 2]> = (0..n)
-            .map(|i| {
-                let v = [flux[i][0] / mass[i], flux[i][1] / mass[i]];
-                if is_boundary[i] {
-                    tangential(u[i], v)
-                } else {
-                    v
-                }
-            })
-            .collect();
+        let velocity = vertex_velocities(u, faces, &potential, &image, scale, surface_areas, is_boundary);
         if velocity.iter().any(|v| !(v[0].is_finite() && v[1].is_finite())) {
             return Ok(());
         }

@@ -545,6 +545,42 @@ pub(crate) fn moved(x: &[[f64; 2]], v: &[[f64; 2]], h: f64, is_boundary: &[bool]
         .collect()
 }
 
+/// Vertex velocities of the Moser flow from a potential: per vertex, the image-area-weighted
+/// mean of the potential's face gradients divided by the vertex's (scaled) surface area, the
+/// rim's made tangential. Shared by the correction flow and the gradient flow's projection.
+pub(crate) fn vertex_velocities(
+    x: &[[f64; 2]],
+    faces: &[[u32; 3]],
+    potential: &[f64],
+    image: &[f64],
+    scale: f64,
+    surface_areas: &[f64],
+    is_boundary: &[bool],
+) -> Vec<[f64; 2]> {
+    let n = x.len();
+    let mut flux = vec![[0.0; 2]; n];
+    let mut mass = vec![0.0; n];
+    for (f, face) in faces.iter().enumerate() {
+        let g = face_gradient(x, face, potential, image[f]);
+        for &v in face {
+            let v = v as usize;
+            flux[v][0] += image[f] * g[0];
+            flux[v][1] += image[f] * g[1];
+            mass[v] += scale * surface_areas[f];
+        }
+    }
+    (0..n)
+        .map(|i| {
+            let v = [flux[i][0] / mass[i], flux[i][1] / mass[i]];
+            if is_boundary[i] {
+                tangential(x[i], v)
+            } else {
+                v
+            }
+        })
+        .collect()
+}
+
 /// The correction flow's vertex velocities at time `t < 1` on the current mesh `x`: the
 /// density ρ_t = a_f / |f_t| of the current map and ρ_0 − 1 = (ρ_t − 1)/(1 − t) (module docs).
 fn current_velocity(
@@ -567,27 +603,7 @@ fn current_velocity(
         }
     }
     let potential = poisson.solve(x, &rhs)?;
-    let mut flux = vec![[0.0; 2]; n];
-    let mut mass = vec![0.0; n];
-    for (f, face) in faces.iter().enumerate() {
-        let g = face_gradient(x, face, &potential, image[f]);
-        for &v in face {
-            let v = v as usize;
-            flux[v][0] += image[f] * g[0];
-            flux[v][1] += image[f] * g[1];
-            mass[v] += scale * surface_areas[f];
-        }
-    }
-    let v: Vec<[f64; 2]> = (0..n)
-        .map(|i| {
-            let v = [flux[i][0] / mass[i], flux[i][1] / mass[i]];
-            if is_boundary[i] {
-                tangential(x[i], v)
-            } else {
-                v
-            }
-        })
-        .collect();
+    let v = vertex_velocities(x, faces, &potential, &image, scale, surface_areas, is_boundary);
     if let Some(i) = v.iter().position(|v| !(v[0].is_finite() && v[1].is_finite())) {
         return Err(AnalysisError::InvalidInput(format!(
             "the correction flow's velocity at vertex {i} is not finite at t = {t}"
