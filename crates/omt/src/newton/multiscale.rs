@@ -538,46 +538,7 @@ pub(crate) fn coarse_to_fine_heights(
     }
     // Candidates for the maximum: the groups within RINGS edges of the regular triangulation of
     // the coarse solution (not only the cells that meet inside Ω).
-    let candidates: Vec<Vec<usize>> = {
-        let (w, wl) = Heights {
-            hi: hh.clone(),
-            lo: hl.clone(),
-        }
-        .weights(&coarse.points);
-        let built;
-        let order = match below.and_then(|b| b.order.as_ref()) {
-            Some(order) => order,
-            None => {
-                built = InsertionOrder::new(&coarse.points)?;
-                &built
-            }
-        };
-        let regular = PowerDiagram::builder(&coarse.points, &w)
-            .low_parts(Some(&wl))
-            .order(order)
-            .build()?;
-        (0..coarse_n)
-            .into_par_iter()
-            .map(|g| {
-                let mut set = vec![g];
-                let mut frontier = vec![g];
-                for _ in 0..RINGS {
-                    let mut next = Vec::new();
-                    for &a in &frontier {
-                        for &b in regular.neighbors(a) {
-                            let b = b as usize;
-                            if !set.contains(&b) {
-                                set.push(b);
-                                next.push(b);
-                            }
-                        }
-                    }
-                    frontier = next;
-                }
-                set
-            })
-            .collect()
-    };
+    let candidates = candidate_groups(&coarse.points, hh, hl, below.and_then(|b| b.order.as_ref()))?;
     let centroids: Vec<[f64; 2]> = (0..coarse_n)
         .map(|g| {
             let m = cells.masses[g];
@@ -763,6 +724,55 @@ pub(crate) fn coarse_to_fine_heights(
             .collect(),
         checked: checked.map(|diagram| (diagram, order)),
     }))
+}
+
+/// For each coarse group, the groups within [`RINGS`] edges of the regular triangulation of
+/// the coarse solution (`heights` + `heights_lo` at `points`; `order`: their insertion order
+/// when the level has one): the candidates for the maximum of the prolongation's check.
+fn candidate_groups(
+    points: &[[f64; 2]],
+    heights: &[f64],
+    heights_lo: &[f64],
+    order: Option<&InsertionOrder>,
+) -> Result<Vec<Vec<usize>>, OmtError> {
+    let (w, wl) = Heights {
+        hi: heights.to_vec(),
+        lo: heights_lo.to_vec(),
+    }
+    .weights(points);
+    let built;
+    let order = match order {
+        Some(order) => order,
+        None => {
+            built = InsertionOrder::new(points)?;
+            &built
+        }
+    };
+    let regular = PowerDiagram::builder(points, &w)
+        .low_parts(Some(&wl))
+        .order(order)
+        .build()?;
+    Ok((0..points.len())
+        .into_par_iter()
+        .map(|g| {
+            let mut set = vec![g];
+            let mut frontier = vec![g];
+            for _ in 0..RINGS {
+                let mut next = Vec::new();
+                for &a in &frontier {
+                    for &b in regular.neighbors(a) {
+                        let b = b as usize;
+                        if !set.contains(&b) {
+                            set.push(b);
+                            next.push(b);
+                        }
+                    }
+                }
+                frontier = next;
+            }
+            set
+        })
+        .collect())
 }
 
 #[cfg(test)]
