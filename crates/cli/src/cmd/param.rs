@@ -286,29 +286,26 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
         );
     }
     write_plots_and_report(args, &report, || {
-        serde_json::json!({
-            "input": args.input.display().to_string(),
-            "output": args.out.display().to_string(),
-            "method": "omt",
-            "marker_file": marker_source,
-            "markers": map.conformal.info.markers,
-            "conformal_method": map.conformal.info.method,
-            "conformal_bff_fallback": map.conformal.info.bff_fallback,
-            "domain": map.domain,
-            "weights": args.weights.as_ref().map(|p| p.display().to_string()),
-            "num_vertices": mesh.num_vertices(),
-            "num_faces": mesh.num_faces(),
-            "scale": map.conformal.scale,
-            "ot": map.ot,
-            "max_boundary_projection": map.max_boundary_projection,
-            "boundary_order_violations": map.boundary_order_violations,
-            "boundary_vertices_reordered": map.boundary_vertices_reordered,
-            "square_rotation": map.square_rotation,
-            "fold_repair": map.fold_repair,
-            "timings": map.timings,
-            "wall_seconds": t0.elapsed().as_secs_f64(),
-            "distortion": report,
-        })
+        report_json(
+            args,
+            "omt",
+            &marker_source,
+            &map.conformal,
+            &mesh,
+            map.domain,
+            serde_json::json!({
+                "weights": args.weights.as_ref().map(|p| p.display().to_string()),
+                "ot": map.ot,
+                "max_boundary_projection": map.max_boundary_projection,
+                "boundary_order_violations": map.boundary_order_violations,
+                "boundary_vertices_reordered": map.boundary_vertices_reordered,
+                "square_rotation": map.square_rotation,
+                "fold_repair": map.fold_repair,
+                "timings": map.timings,
+                "wall_seconds": t0.elapsed().as_secs_f64(),
+                "distortion": report,
+            }),
+        )
     })?;
     if !map.ot.converged {
         eprintln!(
@@ -381,24 +378,21 @@ fn run_lie(
         );
     }
     write_plots_and_report(args, &report, || {
-        serde_json::json!({
-            "input": args.input.display().to_string(),
-            "output": args.out.display().to_string(),
-            "method": "lie",
-            "marker_file": marker_source,
-            "markers": map.conformal.info.markers,
-            "conformal_method": map.conformal.info.method,
-            "conformal_bff_fallback": map.conformal.info.bff_fallback,
-            "domain": Domain::Disk,
-            "num_vertices": mesh.num_vertices(),
-            "num_faces": mesh.num_faces(),
-            "scale": map.conformal.scale,
-            "lie_advection": map.info,
-            "fold_repair": map.info.fold_repair,
-            "timings": map.timings,
-            "wall_seconds": t0.elapsed().as_secs_f64(),
-            "distortion": report,
-        })
+        report_json(
+            args,
+            "lie",
+            &marker_source,
+            &map.conformal,
+            &mesh,
+            Domain::Disk,
+            serde_json::json!({
+                "lie_advection": map.info,
+                "fold_repair": map.info.fold_repair,
+                "timings": map.timings,
+                "wall_seconds": t0.elapsed().as_secs_f64(),
+                "distortion": report,
+            }),
+        )
     })?;
     if map.info.fold_repair_error.is_some() {
         return Ok(ExitCode::from(1));
@@ -451,24 +445,21 @@ fn run_flow(
         map.timings.flow,
     );
     write_plots_and_report(args, &report, || {
-        serde_json::json!({
-            "input": args.input.display().to_string(),
-            "output": args.out.display().to_string(),
-            "method": "flow",
-            "marker_file": marker_source,
-            "markers": map.conformal.info.markers,
-            "conformal_method": map.conformal.info.method,
-            "conformal_bff_fallback": map.conformal.info.bff_fallback,
-            "domain": Domain::Disk,
-            "num_vertices": mesh.num_vertices(),
-            "num_faces": mesh.num_faces(),
-            "scale": map.conformal.scale,
-            "lie_advection": map.info.start,
-            "gradient_flow": map.info.flow,
-            "timings": map.timings,
-            "wall_seconds": t0.elapsed().as_secs_f64(),
-            "distortion": report,
-        })
+        report_json(
+            args,
+            "flow",
+            &marker_source,
+            &map.conformal,
+            &mesh,
+            Domain::Disk,
+            serde_json::json!({
+                "lie_advection": map.info.start,
+                "gradient_flow": map.info.flow,
+                "timings": map.timings,
+                "wall_seconds": t0.elapsed().as_secs_f64(),
+                "distortion": report,
+            }),
+        )
     })?;
     Ok(ExitCode::SUCCESS)
 }
@@ -599,6 +590,37 @@ fn write_plots_and_report(
         write_atomically(p, text.as_bytes()).with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(())
+}
+
+/// The report of one map: the fields every method writes (input and output, method, markers,
+/// the conformal map, the domain, sizes, scale) with the method's own fields `extra` (an
+/// object) added.
+fn report_json(
+    args: &ParamArgs,
+    method: &str,
+    marker_source: &str,
+    conformal: &shapespace_conformal::DiskMap,
+    mesh: &shapespace_geometry::TriMesh,
+    domain: Domain,
+    extra: serde_json::Value,
+) -> serde_json::Value {
+    let mut json = serde_json::json!({
+        "input": args.input.display().to_string(),
+        "output": args.out.display().to_string(),
+        "method": method,
+        "marker_file": marker_source,
+        "markers": conformal.info.markers,
+        "conformal_method": conformal.info.method,
+        "conformal_bff_fallback": conformal.info.bff_fallback,
+        "domain": domain,
+        "num_vertices": mesh.num_vertices(),
+        "num_faces": mesh.num_faces(),
+        "scale": conformal.scale,
+    });
+    if let (Some(all), serde_json::Value::Object(extra)) = (json.as_object_mut(), extra) {
+        all.extend(extra);
+    }
+    json
 }
 
 /// Whether an error (or one of its sources) is about interior protrusions crowded beyond f64:
