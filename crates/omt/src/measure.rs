@@ -68,16 +68,6 @@ impl SourceMeasure {
         })
     }
 
-    /// The measure with these fields, for measures derived inside the crate from checked ones
-    /// (no validation).
-    pub(crate) fn from_checked_parts(vertices: Vec<[f64; 2]>, triangles: Vec<[u32; 3]>, densities: Vec<f64>) -> Self {
-        SourceMeasure {
-            vertices,
-            triangles,
-            densities,
-        }
-    }
-
     /// Uniform density `density` on a convex polygon given counter-clockwise, triangulated as a
     /// fan from its vertex average. Errors for fewer than 3 vertices and for a polygon that is
     /// not convex and counter-clockwise (its signed area differs from its

@@ -37,11 +37,11 @@ pub(super) fn solve_density_continuation(
         let stage_source = if last {
             measure
         } else {
-            stage_measure = PreparedMeasure::new(SourceMeasure::from_checked_parts(
-                measure.vertices.clone(),
-                measure.triangles.clone(),
-                measure.densities.iter().map(|d| d.powf(t_next)).collect(),
-            ));
+            stage_measure = PreparedMeasure::new(SourceMeasure {
+                vertices: measure.vertices.clone(),
+                triangles: measure.triangles.clone(),
+                densities: measure.densities.iter().map(|d| d.powf(t_next)).collect(),
+            });
             &stage_measure
         };
         let stage_params = NewtonParams {

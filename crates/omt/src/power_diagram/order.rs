@@ -25,7 +25,7 @@ pub(crate) fn hilbert_order(points: &[[f64; 2]]) -> Vec<u32> {
 }
 
 /// Index of (x, y) ∈ [0, 2¹⁶)² along the Hilbert curve of order 16.
-pub(crate) fn hilbert_index(mut x: u32, mut y: u32) -> u64 {
+fn hilbert_index(mut x: u32, mut y: u32) -> u64 {
     let n: u32 = 1 << 16;
     let mut d = 0u64;
     let mut s = n / 2;
