@@ -4,11 +4,15 @@
 //! ([`pipeline`]: markers, caches, resume, shards, partial files). The `distances` command.
 
 pub mod distance;
+pub mod inputs;
 pub mod invariance;
+pub mod merge;
 pub mod pipeline;
 pub mod report_path;
 pub mod resume;
 pub mod rotation;
+pub mod run_folder;
+pub mod run_report;
 pub mod run_settings;
 pub mod shape_cache;
 pub mod shard;
