@@ -24,7 +24,7 @@
 //!    Domain f(D), f(z) = z/(1 − z/2), p = f(0) symmetric, rings 10 → 40: 5.4e-3 → 4.3e-4 at
 //!    p, 1.3e-2 → 5.9e-3 central (irregular pole). Neither wins in general; `Central` is
 //!    the safer choice when p is close to the boundary;
-//! 4. a local repair of the rare folded original faces (slivers; [`crate::repair`]); when folds
+//! 4. a local repair of the rare folded original faces (slivers; [`crate::fold_repair::local`]); when folds
 //!    remain, Boundary First Flattening ([`crate::bff`]) is tried and its map returned if it has
 //!    none ([`DiskMapParams::bff_fallback`], recorded in [`DiskMapInfo::bff_fallback`]);
 //! 5. the pushed-forward densities μ_f = area₃(f)/area₂(φ(f)) (surface scaled to area π) and
@@ -110,7 +110,7 @@ pub struct DiskMapParams {
     /// Where the Green's function has its pole (default [`PolePlacement::AtCenter`]).
     pub pole: PolePlacement,
     /// Repair the few folded original faces by moving one free corner each into the kernel of
-    /// its image one-ring ([`crate::repair`]; default true). Without it a fold is an error.
+    /// its image one-ring ([`crate::fold_repair::local`]; default true). Without it a fold is an error.
     pub repair_folds: bool,
     /// When folds remain after the repair, try Boundary First Flattening ([`crate::bff`]) and
     /// return its map if it has none (default true; only with `repair_folds`).

@@ -8,12 +8,12 @@ use shapespace_geometry::topology::{find, union};
 use shapespace_geometry::TriMesh;
 
 use crate::error::ConformalError;
+use crate::fold_repair::local::{repair_folds, repair_folds_with_patches};
 use crate::fold_repair::{FoldRepairInfo, FoldRepairParams};
 use crate::intrinsic::IntrinsicTriangulation;
 use crate::markers::{ResolvedCenter, ResolvedMarkers};
 use crate::mobius::Mobius;
 use crate::quality::{face_distortions, summarize, QualitySummary};
-use crate::repair::{repair_folds, repair_folds_with_patches};
 
 /// Smallest accepted 1 − |φ| ≈ 2πu at an interior vertex (boundary crowding limit): about 90
 /// ulps of 1, so that the vertex stays distinguishable from the circle through the Möbius
@@ -279,7 +279,7 @@ pub(crate) fn finish(
     }
     let mut uv = normalized(z, &mobius, is_boundary, resolved);
 
-    // densities and factors on the original faces; fold repair first if needed (crate::repair)
+    // densities and factors on the original faces; fold repair first if needed (crate::fold_repair::local)
     let mut dist = face_distortions(mesh, &uv)?;
     let mut fold_repairs = 0;
     let mut region = None;

@@ -49,7 +49,6 @@ mod linsolve;
 pub mod markers;
 pub mod mobius;
 pub mod quality;
-pub mod repair;
 pub mod sphere;
 
 pub use bff::{bff_disk_coordinates, bff_disk_map, BffCoordinates, BffDiskMap, BffInfo, BffParams};

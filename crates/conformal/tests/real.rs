@@ -232,8 +232,8 @@ fn shared_ict_template_with_filled_holes_has_no_flips() {
 /// 4 rings, measured) unfolds it, and moves no fixed vertex.
 #[test]
 fn a_fold_of_adjacent_slivers_is_repaired_by_a_patch() {
+    use shapespace_conformal::fold_repair::local::repair_folds;
     use shapespace_conformal::quality::orient_scaled;
-    use shapespace_conformal::repair::repair_folds;
     let text = include_str!("fixtures/michael0_fold_patch.txt");
     let (mut uv, mut fixed, mut faces, mut angles) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for line in text.lines().filter(|l| !l.starts_with('#')) {

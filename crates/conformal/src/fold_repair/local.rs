@@ -1,4 +1,5 @@
-//! Local repair of folded image triangles.
+//! Local repair of the conformal map's folded image triangles (the region repair, for maps
+//! with many folds, is the parent module's).
 //!
 //! The discrete Riemann map is evaluated at the vertices and interpolated linearly on the
 //! ORIGINAL faces. Real scans contain slivers (angles up to ~175°) whose image orientation

@@ -1,6 +1,12 @@
-//! Repair of folded triangles of a planar disk map by local Tutte/Floater re-embedding
-//! [Tutte 1963, "How to draw a graph"; Floater 2003, "One-to-one piecewise linear mappings over
-//! triangulations", Thm. 1; Floater 2003, "Mean value coordinates"].
+//! Repair of folded triangles of planar disk maps, at two scales: [`local`] for the conformal
+//! map's rare folded slivers (a corner moved into the kernel of its image one-ring, else a small
+//! Tutte patch; the map stays conformal away from the moved vertices), and this module's region
+//! repair ([`repair_folds_with`]) for maps with many folds, the area-preserving maps' and the
+//! registration's, by local Tutte/Floater re-embedding [Tutte 1963, "How to draw a graph";
+//! Floater 2003, "One-to-one piecewise linear mappings over triangulations", Thm. 1; Floater
+//! 2003, "Mean value coordinates"]. The conformal map falls back on the region repair when the
+//! local one leaves folds (`docs/decisions/0026-disk-map-region-repair.md`), and the sphere's
+//! repair applies the local one in stereographic charts.
 //!
 //! Input: a map `uv` (#V) of a disk-type mesh whose boundary vertices lie on a convex curve
 //! (the unit circle or the square) in counter-clockwise order, with some faces folded (clockwise
@@ -83,6 +89,7 @@ use serde::Serialize;
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 
+pub mod local;
 mod retract;
 #[cfg(test)]
 mod tests;

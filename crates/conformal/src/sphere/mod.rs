@@ -83,7 +83,7 @@ pub struct SphereMapParams {
     /// Default: centering without rotation markers.
     pub normalization: SphereNormalization,
     /// Repair the few folded original faces in a local stereographic chart (default true;
-    /// [`crate::repair`]). Without it a fold is an error.
+    /// [`crate::fold_repair::local`]). Without it a fold is an error.
     pub repair_folds: bool,
 }
 

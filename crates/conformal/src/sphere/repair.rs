@@ -1,4 +1,4 @@
-//! Fold repair on the sphere: the disk's local repair ([`crate::repair`]) in a stereographic
+//! Fold repair on the sphere: the disk's local repair ([`crate::fold_repair::local`]) in a stereographic
 //! chart centred on each cluster of folded faces.
 //!
 //! The conformal map is computed at the vertices and interpolated on the ORIGINAL faces; as in
@@ -156,7 +156,7 @@ pub fn repair_sphere_folds(mesh: &TriMesh, x: &mut [[f64; 3]], fixed: &[bool]) -
             }
         }
         let before = uv.clone();
-        let m = crate::repair::repair_folds(&local_faces, &local_vf, &local_angles, &local_fixed, &mut uv);
+        let m = crate::fold_repair::local::repair_folds(&local_faces, &local_vf, &local_angles, &local_fixed, &mut uv);
         if m == 0 {
             skipped.extend_from_slice(&cluster);
             continue;
