@@ -172,8 +172,12 @@ pub(crate) fn schwarz(
     if !proper(&south_in) || !proper(&north_in) {
         return cap_correction(tri, z, zc, masses, false);
     }
-    let south = Chart::new(tri, &south_in, "the south chart's Laplacian")?;
-    let north = Chart::new(tri, &north_in, "the north chart's Laplacian")?;
+    // (the two factorizations are independent: on two cores they overlap)
+    let (south, north) = rayon::join(
+        || Chart::new(tri, &south_in, "the south chart's Laplacian"),
+        || Chart::new(tri, &north_in, "the north chart's Laplacian"),
+    );
+    let (south, north) = (south?, north?);
     let mut iterations = 0;
     let mut last_change = f64::INFINITY;
     while iterations < SCHWARZ_MAX_ITERATIONS {
