@@ -189,16 +189,7 @@ pub(super) fn solve_single(
                 record.gradient_norm = norm;
                 record.min_cell_mass = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
                 log.push(record);
-                let what = if no_progress(&log) {
-                    Some(format!(
-                        "{STALL_WINDOW} steps, each cut by the damping to τ < {STALL_TAU:e},"
-                    ))
-                } else if flat_without_growth(&log) {
-                    Some(format!("{FLAT_WINDOW} steps of τ < {FLAT_TAU:e} that stopped growing"))
-                } else {
-                    None
-                };
-                if let Some(what) = what {
+                if let Some(what) = stalled(&log) {
                     let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
                     stop = StopReason::Stalled {
                         reason: format!(
@@ -259,6 +250,19 @@ pub(super) fn solve_single(
         t_numeric: system.t_numeric,
         diagnosis,
     })
+}
+
+/// Which stall rule the steps so far meet, in words ([`no_progress`], [`flat_without_growth`]).
+fn stalled(log: &[IterationRecord]) -> Option<String> {
+    if no_progress(log) {
+        Some(format!(
+            "{STALL_WINDOW} steps, each cut by the damping to τ < {STALL_TAU:e},"
+        ))
+    } else if flat_without_growth(log) {
+        Some(format!("{FLAT_WINDOW} steps of τ < {FLAT_TAU:e} that stopped growing"))
+    } else {
+        None
+    }
 }
 
 /// The start when the first one (`start`, evaluated as `first`) has an empty cell: the plain

@@ -474,6 +474,47 @@ pub(crate) fn coarse_to_fine_heights(
     if (n < MIN_FINE && !crowded) || coarse_n * 4 > n * 3 {
         return Ok(None);
     }
+    // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
+    let boundary = hull_edges(&measure.domain_hull());
+    let Some(solution) = solve_level(measure, &coarse.points, &coarse.masses, below, boundary.len(), params)? else {
+        return Ok(None);
+    };
+    let delaunay = coarse.delaunay.take();
+    let prolongation = Prolongation::new(points, &coarse, &solution, &boundary, below)?;
+    let (mut heights, mut anchors) = prolongation.initial(points);
+    let order = match (fine_order, cached.and_then(|c| c.order.as_ref())) {
+        (Some(order), _) if order.len() == n => order,
+        (_, Some(order)) => order.clone(),
+        _ => InsertionOrder::new(points)?,
+    };
+    let checked = prolongation.check(points, &mut heights, &mut anchors, &order, delaunay, params)?;
+    Ok(Some(CoarseStart {
+        heights,
+        coarse_points: coarse_n,
+        coarse_iterations: solution.all_iterations(),
+        level_iterations: std::iter::once(solution.iterations)
+            .chain(match &solution.start {
+                super::Start::CoarseToFine { level_iterations, .. } => level_iterations.clone(),
+                _ => Vec::new(),
+            })
+            .collect(),
+        checked: checked.map(|diagram| (diagram, order)),
+    }))
+}
+
+/// Solves the coarse level (`points`, `masses`) of a coarse-to-fine start against the source
+/// measure, averaged where that pays ([`averaging_sample`]), from its own coarse-to-fine start;
+/// a level that start does not solve is retried from the Voronoi start with density
+/// continuation. `None` when neither solves it; a time limit passed is an error.
+fn solve_level(
+    measure: &PreparedMeasure,
+    points: &[[f64; 2]],
+    masses: &[f64],
+    below: Option<&Arc<TargetCoarsening>>,
+    hull_size: usize,
+    params: &NewtonParams,
+) -> Result<Option<super::OtSolution>, OmtError> {
+    let coarse_n = points.len();
     let coarse_params = NewtonParams {
         tolerance: params.tolerance.max(params.coarse_tolerance),
         target_coarsening: below.cloned(),
@@ -484,9 +525,7 @@ pub(crate) fn coarse_to_fine_heights(
         start_strategy: super::StartStrategy::CoarseToFine,
         ..params.clone()
     };
-    // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
-    let boundary = hull_edges(&measure.domain_hull());
-    let averaged = averaging_sample(measure, coarse_n, boundary.len()).and_then(|sample| measure.averaged(sample));
+    let averaged = averaging_sample(measure, coarse_n, hull_size).and_then(|sample| measure.averaged(sample));
     let level_measure = averaged.as_deref().unwrap_or(measure);
     // The deadline ends the whole solve: a level it stopped (or a level below, whose error comes
     // up through `solve_ot`) is reported as such instead of leaving every enclosing level to
@@ -496,7 +535,7 @@ pub(crate) fn coarse_to_fine_heights(
             "solving the {coarse_n}-point level of the coarse-to-fine start"
         )))
     };
-    let solution = match solve_ot_prepared(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
+    let solution = match solve_ot_prepared(level_measure, points, masses, &coarse_params) {
         Ok(s) if s.converged() => s,
         Err(e @ OmtError::TimeLimit(_)) => return Err(e),
         // (a level stopped on the deadline included: `StopReason::TimeLimit` means it has passed)
@@ -515,7 +554,7 @@ pub(crate) fn coarse_to_fine_heights(
                 density_continuation: Some(params.density_continuation.unwrap_or(RETRY_CONTINUATION)),
                 ..coarse_params.clone()
             };
-            match solve_ot_prepared(level_measure, &coarse.points, &coarse.masses, &retry) {
+            match solve_ot_prepared(level_measure, points, masses, &retry) {
                 Ok(mut s) if s.converged() => {
                     s.iterations += first_iterations;
                     s
@@ -527,203 +566,266 @@ pub(crate) fn coarse_to_fine_heights(
         }
         _ => return Ok(None),
     };
-    let cells = &solution.cells;
-    let (hh, hl) = (&solution.heights, &solution.heights_lo);
-    // H_a − H_b from the double-double parts.
-    let height_diff = |a: usize, b: usize| (hh[a] - hh[b]) + (hl[a] - hl[b]);
-    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
-    for &(i, j, _) in &cells.edge_masses {
-        neighbours[i as usize].push(j as usize);
-        neighbours[j as usize].push(i as usize);
+    Ok(Some(solution))
+}
+/// The prolongation of a coarse solution to the fine points (module docs): with G_g = −H_g,
+/// c_g the coarse cells' centroids, s_g their spreads and δ_g the groups' radii,
+/// Φ_g(y) = G_g + ⟨c_g, y − Y_g⟩ + s_g ψ_{δ_g}(y − Y_g), and a fine point's height is
+/// −max_k Φ_k(y_i) over the candidate groups.
+struct Prolongation<'a> {
+    /// The coarse points Y_g.
+    coarse: &'a [[f64; 2]],
+    /// Each fine point's group.
+    group: &'a [usize],
+    /// The coarse solution's heights H (double-double parts).
+    hh: &'a [f64],
+    hl: &'a [f64],
+    centroids: Vec<[f64; 2]>,
+    scales: Vec<f64>,
+    deltas: Vec<f64>,
+    /// The fine points of each group.
+    members: Vec<Vec<usize>>,
+    /// The groups within [`RINGS`] edges of each group ([`candidate_groups`]).
+    candidates: Vec<Vec<usize>>,
+}
+
+impl<'a> Prolongation<'a> {
+    fn new(
+        points: &[[f64; 2]],
+        coarse: &'a Coarsening<'_>,
+        solution: &'a super::OtSolution,
+        boundary: &[([[f64; 2]; 2], f64)],
+        below: Option<&Arc<TargetCoarsening>>,
+    ) -> Result<Self, OmtError> {
+        let coarse_n = coarse.points.len();
+        let cells = &solution.cells;
+        let (hh, hl) = (&solution.heights, &solution.heights_lo);
+        // H_a − H_b from the double-double parts.
+        let height_diff = |a: usize, b: usize| (hh[a] - hh[b]) + (hl[a] - hl[b]);
+        let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
+        for &(i, j, _) in &cells.edge_masses {
+            neighbours[i as usize].push(j as usize);
+            neighbours[j as usize].push(i as usize);
+        }
+        // Candidates for the maximum: the groups within RINGS edges of the regular triangulation of
+        // the coarse solution (not only the cells that meet inside Ω).
+        let candidates = candidate_groups(&coarse.points, hh, hl, below.and_then(|b| b.order.as_ref()))?;
+        let centroids: Vec<[f64; 2]> = (0..coarse_n)
+            .map(|g| {
+                let m = cells.masses[g];
+                [cells.first_moments[g][0] / m, cells.first_moments[g][1] / m]
+            })
+            .collect();
+        // s_g: SPREAD × the distance from c_g to the boundary of its cell W_g ∩ Ω (the bisectors with
+        // the neighbours, ⟨x, Y_g − Y_j⟩ + H_g − H_j = 0, and ∂Ω).
+        let scales: Vec<f64> = (0..coarse_n)
+            .into_par_iter()
+            .map(|g| {
+                let c = centroids[g];
+                let y = coarse.points[g];
+                let mut d = distance_to_boundary(boundary, c);
+                for &j in &neighbours[g] {
+                    let yj = coarse.points[j];
+                    let gap = [y[0] - yj[0], y[1] - yj[1]];
+                    let along = c[0] * gap[0] + c[1] * gap[1] + height_diff(g, j);
+                    d = d.min(along / gap[0].hypot(gap[1]));
+                }
+                if d.is_finite() && d > 0.0 {
+                    SPREAD * d
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
+        for (i, &g) in coarse.group.iter().enumerate() {
+            members[g].push(i);
+        }
+        let deltas: Vec<f64> = (0..coarse_n)
+            .map(|g| {
+                let y = coarse.points[g];
+                let sum: f64 = members[g]
+                    .iter()
+                    .map(|&i| (points[i][0] - y[0]).powi(2) + (points[i][1] - y[1]).powi(2))
+                    .sum();
+                (sum / members[g].len() as f64).sqrt()
+            })
+            .collect();
+        Ok(Self {
+            coarse: &coarse.points,
+            group: &coarse.group,
+            hh,
+            hl,
+            centroids,
+            scales,
+            deltas,
+            members,
+            candidates,
+        })
     }
-    // Candidates for the maximum: the groups within RINGS edges of the regular triangulation of
-    // the coarse solution (not only the cells that meet inside Ω).
-    let candidates = candidate_groups(&coarse.points, hh, hl, below.and_then(|b| b.order.as_ref()))?;
-    let centroids: Vec<[f64; 2]> = (0..coarse_n)
-        .map(|g| {
-            let m = cells.masses[g];
-            [cells.first_moments[g][0] / m, cells.first_moments[g][1] / m]
-        })
-        .collect();
-    // s_g: SPREAD × the distance from c_g to the boundary of its cell W_g ∩ Ω (the bisectors with
-    // the neighbours, ⟨x, Y_g − Y_j⟩ + H_g − H_j = 0, and ∂Ω).
-    let scales: Vec<f64> = (0..coarse_n)
-        .into_par_iter()
-        .map(|g| {
-            let c = centroids[g];
-            let y = coarse.points[g];
-            let mut d = distance_to_boundary(&boundary, c);
-            for &j in &neighbours[g] {
-                let yj = coarse.points[j];
-                let gap = [y[0] - yj[0], y[1] - yj[1]];
-                let along = c[0] * gap[0] + c[1] * gap[1] + height_diff(g, j);
-                d = d.min(along / gap[0].hypot(gap[1]));
-            }
-            if d.is_finite() && d > 0.0 {
-                SPREAD * d
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
-    for (i, &g) in coarse.group.iter().enumerate() {
-        members[g].push(i);
+
+    /// H_a − H_b from the double-double parts.
+    fn height_diff(&self, a: usize, b: usize) -> f64 {
+        (self.hh[a] - self.hh[b]) + (self.hl[a] - self.hl[b])
     }
-    let deltas: Vec<f64> = (0..coarse_n)
-        .map(|g| {
-            let y = coarse.points[g];
-            let sum: f64 = members[g]
-                .iter()
-                .map(|&i| (points[i][0] - y[0]).powi(2) + (points[i][1] - y[1]).powi(2))
-                .sum();
-            (sum / members[g].len() as f64).sqrt()
-        })
-        .collect();
-    // Φ_k(y) − G_g for a point y of group g.
-    let phi_rel = |k: usize, g: usize, y: [f64; 2]| {
-        let yk = coarse.points[k];
+
+    /// Φ_k(y) − G_g for a point y of group g.
+    fn phi_rel(&self, k: usize, g: usize, y: [f64; 2]) -> f64 {
+        let yk = self.coarse[k];
         let o = [y[0] - yk[0], y[1] - yk[1]];
-        let base = if k == g { 0.0 } else { height_diff(g, k) };
-        base + centroids[k][0] * o[0] + centroids[k][1] * o[1] + scales[k] * pseudo_huber(o, deltas[k])
-    };
-    // h_i = H_g − (Φ(y_i) − G_g), in double-double form.
-    let set = |heights: &mut Heights, i: usize, rel: f64| {
-        let g = coarse.group[i];
-        let (s, e) = crate::predicates::two_sum(hh[g], -rel);
-        let r = crate::predicates::two_sum(s, e + hl[g]);
+        let base = if k == g { 0.0 } else { self.height_diff(g, k) };
+        base + self.centroids[k][0] * o[0]
+            + self.centroids[k][1] * o[1]
+            + self.scales[k] * pseudo_huber(o, self.deltas[k])
+    }
+
+    /// h_i = H_g − (Φ(y_i) − G_g), in double-double form.
+    fn set(&self, heights: &mut Heights, i: usize, rel: f64) {
+        let g = self.group[i];
+        let (s, e) = crate::predicates::two_sum(self.hh[g], -rel);
+        let r = crate::predicates::two_sum(s, e + self.hl[g]);
         heights.hi[i] = r.0;
         heights.lo[i] = r.1;
-    };
-    let mut heights = Heights {
-        hi: vec![0.0; n],
-        lo: vec![0.0; n],
-    };
-    // ∂Φ(y) at a point y where Φ_k attains the maximum: c_k + s_k ∇ψ_δk(y − Y_k).
-    let anchor = |k: usize, y: [f64; 2]| -> [f64; 2] {
-        let yk = coarse.points[k];
+    }
+
+    /// ∂Φ(y) at a point y where Φ_k attains the maximum: c_k + s_k ∇ψ_δk(y − Y_k).
+    fn anchor(&self, k: usize, y: [f64; 2]) -> [f64; 2] {
+        let yk = self.coarse[k];
         let o = [y[0] - yk[0], y[1] - yk[1]];
-        let norm = (deltas[k] * deltas[k] + o[0] * o[0] + o[1] * o[1]).sqrt();
+        let norm = (self.deltas[k] * self.deltas[k] + o[0] * o[0] + o[1] * o[1]).sqrt();
         let grad = if norm > 0.0 {
             [o[0] / norm, o[1] / norm]
         } else {
             [0.0, 0.0]
         };
         [
-            centroids[k][0] + scales[k] * grad[0],
-            centroids[k][1] + scales[k] * grad[1],
+            self.centroids[k][0] + self.scales[k] * grad[0],
+            self.centroids[k][1] + self.scales[k] * grad[1],
         ]
-    };
-    // max_k Φ_k(y_i) − G_g over the groups `ks` and i's own group g, with its anchor (ties: the
-    // first maximum, g before `ks`).
-    let maximum = |i: usize, ks: &mut dyn Iterator<Item = usize>| -> (f64, [f64; 2]) {
-        let (g, y) = (coarse.group[i], points[i]);
-        let mut best = (phi_rel(g, g, y), g);
+    }
+
+    /// max_k Φ_k(y_i) − G_g over the groups `ks` and i's own group g, with its anchor (ties: the
+    /// first maximum, g before `ks`).
+    fn maximum(&self, points: &[[f64; 2]], i: usize, ks: &mut dyn Iterator<Item = usize>) -> (f64, [f64; 2]) {
+        let (g, y) = (self.group[i], points[i]);
+        let mut best = (self.phi_rel(g, g, y), g);
         for k in ks {
-            let v = phi_rel(k, g, y);
+            let v = self.phi_rel(k, g, y);
             if v > best.0 {
                 best = (v, k);
             }
         }
-        (best.0, anchor(best.1, y))
-    };
-    let prolonged: Vec<(f64, [f64; 2])> = coarse
-        .group
-        .par_iter()
-        .enumerate()
-        .map(|(i, &g)| {
-            // A group of one: y_i = Y_g, where every other Φ_k lies below u*(Y_g) = G_g.
-            if members[g].len() == 1 {
-                (0.0, anchor(g, points[i]))
-            } else {
-                maximum(i, &mut candidates[g].iter().copied())
-            }
-        })
-        .collect();
-    let mut anchors = vec![[0.0; 2]; n];
-    for (i, &(rel, a)) in prolonged.iter().enumerate() {
-        set(&mut heights, i, rel);
-        anchors[i] = a;
+        (best.0, self.anchor(best.1, y))
     }
-    // Check: with the maximum taken over the candidate groups only, a point's value can fall
-    // below Φ(y_i); its cell is then too large and may squeeze another's out of Ω or hide it.
-    // Every point j must hold its anchor p_j ∈ ∂Φ(y_j) ⊂ Ω in its own cell (then its cell
-    // meets Ω in an open set); for each j that does not (hidden or not), take the exact
-    // maximum (over all groups) for j and for the point i whose cell contains p_j: one of the
-    // two was underestimated.
-    let exact = |i: usize| maximum(i, &mut (0..coarse_n));
-    let order = match (fine_order, cached.and_then(|c| c.order.as_ref())) {
-        (Some(order), _) if order.len() == n => order,
-        (_, Some(order)) => order.clone(),
-        _ => InsertionOrder::new(points)?,
-    };
-    let mut exact_done = vec![false; n];
-    // the diagram of the final heights, if the last round changed none
-    let mut checked = None;
-    // each round's diagram is updated by flips (the same diagram as built anew) from the
-    // previous round's, the first from the coarsening's Delaunay triangulation
-    let mut previous: Option<Cow<PowerDiagram>> = coarse.delaunay.take();
-    for _round in 0..REPAIR_ROUNDS {
-        let (w, wl) = heights.weights(points);
-        let diagram = match previous.take().filter(|_| params.flip_updates) {
-            Some(previous) => PowerDiagram::builder(points, &w)
-                .low_parts(Some(&wl))
-                .order(&order)
-                .update_from(&previous)
-                .build()?,
-            None => PowerDiagram::builder(points, &w)
-                .low_parts(Some(&wl))
-                .order(&order)
-                .build()?,
-        };
-        // (a walk from j stops at j unless j is hidden or a neighbour is strictly closer)
-        let outside: Vec<usize> = (0..n)
-            .into_par_iter()
-            .filter(|&j| diagram.locate(anchors[j], Some(j)) != j)
-            .collect();
-        if outside.is_empty() {
-            checked = Some(diagram);
-            break;
-        }
-        let mut changed = false;
-        for j in outside {
-            let i = diagram.locate(anchors[j], Some(j));
-            if !exact_done[j] {
-                let (rel, a) = exact(j);
-                set(&mut heights, j, rel);
-                anchors[j] = a;
-                exact_done[j] = true;
-                changed = true;
-            }
-            if i != j && !exact_done[i] {
-                let (rel_i, a) = exact(i);
-                set(&mut heights, i, rel_i);
-                anchors[i] = a;
-                exact_done[i] = true;
-                changed = true;
-            }
-        }
-        // Every failing point and the owner of its anchor already have the exact maximum: what
-        // is left is rounding in the crowded spots (the anchor falls just outside a cell that
-        // is not empty); another diagram would find the same.
-        if !changed {
-            checked = Some(diagram);
-            break;
-        }
-        previous = Some(Cow::Owned(diagram));
+
+    /// The maximum over all groups.
+    fn exact(&self, points: &[[f64; 2]], i: usize) -> (f64, [f64; 2]) {
+        self.maximum(points, i, &mut (0..self.coarse.len()))
     }
-    Ok(Some(CoarseStart {
-        heights,
-        coarse_points: coarse_n,
-        coarse_iterations: solution.all_iterations(),
-        level_iterations: std::iter::once(solution.iterations)
-            .chain(match &solution.start {
-                super::Start::CoarseToFine { level_iterations, .. } => level_iterations.clone(),
-                _ => Vec::new(),
+
+    /// The fine heights with the maximum over the candidate groups, and each point's anchor.
+    fn initial(&self, points: &[[f64; 2]]) -> (Heights, Vec<[f64; 2]>) {
+        let n = points.len();
+        let prolonged: Vec<(f64, [f64; 2])> = self
+            .group
+            .par_iter()
+            .enumerate()
+            .map(|(i, &g)| {
+                // A group of one: y_i = Y_g, where every other Φ_k lies below u*(Y_g) = G_g.
+                if self.members[g].len() == 1 {
+                    (0.0, self.anchor(g, points[i]))
+                } else {
+                    self.maximum(points, i, &mut self.candidates[g].iter().copied())
+                }
             })
-            .collect(),
-        checked: checked.map(|diagram| (diagram, order)),
-    }))
+            .collect();
+        let mut heights = Heights {
+            hi: vec![0.0; n],
+            lo: vec![0.0; n],
+        };
+        let mut anchors = vec![[0.0; 2]; n];
+        for (i, &(rel, a)) in prolonged.iter().enumerate() {
+            self.set(&mut heights, i, rel);
+            anchors[i] = a;
+        }
+        (heights, anchors)
+    }
+
+    /// Checks the prolonged heights (the comment below) and corrects them; returns the power
+    /// diagram of the final heights when the last round changed none.
+    fn check(
+        &self,
+        points: &[[f64; 2]],
+        heights: &mut Heights,
+        anchors: &mut [[f64; 2]],
+        order: &InsertionOrder,
+        delaunay: Option<Cow<'_, PowerDiagram>>,
+        params: &NewtonParams,
+    ) -> Result<Option<PowerDiagram>, OmtError> {
+        let n = points.len();
+        // Check: with the maximum taken over the candidate groups only, a point's value can fall
+        // below Φ(y_i); its cell is then too large and may squeeze another's out of Ω or hide it.
+        // Every point j must hold its anchor p_j ∈ ∂Φ(y_j) ⊂ Ω in its own cell (then its cell
+        // meets Ω in an open set); for each j that does not (hidden or not), take the exact
+        // maximum (over all groups) for j and for the point i whose cell contains p_j: one of the
+        // two was underestimated.
+        let mut exact_done = vec![false; n];
+        // the diagram of the final heights, if the last round changed none
+        let mut checked = None;
+        // each round's diagram is updated by flips (the same diagram as built anew) from the
+        // previous round's, the first from the coarsening's Delaunay triangulation
+        let mut previous = delaunay;
+        for _round in 0..REPAIR_ROUNDS {
+            let (w, wl) = heights.weights(points);
+            let diagram = match previous.take().filter(|_| params.flip_updates) {
+                Some(previous) => PowerDiagram::builder(points, &w)
+                    .low_parts(Some(&wl))
+                    .order(order)
+                    .update_from(&previous)
+                    .build()?,
+                None => PowerDiagram::builder(points, &w)
+                    .low_parts(Some(&wl))
+                    .order(order)
+                    .build()?,
+            };
+            // (a walk from j stops at j unless j is hidden or a neighbour is strictly closer)
+            let outside: Vec<usize> = (0..n)
+                .into_par_iter()
+                .filter(|&j| diagram.locate(anchors[j], Some(j)) != j)
+                .collect();
+            if outside.is_empty() {
+                checked = Some(diagram);
+                break;
+            }
+            let mut changed = false;
+            for j in outside {
+                let i = diagram.locate(anchors[j], Some(j));
+                if !exact_done[j] {
+                    let (rel, a) = self.exact(points, j);
+                    self.set(heights, j, rel);
+                    anchors[j] = a;
+                    exact_done[j] = true;
+                    changed = true;
+                }
+                if i != j && !exact_done[i] {
+                    let (rel_i, a) = self.exact(points, i);
+                    self.set(heights, i, rel_i);
+                    anchors[i] = a;
+                    exact_done[i] = true;
+                    changed = true;
+                }
+            }
+            // Every failing point and the owner of its anchor already have the exact maximum: what
+            // is left is rounding in the crowded spots (the anchor falls just outside a cell that
+            // is not empty); another diagram would find the same.
+            if !changed {
+                checked = Some(diagram);
+                break;
+            }
+            previous = Some(Cow::Owned(diagram));
+        }
+        Ok(checked)
+    }
 }
 
 /// For each coarse group, the groups within [`RINGS`] edges of the regular triangulation of

@@ -11,7 +11,8 @@
 //! the measures (applied after `prepare_shape`): `CAP=k` caps the densities at k × the median
 //! (mass is lost), `SPREAD=k` spreads them at k × the median, `NUFLOOR=k` floors the target
 //! masses at k × their median. `PREPARE=1` prepares each file as `shapespace prepare` does
-//! first (the raw scans of `outside/facefuns`). `REPEAT=1` solves each pair twice and reports
+//! first (the raw scans of `outside/facefuns`), `SUBDIVIDE=1` then subdivides each once by edge
+//! midpoints. `REPEAT=1` solves each pair twice and reports
 //! the second solve (the source's averaged coarse copies built by the first: the first's extra
 //! time is their construction). Costs are printed minus the target's merge cost
 //! (`quantization_variance`), as the distances use them. `KAPPA=k` sets the soft cap of the
@@ -40,6 +41,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut mesh = shapespace_geometry::io::read_mesh(f)?;
         if std::env::var("PREPARE").is_ok() {
             mesh = shapespace_tools::scans::disk_mesh(f);
+        }
+        if std::env::var("SUBDIVIDE").is_ok() {
+            mesh = shapespace_geometry::prepare::subdivide_midpoint(&mesh)?;
         }
         let (markers, _) = markers_for(f, &MarkerOptions::default(), mesh.positions.len())?;
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
