@@ -418,6 +418,56 @@ pub(crate) fn coarse_to_fine_heights(
     if (n < MIN_FINE && !crowded) || coarse_n * 4 > n * 3 {
         return Ok(None);
     }
+    let Some(solution) = solve_level(measure, &coarse, params)? else {
+        return Ok(None);
+    };
+    let mut levels = vec![(coarse_n, solution.iterations)];
+    levels.extend(solution.coarse_levels.iter().copied());
+    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
+    for &(i, j, _) in &solution.cells.edge_masses {
+        neighbours[i as usize].push(j as usize);
+        neighbours[j as usize].push(i as usize);
+    }
+    let prolongation = SphereProlongation {
+        groups: groups(measure, integrator, &coarse, &solution, &neighbours),
+        group: &coarse.group,
+        hh: &solution.heights,
+        hl: &solution.heights_lo,
+        points,
+        radial: integrator.radial(),
+    };
+    let candidates = candidate_rings(&neighbours);
+    let mut heights = Heights {
+        hi: vec![0.0; n],
+        lo: vec![0.0; n],
+    };
+    let prolonged: Vec<(f64, [f64; 3])> = (0..n)
+        .into_par_iter()
+        .map(|i| prolongation.maximum(i, &mut candidates[coarse.group[i]].iter().copied()))
+        .collect();
+    let mut anchors = vec![[0.0; 3]; n];
+    for (i, &(rel, a)) in prolonged.iter().enumerate() {
+        prolongation.set(&mut heights, i, rel);
+        anchors[i] = a;
+    }
+    let rechecked = prolongation.check(integrator.tree(), &mut heights, &mut anchors);
+    Ok(Some(SphereCoarseStart {
+        heights,
+        levels,
+        rechecked,
+    }))
+}
+
+/// Solves the coarse level of a coarse-to-fine start against the source measure averaged to
+/// its size ([`coarse_measure`]), from its own coarse-to-fine start; a level that start does not
+/// solve is retried from the Voronoi start. `None` when neither solves it; a time limit passed
+/// is an error.
+fn solve_level(
+    measure: &SphereMeasure,
+    coarse: &Coarsening,
+    params: &SphereOtParams,
+) -> Result<Option<super::newton::SphereOtSolution>, OmtError> {
+    let coarse_n = coarse.points.len();
     let coarse_params = SphereOtParams {
         tolerance: params.tolerance.max(params.coarse_tolerance),
         max_iterations: params.max_iterations.max(SphereOtParams::default().max_iterations),
@@ -432,7 +482,6 @@ pub(crate) fn coarse_to_fine_heights(
             "solving the {coarse_n}-point level of the coarse-to-fine start on the sphere"
         )))
     };
-    let mut levels = Vec::new();
     let averaged = coarse_measure(measure, coarse_n);
     let level_measure = averaged.as_ref().unwrap_or(measure);
     let solution = match solve_sphere_ot(level_measure, &coarse.points, &coarse.masses, &coarse_params) {
@@ -457,17 +506,24 @@ pub(crate) fn coarse_to_fine_heights(
             }
         }
     };
-    levels.push((coarse_n, solution.iterations));
-    levels.extend(solution.coarse_levels.iter().copied());
+    Ok(Some(solution))
+}
+
+/// Each coarse group's piece Φ_g of the prolongation (module docs): its centroid pulled into the
+/// inner ball, its spread and its radius δ_g over its fine points.
+fn groups(
+    measure: &SphereMeasure,
+    integrator: &SphereIntegrator,
+    coarse: &Coarsening,
+    solution: &super::newton::SphereOtSolution,
+    neighbours: &[Vec<usize>],
+) -> Vec<Group> {
+    let points = integrator.points();
+    let coarse_n = coarse.points.len();
     let cells = &solution.cells;
     let (hh, hl) = (&solution.heights, &solution.heights_lo);
     // H_a − H_b from the double-double parts
     let height_diff = |a: usize, b: usize| (hh[a] - hh[b]) + (hl[a] - hl[b]);
-    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
-    for &(i, j, _) in &cells.edge_masses {
-        neighbours[i as usize].push(j as usize);
-        neighbours[j as usize].push(i as usize);
-    }
     let coarse_radial = radial_corrections(&coarse.points);
     let rho = inner_radius(measure);
     let radial = integrator.radial();
@@ -475,7 +531,7 @@ pub(crate) fn coarse_to_fine_heights(
     for (i, &g) in coarse.group.iter().enumerate() {
         members[g].push(i);
     }
-    let groups: Vec<Group> = (0..coarse_n)
+    (0..coarse_n)
         .into_par_iter()
         .map(|g| {
             let m = cells.masses[g];
@@ -537,9 +593,13 @@ pub(crate) fn coarse_to_fine_heights(
             group.delta = (sum / members[g].len().max(1) as f64).sqrt();
             group
         })
-        .collect();
-    // candidates: the groups within RINGS rings of the coarse adjacency
-    let candidates: Vec<Vec<usize>> = (0..coarse_n)
+        .collect()
+}
+
+/// For each coarse group, the groups within [`RINGS`] rings of the coarse adjacency: the
+/// candidates for the maximum of the prolongation.
+fn candidate_rings(neighbours: &[Vec<usize>]) -> Vec<Vec<usize>> {
+    (0..neighbours.len())
         .into_par_iter()
         .map(|g| {
             let mut set = vec![g];
@@ -558,105 +618,116 @@ pub(crate) fn coarse_to_fine_heights(
             }
             set
         })
-        .collect();
-    // max_k Φ_k(y_i) − G_g over `ks` (g first), with the maximizing group's anchor
-    let maximum = |i: usize, ks: &mut dyn Iterator<Item = usize>| -> (f64, [f64; 3]) {
-        let g = coarse.group[i];
-        let (y, r) = (points[i], radial[i]);
-        let mut best = (groups[g].value(y, r), g);
+        .collect()
+}
+
+/// The prolongation of a coarse solution on the sphere: the groups' pieces Φ_g and the coarse
+/// heights H (double-double), for the fine points (with their radial corrections).
+struct SphereProlongation<'a> {
+    groups: Vec<Group>,
+    /// Each fine point's group.
+    group: &'a [usize],
+    hh: &'a [f64],
+    hl: &'a [f64],
+    points: &'a [[f64; 3]],
+    radial: &'a [[f64; 3]],
+}
+
+impl SphereProlongation<'_> {
+    /// H_a − H_b from the double-double parts.
+    fn height_diff(&self, a: usize, b: usize) -> f64 {
+        (self.hh[a] - self.hh[b]) + (self.hl[a] - self.hl[b])
+    }
+
+    /// max_k Φ_k(y_i) − G_g over `ks` (g first), with the maximizing group's anchor.
+    fn maximum(&self, i: usize, ks: &mut dyn Iterator<Item = usize>) -> (f64, [f64; 3]) {
+        let g = self.group[i];
+        let (y, r) = (self.points[i], self.radial[i]);
+        let mut best = (self.groups[g].value(y, r), g);
         for k in ks {
             if k == g {
                 continue;
             }
-            let v = height_diff(g, k) + groups[k].value(y, r);
+            let v = self.height_diff(g, k) + self.groups[k].value(y, r);
             if v > best.0 {
                 best = (v, k);
             }
         }
-        (best.0, groups[best.1].anchor(y, r))
-    };
-    // h_i = H_g − (Φ(y_i) − G_g), double-double
-    let set = |heights: &mut Heights, i: usize, rel: f64| {
-        let g = coarse.group[i];
-        let (s, e) = two_sum(hh[g], -rel);
-        let r = two_sum(s, e + hl[g]);
+        (best.0, self.groups[best.1].anchor(y, r))
+    }
+
+    /// h_i = H_g − (Φ(y_i) − G_g), double-double.
+    fn set(&self, heights: &mut Heights, i: usize, rel: f64) {
+        let g = self.group[i];
+        let (s, e) = two_sum(self.hh[g], -rel);
+        let r = two_sum(s, e + self.hl[g]);
         heights.hi[i] = r.0;
         heights.lo[i] = r.1;
-    };
-    let mut heights = Heights {
-        hi: vec![0.0; n],
-        lo: vec![0.0; n],
-    };
-    let prolonged: Vec<(f64, [f64; 3])> = (0..n)
-        .into_par_iter()
-        .map(|i| maximum(i, &mut candidates[coarse.group[i]].iter().copied()))
-        .collect();
-    let mut anchors = vec![[0.0; 3]; n];
-    for (i, &(rel, a)) in prolonged.iter().enumerate() {
-        set(&mut heights, i, rel);
-        anchors[i] = a;
     }
-    // Check: every point must win at its anchor (module docs); for each pair (i, j) where j
-    // scores more than i at i's anchor, the maximum over all groups for both.
-    let tree = integrator.tree();
-    let mut exact_done = vec![false; n];
-    let mut rechecked = 0;
-    for _round in 0..CHECK_ROUNDS {
-        let bounds = tree.bounds(&heights.hi);
-        let failures: Vec<(usize, usize)> = (0..n)
-            .into_par_iter()
-            .map_init(
-                || (Vec::new(), Vec::new()),
-                |(stack, out), i| {
-                    let p = anchors[i];
-                    let value = dot(p, points[i]) + heights.hi[i];
-                    let margin = 1e-12 * (1.0 + value.abs());
-                    tree.above(p, value - margin, &heights.hi, &bounds, stack, out);
-                    let mut worst: Option<(f64, usize)> = None;
-                    for &j in out.iter() {
-                        let j = j as usize;
-                        if j == i {
-                            continue;
+
+    /// The check of the prolonged heights (the comment below); returns how many points took
+    /// the maximum over all groups.
+    fn check(&self, tree: &SiteTree, heights: &mut Heights, anchors: &mut [[f64; 3]]) -> usize {
+        let (points, radial) = (self.points, self.radial);
+        let n = points.len();
+        let coarse_n = self.groups.len();
+        // Check: every point must win at its anchor (module docs); for each pair (i, j) where j
+        // scores more than i at i's anchor, the maximum over all groups for both.
+        let mut exact_done = vec![false; n];
+        let mut rechecked = 0;
+        for _round in 0..CHECK_ROUNDS {
+            let bounds = tree.bounds(&heights.hi);
+            let failures: Vec<(usize, usize)> = (0..n)
+                .into_par_iter()
+                .map_init(
+                    || (Vec::new(), Vec::new()),
+                    |(stack, out), i| {
+                        let p = anchors[i];
+                        let value = dot(p, points[i]) + heights.hi[i];
+                        let margin = 1e-12 * (1.0 + value.abs());
+                        tree.above(p, value - margin, &heights.hi, &bounds, stack, out);
+                        let mut worst: Option<(f64, usize)> = None;
+                        for &j in out.iter() {
+                            let j = j as usize;
+                            if j == i {
+                                continue;
+                            }
+                            let d = sub(points[i], points[j]);
+                            let r = sub(radial[i], radial[j]);
+                            let gap = dot(p, [d[0] + r[0], d[1] + r[1], d[2] + r[2]])
+                                + (heights.hi[i] - heights.hi[j])
+                                + (heights.lo[i] - heights.lo[j]);
+                            if gap < 0.0 && worst.is_none_or(|w| gap < w.0) {
+                                worst = Some((gap, j));
+                            }
                         }
-                        let d = sub(points[i], points[j]);
-                        let r = sub(radial[i], radial[j]);
-                        let gap = dot(p, [d[0] + r[0], d[1] + r[1], d[2] + r[2]])
-                            + (heights.hi[i] - heights.hi[j])
-                            + (heights.lo[i] - heights.lo[j]);
-                        if gap < 0.0 && worst.is_none_or(|w| gap < w.0) {
-                            worst = Some((gap, j));
-                        }
+                        worst.map(|(_, j)| (i, j))
+                    },
+                )
+                .flatten()
+                .collect();
+            if failures.is_empty() {
+                break;
+            }
+            let mut changed = false;
+            for (i, j) in failures {
+                for k in [i, j] {
+                    if !exact_done[k] {
+                        let (rel, a) = self.maximum(k, &mut (0..coarse_n));
+                        self.set(heights, k, rel);
+                        anchors[k] = a;
+                        exact_done[k] = true;
+                        rechecked += 1;
+                        changed = true;
                     }
-                    worst.map(|(_, j)| (i, j))
-                },
-            )
-            .flatten()
-            .collect();
-        if failures.is_empty() {
-            break;
-        }
-        let mut changed = false;
-        for (i, j) in failures {
-            for k in [i, j] {
-                if !exact_done[k] {
-                    let (rel, a) = maximum(k, &mut (0..coarse_n));
-                    set(&mut heights, k, rel);
-                    anchors[k] = a;
-                    exact_done[k] = true;
-                    rechecked += 1;
-                    changed = true;
                 }
             }
+            if !changed {
+                break;
+            }
         }
-        if !changed {
-            break;
-        }
+        rechecked
     }
-    Ok(Some(SphereCoarseStart {
-        heights,
-        levels,
-        rechecked,
-    }))
 }
 
 #[cfg(test)]
