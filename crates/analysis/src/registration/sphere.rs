@@ -849,3 +849,38 @@ impl SphereLocator {
         })
     }
 }
+
+/// Writes the outputs of a sphere registration into `out`, as
+/// [`crate::registration::bench::write_registration`] does for the disk (correspondence.csv,
+/// metrics.json, histograms, coloured OBJs); metrics.json also records the domain, the
+/// rotation, the chart's pole and the harmonic map's folds.
+pub fn write_sphere_registration(
+    out: &std::path::Path,
+    source: &TriMesh,
+    target: &TriMesh,
+    reg: &SphereRegistration,
+    metrics: &RegistrationMetrics,
+    extra: &serde_json::Value,
+) -> Result<Vec<std::path::PathBuf>, AnalysisError> {
+    let head = serde_json::json!({
+        "domain": "sphere",
+        "method": reg.method,
+        "timings": reg.timings,
+        "num_snapped": reg.num_snapped,
+        "rotation": reg.rotation,
+        "landmark_rms_after_rotation": reg.landmark_rms_after_rotation,
+        "pole": reg.pole,
+        "pole_clearance": reg.pole_clearance,
+        "pole_vertex": reg.pole_vertex,
+        "harmonic_folded": reg.harmonic_folded,
+        "harmonic_steps": reg.harmonic_steps,
+        "harmonic_fold_repair": reg.harmonic_fold_repair,
+    });
+    let map = super::bench::MapOutput {
+        label: reg.method.name(),
+        faces: &reg.faces,
+        bary: &reg.bary,
+        points: &reg.points,
+    };
+    super::bench::write_map_outputs(out, source, target, &map, head, metrics, extra)
+}
