@@ -361,8 +361,8 @@ pub fn largest_empty_cap(points: &[[f64; 3]]) -> ([f64; 3], f64) {
 
 /// Steps 2–4 of the module docs with given sphere images ψ₁ (#V₁), ψ₂ (#V₂). Timings include
 /// the images' `seconds`. Errors: images of the wrong length, bad or fewer than two landmarks,
-/// collinear landmark images (the rotation undetermined), a harmonic map that cannot be
-/// solved.
+/// collinear landmark images (the rotation undetermined), [`HarmonicWeights::IntrinsicDelaunay`]
+/// (its solver needs a boundary loop), a harmonic map that cannot be solved.
 pub fn register_sphere_with_maps(
     source: &TriMesh,
     target: &TriMesh,
@@ -372,6 +372,11 @@ pub fn register_sphere_with_maps(
     harmonic: &HarmonicParams,
 ) -> Result<SphereRegistration, AnalysisError> {
     check_sphere_landmarks(source, target, landmarks)?;
+    if harmonic.weights == HarmonicWeights::IntrinsicDelaunay {
+        return Err(AnalysisError::InvalidInput(
+            "the intrinsic Delaunay weights hold a boundary loop on the circle; the sphere route's chart has none (use planar, planar-clamped or mean-value)".into(),
+        ));
+    }
     if psi1.positions.len() != source.num_vertices() || psi2.positions.len() != target.num_vertices() {
         return Err(AnalysisError::InvalidInput(format!(
             "sphere images have {} and {} points for meshes of {} and {} vertices",
@@ -883,4 +888,84 @@ pub fn write_sphere_registration(
         points: &reg.points,
     };
     super::bench::write_map_outputs(out, source, target, &map, head, metrics, extra)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every face's normalized centroid is located in that face with coordinates 1/3, every
+    /// vertex with one coordinate 1, on an icosphere and on a crowded copy: the stereographic
+    /// coordinates from a point that is no vertex scaled by 1e-5 (a Möbius map: every vertex
+    /// crowds towards the point's antipode, triangles down to ~1e-6); the faces around the
+    /// point (two) grow beyond a hemisphere there and are left out.
+    #[test]
+    fn locator_finds_centroids_and_vertices() {
+        let mesh = shapespace_geometry::primitives::icosphere(3);
+        let unit: Vec<[f64; 3]> = mesh.positions.iter().map(|&p| normalize(p)).collect();
+        let chart = Chart::new(normalize([0.1, 0.2, 1.0]));
+        let squeezed: Vec<[f64; 3]> = unit
+            .iter()
+            .map(|&x| {
+                let w = chart.project(x);
+                chart.unproject([w[0] * 1e-5, w[1] * 1e-5])
+            })
+            .collect();
+        for (positions, left_out) in [(&unit, 0), (&squeezed, 2)] {
+            let faces: Vec<[u32; 3]> = mesh
+                .faces
+                .iter()
+                .copied()
+                .filter(|f| {
+                    let [a, b, c] = f.map(|v| positions[v as usize]);
+                    det(a, b, c) > 0.0
+                })
+                .collect();
+            assert!(mesh.faces.len() - faces.len() <= left_out, "{} left out", mesh.faces.len() - faces.len());
+            let smallest = faces
+                .iter()
+                .map(|f| {
+                    let [a, b, c] = f.map(|v| positions[v as usize]);
+                    dot(sub(b, a), sub(b, a)).sqrt().min(dot(sub(c, a), sub(c, a)).sqrt())
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(smallest < if left_out > 0 { 1e-5 } else { 1.0 }, "{smallest}");
+            let loc = SphereLocator::new(positions, &faces).unwrap();
+            for (fi, f) in faces.iter().enumerate() {
+                let [a, b, c] = f.map(|v| positions[v as usize]);
+                let m = normalize([a[0] + b[0] + c[0], a[1] + b[1] + c[1], a[2] + b[2] + c[2]]);
+                let l = loc.locate(m).unwrap();
+                assert_eq!(l.face as usize, fi);
+                assert!(!l.snapped);
+                for k in 0..3 {
+                    assert!((l.bary[k] - 1.0 / 3.0).abs() < 1e-6, "face {fi}: {:?}", l.bary);
+                }
+            }
+            for (v, &x) in positions.iter().enumerate() {
+                let l = loc.locate(x).unwrap();
+                let f = faces[l.face as usize];
+                let k = f.iter().position(|&w| w as usize == v).expect("a face around the vertex");
+                assert!((l.bary[k] - 1.0).abs() < 1e-6, "vertex {v}: {:?}", l.bary);
+            }
+        }
+    }
+
+    /// The chart preserves orientation and inverts exactly.
+    #[test]
+    fn chart_round_trip_and_orientation() {
+        let c = Chart::new(normalize([0.3, -0.2, 0.9]));
+        let (a, b, d) = (
+            normalize([1.0, 0.1, 0.0]),
+            normalize([0.9, 0.3, 0.1]),
+            normalize([0.95, 0.1, 0.3]),
+        );
+        assert!(det(a, b, d) > 0.0);
+        let [pa, pb, pd] = [a, b, d].map(|x| c.project(x));
+        let area = (pb[0] - pa[0]) * (pd[1] - pa[1]) - (pb[1] - pa[1]) * (pd[0] - pa[0]);
+        assert!(area > 0.0, "counter-clockwise in the chart");
+        for x in [a, b, d] {
+            let y = c.unproject(c.project(x));
+            assert!((0..3).all(|k| (x[k] - y[k]).abs() < 1e-15), "{x:?} {y:?}");
+        }
+    }
 }
