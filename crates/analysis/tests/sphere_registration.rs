@@ -198,7 +198,10 @@ fn bad_input_is_a_typed_error_naming_the_files() {
         registration_domain(Domain::Auto, ("a", &sphere), ("b", &sphere)).unwrap(),
         Domain::Sphere
     );
-    assert_eq!(registration_domain(Domain::Auto, ("a", &disk), ("b", &disk)).unwrap(), Domain::Disk);
+    assert_eq!(
+        registration_domain(Domain::Auto, ("a", &disk), ("b", &disk)).unwrap(),
+        Domain::Disk
+    );
     let t = torus(12, 8);
     for requested in [Domain::Auto, Domain::Sphere] {
         match registration_domain(requested, ("body.off", &sphere), ("ring.off", &t)) {
@@ -286,4 +289,3 @@ fn tosca_wolf_pair_on_the_sphere() {
         assert_eq!(reg.num_snapped, 0, "{method}");
     }
 }
-

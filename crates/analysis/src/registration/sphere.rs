@@ -41,8 +41,8 @@ use shapespace_omt::sphere::fibonacci_sphere;
 
 use super::metrics::{image_is_flipped, surface_metrics, FlipCounts};
 use super::{
-    harmonic_step, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams, RegistrationMetrics, RegistrationTimings,
-    UNTANGLE_SWEEPS,
+    harmonic_step, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams, RegistrationMetrics,
+    RegistrationTimings, UNTANGLE_SWEEPS,
 };
 use crate::error::AnalysisError;
 use crate::fold_repair::{count_folded_faces, untangle_kernels, UntangleInfo};
@@ -277,10 +277,7 @@ pub fn register_on_sphere(
 }
 
 fn check_sphere_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
-    landmarks.validate(
-        &vec![false; source.num_vertices()],
-        &vec![false; target.num_vertices()],
-    )?;
+    landmarks.validate(&vec![false; source.num_vertices()], &vec![false; target.num_vertices()])?;
     if landmarks.len() < 2 {
         return Err(AnalysisError::Landmark {
             source_name: landmarks.source_name.clone(),
@@ -338,7 +335,11 @@ impl Chart {
     }
     fn unproject(&self, w: [f64; 2]) -> [f64; 3] {
         let r2 = w[0] * w[0] + w[1] * w[1];
-        let y = [2.0 * w[0] / (1.0 + r2), 2.0 * w[1] / (1.0 + r2), (1.0 - r2) / (1.0 + r2)];
+        let y = [
+            2.0 * w[0] / (1.0 + r2),
+            2.0 * w[1] / (1.0 + r2),
+            (1.0 - r2) / (1.0 + r2),
+        ];
         // Qᵀ y
         let q = &self.q;
         normalize([0, 1, 2].map(|i| q[0][i] * y[0] + q[1][i] * y[1] + q[2][i] * y[2]))
@@ -430,7 +431,12 @@ pub fn register_sphere_with_maps(
         ));
     }
     let chart = Chart::new(pole);
-    let faces: Vec<[u32; 3]> = source.faces.iter().copied().filter(|f| !f.contains(&pole_vertex)).collect();
+    let faces: Vec<[u32; 3]> = source
+        .faces
+        .iter()
+        .copied()
+        .filter(|f| !f.contains(&pole_vertex))
+        .collect();
     let mut held = vec![false; n1];
     held[pole_vertex as usize] = true;
     for f in source.faces.iter().filter(|f| f.contains(&pole_vertex)) {
@@ -525,13 +531,7 @@ pub fn register_sphere_with_maps(
     };
     // back on S²: held vertices keep their rotated images exactly, landmarks their targets
     let mut harmonic_sphere: Vec<[f64; 3]> = (0..n1)
-        .map(|v| {
-            if held[v] {
-                layout[v]
-            } else {
-                chart.unproject(uv[v])
-            }
-        })
+        .map(|v| if held[v] { layout[v] } else { chart.unproject(uv[v]) })
         .collect();
     for &(a, b) in &landmarks.pairs {
         harmonic_sphere[a as usize] = psi2.positions[b as usize];
@@ -759,7 +759,9 @@ impl SphereLocator {
         if end - start <= LEAF_CAPACITY {
             return id;
         }
-        let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b]))).unwrap_or(0);
+        let axis = (0..3)
+            .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+            .unwrap_or(0);
         let mid = start + (end - start) / 2;
         let centre = |t: &u32| boxes[*t as usize].0[axis] + boxes[*t as usize].1[axis];
         self.items[start..end].select_nth_unstable_by(mid - start, |a, b| centre(a).total_cmp(&centre(b)));
@@ -844,11 +846,7 @@ impl SphereLocator {
             let s = w[0] + w[1] + w[2];
             SphereLocation {
                 face,
-                bary: if s > 0.0 {
-                    w.map(|x| x / s)
-                } else {
-                    [1.0 / 3.0; 3]
-                },
+                bary: if s > 0.0 { w.map(|x| x / s) } else { [1.0 / 3.0; 3] },
                 snapped: true,
             }
         })
@@ -921,7 +919,11 @@ mod tests {
                     det(a, b, c) > 0.0
                 })
                 .collect();
-            assert!(mesh.faces.len() - faces.len() <= left_out, "{} left out", mesh.faces.len() - faces.len());
+            assert!(
+                mesh.faces.len() - faces.len() <= left_out,
+                "{} left out",
+                mesh.faces.len() - faces.len()
+            );
             let smallest = faces
                 .iter()
                 .map(|f| {
@@ -944,7 +946,10 @@ mod tests {
             for (v, &x) in positions.iter().enumerate() {
                 let l = loc.locate(x).unwrap();
                 let f = faces[l.face as usize];
-                let k = f.iter().position(|&w| w as usize == v).expect("a face around the vertex");
+                let k = f
+                    .iter()
+                    .position(|&w| w as usize == v)
+                    .expect("a face around the vertex");
                 assert!((l.bary[k] - 1.0).abs() < 1e-6, "vertex {v}: {:?}", l.bary);
             }
         }

@@ -54,15 +54,13 @@ pub fn closed_pose_landmarks(class_dir: &Path) -> Result<BTreeMap<String, u32>, 
     mf.landmarks
         .into_iter()
         .map(|(name, v)| {
-            map.get(v as usize).map(|&w| (name.clone(), w)).ok_or_else(|| AnalysisError::Landmark {
-                source_name: json.display().to_string(),
-                landmark: name,
-                message: format!(
-                    "vertex {v} has no line in {} ({} lines)",
-                    map_path.display(),
-                    map.len()
-                ),
-            })
+            map.get(v as usize)
+                .map(|&w| (name.clone(), w))
+                .ok_or_else(|| AnalysisError::Landmark {
+                    source_name: json.display().to_string(),
+                    landmark: name,
+                    message: format!("vertex {v} has no line in {} ({} lines)", map_path.display(), map.len()),
+                })
         })
         .collect()
 }
@@ -136,7 +134,10 @@ pub fn sphere_bench(
         let landmarks = Landmarks::from_named(
             &named,
             &named,
-            &format!("{} carried to the closed poses", class_dir.join("landmarks.json").display()),
+            &format!(
+                "{} carried to the closed poses",
+                class_dir.join("landmarks.json").display()
+            ),
         )?;
         for &method in methods {
             let maps: Vec<Result<SphereImage, String>> = meshes
@@ -160,7 +161,16 @@ pub fn sphere_bench(
                         stem(&files[j])
                     ));
                     let mut row = empty_row(&class, &stem(&files[i]), &stem(&files[j]), method);
-                    let outcome = pair(&meshes[i], &meshes[j], &maps[i], &maps[j], &landmarks, method, harmonic, metric_params);
+                    let outcome = pair(
+                        &meshes[i],
+                        &meshes[j],
+                        &maps[i],
+                        &maps[j],
+                        &landmarks,
+                        method,
+                        harmonic,
+                        metric_params,
+                    );
                     match outcome {
                         Ok((reg, met)) => {
                             row.flipped_ratio = met.flipped_area_ratio;

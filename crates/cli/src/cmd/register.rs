@@ -11,14 +11,14 @@ use std::time::Instant;
 
 use anyhow::Context;
 use shapespace_analysis::registration::bench::{register_bench, write_registration};
-use shapespace_analysis::registration::{
-    register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
-    Refinement, RegistrationParams, ZoomOutParams,
-};
 use shapespace_analysis::registration::sphere::{
     register_on_sphere, registration_domain, sphere_registration_metrics, write_sphere_registration, Domain,
 };
 use shapespace_analysis::registration::sphere_bench::sphere_bench;
+use shapespace_analysis::registration::{
+    register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
+    Refinement, RegistrationParams, ZoomOutParams,
+};
 use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
 use shapespace_analysis::sphere_param::SphereParamParams;
 use shapespace_conformal::{resolve_markers_of, BoundaryMarker, CenterMarker, MarkerFile};
@@ -212,11 +212,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let source = read(&args.source)?;
     let target = read(&args.target)?;
     let (source_name, target_name) = (args.source.display().to_string(), args.target.display().to_string());
-    let domain = registration_domain(
-        args.domain.parse()?,
-        (&source_name, &source),
-        (&target_name, &target),
-    )?;
+    let domain = registration_domain(args.domain.parse()?, (&source_name, &source), (&target_name, &target))?;
     let m1 = marker_file(args.source_markers.as_deref(), &args.source)?;
     let m2 = marker_file(args.target_markers.as_deref(), &args.target)?;
     let landmarks = match (&args.landmarks, &m1, &m2) {
@@ -417,7 +413,13 @@ fn run_sphere(
         &SphereParamParams::default(),
         &harmonic,
     )
-    .with_context(|| format!("registering {} onto {} on the sphere", args.source.display(), args.target.display()))?;
+    .with_context(|| {
+        format!(
+            "registering {} onto {} on the sphere",
+            args.source.display(),
+            args.target.display()
+        )
+    })?;
     let secs = t.elapsed().as_secs_f64();
     let mp = MetricParams {
         geodesic_samples: args.samples,
