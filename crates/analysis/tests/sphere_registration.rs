@@ -9,7 +9,7 @@ use shapespace_analysis::registration::sphere::{
     register_on_sphere, register_sphere_with_maps, registration_domain, sphere_image, sphere_registration_metrics,
     Domain, SphereImage, SphereRegistration,
 };
-use shapespace_analysis::registration::sphere_bench::closed_pose_landmarks;
+use shapespace_analysis::registration::sphere_bench::{closed_pose_landmarks, sphere_bench};
 use shapespace_analysis::registration::{HarmonicParams, Landmarks, Method, MetricParams, RegistrationMetrics};
 use shapespace_analysis::rotation::{apply, axis_angle, Rotation};
 use shapespace_analysis::sphere_param::SphereParamParams;
@@ -288,4 +288,71 @@ fn tosca_wolf_pair_on_the_sphere() {
         );
         assert_eq!(reg.num_snapped, 0, "{method}");
     }
+}
+
+/// `sphere_bench` on a class of two rotated copies of one jittered sphere: the cut poses' landmarks
+/// are carried to the closed poses through `original_indices.txt` (the cut dropped vertex 0),
+/// both ordered pairs register exactly; a class whose poses are not all closed is skipped.
+#[test]
+fn sphere_bench_carries_the_landmarks_and_registers_the_closed_poses() {
+    let dir = std::env::temp_dir().join(format!("shapespace-sphere-bench-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (class, other, closed, out) = (
+        dir.join("data/ball"),
+        dir.join("data/open"),
+        dir.join("closed"),
+        dir.join("out"),
+    );
+    for d in [&class, &other, &closed] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    let a = jittered_sphere(3, 0.15, 4, &rot([0.2, 0.1, 1.0], 0.3));
+    let b = jittered_sphere(3, 0.15, 4, &rot([1.0, -0.4, 0.2], 2.5));
+    for (name, mesh) in [("p0.off", &a), ("p1.off", &b)] {
+        shapespace_geometry::io::write_mesh(&closed.join(name), mesh).unwrap();
+        // the class folder's poses only name the closed ones
+        shapespace_geometry::io::write_mesh(&class.join(name), mesh).unwrap();
+        shapespace_geometry::io::write_mesh(&other.join(name), mesh).unwrap();
+    }
+    std::fs::rename(other.join("p1.off"), other.join("q1.off")).unwrap();
+    let landmarks = r#"{"landmarks": {"a": 2, "b": 9, "c": 30, "d": 99}}"#;
+    std::fs::write(class.join("landmarks.json"), landmarks).unwrap();
+    std::fs::write(other.join("landmarks.json"), landmarks).unwrap();
+    let map: String = (1..a.num_vertices()).map(|i| format!("{i}\n")).collect();
+    std::fs::write(class.join("original_indices.txt"), map).unwrap();
+    let carried = closed_pose_landmarks(&class).unwrap();
+    assert_eq!(carried.values().copied().collect::<Vec<_>>(), vec![3, 10, 31, 100]);
+
+    let mut notes = Vec::new();
+    let res = sphere_bench(
+        &dir.join("data"),
+        &closed,
+        &out,
+        &[Method::Conformal],
+        &SphereParamParams::default(),
+        &HarmonicParams::for_method,
+        &MetricParams::default(),
+        |m| notes.push(m.to_string()),
+    )
+    .unwrap();
+    assert!(
+        notes.iter().any(|n| n.contains("open: 1 of 2 poses closed")),
+        "{notes:?}"
+    );
+    assert_eq!(res.rows.len(), 2);
+    for r in &res.rows {
+        assert_eq!(r.status, "ok");
+        assert!(
+            r.geodesic_mean < 1e-9,
+            "{} -> {}: {}",
+            r.source,
+            r.target,
+            r.geodesic_mean
+        );
+        assert_eq!(r.flipped_ratio, 0.0);
+    }
+    assert!(out.join("sphere_results.csv").is_file() && out.join("sphere_summary.json").is_file());
+    let all = res.summaries.iter().find(|s| s.class == "all").unwrap();
+    assert_eq!((all.pairs_ok, all.pairs_failed), (2, 0));
+    let _ = std::fs::remove_dir_all(&dir);
 }
