@@ -109,10 +109,7 @@ pub fn registration_domain(
                 check_sphere(mesh).map_err(|e| {
                     named(
                         name,
-                        format!(
-                            "not a closed genus-0 surface, cannot be registered on the sphere: {}",
-                            crate::error::error_chain(&e)
-                        ),
+                        format!("cannot be registered on the sphere: {}", crate::error::error_chain(&e)),
                     )
                 })?;
             }
