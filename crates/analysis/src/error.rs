@@ -94,6 +94,10 @@ pub enum AnalysisError {
     /// A shape could not be prepared for distance computations (not a disk, bad markers, ...).
     #[error("{name}: {message}")]
     Shape { name: String, message: String },
+    /// A registration pair of a closed surface (registered on the sphere) and a surface with a
+    /// boundary (registered on the disk), naming both.
+    #[error("cannot register {closed} (closed, registered on the sphere) with {with_boundary} (with a boundary, registered on the disk): cut a disk from the closed one (`shapespace prepare`) or close the other")]
+    MixedDomains { closed: String, with_boundary: String },
     /// A pair of shapes failed (the OT solver returned an error).
     #[error("{a} -> {b}: {message}")]
     Pair { a: String, b: String, message: String },

@@ -2801,3 +2801,96 @@ fn sphere_distances_resume_and_shards_reproduce_the_full_run() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A latitude–longitude sphere (`rings` rings of `segments` vertices between two poles) as OBJ
+/// text, outward faces, every vertex rotated about the axis (1, 1, 1) by `angle`, the ellipsoid
+/// axes (1, 1, `stretch`) and a bend x += 0.3 z (z + 1) applied first (no symmetry, so that
+/// the sphere map's puncture, the face nearest the area centroid, is one face).
+fn lat_long_sphere_obj(rings: usize, segments: usize, stretch: f64, angle: f64) -> String {
+    let mut points = vec![[0.0, 0.0, -stretch]];
+    for r in 1..=rings {
+        let t = std::f64::consts::PI * r as f64 / (rings + 1) as f64;
+        for s in 0..segments {
+            let p = 2.0 * std::f64::consts::PI * (s as f64 + 0.5 * (r % 2) as f64) / segments as f64;
+            let z = -t.cos();
+            points.push([t.sin() * p.cos() + 0.3 * z * (z + 1.0), t.sin() * p.sin(), stretch * z]);
+        }
+    }
+    points.push([0.0, 0.0, stretch]);
+    let (c, s) = (angle.cos(), angle.sin());
+    let k = 1.0 / 3f64.sqrt();
+    let text_v: String = points
+        .iter()
+        .map(|p| {
+            // Rodrigues about the unit axis k(1, 1, 1)
+            let kxp = [k * (p[2] - p[1]), k * (p[0] - p[2]), k * (p[1] - p[0])];
+            let kdp = k * (p[0] + p[1] + p[2]);
+            let q: Vec<f64> = (0..3).map(|i| p[i] * c + kxp[i] * s + k * kdp * (1.0 - c)).collect();
+            format!("v {:?} {:?} {:?}\n", q[0], q[1], q[2])
+        })
+        .collect();
+    let id = |r: usize, s: usize| 2 + (r - 1) * segments + s % segments; // 1-based
+    let mut f = String::new();
+    let top = points.len();
+    for s in 0..segments {
+        f.push_str(&format!("f 1 {} {}\n", id(1, s + 1), id(1, s)));
+        f.push_str(&format!("f {top} {} {}\n", id(rings, s), id(rings, s + 1)));
+    }
+    for r in 1..rings {
+        for s in 0..segments {
+            let (a, b, c, d) = (id(r, s), id(r, s + 1), id(r + 1, s), id(r + 1, s + 1));
+            f.push_str(&format!("f {a} {b} {d}\nf {a} {d} {c}\n"));
+        }
+    }
+    text_v + &f
+}
+
+/// `register` on two closed meshes goes to the sphere (a rotated copy registers onto itself:
+/// geodesic error 0 to rounding, no flips), and a closed mesh with a disk is refused naming both
+/// files, before any map.
+#[test]
+fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
+    let dir = scratch("register-sphere");
+    let (a, b, disk) = (dir.join("a.obj"), dir.join("b.obj"), dir.join("disk.obj"));
+    std::fs::write(&a, lat_long_sphere_obj(8, 12, 1.5, 0.0)).unwrap();
+    std::fs::write(&b, lat_long_sphere_obj(8, 12, 1.5, 1.1)).unwrap();
+    std::fs::write(&disk, grid_obj(1.0)).unwrap();
+    let lm = dir.join("lm.csv");
+    std::fs::write(&lm, "source,target\n5,5\n40,40\n77,77\n").unwrap();
+    let out_dir = dir.join("out");
+    let run = |b: &Path, out: &Path| {
+        shapespace(&[
+            "register",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--landmarks",
+            lm.to_str().unwrap(),
+            "--method",
+            "conformal",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let out = run(&b, &out_dir);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(0), "{msg}");
+    assert!(msg.contains("on the sphere"), "{msg}");
+    let metrics: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(metrics["domain"], "sphere");
+    let geo = metrics["metrics"]["geodesic"]["summary"]["max"].as_f64().unwrap();
+    assert!(geo < 1e-9, "rotated copy: geodesic error {geo}");
+    assert_eq!(metrics["metrics"]["flipped_faces"], 0);
+    assert_eq!(metrics["metrics"]["flipped_faces_3d"], 0);
+    let rows = std::fs::read_to_string(out_dir.join("correspondence.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 1 + 2 + 8 * 12);
+
+    let out = run(&disk, &dir.join("mixed"));
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains(a.to_str().unwrap()) && msg.contains(disk.to_str().unwrap()) && msg.contains("closed"),
+        "{msg}"
+    );
+    assert!(!dir.join("mixed").join("metrics.json").exists());
+}

@@ -31,7 +31,7 @@ pub const HISTOGRAM_RANGE: (f64, f64) = (1.0, 3.0);
 pub const HISTOGRAM_BINS: usize = 40;
 
 /// Starts writing `path` atomically (committed by the caller).
-fn create(path: &Path) -> Result<AtomicFile, AnalysisError> {
+pub(crate) fn create(path: &Path) -> Result<AtomicFile, AnalysisError> {
     AtomicFile::create(path).map_err(|e| AnalysisError::io(path, e))
 }
 
@@ -47,6 +47,41 @@ pub fn write_registration(
     source: &TriMesh,
     target: &TriMesh,
     reg: &Registration,
+    metrics: &RegistrationMetrics,
+    extra: &serde_json::Value,
+) -> Result<Vec<PathBuf>, AnalysisError> {
+    let head = serde_json::json!({
+        "method": reg.method,
+        "timings": reg.timings,
+        "num_snapped": reg.num_snapped,
+        "max_snap_distance": reg.max_snap_distance,
+    });
+    let map = MapOutput {
+        label: reg.method.name(),
+        faces: &reg.faces,
+        bary: &reg.bary,
+        points: &reg.points,
+    };
+    write_map_outputs(out, source, target, &map, head, metrics, extra)
+}
+
+/// A registration f as written by [`write_map_outputs`]: per source vertex the face of S₂, the
+/// barycentric coordinates there and the 3D point, with a label for the histograms.
+pub(crate) struct MapOutput<'a> {
+    pub label: &'a str,
+    pub faces: &'a [u32],
+    pub bary: &'a [[f64; 3]],
+    pub points: &'a [[f64; 3]],
+}
+
+/// The files of [`write_registration`] for any route: `head` (an object) opens metrics.json,
+/// followed by `metrics`, the histogram settings and `run` = `extra`.
+pub(crate) fn write_map_outputs(
+    out: &Path,
+    source: &TriMesh,
+    target: &TriMesh,
+    reg: &MapOutput,
+    head: serde_json::Value,
     metrics: &RegistrationMetrics,
     extra: &serde_json::Value,
 ) -> Result<Vec<PathBuf>, AnalysisError> {
@@ -71,16 +106,13 @@ pub fn write_registration(
     files.push(path);
 
     let path = out.join("metrics.json");
-    let json = serde_json::json!({
-        "method": reg.method,
-        "timings": reg.timings,
-        "num_snapped": reg.num_snapped,
-        "max_snap_distance": reg.max_snap_distance,
-        "metrics": metrics,
-        "histogram_range": HISTOGRAM_RANGE,
-        "histogram_bins": HISTOGRAM_BINS,
-        "run": extra,
-    });
+    let mut json = head;
+    if let Some(obj) = json.as_object_mut() {
+        obj.insert("metrics".into(), serde_json::json!(metrics));
+        obj.insert("histogram_range".into(), serde_json::json!(HISTOGRAM_RANGE));
+        obj.insert("histogram_bins".into(), serde_json::json!(HISTOGRAM_BINS));
+        obj.insert("run".into(), extra.clone());
+    }
     let text = serde_json::to_string_pretty(&json).map_err(|e| AnalysisError::Serialize {
         path: path.clone(),
         message: e.to_string(),
@@ -90,7 +122,7 @@ pub fn write_registration(
 
     for ext in ["png", "svg"] {
         let p = out.join(format!("curvature_difference.{ext}"));
-        let cname = series_name(reg.method, &metrics.curvature_difference);
+        let cname = series_name(reg.label, &metrics.curvature_difference);
         histograms(
             &p,
             &[(cname.as_str(), &metrics.curvature_difference)],
@@ -101,7 +133,7 @@ pub fn write_registration(
         )?;
         files.push(p);
         let p = out.join(format!("area_distortion.{ext}"));
-        let aname = series_name(reg.method, &metrics.area_distortion);
+        let aname = series_name(reg.label, &metrics.area_distortion);
         histograms(
             &p,
             &[(aname.as_str(), &metrics.area_distortion)],
@@ -372,7 +404,7 @@ pub struct BenchResult {
 }
 
 /// Mesh files (`.off`, `.obj`, `.ply`) of a folder, sorted by name.
-fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>, AnalysisError> {
+pub(crate) fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>, AnalysisError> {
     let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| AnalysisError::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -387,7 +419,7 @@ fn mesh_files(dir: &Path) -> Result<Vec<PathBuf>, AnalysisError> {
     Ok(out)
 }
 
-fn stem(p: &Path) -> String {
+pub(crate) fn stem(p: &Path) -> String {
     p.file_stem()
         .map(|s| s.to_string_lossy().to_string())
         .unwrap_or_default()
@@ -841,7 +873,7 @@ pub fn register_bench(
 
 /// Histogram series name: the method and the share of values beyond the truncated range (the
 /// bars show fractions of the values inside the range only).
-fn series_name(method: Method, values: &[f64]) -> String {
+fn series_name(method: impl std::fmt::Display, values: &[f64]) -> String {
     let beyond = values.iter().filter(|&&v| !(v <= HISTOGRAM_RANGE.1)).count();
     format!(
         "{method}: {:.0}% > {} not shown",

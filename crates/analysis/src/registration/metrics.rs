@@ -247,15 +247,6 @@ pub fn registration_metrics_against(
     truth: Option<&[SurfacePoint]>,
 ) -> Result<RegistrationMetrics, AnalysisError> {
     let n1 = source.num_vertices();
-    if let Some(t) = truth {
-        if t.len() != n1 {
-            return Err(AnalysisError::InvalidInput(format!(
-                "ground truth has {} points for {} source vertices",
-                t.len(),
-                n1
-            )));
-        }
-    }
     if reg.points.len() != n1 || reg.harmonic_uv.len() != n1 || reg.source_uv.len() != n1 {
         return Err(AnalysisError::InvalidInput(format!(
             "registration has {} points for {} source vertices",
@@ -263,20 +254,11 @@ pub fn registration_metrics_against(
             n1
         )));
     }
-    let a1 = total_area(source);
-    let a2 = total_area(target);
-    if !(a1 > 0.0 && a2 > 0.0) {
-        return Err(AnalysisError::InvalidInput("a surface has zero area".into()));
-    }
     let areas1 = face_areas(source);
 
     // flips
     let locator = PointLocator::new(&reg.target_uv, &target.faces)?;
-    let face_normal2 = |fi: usize| {
-        let p = target.face_positions(fi);
-        cross(sub(p[1], p[0]), sub(p[2], p[0]))
-    };
-    let (mut flipped, mut flipped_area, mut flipped3, mut flipped_area3) = (0usize, 0.0, 0usize, 0.0);
+    let mut flips = FlipCounts::default();
     // φ₂(f(v)): the harmonic image itself, or for a refined map its point mapped by φ₂
     let image_uv: Vec<[f64; 2]> = if reg.refinement.is_some() {
         (0..n1)
@@ -294,26 +276,107 @@ pub fn registration_metrics_against(
     } else {
         reg.harmonic_uv.clone()
     };
-    let mut ring_image = vec![0.0; n1];
-    let mut ring_source = vec![0.0; n1];
     for (fi, f) in source.faces.iter().enumerate() {
         let [a, b, c] = [f[0] as usize, f[1] as usize, f[2] as usize];
         let s1 = signed_area2(reg.harmonic_uv[a], reg.harmonic_uv[b], reg.harmonic_uv[c]);
         if s1 < 0.0 {
-            flipped += 1;
-            flipped_area += areas1[fi];
+            flips.faces += 1;
+            flips.area += areas1[fi];
         }
-        let (pa, pb, pc) = (reg.points[a], reg.points[b], reg.points[c]);
-        let nimg = cross(sub(pb, pa), sub(pc, pa));
         let (ha, hb, hc) = (image_uv[a], image_uv[b], image_uv[c]);
         let centroid = [(ha[0] + hb[0] + hc[0]) / 3.0, (ha[1] + hb[1] + hc[1]) / 3.0];
-        let nref = locator
-            .locate(centroid)
-            .map_or([0.0; 3], |l| face_normal2(l.face as usize));
-        if dot(nimg, nref) < 0.0 {
-            flipped3 += 1;
-            flipped_area3 += areas1[fi];
+        let reference = locator.locate(centroid).map(|l| l.face);
+        if image_is_flipped(target, [reg.points[a], reg.points[b], reg.points[c]], reference) {
+            flips.faces_3d += 1;
+            flips.area_3d += areas1[fi];
         }
+    }
+    surface_metrics(
+        source,
+        target,
+        &reg.faces,
+        &reg.bary,
+        &reg.points,
+        reg.num_snapped,
+        flips,
+        params,
+        truth,
+    )
+}
+
+/// Flipped faces of a registration and their areas on S₁ (unnormalized), in the parameter
+/// domain (disk or sphere) and in 3D: the input of [`surface_metrics`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct FlipCounts {
+    pub faces: usize,
+    pub area: f64,
+    pub faces_3d: usize,
+    pub area_3d: f64,
+}
+
+/// Whether the image triangle `p` (f(a), f(b), f(c)) in space is flipped against the normal of
+/// the face `reference` of S₂ (module docs; `None`: no reference, not flipped; a collapsed
+/// image has a zero normal and is not flipped).
+pub(crate) fn image_is_flipped(target: &TriMesh, p: [[f64; 3]; 3], reference: Option<u32>) -> bool {
+    let nimg = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+    let nref = reference.map_or([0.0; 3], |fi| {
+        let q = target.face_positions(fi as usize);
+        cross(sub(q[1], q[0]), sub(q[2], q[0]))
+    });
+    dot(nimg, nref) < 0.0
+}
+
+/// The measures of the module docs that depend only on the map f (per source vertex: the face
+/// of S₂ holding f(v), its barycentric coordinates and the 3D point), with the flips counted by
+/// the caller in its parameter domain (disk or sphere). Errors: lengths that do not match the
+/// meshes, a surface of zero area, a bad `truth`, the heat method failing on S₂.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn surface_metrics(
+    source: &TriMesh,
+    target: &TriMesh,
+    faces: &[u32],
+    bary: &[[f64; 3]],
+    points: &[[f64; 3]],
+    num_snapped: usize,
+    flips: FlipCounts,
+    params: &MetricParams,
+    truth: Option<&[SurfacePoint]>,
+) -> Result<RegistrationMetrics, AnalysisError> {
+    let n1 = source.num_vertices();
+    if let Some(t) = truth {
+        if t.len() != n1 {
+            return Err(AnalysisError::InvalidInput(format!(
+                "ground truth has {} points for {} source vertices",
+                t.len(),
+                n1
+            )));
+        }
+    }
+    if points.len() != n1 || faces.len() != n1 || bary.len() != n1 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "registration has {} points for {} source vertices",
+            points.len(),
+            n1
+        )));
+    }
+    if let Some(v) = faces.iter().position(|&f| f as usize >= target.faces.len()) {
+        return Err(AnalysisError::InvalidInput(format!(
+            "the image of source vertex {v} lies on face {} of a target with {} faces",
+            faces[v],
+            target.faces.len()
+        )));
+    }
+    let a1 = total_area(source);
+    let a2 = total_area(target);
+    if !(a1 > 0.0 && a2 > 0.0) {
+        return Err(AnalysisError::InvalidInput("a surface has zero area".into()));
+    }
+    let areas1 = face_areas(source);
+    let mut ring_image = vec![0.0; n1];
+    let mut ring_source = vec![0.0; n1];
+    for (fi, f) in source.faces.iter().enumerate() {
+        let (pa, pb, pc) = (points[f[0] as usize], points[f[1] as usize], points[f[2] as usize]);
+        let nimg = cross(sub(pb, pa), sub(pc, pa));
         let img_area = 0.5 * dot(nimg, nimg).sqrt() * (a1 / a2);
         for &v in f {
             ring_image[v as usize] += img_area;
@@ -352,11 +415,11 @@ pub fn registration_metrics_against(
     let mut curvature_vertices = Vec::new();
     let mut curvature_clamped = 0usize;
     for v in 0..n1 {
-        let t = target.faces[reg.faces[v] as usize];
+        let t = target.faces[faces[v] as usize];
         if b1[v] || t.iter().any(|&w| b2[w as usize]) {
             continue;
         }
-        let cv2: f64 = (0..3).map(|k| reg.bary[v][k] * c2[t[k] as usize]).sum();
+        let cv2: f64 = (0..3).map(|k| bary[v][k] * c2[t[k] as usize]).sum();
         let (x, y) = (c1[v].abs(), cv2.abs());
         if x < floors[0] || y < floors[1] {
             curvature_clamped += 1;
@@ -382,8 +445,8 @@ pub fn registration_metrics_against(
             .iter()
             .zip(&dist)
             .map(|(&v, d)| {
-                let t = target.faces[reg.faces[v as usize] as usize];
-                let b = reg.bary[v as usize];
+                let t = target.faces[faces[v as usize] as usize];
+                let b = bary[v as usize];
                 let e: f64 = (0..3).map(|k| b[k] * d[t[k] as usize]).sum();
                 e.max(0.0) / norm
             })
@@ -405,10 +468,10 @@ pub fn registration_metrics_against(
     };
 
     Ok(RegistrationMetrics {
-        flipped_area_ratio: flipped_area / a1,
-        flipped_faces: flipped,
-        flipped_area_ratio_3d: flipped_area3 / a1,
-        flipped_faces_3d: flipped3,
+        flipped_area_ratio: flips.area / a1,
+        flipped_faces: flips.faces,
+        flipped_area_ratio_3d: flips.area_3d / a1,
+        flipped_faces_3d: flips.faces_3d,
         curvature_summary: ValueSummary::of(&curvature_difference),
         curvature_difference,
         curvature_vertices,
@@ -418,7 +481,7 @@ pub fn registration_metrics_against(
         log_area_distortion_summary: ValueSummary::of(&area_distortion.iter().map(|a| a.ln()).collect::<Vec<_>>()),
         area_distortion,
         geodesic,
-        num_snapped: reg.num_snapped,
+        num_snapped,
     })
 }
 

@@ -46,6 +46,8 @@ pub mod geodesic;
 pub mod landmarks;
 pub mod metrics;
 pub mod point_location;
+pub mod sphere;
+pub mod sphere_bench;
 pub mod truth;
 pub mod untangle;
 pub mod zoomout;

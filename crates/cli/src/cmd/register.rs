@@ -1,8 +1,9 @@
-//! `shapespace register SOURCE TARGET [--landmarks pairs.csv] [--method omt|conformal] [--refine none|zoomout] --out DIR`
-//! and `shapespace register-bench DATASET_DIR --out DIR [--methods omt,conformal] [--refine none|zoomout]`:
+//! `shapespace register SOURCE TARGET [--landmarks pairs.csv] [--method omt|conformal] [--domain auto|disk|sphere] [--refine none|zoomout] --out DIR`
+//! and `shapespace register-bench DATASET_DIR --out DIR [--methods omt,conformal] [--refine none|zoomout] [--closed DIR]`:
 //! registration f = φ₂⁻¹ ∘ g ∘ φ₁ through disk maps and a landmark-constrained harmonic map
-//! (Su et al. 2015, Alg. 4), optionally refined by ZoomOut, its quality measures, and the
-//! benchmark over pose sets.
+//! (Su et al. 2015, Alg. 4), optionally refined by ZoomOut, or of closed genus-0 surfaces
+//! through the sphere (`registration::sphere`), its quality measures, and the benchmark over
+//! pose sets (with `--closed`, the sphere route on the closed poses in the same run).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -10,20 +11,32 @@ use std::time::Instant;
 
 use anyhow::Context;
 use shapespace_analysis::registration::bench::{register_bench, write_registration};
+use shapespace_analysis::registration::sphere::{
+    register_on_sphere, registration_domain, sphere_registration_metrics, write_sphere_registration, Domain,
+};
+use shapespace_analysis::registration::sphere_bench::sphere_bench;
 use shapespace_analysis::registration::{
     register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
     Refinement, RegistrationParams, ZoomOutParams,
 };
 use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
+use shapespace_analysis::sphere_param::SphereParamParams;
 use shapespace_conformal::{resolve_markers_of, BoundaryMarker, CenterMarker, MarkerFile};
 
 /// Arguments of `shapespace register`.
 #[derive(clap::Args)]
 pub struct RegisterArgs {
-    /// Source mesh S₁ (disk topology).
+    /// Source mesh S₁ (disk topology, or a closed genus-0 surface).
     pub source: PathBuf,
-    /// Target mesh S₂ (disk topology).
+    /// Target mesh S₂ (of the same kind as the source).
     pub target: PathBuf,
+    /// Where to register: `auto` (the sphere when both meshes are closed genus-0 surfaces, the
+    /// disk when both have one boundary loop; one of each is refused), `disk` or `sphere`. On the
+    /// sphere: Möbius-centred sphere maps (`--method`), the rotation fitted to the landmarks (at
+    /// least 2), the harmonic map in a stereographic chart; `--center`, `--boundary-marker` and
+    /// `--refine` do not apply.
+    #[arg(long, default_value = "auto")]
+    pub domain: String,
     #[command(flatten)]
     pub disk_map: super::DiskMapArgs,
     /// Landmark pairs CSV `source,target` (vertex indices). Default: the named landmarks of the
@@ -144,6 +157,12 @@ pub struct RegisterBenchArgs {
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
     pub landmark_weight: f64,
+    /// Folder of the closed poses behind the dataset's cut poses (`DIR/NAME.off` for each pose
+    /// NAME, e.g. the TOSCA originals): also register them on the sphere with the same landmarks
+    /// (carried through `CLASS/original_indices.txt`) and methods, and print both routes side by
+    /// side (OUT/sphere_results.csv, OUT/sphere_summary.json).
+    #[arg(long)]
+    pub closed: Option<PathBuf>,
 }
 
 fn marker_file(explicit: Option<&Path>, mesh: &Path) -> anyhow::Result<Option<(PathBuf, MarkerFile)>> {
@@ -192,6 +211,8 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let read = |p: &Path| shapespace_geometry::io::read_mesh(p);
     let source = read(&args.source)?;
     let target = read(&args.target)?;
+    let (source_name, target_name) = (args.source.display().to_string(), args.target.display().to_string());
+    let domain = registration_domain(args.domain.parse()?, (&source_name, &source), (&target_name, &target))?;
     let m1 = marker_file(args.source_markers.as_deref(), &args.source)?;
     let m2 = marker_file(args.target_markers.as_deref(), &args.target)?;
     let landmarks = match (&args.landmarks, &m1, &m2) {
@@ -211,6 +232,9 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
                 .join(" and ")
         ),
     };
+    if domain == Domain::Sphere {
+        return run_sphere(args, method, &source, &target, &landmarks);
+    }
     // markers: flags over marker files over auto; automatic ones shared where the faces agree
     let origin =
         |m: &Option<(PathBuf, MarkerFile)>| m.as_ref().map_or("auto".to_string(), |m| m.0.display().to_string());
@@ -231,7 +255,6 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         s_origin += ", --boundary-marker";
         t_origin += ", --boundary-marker";
     }
-    let (source_name, target_name) = (args.source.display().to_string(), args.target.display().to_string());
     let shared = share_auto_markers(&[
         MarkerInput {
             name: &source_name,
@@ -345,6 +368,108 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `register` on the sphere (both meshes closed genus-0 surfaces).
+fn run_sphere(
+    args: &RegisterArgs,
+    method: Method,
+    source: &shapespace_geometry::TriMesh,
+    target: &shapespace_geometry::TriMesh,
+    landmarks: &Landmarks,
+) -> anyhow::Result<ExitCode> {
+    for (given, flag) in [
+        (args.center.is_some(), "--center"),
+        (args.boundary_marker.is_some(), "--boundary-marker"),
+    ] {
+        anyhow::ensure!(
+            !given,
+            "{flag} applies to disk maps; {} and {} are closed and registered on the sphere",
+            args.source.display(),
+            args.target.display()
+        );
+    }
+    let refine: Refinement = args.refine.parse()?;
+    anyhow::ensure!(
+        refine == Refinement::None,
+        "--refine {refine} is not available on the sphere (closed meshes {} and {})",
+        args.source.display(),
+        args.target.display()
+    );
+    let harmonic = harmonic_params(
+        method,
+        args.weights.as_deref(),
+        args.untangle_g.as_deref(),
+        args.landmark_steps,
+    )?;
+    eprintln!(
+        "register: closed genus-0 meshes, on the sphere: {} landmark pairs, method {method}",
+        landmarks.len()
+    );
+    let t = Instant::now();
+    let reg = register_on_sphere(
+        source,
+        target,
+        landmarks,
+        method,
+        &SphereParamParams::default(),
+        &harmonic,
+    )
+    .with_context(|| {
+        format!(
+            "registering {} onto {} on the sphere",
+            args.source.display(),
+            args.target.display()
+        )
+    })?;
+    let secs = t.elapsed().as_secs_f64();
+    let mp = MetricParams {
+        geodesic_samples: args.samples,
+        seed: args.seed,
+        ground_truth: !args.no_ground_truth,
+        ..MetricParams::default()
+    };
+    let met = sphere_registration_metrics(source, target, &reg, &mp)?;
+    let extra = serde_json::json!({
+        "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
+        "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
+        "geodesic_samples": args.samples, "seed": args.seed, "harmonic": harmonic,
+    });
+    let files = write_sphere_registration(&args.out, source, target, &reg, &met, &extra)?;
+    eprintln!(
+        "register: {secs:.2}s (sphere maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s); pole clearance {:.2} rad, landmark rms after the rotation {:.3}; folded faces of g {} ({} steps); snapped {}",
+        reg.timings.source_map,
+        reg.timings.target_map,
+        reg.timings.harmonic,
+        reg.timings.composition,
+        reg.pole_clearance,
+        reg.landmark_rms_after_rotation,
+        reg.harmonic_folded,
+        reg.harmonic_steps,
+        reg.num_snapped
+    );
+    eprintln!(
+        "register: flipped area {:.4} (sphere) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion max(J, 1/J) median {:.3} p95 {:.3}, mean |ln J| {:.3}",
+        met.flipped_area_ratio,
+        met.flipped_area_ratio_3d,
+        met.curvature_summary.median,
+        met.curvature_summary.mean,
+        met.area_distortion_summary.median,
+        met.area_distortion_summary.p95,
+        met.log_area_distortion_summary.mean
+    );
+    if let Some(g) = &met.geodesic {
+        eprintln!(
+            "register: geodesic error against v <-> v ({} samples; the meshes are taken to share their vertex order, --no-ground-truth if they do not) median {:.4} mean {:.4}",
+            g.samples.len(),
+            g.summary.median,
+            g.summary.mean
+        );
+    }
+    for f in files {
+        eprintln!("register: wrote {}", f.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
@@ -378,6 +503,9 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     };
     if let Some(r) = &args.remeshed {
         anyhow::ensure!(r.is_dir(), "--remeshed {}: not a folder", r.display());
+    }
+    if let Some(c) = &args.closed {
+        anyhow::ensure!(c.is_dir(), "--closed {}: not a folder", c.display());
     }
     if args.peer.is_some() {
         anyhow::ensure!(
@@ -437,7 +565,68 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     if let Some(python) = &args.peer {
         run_peer(args, python, &res.rows)?;
     }
-    let failed = res.rows.iter().any(|r| r.status != "ok");
+    let mut failed = res.rows.iter().any(|r| r.status != "ok");
+    if let Some(closed) = &args.closed {
+        let sphere = sphere_bench(
+            &args.dataset,
+            closed,
+            &args.out,
+            &methods,
+            &SphereParamParams::default(),
+            &harmonic,
+            &mp,
+            |m| eprintln!("register-bench: {m}"),
+        )
+        .with_context(|| format!("sphere route over {} with {}", args.dataset.display(), closed.display()))?;
+        println!();
+        println!("Cut-disk route (cut poses) against the sphere route (closed poses), refinement none on the sphere:");
+        println!(
+            "| class | domain | method | pairs ok/failed | flipped area (disk or sphere) | flipped area (3D) | geodesic err. median | geodesic err. mean | s/pair (maps shared) |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|");
+        let disk = res
+            .summaries
+            .iter()
+            .filter(|s| s.triangulation == shapespace_analysis::registration::bench::Triangulation::Same);
+        let mut lines: Vec<(String, usize, String)> = Vec::new();
+        for (k, (domain, s)) in disk
+            .map(|s| ("disk", s))
+            .chain(sphere.summaries.iter().map(|s| ("sphere", s)))
+            .enumerate()
+        {
+            lines.push((
+                s.class.clone(),
+                k,
+                format!(
+                    "| {} | {domain} | {} | {}/{} | {:.4} | {:.4} | {:.4} | {:.4} | {:.2} |",
+                    s.class,
+                    s.method,
+                    s.pairs_ok,
+                    s.pairs_failed,
+                    s.flipped_ratio,
+                    s.flipped_ratio_3d,
+                    s.geodesic_median,
+                    s.geodesic_mean,
+                    s.amortized_seconds
+                ),
+            ));
+        }
+        lines.sort_by(|a, b| (a.0 == "all", &a.0, a.1).cmp(&(b.0 == "all", &b.0, b.1)));
+        for (_, _, l) in lines {
+            println!("{l}");
+        }
+        println!("sphere route: {:.1} s", sphere.total_seconds);
+        for r in sphere.rows.iter().filter(|r| r.status != "ok") {
+            eprintln!(
+                "register-bench: sphere {} {} -> {} ({}) failed: {}",
+                r.class, r.source, r.target, r.method, r.status
+            );
+        }
+        for f in &sphere.files {
+            eprintln!("register-bench: wrote {}", f.display());
+        }
+        failed |= sphere.rows.iter().any(|r| r.status != "ok");
+    }
     Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
