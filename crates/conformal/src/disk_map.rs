@@ -402,59 +402,27 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         _ => crate::markers::central_vertex(mesh, &tri.is_boundary[..n], &adj)
             .ok_or_else(|| ConformalError::InvalidMarker("the mesh has no interior vertex".into()))?,
     };
-    let image_of_center = |z: &[[f64; 2]]| center_image(mesh, resolved.center, z);
-    // smallest image distance from the center's image to the corners around it
-    let local_scale = |z: &[[f64; 2]], a: [f64; 2]| -> f64 {
-        let ring: Vec<u32> = match resolved.center {
-            ResolvedCenter::Vertex(v) => adj[v as usize].clone(),
-            ResolvedCenter::Face { face, .. } => mesh.faces[face as usize].to_vec(),
-        };
-        ring.iter()
-            .map(|&w| (z[w as usize][0] - a[0]).hypot(z[w as usize][1] - a[1]))
-            .fold(f64::INFINITY, f64::min)
-    };
-    let mut pole = if params.pole == PolePlacement::Central {
+    let first_pole = if params.pole == PolePlacement::Central {
         central
     } else {
         own_pole
     };
-    let mut stage_times = [0.0f64; 2];
-    let (mut u, mut theta) = solve_green_map(&tri, pole, resolved.boundary_vertex, &mut stage_times)?;
-    let mut linear_solves = 2;
-    let mut boundary_from_flux = false;
-    // the Green's map; a vertex outside the circle is, like a fold, a reason for the fallback
-    let z_result: Result<Vec<[f64; 2]>, ConformalError> = 'green: {
-        let mut z = match exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0) {
-            Ok(z) => z,
-            Err(e) => break 'green Err(e),
-        };
-        let a_img = image_of_center(&z);
-        if pole != own_pole
-            && (local_scale(&z, a_img) < MOBIUS_MIN_SCALE || 1.0 - a_img[0].hypot(a_img[1]) < MOBIUS_MIN_GAP)
-        {
-            pole = own_pole;
-            (u, theta) = solve_green_map(&tri, pole, resolved.boundary_vertex, &mut stage_times)?;
-            linear_solves += 2;
-            z = match exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0) {
-                Ok(z) => z,
-                Err(e) => break 'green Err(e),
-            };
-        }
-        // boundary order: the least-squares conjugate can run backwards along an irregular
-        // boundary (libigl decimated-max cut open); then the boundary angles come from the flux
-        if boundary_out_of_order_tri(&tri, &z) > 0 {
-            let loops = shapespace_geometry::Connectivity::of(mesh).boundary_loops(&mesh.faces);
-            if let Some(boundary_loop) = loops.first() {
-                theta = boundary_angles_from_flux(&tri, &u, boundary_loop, &theta);
-                z = match exp_map(&u, &theta, pole, &tri.is_boundary, negative_weights_after == 0) {
-                    Ok(z) => z,
-                    Err(e) => break 'green Err(e),
-                };
-                boundary_from_flux = true;
-            }
-        }
-        Ok(z)
-    };
+    let green = green_map(
+        mesh,
+        &tri,
+        &adj,
+        &resolved,
+        first_pole,
+        own_pole,
+        negative_weights_after == 0,
+    )?;
+    let GreenMap {
+        z: z_result,
+        pole,
+        linear_solves,
+        boundary_from_flux,
+        stage_times,
+    } = green;
     let t4 = Instant::now();
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     let timings_until = |t5: Instant| DiskMapTimings {
@@ -569,20 +537,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         face_densities: fin.face_densities,
         scale: fin.scale,
         info: DiskMapInfo {
-            method: format!(
-                "green-function ({} cotan Laplacian, least-squares conjugate; {}{})",
-                if params.intrinsic_delaunay {
-                    "intrinsic Delaunay"
-                } else {
-                    "plain"
-                },
-                if pole == central {
-                    "pole at the central vertex, Möbius to the center"
-                } else {
-                    "pole at the center marker"
-                },
-                region_repair_note(fin.region_repair.as_ref())
-            ),
+            method: green_method(params.intrinsic_delaunay, pole == central, fin.region_repair.as_ref()),
             markers: resolved,
             pole,
             mobius: fin.mobius,
@@ -598,6 +553,107 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
             region_repair: fin.region_repair,
         },
         quality: fin.quality,
+    })
+}
+
+/// The method string of a Green's-function map.
+fn green_method(intrinsic_delaunay: bool, central_pole: bool, region_repair: Option<&FoldRepairInfo>) -> String {
+    format!(
+        "green-function ({} cotan Laplacian, least-squares conjugate; {}{})",
+        if intrinsic_delaunay {
+            "intrinsic Delaunay"
+        } else {
+            "plain"
+        },
+        if central_pole {
+            "pole at the central vertex, Möbius to the center"
+        } else {
+            "pole at the center marker"
+        },
+        region_repair_note(region_repair)
+    )
+}
+
+/// The Green's-function map and how it was reached: `z` (or why it failed: a vertex outside the
+/// circle is, like a fold, a reason for the fallback), the pole finally used (the central vertex
+/// `first_pole` gives way to the center marker's own vertex where the central map is too small
+/// near the center or the center too close to the circle), the linear solves, whether the
+/// boundary angles came from the flux, and the seconds of the Green and conjugate solves.
+struct GreenMap {
+    z: Result<Vec<[f64; 2]>, ConformalError>,
+    pole: u32,
+    linear_solves: usize,
+    boundary_from_flux: bool,
+    stage_times: [f64; 2],
+}
+
+/// Route 1 of [`disk_map`] (module docs): Green's function at `first_pole`, its harmonic
+/// conjugate, the exponential map, with the fallback to the center marker's vertex and to
+/// boundary angles from the flux. `delaunay_weights`: no negative cotangent weight is left.
+fn green_map(
+    mesh: &TriMesh,
+    tri: &IntrinsicTriangulation,
+    adj: &[Vec<u32>],
+    resolved: &ResolvedMarkers,
+    first_pole: u32,
+    own_pole: u32,
+    delaunay_weights: bool,
+) -> Result<GreenMap, ConformalError> {
+    let image_of_center = |z: &[[f64; 2]]| center_image(mesh, resolved.center, z);
+    // smallest image distance from the center's image to the corners around it
+    let local_scale = |z: &[[f64; 2]], a: [f64; 2]| -> f64 {
+        let ring: Vec<u32> = match resolved.center {
+            ResolvedCenter::Vertex(v) => adj[v as usize].clone(),
+            ResolvedCenter::Face { face, .. } => mesh.faces[face as usize].to_vec(),
+        };
+        ring.iter()
+            .map(|&w| (z[w as usize][0] - a[0]).hypot(z[w as usize][1] - a[1]))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut pole = first_pole;
+    let mut stage_times = [0.0f64; 2];
+    let (mut u, mut theta) = solve_green_map(tri, pole, resolved.boundary_vertex, &mut stage_times)?;
+    let mut linear_solves = 2;
+    let mut boundary_from_flux = false;
+    // the Green's map; a vertex outside the circle is, like a fold, a reason for the fallback
+    let z_result: Result<Vec<[f64; 2]>, ConformalError> = 'green: {
+        let mut z = match exp_map(&u, &theta, pole, &tri.is_boundary, delaunay_weights) {
+            Ok(z) => z,
+            Err(e) => break 'green Err(e),
+        };
+        let a_img = image_of_center(&z);
+        if pole != own_pole
+            && (local_scale(&z, a_img) < MOBIUS_MIN_SCALE || 1.0 - a_img[0].hypot(a_img[1]) < MOBIUS_MIN_GAP)
+        {
+            pole = own_pole;
+            (u, theta) = solve_green_map(tri, pole, resolved.boundary_vertex, &mut stage_times)?;
+            linear_solves += 2;
+            z = match exp_map(&u, &theta, pole, &tri.is_boundary, delaunay_weights) {
+                Ok(z) => z,
+                Err(e) => break 'green Err(e),
+            };
+        }
+        // boundary order: the least-squares conjugate can run backwards along an irregular
+        // boundary (libigl decimated-max cut open); then the boundary angles come from the flux
+        if boundary_out_of_order_tri(tri, &z) > 0 {
+            let loops = shapespace_geometry::Connectivity::of(mesh).boundary_loops(&mesh.faces);
+            if let Some(boundary_loop) = loops.first() {
+                theta = boundary_angles_from_flux(tri, &u, boundary_loop, &theta);
+                z = match exp_map(&u, &theta, pole, &tri.is_boundary, delaunay_weights) {
+                    Ok(z) => z,
+                    Err(e) => break 'green Err(e),
+                };
+                boundary_from_flux = true;
+            }
+        }
+        Ok(z)
+    };
+    Ok(GreenMap {
+        z: z_result,
+        pole,
+        linear_solves,
+        boundary_from_flux,
+        stage_times,
     })
 }
 
