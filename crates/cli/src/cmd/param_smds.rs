@@ -37,10 +37,10 @@ pub struct SphericalMdsArgs {
     pub max_angle: Option<f64>,
     /// spherical-mds: landmark vertices embedded first (default 500).
     #[arg(long = "mds-landmarks")]
-    pub landmarks: Option<usize>,
+    pub mds_landmarks: Option<usize>,
     /// spherical-mds: the landmarks' start (default classical).
     #[arg(long = "mds-start", value_enum)]
-    pub start: Option<StartArg>,
+    pub mds_start: Option<StartArg>,
     /// spherical-mds: refinement sweeps over all vertices after the placement (default 0).
     #[arg(long = "refine-sweeps")]
     pub refine_sweeps: Option<usize>,
@@ -53,8 +53,8 @@ impl SphericalMdsArgs {
     /// Whether any flag is given.
     pub fn is_given(&self) -> bool {
         self.max_angle.is_some()
-            || self.landmarks.is_some()
-            || self.start.is_some()
+            || self.mds_landmarks.is_some()
+            || self.mds_start.is_some()
             || self.refine_sweeps.is_some()
             || self.distance_power.is_some()
     }
@@ -103,11 +103,11 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     let defaults = SphericalMdsParams::default();
     let params = SphericalMdsParams {
         max_angle: args.smds.max_angle.map_or(defaults.max_angle, f64::to_radians),
-        start: match args.smds.start {
+        start: match args.smds.mds_start {
             None | Some(StartArg::Classical) => SphericalMdsStart::Classical,
             Some(StartArg::Conformal) => SphericalMdsStart::Conformal,
         },
-        landmarks: args.smds.landmarks.unwrap_or(defaults.landmarks),
+        landmarks: args.smds.mds_landmarks.unwrap_or(defaults.landmarks),
         refine_sweeps: args.smds.refine_sweeps.unwrap_or(defaults.refine_sweeps),
         distance_power: args.smds.distance_power.unwrap_or(defaults.distance_power),
         weights: match &args.weights {
