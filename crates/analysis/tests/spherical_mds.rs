@@ -158,12 +158,12 @@ fn measure(name: &str, mesh: &TriMesh, params: SphericalMdsParams) -> SphericalM
     map
 }
 
-/// Ellipsoids of revolution (2,562 vertices). At 1:1:1.5 the map folds nothing. At 1:1:2 the
-/// diameter (pole to pole) sent to antipodes leaves the equator, half as long again, no room:
-/// from the classical start the stress settles on a configuration folded over itself (measured
-/// 2,559 of 5,120 faces, stress-1 0.219; from the ellipsoid's own directions, unfolded, 0.218
-/// and 0 folds), while θ_max = 270° (targets beyond π clamped) or the conformal start give an
-/// embedding without a fold.
+/// Ellipsoids of revolution (2,562 vertices). At 1:1:1.5 the map folds nothing. At 1:1:2, with
+/// the diameter (pole to pole) sent to antipodes, the equator's targets are too short for a
+/// great circle: from the classical start the iteration settles on a configuration folded over
+/// itself (measured 2,559 of 5,120 faces, stress-1 0.219, a local minimum: from the conformal
+/// start it ends unfolded at 0.218), while θ_max = 270° (targets beyond π clamped) gives an
+/// embedding without a fold from either start.
 #[test]
 fn ellipsoids_embed_without_folds_when_the_sphere_fits() {
     let pi = std::f64::consts::PI;

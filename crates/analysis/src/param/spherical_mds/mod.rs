@@ -11,14 +11,17 @@
 //! $$\sigma(X) = \sum_{i<j} w_{ij}\,\big(\delta_{ij} - \arccos\langle x_i, x_j\rangle\big)^2 .$$
 //! $\theta_{max}$ ([`SphericalMdsParams::max_angle`]) is the angle the surface's diameter is
 //! given on S², i.e. it fixes the radius $R = g_{max}/\theta_{max}$ of the sphere the surface
-//! is laid on: θ_max = π (the default) sends the two farthest points of the surface to
-//! antipodes and is the only value at which a round sphere is embedded isometrically; a smaller
-//! θ_max lays the surface on a larger sphere and leaves part of S² uncovered (for a thin shape
-//! whose geodesic circles are short, a larger sphere preserves the local distances better and
-//! uses less of the texture). Elad, Keller & Kimmel tie the sphere to the texture this way and
-//! weight the stress by the texture's content; here the weights are per vertex,
-//! $w_{ij} = w_i w_j$ (`weights`, e.g. an importance map sampled at the vertices; 1 by
-//! default), our reading of their texture-adaptive weighting.
+//! is laid on. θ_max = π (the default) sends the two farthest points of the surface to
+//! antipodes and is the only value at which a round sphere is embedded isometrically. Above π
+//! the sphere is smaller than the diameter asks for: targets beyond π (pairs farther apart
+//! than πR) are clamped to π, "as far apart as S² allows", and an elongated surface wraps
+//! around S² instead of folding over itself (measured below). Below π the sphere is larger and
+//! the closed surface, which must still cover it, is stretched or folded. Elad, Keller &
+//! Kimmel choose the sphere for the texture and weight the stress by the texture's content;
+//! the form of both choices here, θ_max with clamping and the pair weights
+//! $w_{ij} = w_i w_j \delta_{ij}^{-p}$ (`weights`, e.g. an importance map sampled at the
+//! vertices, and `distance_power` p; 1 and 0 by default), is ours, not a transcription of
+//! the paper's equations.
 //!
 //! The steps, each in its own function:
 //! 1. geodesic distances by the heat method ([`crate::geodesic::HeatGeodesics`], Crane et al.
@@ -43,7 +46,13 @@
 //!
 //! MDS preserves distances, not orientation: nothing in the stress forbids folds, and where the
 //! surface's metric is far from a sphere's (long limbs, whose geodesic circles are short) the
-//! best-stress embedding folds or crowds. `tests/spherical_mds.rs` measures both.
+//! best-stress embedding folds. Measured (`tests/spherical_mds.rs`, 500 landmarks): a jittered
+//! round sphere embeds onto itself with a mean angular error of 4.2e-3, 1.6e-3, 6.9e-4 rad at
+//! 162, 642, 2,562 vertices (the heat method's error); an ellipsoid 1:1:1.5 with no fold; an
+//! ellipsoid 1:1:2 folded over itself from the classical start (2,559 of 5,120 faces, stress-1
+//! 0.219: a local minimum; from the conformal start the iteration ends unfolded at 0.218), and
+//! with no fold at θ_max = 270°; TOSCA wolf0 with 40–55 % of its faces folded whatever the start, θ_max
+//! or p, which the chart repair cannot undo (`docs/sphere.md`).
 
 pub mod sampling;
 pub mod stress;

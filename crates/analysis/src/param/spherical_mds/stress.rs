@@ -5,7 +5,7 @@
 //! $-u_{xy}$, the unit tangent at x pointing towards y, so the gradient of one stress term
 //! $w(\delta - d(x, y))^2$ is $2w(\delta - d)\,u_{xy}$.
 //!
-//! - [`smacof_on_sphere`] moves all landmarks at once by the spherical Guttman step
+//! - `smacof_on_sphere` moves all landmarks at once by the spherical Guttman step
 //!   $$x_i^+ = \exp_{x_i}\Big(\frac{\alpha}{W_i}\sum_{j \ne i} w_{ij}\,(d_{ij} - \delta_{ij})\,u_{ij}\Big),
 //!     \qquad W_i = \sum_{j \ne i} w_{ij},$$
 //!   which in the plane (where $\exp_x(t) = x + t$ and $(d - \delta)u = (1 - \delta/d)(y - x)$)
@@ -14,7 +14,7 @@
 //!   stands (positive curvature), so α is halved until the stress does not rise: the stress is
 //!   non-increasing over the iterations by construction, and α returns to 1 after each
 //!   accepted step.
-//! - [`place_point`] minimizes one point's stress against fixed points by Gauss–Newton in the
+//! - `place_point` minimizes one point's stress against fixed points by Gauss–Newton in the
 //!   tangent plane (2 × 2 normal equations, step halving), for the vertices placed against the
 //!   landmarks and for the refinement sweeps.
 
