@@ -101,6 +101,10 @@ pub enum AnalysisError {
     /// A pair of shapes failed (the OT solver returned an error).
     #[error("{a} -> {b}: {message}")]
     Pair { a: String, b: String, message: String },
+    /// A map onto the sphere was asked of a mesh that is not a closed genus-0 surface
+    /// (`class` is what it is, `reasons` why).
+    #[error("not a closed genus-0 surface ({class}), so it has no map onto the sphere: {}", reasons.join("; "))]
+    NotClosedGenusZero { class: String, reasons: Vec<String> },
     /// Invalid input to a computation (weights, parameters), with the reason.
     #[error("invalid input: {0}")]
     InvalidInput(String),

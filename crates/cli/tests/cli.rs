@@ -2417,6 +2417,138 @@ fn param_maps_a_closed_mesh_onto_the_sphere_preserving_area() {
     );
 }
 
+/// `param --method spherical-mds`: an egg (ellipsoid 1 : 1 : 1.3, radius 2.5) maps onto S² with
+/// the input's faces and no folded face; the report names the method, its landmarks and a
+/// non-increasing stress; `--max-angle` is read in degrees; a disk, a `--domain disk`, an
+/// output over the input and the method's flags on another method are refused, naming the file.
+#[test]
+fn param_spherical_mds_maps_a_closed_mesh_onto_the_sphere() {
+    let dir = scratch("param_smds");
+    let mut mesh = shapespace_geometry::primitives::icosphere(3);
+    for p in &mut mesh.positions {
+        *p = [2.5 * p[0], 2.5 * p[1], 3.25 * p[2]];
+    }
+    let input = dir.join("egg.obj");
+    shapespace_geometry::io::write_mesh(&input, &mesh).unwrap();
+    let out_ply = dir.join("egg_mds.ply");
+    let report = dir.join("report.json");
+    let (i, o, r) = (
+        input.to_str().unwrap(),
+        out_ply.to_str().unwrap(),
+        report.to_str().unwrap(),
+    );
+    let out = shapespace(&[
+        "param",
+        i,
+        "--method",
+        "spherical-mds",
+        "--out",
+        o,
+        "--report",
+        r,
+        "--mds-landmarks",
+        "200",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let mapped = shapespace_geometry::io::read_mesh(&out_ply).unwrap();
+    assert_eq!(mapped.faces, mesh.faces);
+    for p in &mapped.positions {
+        assert!(((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs() < 1e-12);
+    }
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["method"], "spherical-mds");
+    assert_eq!(json["num_flipped"], 0);
+    assert_eq!(json["distortion"]["maps"][0]["name"], "spherical-mds");
+    assert_eq!(json["spherical_mds"]["num_landmarks"], 200);
+    assert_eq!(json["landmarks"].as_array().unwrap().len(), 200);
+    let history: Vec<f64> = json["spherical_mds"]["landmark_smacof"]["stress_history"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        !history.is_empty() && history.windows(2).all(|w| w[1] <= w[0]),
+        "{history:?}"
+    );
+    assert!(
+        json["distortion"]["maps"][0]["abs_vertex_log_area_ratio"]["p95"]
+            .as_f64()
+            .unwrap()
+            < 0.5
+    );
+
+    std::fs::remove_file(&report).unwrap();
+    let out = shapespace(&[
+        "param",
+        i,
+        "--method",
+        "spherical-mds",
+        "--out",
+        o,
+        "--report",
+        r,
+        "--mds-landmarks",
+        "100",
+        "--max-angle",
+        "270",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let angle = json["spherical_mds"]["max_angle"].as_f64().unwrap();
+    assert!((angle - 1.5 * std::f64::consts::PI).abs() < 1e-12, "{angle}");
+
+    let refused = [
+        (
+            vec![
+                "param",
+                "datasets/faces/id00_neutral.obj",
+                "--method",
+                "spherical-mds",
+                "--out",
+                o,
+            ],
+            "id00_neutral.obj",
+        ),
+        (
+            vec!["param", i, "--method", "spherical-mds", "--domain", "disk", "--out", o],
+            "egg.obj",
+        ),
+        (vec!["param", i, "--method", "spherical-mds", "--out", i], "egg.obj"),
+        (
+            vec!["param", i, "--domain", "sphere", "--max-angle", "200", "--out", o],
+            "egg.obj",
+        ),
+        (
+            vec![
+                "param",
+                i,
+                "--method",
+                "spherical-mds",
+                "--max-angle",
+                "1000",
+                "--out",
+                o,
+            ],
+            "egg.obj",
+        ),
+    ];
+    for (args, name) in refused {
+        let out = shapespace(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+        assert!(stderr(&out).contains(name), "{args:?}: {}", stderr(&out));
+    }
+    let out = shapespace(&[
+        "param",
+        "datasets/faces/id00_neutral.obj",
+        "--method",
+        "spherical-mds",
+        "--out",
+        o,
+    ]);
+    assert!(stderr(&out).contains("not a closed genus-0"), "{}", stderr(&out));
+}
+
 /// `mds --method smacof` on the bundled faces40 matrix: exit 0, stats.json says smacof with a
 /// stress-1 below the classical embedding's, and the summary line reports both; an iteration
 /// cap of 1 stops short of the tolerance: exit 1, the configuration still written.

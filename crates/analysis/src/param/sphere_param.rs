@@ -172,7 +172,7 @@ pub fn area_preserving_sphere_map(
 
 /// Faces of `mesh` whose image `x` on S² is not positively oriented (exact `orient_3d` against
 /// the centre).
-fn folded_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
+pub(crate) fn folded_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
     (0..mesh.num_faces())
         .into_par_iter()
         .filter(|&f| {
@@ -237,7 +237,7 @@ enum ChartFailure {
 /// grown around its boundary's reflex corners ([`convexify`]) and repaired once more. A chart whose repair fails or
 /// leaves a fold on S² (checked exactly) is discarded, and the next one has ⌈1.5k⌉ rings, until
 /// a chart passes a quarter of the faces or 1.45 rad from its centre.
-fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
+pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
     // each face's share of the sphere's 4π (the charts scale it by their area factor)

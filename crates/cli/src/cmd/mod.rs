@@ -9,6 +9,7 @@ pub mod mds;
 pub mod ot;
 pub mod ot_sphere;
 pub mod param;
+pub mod param_smds;
 pub mod prepare;
 pub mod register;
 

@@ -22,6 +22,11 @@
 //! report has the same distortion block, with the flow's steps and timings in place of the OT
 //! summary. Exit code 1 when its fold repair failed (the map is written with its folds).
 //!
+//! `--method spherical-mds` maps a closed genus-0 mesh onto the unit sphere by spherical
+//! multidimensional scaling of its geodesic distances
+//! ([`shapespace_analysis::spherical_mds::spherical_mds_map`]; Elad, Keller & Kimmel 2005;
+//! `param_smds`).
+//!
 //! `--method flow` computes the L²-optimal map by the Angenent–Haker–Tannenbaum gradient flow
 //! from the Lie-advection map ([`shapespace_analysis::gradient_flow::gradient_flow_map`];
 //! Dominitz & Tannenbaum 2010; disk only, no weights); its report has the same distortion
@@ -52,6 +57,9 @@ pub enum ParamMethod {
     /// Conformal map + Lie advection + the Angenent–Haker–Tannenbaum gradient flow to the
     /// L²-optimal map (Dominitz & Tannenbaum 2010; disk only).
     Flow,
+    /// Spherical multidimensional scaling of the heat-method geodesic distances (Elad, Keller
+    /// & Kimmel 2005; sphere only).
+    SphericalMds,
 }
 
 impl ParamMethod {
@@ -60,6 +68,7 @@ impl ParamMethod {
             ParamMethod::Omt => "omt",
             ParamMethod::Lie => "lie",
             ParamMethod::Flow => "flow",
+            ParamMethod::SphericalMds => "spherical-mds",
         }
     }
 }
@@ -79,13 +88,16 @@ pub struct ParamArgs {
     #[command(flatten)]
     pub disk_map: super::DiskMapArgs,
     /// `omt` (default): the Newton OMT map; `lie`: the Lie-advection authalic map; `flow`: the
-    /// OMT map by the gradient flow from the Lie map (`lie` and `flow`: disk only).
+    /// OMT map by the gradient flow from the Lie map (`lie` and `flow`: disk only);
+    /// `spherical-mds`: spherical MDS of the geodesic distances (sphere only).
     #[arg(long, value_enum, default_value_t = ParamMethod::Omt)]
     pub method: ParamMethod,
-    /// Target domain: `disk` (unit disk), `square` (side √π, centered at 0) or `sphere` (the
-    /// unit sphere, for a closed genus-0 mesh).
-    #[arg(long, default_value = "disk")]
-    pub domain: String,
+    /// Target domain: `disk` (unit disk, the default), `square` (side √π, centered at 0) or
+    /// `sphere` (the unit sphere, for a closed genus-0 mesh; the default of `spherical-mds`).
+    #[arg(long)]
+    pub domain: Option<String>,
+    #[command(flatten)]
+    pub smds: super::param_smds::SphericalMdsArgs,
     /// Importance weights: CSV with header and rows `vertex,weight` (unlisted vertices: 1).
     #[arg(long)]
     pub weights: Option<PathBuf>,
@@ -108,9 +120,20 @@ pub struct ParamArgs {
     pub start: super::ot::StartArg,
 }
 
+impl ParamArgs {
+    /// `--domain`, or its default: `sphere` for `--method spherical-mds`, else `disk`.
+    pub fn domain(&self) -> &str {
+        match (&self.domain, self.method) {
+            (Some(d), _) => d,
+            (None, ParamMethod::SphericalMds) => "sphere",
+            (None, _) => "disk",
+        }
+    }
+}
+
 /// Runs `f` on a worker thread; when it takes more than a second, shows a spinner with
 /// `message` on stderr until it finishes.
-fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
+pub(super) fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
     std::thread::scope(|scope| {
         let (tx, rx) = mpsc::channel::<()>();
         let worker = scope.spawn(move || {
@@ -149,7 +172,16 @@ fn with_spinner<T: Send>(message: String, f: impl FnOnce() -> T + Send) -> T {
 /// Runs the subcommand.
 pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
-    if args.domain != "sphere" {
+    if args.method == ParamMethod::SphericalMds {
+        return super::param_smds::run(args, t0);
+    }
+    if args.smds.is_given() {
+        anyhow::bail!(
+            "{}: --max-angle, --mds-landmarks, --mds-start, --refine-sweeps and --distance-power apply to --method spherical-mds only",
+            args.input.display()
+        );
+    }
+    if args.domain() != "sphere" {
         super::check_map_output(&args.out)?;
     }
     super::check_output_files(
@@ -163,7 +195,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     if let Some(dir) = &args.plots {
         super::create_output_folder(dir)?;
     }
-    if args.domain == "sphere" {
+    if args.domain() == "sphere" {
         if args.method != ParamMethod::Omt {
             anyhow::bail!(
                 "--method {} maps onto the disk only (--domain sphere takes the Newton OMT map)",
@@ -184,7 +216,7 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             args.input.display()
         );
     }
-    let domain: Domain = args.domain.parse()?;
+    let domain: Domain = args.domain().parse()?;
     // (its errors name the file)
     let mut mesh = read_mesh(&args.input)?;
     shapespace_geometry::topology::require_disk(&mesh)
@@ -193,7 +225,10 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     if args.method != ParamMethod::Omt {
         let name = args.method.name();
         if domain != Domain::Disk {
-            anyhow::bail!("--method {name} maps onto the disk only (got --domain {})", args.domain);
+            anyhow::bail!(
+                "--method {name} maps onto the disk only (got --domain {})",
+                args.domain()
+            );
         }
         if args.weights.is_some() {
             anyhow::bail!("--method {name} takes no --weights (the Newton OMT map does)");
@@ -576,7 +611,7 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
 
 /// Writes the histograms of `report` into `--plots` and the JSON that `json` builds into
 /// `--report` (atomically), for those of the two that are given.
-fn write_plots_and_report(
+pub(super) fn write_plots_and_report(
     args: &ParamArgs,
     report: &shapespace_analysis::distortion::DistortionReport,
     json: impl FnOnce() -> serde_json::Value,
