@@ -402,29 +402,7 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
     }
     check_coordinate_range(mesh)?;
     let n = mesh.num_vertices();
-    match params.normalization {
-        SphereNormalization::ThreeMarkers(p) => {
-            for (k, &v) in p.iter().enumerate() {
-                check_marker(v, n, ["p1", "p2", "p3"][k])?;
-            }
-            if p[0] == p[1] || p[1] == p[2] || p[0] == p[2] {
-                return Err(ConformalError::InvalidMarker(format!(
-                    "the three markers must be distinct vertices, got {}, {}, {}",
-                    p[0], p[1], p[2]
-                )));
-            }
-        }
-        SphereNormalization::Centered { rotation: Some([a, b]) } => {
-            check_marker(a, n, "rotation")?;
-            check_marker(b, n, "rotation")?;
-            if a == b {
-                return Err(ConformalError::InvalidMarker(format!(
-                    "the two rotation markers must be distinct vertices, got {a} twice"
-                )));
-            }
-        }
-        SphereNormalization::Centered { rotation: None } => {}
-    }
+    check_normalization_markers(params.normalization, n)?;
     let mut tri = IntrinsicTriangulation::from_mesh(mesh)?;
     if !is_sphere(&tri, &mesh.faces) {
         // the reasons, from the full report
@@ -625,4 +603,32 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
         },
         quality: summary,
     })
+}
+
+/// The normalization's markers: vertices of the mesh (`n` of them), and distinct.
+fn check_normalization_markers(normalization: SphereNormalization, n: usize) -> Result<(), ConformalError> {
+    match normalization {
+        SphereNormalization::ThreeMarkers(p) => {
+            for (k, &v) in p.iter().enumerate() {
+                check_marker(v, n, ["p1", "p2", "p3"][k])?;
+            }
+            if p[0] == p[1] || p[1] == p[2] || p[0] == p[2] {
+                return Err(ConformalError::InvalidMarker(format!(
+                    "the three markers must be distinct vertices, got {}, {}, {}",
+                    p[0], p[1], p[2]
+                )));
+            }
+        }
+        SphereNormalization::Centered { rotation: Some([a, b]) } => {
+            check_marker(a, n, "rotation")?;
+            check_marker(b, n, "rotation")?;
+            if a == b {
+                return Err(ConformalError::InvalidMarker(format!(
+                    "the two rotation markers must be distinct vertices, got {a} twice"
+                )));
+            }
+        }
+        SphereNormalization::Centered { rotation: None } => {}
+    }
+    Ok(())
 }
