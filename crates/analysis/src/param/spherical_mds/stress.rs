@@ -7,7 +7,7 @@
 //!
 //! - `smacof_on_sphere` moves all landmarks at once by the spherical Guttman step
 //!   $$x_i^+ = \exp_{x_i}\Big(\frac{\alpha}{W_i}\sum_{j \ne i} w_{ij}\,(d_{ij} - \delta_{ij})\,u_{ij}\Big),
-//!     \qquad W_i = \sum_{j \ne i} w_{ij},$$
+//!   \qquad W_i = \sum_{j \ne i} w_{ij},$$
 //!   which in the plane (where $\exp_x(t) = x + t$ and $(d - \delta)u = (1 - \delta/d)(y - x)$)
 //!   is the per-point Guttman transform of SMACOF at α = 1 (Borg & Groenen 2005, §8.6, with
 //!   the weights' diagonal V). On the sphere the majorization argument does not hold as it
