@@ -18,8 +18,9 @@ use crate::registration::metrics::{registration_metrics_against, MetricParams, R
 use crate::registration::truth::{carry_markers, closest_points, marker_file_json, SurfacePoint};
 use crate::registration::{
     disk_image, refine_registration, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Refinement,
-    Registration, SpectralBasis, ZoomOutParams,
+    Registration, SpectralBasis, ZoomOutOutput, ZoomOutParams,
 };
+use crate::registration::zoomout::vertex_points;
 
 /// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
 /// errors per class (`CLASS`, or `CLASS/remeshed` for the pairs onto remeshed targets).
@@ -222,6 +223,17 @@ pub struct BenchRow {
     pub untangle_flipped_after: usize,
     /// Of `refine_seconds`: the untangling.
     pub untangle_seconds: f64,
+    /// Source faces flipped by the metric's 3D test before and after the untangling with points
+    /// ([`crate::registration::untangle::untangle_points`]; 0 and 0 without refinement).
+    pub point_untangle_flipped_before: usize,
+    pub point_untangle_flipped_after: usize,
+    /// Of `refine_seconds`: the untangling with points.
+    pub point_untangle_seconds: f64,
+    /// The refined vertex map (before the untangling with points), scored the same way:
+    /// flipped 3D area ratio, geodesic error mean and median (NaN without refinement).
+    pub vertex_map_flipped_ratio_3d: f64,
+    pub vertex_map_geodesic_mean: f64,
+    pub vertex_map_geodesic_median: f64,
     /// For a remeshed target: the largest distance from a vertex of the pose to the remeshed
     /// surface over √area (the error of the carried ground truth); 0 for the same triangulation.
     pub truth_max_distance: f64,
@@ -555,9 +567,16 @@ pub fn register_bench(
                         untangle_flipped_before: 0,
                         untangle_flipped_after: 0,
                         untangle_seconds: 0.0,
+                        point_untangle_flipped_before: 0,
+                        point_untangle_flipped_after: 0,
+                        point_untangle_seconds: 0.0,
+                        vertex_map_flipped_ratio_3d: f64::NAN,
+                        vertex_map_geodesic_mean: f64::NAN,
+                        vertex_map_geodesic_median: f64::NAN,
                         truth_max_distance: remeshed_target.map_or(0.0, |r| r.max_distance),
                     };
-                    let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
+                    type Scored = (Registration, RegistrationMetrics, Option<RegistrationMetrics>);
+                    let outcome = (|| -> Result<Scored, String> {
                         let phi1 = maps[i]
                             .as_ref()
                             .map_err(|e| format!("disk map of {}: {e}", name_of(i)))?;
@@ -602,10 +621,30 @@ pub fn register_bench(
                         let truth = remeshed_target.map(|r| r.truth.as_slice());
                         let met = registration_metrics_against(&meshes[i], target, &reg, metric_params, truth)
                             .map_err(|e| error_chain(&e))?;
-                        Ok((reg, met))
+                        // the refined vertex map before the untangling with points, scored alike
+                        let before = match &reg.refinement {
+                            Some(info) if info.output == ZoomOutOutput::Vertex => {
+                                let mut r = reg.clone();
+                                (r.faces, r.bary) = vertex_points(target, &info.vertex_map);
+                                r.points = info.vertex_map.iter().map(|&w| target.positions[w as usize]).collect();
+                                Some(
+                                    registration_metrics_against(&meshes[i], target, &r, metric_params, truth)
+                                        .map_err(|e| error_chain(&e))?,
+                                )
+                            }
+                            _ => None,
+                        };
+                        Ok((reg, met, before))
                     })();
                     match outcome {
-                        Ok((reg, met)) => {
+                        Ok((reg, met, before)) => {
+                            if let Some(b) = &before {
+                                row.vertex_map_flipped_ratio_3d = b.flipped_area_ratio_3d;
+                                if let Some(g) = &b.geodesic {
+                                    row.vertex_map_geodesic_mean = g.summary.mean;
+                                    row.vertex_map_geodesic_median = g.summary.median;
+                                }
+                            }
                             row.flipped_ratio = met.flipped_area_ratio;
                             row.flipped_ratio_3d = met.flipped_area_ratio_3d;
                             row.harmonic_folded = reg.harmonic_folded;
@@ -633,6 +672,9 @@ pub fn register_bench(
                                 row.untangle_flipped_before = info.untangle.flipped_before;
                                 row.untangle_flipped_after = info.untangle.flipped_after;
                                 row.untangle_seconds = info.untangle.seconds;
+                                row.point_untangle_flipped_before = info.point_untangle.flipped_before;
+                                row.point_untangle_flipped_after = info.point_untangle.flipped_after;
+                                row.point_untangle_seconds = info.point_untangle.seconds;
                             }
                             let eigen = |k: usize| reg.refinement.as_ref().map_or(0.0, |r| r.eigen_seconds[k]);
                             mesh_seconds[i] = t.source_map + eigen(0);
@@ -974,6 +1016,12 @@ mod tests {
             untangle_flipped_before: 0,
             untangle_flipped_after: 0,
             untangle_seconds: 0.0,
+            point_untangle_flipped_before: 0,
+            point_untangle_flipped_after: 0,
+            point_untangle_seconds: 0.0,
+            vertex_map_flipped_ratio_3d: f64::NAN,
+            vertex_map_geodesic_mean: f64::NAN,
+            vertex_map_geodesic_median: f64::NAN,
             truth_max_distance: 0.0,
         }
     }
