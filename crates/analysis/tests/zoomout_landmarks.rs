@@ -142,7 +142,12 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
             refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, &p).unwrap();
             let m = registration_metrics(&s, &t, &reg, &mp).unwrap();
             let info = reg.refinement.unwrap().point_untangle;
-            (m.flipped_area_ratio_3d, m.flipped_faces_3d, m.geodesic.unwrap().summary.mean, info)
+            (
+                m.flipped_area_ratio_3d,
+                m.flipped_faces_3d,
+                m.geodesic.unwrap().summary.mean,
+                info,
+            )
         };
         let (off, on) = (run(0), run(zp.point_untangle.sweeps));
         eprintln!(

@@ -16,11 +16,11 @@ use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics_against, MetricParams, RegistrationMetrics};
 use crate::registration::truth::{carry_markers, closest_points, marker_file_json, SurfacePoint};
+use crate::registration::zoomout::vertex_points;
 use crate::registration::{
     disk_image, refine_registration, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Refinement,
     Registration, SpectralBasis, ZoomOutOutput, ZoomOutParams,
 };
-use crate::registration::zoomout::vertex_points;
 
 /// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
 /// errors per class (`CLASS`, or `CLASS/remeshed` for the pairs onto remeshed targets).

@@ -454,8 +454,10 @@ pub fn register(
 
 /// Refines a first-stage registration by ZoomOut ([`zoomout`]) seeded with its vertex map
 /// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
-/// S₂ and the landmarks (their geodesic distances join the embeddings): replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds the bases'
-/// and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
+/// S₂ and the landmarks (their geodesic distances join the embeddings), then untangles the
+/// result with points inside the target's faces ([`untangle::untangle_points`], against the
+/// disk image φ₂): replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds
+/// the bases' and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
 pub fn refine_registration(
     source: &TriMesh,
     target: &TriMesh,
@@ -476,8 +478,14 @@ pub fn refine_registration(
         params,
     )?;
     let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
-    let mut points: Vec<(u32, [f64; 3])> = refined.faces.iter().copied().zip(refined.bary.iter().copied()).collect();
-    let point_untangle = untangle::untangle_points(source, target, &reg.target_uv, &mut points, &params.point_untangle)?;
+    let mut points: Vec<(u32, [f64; 3])> = refined
+        .faces
+        .iter()
+        .copied()
+        .zip(refined.bary.iter().copied())
+        .collect();
+    let point_untangle =
+        untangle::untangle_points(source, target, &reg.target_uv, &mut points, &params.point_untangle)?;
     let (faces, bary): (Vec<u32>, Vec<[f64; 3]>) = points.into_iter().unzip();
     reg.points = faces
         .iter()
@@ -507,8 +515,10 @@ pub fn refine_registration(
         vertex_map: refined.vertex_map,
         point_untangle,
     });
-    reg.timings.refine =
-        source_basis.seconds + target_basis.seconds + refined.seconds + reg.refinement.as_ref().map_or(0.0, |r| r.point_untangle.seconds);
+    reg.timings.refine = source_basis.seconds
+        + target_basis.seconds
+        + refined.seconds
+        + reg.refinement.as_ref().map_or(0.0, |r| r.point_untangle.seconds);
     reg.timings.total += reg.timings.refine;
     Ok(())
 }

@@ -31,14 +31,24 @@
 //!    the score of the faces around them (a fold that no single move undoes).
 //!
 //! A move never raises the total score and lowers it or the total cost, so the pass cannot cycle.
+//! A vertex (a face, for the pair moves) is evaluated again only after it or a source neighbour
+//! moved: its outcome depends on nothing else.
 //! Measured with `register_bench` (ZoomOut, OMT first stage) on the six ordered pairs per class:
 //! wolf flipped 3D area 0.79 % → 0.11 % (max 0.29 %) and mean geodesic error 0.0031 → 0.0021;
 //! centaur 5.2 % → 1.6 % (max 2.0 %) and 0.0135 → 0.0120 (`docs/registration.md`). Without
 //! `compact` (flipped faces only) the wolf kept 0.32 % and 0.0031.
+//!
+//! The vertex pass converges to a local minimum that keeps 0.1–2.1 % of the area flipped
+//! (class means; up to 3.1 % on a pair): scattered images whose corners lie more than one edge
+//! apart, where the map contracts or stretches at the scale of an edge and no triple of target
+//! vertices is a good image (decision 0034). [`untangle_points`] then moves the vertices of the
+//! faces still flipped to points inside the target's faces, against the registration metric's
+//! own test: 0.03–0.70 % (class means) at the same geodesic error within 2.5 %.
 
 use shapespace_geometry::quantities::vertex_normals;
 
 use crate::point_location::{barycentric, PointLocator};
+use crate::registration::truth::SurfacePoint;
 use shapespace_geometry::{Connectivity, TriMesh};
 
 /// Parameters of [`untangle_vertex_map`].
@@ -627,7 +637,7 @@ pub fn untangle_points(
                 [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
             ];
             // each vertex, edge midpoint and centroid once
-            let mut spots: Vec<([u32; 3], (u32, [f64; 3]))> = Vec::with_capacity(7 * faces.len());
+            let mut spots: Vec<([u32; 3], SurfacePoint)> = Vec::with_capacity(7 * faces.len());
             for &f in &faces {
                 let t = target.faces[f as usize];
                 for b in SPOTS {
@@ -761,7 +771,10 @@ mod tests {
         let mut pts = identity_points(&m);
         let before = pts.clone();
         let info = untangle_points(&m, &m, &uv, &mut pts, &PointUntangleParams::default()).unwrap();
-        assert_eq!((info.flipped_before, info.flipped_after, info.vertices_moved), (0, 0, 0));
+        assert_eq!(
+            (info.flipped_before, info.flipped_after, info.vertices_moved),
+            (0, 0, 0)
+        );
         assert_eq!(pts, before);
     }
 
@@ -800,7 +813,10 @@ mod tests {
         };
         for f in m.faces.iter().filter(|f| f.contains(&(v as u32))) {
             let [a, b, c] = f.map(|u| at(u as usize));
-            assert!((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0.0, "{f:?}");
+            assert!(
+                (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0.0,
+                "{f:?}"
+            );
         }
     }
 }

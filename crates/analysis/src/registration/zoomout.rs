@@ -32,6 +32,10 @@
 //! gave the same wolf0 → wolf1 error (0.0017) and made a centaur pair (15,757 vertices,
 //! k = 120, eigenpairs included) take 40–50 s instead of 20–24 s under the same load.
 //!
+//! The final vertex map is untangled in 3D ([`crate::registration::untangle`]); with the
+//! target's disk image, [`crate::registration::refine_registration`] then moves the vertices of
+//! faces still flipped to points inside the target's faces (decision 0034).
+//!
 //! Output ([`ZoomOutOutput`]): the vertex map itself (default), or each source vertex projected
 //! onto the nearest triangle of the target's spectral embedding among the faces around its
 //! nearest vertex (a vertex-to-point map; Ezuz & Ben-Chen 2017, "Deblurring and denoising of

@@ -1,13 +1,16 @@
 //! Where the refined registrations' flipped 3D area sits, and what ZoomOut spends its time on.
 //!
-//! `cargo run --release -p shapespace-tools --bin flip_probe -- SET/CLASS [MAX_PAIRS]` with
-//! `SET/CLASS` a folder of cut poses sharing their triangulation (`scripts/cut_pose_set.py`,
-//! landmarks beside them). Per ordered pair (OMT first stage, ZoomOut with the defaults): the
-//! flipped 3D area of the registration metric, split by what the flipped images are (a face of
-//! the target, three mutually adjacent vertices, spread over more than one edge, folded in the
-//! target's disk φ₂), by their distance in rings from the cut, and whether the untangling's own
-//! test calls them flipped; then the seconds of the first stage, the eigenpairs, the landmark
-//! distance fields, the iterations and the untangling.
+//! `cargo run --release -p shapespace-tools --bin flip_probe -- SET/CLASS [MAX_PAIRS [SWEEPS
+//! [pairs|nopairs [K_STEP]]]]` with `SET/CLASS` a folder of cut poses sharing their
+//! triangulation (`scripts/cut_pose_set.py`, landmarks beside them). Per ordered pair (OMT first
+//! stage, ZoomOut's untangled vertex map with the defaults): the flipped 3D area of the
+//! registration metric, split by what the flipped images are (a face of the target, three
+//! mutually adjacent vertices, spread over more than one edge, collapsed, folded in the target's
+//! disk φ₂) and by their distance in rings from the cut, with the vertex untangling's own count
+//! of flipped faces after it; the seconds of the first stage, the eigenpairs, the landmark
+//! distance fields, the iterations and the untangling; the untangling with points applied to
+//! that map and to a variant (vertex untangling with SWEEPS sweeps, default 0, with or without
+//! its pair moves, ZoomOut's step K_STEP); the connected components of the flipped faces.
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -87,7 +90,9 @@ fn main() {
         .iter()
         .map(|f| MarkerFile::from_json_file(&MarkerFile::sidecar_path(f).unwrap()).unwrap())
         .collect();
-    let zp = ZoomOutParams::default();
+    // ZoomOut's untangled vertex map: the untangling with points is applied below, explicitly
+    let mut zp = ZoomOutParams::default();
+    zp.point_untangle.sweeps = 0;
     let params = registration_area_params();
     let mut maps = Vec::new();
     let mut bases = Vec::new();
@@ -96,7 +101,7 @@ fn main() {
         bases.push(SpectralBasis::of(m, zp.k_end, &zp.eigen).unwrap());
     }
     let name = |p: &Path| p.file_stem().unwrap().to_string_lossy().to_string();
-    println!("| pair | flipped 3D % | face of S2 % | adjacent % | spread % | collapsed-ish % | disk-folded % | untangle-flipped % | ring 0-2 from cut % | ring ≥ 10 % | geodesic mean |");
+    println!("| pair | flipped 3D % | face of S2 % | adjacent % | spread % | collapsed-ish % | disk-folded % | vertex untangling: flipped faces after | ring 0-2 from cut % | ring ≥ 10 % | geodesic mean |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut timing_rows = Vec::new();
     let mut variant_rows = Vec::new();
@@ -116,8 +121,16 @@ fn main() {
             let harmonic = t0.elapsed().as_secs_f64();
             let tl = Instant::now();
             let (_a, _b) = rayon::join(
-                || HeatGeodesics::new(s).unwrap().distances(&lm.pairs.iter().map(|p| p.0).collect::<Vec<_>>()),
-                || HeatGeodesics::new(t).unwrap().distances(&lm.pairs.iter().map(|p| p.1).collect::<Vec<_>>()),
+                || {
+                    HeatGeodesics::new(s)
+                        .unwrap()
+                        .distances(&lm.pairs.iter().map(|p| p.0).collect::<Vec<_>>())
+                },
+                || {
+                    HeatGeodesics::new(t)
+                        .unwrap()
+                        .distances(&lm.pairs.iter().map(|p| p.1).collect::<Vec<_>>())
+                },
             );
             let landmark_seconds = tl.elapsed().as_secs_f64();
             refine_registration(s, t, &mut reg, &lm, &bases[i], &bases[j], &zp).unwrap();
@@ -207,10 +220,14 @@ fn main() {
             if let Some(c) = variant.get(3) {
                 zp_nu.k_step = c.parse().unwrap();
             }
-            let mut reg_nu = register_with_maps(s, t, &maps[i], &maps[j], &lm, &HarmonicParams::for_method(Method::Omt)).unwrap();
+            let mut reg_nu =
+                register_with_maps(s, t, &maps[i], &maps[j], &lm, &HarmonicParams::for_method(Method::Omt)).unwrap();
             refine_registration(s, t, &mut reg_nu, &lm, &bases[i], &bases[j], &zp_nu).unwrap();
             let met_nu = registration_metrics(s, t, &reg_nu, &MetricParams::default()).unwrap();
-            for (label, base, mbase) in [("vertex untangling", &reg, &met), ("variant vertex untangling", &reg_nu, &met_nu)] {
+            for (label, base, mbase) in [
+                ("vertex untangling", &reg, &met),
+                ("variant vertex untangling", &reg_nu, &met_nu),
+            ] {
                 let mut pts: Vec<(u32, [f64; 3])> = base.faces.iter().copied().zip(base.bary.iter().copied()).collect();
                 let pinfo = untangle_points(s, t, &base.target_uv, &mut pts, &PointUntangleParams::default()).unwrap();
                 let mut reg2 = base.clone();
@@ -269,7 +286,7 @@ fn main() {
                 }
                 sizes.push(size);
             }
-            sizes.sort_by(|a, b| b.0.cmp(&a.0));
+            sizes.sort_by_key(|c| std::cmp::Reverse(c.0));
             let big: f64 = sizes.iter().filter(|c| c.0 >= 10).map(|c| c.1).sum();
             variant_rows.push(format!(
                 "| {} → {} | {} components; faces of the largest: {:?}; area in components of ≥ 10 faces: {:.2} % of {:.2} % |",
