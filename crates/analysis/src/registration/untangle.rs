@@ -38,7 +38,7 @@
 //! centaur 5.2 % → 1.6 % (max 2.0 %) and 0.0135 → 0.0120 (`docs/registration.md`). Without
 //! `compact` (flipped faces only) the wolf kept 0.32 % and 0.0031.
 //!
-//! The vertex pass converges to a local minimum that keeps 0.1–2.1 % of the area flipped
+//! The vertex pass converges to a local minimum that keeps 0.09–2.5 % of the area flipped
 //! (class means; up to 3.1 % on a pair): scattered images whose corners lie more than one edge
 //! apart, where the map contracts or stretches at the scale of an edge and no triple of target
 //! vertices is a good image (decision 0034). [`untangle_points`] then moves the vertices of the
@@ -779,8 +779,8 @@ mod tests {
     }
 
     /// One interior vertex pushed past its neighbour (to the centroid of a face beyond it): its
-    /// star folds over; the pass moves that vertex alone back into the kernel of its star, and
-    /// no face stays flipped.
+    /// star folds over; the pass leaves every face of the grid counter-clockwise (none flipped,
+    /// none degenerate) and moves nothing outside the pushed vertex's one-ring.
     #[test]
     fn a_vertex_pushed_past_its_neighbour_is_pulled_back() {
         let m = grid(6);
@@ -798,20 +798,21 @@ mod tests {
         let info = untangle_points(&m, &m, &uv, &mut pts, &PointUntangleParams::default()).unwrap();
         assert!(info.flipped_before >= 2, "{info:?}");
         assert_eq!(info.flipped_after, 0, "{info:?}");
-        assert_eq!(info.vertices_moved, 1);
+        assert!(info.vertices_moved >= 1, "{info:?}");
+        let ring = Connectivity::of(&m).vertex_neighbors(m.num_vertices());
         for u in 0..m.num_vertices() {
-            if u != v {
-                assert_eq!(pts[u], pushed[u]);
+            if u != v && !ring[v].contains(&(u as u32)) {
+                assert_eq!(pts[u], pushed[u], "vertex {u} moved");
             }
         }
-        // every face around v counter-clockwise in the plane (the kernel of its star)
+        // every face counter-clockwise in the plane
         let at = |u: usize| {
             let (f, b) = pts[u];
             let t = m.faces[f as usize];
             let p = |k: usize| m.positions[t[k] as usize];
             [0, 1].map(|d| b[0] * p(0)[d] + b[1] * p(1)[d] + b[2] * p(2)[d])
         };
-        for f in m.faces.iter().filter(|f| f.contains(&(v as u32))) {
+        for f in &m.faces {
             let [a, b, c] = f.map(|u| at(u as usize));
             assert!(
                 (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0.0,
