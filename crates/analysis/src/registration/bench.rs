@@ -16,9 +16,10 @@ use crate::error::AnalysisError;
 use crate::plot::histograms;
 use crate::registration::metrics::{registration_metrics_against, MetricParams, RegistrationMetrics};
 use crate::registration::truth::{carry_markers, closest_points, marker_file_json, SurfacePoint};
+use crate::registration::zoomout::vertex_points;
 use crate::registration::{
     disk_image, refine_registration, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Refinement,
-    Registration, SpectralBasis, ZoomOutParams,
+    Registration, SpectralBasis, ZoomOutOutput, ZoomOutParams,
 };
 
 /// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
@@ -254,9 +255,69 @@ pub struct BenchRow {
     pub untangle_flipped_after: usize,
     /// Of `refine_seconds`: the untangling.
     pub untangle_seconds: f64,
+    /// Source faces flipped by the metric's 3D test before and after the untangling with points
+    /// ([`crate::registration::untangle::untangle_points`]; 0 and 0 without refinement).
+    pub point_untangle_flipped_before: usize,
+    pub point_untangle_flipped_after: usize,
+    /// Of `refine_seconds`: the untangling with points.
+    pub point_untangle_seconds: f64,
+    /// The refined vertex map (before the untangling with points), scored the same way:
+    /// flipped 3D area ratio, geodesic error mean and median (NaN without refinement).
+    pub vertex_map_flipped_ratio_3d: f64,
+    pub vertex_map_geodesic_mean: f64,
+    pub vertex_map_geodesic_median: f64,
     /// For a remeshed target: the largest distance from a vertex of the pose to the remeshed
     /// surface over √area (the error of the carried ground truth); 0 for the same triangulation.
     pub truth_max_distance: f64,
+}
+
+impl BenchRow {
+    /// A row before its pair runs: status "ok", figures not yet measured (NaN; counts and
+    /// stage seconds 0), no remeshed-truth distance.
+    pub fn pending(
+        class: &str,
+        source: String,
+        target: String,
+        triangulation: Triangulation,
+        method: Method,
+        refine: Refinement,
+    ) -> Self {
+        BenchRow {
+            class: class.to_string(),
+            source,
+            target,
+            triangulation,
+            method,
+            refine,
+            status: "ok".into(),
+            flipped_ratio: f64::NAN,
+            flipped_ratio_3d: f64::NAN,
+            harmonic_folded: 0,
+            curvature_median: f64::NAN,
+            curvature_mean: f64::NAN,
+            area_distortion_median: f64::NAN,
+            area_distortion_p95: f64::NAN,
+            area_distortion_mean_abs_log: f64::NAN,
+            geodesic_median: f64::NAN,
+            geodesic_mean: f64::NAN,
+            seconds: f64::NAN,
+            refine_seconds: 0.0,
+            eigen_seconds: 0.0,
+            pair_seconds: f64::NAN,
+            amortized_seconds: f64::NAN,
+            stage1_amortized_seconds: f64::NAN,
+            untangle_flipped_before: 0,
+            untangle_flipped_after: 0,
+            untangle_seconds: 0.0,
+            point_untangle_flipped_before: 0,
+            point_untangle_flipped_after: 0,
+            point_untangle_seconds: 0.0,
+            vertex_map_flipped_ratio_3d: f64::NAN,
+            vertex_map_geodesic_mean: f64::NAN,
+            vertex_map_geodesic_median: f64::NAN,
+            truth_max_distance: 0.0,
+        }
+    }
 }
 
 /// Means over the successful pairs of one method (in one class, or `all`).
@@ -560,36 +621,10 @@ pub fn register_bench(
                         (Triangulation::Remeshed, Some(&remeshed_poses[j - n]))
                     };
                     progress(&format!("{class}: {method} {src} -> {}", name_of(j)));
-                    let mut row = BenchRow {
-                        class: class.clone(),
-                        source: src,
-                        target: tgt,
-                        triangulation,
-                        method,
-                        refine,
-                        status: "ok".into(),
-                        flipped_ratio: f64::NAN,
-                        flipped_ratio_3d: f64::NAN,
-                        harmonic_folded: 0,
-                        curvature_median: f64::NAN,
-                        curvature_mean: f64::NAN,
-                        area_distortion_median: f64::NAN,
-                        area_distortion_p95: f64::NAN,
-                        area_distortion_mean_abs_log: f64::NAN,
-                        geodesic_median: f64::NAN,
-                        geodesic_mean: f64::NAN,
-                        seconds: f64::NAN,
-                        refine_seconds: 0.0,
-                        eigen_seconds: 0.0,
-                        pair_seconds: f64::NAN,
-                        amortized_seconds: f64::NAN,
-                        stage1_amortized_seconds: f64::NAN,
-                        untangle_flipped_before: 0,
-                        untangle_flipped_after: 0,
-                        untangle_seconds: 0.0,
-                        truth_max_distance: remeshed_target.map_or(0.0, |r| r.max_distance),
-                    };
-                    let outcome = (|| -> Result<(Registration, RegistrationMetrics), String> {
+                    let mut row = BenchRow::pending(&class, src, tgt, triangulation, method, refine);
+                    row.truth_max_distance = remeshed_target.map_or(0.0, |r| r.max_distance);
+                    type Scored = (Registration, RegistrationMetrics, Option<RegistrationMetrics>);
+                    let outcome = (|| -> Result<Scored, String> {
                         let phi1 = maps[i]
                             .as_ref()
                             .map_err(|e| format!("disk map of {}: {e}", name_of(i)))?;
@@ -634,10 +669,30 @@ pub fn register_bench(
                         let truth = remeshed_target.map(|r| r.truth.as_slice());
                         let met = registration_metrics_against(&meshes[i], target, &reg, metric_params, truth)
                             .map_err(|e| error_chain(&e))?;
-                        Ok((reg, met))
+                        // the refined vertex map before the untangling with points, scored alike
+                        let before = match &reg.refinement {
+                            Some(info) if info.output == ZoomOutOutput::Vertex => {
+                                let mut r = reg.clone();
+                                (r.faces, r.bary) = vertex_points(target, &info.vertex_map);
+                                r.points = info.vertex_map.iter().map(|&w| target.positions[w as usize]).collect();
+                                Some(
+                                    registration_metrics_against(&meshes[i], target, &r, metric_params, truth)
+                                        .map_err(|e| error_chain(&e))?,
+                                )
+                            }
+                            _ => None,
+                        };
+                        Ok((reg, met, before))
                     })();
                     match outcome {
-                        Ok((reg, met)) => {
+                        Ok((reg, met, before)) => {
+                            if let Some(b) = &before {
+                                row.vertex_map_flipped_ratio_3d = b.flipped_area_ratio_3d;
+                                if let Some(g) = &b.geodesic {
+                                    row.vertex_map_geodesic_mean = g.summary.mean;
+                                    row.vertex_map_geodesic_median = g.summary.median;
+                                }
+                            }
                             row.flipped_ratio = met.flipped_area_ratio;
                             row.flipped_ratio_3d = met.flipped_area_ratio_3d;
                             row.harmonic_folded = reg.harmonic_folded;
@@ -665,6 +720,9 @@ pub fn register_bench(
                                 row.untangle_flipped_before = info.untangle.flipped_before;
                                 row.untangle_flipped_after = info.untangle.flipped_after;
                                 row.untangle_seconds = info.untangle.seconds;
+                                row.point_untangle_flipped_before = info.point_untangle.flipped_before;
+                                row.point_untangle_flipped_after = info.point_untangle.flipped_after;
+                                row.point_untangle_seconds = info.point_untangle.seconds;
                             }
                             let eigen = |k: usize| reg.refinement.as_ref().map_or(0.0, |r| r.eigen_seconds[k]);
                             mesh_seconds[i] = t.source_map + eigen(0);
@@ -1006,6 +1064,12 @@ mod tests {
             untangle_flipped_before: 0,
             untangle_flipped_after: 0,
             untangle_seconds: 0.0,
+            point_untangle_flipped_before: 0,
+            point_untangle_flipped_after: 0,
+            point_untangle_seconds: 0.0,
+            vertex_map_flipped_ratio_3d: f64::NAN,
+            vertex_map_geodesic_mean: f64::NAN,
+            vertex_map_geodesic_median: f64::NAN,
             truth_max_distance: 0.0,
         }
     }

@@ -363,12 +363,18 @@ pub struct RefinementInfo {
     pub output: ZoomOutOutput,
     /// Seconds of the eigenpairs of S₁ and S₂ (as computed, possibly once for many pairs).
     pub eigen_seconds: [f64; 2],
-    /// Seconds of the iterations.
+    /// Seconds of the iterations (with both untanglings).
     pub iteration_seconds: f64,
     /// Source vertices whose nearest target vertex changed from the first stage's.
     pub vertices_moved: usize,
     /// The 3D untangling of the vertex map ([`untangle`]).
     pub untangle: untangle::VertexMapUntangleInfo,
+    /// The untangling with points inside the target's faces after it
+    /// ([`untangle::untangle_points`]).
+    pub point_untangle: untangle::PointUntangleInfo,
+    /// The refined vertex map before the point untangling, #V₁.
+    #[serde(skip)]
+    pub vertex_map: Vec<u32>,
 }
 
 /// A registration f: S₁ → S₂ (module docs).
@@ -450,8 +456,10 @@ pub fn register(
 
 /// Refines a first-stage registration by ZoomOut ([`zoomout`]) seeded with its vertex map
 /// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
-/// S₂ and the landmarks (their geodesic distances join the embeddings): replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds the bases'
-/// and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
+/// S₂ and the landmarks (their geodesic distances join the embeddings), then untangles the
+/// result with points inside the target's faces ([`untangle::untangle_points`], against the
+/// disk image φ₂): replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds
+/// the bases' and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
 pub fn refine_registration(
     source: &TriMesh,
     target: &TriMesh,
@@ -472,10 +480,18 @@ pub fn refine_registration(
         params,
     )?;
     let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
-    reg.points = refined
+    let mut points: Vec<(u32, [f64; 3])> = refined
         .faces
         .iter()
-        .zip(&refined.bary)
+        .copied()
+        .zip(refined.bary.iter().copied())
+        .collect();
+    let point_untangle =
+        untangle::untangle_points(source, target, &reg.target_uv, &mut points, &params.point_untangle)?;
+    let (faces, bary): (Vec<u32>, Vec<[f64; 3]>) = points.into_iter().unzip();
+    reg.points = faces
+        .iter()
+        .zip(&bary)
         .map(|(&f, b)| {
             let t = target.faces[f as usize];
             let mut x = [0.0; 3];
@@ -488,18 +504,23 @@ pub fn refine_registration(
             x
         })
         .collect();
-    reg.faces = refined.faces;
-    reg.bary = refined.bary;
+    reg.faces = faces;
+    reg.bary = bary;
     reg.refinement = Some(RefinementInfo {
         refinement: Refinement::ZoomOut,
         sizes: refined.sizes,
         output: params.output,
         eigen_seconds: [source_basis.seconds, target_basis.seconds],
-        iteration_seconds: refined.seconds,
+        iteration_seconds: refined.seconds + point_untangle.seconds,
         vertices_moved,
         untangle: refined.untangle,
+        vertex_map: refined.vertex_map,
+        point_untangle,
     });
-    reg.timings.refine = source_basis.seconds + target_basis.seconds + refined.seconds;
+    reg.timings.refine = source_basis.seconds
+        + target_basis.seconds
+        + refined.seconds
+        + reg.refinement.as_ref().map_or(0.0, |r| r.point_untangle.seconds);
     reg.timings.total += reg.timings.refine;
     Ok(())
 }

@@ -160,7 +160,14 @@ pub fn sphere_bench(
                         stem(&files[i]),
                         stem(&files[j])
                     ));
-                    let mut row = empty_row(&class, &stem(&files[i]), &stem(&files[j]), method);
+                    let mut row = BenchRow::pending(
+                        &class,
+                        stem(&files[i]),
+                        stem(&files[j]),
+                        Triangulation::Same,
+                        method,
+                        Refinement::None,
+                    );
                     let outcome = pair(
                         &meshes[i],
                         &meshes[j],
@@ -263,38 +270,6 @@ fn pair(
         .map_err(|e| error_chain(&e))?;
     let met = sphere_registration_metrics(source, target, &reg, metric_params).map_err(|e| error_chain(&e))?;
     Ok((reg, met))
-}
-
-fn empty_row(class: &str, source: &str, target: &str, method: Method) -> BenchRow {
-    BenchRow {
-        class: class.to_string(),
-        source: source.to_string(),
-        target: target.to_string(),
-        triangulation: Triangulation::Same,
-        method,
-        refine: Refinement::None,
-        status: "ok".into(),
-        flipped_ratio: f64::NAN,
-        flipped_ratio_3d: f64::NAN,
-        harmonic_folded: 0,
-        curvature_median: f64::NAN,
-        curvature_mean: f64::NAN,
-        area_distortion_median: f64::NAN,
-        area_distortion_p95: f64::NAN,
-        area_distortion_mean_abs_log: f64::NAN,
-        geodesic_median: f64::NAN,
-        geodesic_mean: f64::NAN,
-        seconds: f64::NAN,
-        refine_seconds: 0.0,
-        eigen_seconds: 0.0,
-        pair_seconds: f64::NAN,
-        amortized_seconds: f64::NAN,
-        stage1_amortized_seconds: f64::NAN,
-        untangle_flipped_before: 0,
-        untangle_flipped_after: 0,
-        untangle_seconds: 0.0,
-        truth_max_distance: 0.0,
-    }
 }
 
 /// Means over the successful rows per class and method, then over all classes.

@@ -31,12 +31,24 @@
 //!    the score of the faces around them (a fold that no single move undoes).
 //!
 //! A move never raises the total score and lowers it or the total cost, so the pass cannot cycle.
+//! A vertex (a face, for the pair moves) is evaluated again only after it or a source neighbour
+//! moved: its outcome depends on nothing else.
 //! Measured with `register_bench` (ZoomOut, OMT first stage) on the six ordered pairs per class:
 //! wolf flipped 3D area 0.79 % → 0.11 % (max 0.29 %) and mean geodesic error 0.0031 → 0.0021;
 //! centaur 5.2 % → 1.6 % (max 2.0 %) and 0.0135 → 0.0120 (`docs/registration.md`). Without
 //! `compact` (flipped faces only) the wolf kept 0.32 % and 0.0031.
+//!
+//! The vertex pass converges to a local minimum that keeps 0.09–2.5 % of the area flipped
+//! (class means; up to 3.1 % on a pair): scattered images whose corners lie more than one edge
+//! apart, where the map contracts or stretches at the scale of an edge and no triple of target
+//! vertices is a good image (decision 0034). [`untangle_points`] then moves the vertices of the
+//! faces still flipped to points inside the target's faces, against the registration metric's
+//! own test: 0.03–0.70 % (class means) at the same geodesic error within 2.5 %.
 
 use shapespace_geometry::quantities::vertex_normals;
+
+use crate::point_location::{barycentric, PointLocator};
+use crate::registration::truth::SurfacePoint;
 use shapespace_geometry::{Connectivity, TriMesh};
 
 /// Parameters of [`untangle_vertex_map`].
@@ -49,6 +61,9 @@ pub struct VertexMapUntangleParams {
     /// Also move the vertices of spread images (corners more than one edge apart, not flipped)
     /// and count those images like collapses in the local score.
     pub compact: bool,
+    /// Also move both ends of an edge of a face still flipped jointly (step 2 of the module
+    /// docs).
+    pub pair_moves: bool,
 }
 
 impl Default for VertexMapUntangleParams {
@@ -57,6 +72,7 @@ impl Default for VertexMapUntangleParams {
             sweeps: 8,
             ring: 2,
             compact: true,
+            pair_moves: true,
         }
     }
 }
@@ -260,6 +276,21 @@ pub fn untangle_vertex_map(
         out
     };
     let mut stamp = 0usize;
+    // A move's outcome depends only on the images of the moved vertices and their source
+    // neighbours: `changed_at[v]` is the clock of the last move of v or a neighbour, and a
+    // vertex (a face, for the pair moves) evaluated after that is not evaluated again (the same
+    // result, less work).
+    let mut clock = 1usize;
+    let mut changed_at = vec![1usize; n1];
+    let mut single_at = vec![0usize; n1];
+    let mut pair_at = vec![0usize; source.num_faces()];
+    let touch = |changed_at: &mut [usize], clock: &mut usize, v: usize| {
+        *clock += 1;
+        changed_at[v] = *clock;
+        for &u in &source_neighbors[v] {
+            changed_at[u as usize] = *clock;
+        }
+    };
     for sweep in 0..params.sweeps {
         let flipped_faces: Vec<usize> = (0..source.num_faces())
             .filter(|&f| g.bad(source.faces[f].map(|v| map[v as usize])))
@@ -277,6 +308,11 @@ pub fn untangle_vertex_map(
         let mut changed = false;
         // single moves
         for v in (0..n1).filter(|&v| bad[v]) {
+            if single_at[v] > changed_at[v] {
+                continue;
+            }
+            clock += 1;
+            single_at[v] = clock;
             stamp += 1;
             let candidates = candidates_of(map, v, params.ring, true, stamp);
             let current = map[v];
@@ -291,16 +327,21 @@ pub fn untangle_vertex_map(
                     best = (s, c, w);
                 }
             }
-            changed |= best.2 != current;
-            map[v] = best.2;
+            if best.2 != current {
+                changed = true;
+                map[v] = best.2;
+                touch(&mut changed_at, &mut clock, v);
+            }
         }
         // pair moves: both ends of an edge of a face still flipped, jointly (a fold that no
         // single vertex undoes)
-        for &f in &flipped_faces {
+        for &f in flipped_faces.iter().filter(|_| params.pair_moves) {
             let face = source.faces[f];
-            if !g.bad(face.map(|v| map[v as usize])) {
+            if !g.bad(face.map(|v| map[v as usize])) || face.iter().all(|&v| pair_at[f] > changed_at[v as usize]) {
                 continue;
             }
+            clock += 1;
+            pair_at[f] = clock;
             for k in 0..3 {
                 let (v, u) = (face[k] as usize, face[(k + 1) % 3] as usize);
                 let mut faces: Vec<u32> = source_conn.vertex_faces[v].clone();
@@ -348,6 +389,8 @@ pub fn untangle_vertex_map(
                     changed = true;
                     map[v] = best.2;
                     map[u] = best.3;
+                    touch(&mut changed_at, &mut clock, v);
+                    touch(&mut changed_at, &mut clock, u);
                 }
             }
         }
@@ -361,6 +404,278 @@ pub fn untangle_vertex_map(
     info.vertices_moved = map.iter().zip(&original).filter(|(a, b)| a != b).count();
     info.seconds = t0.elapsed().as_secs_f64();
     info
+}
+
+/// Parameters of [`untangle_points`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointUntangleParams {
+    /// Gauss–Seidel sweeps over the vertices of flipped images (default 12; 0 turns it off).
+    pub sweeps: usize,
+}
+
+impl Default for PointUntangleParams {
+    fn default() -> Self {
+        PointUntangleParams { sweeps: 12 }
+    }
+}
+
+/// What [`untangle_points`] did.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PointUntangleInfo {
+    /// Source faces flipped by the registration metric's 3D test before and after.
+    pub flipped_before: usize,
+    pub flipped_after: usize,
+    /// Source vertices moved off their vertex image.
+    pub vertices_moved: usize,
+    /// Sweeps run.
+    pub sweeps: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// The 3D test of the registration metric ([`crate::registration::metrics`]) for points of S₂
+/// given in 3D and in the disk image φ₂(S₂).
+/// Whether the triangle's area is zero relative to its edges (a collapse, or a corner on the
+/// opposite edge).
+fn degenerate(x: [[f64; 3]; 3]) -> bool {
+    let (e1, e2) = (sub3(x[1], x[0]), sub3(x[2], x[0]));
+    let n = cross3(e1, e2);
+    let nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    let ee = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).max(e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2]);
+    nn <= 1e-18 * ee * ee
+}
+
+/// Weight of a flipped image against a degenerate one in the point pass's local score (more
+/// than the faces around any vertex, so flips decide first).
+const DEGENERATE_LIMIT: usize = 1 << 16;
+
+struct MetricFlipTest<'a> {
+    locator: PointLocator,
+    target: &'a TriMesh,
+    uv: &'a [[f64; 2]],
+}
+
+impl MetricFlipTest<'_> {
+    /// Whether the straight triangle (x[0], x[1], x[2]) faces away from the normal of the face
+    /// of S₂ holding the mean of the disk points u.
+    /// `near`: faces of S₂ tried first (the point locator only when none holds the mean).
+    fn flipped(&self, x: [[f64; 3]; 3], u: [[f64; 2]; 3], near: &[u32]) -> bool {
+        let n = cross3(sub3(x[1], x[0]), sub3(x[2], x[0]));
+        let c = [(u[0][0] + u[1][0] + u[2][0]) / 3.0, (u[0][1] + u[1][1] + u[2][1]) / 3.0];
+        let inside = |&f: &u32| {
+            let t = self.target.faces[f as usize].map(|w| self.uv[w as usize]);
+            barycentric(c, t[0], t[1], t[2]).is_some_and(|b| b.iter().all(|&x| x >= 0.0))
+        };
+        let face = match near.iter().find(|f| inside(f)) {
+            Some(&f) => f,
+            None => match self.locator.locate(c) {
+                Some(l) => l.face,
+                None => return false,
+            },
+        };
+        let q = self.target.face_positions(face as usize);
+        let r = cross3(sub3(q[1], q[0]), sub3(q[2], q[0]));
+        n[0] * r[0] + n[1] * r[1] + n[2] * r[2] < 0.0
+    }
+}
+
+fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Untangles a vertex-to-point map of `source` onto `target` (`points`: per source vertex a face
+/// of S₂ and barycentric coordinates, changed in place) against the 3D test of the registration
+/// metric, with `target_uv` the disk image φ₂ of S₂ that test locates in: a source face is
+/// flipped when its straight image triangle faces away from the normal of the face of S₂ holding
+/// the mean of its corners' φ₂ images. Vertex maps cannot undo a flip where the map contracts
+/// or stretches S₁ against S₂ at the scale of an edge (a source face then has no image among
+/// target vertex triples that is neither flipped, collapsed nor spread); points inside the faces
+/// can. Gauss–Seidel sweeps over the vertices of flipped faces, each moved to the candidate
+/// point with the fewest flipped images around it, then the fewest degenerate ones (zero area:
+/// a collapse, or a corner on the opposite edge), then nearest in 3D to its image before the
+/// pass (the current point kept on ties). Candidates: on every face of S₂ around the target vertices
+/// nearest to the vertex's and its source neighbours' images, the corners, the edge midpoints
+/// and the centroid, and the φ₂ mean of the neighbours' images. A move never raises the number
+/// of flipped images around the moved vertex; a vertex is evaluated again only
+/// after it or a source neighbour moved. Errors: `target_uv` not a triangulation of #V₂ points.
+pub fn untangle_points(
+    source: &TriMesh,
+    target: &TriMesh,
+    target_uv: &[[f64; 2]],
+    points: &mut [(u32, [f64; 3])],
+    params: &PointUntangleParams,
+) -> Result<PointUntangleInfo, crate::error::AnalysisError> {
+    let t0 = std::time::Instant::now();
+    let n1 = source.num_vertices();
+    let test = MetricFlipTest {
+        locator: PointLocator::new(target_uv, &target.faces)?,
+        target,
+        uv: target_uv,
+    };
+    let x3 = |(f, b): (u32, [f64; 3])| -> [f64; 3] {
+        let q = target.face_positions(f as usize);
+        std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
+    };
+    let x2 = |(f, b): (u32, [f64; 3])| -> [f64; 2] {
+        let t = target.faces[f as usize];
+        std::array::from_fn(|d| (0..3).map(|k| b[k] * target_uv[t[k] as usize][d]).sum())
+    };
+    let mut p3: Vec<[f64; 3]> = points.iter().map(|&p| x3(p)).collect();
+    let mut p2: Vec<[f64; 2]> = points.iter().map(|&p| x2(p)).collect();
+    let original = p3.clone();
+    let face_flipped = |p3: &[[f64; 3]], p2: &[[f64; 2]], f: [u32; 3]| {
+        test.flipped(f.map(|v| p3[v as usize]), f.map(|v| p2[v as usize]), &[])
+    };
+    let flipped_faces = |p3: &[[f64; 3]], p2: &[[f64; 2]]| -> Vec<usize> {
+        (0..source.num_faces())
+            .filter(|&f| face_flipped(p3, p2, source.faces[f]))
+            .collect()
+    };
+    let before = flipped_faces(&p3, &p2);
+    let mut info = PointUntangleInfo {
+        flipped_before: before.len(),
+        flipped_after: before.len(),
+        ..PointUntangleInfo::default()
+    };
+    if before.is_empty() || params.sweeps == 0 {
+        info.seconds = t0.elapsed().as_secs_f64();
+        return Ok(info);
+    }
+    let sconn = Connectivity::of(source);
+    let snb = sconn.vertex_neighbors(n1);
+    let tconn = Connectivity::of(target);
+    let nearest_corner = |(f, b): (u32, [f64; 3])| {
+        let k = (0..3).fold(0, |a, i| if b[i] > b[a] { i } else { a });
+        target.faces[f as usize][k]
+    };
+    let mut bad_faces = before;
+    // a vertex is evaluated again only after it or a source neighbour moved (its result depends
+    // on nothing else)
+    let mut stale = vec![true; n1];
+    while !bad_faces.is_empty() && info.sweeps < params.sweeps {
+        info.sweeps += 1;
+        let mut verts: Vec<usize> = bad_faces
+            .iter()
+            .flat_map(|&f| source.faces[f].map(|v| v as usize))
+            .collect();
+        verts.sort_unstable();
+        verts.dedup();
+        let mut moved = false;
+        for v in verts {
+            if !stale[v] {
+                continue;
+            }
+            stale[v] = false;
+            // flipped faces around v with v at (x, u)
+            let mut faces: Vec<u32> = std::iter::once(nearest_corner(points[v]))
+                .chain(snb[v].iter().map(|&u| nearest_corner(points[u as usize])))
+                .flat_map(|w| tconn.vertex_faces[w as usize].iter().copied())
+                .collect();
+            faces.sort_unstable();
+            faces.dedup();
+            let around = |p3: &[[f64; 3]], p2: &[[f64; 2]], x: [f64; 3], u: [f64; 2], cap: usize| -> usize {
+                let mut count = 0;
+                for &f in &sconn.vertex_faces[v] {
+                    let face = source.faces[f as usize];
+                    let xs = face.map(|w| if w as usize == v { x } else { p3[w as usize] });
+                    let us = face.map(|w| if w as usize == v { u } else { p2[w as usize] });
+                    if test.flipped(xs, us, &faces) {
+                        count += DEGENERATE_LIMIT;
+                    } else if degenerate(xs) {
+                        count += 1;
+                    }
+                    if count > cap {
+                        break;
+                    }
+                }
+                count
+            };
+            let current = around(&p3, &p2, p3[v], p2[v], usize::MAX);
+            if current == 0 {
+                continue;
+            }
+            let dist = |x: [f64; 3]| {
+                let d = sub3(x, original[v]);
+                d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+            };
+            let mut best = (current, dist(p3[v]), points[v]);
+            let consider = |cand: (u32, [f64; 3]), best: &mut (usize, f64, (u32, [f64; 3]))| {
+                let (x, u) = (x3(cand), x2(cand));
+                let s = around(&p3, &p2, x, u, best.0);
+                if s > best.0 {
+                    return;
+                }
+                let c = dist(x);
+                if s < best.0 || c < best.1 {
+                    *best = (s, c, cand);
+                }
+            };
+            // the φ₂ mean of the neighbours' images
+            let mut mean = [0.0; 2];
+            for &u in &snb[v] {
+                for d in 0..2 {
+                    mean[d] += p2[u as usize][d] / snb[v].len() as f64;
+                }
+            }
+            if let Some(l) = test.locator.locate(mean) {
+                consider((l.face, l.bary), &mut best);
+            }
+            const SPOTS: [[f64; 3]; 7] = [
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [0.5, 0.5, 0.0],
+                [0.0, 0.5, 0.5],
+                [0.5, 0.0, 0.5],
+                [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
+            ];
+            // each vertex, edge midpoint and centroid once
+            let mut spots: Vec<([u32; 3], SurfacePoint)> = Vec::with_capacity(7 * faces.len());
+            for &f in &faces {
+                let t = target.faces[f as usize];
+                for b in SPOTS {
+                    let mut key = [u32::MAX; 3];
+                    for k in 0..3 {
+                        if b[k] > 0.0 {
+                            key[k] = t[k];
+                        }
+                    }
+                    key.sort_unstable();
+                    spots.push((key, (f, b)));
+                }
+            }
+            spots.sort_unstable_by_key(|s| s.0);
+            spots.dedup_by_key(|s| s.0);
+            for &(_, cand) in &spots {
+                consider(cand, &mut best);
+            }
+            if best.2 != points[v] {
+                points[v] = best.2;
+                p3[v] = x3(best.2);
+                p2[v] = x2(best.2);
+                moved = true;
+                stale[v] = true;
+                for &u in &snb[v] {
+                    stale[u as usize] = true;
+                }
+            }
+        }
+        bad_faces = flipped_faces(&p3, &p2);
+        if !moved {
+            break;
+        }
+    }
+    info.flipped_after = bad_faces.len();
+    info.vertices_moved = (0..n1).filter(|&v| p3[v] != original[v]).count();
+    info.seconds = t0.elapsed().as_secs_f64();
+    Ok(info)
 }
 
 #[cfg(test)]
@@ -435,5 +750,74 @@ mod tests {
         // the source faces keep their order: every image faces away from the mirrored normals
         assert_eq!(count_flipped_images(&m, &mirrored, &map).0, m.num_faces());
         assert_eq!(count_flipped_images(&mirrored, &mirrored, &map).0, 0);
+    }
+
+    /// The grid's vertices as points of the grid itself (a vertex of one of its faces).
+    fn identity_points(m: &TriMesh) -> Vec<(u32, [f64; 3])> {
+        let conn = Connectivity::of(m);
+        (0..m.num_vertices())
+            .map(|v| {
+                let f = conn.vertex_faces[v][0];
+                let t = m.faces[f as usize];
+                (f, std::array::from_fn(|k| if t[k] as usize == v { 1.0 } else { 0.0 }))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_point_pass_leaves_the_identity_alone() {
+        let m = grid(5);
+        let uv: Vec<[f64; 2]> = m.positions.iter().map(|p| [p[0] / 5.0, p[1] / 5.0]).collect();
+        let mut pts = identity_points(&m);
+        let before = pts.clone();
+        let info = untangle_points(&m, &m, &uv, &mut pts, &PointUntangleParams::default()).unwrap();
+        assert_eq!(
+            (info.flipped_before, info.flipped_after, info.vertices_moved),
+            (0, 0, 0)
+        );
+        assert_eq!(pts, before);
+    }
+
+    /// One interior vertex pushed past its neighbour (to the centroid of a face beyond it): its
+    /// star folds over; the pass leaves every face of the grid counter-clockwise (none flipped,
+    /// none degenerate) and moves nothing outside the pushed vertex's one-ring.
+    #[test]
+    fn a_vertex_pushed_past_its_neighbour_is_pulled_back() {
+        let m = grid(6);
+        let uv: Vec<[f64; 2]> = m.positions.iter().map(|p| [p[0] / 6.0, p[1] / 6.0]).collect();
+        let idx = |i: u32, j: u32| j * 7 + i;
+        let mut pts = identity_points(&m);
+        let v = idx(2, 2) as usize;
+        let beyond = m
+            .faces
+            .iter()
+            .position(|f| *f == [idx(3, 2), idx(4, 2), idx(4, 3)])
+            .unwrap() as u32;
+        pts[v] = (beyond, [1.0 / 3.0; 3]);
+        let pushed = pts.clone();
+        let info = untangle_points(&m, &m, &uv, &mut pts, &PointUntangleParams::default()).unwrap();
+        assert!(info.flipped_before >= 2, "{info:?}");
+        assert_eq!(info.flipped_after, 0, "{info:?}");
+        assert!(info.vertices_moved >= 1, "{info:?}");
+        let ring = Connectivity::of(&m).vertex_neighbors(m.num_vertices());
+        for u in 0..m.num_vertices() {
+            if u != v && !ring[v].contains(&(u as u32)) {
+                assert_eq!(pts[u], pushed[u], "vertex {u} moved");
+            }
+        }
+        // every face counter-clockwise in the plane
+        let at = |u: usize| {
+            let (f, b) = pts[u];
+            let t = m.faces[f as usize];
+            let p = |k: usize| m.positions[t[k] as usize];
+            [0, 1].map(|d| b[0] * p(0)[d] + b[1] * p(1)[d] + b[2] * p(2)[d])
+        };
+        for f in &m.faces {
+            let [a, b, c] = f.map(|u| at(u as usize));
+            assert!(
+                (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0.0,
+                "{f:?}"
+            );
+        }
     }
 }

@@ -32,6 +32,10 @@
 //! gave the same wolf0 → wolf1 error (0.0017) and made a centaur pair (15,757 vertices,
 //! k = 120, eigenpairs included) take 40–50 s instead of 20–24 s under the same load.
 //!
+//! The final vertex map is untangled in 3D ([`crate::registration::untangle`]); with the
+//! target's disk image, [`crate::registration::refine_registration`] then moves the vertices of
+//! faces still flipped to points inside the target's faces (decision 0034).
+//!
 //! Output ([`ZoomOutOutput`]): the vertex map itself (default), or each source vertex projected
 //! onto the nearest triangle of the target's spectral embedding among the faces around its
 //! nearest vertex (a vertex-to-point map; Ezuz & Ben-Chen 2017, "Deblurring and denoising of
@@ -51,7 +55,9 @@ use shapespace_geometry::{Connectivity, TriMesh};
 use crate::error::AnalysisError;
 use crate::geodesic::HeatGeodesics;
 use crate::registration::metrics::sample_indices;
-use crate::registration::untangle::{untangle_vertex_map, VertexMapUntangleInfo, VertexMapUntangleParams};
+use crate::registration::untangle::{
+    untangle_vertex_map, PointUntangleParams, VertexMapUntangleInfo, VertexMapUntangleParams,
+};
 
 /// How the first-stage registration is refined.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
@@ -150,6 +156,11 @@ pub struct ZoomOutParams {
     /// The 3D untangling of the final vertex map ([`crate::registration::untangle`]), ranked by
     /// the spectral distance (`sweeps` = 0 turns it off).
     pub untangle: VertexMapUntangleParams,
+    /// The 3D untangling of the refined map with points inside the target's faces, after the
+    /// vertex map's ([`crate::registration::untangle::untangle_points`], run by
+    /// [`crate::registration::refine_registration`] with the target's disk image; `sweeps` = 0
+    /// turns it off).
+    pub point_untangle: PointUntangleParams,
     /// Weight w of the landmark coordinates appended to both embeddings of the nearest-neighbour
     /// step: w · d(v, l_i) / √area per landmark pair (heat-method geodesic distance on each
     /// surface), so that a limb cannot drift onto its mirror image (module docs; 0 turns them
@@ -171,6 +182,7 @@ impl Default for ZoomOutParams {
                 ..EigenParams::default()
             },
             untangle: VertexMapUntangleParams::default(),
+            point_untangle: PointUntangleParams::default(),
             landmark_weight: LANDMARK_WEIGHT,
         }
     }
@@ -559,6 +571,15 @@ fn nearest_rows_top<const R: usize>(queries: MatRef<'_, f64>, points: MatRef<'_,
                 .collect::<Vec<_>>()
         })
         .collect()
+}
+
+/// Each target vertex of the vertex map `map` as a face of its star with barycentric
+/// coordinates (1 at the vertex).
+pub fn vertex_points(target: &TriMesh, map: &[u32]) -> (Vec<u32>, Vec<[f64; 3]>) {
+    let conn = Connectivity::of(target);
+    map.iter()
+        .map(|&w| vertex_in_face(target, &conn.vertex_faces[w as usize], w as usize))
+        .unzip()
 }
 
 /// Vertex `w` as a face of its star with barycentric coordinates (1 at w).
