@@ -17,7 +17,7 @@ use shapespace_analysis::registration::sphere::{
 use shapespace_analysis::registration::sphere_bench::sphere_bench;
 use shapespace_analysis::registration::{
     register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
-    Refinement, RegistrationParams, ZoomOutParams,
+    Refinement, RegistrationMetrics, RegistrationParams, ZoomOutParams,
 };
 use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
 use shapespace_analysis::sphere_param::SphereParamParams;
@@ -344,27 +344,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         reg.timings.refine,
         reg.num_snapped
     );
-    eprintln!(
-        "register: flipped area {:.4} (disk) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion max(J, 1/J) median {:.3} p95 {:.3}, mean |ln J| {:.3}",
-        met.flipped_area_ratio,
-        met.flipped_area_ratio_3d,
-        met.curvature_summary.median,
-        met.curvature_summary.mean,
-        met.area_distortion_summary.median,
-        met.area_distortion_summary.p95,
-        met.log_area_distortion_summary.mean
-    );
-    if let Some(g) = &met.geodesic {
-        eprintln!(
-            "register: geodesic error against v <-> v ({} samples; the meshes are taken to share their vertex order, --no-ground-truth if they do not) median {:.4} mean {:.4}",
-            g.samples.len(),
-            g.summary.median,
-            g.summary.mean
-        );
-    }
-    for f in files {
-        eprintln!("register: wrote {}", f.display());
-    }
+    print_metrics(&met, "disk", &files);
     Ok(ExitCode::SUCCESS)
 }
 
@@ -446,8 +426,15 @@ fn run_sphere(
         reg.harmonic_steps,
         reg.num_snapped
     );
+    print_metrics(&met, "sphere", &files);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The metrics' summary lines and the files written, on stderr; `domain` names where the
+/// flipped area of g was measured (disk or sphere).
+fn print_metrics(met: &RegistrationMetrics, domain: &str, files: &[PathBuf]) {
     eprintln!(
-        "register: flipped area {:.4} (sphere) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion max(J, 1/J) median {:.3} p95 {:.3}, mean |ln J| {:.3}",
+        "register: flipped area {:.4} ({domain}) {:.4} (3D); curvature difference median {:.3} mean {:.3}; area distortion max(J, 1/J) median {:.3} p95 {:.3}, mean |ln J| {:.3}",
         met.flipped_area_ratio,
         met.flipped_area_ratio_3d,
         met.curvature_summary.median,
@@ -467,7 +454,6 @@ fn run_sphere(
     for f in files {
         eprintln!("register: wrote {}", f.display());
     }
-    Ok(ExitCode::SUCCESS)
 }
 
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
