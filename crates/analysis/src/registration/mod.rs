@@ -42,6 +42,7 @@
 //! fold it (`docs/conventions.md`, "Registration"), and the disk maps themselves may fold: [`metrics`] measures flips.
 
 pub mod bench;
+mod box_tree;
 pub mod geodesic;
 pub mod landmarks;
 pub mod metrics;

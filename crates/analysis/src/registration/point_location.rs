@@ -4,9 +4,9 @@
 //! the barycentric point of the 3D triangle whose planar image holds p.
 //!
 //! # Index
-//! A bounding-volume hierarchy over the triangles' bounding boxes (binary, split at the median
-//! centroid along the longer side, leaves of at most [`LEAF_CAPACITY`] triangles): exactly
-//! 2⌈F/leaf⌉ − 1 nodes whatever the geometry. Conformal disk images squeeze long protrusions
+//! A bounding-volume hierarchy over the triangles' bounding boxes (`box_tree`: binary, split at
+//! the median centroid along the longer side, leaves of at most [`LEAF_CAPACITY`] triangles):
+//! exactly 2⌈F/leaf⌉ − 1 nodes whatever the geometry. Conformal disk images squeeze long protrusions
 //! into regions of size ~e^{−H/ρ} (`docs/conventions.md`, "Conformal map") and area-preserving (centroid) maps may fold
 //! triangles over each other: a uniform grid would pile thousands of tiny triangles into one
 //! cell, and a subdividing quadtree never terminates inside a stack of overlapping triangles;
@@ -26,10 +26,10 @@
 
 use shapespace_geometry::Connectivity;
 
+use super::box_tree::BoxTree;
+pub use super::box_tree::LEAF_CAPACITY;
 use crate::error::AnalysisError;
 
-/// Largest number of triangles in a leaf of the hierarchy.
-pub const LEAF_CAPACITY: usize = 8;
 /// A point is inside a triangle when all its barycentric coordinates are ≥ −this.
 pub const INSIDE_TOLERANCE: f64 = 1e-12;
 
@@ -46,23 +46,12 @@ pub struct Location {
     pub snap_distance: f64,
 }
 
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    lo: [f64; 2],
-    hi: [f64; 2],
-    /// Leaf: `items[start..end]`; inner: children `start` and `end` (node indices).
-    start: usize,
-    end: usize,
-    leaf: bool,
-}
-
 /// A point locator over a planar triangulation (module docs).
 #[derive(Clone, Debug)]
 pub struct PointLocator {
     positions: Vec<[f64; 2]>,
     faces: Vec<[u32; 3]>,
-    nodes: Vec<Node>,
-    items: Vec<u32>,
+    tree: BoxTree<2>,
     boundary_faces: Vec<u32>,
 }
 
@@ -157,82 +146,18 @@ impl PointLocator {
             .map(|(i, _)| i as u32)
             .collect();
         let boxes: Vec<([f64; 2], [f64; 2])> = faces.iter().map(|&f| face_box(positions, f)).collect();
-        let mut loc = PointLocator {
+        Ok(PointLocator {
             positions: positions.to_vec(),
             faces: faces.to_vec(),
-            nodes: Vec::with_capacity(2 * faces.len() / LEAF_CAPACITY + 2),
-            items: (0..faces.len() as u32).collect(),
+            // (the longer side; ties to x)
+            tree: BoxTree::new(&boxes, |lo, hi| if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 }),
             boundary_faces,
-        };
-        if !faces.is_empty() {
-            loc.build(0, faces.len(), &boxes);
-        }
-        Ok(loc)
-    }
-
-    /// Builds the node over `items[start..end]` and returns its index.
-    fn build(&mut self, start: usize, end: usize, boxes: &[([f64; 2], [f64; 2])]) -> usize {
-        let mut lo = [f64::INFINITY; 2];
-        let mut hi = [f64::NEG_INFINITY; 2];
-        for &t in &self.items[start..end] {
-            let (bl, bh) = boxes[t as usize];
-            for k in 0..2 {
-                lo[k] = lo[k].min(bl[k]);
-                hi[k] = hi[k].max(bh[k]);
-            }
-        }
-        let id = self.nodes.len();
-        self.nodes.push(Node {
-            lo,
-            hi,
-            start,
-            end,
-            leaf: true,
-        });
-        if end - start <= LEAF_CAPACITY {
-            return id;
-        }
-        let axis = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
-        let mid = start + (end - start) / 2;
-        let centre = |t: &u32| boxes[*t as usize].0[axis] + boxes[*t as usize].1[axis];
-        self.items[start..end].select_nth_unstable_by(mid - start, |a, b| centre(a).total_cmp(&centre(b)));
-        let left = self.build(start, mid, boxes);
-        let right = self.build(mid, end, boxes);
-        self.nodes[id] = Node {
-            lo,
-            hi,
-            start: left,
-            end: right,
-            leaf: false,
-        };
-        id
+        })
     }
 
     /// Number of triangles indexed.
     pub fn num_faces(&self) -> usize {
         self.faces.len()
-    }
-
-    /// Calls `visit` for every triangle whose bounding box contains `p`.
-    fn for_candidates(&self, p: [f64; 2], mut visit: impl FnMut(u32)) {
-        if self.nodes.is_empty() {
-            return;
-        }
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
-            let nd = self.nodes[i];
-            if !(p[0] >= nd.lo[0] && p[0] <= nd.hi[0] && p[1] >= nd.lo[1] && p[1] <= nd.hi[1]) {
-                continue;
-            }
-            if nd.leaf {
-                for &t in &self.items[nd.start..nd.end] {
-                    visit(t);
-                }
-            } else {
-                stack.push(nd.start);
-                stack.push(nd.end);
-            }
-        }
     }
 
     fn corners(&self, t: u32) -> [[f64; 2]; 3] {
@@ -252,7 +177,7 @@ impl PointLocator {
             return None;
         }
         let mut best: Option<(u32, [f64; 3], f64)> = None;
-        self.for_candidates(p, |t| {
+        self.tree.for_candidates(p, |t| {
             let [a, b, c] = self.corners(t);
             if let Some(bc) = barycentric(p, a, b, c) {
                 let m = bc[0].min(bc[1]).min(bc[2]);

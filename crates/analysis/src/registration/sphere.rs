@@ -39,6 +39,8 @@ use shapespace_geometry::topology::{mesh_report, MeshClass};
 use shapespace_geometry::{Connectivity, TriMesh};
 use shapespace_omt::sphere::fibonacci_sphere;
 
+use super::box_tree::BoxTree;
+pub use super::box_tree::LEAF_CAPACITY;
 use super::metrics::{image_is_flipped, surface_metrics, FlipCounts};
 use super::{
     harmonic_step, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams, RegistrationMetrics,
@@ -55,8 +57,6 @@ pub const POLE_CANDIDATES: usize = 2000;
 /// A point is inside a spherical triangle when its smallest normalized barycentric coordinate
 /// is ≥ −this.
 pub const INSIDE_TOLERANCE: f64 = 1e-12;
-/// Largest number of triangles in a leaf of [`SphereLocator`]'s hierarchy.
-pub const LEAF_CAPACITY: usize = 8;
 
 /// Where a registration runs: on the disk (surfaces with one boundary loop) or on the sphere
 /// (closed genus-0 surfaces), or chosen from the meshes.
@@ -663,15 +663,6 @@ pub struct SphereLocation {
     pub snapped: bool,
 }
 
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    lo: [f64; 3],
-    hi: [f64; 3],
-    start: usize,
-    end: usize,
-    leaf: bool,
-}
-
 /// Point location on a triangulation of S² (#V unit vectors, faces): a bounding-volume
 /// hierarchy over boxes that contain each spherical triangle (the box of its corners grown by
 /// d², d its longest chord: every point of the spherical triangle is within 1 − √(1 − d²) ≤ d²
@@ -683,8 +674,7 @@ struct Node {
 pub struct SphereLocator {
     positions: Vec<[f64; 3]>,
     faces: Vec<[u32; 3]>,
-    nodes: Vec<Node>,
-    items: Vec<u32>,
+    tree: BoxTree<3>,
 }
 
 impl SphereLocator {
@@ -723,55 +713,16 @@ impl SphereLocator {
                 (lo, hi)
             })
             .collect();
-        let mut loc = SphereLocator {
+        Ok(SphereLocator {
             positions: positions.to_vec(),
             faces: faces.to_vec(),
-            nodes: Vec::with_capacity(2 * faces.len() / LEAF_CAPACITY + 2),
-            items: (0..faces.len() as u32).collect(),
-        };
-        if !faces.is_empty() {
-            loc.build(0, faces.len(), &boxes);
-        }
-        Ok(loc)
-    }
-
-    fn build(&mut self, start: usize, end: usize, boxes: &[([f64; 3], [f64; 3])]) -> usize {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for &t in &self.items[start..end] {
-            let (bl, bh) = boxes[t as usize];
-            for k in 0..3 {
-                lo[k] = lo[k].min(bl[k]);
-                hi[k] = hi[k].max(bh[k]);
-            }
-        }
-        let id = self.nodes.len();
-        self.nodes.push(Node {
-            lo,
-            hi,
-            start,
-            end,
-            leaf: true,
-        });
-        if end - start <= LEAF_CAPACITY {
-            return id;
-        }
-        let axis = (0..3)
-            .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-            .unwrap_or(0);
-        let mid = start + (end - start) / 2;
-        let centre = |t: &u32| boxes[*t as usize].0[axis] + boxes[*t as usize].1[axis];
-        self.items[start..end].select_nth_unstable_by(mid - start, |a, b| centre(a).total_cmp(&centre(b)));
-        let left = self.build(start, mid, boxes);
-        let right = self.build(mid, end, boxes);
-        self.nodes[id] = Node {
-            lo,
-            hi,
-            start: left,
-            end: right,
-            leaf: false,
-        };
-        id
+            // (the widest axis; ties to the last)
+            tree: BoxTree::new(&boxes, |lo, hi| {
+                (0..3)
+                    .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+                    .unwrap_or(0)
+            }),
+        })
     }
 
     /// Normalized ray barycentric coordinates of `y` in face `f` and their smallest value, or
@@ -803,25 +754,13 @@ impl SphereLocator {
             return None;
         }
         let mut best: Option<(u32, [f64; 3], f64)> = None;
-        let mut stack = vec![0usize];
-        while let Some(id) = stack.pop() {
-            let node = self.nodes[id];
-            if (0..3).any(|k| y[k] < node.lo[k] || y[k] > node.hi[k]) {
-                continue;
-            }
-            if node.leaf {
-                for &t in &self.items[node.start..node.end] {
-                    if let Some((w, m)) = self.coordinates(y, t) {
-                        if m >= -INSIDE_TOLERANCE && best.is_none_or(|b| m > b.2) {
-                            best = Some((t, w, m));
-                        }
-                    }
+        self.tree.for_candidates(y, |t| {
+            if let Some((w, m)) = self.coordinates(y, t) {
+                if m >= -INSIDE_TOLERANCE && best.is_none_or(|b| m > b.2) {
+                    best = Some((t, w, m));
                 }
-            } else {
-                stack.push(node.start);
-                stack.push(node.end);
             }
-        }
+        });
         if let Some((face, bary, _)) = best {
             return Some(SphereLocation {
                 face,
