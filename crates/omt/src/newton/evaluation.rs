@@ -203,9 +203,11 @@ pub(crate) fn evaluate(backend: &Backend<'_>, points: &[[f64; 2]], heights: &Hei
     evaluate_unless_hidden(backend, points, heights, false, None, None)
 }
 
-/// [`evaluate`]; with `skip_if_hidden`, a diagram with a hidden site (an empty cell: mass 0 < ε₀,
-/// so a line-search trial that must be rejected) is not integrated: the masses are 0 for the
-/// hidden sites and NaN for the others, the moments NaN and the edge list empty. With
+/// [`evaluate`]; with `skip_if_hidden`, a diagram with a hidden site or a cell that misses Ω
+/// (mass 0 < ε₀ either way, so a line-search trial that must be rejected;
+/// [`RestrictedIntegrator::cells_outside`](crate::restricted::RestrictedIntegrator::cells_outside))
+/// is not integrated: the masses are 0 for those sites and NaN for the others, the moments NaN
+/// and the edge list empty. With
 /// `speculate`, the symbolic factorization the next Newton direction would need if this trial
 /// is accepted is computed on another thread while the cells are integrated (the integration
 /// is parallel too, so on two cores the ordering takes about half of one core's share of it).
@@ -288,6 +290,17 @@ pub(crate) fn evaluate_unless_hidden(
                     .collect();
                 if !hidden.is_empty() {
                     return Ok(masked_evaluation(points.len(), &hidden, t_diagram, by_flips));
+                }
+                // Likewise a trial with a cell that misses Ω (mass 0: rim cells pushed off the
+                // domain), found geometrically without integrating the cells.
+                let outside = integrator.cells_outside(&diagram);
+                if !outside.is_empty() {
+                    return Ok(masked_evaluation(
+                        points.len(),
+                        &outside,
+                        t0.elapsed().as_secs_f64(),
+                        by_flips,
+                    ));
                 }
             }
             let t1 = Instant::now();

@@ -797,23 +797,23 @@ impl<'a> Prolongation<'a> {
                 checked = Some(diagram);
                 break;
             }
-            let mut changed = false;
+            // The points whose maximum is taken over all groups this round: each failing point
+            // and the owner of its anchor, unless done before (the exact maxima in parallel).
+            let mut todo = Vec::new();
             for j in outside {
                 let i = diagram.locate(anchors[j], Some(j));
-                if !exact_done[j] {
-                    let (rel, a) = self.exact(points, j);
-                    self.set(heights, j, rel);
-                    anchors[j] = a;
-                    exact_done[j] = true;
-                    changed = true;
+                for k in [j, i] {
+                    if !exact_done[k] {
+                        exact_done[k] = true;
+                        todo.push(k);
+                    }
                 }
-                if i != j && !exact_done[i] {
-                    let (rel_i, a) = self.exact(points, i);
-                    self.set(heights, i, rel_i);
-                    anchors[i] = a;
-                    exact_done[i] = true;
-                    changed = true;
-                }
+            }
+            let changed = !todo.is_empty();
+            let exact: Vec<(f64, [f64; 2])> = todo.par_iter().map(|&k| self.exact(points, k)).collect();
+            for (&k, &(rel, a)) in todo.iter().zip(&exact) {
+                self.set(heights, k, rel);
+                anchors[k] = a;
             }
             // Every failing point and the owner of its anchor already have the exact maximum: what
             // is left is rounding in the crowded spots (the anchor falls just outside a cell that

@@ -837,7 +837,7 @@ fn canonical(t: [u32; 3]) -> [u32; 3] {
 /// relative to y_a, and an estimate of its absolute error: 4ε (|y_a| + κ |z|) with z the centre
 /// relative to y_a and κ the conditioning of its 2 × 2 system (large for nearly collinear
 /// sites); `None` when they are too nearly collinear.
-fn power_centre(diagram: &PowerDiagram, t: [u32; 3]) -> Option<([f64; 2], f64)> {
+pub(super) fn power_centre(diagram: &PowerDiagram, t: [u32; 3]) -> Option<([f64; 2], f64)> {
     let y = diagram.sites()[t[0] as usize];
     let line = |v: u32| power_line_between(diagram, t[0] as usize, v as usize);
     let ((d1, c1), (d2, c2)) = (line(t[1]), line(t[2]));

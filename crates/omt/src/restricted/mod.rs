@@ -460,6 +460,39 @@ impl RestrictedIntegrator {
         self
     }
 
+    /// The sites whose power cell meets Ω in no area, so that their mass is 0 whatever the
+    /// density (hidden sites are not listed). A line-search trial with such a cell is rejected;
+    /// this finds them without integrating the cells. A cell with a power vertex strictly
+    /// inside Ω (by more than the vertex's error bound) meets Ω in area: the cell is
+    /// two-dimensional and a neighbourhood of that vertex lies in Ω. Every other cell is
+    /// clipped to Ω as the integration clips it, and listed when nothing is left. Empty when
+    /// the diagram is not two-dimensional (nothing is decided then).
+    pub fn cells_outside(&self, diagram: &PowerDiagram) -> Vec<u32> {
+        let n = diagram.num_sites();
+        if diagram.dimension() != 2 || self.boundary.len() < 3 {
+            return Vec::new();
+        }
+        let inside = DomainTest::new(&self.boundary);
+        let mut seen = vec![false; n];
+        let (triangles, _) = diagram.raw_triangulation();
+        for t in triangles {
+            if t[0] == u32::MAX || t.iter().any(|&v| v as usize >= n) || t.iter().all(|&v| seen[v as usize]) {
+                continue;
+            }
+            if let Some((x, error)) = flux::power_centre(diagram, *t) {
+                if inside.strictly_inside(x, error) {
+                    t.iter().for_each(|&v| seen[v as usize] = true);
+                }
+            }
+        }
+        let mut scratch = Scratch::new(0);
+        (0..n)
+            .filter(|&i| !seen[i] && !diagram.is_hidden(i))
+            .filter(|&i| !Self::clip_to_cell(diagram, i, &self.boundary, &mut scratch))
+            .map(|i| i as u32)
+            .collect()
+    }
+
     /// Clips the convex polygon `poly` (absolute coordinates) to the power cell of `i`, in
     /// coordinates relative to y_i, into `s.a`. Returns false when the result is empty.
     fn clip_to_cell(diagram: &PowerDiagram, i: usize, poly: &[[f64; 2]], s: &mut Scratch) -> bool {
@@ -843,6 +876,79 @@ pub fn cell_polygons(
     RestrictedIntegrator::new(measure).cell_polygons(diagram)
 }
 
+/// Point-in-Ω tests for a convex counter-clockwise polygon: a disk around the vertices' mean
+/// that lies inside answers most queries; the others find their edge by the angle around the
+/// centroid.
+struct DomainTest<'a> {
+    polygon: &'a [[f64; 2]],
+    centre: [f64; 2],
+    inner_radius: f64,
+    /// Angles of the vertices around the centre, unwrapped to increase from the first.
+    angles: Vec<f64>,
+}
+
+impl<'a> DomainTest<'a> {
+    fn new(polygon: &'a [[f64; 2]]) -> Self {
+        let m = polygon.len();
+        let centre = polygon
+            .iter()
+            .fold([0.0, 0.0], |c, p| [c[0] + p[0] / m as f64, c[1] + p[1] / m as f64]);
+        let mut inner_radius = f64::INFINITY;
+        for k in 0..m {
+            let (p, q) = (polygon[k], polygon[(k + 1) % m]);
+            let e = [q[0] - p[0], q[1] - p[1]];
+            let len = e[0].hypot(e[1]);
+            if len > 0.0 {
+                let d = (e[0] * (centre[1] - p[1]) - e[1] * (centre[0] - p[0])) / len;
+                inner_radius = inner_radius.min(d);
+            }
+        }
+        let mut angles = Vec::with_capacity(m);
+        for p in polygon {
+            let mut a = (p[1] - centre[1]).atan2(p[0] - centre[0]);
+            if let Some(&first) = angles.first() {
+                while a < first {
+                    a += std::f64::consts::TAU;
+                }
+            }
+            angles.push(a);
+        }
+        DomainTest {
+            polygon,
+            centre,
+            inner_radius: inner_radius * (1.0 - 1e-9),
+            angles,
+        }
+    }
+
+    /// True when x lies inside the polygon by more than `error` (false when unsure).
+    fn strictly_inside(&self, x: [f64; 2], error: f64) -> bool {
+        let (dx, dy) = (x[0] - self.centre[0], x[1] - self.centre[1]);
+        let r = dx.hypot(dy);
+        if r + error < self.inner_radius {
+            return true;
+        }
+        if !(self.inner_radius > 0.0) || !r.is_finite() {
+            return false;
+        }
+        let first = self.angles[0];
+        let mut a = dy.atan2(dx);
+        while a < first {
+            a += std::f64::consts::TAU;
+        }
+        // the edge k → k + 1 whose angular sector holds a (the last edge closes the polygon)
+        let k = self.angles.partition_point(|&b| b <= a).saturating_sub(1);
+        let m = self.polygon.len();
+        let (p, q) = (self.polygon[k], self.polygon[(k + 1) % m]);
+        let e = [q[0] - p[0], q[1] - p[1]];
+        let len = e[0].hypot(e[1]);
+        let d = (e[0] * (x[1] - p[1]) - e[1] * (x[0] - p[0])) / len;
+        // (the sector's edge decides only up to the angles' rounding: a margin of 1e-12 of the
+        // polygon's size on top of the vertex's error)
+        d > error + 1e-12 * (1.0 + self.inner_radius)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -900,5 +1006,68 @@ mod tests {
             (area - (4.0 - 0.5 * (2.0 / 3.0) * 0.5 - 0.5 * 0.5 - 0.5 * 0.5)).abs() < 1e-14,
             "{area}"
         );
+    }
+
+    /// `cells_outside` lists exactly the non-hidden sites whose integrated mass is 0: sites in
+    /// and around the unit disk (up to radius 1.15), random weights of a few squared spacings
+    /// pushing some cells off the disk, checked against the full integration on many diagrams.
+    #[test]
+    fn cells_outside_are_exactly_the_cells_of_mass_zero() {
+        let measure = crate::synthetic::disk_rings_measure(12, |x| 1.0 + x[0] * x[0]).unwrap();
+        let integrator = RestrictedIntegrator::new(&measure);
+        let (mut listed_total, mut hidden_total) = (0, 0);
+        for seed in 0..40u64 {
+            let n = 60 + (seed as usize % 5) * 40;
+            let mut state = seed;
+            let sites: Vec<[f64; 2]> = crate::synthetic::random_disk_points(n, seed + 1000)
+                .into_iter()
+                .map(|p| [1.15 * p[0], 1.15 * p[1]])
+                .collect();
+            let spacing2 = 4.0 / n as f64;
+            let weights: Vec<f64> = (0..n)
+                .map(|_| 6.0 * spacing2 * (crate::synthetic::uniform01(&mut state) - 0.5))
+                .collect();
+            let diagram = PowerDiagram::new(&sites, &weights).unwrap();
+            let listed = integrator.cells_outside(&diagram);
+            let masses = integrator.integrate(&diagram).masses;
+            let zero: Vec<u32> = (0..n as u32)
+                .filter(|&i| masses[i as usize] == 0.0 && !diagram.is_hidden(i as usize))
+                .collect();
+            assert_eq!(listed, zero, "seed {seed}");
+            listed_total += listed.len();
+            hidden_total += (0..n).filter(|&i| diagram.is_hidden(i)).count();
+        }
+        // (the cases exercise both kinds of cell without mass)
+        assert!(
+            listed_total >= 20 && hidden_total >= 5,
+            "{listed_total} listed, {hidden_total} hidden"
+        );
+    }
+
+    /// A site beside the unit square whose cell is pushed off it is listed until its weight
+    /// brings the cell back over the square.
+    #[test]
+    fn a_cell_beside_the_domain_is_listed_until_it_reaches_it() {
+        let measure = SourceMeasure::new(
+            vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            vec![[0, 1, 2], [0, 2, 3]],
+            vec![1.0, 1.0],
+        )
+        .unwrap();
+        let integrator = RestrictedIntegrator::new(&measure);
+        let sites = [[0.25, 0.25], [0.25, 0.75], [0.75, 0.5], [2.0, 0.5]];
+        // The bisector of sites 2 and 3 is x = 1.375 + (w2 − w3)/2.5 (the other sites' bisectors
+        // with 3 lie beyond it near the square): site 3's cell misses the square for
+        // w3 < w2 + 0.9375.
+        for (w3, outside) in [(-2.0, true), (0.0, true), (0.9, true), (0.95, false), (2.0, false)] {
+            let diagram = PowerDiagram::new(&sites, &[0.0, 0.0, 0.0, w3]).unwrap();
+            let masses = integrator.integrate(&diagram).masses;
+            assert_eq!(masses[3] == 0.0, outside, "w3 {w3}: mass {}", masses[3]);
+            assert_eq!(
+                integrator.cells_outside(&diagram),
+                if outside { vec![3] } else { vec![] },
+                "w3 {w3}"
+            );
+        }
     }
 }
