@@ -48,33 +48,8 @@ pub(super) fn solve_single(
     let mass_scale = total / masses.iter().sum::<f64>();
     let targets: Vec<f64> = masses.iter().map(|m| m * mass_scale).collect();
 
-    // Initial heights and their evaluation; every cell must be non-empty.
-    let mut start = Start::Voronoi;
-    let mut heights = match &params.initial_heights {
-        Some(h) => {
-            start = Start::Warm;
-            match &params.initial_heights_lo {
-                Some(lo) => Heights::from_parts(h, lo),
-                None => Heights::from_f64(h.clone()),
-            }
-        }
-        None => Heights::voronoi(points),
-    };
-    let (backend, mut current) = match prepared {
-        Some((backend, evaluation)) => (backend, evaluation),
-        None => {
-            let backend = Backend::new(measure, params.integrator, flux_bound(params));
-            let evaluation = evaluate(&backend, points, &heights)?;
-            (backend, evaluation)
-        }
-    };
-    let mut start_evaluations = 1;
-    if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
-        let (contracted_start, contracted, evaluation, evaluations) =
-            start_without_empty_cells(&backend, measure, points, params, start, &current)?;
-        (start, heights, current) = (contracted_start, contracted, evaluation);
-        start_evaluations += evaluations;
-    }
+    let (start, mut heights, backend, mut current, start_evaluations) =
+        initial_state(measure, points, params, prepared)?;
     let t_start = t_begin.elapsed().as_secs_f64();
 
     let min_target = targets.iter().cloned().fold(f64::INFINITY, f64::min);
@@ -83,29 +58,19 @@ pub(super) fn solve_single(
     let pinned = (0..n).fold(0, |best, i| if targets[i] > targets[best] { i } else { best });
     let mut system = NewtonSystem::new(pinned, params.linear_solver.clone());
 
-    let (mut max_rel, mut norm, mut gradient) = errors(&current.cells, &targets);
+    // (max relative error, gradient norm, gradient) of the current cells
+    let mut errs = errors(&current.cells, &targets);
     let mut log = Vec::new();
     let stop;
     let mut iterations = 0;
     let mut tau_start = 1.0;
     let mut target_cap = params.target_ratio_cap;
     loop {
-        if !(max_rel.is_finite() && norm.is_finite()) {
-            stop = StopReason::Stalled {
-                reason: "non-finite cell masses".into(),
-            };
+        if let Some(reason) = finished(&backend, points, &heights, &mut current, &targets, params, &mut errs)? {
+            stop = reason;
             break;
         }
-        if max_rel <= params.tolerance {
-            // (decided on the full integrals: the flux form's masses may differ by ~1e-12)
-            if complete_moments(&backend, points, &heights, &mut current)? {
-                (max_rel, norm, gradient) = errors(&current.cells, &targets);
-            }
-            if max_rel <= params.tolerance {
-                stop = StopReason::Converged;
-                break;
-            }
-        }
+        let (max_rel, norm, gradient) = (errs.0, errs.1, &errs.2);
         if iterations >= params.max_iterations {
             stop = StopReason::IterationCap;
             break;
@@ -120,7 +85,7 @@ pub(super) fn solve_single(
         let step_errors = step.as_ref().map(|(t, _)| errors(&current.cells, t));
         let (step_targets, step_norm, step_gradient) = match (&step, &step_errors) {
             (Some((t, _)), Some((_, norm, gradient))) => (t, *norm, gradient),
-            _ => (&targets, norm, &gradient),
+            _ => (&targets, norm, gradient),
         };
         let delta = system.newton_direction(points, &current.cells, step_gradient)?;
         let t_solve = t_solve.elapsed().as_secs_f64();
@@ -145,21 +110,8 @@ pub(super) fn solve_single(
             current.diagram.as_ref().filter(|_| params.flip_updates),
         )?;
         iterations += 1;
-        let mut record = IterationRecord {
-            max_relative_error: max_rel,
-            gradient_norm: norm,
-            step: 0.0,
-            halvings: outcome.rejections(),
-            evaluations: outcome.rejections() + usize::from(outcome.accepted.is_some()),
-            rejected_min_mass: outcome.rejected_min_mass,
-            rejected_norm: outcome.rejected_norm,
-            flip_updates: outcome.flip_updates,
-            min_cell_mass: current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min),
-            t_diagram: outcome.t_diagram,
-            t_integration: outcome.t_integration,
-            t_solve,
-            intermediate_targets: step.as_ref().map_or(0, |s| s.1),
-        };
+        let capped = step.as_ref().map_or(0, |s| s.1);
+        let mut record = step_record(max_rel, norm, &outcome, &current.cells, t_solve, capped);
         if step.is_some() && outcome.accepted.as_ref().is_none_or(|s| s.tau < TARGET_CAP_MIN_TAU) {
             // Intermediate targets that do not pay (crowded cells that must grow by many
             // orders of magnitude): the plain KMT steps from here on.
@@ -177,7 +129,8 @@ pub(super) fn solve_single(
                 if let Some(speculative) = current.speculative.take() {
                     system.adopt(speculative, &current.cells);
                 }
-                (max_rel, norm, gradient) = errors(&current.cells, &targets);
+                errs = errors(&current.cells, &targets);
+                let (max_rel, norm) = (errs.0, errs.1);
                 record.step = step.tau;
                 let growth = if outcome.rejected_min_mass + outcome.rejected_norm == 0 {
                     TAU_GROWTH_FREE
@@ -190,11 +143,10 @@ pub(super) fn solve_single(
                 record.min_cell_mass = current.cells.masses.iter().cloned().fold(f64::INFINITY, f64::min);
                 log.push(record);
                 if let Some(what) = stalled(&log) {
-                    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
                     stop = StopReason::Stalled {
                         reason: format!(
                             "no progress: {what} left the max relative mass error at {max_rel:e}{}",
-                            stall_diagnosis(points, &current.cells.masses, lo, hi)
+                            diagnosis_in(measure, points, &current.cells.masses)
                         ),
                     };
                     break;
@@ -202,12 +154,11 @@ pub(super) fn solve_single(
             }
             None => {
                 log.push(record);
-                let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
                 stop = StopReason::Stalled {
                     reason: format!(
                         "no step τ ≥ 2^-{} satisfied the damping conditions (max relative mass error {max_rel:e}){}",
                         params.max_halvings,
-                        stall_diagnosis(points, &current.cells.masses, lo, hi)
+                        diagnosis_in(measure, points, &current.cells.masses)
                     ),
                 };
                 break;
@@ -215,16 +166,13 @@ pub(super) fn solve_single(
         }
     }
     if complete_moments(&backend, points, &heights, &mut current)? {
-        (max_rel, _, _) = errors(&current.cells, &targets);
+        errs = errors(&current.cells, &targets);
     }
     let weights = heights.weights(points).0;
     let cost = current.cells.transport_cost();
-    let diagnosis = if stop == StopReason::IterationCap {
-        let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
-        Some(stall_diagnosis(points, &current.cells.masses, lo, hi)).filter(|d| !d.is_empty())
-    } else {
-        None
-    };
+    let diagnosis = (stop == StopReason::IterationCap)
+        .then(|| diagnosis_in(measure, points, &current.cells.masses))
+        .filter(|d| !d.is_empty());
     Ok(OtSolution {
         heights: heights.hi,
         heights_lo: heights.lo,
@@ -233,7 +181,7 @@ pub(super) fn solve_single(
         cost,
         iterations,
         evaluations: start_evaluations + log.iter().map(|r| r.evaluations).sum::<usize>(),
-        max_relative_error: max_rel,
+        max_relative_error: errs.0,
         tolerance: params.tolerance,
         stop,
         log,
@@ -250,6 +198,107 @@ pub(super) fn solve_single(
         t_numeric: system.t_numeric,
         diagnosis,
     })
+}
+
+/// The stop before another step, if any: non-finite masses, or convergence (decided on the
+/// full integrals: the flux form's masses may differ by ~1e-12, so `current` gets its moments
+/// and `errs` is updated from them first).
+fn finished(
+    backend: &Backend<'_>,
+    points: &[[f64; 2]],
+    heights: &Heights,
+    current: &mut Evaluation,
+    targets: &[f64],
+    params: &NewtonParams,
+    errs: &mut (f64, f64, Vec<f64>),
+) -> Result<Option<StopReason>, OmtError> {
+    if !(errs.0.is_finite() && errs.1.is_finite()) {
+        return Ok(Some(StopReason::Stalled {
+            reason: "non-finite cell masses".into(),
+        }));
+    }
+    if errs.0 <= params.tolerance {
+        if complete_moments(backend, points, heights, current)? {
+            *errs = errors(&current.cells, targets);
+        }
+        if errs.0 <= params.tolerance {
+            return Ok(Some(StopReason::Converged));
+        }
+    }
+    Ok(None)
+}
+
+/// The start of [`solve_single`]: the warm heights or the Voronoi diagram (or `prepared`, the
+/// caller's backend and evaluation of them), replaced by [`start_without_empty_cells`] when a
+/// cell is empty. Returns the start, its heights, the backend, their evaluation and the
+/// evaluations it took.
+fn initial_state<'a>(
+    measure: &'a PreparedMeasure,
+    points: &[[f64; 2]],
+    params: &NewtonParams,
+    prepared: Option<(Backend<'a>, Evaluation)>,
+) -> Result<(Start, Heights, Backend<'a>, Evaluation, usize), OmtError> {
+    let mut start = Start::Voronoi;
+    let mut heights = match &params.initial_heights {
+        Some(h) => {
+            start = Start::Warm;
+            match &params.initial_heights_lo {
+                Some(lo) => Heights::from_parts(h, lo),
+                None => Heights::from_f64(h.clone()),
+            }
+        }
+        None => Heights::voronoi(points),
+    };
+    let (backend, mut current) = match prepared {
+        Some((backend, evaluation)) => (backend, evaluation),
+        None => {
+            let backend = Backend::new(measure, params.integrator, flux_bound(params));
+            let evaluation = evaluate(&backend, points, &heights)?;
+            (backend, evaluation)
+        }
+    };
+    let mut evaluations = 1;
+    if current.cells.masses.iter().any(|&m| !(m > 0.0)) {
+        let (contracted_start, contracted, evaluation, more) =
+            start_without_empty_cells(&backend, measure, points, params, start, &current)?;
+        (start, heights, current) = (contracted_start, contracted, evaluation);
+        evaluations += more;
+    }
+    Ok((start, heights, backend, current, evaluations))
+}
+
+/// The record of a step from the state before it (errors `max_rel`, `norm`, cells `before`),
+/// its line search `outcome`, the direction's time and the number of intermediate targets;
+/// the caller sets the accepted τ and the errors after it.
+fn step_record(
+    max_rel: f64,
+    norm: f64,
+    outcome: &line_search::LineSearchOutcome,
+    before: &CellIntegrals,
+    t_solve: f64,
+    intermediate_targets: usize,
+) -> IterationRecord {
+    IterationRecord {
+        max_relative_error: max_rel,
+        gradient_norm: norm,
+        step: 0.0,
+        halvings: outcome.rejections(),
+        evaluations: outcome.rejections() + usize::from(outcome.accepted.is_some()),
+        rejected_min_mass: outcome.rejected_min_mass,
+        rejected_norm: outcome.rejected_norm,
+        flip_updates: outcome.flip_updates,
+        min_cell_mass: before.masses.iter().cloned().fold(f64::INFINITY, f64::min),
+        t_diagram: outcome.t_diagram,
+        t_integration: outcome.t_integration,
+        t_solve,
+        intermediate_targets,
+    }
+}
+
+/// [`stall_diagnosis`] of the cell masses in the bounding box of the measure's vertices.
+fn diagnosis_in(measure: &PreparedMeasure, points: &[[f64; 2]], masses: &[f64]) -> String {
+    let (lo, hi) = crate::polygon::bounding_box(&measure.vertices);
+    stall_diagnosis(points, masses, lo, hi)
 }
 
 /// Which stall rule the steps so far meet, in words ([`no_progress`], [`flat_without_growth`]).
