@@ -9,5 +9,6 @@ pub mod area_preserving;
 pub mod distortion;
 pub mod gradient_flow;
 pub mod lie_advection;
+pub mod sphere_flows;
 pub mod sphere_param;
 pub mod spherical_mds;
