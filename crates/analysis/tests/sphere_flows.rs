@@ -4,12 +4,12 @@
 //! comments were measured on this implementation (release build); the bounds leave a margin.
 
 use shapespace_analysis::distortion::sphere_map_distortion;
-use shapespace_analysis::AnalysisError;
 use shapespace_analysis::gradient_flow::FlowControl;
 use shapespace_analysis::sphere_flows::{
     sphere_flow, sphere_gradient_flow_map, sphere_lie_map, SphereFlowParams, SphereLieParams,
 };
 use shapespace_analysis::sphere_param::{area_preserving_sphere_map, SphereParamParams};
+use shapespace_analysis::AnalysisError;
 use shapespace_geometry::{primitives, TriMesh};
 
 fn spheroid(subdivisions: usize, c: f64) -> TriMesh {
@@ -90,7 +90,10 @@ fn mean_angle_between(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 }
 
 fn p95_eps(mesh: &TriMesh, x: &[[f64; 3]]) -> f64 {
-    sphere_map_distortion("map", mesh, x).unwrap().abs_vertex_log_area_ratio.p95
+    sphere_map_distortion("map", mesh, x)
+        .unwrap()
+        .abs_vertex_log_area_ratio
+        .p95
 }
 
 /// Spheroids 1:1:2 at 642, 2,562 and 10,242 vertices: the Lie map and the gradient-flow map
@@ -138,7 +141,10 @@ fn spheroid_maps_converge_to_the_latitude_rearrangement() {
         // the conformal map is far from the rearrangement at every size
         assert!(b.1 > 0.1, "{rows:?}");
         // heights: lie, flow, omt; flow against omt: each more than 2.5 times closer per halving
-        assert!(a.2 > 2.5 * b.2 && a.3 > 2.5 * b.3 && a.4 > 2.5 * b.4 && a.5 > 2.5 * b.5, "{rows:?}");
+        assert!(
+            a.2 > 2.5 * b.2 && a.3 > 2.5 * b.3 && a.4 > 2.5 * b.4 && a.5 > 2.5 * b.5,
+            "{rows:?}"
+        );
         // area distortion falls under refinement
         assert!(b.6 < 0.8 * a.6 && b.7 < 0.8 * a.7, "{rows:?}");
     }
@@ -161,7 +167,10 @@ fn rotation_follows_the_closed_form() {
     let x = mesh.positions.clone();
     let areas = shapespace_geometry::quantities::face_areas(&mesh);
     let (s0, c0) = alpha0.sin_cos();
-    let start: Vec<[f64; 3]> = x.iter().map(|p| [c0 * p[0] - s0 * p[1], s0 * p[0] + c0 * p[1], p[2]]).collect();
+    let start: Vec<[f64; 3]> = x
+        .iter()
+        .map(|p| [c0 * p[0] - s0 * p[1], s0 * p[0] + c0 * p[1], p[2]])
+        .collect();
     let mut rows = Vec::new();
     for steps in [5usize, 10, 20] {
         let control = FlowControl {
@@ -219,7 +228,13 @@ fn swirl_flows_back_to_the_identity() {
                 .fold(0.0, f64::max)
         };
         assert!(info.final_cost < 0.1 * info.start_cost, "{info:?}");
-        rows.push((mesh.num_vertices(), max_angle(&start), max_angle(&u), info.steps, info.stop.clone()));
+        rows.push((
+            mesh.num_vertices(),
+            max_angle(&start),
+            max_angle(&u),
+            info.steps,
+            info.stop.clone(),
+        ));
     }
     eprintln!("sphere swirl (V, max angle of u0 and of u to x, steps, stop): {rows:?}");
     for w in rows.windows(2) {
@@ -244,7 +259,10 @@ fn tosca_wolf_lie_map_keeps_folds_and_the_flow_says_so() {
     let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
     let lie = sphere_lie_map(&mesh, &SphereLieParams::default()).unwrap();
     let (conformal, mapped) = (p95_eps(&mesh, &lie.conformal.positions), p95_eps(&mesh, &lie.positions));
-    eprintln!("wolf0 lie: {:?}; p95 |ε| {mapped:.3} (conformal {conformal:.3})", lie.info);
+    eprintln!(
+        "wolf0 lie: {:?}; p95 |ε| {mapped:.3} (conformal {conformal:.3})",
+        lie.info
+    );
     assert!(mapped < conformal / 3.0, "{mapped} against {conformal}");
     assert!(lie.info.flipped_before_repair > 0 && lie.info.num_flipped < lie.info.flipped_before_repair);
     let d = sphere_map_distortion("lie", &mesh, &lie.positions).unwrap();

@@ -2905,7 +2905,12 @@ fn param_lie_and_flow_map_a_closed_mesh_onto_the_sphere() {
                 .as_f64()
                 .unwrap()
         };
-        assert!(p95(1) < 0.2 * p95(0), "{method}: p95 |ε| {} against conformal {}", p95(1), p95(0));
+        assert!(
+            p95(1) < 0.2 * p95(0),
+            "{method}: p95 |ε| {} against conformal {}",
+            p95(1),
+            p95(0)
+        );
         if method == "flow" {
             let flow = &json["gradient_flow"];
             // the flow stops at its tolerance (here the Lie map is already there: 0 steps)

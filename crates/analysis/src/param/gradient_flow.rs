@@ -386,8 +386,12 @@ pub(crate) trait FlowDomain {
     /// Whether no face of `u` is folded.
     fn unfolded(&self, u: &[Self::Point]) -> bool;
     /// Up to `iterations` mass projections of `u` (see [`project`]).
-    fn project(&mut self, u: &mut Vec<Self::Point>, iterations: usize, info: &mut FlowInfo)
-        -> Result<(), AnalysisError>;
+    fn project(
+        &mut self,
+        u: &mut Vec<Self::Point>,
+        iterations: usize,
+        info: &mut FlowInfo,
+    ) -> Result<(), AnalysisError>;
     /// The transport cost of `u` and its largest face area error.
     fn cost_and_error(&self, u: &[Self::Point]) -> (f64, f64);
 }
@@ -605,7 +609,10 @@ fn project(
             let (rhs, scale) = moser_sources(faces, surface_areas, &image, x.len(), 1.0);
             let potential = poisson.solve(x, &rhs)?;
             let velocity = vertex_velocities(x, faces, &potential, &image, scale, surface_areas, is_boundary);
-            Ok(velocity.iter().all(|v| v[0].is_finite() && v[1].is_finite()).then_some(velocity))
+            Ok(velocity
+                .iter()
+                .all(|v| v[0].is_finite() && v[1].is_finite())
+                .then_some(velocity))
         },
         |x: &[[f64; 2]], v: &[[f64; 2]], h| moved(x, v, h, is_boundary),
         |x: &[[f64; 2]], next: &[[f64; 2]]| acceptable(faces, x, next),

@@ -21,7 +21,9 @@
 //! (shared with the disk) and put back onto S² after each step; then the folds are counted
 //! exactly and repaired in gnomonic charts as the sphere's OMT map does
 //! ([`crate::sphere_param`]); then the correction flow on the current mesh (shared time stepping
-//! with the disk, `correction_steps` midpoint steps).
+//! with the disk, `correction_steps` midpoint steps). `stages` > 1 splits the advection into
+//! stages, each a field solved on the current map and its folds repaired; measured on TOSCA
+//! wolf0 it folds more than one stage (decision 0035), so the default is 1.
 //!
 //! # Gradient flow ([`sphere_gradient_flow_map`])
 //! The Angenent–Haker–Tannenbaum flow on S² with the chordal cost |u(x) − x|² = 2 − 2 u·x (the
@@ -437,7 +439,7 @@ pub fn advect_on_sphere(
     fraction: f64,
     params: &SphereLieParams,
 ) -> Result<(Vec<P3>, SphereLieInfo), AnalysisError> {
-    check_inputs(faces, surface_areas, start, "conformal sphere map")?;
+    check_inputs(faces, surface_areas, start, "starting map")?;
     if !(fraction > 0.0 && fraction <= 1.0) {
         return Err(AnalysisError::InvalidInput(format!(
             "advection fraction {fraction} (must be in (0, 1])"
@@ -590,7 +592,13 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
     }
     let t1 = Instant::now();
     let areas = face_areas(mesh);
-    let (positions, flow) = sphere_flow(&mesh.faces, &areas, &lie.conformal.positions, &lie.positions, &params.control)?;
+    let (positions, flow) = sphere_flow(
+        &mesh.faces,
+        &areas,
+        &lie.conformal.positions,
+        &lie.positions,
+        &params.control,
+    )?;
     let t2 = Instant::now();
     let num_flipped = folded_on_sphere(mesh, &positions).len();
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
@@ -764,7 +772,11 @@ impl FlowDomain for SphereFlow<'_> {
             .into_par_iter()
             .map(|i| {
                 let x = domain[i];
-                let foot = normalized([x[0] - dt * field[i][0], x[1] - dt * field[i][1], x[2] - dt * field[i][2]]);
+                let foot = normalized([
+                    x[0] - dt * field[i][0],
+                    x[1] - dt * field[i][1],
+                    x[2] - dt * field[i][2],
+                ]);
                 let Some(loc) = self.locator.locate(foot) else {
                     return u[i];
                 };

@@ -23,10 +23,16 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     let input = args.input.display();
     let method = args.method;
     if args.weights.is_some() {
-        anyhow::bail!("{input}: --method {} takes no --weights (the Newton OMT map does)", method.name());
+        anyhow::bail!(
+            "{input}: --method {} takes no --weights (the Newton OMT map does)",
+            method.name()
+        );
     }
     if args.start != super::ot::StartArg::Auto {
-        anyhow::bail!("{input}: --start chooses the OT's start; --method {} has no OT", method.name());
+        anyhow::bail!(
+            "{input}: --start chooses the OT's start; --method {} has no OT",
+            method.name()
+        );
     }
     // an unknown output extension is named before the input is read
     shapespace_geometry::io::MeshFormat::from_path(&args.out)?;
@@ -79,7 +85,10 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
             ),
         };
         let correction = match &i.correction.skipped {
-            None => format!("correction {} steps ({} halved)", i.correction.steps, i.correction.halvings),
+            None => format!(
+                "correction {} steps ({} halved)",
+                i.correction.steps, i.correction.halvings
+            ),
             Some(why) => format!("correction not applied ({why})"),
         };
         let summary = format!(
