@@ -2852,10 +2852,87 @@ fn param_flow_on_a_face() {
     ]);
     assert_eq!(sphere.status.code(), Some(2), "{}", stderr(&sphere));
     assert!(
-        stderr(&sphere).contains("--method flow maps onto the disk only"),
+        stderr(&sphere).contains("id01_sad.obj") && stderr(&sphere).contains("not a closed genus-0"),
         "{}",
         stderr(&sphere)
     );
+}
+
+/// `param --method lie` and `--method flow` on a closed egg (ellipsoid 1 : 0.8 : 1.5): the
+/// domain defaults to the sphere for a closed input, the output has the input's faces on S², no
+/// folded face, a 95th percentile |ε| at most a fifth of the conformal map's, and the report
+/// names the method with its steps; the flow ends below its curl tolerance; weights are
+/// refused.
+#[test]
+fn param_lie_and_flow_map_a_closed_mesh_onto_the_sphere() {
+    let dir = scratch("param_sphere_flows");
+    let mut mesh = shapespace_geometry::primitives::icosphere(3);
+    for p in &mut mesh.positions {
+        *p = [p[0], 0.8 * p[1], 1.5 * p[2]];
+    }
+    let input = dir.join("egg.obj");
+    shapespace_geometry::io::write_mesh(&input, &mesh).unwrap();
+    let out_mesh = dir.join("egg_on_sphere.ply");
+    let report = dir.join("report.json");
+    for (method, domain) in [("lie", None), ("flow", Some("sphere"))] {
+        let mut args = vec![
+            "param",
+            input.to_str().unwrap(),
+            "--method",
+            method,
+            "--out",
+            out_mesh.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ];
+        if let Some(d) = domain {
+            args.extend_from_slice(&["--domain", d]);
+        }
+        let out = shapespace(&args);
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        let mapped = shapespace_geometry::io::read_mesh(&out_mesh).unwrap();
+        assert_eq!(mapped.faces, mesh.faces);
+        for p in &mapped.positions {
+            assert!(((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs() < 1e-12);
+        }
+        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        assert_eq!(json["method"], method);
+        assert_eq!(json["domain"], "sphere");
+        assert_eq!(json["num_flipped"], 0);
+        assert!(json["lie_advection"]["mean_steps"].as_f64().unwrap() > 1.0);
+        let p95 = |k: usize| {
+            json["distortion"]["maps"][k]["abs_vertex_log_area_ratio"]["p95"]
+                .as_f64()
+                .unwrap()
+        };
+        assert!(
+            p95(1) < 0.2 * p95(0),
+            "{method}: p95 |ε| {} against conformal {}",
+            p95(1),
+            p95(0)
+        );
+        if method == "flow" {
+            let flow = &json["gradient_flow"];
+            // the flow stops at its tolerance (here the Lie map is already there: 0 steps)
+            assert!(flow["final_curl"].as_f64().unwrap() <= 1e-3, "{flow}");
+            assert!(stderr(&out).contains("gradient flow"), "{}", stderr(&out));
+        }
+        std::fs::remove_file(&out_mesh).unwrap();
+    }
+    let weights = dir.join("weights.csv");
+    std::fs::write(&weights, "vertex,weight\n0,2\n").unwrap();
+    let out = shapespace(&[
+        "param",
+        input.to_str().unwrap(),
+        "--method",
+        "lie",
+        "--out",
+        out_mesh.to_str().unwrap(),
+        "--weights",
+        weights.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("takes no --weights"), "{}", stderr(&out));
 }
 
 /// `distances` on closed meshes (the sphere route, rotation search): a run over two shapes

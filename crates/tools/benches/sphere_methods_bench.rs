@@ -1,18 +1,22 @@
-//! The sphere's OMT map and spherical MDS side by side, on the same closed meshes in one run.
+//! The sphere's OMT map, its Lie-advection and gradient-flow maps and spherical MDS side by
+//! side, on the same closed meshes in one run.
 //!
 //! `cargo bench -p shapespace-tools --bench sphere_methods_bench [-- FILTER]`: ellipsoids of
 //! revolution 1:1:1.5 and 1:1:2 (10,242 vertices) and TOSCA wolf0, centaur0 and horse0 from
 //! `../shared/datasets` (skipped with a message when absent); those whose name contains FILTER
-//! when given. Rows: `omt` ([`area_preserving_sphere_map`], defaults), `spherical-mds`
+//! when given. Rows: `omt` ([`area_preserving_sphere_map`], defaults), `lie` ([`sphere_lie_map`],
+//! defaults), `flow` ([`sphere_gradient_flow_map`], defaults), `spherical-mds`
 //! ([`spherical_mds_map`], defaults: θ_max 180°, 500 landmarks, classical start) and
 //! `spherical-mds 270°` (θ_max 270°). Columns: wall-clock seconds, iterations (Newton steps;
-//! SMACOF iterations on the landmarks), |ε| (the log one-ring area ratio, both normalized)
+//! mean Bogacki–Shampine steps per vertex, rounded; flow steps; SMACOF iterations on the
+//! landmarks), |ε| (the log one-ring area ratio, both normalized)
 //! median / p95, the angle distortion median / p95 (degrees), faces folded on S² before and
 //! after the chart repair (exact test).
 
 use std::time::Instant;
 
 use shapespace_analysis::distortion::sphere_map_distortion;
+use shapespace_analysis::sphere_flows::{sphere_gradient_flow_map, sphere_lie_map, SphereFlowParams, SphereLieParams};
 use shapespace_analysis::sphere_param::{area_preserving_sphere_map, SphereParamParams};
 use shapespace_analysis::spherical_mds::{spherical_mds_map, SphericalMdsParams};
 use shapespace_geometry::TriMesh;
@@ -84,6 +88,32 @@ fn main() {
                 (map.flipped_before_repair, map.num_flipped),
             ),
             Err(e) => println!("| {name} | {} | omt | error: {e} |", mesh.num_vertices()),
+        }
+        let t = Instant::now();
+        match sphere_lie_map(mesh, &SphereLieParams::default()) {
+            Ok(map) => row(
+                name,
+                mesh,
+                "lie",
+                t.elapsed().as_secs_f64(),
+                map.info.mean_steps.round() as usize,
+                &map.positions,
+                (map.info.flipped_before_repair, map.info.num_flipped),
+            ),
+            Err(e) => println!("| {name} | {} | lie | error: {e} |", mesh.num_vertices()),
+        }
+        let t = Instant::now();
+        match sphere_gradient_flow_map(mesh, &SphereFlowParams::default()) {
+            Ok(map) => row(
+                name,
+                mesh,
+                "flow",
+                t.elapsed().as_secs_f64(),
+                map.info.flow.steps,
+                &map.positions,
+                (map.info.start.flipped_before_repair, map.info.num_flipped),
+            ),
+            Err(e) => println!("| {name} | {} | flow | error: {e} |", mesh.num_vertices()),
         }
         for (method, degrees) in [("spherical-mds", 180.0f64), ("spherical-mds 270°", 270.0)] {
             let params = SphericalMdsParams {

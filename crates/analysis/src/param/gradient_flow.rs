@@ -226,25 +226,7 @@ pub fn gradient_flow_map(
 }
 
 fn check_params(params: &GradientFlowParams) -> Result<(), AnalysisError> {
-    if !(params.tolerance.is_finite() && params.tolerance >= 0.0) {
-        return Err(AnalysisError::InvalidInput(format!(
-            "gradient flow tolerance {} (must be finite and >= 0)",
-            params.tolerance
-        )));
-    }
-    if !(params.max_time_step.is_finite() && params.max_time_step > 0.0) {
-        return Err(AnalysisError::InvalidInput(format!(
-            "gradient flow max_time_step {} (must be finite and > 0)",
-            params.max_time_step
-        )));
-    }
-    if !(params.cfl.is_finite() && params.cfl > 0.0) {
-        return Err(AnalysisError::InvalidInput(format!(
-            "gradient flow cfl {} (must be finite and > 0)",
-            params.cfl
-        )));
-    }
-    Ok(())
+    params.control().check()
 }
 
 /// The gradient flow (module docs, steps 2–4) on the domain triangulation `domain` (#V,
@@ -304,82 +286,146 @@ pub fn flow(
             ring_mass[i] += masses[f];
         }
     }
-    let curl = CurlPart::new(faces, is_boundary, domain, &domain_areas)?;
-    let locator = PointLocator::new(domain, faces)?;
-    let mut neumann = PlanarPoisson::new(n, faces)?;
-    let mut info = FlowInfo::default();
-    let mut u = start.to_vec();
-    project(
-        &mut neumann,
+    let mut disk = DiskFlow {
+        curl: CurlPart::new(faces, is_boundary, domain, &domain_areas)?,
+        locator: PointLocator::new(domain, faces)?,
+        neumann: PlanarPoisson::new(n, faces)?,
         faces,
         surface_areas,
         is_boundary,
-        &mut u,
-        params.final_projection_iterations,
-        &mut info,
-    )?;
-    info.start_cost = transport_cost(faces, &masses, domain, &u);
-    info.start_max_area_error = area_errors(faces, surface_areas, &u).0;
+        domain,
+        domain_areas: &domain_areas,
+        masses: &masses,
+        ring_mass,
+        shortest,
+    };
+    let mut info = FlowInfo::default();
+    let u = run_flow(&mut disk, start.to_vec(), &params.control(), &mut info)?;
+    info.lu_fallbacks = disk.neumann.lu_fallbacks;
+    Ok((u, info))
+}
+
+/// The scalar controls of the flow's time stepping (the fields of [`GradientFlowParams`] but
+/// the start; shared by the disk and the sphere).
+#[derive(Clone, Debug)]
+pub struct FlowControl {
+    /// Most flow steps.
+    pub max_steps: usize,
+    /// Stop when ‖ζ‖/‖u‖ is below this.
+    pub tolerance: f64,
+    /// Largest foot-point displacement of a step, in shortest edges of the vertex.
+    pub cfl: f64,
+    /// Longest step in flow time.
+    pub max_time_step: f64,
+    /// Mass projections after each step.
+    pub projection_iterations: usize,
+    /// Most mass projections at the start and at the end.
+    pub final_projection_iterations: usize,
+}
+
+impl Default for FlowControl {
+    fn default() -> Self {
+        GradientFlowParams::default().control()
+    }
+}
+
+impl FlowControl {
+    /// Errors: a tolerance, step or CFL number that is not finite and positive.
+    pub fn check(&self) -> Result<(), AnalysisError> {
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "gradient flow tolerance {} (must be finite and >= 0)",
+                self.tolerance
+            )));
+        }
+        if !(self.max_time_step.is_finite() && self.max_time_step > 0.0) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "gradient flow max_time_step {} (must be finite and > 0)",
+                self.max_time_step
+            )));
+        }
+        if !(self.cfl.is_finite() && self.cfl > 0.0) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "gradient flow cfl {} (must be finite and > 0)",
+                self.cfl
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl GradientFlowParams {
+    /// The time-stepping controls.
+    pub fn control(&self) -> FlowControl {
+        FlowControl {
+            max_steps: self.max_steps,
+            tolerance: self.tolerance,
+            cfl: self.cfl,
+            max_time_step: self.max_time_step,
+            projection_iterations: self.projection_iterations,
+            final_projection_iterations: self.final_projection_iterations,
+        }
+    }
+}
+
+/// What the flow's time stepping ([`run_flow`]) needs of its domain: the disk's conformal
+/// image or the sphere's.
+pub(crate) trait FlowDomain {
+    /// A point of the map's image.
+    type Point: Copy;
+    /// The curl part ζ of the map `u`: ‖ζ‖/‖u‖, the vertex field V = ζ/μ0 (#V), and the
+    /// longest step ≤ `control.max_time_step` that moves no foot point more than `cfl` shortest
+    /// edges and changes no foot triangle's area by more than 10 %.
+    fn curl_step(
+        &mut self,
+        u: &[Self::Point],
+        control: &FlowControl,
+    ) -> Result<(f64, Vec<Self::Point>, f64), AnalysisError>;
+    /// The semi-Lagrangian step: u at the foot points of the field `field` after time `dt`.
+    fn backtrack(&self, field: &[Self::Point], u: &[Self::Point], dt: f64) -> Vec<Self::Point>;
+    /// Whether no face of `u` is folded.
+    fn unfolded(&self, u: &[Self::Point]) -> bool;
+    /// Up to `iterations` mass projections of `u` (see [`project`]).
+    fn project(
+        &mut self,
+        u: &mut Vec<Self::Point>,
+        iterations: usize,
+        info: &mut FlowInfo,
+    ) -> Result<(), AnalysisError>;
+    /// The transport cost of `u` and its largest face area error.
+    fn cost_and_error(&self, u: &[Self::Point]) -> (f64, f64);
+}
+
+/// The flow's time stepping (module docs, steps 2–4) on `domain` from `u`: projections, then
+/// steps until the curl part's relative norm is below the tolerance, `max_steps` steps or a
+/// stall, then the final projections. Shared by the disk and the sphere.
+pub(crate) fn run_flow<D: FlowDomain>(
+    domain: &mut D,
+    mut u: Vec<D::Point>,
+    control: &FlowControl,
+    info: &mut FlowInfo,
+) -> Result<Vec<D::Point>, AnalysisError> {
+    domain.project(&mut u, control.final_projection_iterations, info)?;
+    (info.start_cost, info.start_max_area_error) = domain.cost_and_error(&u);
     loop {
-        let zeta = curl.zeta(&u)?;
+        let (relative, field, mut dt) = domain.curl_step(&u, control)?;
         info.dirichlet_solves += 1;
-        let relative = curl.relative_norm(&zeta, &u);
         if info.steps == 0 {
             info.start_curl = relative;
         }
         info.final_curl = relative;
-        if relative <= params.tolerance {
-            info.stop = format!("‖ζ‖/‖u‖ = {relative:.2e} <= {:.1e}", params.tolerance);
+        if relative <= control.tolerance {
+            info.stop = format!("‖ζ‖/‖u‖ = {relative:.2e} <= {:.1e}", control.tolerance);
             break;
         }
-        if info.steps >= params.max_steps {
-            info.stop = format!("{} steps (‖ζ‖/‖u‖ = {relative:.2e})", params.max_steps);
+        if info.steps >= control.max_steps {
+            info.stop = format!("{} steps (‖ζ‖/‖u‖ = {relative:.2e})", control.max_steps);
             break;
-        }
-        // V_i = Σ |f0| ζ_f / Σ μ0 |f0| (tangential on the rim)
-        let mut field = vec![[0.0; 2]; n];
-        for (f, face) in faces.iter().enumerate() {
-            for &v in face {
-                field[v as usize][0] += domain_areas[f] * zeta[f][0];
-                field[v as usize][1] += domain_areas[f] * zeta[f][1];
-            }
-        }
-        let mut dt = params.max_time_step;
-        for i in 0..n {
-            let mut v = [field[i][0] / ring_mass[i], field[i][1] / ring_mass[i]];
-            if is_boundary[i] {
-                v = tangential(domain[i], v);
-            }
-            field[i] = v;
-            let speed = v[0].hypot(v[1]);
-            if speed > 0.0 {
-                dt = dt.min(params.cfl * shortest[i] / speed);
-            }
-        }
-        // no foot triangle changes its area by more than 10 %
-        for (face, a) in faces.iter().zip(&domain_areas) {
-            let [p, q, r] = face.map(|v| field[v as usize]);
-            let [a0, b0, c0] = face.map(|v| domain[v as usize]);
-            // area of the foot triangle x − t V = a + t·b1 + t²·b2
-            let cross = |e: [f64; 2], g: [f64; 2]| 0.5 * (e[0] * g[1] - e[1] * g[0]);
-            let (e1, e2) = ([b0[0] - a0[0], b0[1] - a0[1]], [c0[0] - a0[0], c0[1] - a0[1]]);
-            let (d1, d2) = ([q[0] - p[0], q[1] - p[1]], [r[0] - p[0], r[1] - p[1]]);
-            let b1 = (cross(e1, d2) + cross(d1, e2)).abs();
-            let b2 = cross(d1, d2).abs();
-            let limit = 0.1 * a;
-            if b1 * dt + b2 * dt * dt > limit {
-                let t = if b2 > 0.0 {
-                    (-b1 + (b1 * b1 + 4.0 * b2 * limit).sqrt()) / (2.0 * b2)
-                } else {
-                    limit / b1
-                };
-                dt = dt.min(t);
-            }
         }
         let mut accepted = None;
-        while dt >= MIN_TIME_STEP * params.max_time_step {
-            let next = backtrack(&locator, faces, domain, &field, is_boundary, &u, dt);
-            if faces.iter().all(|f| face_is_ccw(&next, f)) {
+        while dt >= MIN_TIME_STEP * control.max_time_step {
+            let next = domain.backtrack(&field, &u, dt);
+            if domain.unfolded(&next) {
                 accepted = Some(next);
                 break;
             }
@@ -393,29 +439,115 @@ pub fn flow(
         u = next;
         info.time += dt;
         info.steps += 1;
-        project(
-            &mut neumann,
-            faces,
-            surface_areas,
-            is_boundary,
-            &mut u,
-            params.projection_iterations,
-            &mut info,
-        )?;
+        domain.project(&mut u, control.projection_iterations, info)?;
     }
-    project(
-        &mut neumann,
-        faces,
-        surface_areas,
-        is_boundary,
-        &mut u,
-        params.final_projection_iterations,
-        &mut info,
-    )?;
-    info.final_cost = transport_cost(faces, &masses, domain, &u);
-    info.final_max_area_error = area_errors(faces, surface_areas, &u).0;
-    info.lu_fallbacks = neumann.lu_fallbacks;
-    Ok((u, info))
+    domain.project(&mut u, control.final_projection_iterations, info)?;
+    (info.final_cost, info.final_max_area_error) = domain.cost_and_error(&u);
+    Ok(u)
+}
+
+/// The longest step t ≤ `dt` for which the foot triangle's area A0 + b1 t + b2 t² (bounds
+/// `b1`, `b2` ≥ 0 of its first and second order terms) changes by at most 10 % of `area`.
+pub(crate) fn area_step_limit(b1: f64, b2: f64, area: f64, dt: f64) -> f64 {
+    let limit = 0.1 * area;
+    if b1 * dt + b2 * dt * dt > limit {
+        let t = if b2 > 0.0 {
+            (-b1 + (b1 * b1 + 4.0 * b2 * limit).sqrt()) / (2.0 * b2)
+        } else {
+            limit / b1
+        };
+        dt.min(t)
+    } else {
+        dt
+    }
+}
+
+/// The disk's [`FlowDomain`]: the conformal image with its Dirichlet problem, point location and
+/// Neumann problem.
+struct DiskFlow<'a> {
+    curl: CurlPart,
+    locator: PointLocator,
+    neumann: PlanarPoisson,
+    faces: &'a [[u32; 3]],
+    surface_areas: &'a [f64],
+    is_boundary: &'a [bool],
+    domain: &'a [[f64; 2]],
+    domain_areas: &'a [f64],
+    masses: &'a [f64],
+    /// μ0 |f0| summed over each vertex's faces.
+    ring_mass: Vec<f64>,
+    /// Each vertex's shortest edge in the domain.
+    shortest: Vec<f64>,
+}
+
+impl FlowDomain for DiskFlow<'_> {
+    type Point = [f64; 2];
+
+    fn curl_step(&mut self, u: &[[f64; 2]], control: &FlowControl) -> Result<(f64, Vec<[f64; 2]>, f64), AnalysisError> {
+        let (faces, domain) = (self.faces, self.domain);
+        let zeta = self.curl.zeta(u)?;
+        let relative = self.curl.relative_norm(&zeta, u);
+        // V_i = Σ |f0| ζ_f / Σ μ0 |f0| (tangential on the rim)
+        let mut field = vec![[0.0; 2]; domain.len()];
+        for (f, face) in faces.iter().enumerate() {
+            for &v in face {
+                field[v as usize][0] += self.domain_areas[f] * zeta[f][0];
+                field[v as usize][1] += self.domain_areas[f] * zeta[f][1];
+            }
+        }
+        let mut dt = control.max_time_step;
+        for i in 0..domain.len() {
+            let mut v = [field[i][0] / self.ring_mass[i], field[i][1] / self.ring_mass[i]];
+            if self.is_boundary[i] {
+                v = tangential(domain[i], v);
+            }
+            field[i] = v;
+            let speed = v[0].hypot(v[1]);
+            if speed > 0.0 {
+                dt = dt.min(control.cfl * self.shortest[i] / speed);
+            }
+        }
+        // no foot triangle changes its area by more than 10 %
+        for (face, a) in faces.iter().zip(self.domain_areas) {
+            let [p, q, r] = face.map(|v| field[v as usize]);
+            let [a0, b0, c0] = face.map(|v| domain[v as usize]);
+            // area of the foot triangle x − t V = a + t·b1 + t²·b2
+            let cross = |e: [f64; 2], g: [f64; 2]| 0.5 * (e[0] * g[1] - e[1] * g[0]);
+            let (e1, e2) = ([b0[0] - a0[0], b0[1] - a0[1]], [c0[0] - a0[0], c0[1] - a0[1]]);
+            let (d1, d2) = ([q[0] - p[0], q[1] - p[1]], [r[0] - p[0], r[1] - p[1]]);
+            let b1 = (cross(e1, d2) + cross(d1, e2)).abs();
+            let b2 = cross(d1, d2).abs();
+            dt = area_step_limit(b1, b2, *a, dt);
+        }
+        Ok((relative, field, dt))
+    }
+
+    fn backtrack(&self, field: &[[f64; 2]], u: &[[f64; 2]], dt: f64) -> Vec<[f64; 2]> {
+        backtrack(&self.locator, self.faces, self.domain, field, self.is_boundary, u, dt)
+    }
+
+    fn unfolded(&self, u: &[[f64; 2]]) -> bool {
+        self.faces.iter().all(|f| face_is_ccw(u, f))
+    }
+
+    fn project(&mut self, u: &mut Vec<[f64; 2]>, iterations: usize, info: &mut FlowInfo) -> Result<(), AnalysisError> {
+        project(
+            &mut self.neumann,
+            self.faces,
+            self.surface_areas,
+            self.is_boundary,
+            u,
+            iterations,
+            info,
+        )
+    }
+
+    fn cost_and_error(&self, u: &[[f64; 2]]) -> (f64, f64) {
+        (
+            transport_cost(self.faces, self.masses, self.domain, u),
+            area_errors(self.faces, self.surface_areas, u).0,
+        )
+    }
 }
 
 /// The semi-Lagrangian step: u at the foot points x_i − dt V_i (linear in the domain face
@@ -466,29 +598,73 @@ fn project(
     iterations: usize,
     info: &mut FlowInfo,
 ) -> Result<(), AnalysisError> {
-    let n = u.len();
+    let image_areas = |x: &[[f64; 2]]| faces.iter().map(|f| signed_area(x, f)).collect::<Vec<f64>>();
+    mass_projection(
+        u,
+        iterations,
+        info,
+        |x: &[[f64; 2]]| vertex_area_rms(faces, surface_areas, x),
+        |x: &[[f64; 2]]| {
+            let image = image_areas(x);
+            let (rhs, scale) = moser_sources(faces, surface_areas, &image, x.len(), 1.0);
+            let potential = poisson.solve(x, &rhs)?;
+            let velocity = vertex_velocities(x, faces, &potential, &image, scale, surface_areas, is_boundary);
+            Ok(velocity
+                .iter()
+                .all(|v| v[0].is_finite() && v[1].is_finite())
+                .then_some(velocity))
+        },
+        |x: &[[f64; 2]], v: &[[f64; 2]], h| moved(x, v, h, is_boundary),
+        |x: &[[f64; 2]], next: &[[f64; 2]]| acceptable(faces, x, next),
+    )
+}
+
+/// The right side of the linearized Moser correction toward the face areas `surface_areas`
+/// (scaled to the image's total `Σ image`): b_i = −factor Σ_{f∋i} (scale a_f − |f|)/3, which
+/// sums to 0; and the scale. Shared by the disk and the sphere.
+pub(crate) fn moser_sources(
+    faces: &[[u32; 3]],
+    surface_areas: &[f64],
+    image: &[f64],
+    n: usize,
+    factor: f64,
+) -> (Vec<f64>, f64) {
+    let scale = image.iter().sum::<f64>() / surface_areas.iter().sum::<f64>();
+    let mut rhs = vec![0.0; n];
+    for (f, face) in faces.iter().enumerate() {
+        let r = -factor * (scale * surface_areas[f] - image[f]) / 3.0;
+        for &v in face {
+            rhs[v as usize] += r;
+        }
+    }
+    (rhs, scale)
+}
+
+/// The mass projection's iterations, shared by the disk and the sphere: up to `iterations`
+/// times, `velocity(u)` (one Poisson solve; `None` when not finite) and the largest step
+/// h = 1, ½, … ([`PROJECTION_HALVINGS`] tries) whose `moved(u, v, h)` is `acceptable` and
+/// lowers `rms`; stops at the first iteration that keeps nothing.
+pub(crate) fn mass_projection<P: Clone>(
+    u: &mut Vec<P>,
+    iterations: usize,
+    info: &mut FlowInfo,
+    rms: impl Fn(&[P]) -> f64,
+    mut velocity: impl FnMut(&[P]) -> Result<Option<Vec<P>>, AnalysisError>,
+    moved: impl Fn(&[P], &[P], f64) -> Vec<P>,
+    acceptable: impl Fn(&[P], &[P]) -> bool,
+) -> Result<(), AnalysisError> {
     for _ in 0..iterations {
-        let before = vertex_area_rms(faces, surface_areas, u);
-        let image: Vec<f64> = faces.iter().map(|f| signed_area(u, f)).collect();
-        let scale = image.iter().sum::<f64>() / surface_areas.iter().sum::<f64>();
-        let mut rhs = vec![0.0; n];
-        for (f, face) in faces.iter().enumerate() {
-            let r = -(scale * surface_areas[f] - image[f]) / 3.0;
-            for &v in face {
-                rhs[v as usize] += r;
-            }
-        }
-        let potential = poisson.solve(u, &rhs)?;
+        let before = rms(u);
+        let v = velocity(u)?;
         info.projection_solves += 1;
-        let velocity = vertex_velocities(u, faces, &potential, &image, scale, surface_areas, is_boundary);
-        if velocity.iter().any(|v| !(v[0].is_finite() && v[1].is_finite())) {
+        let Some(v) = v else {
             return Ok(());
-        }
+        };
         let mut h = 1.0;
         let mut kept = false;
         for _ in 0..PROJECTION_HALVINGS {
-            let next = moved(u, &velocity, h, is_boundary);
-            if acceptable(faces, u, &next) && vertex_area_rms(faces, surface_areas, &next) < before {
+            let next = moved(u, &v, h);
+            if acceptable(u, &next) && rms(&next) < before {
                 *u = next;
                 kept = true;
                 break;
@@ -513,12 +689,16 @@ pub const PROJECTION_HALVINGS: usize = 20;
 /// Area-weighted rms over the vertices of ε_i = ln(Σ_{f∋i} |u(f)| / Σ_{f∋i} a_f), the surface
 /// areas `a_f` scaled to u's total: the one-ring area error that the mass projection lowers.
 pub fn vertex_area_rms(faces: &[[u32; 3]], surface_areas: &[f64], u: &[[f64; 2]]) -> f64 {
-    let n = u.len();
     let image: Vec<f64> = faces.iter().map(|f| signed_area(u, f)).collect();
+    vertex_area_rms_of(faces, surface_areas, &image, u.len())
+}
+
+/// [`vertex_area_rms`] from the image's face areas `image` (#F) of a map of `n` vertices.
+pub(crate) fn vertex_area_rms_of(faces: &[[u32; 3]], surface_areas: &[f64], image: &[f64], n: usize) -> f64 {
     let total: f64 = surface_areas.iter().sum();
     let scale = image.iter().sum::<f64>() / total;
     let (mut ring_image, mut ring_surface) = (vec![0.0; n], vec![0.0; n]);
-    for ((f, i), a) in faces.iter().zip(&image).zip(surface_areas) {
+    for ((f, i), a) in faces.iter().zip(image).zip(surface_areas) {
         for &v in f {
             ring_image[v as usize] += i;
             ring_surface[v as usize] += scale * a;
@@ -539,10 +719,15 @@ pub fn vertex_area_rms(faces: &[[u32; 3]], surface_areas: &[f64], u: &[[f64; 2]]
 /// (max, area-weighted rms) of ln(|u(f)| / a_f) with the surface areas `a_f` scaled to u's total.
 pub fn area_errors(faces: &[[u32; 3]], surface_areas: &[f64], u: &[[f64; 2]]) -> (f64, f64) {
     let image: Vec<f64> = faces.iter().map(|f| signed_area(u, f)).collect();
+    area_errors_of(surface_areas, &image)
+}
+
+/// [`area_errors`] from the image's face areas `image` (#F; ≤ 0 for a folded face).
+pub(crate) fn area_errors_of(surface_areas: &[f64], image: &[f64]) -> (f64, f64) {
     let total: f64 = surface_areas.iter().sum();
     let scale = image.iter().sum::<f64>() / total;
     let (mut max, mut sum) = (0.0f64, 0.0);
-    for (a, i) in surface_areas.iter().zip(&image) {
+    for (a, i) in surface_areas.iter().zip(image) {
         let e = if *i > 0.0 {
             (i / (scale * a)).ln()
         } else {

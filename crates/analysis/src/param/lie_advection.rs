@@ -393,63 +393,96 @@ impl<'a> MoserField<'a> {
                 (v, rho)
             }
         };
-        let mut s = if rim { [p0[1].atan2(p0[0]), 0.0] } else { p0 };
-        let (mut t, mut h) = (0.0f64, 1.0f64 / 16.0);
-        let (mut steps, mut rejected) = (0, 0);
-        let (mut k1, mut rho) = rate(s, 0.0);
-        let add = |s: [f64; 2], terms: &[(f64, [f64; 2])]| {
-            let mut out = s;
-            for (c, k) in terms {
-                out[0] += c * k[0];
-                out[1] += c * k[1];
+        let s = if rim { [p0[1].atan2(p0[0]), 0.0] } else { p0 };
+        let end_area = self.end_areas[i];
+        let (s, steps, rejected) = bogacki_shampine(
+            s,
+            rate,
+            |rho| params.tolerance * (end_area / rho).sqrt(),
+            |s| s,
+            params.max_attempts,
+            i,
+        )?;
+        Ok((to_point(s), steps, rejected))
+    }
+}
+
+/// Adaptive Bogacki–Shampine 3(2) (Bogacki & Shampine 1989) on ds/dt = rate(s, t) over
+/// t ∈ [0, 1] from `start`, the first step 1/16: `rate` returns the velocity and the density
+/// ρ_t at s, the local error bound of a step is `tolerance(max ρ at its ends)`, and every
+/// accepted state goes through `finish` (the plane: none; the sphere: back onto S²). Returns
+/// the end state, the accepted and the rejected steps. Shared by the disk's and the sphere's
+/// trajectories.
+///
+/// Errors: [`AnalysisError::InvalidInput`] for a non-finite velocity (of vertex `vertex`),
+/// [`AnalysisError::FlowStalled`] after `max_attempts` steps or a step below 1e-12.
+pub(crate) fn bogacki_shampine<const D: usize>(
+    start: [f64; D],
+    rate: impl Fn([f64; D], f64) -> ([f64; D], f64),
+    tolerance: impl Fn(f64) -> f64,
+    finish: impl Fn([f64; D]) -> [f64; D],
+    max_attempts: usize,
+    vertex: usize,
+) -> Result<([f64; D], usize, usize), AnalysisError> {
+    let i = vertex;
+    let mut s = start;
+    let (mut t, mut h) = (0.0f64, 1.0f64 / 16.0);
+    let (mut steps, mut rejected) = (0, 0);
+    let (mut k1, mut rho) = rate(s, 0.0);
+    let add = |s: [f64; D], terms: &[(f64, [f64; D])]| {
+        let mut out = s;
+        for (c, k) in terms {
+            for (o, kd) in out.iter_mut().zip(k) {
+                *o += c * kd;
             }
-            out
-        };
-        while t < 1.0 {
-            if !(k1[0].is_finite() && k1[1].is_finite()) {
-                return Err(AnalysisError::InvalidInput(format!(
-                    "the flow's velocity at vertex {i} is not finite at t = {t}"
-                )));
-            }
-            h = h.min(1.0 - t);
-            let (k2, _) = rate(add(s, &[(0.5 * h, k1)]), t + 0.5 * h);
-            let (k3, _) = rate(add(s, &[(0.75 * h, k2)]), t + 0.75 * h);
-            let next = add(s, &[(2.0 / 9.0 * h, k1), (h / 3.0, k2), (4.0 / 9.0 * h, k3)]);
-            let (k4, rho_next) = rate(next, t + h);
-            let e = add(
-                [0.0; 2],
-                &[(-5.0 / 72.0, k1), (1.0 / 12.0, k2), (1.0 / 9.0, k3), (-0.125, k4)],
-            );
-            let err = h * e[0].hypot(e[1]);
-            let tol = params.tolerance * (self.end_areas[i] / rho.max(rho_next)).sqrt();
-            if err <= tol || h < 1e-12 {
-                if !(err <= tol) {
-                    return Err(AnalysisError::FlowStalled {
-                        time: t,
-                        step: h,
-                        attempts: steps + rejected,
-                    });
-                }
-                s = next;
-                t += h;
-                k1 = k4;
-                rho = rho_next;
-                steps += 1;
-            } else {
-                rejected += 1;
-            }
-            let factor = if err > 0.0 { 0.9 * (tol / err).cbrt() } else { 5.0 };
-            h *= factor.clamp(0.2, 5.0);
-            if steps + rejected > params.max_attempts {
+        }
+        out
+    };
+    while t < 1.0 {
+        if !k1.iter().all(|x| x.is_finite()) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "the flow's velocity at vertex {i} is not finite at t = {t}"
+            )));
+        }
+        h = h.min(1.0 - t);
+        let (k2, _) = rate(add(s, &[(0.5 * h, k1)]), t + 0.5 * h);
+        let (k3, _) = rate(add(s, &[(0.75 * h, k2)]), t + 0.75 * h);
+        let next = add(s, &[(2.0 / 9.0 * h, k1), (h / 3.0, k2), (4.0 / 9.0 * h, k3)]);
+        let (k4, rho_next) = rate(next, t + h);
+        let e = add(
+            [0.0; D],
+            &[(-5.0 / 72.0, k1), (1.0 / 12.0, k2), (1.0 / 9.0, k3), (-0.125, k4)],
+        );
+        // (|e| by repeated hypot: for D = 2 exactly e[0].hypot(e[1]))
+        let err = h * e.iter().fold(0.0f64, |a, x| a.hypot(*x));
+        let tol = tolerance(rho.max(rho_next));
+        if err <= tol || h < 1e-12 {
+            if !(err <= tol) {
                 return Err(AnalysisError::FlowStalled {
                     time: t,
                     step: h,
-                    attempts: params.max_attempts,
+                    attempts: steps + rejected,
                 });
             }
+            s = finish(next);
+            t += h;
+            k1 = k4;
+            rho = rho_next;
+            steps += 1;
+        } else {
+            rejected += 1;
         }
-        Ok((to_point(s), steps, rejected))
+        let factor = if err > 0.0 { 0.9 * (tol / err).cbrt() } else { 5.0 };
+        h *= factor.clamp(0.2, 5.0);
+        if steps + rejected > max_attempts {
+            return Err(AnalysisError::FlowStalled {
+                time: t,
+                step: h,
+                attempts: max_attempts,
+            });
+        }
     }
+    Ok((s, steps, rejected))
 }
 
 /// Most attempted steps (accepted and halved) of the correction flow.
@@ -471,6 +504,28 @@ fn correct(
     steps: usize,
 ) -> Result<(Vec<[f64; 2]>, CorrectionInfo), AnalysisError> {
     let mut poisson = PlanarPoisson::new(start.len(), faces)?;
+    Ok(correction_flow(
+        start,
+        steps,
+        |x: &[[f64; 2]], t| current_velocity(&mut poisson, faces, surface_areas, is_boundary, x, t),
+        |x: &[[f64; 2]], v: &[[f64; 2]], h| moved(x, v, h, is_boundary),
+        |x: &[[f64; 2]], next: &[[f64; 2]]| acceptable(faces, x, next),
+    ))
+}
+
+/// The correction flow's time stepping, shared by the disk and the sphere: from `start`,
+/// `steps` explicit midpoint steps over [0, 1] of `velocity(x, t)` (one Poisson solve each),
+/// positions advanced by `moved(x, v, h)`, a step halved when `acceptable(x, next)` refuses its
+/// midpoint or its end and doubled back toward 1/`steps` after a success. A failed velocity,
+/// more than [`CORRECTION_ATTEMPTS`] attempted steps or a step below [`CORRECTION_MIN_STEP`]
+/// stop it, and `start` is returned (`applied` false).
+pub(crate) fn correction_flow<P: Clone>(
+    start: &[P],
+    steps: usize,
+    mut velocity: impl FnMut(&[P], f64) -> Result<Vec<P>, AnalysisError>,
+    moved: impl Fn(&[P], &[P], f64) -> Vec<P>,
+    acceptable: impl Fn(&[P], &[P]) -> bool,
+) -> (Vec<P>, CorrectionInfo) {
     let mut x = start.to_vec();
     let mut info = CorrectionInfo::default();
     let nominal = 1.0 / steps as f64;
@@ -479,23 +534,23 @@ fn correct(
         h = h.min(1.0 - t);
         if info.steps + info.halvings >= CORRECTION_ATTEMPTS || (h < CORRECTION_MIN_STEP && h < 1.0 - t) {
             info.skipped = Some(format!("stalled at t = {t:.3} (step {h:.1e})"));
-            return Ok((x, info));
+            return (x, info);
         }
         // (a failed solve or a non-finite velocity: the correction stops, the input map stays)
-        let Ok(k1) = current_velocity(&mut poisson, faces, surface_areas, is_boundary, &x, t) else {
+        let Ok(k1) = velocity(&x, t) else {
             info.skipped = Some(format!("no finite velocity at t = {t:.3}"));
-            return Ok((x, info));
+            return (x, info);
         };
         info.poisson_solves += 1;
-        let mid = moved(&x, &k1, 0.5 * h, is_boundary);
-        let accepted = if acceptable(faces, &x, &mid) {
-            let Ok(k2) = current_velocity(&mut poisson, faces, surface_areas, is_boundary, &mid, t + 0.5 * h) else {
+        let mid = moved(&x, &k1, 0.5 * h);
+        let accepted = if acceptable(&x, &mid) {
+            let Ok(k2) = velocity(&mid, t + 0.5 * h) else {
                 info.skipped = Some(format!("no finite velocity at t = {t:.3}"));
-                return Ok((x, info));
+                return (x, info);
             };
             info.poisson_solves += 1;
-            let next = moved(&x, &k2, h, is_boundary);
-            acceptable(faces, &x, &next).then_some(next)
+            let next = moved(&x, &k2, h);
+            acceptable(&x, &next).then_some(next)
         } else {
             None
         };
@@ -513,7 +568,7 @@ fn correct(
         }
     }
     info.applied = true;
-    Ok((x, info))
+    (x, info)
 }
 
 /// Whether every face of `next` is counter-clockwise with an area within a factor 2 of its
@@ -746,7 +801,36 @@ impl PlanarPoisson {
                 w[corners[k]] += 0.5 * (u[0] * v[0] + u[1] * v[1]) / cross;
             }
         }
-        let a = Self::matrix(self.n, &self.edges, &w)?;
+        self.solve_weights(&w, b)
+    }
+
+    /// Solves with the stiffness matrix of the points `x` on S² (#V), the faces taken as flat
+    /// chordal triangles: ½ cot of each corner from the 3D edge vectors, cot = (u·v)/|u × v|.
+    /// Used by the sphere's Lie advection and gradient flow (`param/sphere_flows.rs`), where the
+    /// mesh is closed and the pinned vertex fixes the constant of the Laplacian's kernel.
+    pub(crate) fn solve_sphere(&mut self, x: &[[f64; 3]], b: &[f64]) -> Result<Vec<f64>, AnalysisError> {
+        let mut w = vec![0.0; self.edges.len()];
+        for (f, corners) in self.faces.iter().zip(&self.corner_edges) {
+            for k in 0..3 {
+                let o = x[f[k] as usize];
+                let (p, q) = (x[f[(k + 1) % 3] as usize], x[f[(k + 2) % 3] as usize]);
+                let u = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+                let v = [q[0] - o[0], q[1] - o[1], q[2] - o[2]];
+                let c = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                let cross = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+                w[corners[k]] += 0.5 * (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / cross;
+            }
+        }
+        self.solve_weights(&w, b)
+    }
+
+    /// Solves with the Laplacian of the edge weights `w` (vertex 0 pinned).
+    fn solve_weights(&mut self, w: &[f64], b: &[f64]) -> Result<Vec<f64>, AnalysisError> {
+        let a = Self::matrix(self.n, &self.edges, w)?;
         let mut rhs = faer::Mat::<f64>::from_fn(self.n - 1, 1, |i, _| b[i + 1]);
         match Llt::try_new_with_symbolic(self.symbolic.clone(), a.as_ref(), faer::Side::Lower) {
             Ok(llt) => llt.solve_in_place(rhs.as_mut()),
@@ -755,7 +839,7 @@ impl PlanarPoisson {
                 // not always in floating point when the conformal image crowds faces to 1e-10
                 // of the disk: LU of the full matrix then
                 self.lu_fallbacks += 1;
-                let full = Self::full_matrix(self.n, &self.edges, &w)?;
+                let full = Self::full_matrix(self.n, &self.edges, w)?;
                 let lu = full.sp_lu().map_err(|e| {
                     AnalysisError::InvalidInput(format!("LU of the Laplacian of the current map: {e:?}"))
                 })?;

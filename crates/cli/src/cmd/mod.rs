@@ -10,6 +10,7 @@ pub mod ot;
 pub mod ot_sphere;
 pub mod param;
 pub mod param_smds;
+pub mod param_sphere_flows;
 pub mod prepare;
 pub mod register;
 

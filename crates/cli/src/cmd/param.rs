@@ -18,7 +18,7 @@
 //! tolerance (the map of its last iterate is still written).
 //!
 //! `--method lie` computes the authalic map by Lie advection instead
-//! ([`shapespace_analysis::lie_advection::lie_advection_map`]; disk only, no weights); its
+//! ([`shapespace_analysis::lie_advection::lie_advection_map`]; no weights); its
 //! report has the same distortion block, with the flow's steps and timings in place of the OT
 //! summary. Exit code 1 when its fold repair failed (the map is written with its folds).
 //!
@@ -29,8 +29,10 @@
 //!
 //! `--method flow` computes the L²-optimal map by the Angenent–Haker–Tannenbaum gradient flow
 //! from the Lie-advection map ([`shapespace_analysis::gradient_flow::gradient_flow_map`];
-//! Dominitz & Tannenbaum 2010; disk only, no weights); its report has the same distortion
-//! block, with the flow's steps, curl norms and transport costs.
+//! Dominitz & Tannenbaum 2010; no weights); its report has the same distortion
+//! block, with the flow's steps, curl norms and transport costs. With `--domain sphere` (the
+//! default for these two on a closed genus-0 input) both map onto the sphere instead
+//! ([`shapespace_analysis::sphere_flows`]; `param_sphere_flows`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -52,10 +54,10 @@ use shapespace_geometry::io::{read_mesh, write_atomically, write_mesh};
 pub enum ParamMethod {
     /// Conformal map + semi-discrete OT by Newton's method (Su et al. 2015).
     Omt,
-    /// Conformal map + Lie advection of the area form (Zou et al. 2011; disk only).
+    /// Conformal map + Lie advection of the area form (Zou et al. 2011; disk or sphere).
     Lie,
     /// Conformal map + Lie advection + the Angenent–Haker–Tannenbaum gradient flow to the
-    /// L²-optimal map (Dominitz & Tannenbaum 2010; disk only).
+    /// L²-optimal map (Dominitz & Tannenbaum 2010; disk or sphere).
     Flow,
     /// Spherical multidimensional scaling of the heat-method geodesic distances (Elad, Keller
     /// & Kimmel 2005; sphere only).
@@ -63,7 +65,7 @@ pub enum ParamMethod {
 }
 
 impl ParamMethod {
-    fn name(self) -> &'static str {
+    pub(super) fn name(self) -> &'static str {
         match self {
             ParamMethod::Omt => "omt",
             ParamMethod::Lie => "lie",
@@ -88,12 +90,13 @@ pub struct ParamArgs {
     #[command(flatten)]
     pub disk_map: super::DiskMapArgs,
     /// `omt` (default): the Newton OMT map; `lie`: the Lie-advection authalic map; `flow`: the
-    /// OMT map by the gradient flow from the Lie map (`lie` and `flow`: disk only);
-    /// `spherical-mds`: spherical MDS of the geodesic distances (sphere only).
+    /// OMT map by the gradient flow from the Lie map (`lie` and `flow`: disk, or sphere on a
+    /// closed input); `spherical-mds`: spherical MDS of the geodesic distances (sphere only).
     #[arg(long, value_enum, default_value_t = ParamMethod::Omt)]
     pub method: ParamMethod,
     /// Target domain: `disk` (unit disk, the default), `square` (side √π, centered at 0) or
-    /// `sphere` (the unit sphere, for a closed genus-0 mesh; the default of `spherical-mds`).
+    /// `sphere` (the unit sphere, for a closed genus-0 mesh; the default of `spherical-mds`, and
+    /// of `lie` and `flow` on a closed genus-0 input).
     #[arg(long)]
     pub domain: Option<String>,
     #[command(flatten)]
@@ -181,7 +184,13 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
             args.input.display()
         );
     }
-    if args.domain() != "sphere" {
+    // `lie` and `flow` map a closed genus-0 input onto the sphere unless told otherwise
+    let sphere = match (&args.domain, args.method) {
+        (Some(d), _) => d == "sphere",
+        (None, ParamMethod::Lie | ParamMethod::Flow) => closed_genus_zero(&args.input),
+        (None, _) => false,
+    };
+    if !sphere {
         super::check_map_output(&args.out)?;
     }
     super::check_output_files(
@@ -195,18 +204,15 @@ pub fn run(args: &ParamArgs) -> Result<ExitCode> {
     if let Some(dir) = &args.plots {
         super::create_output_folder(dir)?;
     }
-    if args.domain() == "sphere" {
-        if args.method != ParamMethod::Omt {
-            anyhow::bail!(
-                "--method {} maps onto the disk only (--domain sphere takes the Newton OMT map)",
-                args.method.name()
-            );
-        }
+    if sphere {
         if args.disk_map.params() != shapespace_conformal::DiskMapParams::default() {
             anyhow::bail!(
                 "{}: --conformal, --pole, --no-intrinsic-delaunay and --no-bff-fallback choose the disk map; they do not apply to --domain sphere",
                 args.input.display()
             );
+        }
+        if args.method != ParamMethod::Omt {
+            return super::param_sphere_flows::run(args, t0);
         }
         return run_sphere(args, t0);
     }
@@ -607,6 +613,15 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Whether `path` reads as a closed genus-0 mesh (unreadable files: no; the disk route then
+/// names the problem).
+fn closed_genus_zero(path: &std::path::Path) -> bool {
+    read_mesh(path)
+        .ok()
+        .and_then(|m| shapespace_geometry::topology::classify(&m).ok())
+        .is_some_and(|c| c.class == shapespace_geometry::topology::MeshClass::Sphere)
 }
 
 /// Writes the histograms of `report` into `--plots` and the JSON that `json` builds into
