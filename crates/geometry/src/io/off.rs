@@ -71,7 +71,60 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
     };
     let eof_line = |src: &ContentLines<'_, _>| src.last_line + 1;
 
-    // Header: optional keyword, then the counts on the same or the next content line.
+    let (num_vertices, num_polygons) = read_header(&mut src, path)?;
+
+    // Vertices: the shortest line "0 0 0\n" takes 6 bytes, a face "3 0 0 0\n" 8.
+    let mut positions = Vec::with_capacity(capped_capacity(num_vertices, data.len(), 6));
+    for vertex in 0..num_vertices {
+        let Some((line_no, line)) = src.next_line()? else {
+            return Err(parse_error(
+                path,
+                eof_line(&src),
+                format!("unexpected end of file: the header declares {num_vertices} vertices, found {vertex}"),
+            ));
+        };
+        positions.push(parse_vertex(line, line_no, vertex, path)?);
+    }
+
+    let mut faces = Vec::with_capacity(capped_capacity(num_polygons, data.len(), 8));
+    let mut polygon: Vec<u32> = Vec::new();
+    let mut fans: Vec<Fan> = Vec::new();
+    for face in 0..num_polygons {
+        let Some((line_no, line)) = src.next_line()? else {
+            return Err(parse_error(
+                path,
+                eof_line(&src),
+                format!("unexpected end of file: the header declares {num_polygons} faces, found {face}"),
+            ));
+        };
+        parse_face(line, line_no, face, num_vertices, &mut polygon, path)?;
+        fans.extend(Fan::of(face, polygon.len(), &faces, Some(line_no)));
+        fan_triangulate(&polygon, &mut faces);
+    }
+    if let Some((line_no, line)) = src.next_line()? {
+        return Err(parse_error(
+            path,
+            line_no,
+            format!(
+                "data after the {num_polygons} faces declared in the header ('{}'); wrong counts?",
+                show(line.trim_ascii())
+            ),
+        ));
+    }
+    check_fans(path, &positions, &faces, &fans)?;
+    Ok(TriMesh {
+        positions,
+        faces,
+        uvs: None,
+    })
+}
+
+/// The header: the optional keyword, then the counts on the same or the next content line.
+/// Returns the vertex and face counts.
+fn read_header<'a, I: Iterator<Item = (usize, &'a [u8])>>(
+    src: &mut ContentLines<'a, I>,
+    path: &Path,
+) -> Result<(usize, usize), GeometryError> {
     let Some((mut line_no, first)) = src.next_line()? else {
         return Err(parse_error(path, 1, "empty file: no OFF header"));
     };
@@ -116,7 +169,7 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             let Some((l, counts)) = src.next_line()? else {
                 return Err(parse_error(
                     path,
-                    eof_line(&src),
+                    src.last_line + 1,
                     "unexpected end of file: missing the vertex and face counts",
                 ));
             };
@@ -151,117 +204,91 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
             format!("{num_vertices} vertices exceed the u32 index range"),
         ));
     }
+    Ok((num_vertices, num_polygons))
+}
 
-    // Vertices: the shortest line "0 0 0\n" takes 6 bytes, a face "3 0 0 0\n" 8.
-    let mut positions = Vec::with_capacity(capped_capacity(num_vertices, data.len(), 6));
-    for vertex in 0..num_vertices {
-        let Some((line_no, line)) = src.next_line()? else {
-            return Err(parse_error(
-                path,
-                eof_line(&src),
-                format!("unexpected end of file: the header declares {num_vertices} vertices, found {vertex}"),
-            ));
-        };
-        let mut p = [0.0; 3];
-        let mut toks = tokens(line);
-        for (k, c) in p.iter_mut().enumerate() {
-            let tok = toks.next().ok_or_else(|| {
-                parse_error(
-                    path,
-                    line_no,
-                    format!("vertex {vertex} has {k} coordinates, expected 3"),
-                )
-            })?;
-            *c = parse_f64(tok).ok_or_else(|| {
-                parse_error(
-                    path,
-                    line_no,
-                    format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
-                )
-            })?;
-        }
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(parse_error(
-                path,
-                line_no,
-                format!("vertex {vertex} has a non-finite coordinate"),
-            ));
-        }
-        positions.push(p);
-    }
-
-    let mut faces = Vec::with_capacity(capped_capacity(num_polygons, data.len(), 8));
-    let mut polygon: Vec<u32> = Vec::new();
-    let mut fans: Vec<Fan> = Vec::new();
-    for face in 0..num_polygons {
-        let Some((line_no, line)) = src.next_line()? else {
-            return Err(parse_error(
-                path,
-                eof_line(&src),
-                format!("unexpected end of file: the header declares {num_polygons} faces, found {face}"),
-            ));
-        };
-        let mut toks = tokens(line);
-        let k_tok = toks.next().unwrap_or_default();
-        let k = parse_i64(k_tok).ok_or_else(|| {
+/// One vertex line: three finite coordinates (values after them are ignored).
+fn parse_vertex(line: &[u8], line_no: usize, vertex: usize, path: &Path) -> Result<[f64; 3], GeometryError> {
+    let mut p = [0.0; 3];
+    let mut toks = tokens(line);
+    for (k, c) in p.iter_mut().enumerate() {
+        let tok = toks.next().ok_or_else(|| {
             parse_error(
                 path,
                 line_no,
-                format!("face {face}: non-integer vertex count '{}'", show(k_tok)),
+                format!("vertex {vertex} has {k} coordinates, expected 3"),
             )
         })?;
-        if k < 3 {
-            return Err(parse_error(
+        *c = parse_f64(tok).ok_or_else(|| {
+            parse_error(
                 path,
                 line_no,
-                format!("face {face} has {k} vertices (need at least 3)"),
-            ));
-        }
-        polygon.clear();
-        for j in 0..k {
-            let tok = toks.next().ok_or_else(|| {
-                parse_error(
-                    path,
-                    line_no,
-                    format!("face {face} declares {k} vertices but lists {j}"),
-                )
-            })?;
-            let i = parse_i64(tok).ok_or_else(|| {
-                parse_error(
-                    path,
-                    line_no,
-                    format!("face {face}: non-integer vertex index '{}'", show(tok)),
-                )
-            })?;
-            if i < 0 || i as u64 >= num_vertices as u64 {
-                return Err(parse_error(
-                    path,
-                    line_no,
-                    format!("face {face}: vertex index {i} out of range (the file has {num_vertices} vertices)"),
-                ));
-            }
-            polygon.push(i as u32);
-        }
-        // Values after the indices (a face colour) are ignored.
-        fans.extend(Fan::of(face, polygon.len(), &faces, Some(line_no)));
-        fan_triangulate(&polygon, &mut faces);
+                format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
+            )
+        })?;
     }
-    if let Some((line_no, line)) = src.next_line()? {
+    if !p.iter().all(|c| c.is_finite()) {
         return Err(parse_error(
             path,
             line_no,
-            format!(
-                "data after the {num_polygons} faces declared in the header ('{}'); wrong counts?",
-                show(line.trim_ascii())
-            ),
+            format!("vertex {vertex} has a non-finite coordinate"),
         ));
     }
-    check_fans(path, &positions, &faces, &fans)?;
-    Ok(TriMesh {
-        positions,
-        faces,
-        uvs: None,
-    })
+    Ok(p)
+}
+
+/// One face line: its vertex count k ≥ 3 and k indices below `num_vertices`, into `polygon`
+/// (values after them, a face colour, are ignored).
+fn parse_face(
+    line: &[u8],
+    line_no: usize,
+    face: usize,
+    num_vertices: usize,
+    polygon: &mut Vec<u32>,
+    path: &Path,
+) -> Result<(), GeometryError> {
+    let mut toks = tokens(line);
+    let k_tok = toks.next().unwrap_or_default();
+    let k = parse_i64(k_tok).ok_or_else(|| {
+        parse_error(
+            path,
+            line_no,
+            format!("face {face}: non-integer vertex count '{}'", show(k_tok)),
+        )
+    })?;
+    if k < 3 {
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("face {face} has {k} vertices (need at least 3)"),
+        ));
+    }
+    polygon.clear();
+    for j in 0..k {
+        let tok = toks.next().ok_or_else(|| {
+            parse_error(
+                path,
+                line_no,
+                format!("face {face} declares {k} vertices but lists {j}"),
+            )
+        })?;
+        let i = parse_i64(tok).ok_or_else(|| {
+            parse_error(
+                path,
+                line_no,
+                format!("face {face}: non-integer vertex index '{}'", show(tok)),
+            )
+        })?;
+        if i < 0 || i as u64 >= num_vertices as u64 {
+            return Err(parse_error(
+                path,
+                line_no,
+                format!("face {face}: vertex index {i} out of range (the file has {num_vertices} vertices)"),
+            ));
+        }
+        polygon.push(i as u32);
+    }
+    Ok(())
 }
 
 /// Writes `mesh` as ASCII OFF to `path`: `OFF`, `nv nf 0`, one `x y z` line per vertex, one
