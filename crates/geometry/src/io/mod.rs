@@ -227,6 +227,41 @@ pub(crate) fn parse_i64(token: &[u8]) -> Option<i64> {
     std::str::from_utf8(token).ok()?.parse().ok()
 }
 
+/// The three finite coordinates of vertex `vertex` from the line's next tokens (values after
+/// them are ignored), for the OFF and OBJ readers.
+pub(crate) fn parse_vertex<'a>(
+    toks: &mut impl Iterator<Item = &'a [u8]>,
+    line_no: usize,
+    vertex: usize,
+    path: &Path,
+) -> Result<[f64; 3], GeometryError> {
+    let mut p = [0.0; 3];
+    for (k, c) in p.iter_mut().enumerate() {
+        let tok = toks.next().ok_or_else(|| {
+            parse_error(
+                path,
+                line_no,
+                format!("vertex {vertex} has {k} coordinates, expected 3"),
+            )
+        })?;
+        *c = parse_f64(tok).ok_or_else(|| {
+            parse_error(
+                path,
+                line_no,
+                format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
+            )
+        })?;
+    }
+    if !p.iter().all(|c| c.is_finite()) {
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("vertex {vertex} has a non-finite coordinate"),
+        ));
+    }
+    Ok(p)
+}
+
 /// Whether the bytes are empty or only whitespace.
 pub(crate) fn is_blank(data: &[u8]) -> bool {
     data.iter().all(|b| b.is_ascii_whitespace())

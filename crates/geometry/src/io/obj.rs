@@ -25,8 +25,8 @@ use std::io::Write;
 use std::path::Path;
 
 use super::{
-    check_fans, check_text_line, fan_triangulate, lines, parse_error, parse_f64, parse_i64, read_bytes, show, tokens,
-    Fan,
+    check_fans, check_text_line, fan_triangulate, lines, parse_error, parse_f64, parse_i64, parse_vertex, read_bytes,
+    show, tokens, Fan,
 };
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
@@ -83,67 +83,8 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         let mut toks = tokens(line);
         let Some(key) = toks.next() else { continue };
         match key {
-            b"v" => {
-                let vertex = positions.len();
-                let mut p = [0.0; 3];
-                for (k, c) in p.iter_mut().enumerate() {
-                    let tok = toks.next().ok_or_else(|| {
-                        parse_error(
-                            path,
-                            line_no,
-                            format!("vertex {vertex} has {k} coordinates, expected 3"),
-                        )
-                    })?;
-                    *c = parse_f64(tok).ok_or_else(|| {
-                        parse_error(
-                            path,
-                            line_no,
-                            format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
-                        )
-                    })?;
-                }
-                if !p.iter().all(|c| c.is_finite()) {
-                    return Err(parse_error(
-                        path,
-                        line_no,
-                        format!("vertex {vertex} has a non-finite coordinate"),
-                    ));
-                }
-                positions.push(p);
-            }
-            b"vt" => {
-                let index = texcoords.len();
-                let mut uv = [0.0; 2];
-                for (k, c) in uv.iter_mut().enumerate() {
-                    match toks.next() {
-                        Some(tok) => {
-                            *c = parse_f64(tok).ok_or_else(|| {
-                                parse_error(
-                                    path,
-                                    line_no,
-                                    format!("texture coordinate {index}: non-numeric value '{}'", show(tok)),
-                                )
-                            })?
-                        }
-                        None if k == 0 => {
-                            return Err(parse_error(
-                                path,
-                                line_no,
-                                format!("texture coordinate {index} has no values"),
-                            ))
-                        }
-                        None => {}
-                    }
-                }
-                if !uv.iter().all(|c| c.is_finite()) {
-                    return Err(parse_error(
-                        path,
-                        line_no,
-                        format!("texture coordinate {index} has a non-finite value"),
-                    ));
-                }
-                texcoords.push(uv);
-            }
+            b"v" => positions.push(parse_vertex(&mut toks, line_no, positions.len(), path)?),
+            b"vt" => texcoords.push(parse_texcoord(&mut toks, line_no, texcoords.len(), path)?),
             b"vn" => num_normals += 1,
             b"f" => {
                 polygon.clear();
@@ -255,6 +196,45 @@ pub fn parse_obj(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
         None
     };
     Ok(TriMesh { positions, faces, uvs })
+}
+
+/// Texture coordinate `index`: one or two finite values (a missing v is 0; more are ignored).
+fn parse_texcoord<'a>(
+    toks: &mut impl Iterator<Item = &'a [u8]>,
+    line_no: usize,
+    index: usize,
+    path: &Path,
+) -> Result<[f64; 2], GeometryError> {
+    let mut uv = [0.0; 2];
+    for (k, c) in uv.iter_mut().enumerate() {
+        match toks.next() {
+            Some(tok) => {
+                *c = parse_f64(tok).ok_or_else(|| {
+                    parse_error(
+                        path,
+                        line_no,
+                        format!("texture coordinate {index}: non-numeric value '{}'", show(tok)),
+                    )
+                })?
+            }
+            None if k == 0 => {
+                return Err(parse_error(
+                    path,
+                    line_no,
+                    format!("texture coordinate {index} has no values"),
+                ))
+            }
+            None => {}
+        }
+    }
+    if !uv.iter().all(|c| c.is_finite()) {
+        return Err(parse_error(
+            path,
+            line_no,
+            format!("texture coordinate {index} has a non-finite value"),
+        ));
+    }
+    Ok(uv)
 }
 
 /// Resolves an OBJ index token (1-based, or negative relative to the `defined` elements so

@@ -21,8 +21,8 @@ use std::io::Write;
 use std::path::Path;
 
 use super::{
-    capped_capacity, check_fans, check_text_line, fan_triangulate, is_blank, lines, parse_error, parse_f64, parse_i64,
-    read_bytes, show, tokens, Fan,
+    capped_capacity, check_fans, check_text_line, fan_triangulate, is_blank, lines, parse_error, parse_i64,
+    parse_vertex, read_bytes, show, tokens, Fan,
 };
 use crate::error::GeometryError;
 use crate::mesh::TriMesh;
@@ -83,7 +83,7 @@ pub fn parse_off(data: impl AsRef<[u8]>, path: &Path) -> Result<TriMesh, Geometr
                 format!("unexpected end of file: the header declares {num_vertices} vertices, found {vertex}"),
             ));
         };
-        positions.push(parse_vertex(line, line_no, vertex, path)?);
+        positions.push(parse_vertex(&mut tokens(line), line_no, vertex, path)?);
     }
 
     let mut faces = Vec::with_capacity(capped_capacity(num_polygons, data.len(), 8));
@@ -205,36 +205,6 @@ fn read_header<'a, I: Iterator<Item = (usize, &'a [u8])>>(
         ));
     }
     Ok((num_vertices, num_polygons))
-}
-
-/// One vertex line: three finite coordinates (values after them are ignored).
-fn parse_vertex(line: &[u8], line_no: usize, vertex: usize, path: &Path) -> Result<[f64; 3], GeometryError> {
-    let mut p = [0.0; 3];
-    let mut toks = tokens(line);
-    for (k, c) in p.iter_mut().enumerate() {
-        let tok = toks.next().ok_or_else(|| {
-            parse_error(
-                path,
-                line_no,
-                format!("vertex {vertex} has {k} coordinates, expected 3"),
-            )
-        })?;
-        *c = parse_f64(tok).ok_or_else(|| {
-            parse_error(
-                path,
-                line_no,
-                format!("vertex {vertex}: non-numeric coordinate '{}'", show(tok)),
-            )
-        })?;
-    }
-    if !p.iter().all(|c| c.is_finite()) {
-        return Err(parse_error(
-            path,
-            line_no,
-            format!("vertex {vertex} has a non-finite coordinate"),
-        ));
-    }
-    Ok(p)
 }
 
 /// One face line: its vertex count k ≥ 3 and k indices below `num_vertices`, into `polygon`
