@@ -161,3 +161,47 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
         assert!(on.2 <= 1.02 * off.2, "{a} -> {b}: {} against {}", on.2, off.2);
     }
 }
+
+/// The distance field ZoomOut's landmark coordinates are made of, on Sumner & Popović's horse
+/// reference pose (shared folder; skipped when absent) from vertex 8319, a hoof tip (landmark x0
+/// of `scripts/cut_pose_set.py`'s cut). The heat method with the mesh's own cotangent operators
+/// (its faces have angles down to 0.01°) gives a field of largest value 0.099 √area and smallest
+/// −1.16 √area there, where the surface's Dijkstra distance along the edges reaches 1.47 √area.
+/// ZoomOut uses the heat method on the intrinsic Delaunay triangulation
+/// (`HeatGeodesics::intrinsic_delaunay`). Asserted: its largest value within 0.85–1 of the
+/// Dijkstra distance's (edge paths are longer than geodesics), nothing below −0.01 √area, and
+/// the median relative gap to Dijkstra over the vertices farther than 0.1 √area below 10 %.
+#[test]
+fn landmark_fields_on_the_horse_follow_the_surface() {
+    use shapespace_analysis::geodesic::HeatGeodesics;
+    let Some(file) = shapespace_test_support::shared_file("sumner_deformation_transfer/horse-poses/reference.obj") else {
+        return;
+    };
+    let mesh = shapespace_geometry::io::read_mesh(&file).unwrap();
+    let source = 8319u32;
+    let root = shapespace_geometry::quantities::total_area(&mesh).sqrt();
+    let neighbors = Connectivity::of(&mesh).vertex_neighbors(mesh.num_vertices());
+    let edges = shapespace_conformal::markers::graph_distances(&mesh, &neighbors, &[(source, 0.0)]);
+    let plain = &HeatGeodesics::new(&mesh).unwrap().distances(&[source]).unwrap()[0];
+    let idt = &HeatGeodesics::intrinsic_delaunay(&mesh).unwrap().distances(&[source]).unwrap()[0];
+    let range = |d: &[f64]| {
+        (
+            d.iter().copied().fold(f64::INFINITY, f64::min) / root,
+            d.iter().copied().fold(f64::NEG_INFINITY, f64::max) / root,
+        )
+    };
+    let (edge_max, (plain_min, plain_max), (idt_min, idt_max)) = (range(&edges).1, range(plain), range(idt));
+    let mut gaps: Vec<f64> = (0..mesh.num_vertices())
+        .filter(|&v| edges[v] > 0.1 * root)
+        .map(|v| (idt[v] - edges[v]).abs() / edges[v])
+        .collect();
+    gaps.sort_by(f64::total_cmp);
+    let median_gap = gaps[gaps.len() / 2];
+    eprintln!(
+        "horse reference from vertex {source}: Dijkstra max {edge_max:.3}; plain heat {plain_min:.3}..{plain_max:.3}; \
+         intrinsic Delaunay heat {idt_min:.3}..{idt_max:.3}, median gap to Dijkstra {median_gap:.3} (√area)"
+    );
+    assert!((0.85 * edge_max..=edge_max).contains(&idt_max), "{idt_max} against {edge_max}");
+    assert!(idt_min > -0.01, "{idt_min}");
+    assert!(median_gap < 0.1, "{median_gap}");
+}

@@ -304,7 +304,7 @@ pub fn zoomout(
             return Ok(Mat::zeros(mesh.num_vertices(), 0));
         }
         let scale = params.landmark_weight / shapespace_geometry::quantities::total_area(mesh).sqrt();
-        let d = HeatGeodesics::new(mesh)?.distances(&vertices)?;
+        let d = HeatGeodesics::intrinsic_delaunay(mesh)?.distances(&vertices)?;
         Ok(Mat::from_fn(mesh.num_vertices(), d.len(), |v, i| scale * d[i][v]))
     };
     let (lm_s, lm_t) = rayon::join(
