@@ -453,11 +453,17 @@ mod tests {
         let plain = needle_error(&HeatGeodesics::new(&mesh).unwrap(), &mesh, m);
         let idt = needle_error(&HeatGeodesics::intrinsic_delaunay(&mesh).unwrap(), &mesh, m);
         assert!(idt < 0.05, "intrinsic Delaunay: relative error {idt}");
-        assert!(idt < 0.6 * plain, "intrinsic Delaunay {idt} against plain cotangents {plain}");
+        assert!(
+            idt < 0.6 * plain,
+            "intrinsic Delaunay {idt} against plain cotangents {plain}"
+        );
         // on a triangulation that is already Delaunay no edge flips: the same operators and
         // fields up to the planar layout's roundoff
         let g = grid(16);
-        let (a, b) = (HeatGeodesics::new(&g).unwrap(), HeatGeodesics::intrinsic_delaunay(&g).unwrap());
+        let (a, b) = (
+            HeatGeodesics::new(&g).unwrap(),
+            HeatGeodesics::intrinsic_delaunay(&g).unwrap(),
+        );
         assert!((a.time - b.time).abs() < 1e-15);
         let (da, db) = (&a.distances(&[100]).unwrap()[0], &b.distances(&[100]).unwrap()[0]);
         let gap = da.iter().zip(db).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
