@@ -15,6 +15,10 @@
 //! al. suggest averaging with a Dirichlet solve on surfaces with large holes, the holes of the
 //! registration data are small. The two factorizations are computed once
 //! ([`HeatGeodesics::new`]) and reused for every source (batched right-hand sides).
+//!
+//! [`HeatGeodesics::intrinsic_delaunay`] runs the same steps on the mesh's intrinsic Delaunay
+//! triangulation (ZoomOut's landmark fields, decision 0037); the registration metric's
+//! geodesic error uses the mesh's own faces.
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
@@ -34,7 +38,8 @@ pub struct HeatGeodesics {
     faces: Vec<[u32; 3]>,
     /// The mesh's faces, which hold the point sources of [`HeatGeodesics::distances_from_points`].
     source_faces: Vec<[u32; 3]>,
-    /// Per face, the gradients of the three hat functions (3D vectors), #F.
+    /// Per face of `faces`, the gradients of the three hat functions (3D vectors, or in the
+    /// triangle's planar layout), #F.
     hat_gradients: Vec<[[f64; 3]; 3]>,
     face_areas: Vec<f64>,
     heat: faer::sparse::linalg::solvers::Llt<usize, f64>,
