@@ -15,11 +15,16 @@
 //! al. suggest averaging with a Dirichlet solve on surfaces with large holes, the holes of the
 //! registration data are small. The two factorizations are computed once
 //! ([`HeatGeodesics::new`]) and reused for every source (batched right-hand sides).
+//!
+//! [`HeatGeodesics::intrinsic_delaunay`] runs the same steps on the mesh's intrinsic Delaunay
+//! triangulation (ZoomOut's landmark fields, decision 0037); the registration metric's
+//! geodesic error uses the mesh's own faces.
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
 use rayon::prelude::*;
+use shapespace_conformal::intrinsic::IntrinsicTriangulation;
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::TriMesh;
 
@@ -28,8 +33,13 @@ use crate::error::AnalysisError;
 /// Prefactored heat-method solver on one mesh (module docs).
 pub struct HeatGeodesics {
     n: usize,
+    /// The triangles of the operators: the mesh's faces, or those of its intrinsic Delaunay
+    /// triangulation ([`HeatGeodesics::intrinsic_delaunay`]).
     faces: Vec<[u32; 3]>,
-    /// Per face, the gradients of the three hat functions (3D vectors), #F.
+    /// The mesh's faces, which hold the point sources of [`HeatGeodesics::distances_from_points`].
+    source_faces: Vec<[u32; 3]>,
+    /// Per face of `faces`, the gradients of the three hat functions (3D vectors, or in the
+    /// triangle's planar layout), #F.
     hat_gradients: Vec<[[f64; 3]; 3]>,
     face_areas: Vec<f64>,
     heat: faer::sparse::linalg::solvers::Llt<usize, f64>,
@@ -61,18 +71,76 @@ impl HeatGeodesics {
     /// Errors: a degenerate face (zero area), a vertex without incident area, a disconnected
     /// mesh or a failed factorization.
     pub fn new(mesh: &TriMesh) -> Result<Self, AnalysisError> {
-        let n = mesh.num_vertices();
-        if n < 3 || mesh.faces.is_empty() {
+        if mesh.num_vertices() < 3 || mesh.faces.is_empty() {
             return Err(AnalysisError::InvalidInput(
                 "heat method: the mesh has no triangles".into(),
             ));
         }
-        let mut hat_gradients = Vec::with_capacity(mesh.num_faces());
-        let mut face_areas = Vec::with_capacity(mesh.num_faces());
+        let corners: Vec<[[f64; 3]; 3]> = (0..mesh.num_faces()).map(|f| mesh.face_positions(f)).collect();
+        Self::assemble(mesh, mesh.faces.clone(), &corners, None)
+    }
+
+    /// The heat method on the intrinsic Delaunay triangulation of `mesh`
+    /// ([`shapespace_conformal::intrinsic`], decision 0002): the same vertices and surface, its
+    /// edges flipped (lengths only) until every cotangent weight is non-negative; gradient and
+    /// divergence per intrinsic triangle, laid out in the plane from its lengths; the heat time
+    /// from the mesh's own mean edge length. On meshes with needle triangles (the Sumner horse
+    /// poses: angles down to 0.01°) the plain cotangent operators gave a field from one landmark
+    /// whose largest value was 0.1 √area where the surface's extent is 1.3–1.5 √area; this
+    /// one does not depend on the triangulation that way (Sharp, Soliman & Crane 2019,
+    /// "Navigating intrinsic triangulations", §5). Point sources still lie in the mesh's faces.
+    /// Errors: those of [`HeatGeodesics::new`] and a degenerate face or a flip budget exceeded
+    /// in the intrinsic triangulation.
+    pub fn intrinsic_delaunay(mesh: &TriMesh) -> Result<Self, AnalysisError> {
+        if mesh.num_vertices() < 3 || mesh.faces.is_empty() {
+            return Err(AnalysisError::InvalidInput(
+                "heat method: the mesh has no triangles".into(),
+            ));
+        }
+        let idt_err = |e: shapespace_conformal::ConformalError| {
+            AnalysisError::InvalidInput(format!("heat method: intrinsic Delaunay triangulation: {e}"))
+        };
+        let mut idt = IntrinsicTriangulation::from_mesh(mesh).map_err(idt_err)?;
+        idt.make_delaunay().map_err(idt_err)?;
         let mut edge_sum = 0.0;
-        let mut trip_l: Vec<(usize, usize, f64)> = Vec::with_capacity(9 * mesh.num_faces());
-        for (fi, f) in mesh.faces.iter().enumerate() {
-            let p = mesh.face_positions(fi);
+        for f in 0..mesh.num_faces() {
+            let p = mesh.face_positions(f);
+            for k in 0..3 {
+                edge_sum += dot(sub(p[(k + 1) % 3], p[k]), sub(p[(k + 1) % 3], p[k])).sqrt();
+            }
+        }
+        let h = edge_sum / (3 * mesh.num_faces()) as f64;
+        let faces: Vec<[u32; 3]> = (0..idt.num_faces())
+            .map(|f| [idt.tail[3 * f], idt.tail[3 * f + 1], idt.tail[3 * f + 2]])
+            .collect();
+        // corner 0 at the origin, corner 1 on the x axis, corner 2 above it (counter-clockwise)
+        let corners: Vec<[[f64; 3]; 3]> = (0..idt.num_faces())
+            .map(|f| {
+                let (l0, l1, l2) = (idt.length[3 * f], idt.length[3 * f + 1], idt.length[3 * f + 2]);
+                let x = (l0 * l0 + l2 * l2 - l1 * l1) / (2.0 * l0);
+                let y = (l2 * l2 - x * x).max(0.0).sqrt();
+                [[0.0, 0.0, 0.0], [l0, 0.0, 0.0], [x, y, 0.0]]
+            })
+            .collect();
+        Self::assemble(mesh, faces, &corners, Some(h))
+    }
+
+    /// The operators of the triangles `faces` with corner positions `corners` (3D, or a planar
+    /// layout of each) and t = h². `mean_edge` = None: the mesh's own faces, h their mean edge
+    /// length, the mesh's barycentric masses; Some(h): the masses lumped from `faces`.
+    fn assemble(
+        mesh: &TriMesh,
+        faces: Vec<[u32; 3]>,
+        corners: &[[[f64; 3]; 3]],
+        mean_edge: Option<f64>,
+    ) -> Result<Self, AnalysisError> {
+        let n = mesh.num_vertices();
+        let mut hat_gradients = Vec::with_capacity(faces.len());
+        let mut face_areas = Vec::with_capacity(faces.len());
+        let mut edge_sum = 0.0;
+        let mut trip_l: Vec<(usize, usize, f64)> = Vec::with_capacity(9 * faces.len());
+        let mut lumped = vec![0.0; n];
+        for (fi, (f, p)) in faces.iter().zip(corners).enumerate() {
             let nrm = cross(sub(p[1], p[0]), sub(p[2], p[0]));
             let a2 = dot(nrm, nrm).sqrt();
             if !(a2 > 0.0) || !a2.is_finite() {
@@ -91,6 +159,7 @@ impl HeatGeodesics {
             }
             let area = 0.5 * a2;
             for i in 0..3 {
+                lumped[f[i] as usize] += area / 3.0;
                 for j in 0..3 {
                     trip_l.push((f[i] as usize, f[j] as usize, area * dot(g[i], g[j])));
                 }
@@ -98,9 +167,12 @@ impl HeatGeodesics {
             hat_gradients.push(g);
             face_areas.push(area);
         }
-        let h = edge_sum / (3 * mesh.num_faces()) as f64;
+        // the mesh's own faces: its barycentric masses as they always were
+        let (h, mass) = match mean_edge {
+            Some(h) => (h, lumped),
+            None => (edge_sum / (3 * faces.len()) as f64, vertex_dual_areas(mesh)),
+        };
         let time = h * h;
-        let mass = vertex_dual_areas(mesh);
         if let Some(i) = mass.iter().position(|m| !(*m > 0.0)) {
             return Err(AnalysisError::InvalidInput(format!(
                 "heat method: vertex {i} has no incident triangle"
@@ -125,7 +197,8 @@ impl HeatGeodesics {
             .map_err(|e| la_err("Cholesky of the pinned Laplacian (is the mesh connected?)", e))?;
         Ok(HeatGeodesics {
             n,
-            faces: mesh.faces.clone(),
+            faces,
+            source_faces: mesh.faces.clone(),
             hat_gradients,
             face_areas,
             heat,
@@ -163,10 +236,10 @@ impl HeatGeodesics {
     pub fn distances_from_points(&self, sources: &[(u32, [f64; 3])]) -> Result<Vec<Vec<f64>>, AnalysisError> {
         let mut weighted = Vec::with_capacity(sources.len());
         for &(face, bary) in sources {
-            let f = self.faces.get(face as usize).ok_or_else(|| {
+            let f = self.source_faces.get(face as usize).ok_or_else(|| {
                 AnalysisError::InvalidInput(format!(
                     "heat method: source face {face} out of range (#F = {})",
-                    self.faces.len()
+                    self.source_faces.len()
                 ))
             })?;
             if !bary.iter().all(|b| b.is_finite()) {
@@ -336,6 +409,70 @@ mod tests {
             .distances_from_points(&[(mesh.faces.len() as u32, [1.0, 0.0, 0.0])])
             .is_err());
         assert!(heat.distances_from_points(&[(0, [f64::NAN, 0.0, 1.0])]).is_err());
+    }
+
+    /// The m × m grid with a vertex `offset` (of the cell size) off the midpoint of every cell's
+    /// diagonal, inside the lower triangle, which it splits into three: one of them a needle
+    /// along the diagonal, its angle at the new vertex near 180° (cotangent near −1/(4 offset)).
+    fn needle_grid(m: usize, offset: f64) -> TriMesh {
+        let h = 1.0 / m as f64;
+        let mut p = Vec::new();
+        for j in 0..=m {
+            for i in 0..=m {
+                p.push([i as f64 * h, j as f64 * h, 0.0]);
+            }
+        }
+        let idx = |i: usize, j: usize| (j * (m + 1) + i) as u32;
+        let mut f = Vec::new();
+        for j in 0..m {
+            for i in 0..m {
+                let c = p.len() as u32;
+                // off the diagonal (i, j)–(i+1, j+1), towards (i+1, j)
+                p.push([(i as f64 + 0.5 + offset) * h, (j as f64 + 0.5 - offset) * h, 0.0]);
+                let (a, b, d, e) = (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1));
+                f.extend([[a, b, c], [b, d, c], [d, a, c], [a, d, e]]);
+            }
+        }
+        TriMesh::new(p, f).unwrap()
+    }
+
+    /// Largest relative error (beyond 0.25) of the field from the grid's centre vertex.
+    fn needle_error(heat: &HeatGeodesics, mesh: &TriMesh, m: usize) -> f64 {
+        let s = (m / 2 * (m + 1) + m / 2) as u32;
+        let d = &heat.distances(&[s]).unwrap()[0];
+        let c = mesh.positions[s as usize];
+        let mut worst = 0.0f64;
+        for (v, p) in mesh.positions.iter().enumerate() {
+            let exact = (p[0] - c[0]).hypot(p[1] - c[1]);
+            if exact > 0.25 {
+                worst = worst.max((d[v] - exact).abs() / exact);
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn intrinsic_delaunay_heat_method_survives_needle_triangles() {
+        let m = 20;
+        let mesh = needle_grid(m, 1e-4);
+        let plain = needle_error(&HeatGeodesics::new(&mesh).unwrap(), &mesh, m);
+        let idt = needle_error(&HeatGeodesics::intrinsic_delaunay(&mesh).unwrap(), &mesh, m);
+        assert!(idt < 0.05, "intrinsic Delaunay: relative error {idt}");
+        assert!(
+            idt < 0.6 * plain,
+            "intrinsic Delaunay {idt} against plain cotangents {plain}"
+        );
+        // on a triangulation that is already Delaunay no edge flips: the same operators and
+        // fields up to the planar layout's roundoff
+        let g = grid(16);
+        let (a, b) = (
+            HeatGeodesics::new(&g).unwrap(),
+            HeatGeodesics::intrinsic_delaunay(&g).unwrap(),
+        );
+        assert!((a.time - b.time).abs() < 1e-15);
+        let (da, db) = (&a.distances(&[100]).unwrap()[0], &b.distances(&[100]).unwrap()[0]);
+        let gap = da.iter().zip(db).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        assert!(gap < 1e-10, "grid fields differ by {gap}");
     }
 
     #[test]
