@@ -110,6 +110,22 @@ fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// Creates an output folder before any work (an existing file of that name is an error).
+/// Reads the mesh at `path` for a map onto the sphere: an error naming the file and the
+/// reasons when it is not a closed genus-0 surface.
+pub(crate) fn read_closed_mesh(path: &Path) -> anyhow::Result<shapespace_geometry::TriMesh> {
+    let mesh = shapespace_geometry::io::read_mesh(path)?;
+    let class = shapespace_geometry::topology::classify(&mesh)?;
+    if class.class != shapespace_geometry::topology::MeshClass::Sphere {
+        anyhow::bail!(
+            "{} is not a closed genus-0 surface ({}), so it has no map onto the sphere: {}",
+            path.display(),
+            class.class,
+            class.reasons.join("; ")
+        );
+    }
+    Ok(mesh)
+}
+
 pub(crate) fn create_output_folder(dir: &std::path::Path) -> anyhow::Result<()> {
     use anyhow::Context;
     if dir.exists() && !dir.is_dir() {

@@ -515,16 +515,7 @@ fn run_sphere(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     if args.start != super::ot::StartArg::Auto {
         anyhow::bail!("--start applies to the disk only (the sphere's OT starts from the Voronoi cells with density continuation)");
     }
-    let mesh = read_mesh(&args.input)?;
-    let class = shapespace_geometry::topology::classify(&mesh)?;
-    if class.class != shapespace_geometry::topology::MeshClass::Sphere {
-        anyhow::bail!(
-            "{} is not a closed genus-0 surface ({}), so it has no map onto the sphere: {}",
-            args.input.display(),
-            class.class,
-            class.reasons.join("; ")
-        );
-    }
+    let mesh = super::read_closed_mesh(&args.input)?;
     let mut params = SphereParamParams {
         weights: match &args.weights {
             Some(p) => Some(read_vertex_weights(p, mesh.num_vertices())?),

@@ -14,7 +14,7 @@ use anyhow::{Context, Result};
 use shapespace_analysis::area_preserving::read_vertex_weights;
 use shapespace_analysis::distortion::{sphere_map_distortion, DistortionReport};
 use shapespace_analysis::spherical_mds::{spherical_mds_map, SphericalMdsParams, SphericalMdsStart};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::write_mesh;
 
 use super::param::{with_spinner, write_plots_and_report, ParamArgs};
 
@@ -91,15 +91,7 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     }
     // an unknown output extension is named before the input is read
     shapespace_geometry::io::MeshFormat::from_path(&args.out)?;
-    let mesh = read_mesh(&args.input)?;
-    let class = shapespace_geometry::topology::classify(&mesh)?;
-    if class.class != shapespace_geometry::topology::MeshClass::Sphere {
-        anyhow::bail!(
-            "{input} is not a closed genus-0 surface ({}), so it has no map onto the sphere: {}",
-            class.class,
-            class.reasons.join("; ")
-        );
-    }
+    let mesh = super::read_closed_mesh(&args.input)?;
     let defaults = SphericalMdsParams::default();
     let params = SphericalMdsParams {
         max_angle: args.smds.max_angle.map_or(defaults.max_angle, f64::to_radians),

@@ -14,7 +14,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use shapespace_analysis::distortion::sphere_distortion_report;
 use shapespace_analysis::sphere_flows::{sphere_gradient_flow_map, sphere_lie_map, SphereFlowParams, SphereLieParams};
-use shapespace_geometry::io::{read_mesh, write_mesh};
+use shapespace_geometry::io::write_mesh;
 
 use super::param::{with_spinner, write_plots_and_report, ParamArgs, ParamMethod};
 
@@ -37,15 +37,7 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     // an unknown output extension is named before the input is read
     shapespace_geometry::io::MeshFormat::from_path(&args.out)?;
     let normalization = args.sphere.normalization_for(&args.input, &args.markers)?;
-    let mesh = read_mesh(&args.input)?;
-    let class = shapespace_geometry::topology::classify(&mesh)?;
-    if class.class != shapespace_geometry::topology::MeshClass::Sphere {
-        anyhow::bail!(
-            "{input} is not a closed genus-0 surface ({}), so it has no map onto the sphere: {}",
-            class.class,
-            class.reasons.join("; ")
-        );
-    }
+    let mesh = super::read_closed_mesh(&args.input)?;
     let mut lie = SphereLieParams {
         fold_repair: !args.no_fold_repair,
         ..Default::default()
