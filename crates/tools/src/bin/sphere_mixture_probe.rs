@@ -23,6 +23,10 @@ fn mixture(a: &SphereMeasure, b: &SphereMeasure, s: f64) -> SphereMeasure {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
+    if args.len() < 3 {
+        eprintln!("usage: sphere_mixture_probe A B [s1,s2,…] [tolerance]");
+        std::process::exit(2);
+    }
     let prepare = |p: &str| {
         let mesh = shapespace_geometry::io::read_mesh(std::path::Path::new(p)).expect("mesh");
         prepare_sphere_shape(p, &mesh, &SphereMapParams::default()).expect("sphere map")
@@ -40,7 +44,7 @@ fn main() {
     let tolerance: f64 = args.get(4).map_or(1e-4, |t| t.parse().expect("tolerance"));
     let t_all = std::time::Instant::now();
     let mut warm: Option<(Vec<f64>, Vec<f64>)> = None;
-    let mut run = |label: String, measure: &SphereMeasure, tol: f64, warm: &mut Option<(Vec<f64>, Vec<f64>)>| {
+    let run = |label: String, measure: &SphereMeasure, tol: f64, warm: &mut Option<(Vec<f64>, Vec<f64>)>| {
         let (hi, lo) = warm.take().unzip();
         let p = SphereOtParams {
             tolerance: tol,
