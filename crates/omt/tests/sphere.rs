@@ -740,3 +740,66 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
         "{bad:?}"
     );
 }
+
+/// The stall window (decision 0038): on the crowded case above without the continuation the
+/// direct solve crawls (decision 0030: to the step cap); with a window of 10 it stops as
+/// `Stalled` once 10 accepted steps have not halved the largest mass error, and the error it
+/// reports is that of its last step. On a case that converges the window changes nothing.
+#[test]
+fn a_crawling_direct_solve_stops_at_its_stall_window() {
+    let (v, t) = icosphere(4);
+    let measure = SphereMeasure::from_spherical_density(v, t, |x| (8.0 * x[2]).exp()).unwrap();
+    let d = 1e-9;
+    let mut points = random_sphere_points(200, 7);
+    let mut masses = vec![1.0; 200];
+    for (z, mass) in [(1.0, 3.0), (-1.0, 0.5)] {
+        for k in 0..6 {
+            for l in 0..6 {
+                points.push(unit([(k as f64 - 2.5) * d, (l as f64 - 2.5) * d, z]));
+                masses.push(mass);
+            }
+        }
+    }
+    let window = 10;
+    let direct = SphereOtParams {
+        density_continuation: None,
+        stall_window: Some(window),
+        ..Default::default()
+    };
+    let s = solve_sphere_ot(&measure, &points, &masses, &direct).unwrap();
+    assert!(matches!(s.stop, StopReason::Stalled { .. }), "{}", s.stop);
+    assert!(
+        s.iterations < SphereOtParams::default().max_iterations,
+        "{} steps",
+        s.iterations
+    );
+    // the last path's log: at least `window` steps, and the last `window` did not halve the error
+    assert!(s.log.len() >= window, "{} logged steps", s.log.len());
+    let last = s.log[s.log.len() - 1].max_relative_error;
+    assert_eq!(last, s.max_relative_error);
+    if s.log.len() > window {
+        let before = s.log[s.log.len() - 1 - window].max_relative_error;
+        assert!(last > 0.5 * before, "{before:e} → {last:e}");
+    }
+    assert!(s.max_relative_error > 1e-6);
+    // a converging solve: the same steps, heights and cost with and without a window
+    let measure = zonal_measure(4, 0.9);
+    let n = 1000;
+    let points = random_sphere_points(n, 43);
+    let plain = solve_sphere_ot(&measure, &points, &vec![1.0; n], &SphereOtParams::default()).unwrap();
+    let windowed = solve_sphere_ot(
+        &measure,
+        &points,
+        &vec![1.0; n],
+        &SphereOtParams {
+            stall_window: Some(4),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(plain.converged());
+    assert_eq!(windowed.stop, StopReason::Converged);
+    assert_eq!(windowed.iterations, plain.iterations);
+    assert_eq!(windowed.heights, plain.heights);
+    assert_eq!(windowed.cost, plain.cost);
+}

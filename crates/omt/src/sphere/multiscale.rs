@@ -474,6 +474,7 @@ fn solve_level(
         initial_heights: None,
         initial_heights_lo: None,
         start: SphereStart::CoarseToFine,
+        stall_window: None,
         ..params.clone()
     };
     let past_deadline = || params.deadline.is_some_and(|d| Instant::now() >= d);

@@ -1,4 +1,4 @@
-//! `sphere_distance_probe A B [fixed|rotation]`: the spherical distance A → B of two closed
+//! `sphere_distance_probe A B [fixed|rotation|direct|fallback|continuation=R]`: the spherical distance A → B of two closed
 //! meshes with its stages (the transport solves' steps and seconds, the rotation search).
 
 use shapespace_analysis::sphere_distance::{directed_sphere_distance, prepare_sphere_shape, SphereAlignment};
@@ -42,6 +42,35 @@ fn main() {
                 s.continuation_stages, s.continuation_iterations, s.iterations, s.evaluations, s.stop, s.max_relative_error, s.cost, t.elapsed().as_secs_f64()
             ),
             Err(e) => println!("continuation failed: {e}"),
+        }
+        return;
+    }
+    if args.get(3).map(String::as_str) == Some("fallback") {
+        // the cold solve of `distances` at the maps' own alignment (the direct solve, then the
+        // continuation if it does not converge), with the direct solve's full step cap and with
+        // its stall window (decision 0038), one after the other
+        for window in [None, Some(shapespace_analysis::sphere_distance::DIRECT_STALL_STEPS)] {
+            let t = std::time::Instant::now();
+            let direct = SphereOtParams {
+                tolerance: 1e-4,
+                density_continuation: None,
+                stall_window: window,
+                ..SphereOtParams::default()
+            };
+            let first =
+                shapespace_omt::sphere::solve_sphere_ot(&a.measure, &b.points, &b.masses, &direct).expect("direct");
+            let t_direct = t.elapsed().as_secs_f64();
+            let fallback = SphereOtParams {
+                tolerance: 1e-4,
+                ..SphereOtParams::default()
+            };
+            let s = shapespace_omt::sphere::solve_sphere_ot(&a.measure, &b.points, &b.masses, &fallback)
+                .expect("continuation");
+            println!(
+                "stall window {window:?}: direct {} steps ({}, error {:.2e}, {t_direct:.2} s); continuation {} stages, {} + {} steps, {}, error {:.2e}, cost {:.6e}; total {:.2} s",
+                first.iterations, first.stop, first.max_relative_error, s.continuation_stages, s.continuation_iterations,
+                s.iterations, s.stop, s.max_relative_error, s.cost, t.elapsed().as_secs_f64()
+            );
         }
         return;
     }
