@@ -741,7 +741,7 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
     );
 }
 
-/// The stall window (decision 0038): on the crowded case above without the continuation the
+/// The stall window (decision 0036): on the crowded case above without the continuation the
 /// direct solve crawls (decision 0030: to the step cap); with a window of 10 it stops as
 /// `Stalled` once 10 accepted steps have not halved the largest mass error, and the error it
 /// reports is that of its last step. On a case that converges the window changes nothing.

@@ -81,7 +81,7 @@ pub const MAX_REFINEMENT_TURN: f64 = 0.5;
 /// Refinement steps at most.
 pub const MAX_REFINEMENT_STEPS: usize = 20;
 /// A cold direct solve that has not halved its largest relative mass error in this many steps
-/// gives way to the density continuation (decision 0038: on the TOSCA bodies the direct solve
+/// gives way to the density continuation (decision 0036: on the TOSCA bodies the direct solve
 /// crawls at τ ≈ 1e-3 and its 100 steps only took the error from 111 to 101).
 pub const DIRECT_STALL_STEPS: usize = 20;
 /// Target points closer than this on S² are merged (as [`crate::distance::COINCIDENT_POINTS`]

@@ -77,7 +77,7 @@ pub struct SphereOtParams {
     /// accepted steps have not halved the largest relative mass error. For an attempt that
     /// has a more robust path after it (the direct solve before the density continuation):
     /// on a crowded body the direct solve crawls at τ ≈ 1e-3 for its whole step cap
-    /// (docs/decisions/0038-sphere-direct-solve-stall.md). Not passed on to the coarse levels
+    /// (docs/decisions/0036-sphere-direct-solve-stall.md). Not passed on to the coarse levels
     /// or the continuation's stages.
     pub stall_window: Option<usize>,
 }

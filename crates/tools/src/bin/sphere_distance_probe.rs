@@ -48,7 +48,7 @@ fn main() {
     if args.get(3).map(String::as_str) == Some("fallback") {
         // the cold solve of `distances` at the maps' own alignment (the direct solve, then the
         // continuation if it does not converge), with the direct solve's full step cap and with
-        // its stall window (decision 0038), one after the other
+        // its stall window (decision 0036), one after the other
         for window in [None, Some(shapespace_analysis::sphere_distance::DIRECT_STALL_STEPS)] {
             let t = std::time::Instant::now();
             let direct = SphereOtParams {
