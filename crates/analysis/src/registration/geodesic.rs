@@ -372,14 +372,7 @@ mod tests {
                 c[e] += bary[k] * mesh.positions[f[k] as usize][e];
             }
         }
-        let mut worst = 0.0f64;
-        for (v, p) in mesh.positions.iter().enumerate() {
-            let exact = (p[0] - c[0]).hypot(p[1] - c[1]);
-            if exact > 0.25 {
-                worst = worst.max((d[v] - exact).abs() / exact);
-            }
-        }
-        worst
+        worst_relative_error(&mesh.positions, d, c)
     }
 
     #[test]
@@ -425,19 +418,25 @@ mod tests {
         TriMesh::new(p, f).unwrap()
     }
 
-    /// Largest relative error (beyond 0.25) of the field from the grid's centre vertex.
-    fn centre_error(heat: &HeatGeodesics, mesh: &TriMesh, m: usize) -> f64 {
-        let s = (m / 2 * (m + 1) + m / 2) as u32;
-        let d = &heat.distances(&[s]).unwrap()[0];
-        let c = mesh.positions[s as usize];
+    /// Largest relative error of the distances `d` against the planar distance from `c`, over
+    /// the vertices farther than 0.25 from it.
+    fn worst_relative_error(positions: &[[f64; 3]], d: &[f64], c: [f64; 3]) -> f64 {
         let mut worst = 0.0f64;
-        for (v, p) in mesh.positions.iter().enumerate() {
+        for (v, p) in positions.iter().enumerate() {
             let exact = (p[0] - c[0]).hypot(p[1] - c[1]);
             if exact > 0.25 {
                 worst = worst.max((d[v] - exact).abs() / exact);
             }
         }
         worst
+    }
+
+    /// Largest relative error (beyond 0.25) of the field from the grid's centre vertex.
+    fn centre_error(heat: &HeatGeodesics, mesh: &TriMesh, m: usize) -> f64 {
+        let s = (m / 2 * (m + 1) + m / 2) as u32;
+        let d = &heat.distances(&[s]).unwrap()[0];
+        let c = mesh.positions[s as usize];
+        worst_relative_error(&mesh.positions, d, c)
     }
 
     #[test]
