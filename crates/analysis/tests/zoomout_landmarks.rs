@@ -41,6 +41,32 @@ fn cut_poses(a: &str, b: &str) -> Option<(TriMesh, TriMesh)> {
     Some((d0, d1))
 }
 
+/// The cat tests' landmarks and markers on a cut pose `s` (the targets share its vertex order):
+/// six of its seven extremities as landmarks, the seventh as the centre marker, and the first
+/// boundary vertex as the boundary marker (with the script's choice, the boundary vertex of
+/// largest z, reference → 0002 measured 0.128 instead of 0.013: the first stage is sensitive to
+/// the disk's rotation on this cut; not examined further).
+fn extremity_landmarks(s: &TriMesh) -> (Landmarks, RegistrationParams) {
+    let ext = shapespace_geometry::seam::extremities(s, 7).unwrap();
+    let on_boundary = Connectivity::of(s).boundary_vertices(s.num_vertices());
+    let boundary = (0..s.num_vertices()).find(|&v| on_boundary[v]).unwrap() as u32;
+    let markers = Markers {
+        center: CenterMarker::Vertex(ext[6]),
+        boundary: BoundaryMarker::Vertex(boundary),
+    };
+    let lm = Landmarks {
+        pairs: ext[..6].iter().map(|&v| (v, v)).collect(),
+        names: (0..6).map(|i| format!("x{i}")).collect(),
+        source_name: "extremities".into(),
+    };
+    let params = RegistrationParams {
+        source_markers: markers.clone(),
+        target_markers: markers,
+        ..RegistrationParams::default()
+    };
+    (lm, params)
+}
+
 /// Two cat pairs refined by ZoomOut with the landmarks' geodesic distances in the embeddings
 /// (weight 3, the default; the heat method on the intrinsic Delaunay triangulation) against
 /// without them (weight 0). Measured: reference → 0002 mean geodesic error 0.0119 against
@@ -55,26 +81,7 @@ fn cut_poses(a: &str, b: &str) -> Option<(TriMesh, TriMesh)> {
 fn landmark_coordinates_keep_the_cat_limbs_apart() {
     for (a, b, bound, gain) in [("reference", "0002", 0.013, 1.05), ("0001", "0002", 0.018, 0.6)] {
         let Some((s, t)) = cut_poses(a, b) else { return };
-        let ext = shapespace_geometry::seam::extremities(&s, 7).unwrap();
-        let on_boundary = Connectivity::of(&s).boundary_vertices(s.num_vertices());
-        // the boundary marker: the first boundary vertex (with the script's choice, the boundary
-        // vertex of largest z, reference → 0002 measured 0.128 instead of 0.013: the first stage
-        // is sensitive to the disk's rotation on this cut; not examined further)
-        let boundary = (0..s.num_vertices()).find(|&v| on_boundary[v]).unwrap() as u32;
-        let markers = Markers {
-            center: CenterMarker::Vertex(ext[6]),
-            boundary: BoundaryMarker::Vertex(boundary),
-        };
-        let lm = Landmarks {
-            pairs: ext[..6].iter().map(|&v| (v, v)).collect(),
-            names: (0..6).map(|i| format!("x{i}")).collect(),
-            source_name: "extremities".into(),
-        };
-        let params = RegistrationParams {
-            source_markers: markers.clone(),
-            target_markers: markers,
-            ..RegistrationParams::default()
-        };
+        let (lm, params) = extremity_landmarks(&s);
         let first = register(&s, &t, &lm, &params).unwrap();
         let zp = ZoomOutParams::default();
         let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
@@ -115,23 +122,7 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
             eprintln!("point_untangling_removes_most_flipped_area_on_the_cat: shared Sumner cat poses absent, skipped");
             return;
         };
-        let ext = shapespace_geometry::seam::extremities(&s, 7).unwrap();
-        let on_boundary = Connectivity::of(&s).boundary_vertices(s.num_vertices());
-        let boundary = (0..s.num_vertices()).find(|&v| on_boundary[v]).unwrap() as u32;
-        let markers = Markers {
-            center: CenterMarker::Vertex(ext[6]),
-            boundary: BoundaryMarker::Vertex(boundary),
-        };
-        let lm = Landmarks {
-            pairs: ext[..6].iter().map(|&v| (v, v)).collect(),
-            names: (0..6).map(|i| format!("x{i}")).collect(),
-            source_name: "extremities".into(),
-        };
-        let params = RegistrationParams {
-            source_markers: markers.clone(),
-            target_markers: markers,
-            ..RegistrationParams::default()
-        };
+        let (lm, params) = extremity_landmarks(&s);
         let first = register(&s, &t, &lm, &params).unwrap();
         let zp = ZoomOutParams::default();
         let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
