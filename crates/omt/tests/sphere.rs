@@ -676,12 +676,10 @@ fn crowded_clusters_converge_from_the_coarse_to_fine_start() {
     );
 }
 
-/// A crowded source and crowded sites: the density e^{8z} (contrast 9e6) against two 6×6 grids
-/// of sites 1e-9 apart at the poles and 200 spread sites converges through the density
-/// continuation; a warm start from the solution's double-double heights
-/// (`initial_heights_lo`) is converged at once, with the same heights and cost.
-#[test]
-fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
+/// The crowded case of the tests below: the density e^{8z} (contrast 9e6) on an icosphere of
+/// level 4 against 200 spread sites and two 6×6 grids of sites 1e-9 apart at the poles
+/// (masses 3 at the north pole, 0.5 at the south, 1 elsewhere).
+fn crowded_case() -> (SphereMeasure, Vec<[f64; 3]>, Vec<f64>) {
     let (v, t) = icosphere(4);
     let measure = SphereMeasure::from_spherical_density(v, t, |x| (8.0 * x[2]).exp()).unwrap();
     let d = 1e-9;
@@ -695,6 +693,16 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
             }
         }
     }
+    (measure, points, masses)
+}
+
+/// A crowded source and crowded sites: the density e^{8z} (contrast 9e6) against two 6×6 grids
+/// of sites 1e-9 apart at the poles and 200 spread sites converges through the density
+/// continuation; a warm start from the solution's double-double heights
+/// (`initial_heights_lo`) is converged at once, with the same heights and cost.
+#[test]
+fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
+    let (measure, points, masses) = crowded_case();
     let continued = solve_sphere_ot(&measure, &points, &masses, &SphereOtParams::default()).unwrap();
     assert!(
         continued.converged(),
@@ -747,19 +755,7 @@ fn crowded_source_restarts_from_double_double_heights_in_no_steps() {
 /// reports is that of its last step. On a case that converges the window changes nothing.
 #[test]
 fn a_crawling_direct_solve_stops_at_its_stall_window() {
-    let (v, t) = icosphere(4);
-    let measure = SphereMeasure::from_spherical_density(v, t, |x| (8.0 * x[2]).exp()).unwrap();
-    let d = 1e-9;
-    let mut points = random_sphere_points(200, 7);
-    let mut masses = vec![1.0; 200];
-    for (z, mass) in [(1.0, 3.0), (-1.0, 0.5)] {
-        for k in 0..6 {
-            for l in 0..6 {
-                points.push(unit([(k as f64 - 2.5) * d, (l as f64 - 2.5) * d, z]));
-                masses.push(mass);
-            }
-        }
-    }
+    let (measure, points, masses) = crowded_case();
     let window = 10;
     let direct = SphereOtParams {
         density_continuation: None,
