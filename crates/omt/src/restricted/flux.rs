@@ -103,6 +103,34 @@ type LocatedCentre = ([f64; 2], u32, f64);
 /// The edges traced by one chunk of triangles and their crossings with ∂Ω (`None`: declined).
 type TracedChunk = Option<(Vec<EdgeTerms>, Vec<Crossing>)>;
 
+/// Per cell: masses, error estimates; the edge masses; the crossings with ∂Ω.
+type CellSums = (Vec<f64>, Vec<f64>, Vec<(u32, u32, f64)>, Vec<Crossing>);
+
+/// What the tracing of the power edges reads: the source mesh and densities, the diagram, the
+/// located power centres and the cells' fields F₀.
+#[derive(Clone, Copy)]
+struct TraceInput<'a> {
+    vertices: &'a [[f64; 2]],
+    triangles: &'a [[u32; 3]],
+    densities: &'a [f64],
+    diagram: &'a PowerDiagram,
+    centres: &'a [LocatedCentre],
+    f0: &'a [[f64; 2]],
+}
+
+/// A power edge's segment to trace (see `FluxField::power_edge_segment`): its ends p, q and the
+/// source triangles holding them (NONE: outside Ω), the unit normal and the vector from y_i to
+/// y_j, and the bound on its points' position error.
+struct EdgeSegment {
+    p: [f64; 2],
+    q: [f64; 2],
+    p_tri: u32,
+    q_tri: u32,
+    normal: [f64; 2],
+    dij: [f64; 2],
+    position_error: f64,
+}
+
 /// One traced power edge: its two cells, their mass terms and error estimates, and the edge mass.
 #[derive(Clone, Copy, Debug)]
 struct EdgeTerms {
@@ -508,19 +536,72 @@ impl FluxField {
         if diagram.dimension() != 2 || site_triangles.len() != n {
             return None;
         }
-        let (tv, tn) = diagram.raw_triangulation();
-        let sites = diagram.sites();
-        let infinite = n as u32;
-        let finite = |t: &[u32; 3]| t[0] != NONE && !t.contains(&infinite);
-        // Pass 1: the power centres of the finite triangles and the source triangle holding each
-        // (NONE: outside Ω).
+        let (tv, _) = diagram.raw_triangulation();
         let chunk = tv.len().div_ceil(64).max(1);
+        let centres = self.locate_centres(vertices, triangles, diagram, site_triangles, chunk)?;
+        let f0 = self.cell_fields(diagram, &centres, site_triangles);
+        let input = TraceInput {
+            vertices,
+            triangles,
+            densities,
+            diagram,
+            centres: &centres,
+            f0: &f0,
+        };
+        // Pass 2: trace every power edge once (from the finite triangle whose sorted vertices
+        // come first, or from its only finite triangle for a ray).
+        let traced: Vec<TracedChunk> = (0..tv.len())
+            .collect::<Vec<_>>()
+            .par_chunks(chunk)
+            .map(|part| {
+                let mut edges = Vec::new();
+                let mut crossings = Vec::new();
+                for &t in part {
+                    if !finite_triangle(&tv[t], n) {
+                        continue;
+                    }
+                    for k in 0..3 {
+                        self.trace_power_edge(&input, t, k, &mut edges, &mut crossings)?;
+                    }
+                }
+                Some((edges, crossings))
+            })
+            .collect();
+        let (mut masses, mut errors, edge_masses, crossings) = sum_edge_terms(diagram, traced)?;
+        self.add_boundary_arcs(diagram, &f0, crossings, &mut masses, &mut errors)?;
+        for i in 0..n {
+            let empty = masses[i] == 0.0 && errors[i] == 0.0;
+            if !empty && !(errors[i] <= relative_bound * masses[i]) {
+                return None;
+            }
+        }
+        Some(CellIntegrals {
+            masses,
+            first_moments: Vec::new(),
+            second_moments: Vec::new(),
+            edge_masses,
+        })
+    }
+
+    /// Pass 1 of [`Self::integrate`]: the power centres of the finite triangles of `diagram`
+    /// (in its storage order; NaN for the others) and the source triangle holding each (NONE:
+    /// outside Ω); `None` when a walk gets stuck or a centre cannot be computed.
+    fn locate_centres(
+        &self,
+        vertices: &[[f64; 2]],
+        triangles: &[[u32; 3]],
+        diagram: &PowerDiagram,
+        site_triangles: &[u32],
+        chunk: usize,
+    ) -> Option<Vec<LocatedCentre>> {
+        let (tv, _) = diagram.raw_triangulation();
+        let n = diagram.num_sites();
         let located: Vec<Option<Vec<LocatedCentre>>> = tv
             .par_chunks(chunk)
             .map(|part| {
                 let mut out = Vec::with_capacity(part.len());
                 for t in part {
-                    if !finite(t) {
+                    if !finite_triangle(t, n) {
                         out.push(([f64::NAN; 2], NONE, 0.0));
                         continue;
                     }
@@ -542,12 +623,19 @@ impl FluxField {
         for part in located {
             centres.extend(part?);
         }
-        // F₀ per cell: the field at one of its vertices (of the incident triangle whose sorted
-        // vertices come first, so independent of the storage order), or at its site when that
-        // vertex is outside Ω: close to the cell even when the weights put it far from its site.
+        Some(centres)
+    }
+
+    /// F₀ per cell: the field at one of its vertices (of the incident triangle whose sorted
+    /// vertices come first, so independent of the storage order), or at its site when that
+    /// vertex is outside Ω: close to the cell even when the weights put it far from its site.
+    fn cell_fields(&self, diagram: &PowerDiagram, centres: &[LocatedCentre], site_triangles: &[u32]) -> Vec<[f64; 2]> {
+        let (tv, _) = diagram.raw_triangulation();
+        let n = diagram.num_sites();
+        let sites = diagram.sites();
         let mut anchor: Vec<Option<([u32; 3], usize)>> = vec![None; n];
         for (k, t) in tv.iter().enumerate() {
-            if !finite(t) {
+            if !finite_triangle(t, n) {
                 continue;
             }
             let mut sorted = *t;
@@ -559,211 +647,224 @@ impl FluxField {
                 }
             }
         }
-        let f0: Vec<[f64; 2]> = (0..n)
+        (0..n)
             .map(|i| match anchor[i] {
                 Some((_, k)) if centres[k].1 != NONE => self.field(centres[k].1 as usize, centres[k].0),
                 _ => self.field(site_triangles[i] as usize, sites[i]),
             })
-            .collect();
-        // Pass 2: trace every power edge once (from the finite triangle whose sorted vertices
-        // come first, or from its only finite triangle for a ray).
-        let traced: Vec<TracedChunk> = (0..tv.len())
-            .collect::<Vec<_>>()
-            .par_chunks(chunk)
-            .map(|part| {
-                let mut edges = Vec::new();
-                let mut crossings = Vec::new();
-                for &t in part {
-                    if !finite(&tv[t]) {
-                        continue;
-                    }
-                    for k in 0..3 {
-                        let other = tn[t][k];
-                        let other_finite = other != NONE && finite(&tv[other as usize]);
-                        // (traced from the triangle whose sorted vertices come first, so that an
-                        // edge's terms do not depend on how the triangulation stores it)
-                        let sorted = |t: [u32; 3]| {
-                            let mut t = t;
-                            t.sort_unstable();
-                            t
-                        };
-                        if other_finite && sorted(tv[other as usize]) < sorted(tv[t]) {
-                            continue;
-                        }
-                        let (i, j) = (tv[t][NEXT[k]], tv[t][NEXT[NEXT[k]]]);
-                        let (yi, yj) = (sites[i as usize], sites[j as usize]);
-                        let dij = sub(yj, yi);
-                        let norm = (dij[0] * dij[0] + dij[1] * dij[1]).sqrt();
-                        if !(norm > 0.0) {
-                            return None;
-                        }
-                        let normal = [dij[0] / norm, dij[1] / norm];
-                        // The power line of (i, j), x·d = c relative to y_i: its point x0 nearest
-                        // to y_i and its direction τ (to the right of y_i → y_j, away from t).
-                        let (_, c) = power_line_between(diagram, i as usize, j as usize);
-                        let x0 = [yi[0] + c / norm * normal[0], yi[1] + c / norm * normal[1]];
-                        let tau = [normal[1], -normal[0]];
-                        // Points of Ω on the line have |s| ≤ |x0| + √2 extent along τ from x0.
-                        let reach = ((x0[0] * x0[0] + x0[1] * x0[1]).sqrt() + std::f64::consts::SQRT_2 * self.extent)
-                            * (1.0 + 1e-12);
-                        let on_line = |s: f64| [x0[0] + s * tau[0], x0[1] + s * tau[1]];
-                        let along = |x: [f64; 2]| (x[0] - x0[0]) * tau[0] + (x[1] - x0[1]) * tau[1];
-                        // An end point outside Ω is replaced by the point of the line at its
-                        // position, clamped to ±reach: a power centre far away (nearly collinear
-                        // sites) has an absolute error ε|p| that would shift the line near Ω.
-                        let (p, p_tri, p_error) = centres[t];
-                        let p = if p_tri == NONE {
-                            on_line(along(p).clamp(-reach, reach))
-                        } else {
-                            p
-                        };
-                        let (q, q_tri, q_error) = if other_finite {
-                            let (q, q_tri, q_error) = centres[other as usize];
-                            let q = if q_tri == NONE {
-                                on_line(along(q).clamp(-reach, reach))
-                            } else {
-                                q
-                            };
-                            (q, q_tri, q_error)
-                        } else {
-                            // a ray along τ (away from the triangle), to beyond Ω
-                            (on_line(reach), NONE, 0.0)
-                        };
-                        // The walk starts at p when p is in Ω, else at q when q is; its pieces' end
-                        // points a + t (b − a) lie in Ω, so t |b − a| ≤ |a| + extent, and with the
-                        // rounding of t, of the product and of the sum their error is below a
-                        // few ε (|a| + extent), plus the line's own (ε |x0|).
-                        let start = if p_tri == NONE && q_tri != NONE { q } else { p };
-                        // plus the error of the power centres (an estimate: crossings at shallow
-                        // angles are not magnified; convergence is decided on the full integrals
-                        // in any case)
-                        let position_error = 4.0 * f64::EPSILON * (magnitude(start) + magnitude(x0) + self.extent)
-                            + p_error.max(q_error);
-                        let mut terms = EdgeTerms {
-                            i,
-                            j,
-                            term_i: 0.0,
-                            term_j: 0.0,
-                            error_i: 0.0,
-                            error_j: 0.0,
-                            edge_mass: 0.0,
-                        };
-                        let (fi, fj) = (f0[i as usize], f0[j as usize]);
-                        let mut add_piece = |a: [f64; 2], b: [f64; 2], tri: u32, t0: f64, t1: f64| {
-                            if !(t1 > t0) {
-                                return;
-                            }
-                            let ab = sub(b, a);
-                            let length = (t1 - t0) * (ab[0] * ab[0] + ab[1] * ab[1]).sqrt();
-                            let tm = 0.5 * (t0 + t1);
-                            let x = [a[0] + tm * ab[0], a[1] + tm * ab[1]];
-                            let f = self.field(tri as usize, x);
-                            let (gi, gj) = (sub(f, fi), sub(f, fj));
-                            let (ni, nj) = (
-                                gi[0] * normal[0] + gi[1] * normal[1],
-                                gj[0] * normal[0] + gj[1] * normal[1],
-                            );
-                            terms.term_i += length * ni;
-                            terms.term_j -= length * nj;
-                            // rounding of the term, and the endpoints' position errors
-                            terms.error_i +=
-                                4.0 * f64::EPSILON * (length * ni).abs() + position_error * (gi[0].abs() + gi[1].abs());
-                            terms.error_j +=
-                                4.0 * f64::EPSILON * (length * nj).abs() + position_error * (gj[0].abs() + gj[1].abs());
-                            terms.edge_mass += densities[tri as usize] * length;
-                        };
-                        // the cells before and after a crossing, counter-clockwise along ∂Ω
-                        let crossing = |edge: u32, s: f64| -> Option<Crossing> {
-                            let m = self.loop_points.len();
-                            let e = edge as usize;
-                            let along = sub(self.loop_points[(e + 1) % m], self.loop_points[e]);
-                            let dot = along[0] * dij[0] + along[1] * dij[1];
-                            let (from, to) = match dot.partial_cmp(&0.0) {
-                                Some(std::cmp::Ordering::Greater) => (i, j),
-                                Some(std::cmp::Ordering::Less) => (j, i),
-                                _ => return None,
-                            };
-                            Some(Crossing {
-                                edge,
-                                s,
-                                from,
-                                to,
-                                error: position_error,
-                            })
-                        };
-                        if p_tri != NONE {
-                            match self.walk(vertices, triangles, p, q, p_tri, 0.0, |tri, t0, t1| {
-                                add_piece(p, q, tri, t0, t1)
-                            }) {
-                                End::Inside(_) => {}
-                                End::Boundary { edge, s, .. } => crossings.push(crossing(edge, s)?),
-                                End::Stuck => return None,
-                            }
-                        } else if q_tri != NONE {
-                            match self.walk(vertices, triangles, q, p, q_tri, 0.0, |tri, t0, t1| {
-                                add_piece(q, p, tri, t0, t1)
-                            }) {
-                                End::Inside(_) => {}
-                                End::Boundary { edge, s, .. } => crossings.push(crossing(edge, s)?),
-                                End::Stuck => return None,
-                            }
-                        } else if let Some((t_in, edge_in, s_in)) = self.entry(p, q) {
-                            let start = self.loop_triangles[edge_in as usize];
-                            match self.walk(vertices, triangles, p, q, start, t_in, |tri, t0, t1| {
-                                add_piece(p, q, tri, t0, t1)
-                            }) {
-                                End::Boundary { edge, s, .. } => {
-                                    crossings.push(crossing(edge_in, s_in)?);
-                                    crossings.push(crossing(edge, s)?);
-                                }
-                                End::Inside(_) | End::Stuck => return None,
-                            }
-                        }
-                        if terms.edge_mass > 0.0 {
-                            edges.push(terms);
-                        }
-                    }
-                }
-                Some((edges, crossings))
-            })
-            .collect();
-        // Each edge's terms go to its two slots in the neighbour lists, and each cell sums its
-        // slots in the order of its list: the masses do not depend on the triangulation's
-        // storage order (a flip update and a construction give the same bits).
-        let offsets = diagram.neighbor_offsets();
-        let list = diagram.neighbor_list();
-        let slot = |i: u32, j: u32| {
-            let (a, b) = (offsets[i as usize] as usize, offsets[i as usize + 1] as usize);
-            list[a..b].iter().position(|&v| v == j).map(|k| a + k)
+            .collect()
+    }
+
+    /// Traces the power edge opposite corner `k` of the diagram's triangle `t` (unless the
+    /// neighbouring finite triangle traces it): its pieces in Ω give both cells' flux terms and
+    /// the edge mass (pushed to `edges` when positive), its ends on ∂Ω the `crossings`. `None`
+    /// when this form declines.
+    fn trace_power_edge(
+        &self,
+        input: &TraceInput<'_>,
+        t: usize,
+        k: usize,
+        edges: &mut Vec<EdgeTerms>,
+        crossings: &mut Vec<Crossing>,
+    ) -> Option<()> {
+        let TraceInput {
+            vertices,
+            triangles,
+            densities,
+            diagram,
+            centres,
+            f0,
+        } = *input;
+        let (tv, tn) = diagram.raw_triangulation();
+        let n = diagram.num_sites();
+        let other = tn[t][k];
+        let other_finite = other != NONE && finite_triangle(&tv[other as usize], n);
+        // (traced from the triangle whose sorted vertices come first, so that an
+        // edge's terms do not depend on how the triangulation stores it)
+        let sorted = |t: [u32; 3]| {
+            let mut t = t;
+            t.sort_unstable();
+            t
         };
-        // per slot: mass term, error, edge mass
-        let mut slots = vec![(0.0f64, 0.0f64, 0.0f64); list.len()];
-        let mut crossings = Vec::new();
-        for part in traced {
-            let (edges, c) = part?;
-            for e in edges {
-                let (si, sj) = (slot(e.i, e.j)?, slot(e.j, e.i)?);
-                slots[si] = (e.term_i, e.error_i, e.edge_mass);
-                slots[sj] = (e.term_j, e.error_j, e.edge_mass);
-            }
-            crossings.extend(c);
+        if other_finite && sorted(tv[other as usize]) < sorted(tv[t]) {
+            return Some(());
         }
-        let mut masses = vec![0.0; n];
-        let mut errors = vec![0.0; n];
-        let mut edge_masses = Vec::with_capacity(list.len() / 2);
-        for i in 0..n {
-            let start = edge_masses.len();
-            for k in offsets[i] as usize..offsets[i + 1] as usize {
-                let (term, error, edge_mass) = slots[k];
-                masses[i] += term;
-                errors[i] += error;
-                if (i as u32) < list[k] && edge_mass > 0.0 {
-                    edge_masses.push((i as u32, list[k], edge_mass));
+        let (i, j) = (tv[t][NEXT[k]], tv[t][NEXT[NEXT[k]]]);
+        let EdgeSegment {
+            p,
+            q,
+            p_tri,
+            q_tri,
+            normal,
+            dij,
+            position_error,
+        } = self.power_edge_segment(diagram, centres, t, (i, j), other_finite.then_some(other as usize))?;
+        let mut terms = EdgeTerms {
+            i,
+            j,
+            term_i: 0.0,
+            term_j: 0.0,
+            error_i: 0.0,
+            error_j: 0.0,
+            edge_mass: 0.0,
+        };
+        let (fi, fj) = (f0[i as usize], f0[j as usize]);
+        let mut add_piece = |a: [f64; 2], b: [f64; 2], tri: u32, t0: f64, t1: f64| {
+            if !(t1 > t0) {
+                return;
+            }
+            let ab = sub(b, a);
+            let length = (t1 - t0) * (ab[0] * ab[0] + ab[1] * ab[1]).sqrt();
+            let tm = 0.5 * (t0 + t1);
+            let x = [a[0] + tm * ab[0], a[1] + tm * ab[1]];
+            let f = self.field(tri as usize, x);
+            let (gi, gj) = (sub(f, fi), sub(f, fj));
+            let (ni, nj) = (
+                gi[0] * normal[0] + gi[1] * normal[1],
+                gj[0] * normal[0] + gj[1] * normal[1],
+            );
+            terms.term_i += length * ni;
+            terms.term_j -= length * nj;
+            // rounding of the term, and the endpoints' position errors
+            terms.error_i += 4.0 * f64::EPSILON * (length * ni).abs() + position_error * (gi[0].abs() + gi[1].abs());
+            terms.error_j += 4.0 * f64::EPSILON * (length * nj).abs() + position_error * (gj[0].abs() + gj[1].abs());
+            terms.edge_mass += densities[tri as usize] * length;
+        };
+        // the cells before and after a crossing, counter-clockwise along ∂Ω
+        let crossing = |edge: u32, s: f64| -> Option<Crossing> {
+            let m = self.loop_points.len();
+            let e = edge as usize;
+            let along = sub(self.loop_points[(e + 1) % m], self.loop_points[e]);
+            let dot = along[0] * dij[0] + along[1] * dij[1];
+            let (from, to) = match dot.partial_cmp(&0.0) {
+                Some(std::cmp::Ordering::Greater) => (i, j),
+                Some(std::cmp::Ordering::Less) => (j, i),
+                _ => return None,
+            };
+            Some(Crossing {
+                edge,
+                s,
+                from,
+                to,
+                error: position_error,
+            })
+        };
+        if p_tri != NONE {
+            match self.walk(vertices, triangles, p, q, p_tri, 0.0, |tri, t0, t1| {
+                add_piece(p, q, tri, t0, t1)
+            }) {
+                End::Inside(_) => {}
+                End::Boundary { edge, s, .. } => crossings.push(crossing(edge, s)?),
+                End::Stuck => return None,
+            }
+        } else if q_tri != NONE {
+            match self.walk(vertices, triangles, q, p, q_tri, 0.0, |tri, t0, t1| {
+                add_piece(q, p, tri, t0, t1)
+            }) {
+                End::Inside(_) => {}
+                End::Boundary { edge, s, .. } => crossings.push(crossing(edge, s)?),
+                End::Stuck => return None,
+            }
+        } else if let Some((t_in, edge_in, s_in)) = self.entry(p, q) {
+            let start = self.loop_triangles[edge_in as usize];
+            match self.walk(vertices, triangles, p, q, start, t_in, |tri, t0, t1| {
+                add_piece(p, q, tri, t0, t1)
+            }) {
+                End::Boundary { edge, s, .. } => {
+                    crossings.push(crossing(edge_in, s_in)?);
+                    crossings.push(crossing(edge, s)?);
                 }
+                End::Inside(_) | End::Stuck => return None,
             }
-            edge_masses[start..].sort_unstable_by_key(|e| e.1);
         }
-        // The arcs of ∂Ω: between consecutive crossings counter-clockwise, in the cell entered.
+        if terms.edge_mass > 0.0 {
+            edges.push(terms);
+        }
+        Some(())
+    }
+
+    /// The power edge of sites (i, j) between the centre of the diagram's triangle `t` and
+    /// that of its finite neighbour `other` (None: a ray to beyond Ω), its ends outside Ω moved
+    /// onto the line within reach of Ω, the unit normal from y_i to y_j, and the bound on the
+    /// position error of its points. `None` for coincident sites.
+    fn power_edge_segment(
+        &self,
+        diagram: &PowerDiagram,
+        centres: &[LocatedCentre],
+        t: usize,
+        (i, j): (u32, u32),
+        other: Option<usize>,
+    ) -> Option<EdgeSegment> {
+        let sites = diagram.sites();
+        let (yi, yj) = (sites[i as usize], sites[j as usize]);
+        let dij = sub(yj, yi);
+        let norm = (dij[0] * dij[0] + dij[1] * dij[1]).sqrt();
+        if !(norm > 0.0) {
+            return None;
+        }
+        let normal = [dij[0] / norm, dij[1] / norm];
+        // The power line of (i, j), x·d = c relative to y_i: its point x0 nearest
+        // to y_i and its direction τ (to the right of y_i → y_j, away from t).
+        let (_, c) = power_line_between(diagram, i as usize, j as usize);
+        let x0 = [yi[0] + c / norm * normal[0], yi[1] + c / norm * normal[1]];
+        let tau = [normal[1], -normal[0]];
+        // Points of Ω on the line have |s| ≤ |x0| + √2 extent along τ from x0.
+        let reach = ((x0[0] * x0[0] + x0[1] * x0[1]).sqrt() + std::f64::consts::SQRT_2 * self.extent) * (1.0 + 1e-12);
+        let on_line = |s: f64| [x0[0] + s * tau[0], x0[1] + s * tau[1]];
+        let along = |x: [f64; 2]| (x[0] - x0[0]) * tau[0] + (x[1] - x0[1]) * tau[1];
+        // An end point outside Ω is replaced by the point of the line at its
+        // position, clamped to ±reach: a power centre far away (nearly collinear
+        // sites) has an absolute error ε|p| that would shift the line near Ω.
+        let (p, p_tri, p_error) = centres[t];
+        let p = if p_tri == NONE {
+            on_line(along(p).clamp(-reach, reach))
+        } else {
+            p
+        };
+        let (q, q_tri, q_error) = if let Some(other) = other {
+            let (q, q_tri, q_error) = centres[other];
+            let q = if q_tri == NONE {
+                on_line(along(q).clamp(-reach, reach))
+            } else {
+                q
+            };
+            (q, q_tri, q_error)
+        } else {
+            // a ray along τ (away from the triangle), to beyond Ω
+            (on_line(reach), NONE, 0.0)
+        };
+        // The walk starts at p when p is in Ω, else at q when q is; its pieces' end
+        // points a + t (b − a) lie in Ω, so t |b − a| ≤ |a| + extent, and with the
+        // rounding of t, of the product and of the sum their error is below a
+        // few ε (|a| + extent), plus the line's own (ε |x0|).
+        let start = if p_tri == NONE && q_tri != NONE { q } else { p };
+        // plus the error of the power centres (an estimate: crossings at shallow
+        // angles are not magnified; convergence is decided on the full integrals
+        // in any case)
+        let position_error =
+            4.0 * f64::EPSILON * (magnitude(start) + magnitude(x0) + self.extent) + p_error.max(q_error);
+        Some(EdgeSegment {
+            p,
+            q,
+            p_tri,
+            q_tri,
+            normal,
+            dij,
+            position_error,
+        })
+    }
+
+    /// The arcs of ∂Ω: between consecutive `crossings` counter-clockwise, each in the cell
+    /// entered (all of ∂Ω in one cell when there is no crossing), added to `masses` and
+    /// `errors`. `None` when the crossings do not chain.
+    fn add_boundary_arcs(
+        &self,
+        diagram: &PowerDiagram,
+        f0: &[[f64; 2]],
+        mut crossings: Vec<Crossing>,
+        masses: &mut [f64],
+        errors: &mut [f64],
+    ) -> Option<()> {
         let m = self.loop_points.len();
         let arc =
             |cell: usize, e: usize, from: f64, to: f64, position_error: f64, masses: &mut [f64], errors: &mut [f64]| {
@@ -778,7 +879,7 @@ impl FluxField {
         if crossings.is_empty() {
             let cell = diagram.locate(self.loop_points[0], None);
             for e in 0..m {
-                arc(cell, e, 0.0, 1.0, 0.0, &mut masses, &mut errors);
+                arc(cell, e, 0.0, 1.0, 0.0, masses, errors);
             }
         } else {
             crossings.sort_unstable_by(|a, b| {
@@ -799,31 +900,69 @@ impl FluxField {
                 // the first can go all the way round)
                 let full_turn = k + 1 == count && ex == ey;
                 if ex == ey && !full_turn {
-                    arc(cell, ex, x.s, y.s, position_error, &mut masses, &mut errors);
+                    arc(cell, ex, x.s, y.s, position_error, masses, errors);
                 } else {
-                    arc(cell, ex, x.s, 1.0, position_error, &mut masses, &mut errors);
+                    arc(cell, ex, x.s, 1.0, position_error, masses, errors);
                     let mut e = (ex + 1) % m;
                     while e != ey {
-                        arc(cell, e, 0.0, 1.0, position_error, &mut masses, &mut errors);
+                        arc(cell, e, 0.0, 1.0, position_error, masses, errors);
                         e = (e + 1) % m;
                     }
-                    arc(cell, ey, 0.0, y.s, position_error, &mut masses, &mut errors);
+                    arc(cell, ey, 0.0, y.s, position_error, masses, errors);
                 }
             }
         }
-        for i in 0..n {
-            let empty = masses[i] == 0.0 && errors[i] == 0.0;
-            if !empty && !(errors[i] <= relative_bound * masses[i]) {
-                return None;
+        Some(())
+    }
+}
+
+/// Each cell's flux terms and error estimates summed over its traced edges, its edge masses
+/// (i < j, sorted by j per i), and all crossings with ∂Ω. Each edge's terms go to its two slots
+/// in the neighbour lists, and each cell sums its slots in the order of its list: the masses do
+/// not depend on the triangulation's storage order (a flip update and a construction give the
+/// same bits). `None` when a chunk declined.
+fn sum_edge_terms(diagram: &PowerDiagram, traced: Vec<TracedChunk>) -> Option<CellSums> {
+    let n = diagram.num_sites();
+    let offsets = diagram.neighbor_offsets();
+    let list = diagram.neighbor_list();
+    let slot = |i: u32, j: u32| {
+        let (a, b) = (offsets[i as usize] as usize, offsets[i as usize + 1] as usize);
+        list[a..b].iter().position(|&v| v == j).map(|k| a + k)
+    };
+    // per slot: mass term, error, edge mass
+    let mut slots = vec![(0.0f64, 0.0f64, 0.0f64); list.len()];
+    let mut crossings = Vec::new();
+    for part in traced {
+        let (edges, c) = part?;
+        for e in edges {
+            let (si, sj) = (slot(e.i, e.j)?, slot(e.j, e.i)?);
+            slots[si] = (e.term_i, e.error_i, e.edge_mass);
+            slots[sj] = (e.term_j, e.error_j, e.edge_mass);
+        }
+        crossings.extend(c);
+    }
+    let mut masses = vec![0.0; n];
+    let mut errors = vec![0.0; n];
+    let mut edge_masses = Vec::with_capacity(list.len() / 2);
+    for i in 0..n {
+        let start = edge_masses.len();
+        for k in offsets[i] as usize..offsets[i + 1] as usize {
+            let (term, error, edge_mass) = slots[k];
+            masses[i] += term;
+            errors[i] += error;
+            if (i as u32) < list[k] && edge_mass > 0.0 {
+                edge_masses.push((i as u32, list[k], edge_mass));
             }
         }
-        Some(CellIntegrals {
-            masses,
-            first_moments: Vec::new(),
-            second_moments: Vec::new(),
-            edge_masses,
-        })
+        edge_masses[start..].sort_unstable_by_key(|e| e.1);
     }
+    Some((masses, errors, edge_masses, crossings))
+}
+
+/// Whether a triangle of the diagram's raw triangulation (over `n` sites) is finite: stored and
+/// without the vertex at infinity.
+fn finite_triangle(t: &[u32; 3], n: usize) -> bool {
+    t[0] != NONE && !t.contains(&(n as u32))
 }
 
 /// The triangle's vertices rotated so that the smallest index comes first (the orientation is
