@@ -173,65 +173,11 @@ impl FluxField {
         if nt == 0 || nt >= NONE as usize / 4 {
             return None;
         }
-        // Edge adjacency: sort the undirected edges.
-        let mut keys: Vec<(u64, u32)> = Vec::with_capacity(3 * nt);
-        for (t, tri) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[NEXT[k]]);
-                let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
-                keys.push((key, (3 * t + k) as u32));
-            }
-        }
-        keys.sort_unstable();
-        let mut across = vec![[NONE; 3]; nt];
-        let mut boundary: Vec<u32> = Vec::new();
-        let mut g = 0;
-        while g < keys.len() {
-            let mut h = g + 1;
-            while h < keys.len() && keys[h].0 == keys[g].0 {
-                h += 1;
-            }
-            match h - g {
-                1 => boundary.push(keys[g].1),
-                2 => {
-                    let (x, y) = (keys[g].1 as usize, keys[g + 1].1 as usize);
-                    let (tx, kx, ty, ky) = (x / 3, x % 3, y / 3, y % 3);
-                    // the two triangles must traverse the edge in opposite directions
-                    if triangles[tx][kx] == triangles[ty][ky] {
-                        return None;
-                    }
-                    across[tx][kx] = (4 * ty + ky) as u32;
-                    across[ty][ky] = (4 * tx + kx) as u32;
-                }
-                _ => return None,
-            }
-            g = h;
-        }
+        let (across, boundary) = edge_adjacency(triangles)?;
         if boundary.len() < 3 {
             return None;
         }
-        // The boundary loop: each boundary edge runs from corner k to corner k + 1 of its
-        // triangle, counter-clockwise around Ω; follow it from each edge's end vertex.
-        let mut starting_at: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
-        for &e in &boundary {
-            let (t, k) = (e as usize / 3, e as usize % 3);
-            if starting_at.insert(triangles[t][k], e).is_some() {
-                return None; // a vertex where the boundary touches itself
-            }
-        }
-        let mut loop_edges = Vec::with_capacity(boundary.len());
-        let mut e = boundary[0];
-        for _ in 0..boundary.len() {
-            loop_edges.push(e);
-            let (t, k) = (e as usize / 3, e as usize % 3);
-            e = *starting_at.get(&triangles[t][NEXT[k]])?;
-            if e == boundary[0] {
-                break;
-            }
-        }
-        if loop_edges.len() != boundary.len() || e != boundary[0] {
-            return None; // several boundary loops
-        }
+        let loop_edges = boundary_loop(triangles, &boundary)?;
         let m = loop_edges.len();
         let loop_points: Vec<[f64; 2]> = loop_edges
             .iter()
@@ -284,44 +230,8 @@ impl FluxField {
         for (t, &d) in diagonal.iter().enumerate() {
             triplets.push(Triplet::new(t, t, d));
         }
-        let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(nt, nt, &triplets).ok()?;
-        // Sequential, so that the field (hence every mass) does not depend on the thread count.
-        let par = Par::Seq;
-        let symbolic = factorize_symbolic_cholesky(
-            matrix.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams {
-                // (faer's automatic choice is the simplicial factorization)
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            },
-        )
-        .ok()?;
-        let scratch = symbolic
-            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
-        let mut buffer = MemBuffer::try_new(scratch).ok()?;
-        let stack = MemStack::new(&mut buffer);
-        let mut factor = vec![0.0; symbolic.len_val()];
-        symbolic
-            .factorize_numeric_llt::<f64>(
-                &mut factor,
-                matrix.as_ref(),
-                Side::Lower,
-                Default::default(),
-                par,
-                &mut *stack,
-                Default::default(),
-            )
-            .ok()?;
         let mut lambda: Vec<f64> = (0..nt).map(|t| densities[t] * areas[t]).collect();
-        LltRef::new(&symbolic, &factor).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut lambda, nt, 1),
-            par,
-            stack,
-        );
+        solve_poisson(nt, &triplets, &mut lambda)?;
         if lambda.iter().any(|l| !l.is_finite()) {
             return None;
         }
@@ -957,6 +867,121 @@ fn sum_edge_terms(diagram: &PowerDiagram, traced: Vec<TracedChunk>) -> Option<Ce
         edge_masses[start..].sort_unstable_by_key(|e| e.1);
     }
     Some((masses, errors, edge_masses, crossings))
+}
+
+/// Edge adjacency of counter-clockwise `triangles`: per triangle and corner k, the triangle
+/// across the edge from corner k to k + 1 and its corner, packed as 4·t + k (NONE on the
+/// boundary), and the boundary edges as 3·t + k. `None` when an edge has more than two
+/// triangles or two triangles traverse it in the same direction.
+fn edge_adjacency(triangles: &[[u32; 3]]) -> Option<(Vec<[u32; 3]>, Vec<u32>)> {
+    let nt = triangles.len();
+    // Edge adjacency: sort the undirected edges.
+    let mut keys: Vec<(u64, u32)> = Vec::with_capacity(3 * nt);
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[NEXT[k]]);
+            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+            keys.push((key, (3 * t + k) as u32));
+        }
+    }
+    keys.sort_unstable();
+    let mut across = vec![[NONE; 3]; nt];
+    let mut boundary: Vec<u32> = Vec::new();
+    let mut g = 0;
+    while g < keys.len() {
+        let mut h = g + 1;
+        while h < keys.len() && keys[h].0 == keys[g].0 {
+            h += 1;
+        }
+        match h - g {
+            1 => boundary.push(keys[g].1),
+            2 => {
+                let (x, y) = (keys[g].1 as usize, keys[g + 1].1 as usize);
+                let (tx, kx, ty, ky) = (x / 3, x % 3, y / 3, y % 3);
+                // the two triangles must traverse the edge in opposite directions
+                if triangles[tx][kx] == triangles[ty][ky] {
+                    return None;
+                }
+                across[tx][kx] = (4 * ty + ky) as u32;
+                across[ty][ky] = (4 * tx + kx) as u32;
+            }
+            _ => return None,
+        }
+        g = h;
+    }
+    Some((across, boundary))
+}
+
+/// The boundary edges (3·t + k, each from corner k to k + 1 of its triangle) as one loop,
+/// counter-clockwise around Ω; `None` where the boundary touches itself or has several loops.
+fn boundary_loop(triangles: &[[u32; 3]], boundary: &[u32]) -> Option<Vec<u32>> {
+    // The boundary loop: each boundary edge runs from corner k to corner k + 1 of its
+    // triangle, counter-clockwise around Ω; follow it from each edge's end vertex.
+    let mut starting_at: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    for &e in boundary {
+        let (t, k) = (e as usize / 3, e as usize % 3);
+        if starting_at.insert(triangles[t][k], e).is_some() {
+            return None; // a vertex where the boundary touches itself
+        }
+    }
+    let mut loop_edges = Vec::with_capacity(boundary.len());
+    let mut e = boundary[0];
+    for _ in 0..boundary.len() {
+        loop_edges.push(e);
+        let (t, k) = (e as usize / 3, e as usize % 3);
+        e = *starting_at.get(&triangles[t][NEXT[k]])?;
+        if e == boundary[0] {
+            break;
+        }
+    }
+    if loop_edges.len() != boundary.len() || e != boundary[0] {
+        return None; // several boundary loops
+    }
+    Some(loop_edges)
+}
+
+/// Solves the symmetric positive definite system given by its lower-triangle `triplets`
+/// (nt × nt) in place on `rhs`, by sparse Cholesky (AMD, supernodal, sequential so that the result
+/// does not depend on the thread count); `None` when a factorization fails.
+fn solve_poisson(nt: usize, triplets: &[Triplet<usize, usize, f64>], rhs: &mut [f64]) -> Option<()> {
+    let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(nt, nt, triplets).ok()?;
+    // Sequential, so that the field (hence every mass) does not depend on the thread count.
+    let par = Par::Seq;
+    let symbolic = factorize_symbolic_cholesky(
+        matrix.symbolic(),
+        Side::Lower,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams {
+            // (faer's automatic choice is the simplicial factorization)
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        },
+    )
+    .ok()?;
+    let scratch = symbolic
+        .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+        .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+    let mut buffer = MemBuffer::try_new(scratch).ok()?;
+    let stack = MemStack::new(&mut buffer);
+    let mut factor = vec![0.0; symbolic.len_val()];
+    symbolic
+        .factorize_numeric_llt::<f64>(
+            &mut factor,
+            matrix.as_ref(),
+            Side::Lower,
+            Default::default(),
+            par,
+            &mut *stack,
+            Default::default(),
+        )
+        .ok()?;
+    LltRef::new(&symbolic, &factor).solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(rhs, nt, 1),
+        par,
+        stack,
+    );
+    Some(())
 }
 
 /// Whether a triangle of the diagram's raw triangulation (over `n` sites) is finite: stored and
