@@ -283,7 +283,59 @@ pub fn compute_shard(
     solver: &SolverArgs,
     shard: Option<shapespace_analysis::shard::Shard>,
 ) -> anyhow::Result<DistancesRun> {
-    if let Some(requested) = solver.threads {
+    configure_threads(solver.threads);
+    let options = distances_options(solver, shard)?;
+    let show = !solver.quiet && std::io::stderr().is_terminal();
+    let bar = if show {
+        ProgressBar::new(0)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    // Without the bar (--quiet or no terminal), one line estimates the pairs' time once the first
+    // ETA_AFTER_PAIRS (at least one per thread) have finished; the pairs start when the last
+    // shape is prepared.
+    let pairs_start = std::sync::Mutex::new(None::<std::time::Instant>);
+    let estimate_after = ETA_AFTER_PAIRS.max(rayon::current_num_threads());
+    let progress = |done: usize, total: usize, stage: &str| {
+        if !show {
+            let mut start = pairs_start.lock().unwrap_or_else(|e| e.into_inner());
+            match stage {
+                "prepare" if done == total => *start = Some(std::time::Instant::now()),
+                "pairs" if done == estimate_after.min(total) && done < total => {
+                    if let Some(t) = *start {
+                        let elapsed = t.elapsed().as_secs_f64();
+                        let all = elapsed * total as f64 / done as f64;
+                        eprintln!(
+                            "distances: {done} of {total} pairs in {elapsed:.1} s; estimated {all:.0} s for all pairs ({:.0} s to go)",
+                            all - elapsed
+                        );
+                    }
+                }
+                _ => {}
+            }
+        }
+        if bar.length() != Some(total as u64) || done == 1 {
+            bar.set_prefix(stage.to_string());
+            bar.set_length(total as u64);
+            bar.reset_eta();
+        }
+        bar.set_position(done as u64);
+    };
+    let run =
+        run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
+    bar.finish_and_clear();
+    print_summary(&run, out, solver, shard);
+    Ok(run)
+}
+
+/// Builds the global thread pool with `--threads` (capped at a few per core), if given.
+fn configure_threads(threads: Option<usize>) {
+    if let Some(requested) = threads {
         // More threads than a few per core only cost their creation (10,000 threads took over a
         // minute to start on 2 cores), so the request is capped.
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -293,6 +345,13 @@ pub fn compute_shard(
         }
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global().ok();
     }
+}
+
+/// The library's options for `solver`'s arguments, checked.
+fn distances_options(
+    solver: &SolverArgs,
+    shard: Option<shapespace_analysis::shard::Shard>,
+) -> anyhow::Result<DistancesOptions> {
     anyhow::ensure!(
         solver.tol > 0.0 && solver.tol < 1.0,
         "--tol must be in (0, 1) (a relative mass error per cell), got {}",
@@ -361,50 +420,17 @@ pub fn compute_shard(
     if let Some(n) = solver.target_points {
         anyhow::ensure!(n >= 1, "--target-points must be at least 1");
     }
-    let show = !solver.quiet && std::io::stderr().is_terminal();
-    let bar = if show {
-        ProgressBar::new(0)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    // Without the bar (--quiet or no terminal), one line estimates the pairs' time once the first
-    // ETA_AFTER_PAIRS (at least one per thread) have finished; the pairs start when the last
-    // shape is prepared.
-    let pairs_start = std::sync::Mutex::new(None::<std::time::Instant>);
-    let estimate_after = ETA_AFTER_PAIRS.max(rayon::current_num_threads());
-    let progress = |done: usize, total: usize, stage: &str| {
-        if !show {
-            let mut start = pairs_start.lock().unwrap_or_else(|e| e.into_inner());
-            match stage {
-                "prepare" if done == total => *start = Some(std::time::Instant::now()),
-                "pairs" if done == estimate_after.min(total) && done < total => {
-                    if let Some(t) = *start {
-                        let elapsed = t.elapsed().as_secs_f64();
-                        let all = elapsed * total as f64 / done as f64;
-                        eprintln!(
-                            "distances: {done} of {total} pairs in {elapsed:.1} s; estimated {all:.0} s for all pairs ({:.0} s to go)",
-                            all - elapsed
-                        );
-                    }
-                }
-                _ => {}
-            }
-        }
-        if bar.length() != Some(total as u64) || done == 1 {
-            bar.set_prefix(stage.to_string());
-            bar.set_length(total as u64);
-            bar.reset_eta();
-        }
-        bar.set_position(done as u64);
-    };
-    let run =
-        run_distances(files, out, &options, &progress).with_context(|| format!("distances into {}", out.display()))?;
-    bar.finish_and_clear();
+    Ok(options)
+}
+
+/// The run's summary on stderr: warnings, failed inputs and pairs, shard, cache, counts and
+/// times, resumed pairs, asymmetry, files written.
+fn print_summary(
+    run: &DistancesRun,
+    out: &std::path::Path,
+    solver: &SolverArgs,
+    shard: Option<shapespace_analysis::shard::Shard>,
+) {
     let r = &run.report;
     for warning in &r.marker_warnings {
         eprintln!("shapespace: warning: {warning}");
@@ -468,7 +494,6 @@ pub fn compute_shard(
     for f in &r.files {
         eprintln!("distances: wrote {}", f.display());
     }
-    Ok(run)
 }
 
 /// MDS + statistics on `out/distances.csv`.
