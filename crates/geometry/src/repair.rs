@@ -63,14 +63,16 @@ pub struct Repaired {
 pub fn repair_degenerate_faces(mesh: &TriMesh) -> Repaired {
     let p = &mesh.positions;
     let nv = mesh.num_vertices();
-    let mut faces: Vec<Option<[u32; 3]>> = mesh.faces.iter().map(|&f| Some(f)).collect();
-    // collapsed vertex → the vertex it was merged into (followed to the end)
-    let mut merged_into: Vec<u32> = (0..nv as u32).collect();
-    let mut repair = DegenerateRepair::default();
-    let degenerate = |t: [u32; 3]| degenerate_corners(p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+    let mut state = RepairState {
+        positions: p,
+        faces: mesh.faces.iter().map(|&f| Some(f)).collect(),
+        merged_into: (0..nv as u32).collect(),
+        touched: Vec::new(),
+        repair: DegenerateRepair::default(),
+    };
     loop {
-        let candidates: Vec<usize> = (0..faces.len())
-            .filter(|&f| faces[f].is_some_and(|t| degenerate(t).is_some()))
+        let candidates: Vec<usize> = (0..state.faces.len())
+            .filter(|&f| state.faces[f].is_some_and(|t| state.degenerate(t)))
             .collect();
         if candidates.is_empty() {
             break;
@@ -78,35 +80,12 @@ pub fn repair_degenerate_faces(mesh: &TriMesh) -> Repaired {
         // connectivity of this round; a vertex touched by an operation is left until the next
         // round (every face an operation changes has all its corners touched), so the queries
         // below, made on untouched vertices, see the mesh as it is
-        let snapshot = faces.clone();
-        let mut half: HashMap<(u32, u32), usize> = HashMap::new();
-        let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); nv];
-        for (f, t) in faces.iter().enumerate() {
-            if let Some(t) = t {
-                for k in 0..3 {
-                    half.insert((t[k], t[(k + 1) % 3]), f);
-                    vertex_faces[t[k] as usize].push(f);
-                }
-            }
-        }
-        let on_boundary = |v: u32| {
-            vertex_faces[v as usize].iter().any(|&f| {
-                let t = snapshot[f].unwrap();
-                (0..3).any(|k| t[k] == v && !half.contains_key(&(t[(k + 1) % 3], v)))
-            })
-        };
-        let neighbours = |v: u32| -> HashSet<u32> {
-            vertex_faces[v as usize]
-                .iter()
-                .flat_map(|&f| snapshot[f].unwrap())
-                .filter(|&w| w != v)
-                .collect()
-        };
-        let mut touched = vec![false; nv];
+        let round = RoundConnectivity::new(&state.faces, nv);
+        state.touched = vec![false; nv];
         let mut progress = false;
         for f in candidates {
-            let Some(t) = faces[f] else { continue };
-            if t.iter().any(|&v| touched[v as usize]) {
+            let Some(t) = state.faces[f] else { continue };
+            if t.iter().any(|&v| state.touched[v as usize]) {
                 continue;
             }
             let [q0, q1, q2] = t.map(|v| p[v as usize]);
@@ -119,137 +98,222 @@ pub fn repair_degenerate_faces(mesh: &TriMesh) -> Repaired {
             } else {
                 None
             };
-            if let Some((x, y)) = coincident {
-                // the higher index merges into the lower
-                let (u, v) = (x.min(y), x.max(y));
-                // faces on the edge uv and their apexes
-                let on_edge: Vec<usize> = [half.get(&(u, v)), half.get(&(v, u))]
-                    .into_iter()
-                    .flatten()
-                    .copied()
-                    .collect();
-                let apexes: HashSet<u32> = on_edge
-                    .iter()
-                    .flat_map(|&g| faces[g].unwrap())
-                    .filter(|&w| w != u && w != v)
-                    .collect();
-                let common: HashSet<u32> = neighbours(u).intersection(&neighbours(v)).copied().collect();
-                let boundary_edge = on_edge.len() == 1;
-                // the link condition: the links of u and v share only the apexes (no edge xy with
-                // faces (u, x, y) and (v, x, y): a collapse would stack two faces on it)
-                let link_edges = |w: u32| -> HashSet<[u32; 2]> {
-                    vertex_faces[w as usize]
-                        .iter()
-                        .map(|&g| {
-                            let s = snapshot[g].unwrap();
-                            let k = s.iter().position(|&z| z == w).unwrap();
-                            let (x, y) = (s[(k + 1) % 3], s[(k + 2) % 3]);
-                            [x.min(y), x.max(y)]
-                        })
-                        .collect()
-                };
-                if common != apexes
-                    || link_edges(u).intersection(&link_edges(v)).next().is_some()
-                    || (!boundary_edge && on_boundary(u) && on_boundary(v))
-                {
-                    continue;
-                }
-                let ring: Vec<usize> = vertex_faces[v as usize].clone();
-                for &g in &on_edge {
-                    faces[g] = None;
-                }
-                for g in ring {
-                    if let Some(s) = faces[g].as_mut() {
-                        for w in s.iter_mut() {
-                            if *w == v {
-                                *w = u;
-                            }
-                        }
-                        for &w in s.iter() {
-                            touched[w as usize] = true;
-                        }
-                    }
-                }
-                merged_into[v as usize] = u;
-                touched[u as usize] = true;
-                touched[v as usize] = true;
-                repair.collapsed += 1;
-                progress = true;
-                continue;
-            }
-            // collinear: c opposite the longest edge (a, b), in the face's order (a, b, c)
-            let len2 = |i: usize, j: usize| {
-                let (x, y) = (p[t[i] as usize], p[t[j] as usize]);
-                (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2) + (x[2] - y[2]).powi(2)
+            progress |= match coincident {
+                Some((x, y)) => state.collapse(&round, x, y),
+                None => state.flip_or_remove(&round, f, t),
             };
-            let k = (0..3)
-                .max_by(|&i, &j| len2(i, (i + 1) % 3).total_cmp(&len2(j, (j + 1) % 3)))
-                .unwrap();
-            let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-            match half.get(&(b, a)).copied() {
-                Some(g) => {
-                    let s = faces[g].unwrap();
-                    let d = s.into_iter().find(|&w| w != a && w != b).unwrap();
-                    if touched[d as usize] || half.contains_key(&(c, d)) || half.contains_key(&(d, c)) {
-                        continue;
-                    }
-                    let (f1, f2) = ([c, a, d], [d, b, c]);
-                    if degenerate(f1).is_some() || degenerate(f2).is_some() {
-                        continue;
-                    }
-                    faces[f] = Some(f1);
-                    faces[g] = Some(f2);
-                    for w in [a, b, c, d] {
-                        touched[w as usize] = true;
-                    }
-                    repair.flipped += 1;
-                }
-                None => {
-                    if on_boundary(c) {
-                        continue;
-                    }
-                    faces[f] = None;
-                    for w in [a, b, c] {
-                        touched[w as usize] = true;
-                    }
-                    repair.removed += 1;
-                }
-            }
-            progress = true;
         }
         if !progress {
             break;
         }
     }
-    let find = |mut v: u32| {
-        while merged_into[v as usize] != v {
-            v = merged_into[v as usize];
-        }
-        v
-    };
-    let mut vertex_map = vec![None; nv];
-    let mut positions = Vec::new();
-    let mut uvs = mesh.uvs.as_ref().map(|_| Vec::new());
-    for v in 0..nv {
-        if find(v as u32) == v as u32 {
-            vertex_map[v] = Some(positions.len() as u32);
-            positions.push(p[v]);
-            if let (Some(out), Some(src)) = (uvs.as_mut(), mesh.uvs.as_ref()) {
-                out.push(src[v]);
+    state.finish(mesh)
+}
+
+/// The repair's state: the faces (None: removed), each vertex's merge target, the vertices an
+/// operation touched in this round, and the counts.
+struct RepairState<'a> {
+    positions: &'a [[f64; 3]],
+    faces: Vec<Option<[u32; 3]>>,
+    /// collapsed vertex → the vertex it was merged into (followed to the end)
+    merged_into: Vec<u32>,
+    touched: Vec<bool>,
+    repair: DegenerateRepair,
+}
+
+/// The connectivity of the faces at the start of a round: the faces, each directed edge's face
+/// and each vertex's faces.
+struct RoundConnectivity {
+    snapshot: Vec<Option<[u32; 3]>>,
+    half: HashMap<(u32, u32), usize>,
+    vertex_faces: Vec<Vec<usize>>,
+}
+
+impl RoundConnectivity {
+    fn new(faces: &[Option<[u32; 3]>], nv: usize) -> Self {
+        let mut half: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); nv];
+        for (f, t) in faces.iter().enumerate() {
+            if let Some(t) = t {
+                for k in 0..3 {
+                    half.insert((t[k], t[(k + 1) % 3]), f);
+                    vertex_faces[t[k] as usize].push(f);
+                }
             }
         }
+        RoundConnectivity {
+            snapshot: faces.to_vec(),
+            half,
+            vertex_faces,
+        }
     }
-    let faces: Vec<[u32; 3]> = faces.into_iter().flatten().collect();
-    let remaining = faces.iter().copied().filter(|&t| degenerate(t).is_some()).collect();
-    let faces = faces
-        .into_iter()
-        .map(|t| t.map(|v| vertex_map[v as usize].unwrap()))
-        .collect();
-    Repaired {
-        mesh: TriMesh { positions, faces, uvs },
-        vertex_map,
-        repair,
-        remaining,
+
+    fn on_boundary(&self, v: u32) -> bool {
+        self.vertex_faces[v as usize].iter().any(|&f| {
+            let t = self.snapshot[f].unwrap();
+            (0..3).any(|k| t[k] == v && !self.half.contains_key(&(t[(k + 1) % 3], v)))
+        })
+    }
+
+    fn neighbours(&self, v: u32) -> HashSet<u32> {
+        self.vertex_faces[v as usize]
+            .iter()
+            .flat_map(|&f| self.snapshot[f].unwrap())
+            .filter(|&w| w != v)
+            .collect()
+    }
+
+    /// The edges of the link of `w` (the edges opposite `w` in its faces), as sorted pairs.
+    fn link_edges(&self, w: u32) -> HashSet<[u32; 2]> {
+        self.vertex_faces[w as usize]
+            .iter()
+            .map(|&g| {
+                let s = self.snapshot[g].unwrap();
+                let k = s.iter().position(|&z| z == w).unwrap();
+                let (x, y) = (s[(k + 1) % 3], s[(k + 2) % 3]);
+                [x.min(y), x.max(y)]
+            })
+            .collect()
+    }
+}
+
+impl RepairState<'_> {
+    fn degenerate(&self, t: [u32; 3]) -> bool {
+        let p = self.positions;
+        degenerate_corners(p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]).is_some()
+    }
+
+    /// Collapses the edge between the coincident vertices `x`, `y` (the higher index merges into
+    /// the lower) when the link condition holds; whether it did.
+    fn collapse(&mut self, round: &RoundConnectivity, x: u32, y: u32) -> bool {
+        let (u, v) = (x.min(y), x.max(y));
+        // faces on the edge uv and their apexes
+        let on_edge: Vec<usize> = [round.half.get(&(u, v)), round.half.get(&(v, u))]
+            .into_iter()
+            .flatten()
+            .copied()
+            .collect();
+        let apexes: HashSet<u32> = on_edge
+            .iter()
+            .flat_map(|&g| self.faces[g].unwrap())
+            .filter(|&w| w != u && w != v)
+            .collect();
+        let common: HashSet<u32> = round
+            .neighbours(u)
+            .intersection(&round.neighbours(v))
+            .copied()
+            .collect();
+        let boundary_edge = on_edge.len() == 1;
+        // the link condition: the links of u and v share only the apexes (no edge xy with
+        // faces (u, x, y) and (v, x, y): a collapse would stack two faces on it)
+        if common != apexes
+            || round.link_edges(u).intersection(&round.link_edges(v)).next().is_some()
+            || (!boundary_edge && round.on_boundary(u) && round.on_boundary(v))
+        {
+            return false;
+        }
+        for &g in &on_edge {
+            self.faces[g] = None;
+        }
+        for &g in &round.vertex_faces[v as usize] {
+            if let Some(s) = self.faces[g].as_mut() {
+                for w in s.iter_mut() {
+                    if *w == v {
+                        *w = u;
+                    }
+                }
+                for &w in s.iter() {
+                    self.touched[w as usize] = true;
+                }
+            }
+        }
+        self.merged_into[v as usize] = u;
+        self.touched[u as usize] = true;
+        self.touched[v as usize] = true;
+        self.repair.collapsed += 1;
+        true
+    }
+
+    /// Repairs the collinear face `f` = `t`: flips its longest edge, or removes it from the
+    /// boundary; whether it did.
+    fn flip_or_remove(&mut self, round: &RoundConnectivity, f: usize, t: [u32; 3]) -> bool {
+        let p = self.positions;
+        // collinear: c opposite the longest edge (a, b), in the face's order (a, b, c)
+        let len2 = |i: usize, j: usize| {
+            let (x, y) = (p[t[i] as usize], p[t[j] as usize]);
+            (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2) + (x[2] - y[2]).powi(2)
+        };
+        let k = (0..3)
+            .max_by(|&i, &j| len2(i, (i + 1) % 3).total_cmp(&len2(j, (j + 1) % 3)))
+            .unwrap();
+        let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+        match round.half.get(&(b, a)).copied() {
+            Some(g) => {
+                let s = self.faces[g].unwrap();
+                let d = s.into_iter().find(|&w| w != a && w != b).unwrap();
+                if self.touched[d as usize] || round.half.contains_key(&(c, d)) || round.half.contains_key(&(d, c)) {
+                    return false;
+                }
+                let (f1, f2) = ([c, a, d], [d, b, c]);
+                if self.degenerate(f1) || self.degenerate(f2) {
+                    return false;
+                }
+                self.faces[f] = Some(f1);
+                self.faces[g] = Some(f2);
+                for w in [a, b, c, d] {
+                    self.touched[w as usize] = true;
+                }
+                self.repair.flipped += 1;
+            }
+            None => {
+                if round.on_boundary(c) {
+                    return false;
+                }
+                self.faces[f] = None;
+                for w in [a, b, c] {
+                    self.touched[w as usize] = true;
+                }
+                self.repair.removed += 1;
+            }
+        }
+        true
+    }
+
+    /// The repaired mesh: the vertices not merged away (in input order, with their uvs), the
+    /// faces left, renumbered.
+    fn finish(self, mesh: &TriMesh) -> Repaired {
+        let p = self.positions;
+        let nv = p.len();
+        let find = |mut v: u32| {
+            while self.merged_into[v as usize] != v {
+                v = self.merged_into[v as usize];
+            }
+            v
+        };
+        let mut vertex_map = vec![None; nv];
+        let mut positions = Vec::new();
+        let mut uvs = mesh.uvs.as_ref().map(|_| Vec::new());
+        for v in 0..nv {
+            if find(v as u32) == v as u32 {
+                vertex_map[v] = Some(positions.len() as u32);
+                positions.push(p[v]);
+                if let (Some(out), Some(src)) = (uvs.as_mut(), mesh.uvs.as_ref()) {
+                    out.push(src[v]);
+                }
+            }
+        }
+        let faces: Vec<[u32; 3]> = self.faces.iter().flatten().copied().collect();
+        let remaining = faces.iter().copied().filter(|&t| self.degenerate(t)).collect();
+        let faces = faces
+            .into_iter()
+            .map(|t| t.map(|v| vertex_map[v as usize].unwrap()))
+            .collect();
+        Repaired {
+            mesh: TriMesh { positions, faces, uvs },
+            vertex_map,
+            repair: self.repair,
+            remaining,
+        }
     }
 }
 
