@@ -90,11 +90,13 @@ pub enum ConformalError {
     /// Interior vertices that no path through interior vertices connects to the centre, even
     /// after the intrinsic splits of the edges joining two boundary vertices that cut them off
     /// ([`crate::intrinsic::IntrinsicTriangulation::connect_interior`]); a harmonic disk map
-    /// would put them on the boundary circle. `by_flips`: with intrinsic Delaunay flips.
-    #[error("{count} interior vertices (first: vertex {vertex}) stay cut off from the centre's part of the interior after {} rounds of intrinsic splits of the edges joining two boundary vertices{}, so a harmonic disk map would put them on the boundary circle", crate::intrinsic::MAX_CONNECT_ROUNDS, if *by_flips { " and Delaunay flips" } else { "" })]
+    /// would put them on the boundary circle. `rounds`: the rounds of splits tried; `by_flips`:
+    /// with intrinsic Delaunay flips.
+    #[error("{count} interior vertices (first: vertex {vertex}) stay cut off from the centre's part of the interior after {rounds} rounds of intrinsic splits of the edges joining two boundary vertices{}, so a harmonic disk map would put them on the boundary circle", if *by_flips { " and Delaunay flips" } else { "" })]
     CutOffInterior {
         vertex: usize,
         count: usize,
+        rounds: usize,
         by_flips: bool,
     },
     /// An iteration (e.g. the boundary scale factors of BFF) did not reach its tolerance.

@@ -483,6 +483,7 @@ impl IntrinsicTriangulation {
         ConformalError::CutOffInterior {
             vertex: cut[0] as usize,
             count: cut.len(),
+            rounds: MAX_CONNECT_ROUNDS,
             by_flips,
         }
     }
