@@ -63,6 +63,7 @@ use shapespace_geometry::TriMesh;
 use crate::error::ConformalError;
 use crate::finish::{
     center_image, center_vertex, check_disk, clockwise_edges, count_negative, finish, neighbors, region_repair_note,
+    Finished,
 };
 use crate::fold_repair::FoldRepairInfo;
 use crate::green::{boundary_angles_from_flux, green_function, ConjugateSystem};
@@ -451,81 +452,23 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         Err(e @ (ConformalError::FoldedImage { .. } | ConformalError::InteriorOutsideDisk { .. }))
             if params.repair_folds && (params.bff_fallback || params.region_repair) =>
         {
-            let reason = match &e {
-                ConformalError::FoldedImage { num_flipped, .. } => {
-                    format!("the Green's-function map folded {num_flipped} faces after repair")
+            let z = z.as_ref().map(|z| &z[..n]);
+            match fold_fallback(e, mesh, markers, params, &tri.is_boundary[..n], &resolved, z)? {
+                FoldFallback::RegionRepaired(fin) => fin,
+                FoldFallback::Bff {
+                    map,
+                    green_folds,
+                    reason,
+                } => {
+                    let route = GreenRoute {
+                        pole,
+                        negative_weights_before,
+                        boundary_from_flux,
+                        linear_solves,
+                        timings: timings_until(Instant::now()),
+                    };
+                    return Ok(bff_as_disk_map(map, route, Some((green_folds, reason))));
                 }
-                ConformalError::InteriorOutsideDisk { vertex, .. } => {
-                    format!("the Green's-function map put vertex {vertex} outside the circle")
-                }
-                _ => unreachable!("matched above"),
-            };
-            let green_folds = match &e {
-                ConformalError::FoldedImage { num_flipped, .. } => *num_flipped,
-                _ => 0,
-            };
-            let mut bff_error = None;
-            if params.bff_fallback {
-                let bff_params = crate::bff::BffParams {
-                    intrinsic_delaunay: params.intrinsic_delaunay,
-                    region_repair: params.region_repair,
-                    ..Default::default()
-                };
-                match crate::bff::bff_disk_map(mesh, markers, &bff_params) {
-                    Ok(b) => {
-                        let route = GreenRoute {
-                            pole,
-                            negative_weights_before,
-                            boundary_from_flux,
-                            linear_solves,
-                            timings: timings_until(Instant::now()),
-                        };
-                        return Ok(bff_as_disk_map(b, route, Some((green_folds, reason))));
-                    }
-                    // BFF fails too: the Green's-function map with the region repair, if allowed
-                    Err(e) => bff_error = Some(e.to_string()),
-                }
-            }
-            // crowding below the rounding of the coordinates (decision 0014): no construction or
-            // repair in f64 can resolve such a map, and that is the refusal to report
-            let beyond_f64 = z
-                .as_ref()
-                .and_then(|z| crate::quality::precision_margin(mesh, &z[..n]))
-                .filter(|&(_, margin)| margin < 1.0);
-            let refusal = |e: ConformalError, region_repair_error: Option<String>| match e {
-                _ if beyond_f64.is_some() => {
-                    let (face, margin) = beyond_f64.expect("checked");
-                    ConformalError::OutOfRange {
-                        what: "smallest altitude of an image triangle, in units of the rounding of its coordinates (crowding inside the disk),",
-                        element: format!("face {face} of the Green's-function map"),
-                        log10_value: margin.log10(),
-                    }
-                }
-                ConformalError::FoldedImage {
-                    num_flipped,
-                    first_face,
-                    flipped_area_fraction,
-                    boundary_out_of_order,
-                    ..
-                } => ConformalError::FoldedImage {
-                    num_flipped,
-                    first_face,
-                    flipped_area_fraction,
-                    boundary_out_of_order,
-                    bff_fallback_error: bff_error.clone(),
-                    region_repair_error,
-                },
-                other => other,
-            };
-            match (&z, params.region_repair) {
-                (Some(z), true) => match finish(mesh, &tri.is_boundary[..n], &resolved, &z[..n], true, true) {
-                    Ok(fin) => fin,
-                    Err(ConformalError::FoldedImage {
-                        region_repair_error, ..
-                    }) => return Err(refusal(e, region_repair_error)),
-                    Err(other) => return Err(other),
-                },
-                _ => return Err(refusal(e, None)),
             }
         }
         other => other?,
@@ -554,6 +497,105 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         },
         quality: fin.quality,
     })
+}
+
+/// What follows a Green's-function map that folded after repair (or put a vertex outside the
+/// circle): the BFF map (`params.bff_fallback`), else the region repair of the Green's-function
+/// map `z` (`params.region_repair`).
+enum FoldFallback {
+    Bff {
+        map: crate::bff::BffDiskMap,
+        green_folds: usize,
+        reason: String,
+    },
+    RegionRepaired(Finished),
+}
+
+/// The fallback after the Green's-function map's error `e` (a fold or a vertex outside the
+/// circle): BFF when allowed and it succeeds, else the region repair of `z` when allowed; the
+/// refusal otherwise (beyond f64 when the map's crowding is below the rounding of its
+/// coordinates, decision 0014; else `e` with what the fallbacks reported).
+fn fold_fallback(
+    e: ConformalError,
+    mesh: &TriMesh,
+    markers: &Markers,
+    params: &DiskMapParams,
+    is_boundary: &[bool],
+    resolved: &ResolvedMarkers,
+    z: Option<&[[f64; 2]]>,
+) -> Result<FoldFallback, ConformalError> {
+    let reason = match &e {
+        ConformalError::FoldedImage { num_flipped, .. } => {
+            format!("the Green's-function map folded {num_flipped} faces after repair")
+        }
+        ConformalError::InteriorOutsideDisk { vertex, .. } => {
+            format!("the Green's-function map put vertex {vertex} outside the circle")
+        }
+        _ => return Err(e),
+    };
+    let green_folds = match &e {
+        ConformalError::FoldedImage { num_flipped, .. } => *num_flipped,
+        _ => 0,
+    };
+    let mut bff_error = None;
+    if params.bff_fallback {
+        let bff_params = crate::bff::BffParams {
+            intrinsic_delaunay: params.intrinsic_delaunay,
+            region_repair: params.region_repair,
+            ..Default::default()
+        };
+        match crate::bff::bff_disk_map(mesh, markers, &bff_params) {
+            Ok(map) => {
+                return Ok(FoldFallback::Bff {
+                    map,
+                    green_folds,
+                    reason,
+                })
+            }
+            // BFF fails too: the Green's-function map with the region repair, if allowed
+            Err(e) => bff_error = Some(e.to_string()),
+        }
+    }
+    // crowding below the rounding of the coordinates (decision 0014): no construction or
+    // repair in f64 can resolve such a map, and that is the refusal to report
+    let beyond_f64 = z
+        .and_then(|z| crate::quality::precision_margin(mesh, z))
+        .filter(|&(_, margin)| margin < 1.0);
+    let refusal = |e: ConformalError, region_repair_error: Option<String>| match e {
+        _ if beyond_f64.is_some() => {
+            let (face, margin) = beyond_f64.expect("checked");
+            ConformalError::OutOfRange {
+                what: "smallest altitude of an image triangle, in units of the rounding of its coordinates (crowding inside the disk),",
+                element: format!("face {face} of the Green's-function map"),
+                log10_value: margin.log10(),
+            }
+        }
+        ConformalError::FoldedImage {
+            num_flipped,
+            first_face,
+            flipped_area_fraction,
+            boundary_out_of_order,
+            ..
+        } => ConformalError::FoldedImage {
+            num_flipped,
+            first_face,
+            flipped_area_fraction,
+            boundary_out_of_order,
+            bff_fallback_error: bff_error.clone(),
+            region_repair_error,
+        },
+        other => other,
+    };
+    match (z, params.region_repair) {
+        (Some(z), true) => match finish(mesh, is_boundary, resolved, z, true, true) {
+            Ok(fin) => Ok(FoldFallback::RegionRepaired(fin)),
+            Err(ConformalError::FoldedImage {
+                region_repair_error, ..
+            }) => Err(refusal(e, region_repair_error)),
+            Err(other) => Err(other),
+        },
+        _ => Err(refusal(e, None)),
+    }
 }
 
 /// The method string of a Green's-function map.
