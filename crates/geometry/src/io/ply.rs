@@ -627,6 +627,43 @@ fn read_list(body: &mut impl Body, count: Scalar, item: Scalar, items: &mut Vec<
 
 fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMesh, GeometryError> {
     let at_header = |message: String| parse_error(path, header.end_line, message);
+    let num_vertices = declared_vertices(header, path)?;
+    let mut positions: Vec<[f64; 3]> = Vec::new();
+    let mut uvs: Option<Vec<[f64; 2]>> = None;
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    let mut items: Vec<i64> = Vec::new();
+    let mut fans: Vec<Fan> = Vec::new();
+
+    for element in &header.elements {
+        if element.properties.is_empty() {
+            // Nothing is stored for such an element, however large its count.
+            continue;
+        }
+        body.check_fits(element)?;
+        match element.name.as_str() {
+            "vertex" => (positions, uvs) = read_vertices(element, body, &at_header, &mut items)?,
+            "face" | "tristrips" => {
+                let list = index_list_property(element, path, header.end_line)?;
+                read_faces(element, list, num_vertices, body, &mut items, &mut faces, &mut fans)?;
+            }
+            _ => skip_element(element, body, &mut items)?,
+        }
+    }
+    body.finish()?;
+    if faces.is_empty() {
+        return Err(at_header(
+            "the file has no faces (all face elements empty or degenerate)".to_string(),
+        ));
+    }
+    check_fans(path, &positions, &faces, &fans)?;
+    Ok(TriMesh { positions, faces, uvs })
+}
+
+/// The number of vertices the header declares, checked with the header's elements: one vertex
+/// element with properties, at least one vertex and at most the u32 range, a face or tristrips
+/// element.
+fn declared_vertices(header: &Header, path: &Path) -> Result<usize, GeometryError> {
+    let at_header = |message: String| parse_error(path, header.end_line, message);
     let vertex_elements: Vec<&Element> = header.elements.iter().filter(|e| e.name == "vertex").collect();
     let num_vertices = match vertex_elements.as_slice() {
         // (an element without properties is skipped by the loop below, so the coordinates'
@@ -659,145 +696,143 @@ fn read_body(header: &Header, body: &mut impl Body, path: &Path) -> Result<TriMe
             "the header declares no 'face' or 'tristrips' element".to_string(),
         ));
     }
+    Ok(num_vertices)
+}
 
+/// Reads the vertex element: positions, and texture coordinates when it has a (u, v), (s, t)
+/// or (texture_u, texture_v) pair; non-finite values are errors.
+fn read_vertices(
+    element: &Element,
+    body: &mut impl Body,
+    at_header: &impl Fn(String) -> GeometryError,
+    items: &mut Vec<i64>,
+) -> Result<(Vec<[f64; 3]>, Option<Vec<[f64; 2]>>), GeometryError> {
+    let name = element.name.as_str();
     let mut positions: Vec<[f64; 3]> = Vec::new();
-    let mut uvs: Option<Vec<[f64; 2]>> = None;
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    let mut items: Vec<i64> = Vec::new();
-    let mut polygon: Vec<u32> = Vec::new();
-    let mut fans: Vec<Fan> = Vec::new();
-
-    for element in &header.elements {
-        if element.properties.is_empty() {
-            // Nothing is stored for such an element, however large its count.
-            continue;
+    let coordinate = |c: &str| {
+        let k = element
+            .property(c)
+            .ok_or_else(|| at_header(format!("the vertex element has no '{c}' property")))?;
+        match element.properties[k].kind {
+            Kind::Scalar(_) => Ok(k),
+            Kind::List { .. } => Err(at_header(format!("vertex property '{c}' is a list"))),
         }
-        body.check_fits(element)?;
-        let name = element.name.as_str();
-        match name {
-            "vertex" => {
-                let coordinate = |c: &str| {
-                    let k = element
-                        .property(c)
-                        .ok_or_else(|| at_header(format!("the vertex element has no '{c}' property")))?;
-                    match element.properties[k].kind {
-                        Kind::Scalar(_) => Ok(k),
-                        Kind::List { .. } => Err(at_header(format!("vertex property '{c}' is a list"))),
-                    }
-                };
-                let xyz = [coordinate("x")?, coordinate("y")?, coordinate("z")?];
-                let uv = [("u", "v"), ("s", "t"), ("texture_u", "texture_v")]
-                    .iter()
-                    .find_map(|(u, v)| Some([coordinate(u).ok()?, coordinate(v).ok()?]));
-                let capacity = capped_capacity(element.count, body.remaining(), element.min_binary_size().max(2));
-                positions.reserve(capacity);
-                let mut uv_values: Vec<[f64; 2]> = Vec::with_capacity(if uv.is_some() { capacity } else { 0 });
-                for i in 0..element.count {
-                    body.begin(name, i, element.count)?;
-                    let mut p = [0.0; 3];
-                    let mut t = [0.0; 2];
-                    for (k, prop) in element.properties.iter().enumerate() {
-                        match prop.kind {
-                            Kind::Scalar(s) => {
-                                let x = body.value(s)?;
-                                if let Some(c) = xyz.iter().position(|&j| j == k) {
-                                    p[c] = x;
-                                } else if let Some(c) = uv.and_then(|uv| uv.iter().position(|&j| j == k)) {
-                                    t[c] = x;
-                                }
-                            }
-                            Kind::List { count, item } => read_list(body, count, item, &mut items)?,
-                        }
-                    }
-                    body.end()?;
-                    if !p.iter().all(|c| c.is_finite()) {
-                        return Err(body.error_bare(format!("vertex {i} has a non-finite coordinate")));
-                    }
-                    if !t.iter().all(|c| c.is_finite()) {
-                        return Err(body.error_bare(format!("vertex {i} has a non-finite texture coordinate")));
-                    }
-                    positions.push(p);
-                    if uv.is_some() {
-                        uv_values.push(t);
+    };
+    let xyz = [coordinate("x")?, coordinate("y")?, coordinate("z")?];
+    let uv = [("u", "v"), ("s", "t"), ("texture_u", "texture_v")]
+        .iter()
+        .find_map(|(u, v)| Some([coordinate(u).ok()?, coordinate(v).ok()?]));
+    let capacity = capped_capacity(element.count, body.remaining(), element.min_binary_size().max(2));
+    positions.reserve(capacity);
+    let mut uv_values: Vec<[f64; 2]> = Vec::with_capacity(if uv.is_some() { capacity } else { 0 });
+    for i in 0..element.count {
+        body.begin(name, i, element.count)?;
+        let mut p = [0.0; 3];
+        let mut t = [0.0; 2];
+        for (k, prop) in element.properties.iter().enumerate() {
+            match prop.kind {
+                Kind::Scalar(s) => {
+                    let x = body.value(s)?;
+                    if let Some(c) = xyz.iter().position(|&j| j == k) {
+                        p[c] = x;
+                    } else if let Some(c) = uv.and_then(|uv| uv.iter().position(|&j| j == k)) {
+                        t[c] = x;
                     }
                 }
-                if uv.is_some() {
-                    uvs = Some(uv_values);
-                }
+                Kind::List { count, item } => read_list(body, count, item, items)?,
             }
-            "face" | "tristrips" => {
-                let list = index_list_property(element, path, header.end_line)?;
-                let strips = name == "tristrips";
-                if !strips {
-                    faces.reserve(capped_capacity(
-                        element.count,
-                        body.remaining(),
-                        element.min_binary_size().max(2),
-                    ));
-                }
-                for i in 0..element.count {
-                    body.begin(name, i, element.count)?;
-                    for (k, prop) in element.properties.iter().enumerate() {
-                        match prop.kind {
-                            Kind::Scalar(s) => {
-                                body.value(s)?;
-                            }
-                            Kind::List { count, item } => {
-                                read_list(body, count, item, &mut items)?;
-                                if k != list {
-                                    continue;
-                                }
-                                if strips {
-                                    strips_to_triangles(&items, num_vertices, &mut faces).map_err(|m| body.error(m))?;
-                                    continue;
-                                }
-                                if items.len() < 3 {
-                                    return Err(body.error_bare(format!(
-                                        "face {i} has {} vertices (need at least 3)",
-                                        items.len()
-                                    )));
-                                }
-                                polygon.clear();
-                                for &v in &items {
-                                    if v < 0 || v as u64 >= num_vertices as u64 {
-                                        return Err(body.error(format!(
-                                            "vertex index {v} out of range (the header declares {num_vertices} vertices)"
-                                        )));
-                                    }
-                                    polygon.push(v as u32);
-                                }
-                                fans.extend(Fan::of(i, polygon.len(), &faces, None));
-                                fan_triangulate(&polygon, &mut faces);
-                            }
-                        }
-                    }
-                    body.end()?;
-                }
-            }
-            _ => {
-                for i in 0..element.count {
-                    body.begin(name, i, element.count)?;
-                    for prop in &element.properties {
-                        match prop.kind {
-                            Kind::Scalar(s) => {
-                                body.value(s)?;
-                            }
-                            Kind::List { count, item } => read_list(body, count, item, &mut items)?,
-                        }
-                    }
-                    body.end()?;
-                }
-            }
+        }
+        body.end()?;
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(body.error_bare(format!("vertex {i} has a non-finite coordinate")));
+        }
+        if !t.iter().all(|c| c.is_finite()) {
+            return Err(body.error_bare(format!("vertex {i} has a non-finite texture coordinate")));
+        }
+        positions.push(p);
+        if uv.is_some() {
+            uv_values.push(t);
         }
     }
-    body.finish()?;
-    if faces.is_empty() {
-        return Err(at_header(
-            "the file has no faces (all face elements empty or degenerate)".to_string(),
+    Ok((positions, uv.is_some().then_some(uv_values)))
+}
+
+/// Reads a face or tristrips element: its index list (property `list`) fan-triangulated into
+/// `faces` (polygons' fans recorded in `fans`), or strips turned into triangles; indices are
+/// checked against `num_vertices`.
+fn read_faces(
+    element: &Element,
+    list: usize,
+    num_vertices: usize,
+    body: &mut impl Body,
+    items: &mut Vec<i64>,
+    faces: &mut Vec<[u32; 3]>,
+    fans: &mut Vec<Fan>,
+) -> Result<(), GeometryError> {
+    let name = element.name.as_str();
+    let mut polygon: Vec<u32> = Vec::new();
+    let strips = name == "tristrips";
+    if !strips {
+        faces.reserve(capped_capacity(
+            element.count,
+            body.remaining(),
+            element.min_binary_size().max(2),
         ));
     }
-    check_fans(path, &positions, &faces, &fans)?;
-    Ok(TriMesh { positions, faces, uvs })
+    for i in 0..element.count {
+        body.begin(name, i, element.count)?;
+        for (k, prop) in element.properties.iter().enumerate() {
+            match prop.kind {
+                Kind::Scalar(s) => {
+                    body.value(s)?;
+                }
+                Kind::List { count, item } => {
+                    read_list(body, count, item, items)?;
+                    if k != list {
+                        continue;
+                    }
+                    if strips {
+                        strips_to_triangles(items, num_vertices, faces).map_err(|m| body.error(m))?;
+                        continue;
+                    }
+                    if items.len() < 3 {
+                        return Err(body.error_bare(format!("face {i} has {} vertices (need at least 3)", items.len())));
+                    }
+                    polygon.clear();
+                    for &v in items.iter() {
+                        if v < 0 || v as u64 >= num_vertices as u64 {
+                            return Err(body.error(format!(
+                                "vertex index {v} out of range (the header declares {num_vertices} vertices)"
+                            )));
+                        }
+                        polygon.push(v as u32);
+                    }
+                    fans.extend(Fan::of(i, polygon.len(), faces, None));
+                    fan_triangulate(&polygon, faces);
+                }
+            }
+        }
+        body.end()?;
+    }
+    Ok(())
+}
+
+/// Reads past an element the mesh does not use.
+fn skip_element(element: &Element, body: &mut impl Body, items: &mut Vec<i64>) -> Result<(), GeometryError> {
+    let name = element.name.as_str();
+    for i in 0..element.count {
+        body.begin(name, i, element.count)?;
+        for prop in &element.properties {
+            match prop.kind {
+                Kind::Scalar(s) => {
+                    body.value(s)?;
+                }
+                Kind::List { count, item } => read_list(body, count, item, items)?,
+            }
+        }
+        body.end()?;
+    }
+    Ok(())
 }
 
 /// Decodes triangle strips separated by `-1` (see the module documentation), dropping
