@@ -454,7 +454,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
         {
             let z = z.as_ref().map(|z| &z[..n]);
             match fold_fallback(e, mesh, markers, params, &tri.is_boundary[..n], &resolved, z)? {
-                FoldFallback::RegionRepaired(fin) => fin,
+                FoldFallback::RegionRepaired(fin) => *fin,
                 FoldFallback::Bff {
                     map,
                     green_folds,
@@ -467,7 +467,7 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
                         linear_solves,
                         timings: timings_until(Instant::now()),
                     };
-                    return Ok(bff_as_disk_map(map, route, Some((green_folds, reason))));
+                    return Ok(bff_as_disk_map(*map, route, Some((green_folds, reason))));
                 }
             }
         }
@@ -504,11 +504,11 @@ pub fn disk_map(mesh: &TriMesh, markers: &Markers, params: &DiskMapParams) -> Re
 /// map `z` (`params.region_repair`).
 enum FoldFallback {
     Bff {
-        map: crate::bff::BffDiskMap,
+        map: Box<crate::bff::BffDiskMap>,
         green_folds: usize,
         reason: String,
     },
-    RegionRepaired(Finished),
+    RegionRepaired(Box<Finished>),
 }
 
 /// The fallback after the Green's-function map's error `e` (a fold or a vertex outside the
@@ -547,7 +547,7 @@ fn fold_fallback(
         match crate::bff::bff_disk_map(mesh, markers, &bff_params) {
             Ok(map) => {
                 return Ok(FoldFallback::Bff {
-                    map,
+                    map: Box::new(map),
                     green_folds,
                     reason,
                 })
@@ -588,7 +588,7 @@ fn fold_fallback(
     };
     match (z, params.region_repair) {
         (Some(z), true) => match finish(mesh, is_boundary, resolved, z, true, true) {
-            Ok(fin) => Ok(FoldFallback::RegionRepaired(fin)),
+            Ok(fin) => Ok(FoldFallback::RegionRepaired(Box::new(fin))),
             Err(ConformalError::FoldedImage {
                 region_repair_error, ..
             }) => Err(refusal(e, region_repair_error)),

@@ -656,6 +656,62 @@ pub struct PrepareReport {
     pub bridges_split: usize,
 }
 
+/// The vertex of `m` (the cleaned closed surface; `origin` maps its vertices to the input's
+/// `input_vertices`) at which the disk is cut: the given input vertex, or the vertex nearest the
+/// area centroid.
+fn cut_center_vertex(
+    cut_center: CutCenter,
+    input_vertices: usize,
+    m: &TriMesh,
+    origin: &[Option<u32>],
+) -> Result<u32, GeometryError> {
+    match cut_center {
+        CutCenter::Vertex(v) => {
+            if v as usize >= input_vertices {
+                return Err(GeometryError::Invalid(format!(
+                    "cut centre {v} is out of range ({input_vertices} vertices)"
+                )));
+            }
+            Ok(origin.iter().position(|&o| o == Some(v)).ok_or_else(|| {
+                GeometryError::Invalid(format!(
+                    "cut centre {v} is not on the largest component (or is unreferenced)"
+                ))
+            })? as u32)
+        }
+        CutCenter::Auto => {
+            let areas = face_areas(m);
+            let c = area_centroid(m, &areas, areas.iter().sum());
+            Ok((0..m.num_vertices())
+                .min_by(|&a, &b| norm(sub(m.positions[a], c)).total_cmp(&norm(sub(m.positions[b], c))))
+                .ok_or_else(|| GeometryError::Topology("the mesh has no vertices".into()))? as u32)
+        }
+    }
+}
+
+/// Splits the edges joining two boundary vertices while they cut the interior of `m` into
+/// pieces (the new midpoints are interior and join them; rounds, because a split can leave
+/// pieces that only the next bridge joins; also when there is no interior vertex at all: a split
+/// bridge gives one, as in a square of two triangles); `origin` grows with `None`s.
+fn split_bridges(
+    mut m: TriMesh,
+    report: &mut PrepareReport,
+    origin: &mut Vec<Option<u32>>,
+) -> Result<TriMesh, GeometryError> {
+    for _ in 0..4 {
+        if interior_components(&m).1 == 1 {
+            break;
+        }
+        let bridges = boundary_bridges(&m);
+        if bridges.is_empty() {
+            break;
+        }
+        m = split_edges(&m, &bridges)?;
+        report.bridges_split += bridges.len();
+        origin.resize(m.num_vertices(), None);
+    }
+    Ok(m)
+}
+
 /// Makes a disk-topology mesh out of a surface with the explicit operations of this module, in
 /// this order: drop unreferenced vertices, keep the largest component, drop faces with a
 /// repeated vertex, make the orientation consistent, repair zero-area faces without moving a
@@ -755,28 +811,7 @@ pub fn prepare_disk(
     let mut m = repaired.mesh;
     let conn = Connectivity::of(&m);
     if conn.boundary_loops(&m.faces).is_empty() {
-        let center = match options.cut_center {
-            CutCenter::Vertex(v) => {
-                if v as usize >= mesh.num_vertices() {
-                    return Err(GeometryError::Invalid(format!(
-                        "cut centre {v} is out of range ({} vertices)",
-                        mesh.num_vertices()
-                    )));
-                }
-                origin.iter().position(|&o| o == Some(v)).ok_or_else(|| {
-                    GeometryError::Invalid(format!(
-                        "cut centre {v} is not on the largest component (or is unreferenced)"
-                    ))
-                })? as u32
-            }
-            CutCenter::Auto => {
-                let areas = face_areas(&m);
-                let c = area_centroid(&m, &areas, areas.iter().sum());
-                (0..m.num_vertices())
-                    .min_by(|&a, &b| norm(sub(m.positions[a], c)).total_cmp(&norm(sub(m.positions[b], c))))
-                    .ok_or_else(|| GeometryError::Topology("the mesh has no vertices".into()))? as u32
-            }
-        };
+        let center = cut_center_vertex(options.cut_center, mesh.num_vertices(), &m, &origin)?;
         report.cut_center = origin[center as usize];
         let faces_before = m.num_faces();
         let (cut, map) = cut_disk(&m, center, options.cut_radius)?;
@@ -800,23 +835,8 @@ pub fn prepare_disk(
             m = cut;
         }
     }
-    // a disk whose interior falls apart at edges joining two boundary vertices: split them
-    // (the new midpoints are interior and join the pieces); rounds because a split can leave
-    // pieces that only the next bridge joins
-    // (also when there is no interior vertex at all: a split bridge gives one, as in a square
-    // of two triangles)
-    for _ in 0..4 {
-        if interior_components(&m).1 == 1 {
-            break;
-        }
-        let bridges = boundary_bridges(&m);
-        if bridges.is_empty() {
-            break;
-        }
-        m = split_edges(&m, &bridges)?;
-        report.bridges_split += bridges.len();
-        origin.resize(m.num_vertices(), None);
-    }
+    // a disk whose interior falls apart at edges joining two boundary vertices
+    m = split_bridges(m, &mut report, &mut origin)?;
     if interior_components(&m).1 == 0 {
         let (after, advice) = if report.seam_edges > 0 {
             (", after the seam cut", "use fewer seam extremities or a finer mesh")

@@ -202,13 +202,9 @@ pub(crate) fn slit_from_extremities(mesh: &TriMesh, count: usize) -> Result<Opti
     }))
 }
 
-/// [`cut_along_seam`] on a validated mesh with its connectivity.
-fn cut_along_seam_in(
-    mesh: &TriMesh,
-    conn: &Connectivity,
-    seam: &[[u32; 2]],
-) -> Result<(TriMesh, Vec<u32>), GeometryError> {
-    let n = mesh.num_vertices();
+/// The surface conditions of a seam cut: faces with three distinct vertices, an edge-manifold
+/// and consistently oriented surface, at most one boundary loop.
+fn check_cuttable(mesh: &TriMesh, conn: &Connectivity) -> Result<(), GeometryError> {
     if let Some(f) = mesh
         .faces
         .iter()
@@ -236,10 +232,21 @@ fn cut_along_seam_in(
             "a seam cut needs a closed surface or a disk; this surface has {loops} boundary loops (fill all but one first: `prepare::fill_holes_except_longest`)"
         )));
     }
+    Ok(())
+}
+
+/// Checks that `seam` is a set of interior mesh edges forming a tree once the boundary is
+/// contracted to one node (connected to the boundary when there is one); returns the seam flag
+/// per edge and the seam degree per vertex.
+fn checked_seam(
+    conn: &Connectivity,
+    on_boundary: &[bool],
+    seam: &[[u32; 2]],
+) -> Result<(Vec<bool>, Vec<u32>), GeometryError> {
+    let n = on_boundary.len();
     if seam.is_empty() {
         return Err(GeometryError::Invalid("the seam has no edges".into()));
     }
-    let on_boundary = conn.boundary_vertices(n);
     let mut is_seam = vec![false; conn.num_edges()];
     let mut degree = vec![0u32; n];
     // Tree check with the boundary contracted to one node (index n): union–find over the nodes.
@@ -279,6 +286,19 @@ fn cut_along_seam_in(
             if has_boundary { " to the boundary" } else { "" }
         )));
     }
+    Ok((is_seam, degree))
+}
+
+/// [`cut_along_seam`] on a validated mesh with its connectivity.
+fn cut_along_seam_in(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    seam: &[[u32; 2]],
+) -> Result<(TriMesh, Vec<u32>), GeometryError> {
+    let n = mesh.num_vertices();
+    check_cuttable(mesh, conn)?;
+    let on_boundary = conn.boundary_vertices(n);
+    let (is_seam, degree) = checked_seam(conn, &on_boundary, seam)?;
     let edge_of = |a: u32, b: u32| conn.edges.binary_search(&[a.min(b), a.max(b)]).ok();
     let mut faces = mesh.faces.clone();
     let mut origin: Vec<u32> = (0..n as u32).collect();

@@ -116,11 +116,23 @@ fn main() {
     let bundled = faces::prepared_faces(&face_names);
     let n = pairs.min(scan_shapes.len() - 1).min(bundled.len() - 1);
     let (mut bt, mut bs, mut st, mut ss) = (vec![], vec![], vec![], vec![]);
+    let (mut bw, mut sw) = (vec![], vec![]);
     let mut scan_solves = Vec::new();
     let (mut rt, mut rs, mut rc) = (vec![], vec![], vec![]);
     for k in 0..n {
         let b = solve(&bundled[k], &bundled[k + 1]);
         let s = solve(&scan_shapes[k], &scan_shapes[k + 1]);
+        // the same pairs again, the sources' averaged copies built: a distances run builds them
+        // once per source and reuses them for its other n - 2 pairs
+        let bwarm = solve(&bundled[k], &bundled[k + 1]);
+        let swarm = solve(&scan_shapes[k], &scan_shapes[k + 1]);
+        assert_eq!(
+            (bwarm.cost, swarm.cost),
+            (b.cost, s.cost),
+            "a warm solve differs from the cold one"
+        );
+        bw.push(bwarm.seconds);
+        sw.push(swarm.seconds);
         // the source density as mapped, without the spreading of its peaks
         let mut raw = scan_shapes[k].clone();
         raw.measure = shapespace_omt::SourceMeasure::new(
@@ -132,8 +144,8 @@ fn main() {
         .into();
         let r = solve(&raw, &scan_shapes[k + 1]);
         eprintln!(
-            "pair {k}: bundled {:.2} s {} finest (+{} coarse) | scan {} -> {} {:.2} s {} finest (+{} coarse) | unspread {:.2} s {} finest (+{} coarse), distance {:+.1e} relative",
-            b.seconds, b.finest, b.coarse, scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, s.finest, s.coarse,
+            "pair {k}: bundled {:.2} s (warm {:.2} s) {} finest (+{} coarse) | scan {} -> {} {:.2} s (warm {:.2} s) {} finest (+{} coarse) | unspread {:.2} s {} finest (+{} coarse), distance {:+.1e} relative",
+            b.seconds, bwarm.seconds, b.finest, b.coarse, scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, swarm.seconds, s.finest, s.coarse,
             r.seconds, r.finest, r.coarse, s.cost.sqrt() / r.cost.sqrt() - 1.0
         );
         rt.push(r.seconds);
@@ -160,6 +172,19 @@ fn main() {
         median(&ss),
         max(&ss),
         median(&st) / base
+    );
+    let warm_base = median(&bw);
+    println!(
+        "| bundled faces, sources' averaged copies built (as in a distances run) | 9,412 | {n} | {warm_base:.2} | {} / {} | 1 |",
+        median(&bs),
+        max(&bs)
+    );
+    println!(
+        "| facefuns scans, sources' averaged copies built (as in a distances run) | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
+        median(&sw),
+        median(&ss),
+        max(&ss),
+        median(&sw) / warm_base
     );
     println!(
         "| facefuns scans, densities as mapped (no peak spreading) | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
@@ -225,6 +250,8 @@ fn main() {
         }
         let s = solve(&fine[0], &fine[1]);
         let b = solve(&bundled[0], &bundled[1]);
+        let s_warm = solve(&fine[0], &fine[1]);
+        let b_warm = solve(&bundled[0], &bundled[1]);
         println!(
             "| facefuns subdivided once | {} | 1 | {:.2} | {} / {} | {:.1} (to the bundled pair solved right after it, {:.2} s) |",
             fine[1].points.len(),
@@ -233,6 +260,15 @@ fn main() {
             s.finest,
             s.seconds / b.seconds,
             b.seconds
+        );
+        println!(
+            "| the same, sources' averaged copies built | {} | 1 | {:.2} | {} / {} | {:.1} (to the bundled pair, {:.2} s) |",
+            fine[1].points.len(),
+            s_warm.seconds,
+            s_warm.finest,
+            s_warm.finest,
+            s_warm.seconds / b_warm.seconds,
+            b_warm.seconds
         );
         if reset {
             println!(

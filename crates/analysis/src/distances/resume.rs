@@ -209,10 +209,6 @@ pub(crate) fn earlier_pairs(
     identity: &RunIdentity,
     needed: &HashSet<(usize, usize)>,
 ) -> (HashMap<(usize, usize), PairRecord>, Vec<String>) {
-    #[derive(Deserialize)]
-    struct Report {
-        resume_key: Option<RunIdentity>,
-    }
     let mut by_key: HashMap<&str, Vec<usize>> = HashMap::new();
     for (i, input) in identity.inputs.iter().enumerate() {
         if let Some(key) = &input.key {
@@ -234,60 +230,132 @@ pub(crate) fn earlier_pairs(
                 continue;
             }
         };
-        let identity_path = out.join(identity_name);
-        let earlier = std::fs::read_to_string(&identity_path)
-            .map_err(|e| e.to_string())
-            .and_then(|json| {
-                if in_report {
-                    serde_json::from_str::<Report>(&json).map(|r| r.resume_key)
-                } else {
-                    serde_json::from_str::<RunIdentity>(&json).map(Some)
-                }
-                .map_err(|e| e.to_string())
-            });
-        let earlier = match earlier {
-            Ok(Some(earlier)) => earlier,
-            Ok(None) => {
-                notes.push(not_used(format!("{} has no resume_key", identity_path.display())));
-                continue;
-            }
-            Err(e) => {
-                notes.push(not_used(format!("{}: {e}", identity_path.display())));
+        let earlier = match compatible_earlier_run(&out.join(identity_name), in_report, identity) {
+            Ok(earlier) => earlier,
+            Err(why) => {
+                notes.push(not_used(why));
                 continue;
             }
         };
-        if earlier.shapespace_version != identity.shapespace_version {
-            notes.push(not_used(format!(
-                "written by shapespace {} (this is {})",
-                earlier.shapespace_version, identity.shapespace_version
-            )));
-            continue;
-        }
-        if earlier.build.is_none() || earlier.build != identity.build {
-            notes.push(not_used(
-                "written by another build of shapespace (or one whose executable could not be read)".into(),
-            ));
-            continue;
-        }
-        if earlier.settings != identity.settings {
-            notes.push(not_used(
-                "computed with other solver or conformal-map settings (tolerance, iteration cap, ...)".into(),
-            ));
-            continue;
-        }
-        let earlier_key: HashMap<&str, &str> = earlier
-            .inputs
-            .iter()
-            .filter_map(|input| input.key.as_deref().map(|k| (input.name.as_str(), k)))
-            .collect();
         let incomplete = text.last().is_some_and(|&b| b != b'\n');
         if incomplete {
             text.truncate(text.iter().rposition(|&b| b == b'\n').map_or(0, |k| k + 1));
         }
-        let (mut rows, mut unreadable, mut taken) = (0, usize::from(incomplete), 0);
-        let (mut panicked, mut timed_out) = (0, 0);
-        let mut invalid = Vec::new();
-        let mut reader = csv::Reader::from_reader(text.as_slice());
+        let mut tally = RowTally {
+            unreadable: usize::from(incomplete),
+            ..RowTally::default()
+        };
+        let rows = EarlierRows {
+            earlier: &earlier,
+            identity,
+            by_key: &by_key,
+            needed,
+        };
+        rows.take(&text, &mut known, &mut tally);
+        notes.push(tally.note(&pairs_path));
+    }
+    (known, notes)
+}
+
+/// The identity of the earlier run written to `identity_path` (the report's `resume_key` when
+/// `in_report`), when its version, build and settings are this run's; else why not.
+fn compatible_earlier_run(
+    identity_path: &Path,
+    in_report: bool,
+    identity: &RunIdentity,
+) -> Result<RunIdentity, String> {
+    #[derive(Deserialize)]
+    struct Report {
+        resume_key: Option<RunIdentity>,
+    }
+    let earlier = std::fs::read_to_string(identity_path)
+        .map_err(|e| e.to_string())
+        .and_then(|json| {
+            if in_report {
+                serde_json::from_str::<Report>(&json).map(|r| r.resume_key)
+            } else {
+                serde_json::from_str::<RunIdentity>(&json).map(Some)
+            }
+            .map_err(|e| e.to_string())
+        })
+        .map_err(|e| format!("{}: {e}", identity_path.display()))?
+        .ok_or_else(|| format!("{} has no resume_key", identity_path.display()))?;
+    if earlier.shapespace_version != identity.shapespace_version {
+        return Err(format!(
+            "written by shapespace {} (this is {})",
+            earlier.shapespace_version, identity.shapespace_version
+        ));
+    }
+    if earlier.build.is_none() || earlier.build != identity.build {
+        return Err("written by another build of shapespace (or one whose executable could not be read)".into());
+    }
+    if earlier.settings != identity.settings {
+        return Err("computed with other solver or conformal-map settings (tolerance, iteration cap, ...)".into());
+    }
+    Ok(earlier)
+}
+
+/// What one earlier pairs file gave: rows read, rows unreadable or incomplete, pairs taken,
+/// internal errors and time-limited pairs left to compute again, invalid rows (with why).
+#[derive(Default)]
+struct RowTally {
+    rows: usize,
+    unreadable: usize,
+    taken: usize,
+    panicked: usize,
+    timed_out: usize,
+    invalid: Vec<String>,
+}
+
+impl RowTally {
+    /// The file's line for the run's notes.
+    fn note(&self, pairs_path: &Path) -> String {
+        let mut skipped = String::new();
+        if self.unreadable > 0 {
+            skipped += &format!(", {} unreadable or incomplete skipped", self.unreadable);
+        }
+        if self.panicked > 0 {
+            skipped += &format!(", {} internal errors computed again", self.panicked);
+        }
+        if self.timed_out > 0 {
+            skipped += &format!(", {} stopped at their time limit computed again", self.timed_out);
+        }
+        if !self.invalid.is_empty() {
+            skipped += &format!(
+                ", {} invalid rows computed again: {}",
+                self.invalid.len(),
+                self.invalid.join("; ")
+            );
+        }
+        format!(
+            "{}: {} pairs taken from {} rows{skipped}",
+            pairs_path.display(),
+            self.taken,
+            self.rows
+        )
+    }
+}
+
+/// The rows of a compatible earlier run's pairs file, taken for this run's pairs.
+struct EarlierRows<'a> {
+    earlier: &'a RunIdentity,
+    identity: &'a RunIdentity,
+    /// current inputs by shape key
+    by_key: &'a HashMap<&'a str, Vec<usize>>,
+    needed: &'a HashSet<(usize, usize)>,
+}
+
+impl EarlierRows<'_> {
+    /// Takes the intact rows of `text` (complete lines of a pairs CSV) into `known` for every
+    /// needed current pair of files with the rows' shape keys, counting in `tally`.
+    fn take(&self, text: &[u8], known: &mut HashMap<(usize, usize), PairRecord>, tally: &mut RowTally) {
+        let earlier_key: HashMap<&str, &str> = self
+            .earlier
+            .inputs
+            .iter()
+            .filter_map(|input| input.key.as_deref().map(|k| (input.name.as_str(), k)))
+            .collect();
+        let mut reader = csv::Reader::from_reader(text);
         let headers = reader.headers().cloned().unwrap_or_default();
         let check_column = headers.iter().position(|h| h == "check");
         for row in reader.records() {
@@ -295,16 +363,16 @@ pub(crate) fn earlier_pairs(
                 .ok()
                 .and_then(|row| row.deserialize::<PairRecord>(Some(&headers)).ok().map(|r| (row, r)))
             else {
-                unreadable += 1;
+                tally.unreadable += 1;
                 continue;
             };
-            rows += 1;
+            tally.rows += 1;
             if crate::distance::is_internal_error(&record.status) {
-                panicked += 1;
+                tally.panicked += 1;
                 continue;
             }
             if crate::distance::is_time_limit(&record.status) {
-                timed_out += 1;
+                tally.timed_out += 1;
                 continue;
             }
             let fields: Vec<&str> = row
@@ -314,7 +382,7 @@ pub(crate) fn earlier_pairs(
                 .map(|(_, f)| f)
                 .collect();
             // (a row of a file that failed to prepare has no check and is never taken)
-            let Some(expected) = row_check(&earlier, &fields) else {
+            let Some(expected) = row_check(self.earlier, &fields) else {
                 continue;
             };
             let line = row.position().map_or(0, |p| p.line());
@@ -324,49 +392,34 @@ pub(crate) fn earlier_pairs(
                 invalid_values(&record)
             };
             if let Some(why) = why {
-                invalid.push(format!("line {line} ({} -> {}): {why}", record.a, record.b));
+                tally
+                    .invalid
+                    .push(format!("line {line} ({} -> {}): {why}", record.a, record.b));
                 continue;
             }
-            let current = |name: &str| earlier_key.get(name).and_then(|k| by_key.get(k)).map_or(&[][..], |v| v);
+            let current = |name: &str| {
+                earlier_key
+                    .get(name)
+                    .and_then(|k| self.by_key.get(k))
+                    .map_or(&[][..], |v| v)
+            };
             for &s in current(&record.a) {
                 for &t in current(&record.b) {
-                    if s != t && needed.contains(&(s, t)) && !known.contains_key(&(s, t)) {
+                    if s != t && self.needed.contains(&(s, t)) && !known.contains_key(&(s, t)) {
                         let current = PairRecord {
-                            a: identity.inputs[s].name.clone(),
-                            b: identity.inputs[t].name.clone(),
+                            a: self.identity.inputs[s].name.clone(),
+                            b: self.identity.inputs[t].name.clone(),
                             source: s,
                             target: t,
                             ..record.clone()
                         };
                         known.insert((s, t), current);
-                        taken += 1;
+                        tally.taken += 1;
                     }
                 }
             }
         }
-        let mut skipped = String::new();
-        if unreadable > 0 {
-            skipped += &format!(", {unreadable} unreadable or incomplete skipped");
-        }
-        if panicked > 0 {
-            skipped += &format!(", {panicked} internal errors computed again");
-        }
-        if timed_out > 0 {
-            skipped += &format!(", {timed_out} stopped at their time limit computed again");
-        }
-        if !invalid.is_empty() {
-            skipped += &format!(
-                ", {} invalid rows computed again: {}",
-                invalid.len(),
-                invalid.join("; ")
-            );
-        }
-        notes.push(format!(
-            "{}: {taken} pairs taken from {rows} rows{skipped}",
-            pairs_path.display()
-        ));
     }
-    (known, notes)
 }
 
 /// The [`RunIdentity`] of a run with `options` over the prepared `inputs`.

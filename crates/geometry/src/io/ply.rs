@@ -699,6 +699,9 @@ fn declared_vertices(header: &Header, path: &Path) -> Result<usize, GeometryErro
     Ok(num_vertices)
 }
 
+/// Positions and, when the file has them, texture coordinates.
+type VertexData = (Vec<[f64; 3]>, Option<Vec<[f64; 2]>>);
+
 /// Reads the vertex element: positions, and texture coordinates when it has a (u, v), (s, t)
 /// or (texture_u, texture_v) pair; non-finite values are errors.
 fn read_vertices(
@@ -706,7 +709,7 @@ fn read_vertices(
     body: &mut impl Body,
     at_header: &impl Fn(String) -> GeometryError,
     items: &mut Vec<i64>,
-) -> Result<(Vec<[f64; 3]>, Option<Vec<[f64; 2]>>), GeometryError> {
+) -> Result<VertexData, GeometryError> {
     let name = element.name.as_str();
     let mut positions: Vec<[f64; 3]> = Vec::new();
     let coordinate = |c: &str| {
