@@ -503,8 +503,8 @@ pub(crate) fn stem(p: &Path) -> String {
 /// With `remeshed` = Some(R), each class also registers every pose onto the remeshings of the
 /// other poses, `R/CLASS/NAME.{off,obj,ply}` for each pose `NAME` (no shared triangulation;
 /// e.g. `scripts/remesh_targets.py`): the ground truth of pose i → remeshed pose j is the point
-/// of the remeshed mesh closest to each vertex of pose j, its markers the nearest vertices
-/// ([`crate::registration::truth`]); both are written to `out/truth/CLASS/NAME.csv` and
+/// of the remeshed mesh closest to each vertex of pose j, its markers vertices at their closest
+/// points ([`crate::registration::truth::carry_markers`]); both are written to `out/truth/CLASS/NAME.csv` and
 /// `NAME.landmarks.json` (for a peer scored on the same ground truth). Those rows have
 /// `triangulation` = `remeshed`; the per-mesh work of a class is shared over all its pairs.
 #[allow(clippy::too_many_arguments)]
