@@ -235,24 +235,9 @@ fn normalized(z: &[[f64; 2]], mobius: &Mobius, is_boundary: &[bool], resolved: &
     uv
 }
 
-/// Steps 3–5 of the module docs for any map z (#V) of the mesh into the closed unit disk with
-/// the boundary on the circle: the Möbius normalization p ↦ 0, q ↦ 1 (a fixed-point iteration
-/// for a barycentric p), boundary vertices snapped to |z| = 1, fold repair (if `repair`: local,
-/// then with `region_repair` a Tutte re-embedding of the region around the folds that remain,
-/// retried with only the boundary fixed and a Möbius map back to p ↦ 0 when the pinned center
-/// keeps it from unfolding),
-/// densities and conformal factors on the original faces.
-///
-/// Errors: the center's image on the circle, a fold left after the repair, a density beyond
-/// the f64 range, a non-finite conformal factor.
-pub(crate) fn finish(
-    mesh: &TriMesh,
-    is_boundary: &[bool],
-    resolved: &ResolvedMarkers,
-    z: &[[f64; 2]],
-    repair: bool,
-    region_repair: bool,
-) -> Result<Finished, ConformalError> {
+/// The Möbius map of the disk sending the center's image to 0 and the boundary marker's to 1;
+/// for a center inside a face, iterated until the piecewise-linear image of p is 0 (to 1e-15).
+fn normalizing_mobius(mesh: &TriMesh, resolved: &ResolvedMarkers, z: &[[f64; 2]]) -> Result<Mobius, ConformalError> {
     let a_img = center_image(mesh, resolved.center, z);
     if a_img[0].hypot(a_img[1]) >= 1.0 - 1e-12 {
         return Err(ConformalError::InvalidMarker(
@@ -277,98 +262,157 @@ pub(crate) fn finish(
             mobius = Mobius::normalizing(mobius.inverse().apply(g), q_img);
         }
     }
-    let mut uv = normalized(z, &mobius, is_boundary, resolved);
+    Ok(mobius)
+}
 
-    // densities and factors on the original faces; fold repair first if needed (crate::fold_repair::local)
-    let mut dist = face_distortions(mesh, &uv)?;
-    let mut fold_repairs = 0;
-    let mut region = None;
-    let mut region_error = None;
-    if repair && dist.orientation.iter().any(|&o| o <= 0) {
-        let mut vertex_faces = vec![Vec::new(); mesh.num_vertices()];
-        for (f, face) in mesh.faces.iter().enumerate() {
-            for &v in face {
-                vertex_faces[v as usize].push(f as u32);
-            }
+/// The normalized image with its face distortions, and what the fold repair did.
+struct Image {
+    uv: Vec<[f64; 2]>,
+    dist: crate::quality::FaceDistortions,
+    mobius: Mobius,
+    fold_repairs: usize,
+    region: Option<FoldRepairInfo>,
+    region_error: Option<String>,
+}
+
+/// Repairs the folds of `image`: local moves with the boundary and the center fixed; then, with
+/// `region_repair` and folds left, a Tutte re-embedding of the folded region (the center pinned,
+/// else with only the boundary fixed and a Möbius map back to p ↦ 0), else the local repair
+/// again with unbounded patches (scattered slivers). A repair is kept only where its image is
+/// usable.
+fn repair_image(
+    mesh: &TriMesh,
+    is_boundary: &[bool],
+    resolved: &ResolvedMarkers,
+    region_repair: bool,
+    image: &mut Image,
+) -> Result<(), ConformalError> {
+    let mut vertex_faces = vec![Vec::new(); mesh.num_vertices()];
+    for (f, face) in mesh.faces.iter().enumerate() {
+        for &v in face {
+            vertex_faces[v as usize].push(f as u32);
         }
-        let mut fixed = is_boundary.to_vec();
-        if let ResolvedCenter::Vertex(v) = resolved.center {
+    }
+    let mut fixed = is_boundary.to_vec();
+    if let ResolvedCenter::Vertex(v) = resolved.center {
+        fixed[v as usize] = true;
+    }
+    if let ResolvedCenter::Face { face, .. } = resolved.center {
+        // the face containing p keeps its corners so that p still maps to 0
+        for &v in &mesh.faces[face as usize] {
             fixed[v as usize] = true;
         }
-        if let ResolvedCenter::Face { face, .. } = resolved.center {
-            // the face containing p keeps its corners so that p still maps to 0
-            for &v in &mesh.faces[face as usize] {
-                fixed[v as usize] = true;
+    }
+    let angles = shapespace_geometry::quantities::corner_angles(mesh);
+    let unrepaired = image.uv.clone();
+    image.fold_repairs = repair_folds(&mesh.faces, &vertex_faces, &angles, &fixed, &mut image.uv);
+    image.dist = face_distortions(mesh, &image.uv)?;
+    if region_repair && image.dist.orientation.iter().any(|&o| o <= 0) {
+        // the markers stay where they are: they are fixed like the boundary
+        let mut repaired = image.uv.clone();
+        match crate::fold_repair::repair_folds(mesh, &fixed, &mut repaired, &FoldRepairParams::default()) {
+            Ok(info) => {
+                let repaired_dist = face_distortions(mesh, &repaired)?;
+                let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
+                if usable(&repaired_dist) {
+                    image.uv = repaired;
+                    image.dist = repaired_dist;
+                    image.region = Some(info);
+                } else if left == 0 {
+                    image.region_error = Some(format!(
+                        "a face of the re-embedded region has an area below the f64 range (its rings: {} vertices)",
+                        info.region_vertices
+                    ));
+                } else {
+                    image.region_error = Some(format!(
+                        "{left} faces fold by the map's own orientation test after it (its rings: {} vertices)",
+                        info.region_vertices
+                    ));
+                }
             }
+            Err(e) => image.region_error = Some(e.to_string()),
         }
-        let angles = shapespace_geometry::quantities::corner_angles(mesh);
-        let unrepaired = uv.clone();
-        fold_repairs = repair_folds(&mesh.faces, &vertex_faces, &angles, &fixed, &mut uv);
-        dist = face_distortions(mesh, &uv)?;
-        if region_repair && dist.orientation.iter().any(|&o| o <= 0) {
-            // the markers stay where they are: they are fixed like the boundary
-            let mut repaired = uv.clone();
-            match crate::fold_repair::repair_folds(mesh, &fixed, &mut repaired, &FoldRepairParams::default()) {
-                Ok(info) => {
-                    let repaired_dist = face_distortions(mesh, &repaired)?;
-                    let left = repaired_dist.orientation.iter().filter(|&&o| o <= 0).count();
-                    if usable(&repaired_dist) {
-                        uv = repaired;
-                        dist = repaired_dist;
-                        region = Some(info);
-                    } else if left == 0 {
-                        region_error = Some(format!(
-                            "a face of the re-embedded region has an area below the f64 range (its rings: {} vertices)",
-                            info.region_vertices
-                        ));
-                    } else {
-                        region_error = Some(format!(
-                            "{left} faces fold by the map's own orientation test after it (its rings: {} vertices)",
-                            info.region_vertices
-                        ));
-                    }
-                }
-                Err(e) => region_error = Some(e.to_string()),
-            }
-            // (a center inside a face stays pinned: a Möbius map would not keep its
-            // piecewise-linear image at 0)
-            if region.is_none() && matches!(resolved.center, ResolvedCenter::Vertex(_)) {
-                // a pinned center can lie outside the kernel of its neighbours in the Tutte map
-                // (Floater's theorem holds for the boundary alone): repair with the boundary
-                // fixed only, then move the center back to 0 by a Möbius map of the disk
-                let mut repaired = uv.clone();
-                // (when this fails too, the pinned attempt's error is the one reported)
-                if let Ok(info) =
-                    crate::fold_repair::repair_folds(mesh, is_boundary, &mut repaired, &FoldRepairParams::default())
-                {
-                    let a = center_image(mesh, resolved.center, &repaired);
-                    let renormalize = Mobius::normalizing(a, repaired[resolved.boundary_vertex as usize]);
-                    let repaired = normalized(&repaired, &renormalize, is_boundary, resolved);
-                    let repaired_dist = face_distortions(mesh, &repaired)?;
-                    if usable(&repaired_dist) {
-                        uv = repaired;
-                        dist = repaired_dist;
-                        mobius = renormalize.compose(&mobius);
-                        region = Some(info);
-                    }
-                }
-            }
-            if region.is_none() {
-                // scattered slivers rather than a folded region: the local repair again, with
-                // patches without the bound that keeps them from grinding through a folded region
-                let mut repaired = unrepaired;
-                let moves =
-                    repair_folds_with_patches(&mesh.faces, &vertex_faces, &angles, &fixed, &mut repaired, usize::MAX);
+        // (a center inside a face stays pinned: a Möbius map would not keep its
+        // piecewise-linear image at 0)
+        if image.region.is_none() && matches!(resolved.center, ResolvedCenter::Vertex(_)) {
+            // a pinned center can lie outside the kernel of its neighbours in the Tutte map
+            // (Floater's theorem holds for the boundary alone): repair with the boundary
+            // fixed only, then move the center back to 0 by a Möbius map of the disk
+            let mut repaired = image.uv.clone();
+            // (when this fails too, the pinned attempt's error is the one reported)
+            if let Ok(info) =
+                crate::fold_repair::repair_folds(mesh, is_boundary, &mut repaired, &FoldRepairParams::default())
+            {
+                let a = center_image(mesh, resolved.center, &repaired);
+                let renormalize = Mobius::normalizing(a, repaired[resolved.boundary_vertex as usize]);
+                let repaired = normalized(&repaired, &renormalize, is_boundary, resolved);
                 let repaired_dist = face_distortions(mesh, &repaired)?;
                 if usable(&repaired_dist) {
-                    uv = repaired;
-                    dist = repaired_dist;
-                    fold_repairs = moves;
-                    region_error = None;
+                    image.uv = repaired;
+                    image.dist = repaired_dist;
+                    image.mobius = renormalize.compose(&image.mobius);
+                    image.region = Some(info);
                 }
+            }
+        }
+        if image.region.is_none() {
+            // scattered slivers rather than a folded region: the local repair again, with
+            // patches without the bound that keeps them from grinding through a folded region
+            let mut repaired = unrepaired;
+            let moves =
+                repair_folds_with_patches(&mesh.faces, &vertex_faces, &angles, &fixed, &mut repaired, usize::MAX);
+            let repaired_dist = face_distortions(mesh, &repaired)?;
+            if usable(&repaired_dist) {
+                image.uv = repaired;
+                image.dist = repaired_dist;
+                image.fold_repairs = moves;
+                image.region_error = None;
             }
         }
     }
+    Ok(())
+}
+
+/// Steps 3–5 of the module docs for any map z (#V) of the mesh into the closed unit disk with
+/// the boundary on the circle: the Möbius normalization p ↦ 0, q ↦ 1 (a fixed-point iteration
+/// for a barycentric p), boundary vertices snapped to |z| = 1, fold repair (if `repair`: local,
+/// then with `region_repair` a Tutte re-embedding of the region around the folds that remain,
+/// retried with only the boundary fixed and a Möbius map back to p ↦ 0 when the pinned center
+/// keeps it from unfolding),
+/// densities and conformal factors on the original faces.
+///
+/// Errors: the center's image on the circle, a fold left after the repair, a density beyond
+/// the f64 range, a non-finite conformal factor.
+pub(crate) fn finish(
+    mesh: &TriMesh,
+    is_boundary: &[bool],
+    resolved: &ResolvedMarkers,
+    z: &[[f64; 2]],
+    repair: bool,
+    region_repair: bool,
+) -> Result<Finished, ConformalError> {
+    let mobius = normalizing_mobius(mesh, resolved, z)?;
+    let uv = normalized(z, &mobius, is_boundary, resolved);
+    // densities and factors on the original faces; fold repair first if needed (crate::fold_repair::local)
+    let mut image = Image {
+        dist: face_distortions(mesh, &uv)?,
+        uv,
+        mobius,
+        fold_repairs: 0,
+        region: None,
+        region_error: None,
+    };
+    if repair && image.dist.orientation.iter().any(|&o| o <= 0) {
+        repair_image(mesh, is_boundary, resolved, region_repair, &mut image)?;
+    }
+    let Image {
+        uv,
+        mobius,
+        dist,
+        fold_repairs,
+        region,
+        region_error,
+    } = image;
     let areas = shapespace_geometry::quantities::face_areas(mesh);
     let total: f64 = areas.iter().sum();
     let scale = (std::f64::consts::PI / total).sqrt();
