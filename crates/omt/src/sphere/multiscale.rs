@@ -515,6 +515,119 @@ fn solve_level(
     Ok(Some(solution))
 }
 
+/// The inner radius of the source over a cone of directions: for directions within α of n,
+/// the ray from 0 meets the source in a triangle whose spherical image meets the cap (n, α),
+/// at a distance from 0 at least that of the triangle's plane; the smallest of those planes'
+/// distances bounds the source from below over the cone. (The global bound [`inner_radius`]
+/// is set by the largest triangles, 0.937 on TOSCA wolf0's image, and scaling the pieces Φ_g
+/// of crowded groups' cells down to it broke the prolonged coarse cells: docs/decisions/0038.)
+struct LocalRadius {
+    /// The global inner radius (a lower bound everywhere).
+    global: f64,
+    /// Triangles in classes of angular radius ≤ r (r = 10^−k): r, the tree of their centroid
+    /// directions, their angular radii and plane distances.
+    classes: Vec<(f64, SiteTree, Vec<f64>, Vec<f64>, Vec<[f64; 3]>)>,
+}
+
+impl LocalRadius {
+    fn new(measure: &SphereMeasure, global: f64) -> Self {
+        let data: Vec<([f64; 3], f64, f64)> = measure
+            .triangles
+            .par_iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+                let m = [0, 1, 2].map(|k| a[k] + b[k] + c[k]);
+                let r = norm(m);
+                let u = m.map(|x| x / r);
+                // angle from u to the farthest corner, from the chord (exact for small angles)
+                let chord = [a, b, c].iter().map(|&v| norm(sub(v, u))).fold(0.0, f64::max);
+                let radius = 2.0 * (0.5 * chord).min(1.0).asin();
+                let nrm = super::measure::cross(sub(b, a), sub(c, a));
+                let nn = norm(nrm);
+                let plane = (dot(nrm, a) / nn)
+                    .abs()
+                    .min((dot(nrm, b) / nn).abs())
+                    .min((dot(nrm, c) / nn).abs());
+                (u, radius, plane)
+            })
+            .collect();
+        let mut classes = Vec::new();
+        let mut upper = f64::INFINITY;
+        for k in 0..=16 {
+            let lower = if k == 16 { 0.0 } else { 10f64.powi(-k) };
+            let members: Vec<&([f64; 3], f64, f64)> = data
+                .iter()
+                .filter(|d| d.1 <= upper && (d.1 > lower || k == 16))
+                .collect();
+            if !members.is_empty() {
+                let dirs: Vec<[f64; 3]> = members.iter().map(|d| d.0).collect();
+                let cap = members.iter().map(|d| d.1).fold(0.0, f64::max);
+                classes.push((
+                    cap,
+                    SiteTree::new(&dirs),
+                    members.iter().map(|d| d.1).collect(),
+                    members.iter().map(|d| d.2).collect(),
+                    dirs,
+                ));
+            }
+            upper = lower;
+        }
+        LocalRadius { global, classes }
+    }
+
+    /// A lower bound of the source's distance from 0 over the directions within `alpha` of the
+    /// unit vector `n` (the global inner radius when the cap is large).
+    fn radius(&self, n: [f64; 3], alpha: f64) -> f64 {
+        let mut best = f64::INFINITY;
+        let (mut stack, mut out) = (Vec::new(), Vec::new());
+        for (cap, tree, radii, planes, dirs) in &self.classes {
+            let reach = alpha + cap;
+            if reach >= 1.5 {
+                return self.global;
+            }
+            // a superset of the class's triangles within `reach` (the 1e-12 against rounding
+            // of cosines near 1), then each triangle's own reach by chords
+            let zeros = vec![0.0; radii.len()];
+            let bounds = tree.bounds(&zeros);
+            tree.above(n, reach.cos() - 1e-12, &zeros, &bounds, &mut stack, &mut out);
+            for &j in &out {
+                let j = j as usize;
+                let within = 2.0 * (0.5 * (alpha + radii[j])).min(std::f64::consts::FRAC_PI_2).sin();
+                if norm(sub(n, dirs[j])) <= within * (1.0 + 1e-12) + 1e-15 {
+                    best = best.min(planes[j]);
+                }
+            }
+        }
+        best.max(self.global)
+    }
+
+    /// The spread s ≤ `s0` and the scale κ ≤ 1 of a group with centroid norm `cn` along the
+    /// unit normal `n`: |κc|² + s² < ρ², ρ the radius over the cone of the anchors' directions
+    /// (angle atan(s / κ|c|) from n), found by shrinking the cone's ρ until it holds.
+    fn scales(&self, n: [f64; 3], cn: f64, s0: f64) -> (f64, f64) {
+        let fit = |rho: f64| {
+            let limit = rho * (1.0 - RADIUS_MARGIN);
+            let s = s0.min(SPREAD * limit);
+            let kappa = if cn * cn + s * s < limit * limit {
+                1.0
+            } else {
+                ((limit * limit - s * s).max(0.0)).sqrt() / cn
+            };
+            (s, kappa)
+        };
+        let mut rho = self.radius(n, s0.atan2(cn));
+        for _ in 0..8 {
+            let (s, kappa) = fit(rho);
+            let cone = self.radius(n, s.atan2(kappa * cn));
+            if cone >= rho {
+                return (s, kappa);
+            }
+            rho = cone;
+        }
+        fit(self.global)
+    }
+}
+
 /// Each coarse group's piece Φ_g of the prolongation (module docs): its centroid pulled into the
 /// inner ball, its spread and its radius δ_g over its fine points.
 fn groups(
@@ -532,6 +645,7 @@ fn groups(
     let height_diff = |a: usize, b: usize| (hh[a] - hh[b]) + (hl[a] - hl[b]);
     let coarse_radial = radial_corrections(&coarse.points);
     let rho = inner_radius(measure);
+    let local = LocalRadius::new(measure, rho);
     let radial = integrator.radial();
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); coarse_n];
     for (i, &g) in coarse.group.iter().enumerate() {
@@ -573,19 +687,19 @@ fn groups(
             } else {
                 0.0
             };
-            // the anchors within the inner ball: |κc|² + s² < ρ² (P_g = I: |κc| + s < ρ)
-            let limit = rho * (1.0 - RADIUS_MARGIN);
-            s = s.min(SPREAD * limit);
-            let kappa = if normal == [0.0; 3] {
-                if cn + s < limit {
+            // the anchors within the source's region K: |κc|² + s² < ρ_g² (P_g = I:
+            // |κc| + s < ρ), ρ_g the inner radius over the directions the anchors can take
+            let (s, kappa) = if normal == [0.0; 3] {
+                let limit = rho * (1.0 - RADIUS_MARGIN);
+                s = s.min(SPREAD * limit);
+                let kappa = if cn + s < limit {
                     1.0
                 } else {
                     ((limit - s) / cn).max(0.0)
-                }
-            } else if cn * cn + s * s < limit * limit {
-                1.0
+                };
+                (s, kappa)
             } else {
-                ((limit * limit - s * s).max(0.0)).sqrt() / cn
+                local.scales(normal, cn, s)
             };
             group.center = c.map(|x| x * kappa);
             group.spread = s;
@@ -803,6 +917,75 @@ mod tests {
         assert!(mc > 0.9 * mf, "{mc} against {mf}");
         let angle = (dot(m, direction) / mc).clamp(-1.0, 1.0).acos();
         assert!(angle < 0.4, "{angle} rad from the spike");
+    }
+
+    /// The inner radius over a cone of directions bounds the source from below there (every
+    /// ray within the cone meets the source no closer to 0), is close to the plane of the
+    /// triangle the axis meets for a thin cone, and exceeds the global bound where the source's
+    /// triangles are small: an icosphere pushed towards its north pole (vertices
+    /// v + 0.6 e_z, normalized) has small triangles in the north and large ones in the south.
+    #[test]
+    fn local_inner_radius_bounds_the_source_over_its_cone() {
+        let (v, t) = icosphere(3);
+        let v: Vec<[f64; 3]> = v
+            .iter()
+            .map(|p| crate::sphere::measure::normalize([p[0], p[1], p[2] + 0.6]))
+            .collect();
+        let measure = SphereMeasure::new(v, t.clone(), vec![1.0; t.len()]).unwrap();
+        let global = inner_radius(&measure);
+        let local = LocalRadius::new(&measure, global);
+        // the distance from 0 to the source along the unit direction q, and the plane there
+        let along = |q: [f64; 3]| -> (f64, f64) {
+            let mut best = (f64::INFINITY, 0.0);
+            for tri in &measure.triangles {
+                let [a, b, c] = tri.map(|i| measure.vertices[i as usize]);
+                let nrm = crate::sphere::measure::cross(sub(b, a), sub(c, a));
+                let den = dot(nrm, q);
+                if den <= 0.0 {
+                    continue;
+                }
+                let r = dot(nrm, a) / den;
+                let x = q.map(|c| c * r);
+                let inside = [(a, b), (b, c), (c, a)]
+                    .iter()
+                    .all(|&(u, w)| dot(crate::sphere::measure::cross(sub(w, u), sub(x, u)), nrm) >= -1e-15);
+                if inside && r < best.0 {
+                    best = (r, dot(nrm, a) / norm(nrm));
+                }
+            }
+            best
+        };
+        let north = crate::sphere::measure::normalize([0.013, 0.021, 1.0]);
+        let south = crate::sphere::measure::normalize([0.1, 0.2, -1.0]);
+        for (n, alpha) in [(north, 1e-9), (north, 0.05), (north, 0.3), (south, 1e-9), (south, 0.3)] {
+            let r = local.radius(n, alpha);
+            assert!(r >= global);
+            // directions within the cone: rings about n
+            let e1 = crate::sphere::measure::normalize(crate::sphere::measure::cross(n, [1.0, 0.0, 0.0]));
+            let e2 = crate::sphere::measure::cross(n, e1);
+            for k in 0..=4 {
+                let theta = alpha * k as f64 / 4.0;
+                for j in 0..24 {
+                    let phi = j as f64 * std::f64::consts::TAU / 24.0;
+                    let q =
+                        [0, 1, 2].map(|m| theta.cos() * n[m] + theta.sin() * (phi.cos() * e1[m] + phi.sin() * e2[m]));
+                    let (dist, _) = along(q);
+                    assert!(dist >= r * (1.0 - 1e-12), "{dist} < {r} at angle {theta} from {n:?}");
+                }
+            }
+            if alpha == 1e-9 {
+                let plane = along(n).1;
+                // (the triangles' bounding caps overlap: a neighbour's plane can set it)
+                assert!(r <= plane && r > plane - 1e-3, "{r} against the plane at {plane}");
+            }
+        }
+        let (rn, rs) = (local.radius(north, 0.05), local.radius(south, 0.05));
+        eprintln!("global {global}, north {rn}, south {rs}");
+        // (measured: global 0.9749, north 0.9983, south 0.9749)
+        assert!(
+            global < 0.98 && rn > 0.998 && rs < 0.98,
+            "global {global}, north {rn}, south {rs}"
+        );
     }
 
     /// A uniform source stays uniform: the averaged icosphere of a uniform fine icosphere has
