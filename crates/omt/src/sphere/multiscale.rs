@@ -530,9 +530,18 @@ fn solve_level(
 struct LocalRadius {
     /// The global inner radius (a lower bound everywhere).
     global: f64,
-    /// Triangles in classes of angular radius ≤ r (r = 10^−k): r, the tree of their centroid
-    /// directions, their angular radii and plane distances.
-    classes: Vec<(f64, SiteTree, Vec<f64>, Vec<f64>, Vec<[f64; 3]>)>,
+    /// Triangles in classes of angular radius ≤ 10^−k.
+    classes: Vec<TriangleClass>,
+}
+
+/// Source triangles of similar angular size: the largest angular radius, the tree of their
+/// centroid directions, and per triangle its angular radius, plane distance and direction.
+struct TriangleClass {
+    cap: f64,
+    tree: SiteTree,
+    radii: Vec<f64>,
+    planes: Vec<f64>,
+    dirs: Vec<[f64; 3]>,
 }
 
 impl LocalRadius {
@@ -568,13 +577,13 @@ impl LocalRadius {
             if !members.is_empty() {
                 let dirs: Vec<[f64; 3]> = members.iter().map(|d| d.0).collect();
                 let cap = members.iter().map(|d| d.1).fold(0.0, f64::max);
-                classes.push((
+                classes.push(TriangleClass {
                     cap,
-                    SiteTree::new(&dirs),
-                    members.iter().map(|d| d.1).collect(),
-                    members.iter().map(|d| d.2).collect(),
+                    tree: SiteTree::new(&dirs),
+                    radii: members.iter().map(|d| d.1).collect(),
+                    planes: members.iter().map(|d| d.2).collect(),
                     dirs,
-                ));
+                });
             }
             upper = lower;
         }
@@ -586,7 +595,14 @@ impl LocalRadius {
     fn radius(&self, n: [f64; 3], alpha: f64) -> f64 {
         let mut best = f64::INFINITY;
         let (mut stack, mut out) = (Vec::new(), Vec::new());
-        for (cap, tree, radii, planes, dirs) in &self.classes {
+        for TriangleClass {
+            cap,
+            tree,
+            radii,
+            planes,
+            dirs,
+        } in &self.classes
+        {
             let reach = alpha + cap;
             if reach >= 1.5 {
                 return self.global;
