@@ -262,3 +262,47 @@ fn closed_meshes_run_on_the_sphere_and_mixing_with_disks_is_an_error() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// TOSCA wolf0 → wolf1 at the maps' own alignment (4,344 points; source densities 0.16 …
+/// 4.5e11): the coarse-to-fine start's levels (15, 84 and 607 points) solve, and the start
+/// prolonged to the fine points has no empty cell, every cell within 1e-6 … 1e3 of its target
+/// (measured 1.2e-5 … 568). Before the prolongation's check took the exact maximum for every
+/// point that beats a failing one, 401 cells were empty and the solver dropped this start for
+/// the Voronoi one (`coarse_levels` then empty); with the groups' anchors held inside the
+/// source's global inner radius instead of the radius over their own directions, the ratios
+/// went down to 1.3e-11.
+#[test]
+fn tosca_wolf_prolonged_start_has_no_empty_cell() {
+    let (Some(a), Some(b)) = (
+        shapespace_test_support::shared_file("tosca/wolf0.off"),
+        shapespace_test_support::shared_file("tosca/wolf1.off"),
+    ) else {
+        return;
+    };
+    let a = prepare("wolf0", &read_mesh(&a).unwrap());
+    let b = prepare("wolf1", &read_mesh(&b).unwrap());
+    let p = SphereOtParams {
+        tolerance: 1e-4,
+        max_iterations: 0,
+        density_continuation: None,
+        start: shapespace_omt::sphere::SphereStart::CoarseToFine,
+        ..SphereOtParams::default()
+    };
+    let s = shapespace_omt::sphere::solve_sphere_ot(&a.measure, &b.points, &b.masses, &p).unwrap();
+    let levels: Vec<usize> = s.coarse_levels.iter().map(|l| l.0).collect();
+    assert_eq!(levels, vec![607, 84, 15], "{:?}", s.coarse_levels);
+    assert_eq!(s.iterations, 0);
+    let (lo, hi) = s
+        .cells
+        .masses
+        .iter()
+        .zip(&s.target_masses)
+        .map(|(m, t)| m / t)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(r), hi.max(r)));
+    // (scaled to the global inner radius 0.937, the groups' pieces gave 1.3e-11 .. 597)
+    assert!(lo > 1e-6 && hi < 1e3, "mass ratios {lo:e} .. {hi:e} at the start");
+    eprintln!(
+        "wolf0 -> wolf1 prolonged start: levels {:?}, {} points rechecked, mass ratios {lo:.3e} .. {hi:.3e}",
+        s.coarse_levels, s.start_rechecked
+    );
+}

@@ -78,7 +78,8 @@ pub struct SphereOtParams {
     /// has a more robust path after it (the direct solve before the density continuation):
     /// on a crowded body the direct solve crawls at τ ≈ 1e-3 for its whole step cap
     /// (docs/decisions/0036-sphere-direct-solve-stall.md). Not passed on to the coarse levels
-    /// or the continuation's stages.
+    /// or the continuation's stages. With a window, [`SphereStart::Auto`] does not retry from
+    /// the Voronoi start after the coarse-to-fine start's solve stops.
     pub stall_window: Option<usize>,
 }
 
@@ -88,7 +89,8 @@ pub enum SphereStart {
     /// The coarse-to-fine start ([`super::multiscale`]) when some Voronoi cell holds less than
     /// 1e-8 or more than 100 times its target (points crowded by a conformal map), the Voronoi
     /// start otherwise. If the solve from the coarse-to-fine start does not converge, the
-    /// Voronoi path runs too and the better result is returned, with the steps of both.
+    /// Voronoi path runs too and the better result is returned, with the steps of both
+    /// (not with a [`SphereOtParams::stall_window`]: the caller has a more robust path).
     #[default]
     Auto,
     /// h = 0.
@@ -374,9 +376,12 @@ pub fn solve_sphere_ot(
             let empty = cells.masses.iter().any(|&m| !(m > 0.0));
             if !empty {
                 let solution = problem.iterate(start.heights, Some(cells), record)?;
+                // (a stall window means a more robust path follows: the caller's, not the
+                // Voronoi start's, which crawls where the coarse-to-fine start did)
                 if solution.converged()
                     || params.start == SphereStart::CoarseToFine
                     || solution.stop == StopReason::TimeLimit
+                    || params.stall_window.is_some()
                 {
                     return Ok(solution);
                 }

@@ -1,4 +1,4 @@
-//! `sphere_distance_probe A B [fixed|rotation|direct|fallback|continuation=R]`: the spherical distance A → B of two closed
+//! `sphere_distance_probe A B [fixed|rotation|direct|direct-coarse|fallback|continuation=R]`: the spherical distance A → B of two closed
 //! meshes with its stages (the transport solves' steps and seconds, the rotation search).
 
 use shapespace_analysis::sphere_distance::{directed_sphere_distance, prepare_sphere_shape, SphereAlignment};
@@ -8,7 +8,7 @@ use shapespace_omt::sphere::SphereOtParams;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
-        eprintln!("usage: sphere_distance_probe A B [fixed|rotation]");
+        eprintln!("usage: sphere_distance_probe A B [fixed|rotation|direct|direct-coarse|fallback|continuation=R]");
         std::process::exit(2);
     }
     let prepare = |p: &str| {
@@ -74,11 +74,17 @@ fn main() {
         }
         return;
     }
-    if args.get(3).map(String::as_str) == Some("direct") {
-        // the direct solve alone (no continuation), its Newton log
+    if let Some(mode @ ("direct" | "direct-coarse")) = args.get(3).map(String::as_str) {
+        // the direct solve alone (no continuation), its Newton log; `direct-coarse` forces the
+        // coarse-to-fine start (no Voronoi path after it)
         let p = SphereOtParams {
             tolerance: 1e-4,
             density_continuation: None,
+            start: if mode == "direct" {
+                shapespace_omt::sphere::SphereStart::Auto
+            } else {
+                shapespace_omt::sphere::SphereStart::CoarseToFine
+            },
             ..SphereOtParams::default()
         };
         let t = std::time::Instant::now();
