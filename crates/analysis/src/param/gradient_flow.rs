@@ -50,10 +50,16 @@
 //!
 //! The flow stops when $\|\zeta\|/\|u\|$ (L² norms on $\Omega_0$) falls below `tolerance`,
 //! after `max_steps` steps, or when a step halved below [`MIN_TIME_STEP`] × `max_time_step`
-//! still folds. On real meshes the last happens within a few steps: a sliver left by the Lie
-//! map's fold repair collapses at any step size (docs/benchmarks.md). Dominitz & Tannenbaum
-//! accelerate the flow by a multiresolution scheme (spherical wavelets on their sphere); this
-//! implementation flows on the full mesh only.
+//! still folds. On real meshes started from the Lie map the last happens within a few steps: a
+//! sliver left by the Lie map's fold repair collapses at any step size (docs/benchmarks.md).
+//!
+//! # Multiresolution
+//! Dominitz & Tannenbaum accelerate the flow by a multiresolution scheme (spherical wavelets on
+//! their sphere). [`gradient_flow_map`] runs it by default (`multiresolution_levels` 2,
+//! [`crate::multiresolution`]): the flow on coarse ring-layout disks carrying the restricted
+//! surface area, each result prolonged to the next level and Moser-corrected, and the flow on
+//! the mesh from the prolonged map in place of step 1's Lie map; when the prolonged map folds
+//! a face of the mesh the Lie map is the start, as with `multiresolution_levels` 0.
 
 use std::time::Instant;
 
@@ -67,11 +73,12 @@ use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
+use crate::fold_repair::repair_folds_with;
 use crate::lie_advection::{
     acceptable, face_gradient, face_is_ccw, lie_advection_map, moved, signed_area, tangential, vertex_velocities,
     LieAdvectionInfo, LieAdvectionParams, PlanarPoisson,
 };
-use crate::multiresolution::{disk_multiresolution_start, MultiresolutionInfo};
+use crate::multiresolution::{disk_moser_correction, disk_multiresolution_start, MultiresolutionInfo};
 use crate::point_location::PointLocator;
 
 /// Parameters of [`gradient_flow_map`] (module docs).
@@ -211,7 +218,7 @@ pub fn gradient_flow_map(
     if params.multiresolution_levels > 0 {
         let conformal = disk_map(mesh, markers, &params.start.disk_map).map_err(AnalysisError::DiskMap)?;
         let t1 = Instant::now();
-        match disk_multiresolution_start(
+        let start = disk_multiresolution_start(
             &mesh.faces,
             &areas,
             &is_boundary,
@@ -220,7 +227,27 @@ pub fn gradient_flow_map(
             params,
             &params.start,
             &mut multiresolution,
-        ) {
+        )
+        .and_then(|mut start| {
+            if multiresolution.prolonged_folds > 0 {
+                // (a failed repair leaves folds, counted below)
+                let _ = repair_folds_with(mesh, Some(&conn), &is_boundary, &mut start, &params.start.fold_repair);
+                multiresolution.prolonged_folds_after_repair =
+                    mesh.faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
+            }
+            match multiresolution.prolonged_folds_after_repair {
+                0 => {
+                    let (start, steps) = disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start);
+                    multiresolution.correction_mean_steps = steps;
+                    Ok(start)
+                }
+                folded => Err(AnalysisError::FlowStartFolded {
+                    folded,
+                    reason: "the prolonged coarse map keeps them after the fold repair".into(),
+                }),
+            }
+        });
+        match start {
             Ok(start) => {
                 let t2 = Instant::now();
                 let (uv, flow_info) = flow(&mesh.faces, &areas, &is_boundary, &conformal.uv, &start, params)?;

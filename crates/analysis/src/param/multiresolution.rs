@@ -30,15 +30,17 @@
 //!   prolonged map, when it would fold a face), and the flow continues from there with its
 //!   mass projections.
 //!
-//! When the prolonged map folds a face of the mesh, or a coarse level fails, the scheme reports
-//! why and the caller falls back to the single-level flow from its own first mass-preserving
-//! map.
+//! Folds of a level's start (the coarse Lie map, or a prolonged map, also on the mesh) are
+//! repaired as the single-level maps' are: [`crate::fold_repair`] on the disk, gnomonic charts
+//! on S². When folds remain, or a coarse level fails, the scheme reports why and the caller
+//! falls back to the single-level flow from its own first mass-preserving map.
 
 use serde::Serialize;
 use shapespace_conformal::sphere::quality::orientation_on_sphere;
 use shapespace_geometry::{primitives, Connectivity};
 
 use crate::error::AnalysisError;
+use crate::fold_repair::repair_folds;
 use crate::gradient_flow::{flow, FlowControl, FlowInfo, GradientFlowParams};
 use crate::lie_advection::{advect, face_is_ccw, signed_area, LieAdvectionParams};
 use crate::point_location::PointLocator;
@@ -198,9 +200,10 @@ struct Level<P> {
 
 /// The disk's coarse levels (module docs) for the flow on the mesh `faces` with its conformal
 /// image `domain` (#V, counter-clockwise, rim on the unit circle where `is_boundary`) and
-/// `surface_areas` (#F): the prolonged start on the mesh (#V, rim on the circle) and what the
-/// levels did. Errors: no level fits the mesh, a coarse level failed, or the prolonged map
-/// folds a face (`fallback`-worthy; the caller decides).
+/// `surface_areas` (#F): the prolonged map on the mesh (#V, rim on the circle), which may fold
+/// faces (counted in `info.prolonged_folds`; the caller repairs and corrects it). A coarse
+/// level's folded start is repaired ([`crate::fold_repair`]) before its flow. Errors: no level
+/// fits the mesh, or a coarse level failed.
 pub fn disk_multiresolution_start(
     faces: &[[u32; 3]],
     surface_areas: &[f64],
@@ -255,11 +258,21 @@ pub fn disk_multiresolution_start(
                 u
             }
         };
-        if let Some(f) = grid.faces.iter().position(|f| !face_is_ccw(&start, f)) {
-            return Err(AnalysisError::InvalidInput(format!(
-                "multiresolution: the start of the {}-vertex level folds face {f}",
-                x.len()
-            )));
+        let mut start = start;
+        level.start_folds = grid.faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
+        if level.start_folds > 0 {
+            // (a failed repair leaves folds, counted below)
+            let _ = repair_folds(&grid, &rim, &mut start, &lie.fold_repair);
+            level.start_folds_after_repair = grid.faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
+            if level.start_folds_after_repair > 0 {
+                return Err(AnalysisError::FlowStartFolded {
+                    folded: level.start_folds_after_repair,
+                    reason: format!(
+                        "the start of the {}-vertex level keeps them after the fold repair",
+                        x.len()
+                    ),
+                });
+            }
         }
         let (u, flow_info) = flow(&grid.faces, &masses, &rim, &x, &start, params)?;
         level.flow = flow_info;
@@ -272,26 +285,13 @@ pub fn disk_multiresolution_start(
     }
     let start = prolong_disk(previous.as_ref().expect("one level at least"), domain, is_boundary)?;
     info.prolonged_folds = faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
-    let start = if info.prolonged_folds == 0 {
-        let (u, steps) = disk_moser_correction(faces, surface_areas, is_boundary, start, lie);
-        info.correction_mean_steps = steps;
-        u
-    } else {
-        start
-    };
-    if info.prolonged_folds > 0 {
-        return Err(AnalysisError::FlowStartFolded {
-            folded: info.prolonged_folds,
-            reason: "the prolonged coarse map folds them".into(),
-        });
-    }
     Ok(start)
 }
 
 /// The Moser advection of a prolonged map to the level's masses (module docs, "Prolongation"),
 /// with its mean steps per vertex; the prolonged map itself (and 0) when the advection fails
 /// or folds a face.
-fn disk_moser_correction(
+pub(crate) fn disk_moser_correction(
     faces: &[[u32; 3]],
     masses: &[f64],
     rim: &[bool],
@@ -308,7 +308,7 @@ fn disk_moser_correction(
 }
 
 /// As [`disk_moser_correction`] on S².
-fn sphere_moser_correction(
+pub(crate) fn sphere_moser_correction(
     faces: &[[u32; 3]],
     masses: &[f64],
     prolonged: Vec<P3>,
@@ -344,8 +344,8 @@ fn prolong_disk(level: &Level<[f64; 2]>, points: &[[f64; 2]], rim: &[bool]) -> R
 }
 
 /// The sphere's coarse levels (module docs) for the flow on the mesh `faces` with its conformal
-/// image `domain` (#V unit vectors) and `surface_areas` (#F): the prolonged start on the mesh,
-/// which may fold faces (counted in `info.prolonged_folds`; the caller repairs them). A coarse
+/// image `domain` (#V unit vectors) and `surface_areas` (#F): the prolonged map on the mesh,
+/// which may fold faces (counted in `info.prolonged_folds`; the caller repairs and corrects it). A coarse
 /// level's folded start is repaired in gnomonic charts ([`crate::sphere_param`]) before its
 /// flow. Errors: no level fits the mesh or a coarse level failed.
 pub fn sphere_multiresolution_start(
@@ -417,8 +417,6 @@ pub fn sphere_multiresolution_start(
     }
     let start = prolong_sphere(previous.as_ref().expect("one level at least"), domain)?;
     info.prolonged_folds = count_folded(faces, &start);
-    let (start, steps) = sphere_moser_correction(faces, surface_areas, start, lie);
-    info.correction_mean_steps = steps;
     Ok(start)
 }
 

@@ -45,9 +45,11 @@
 //! conformal image holding the foot and put back onto S²; the step rules (CFL, 10 % foot
 //! areas, halving while a face folds) and the one-ring mass projections are the disk's code.
 //!
-//! Dominitz & Tannenbaum resample onto a spherical grid and accelerate the flow by spherical
-//! wavelets (multiresolution); this implementation flows on the mesh at full resolution only,
-//! as the disk variant does.
+//! Dominitz & Tannenbaum resample onto a spherical grid and accelerate the flow by a
+//! multiresolution scheme (spherical wavelets). [`sphere_gradient_flow_map`] runs it by default
+//! as [`crate::multiresolution`] reads it: the flow on two coarse icospheres carrying the
+//! restricted surface area, each result prolonged and Moser-corrected, the flow on the mesh
+//! from there (`multiresolution_levels` 0: from the Lie map, as above).
 
 use std::time::Instant;
 
@@ -64,7 +66,7 @@ use crate::gradient_flow::{
     FlowDomain, FlowInfo,
 };
 use crate::lie_advection::{bogacki_shampine, correction_flow, CorrectionInfo, PlanarPoisson};
-use crate::multiresolution::{sphere_multiresolution_start, MultiresolutionInfo};
+use crate::multiresolution::{sphere_moser_correction, sphere_multiresolution_start, MultiresolutionInfo};
 use crate::registration::sphere::SphereLocator;
 use crate::sphere_param::{folded_on_sphere, repair_in_charts, SphereFoldRepairInfo};
 
@@ -622,7 +624,11 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
                 multiresolution.prolonged_folds_after_repair = folded_on_sphere(mesh, &start).len();
             }
             match multiresolution.prolonged_folds_after_repair {
-                0 => Ok(start),
+                0 => {
+                    let (start, steps) = sphere_moser_correction(&mesh.faces, &areas, start, &params.start);
+                    multiresolution.correction_mean_steps = steps;
+                    Ok(start)
+                }
                 folded => Err(AnalysisError::FlowStartFolded {
                     folded,
                     reason: "the prolonged coarse map folds them after the chart repair".into(),
