@@ -227,9 +227,10 @@ fn spheroid_converges_to_the_latitude_rearrangement() {
 
 /// TOSCA wolf0 (shared datasets): the sphere's Lie map keeps 16 folded faces and the
 /// single-level flow cannot start; the coarse levels give an unfolded start (the prolonged map
-/// folds a face, which the chart repair undoes) and the flow runs without folds. The area is
-/// not corrected: the coarse grids cannot resolve the crowded conformal image, whose local
-/// area ratios reach e^{±25}, and the prolonged map keeps them.
+/// folds a face, which the chart repair undoes), its Moser correction fails, and since the Lie
+/// map folds the flow runs from the uncorrected prolonged map, without folds. The area is not
+/// corrected: the coarse grids cannot resolve the crowded conformal image, whose local area
+/// ratios reach e^{±25}, and the prolonged map keeps them.
 ///
 /// Measured: levels of 162 and 642 vertices (112 and 3 flow steps, the second stalled), the
 /// prolonged map 1 fold, 0 after the repair; 18 steps on the mesh; p95 |ε| 22.7 (conformal
@@ -253,5 +254,26 @@ fn tosca_wolf_runs_unfolded_without_correcting_area() {
     eprintln!("wolf0: p95 |ε| {flowed:.3} (conformal {conformal:.3}); {info:?}");
     assert_eq!(map.info.num_flipped, 0);
     assert_eq!((info.levels.len(), info.prolonged_folds_after_repair), (2, 0));
+    assert!(info.uncorrected_start && info.fallback.is_some(), "{info:?}");
     assert!(flowed > 0.5 * conformal, "{flowed} against {conformal}");
+}
+
+/// The bundled neutral face (9.4k vertices): the prolonged coarse map is not mass-preserving
+/// where the conformal image crowds and its Moser correction fails, so the flow starts from the
+/// Lie map and its result is the single-level flow's, bit for bit.
+#[test]
+fn bundled_face_falls_back_to_the_lie_map() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_neutral.obj");
+    let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
+    let multi = gradient_flow_map(&mesh, &Markers::default(), &GradientFlowParams::default()).unwrap();
+    let single = gradient_flow_map(&mesh, &Markers::default(), &single_level()).unwrap();
+    let info = &multi.info.multiresolution;
+    eprintln!("id00_neutral: {info:?}");
+    assert_eq!(info.levels.len(), 2);
+    assert!(!info.uncorrected_start);
+    assert_eq!(
+        info.fallback.as_deref(),
+        Some("invalid input: the Moser correction of the prolonged map fails or folds")
+    );
+    assert_eq!(multi.uv, single.uv);
 }

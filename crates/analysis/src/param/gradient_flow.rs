@@ -58,8 +58,9 @@
 //! their sphere). [`gradient_flow_map`] runs it by default (`multiresolution_levels` 2,
 //! [`crate::multiresolution`]): the flow on coarse ring-layout disks carrying the restricted
 //! surface area, each result prolonged to the next level and Moser-corrected, and the flow on
-//! the mesh from the prolonged map in place of step 1's Lie map; when the prolonged map folds
-//! a face of the mesh the Lie map is the start, as with `multiresolution_levels` 0.
+//! the mesh from the prolonged map in place of step 1's Lie map. When the prolonged map keeps
+//! folds after the fold repair or its Moser correction fails the Lie map is the start, as with
+//! `multiresolution_levels` 0 (and only if that one keeps folds, the uncorrected prolonged map).
 
 use std::time::Instant;
 
@@ -215,6 +216,9 @@ pub fn gradient_flow_map(
     let is_boundary = conn.boundary_vertices(mesh.num_vertices());
     let areas = face_areas(mesh);
     let mut multiresolution = MultiresolutionInfo::default();
+    // the unfolded prolonged map whose Moser correction failed, with its conformal map
+    let mut uncorrected: Option<Vec<[f64; 2]>> = None;
+    let mut multiresolution_conformal: Option<DiskMap> = None;
     if params.multiresolution_levels > 0 {
         let conformal = disk_map(mesh, markers, &params.start.disk_map).map_err(AnalysisError::DiskMap)?;
         let t1 = Instant::now();
@@ -236,11 +240,18 @@ pub fn gradient_flow_map(
                     mesh.faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
             }
             match multiresolution.prolonged_folds_after_repair {
-                0 => {
-                    let (start, steps) = disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start);
-                    multiresolution.correction_mean_steps = steps;
-                    Ok(start)
-                }
+                0 => match disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start) {
+                    (start, Some(steps)) => {
+                        multiresolution.correction_mean_steps = steps;
+                        Ok(start)
+                    }
+                    (start, None) => {
+                        uncorrected = Some(start);
+                        Err(AnalysisError::InvalidInput(
+                            "the Moser correction of the prolonged map fails or folds".into(),
+                        ))
+                    }
+                },
                 folded => Err(AnalysisError::FlowStartFolded {
                     folded,
                     reason: "the prolonged coarse map keeps them after the fold repair".into(),
@@ -269,11 +280,37 @@ pub fn gradient_flow_map(
                     },
                 });
             }
-            Err(e) => multiresolution.fallback = Some(e.to_string()),
+            Err(e) => {
+                multiresolution.fallback = Some(e.to_string());
+                multiresolution_conformal = Some(conformal);
+            }
         }
     }
     let lie = lie_advection_map(mesh, markers, &params.start)?;
     if let Some(reason) = &lie.info.fold_repair_error {
+        if let (Some(start), Some(conformal)) = (uncorrected, multiresolution_conformal) {
+            // the Lie map folds: the flow starts from the unfolded, uncorrected prolonged map
+            let t1 = Instant::now();
+            multiresolution.uncorrected_start = true;
+            let (uv, flow_info) = flow(&mesh.faces, &areas, &is_boundary, &conformal.uv, &start, params)?;
+            let t2 = Instant::now();
+            return Ok(GradientFlowMap {
+                uv,
+                start_uv: start,
+                timings: GradientFlowTimings {
+                    conformal: lie.timings.conformal,
+                    start: secs(t0, t1) - lie.timings.conformal,
+                    flow: secs(t1, t2),
+                    total: secs(t0, t2),
+                },
+                conformal,
+                info: GradientFlowInfo {
+                    start: lie.info,
+                    multiresolution,
+                    flow: flow_info,
+                },
+            });
+        }
         let folded = mesh.faces.iter().filter(|f| !face_is_ccw(&lie.uv, f)).count();
         return Err(AnalysisError::FlowStartFolded {
             folded,

@@ -32,8 +32,11 @@
 //!
 //! Folds of a level's start (the coarse Lie map, or a prolonged map, also on the mesh) are
 //! repaired as the single-level maps' are: [`crate::fold_repair`] on the disk, gnomonic charts
-//! on S². When folds remain, or a coarse level fails, the scheme reports why and the caller
-//! falls back to the single-level flow from its own first mass-preserving map.
+//! on S². When folds remain, a coarse level fails, or the Moser correction on the mesh fails
+//! (the prolonged map is then not mass-preserving), the scheme reports why and the caller falls
+//! back to the single-level flow from its own first mass-preserving map; only when that one
+//! keeps folds does the flow start from the uncorrected prolonged map (`uncorrected_start`:
+//! an unfolded map whose area the flow's projections may not correct).
 
 use serde::Serialize;
 use shapespace_conformal::sphere::quality::orientation_on_sphere;
@@ -85,6 +88,9 @@ pub struct MultiresolutionInfo {
     /// Mean integration steps per vertex of the Moser advection of the prolonged map on the
     /// mesh (0: not applied, because the prolonged map folds or the advection would).
     pub correction_mean_steps: f64,
+    /// The flow on the mesh started from the prolonged map without its Moser correction,
+    /// because the correction failed and the Lie map keeps folds.
+    pub uncorrected_start: bool,
     /// Why the flow on the mesh did not start from the prolonged map (it then starts from its
     /// own first mass-preserving map); `None` when it did or no level was asked for.
     pub fallback: Option<String>,
@@ -254,7 +260,7 @@ pub fn disk_multiresolution_start(
             Some(prev) => {
                 let prolonged = prolong_disk(prev, &x, &rim)?;
                 let (u, steps) = disk_moser_correction(&grid.faces, &masses, &rim, prolonged, lie);
-                level.lie_mean_steps = steps;
+                level.lie_mean_steps = steps.unwrap_or(0.0);
                 u
             }
         };
@@ -289,21 +295,21 @@ pub fn disk_multiresolution_start(
 }
 
 /// The Moser advection of a prolonged map to the level's masses (module docs, "Prolongation"),
-/// with its mean steps per vertex; the prolonged map itself (and 0) when the advection fails
-/// or folds a face.
+/// with its mean steps per vertex; the prolonged map itself (and `None`) when the advection
+/// fails or folds a face.
 pub(crate) fn disk_moser_correction(
     faces: &[[u32; 3]],
     masses: &[f64],
     rim: &[bool],
     prolonged: Vec<[f64; 2]>,
     lie: &LieAdvectionParams,
-) -> (Vec<[f64; 2]>, f64) {
+) -> (Vec<[f64; 2]>, Option<f64>) {
     if faces.iter().any(|f| !face_is_ccw(&prolonged, f)) {
-        return (prolonged, 0.0);
+        return (prolonged, None);
     }
     match advect(faces, masses, rim, &prolonged, lie) {
-        Ok((u, info)) if faces.iter().all(|f| face_is_ccw(&u, f)) => (u, info.mean_steps),
-        _ => (prolonged, 0.0),
+        Ok((u, info)) if faces.iter().all(|f| face_is_ccw(&u, f)) => (u, Some(info.mean_steps)),
+        _ => (prolonged, None),
     }
 }
 
@@ -313,13 +319,13 @@ pub(crate) fn sphere_moser_correction(
     masses: &[f64],
     prolonged: Vec<P3>,
     lie: &SphereLieParams,
-) -> (Vec<P3>, f64) {
+) -> (Vec<P3>, Option<f64>) {
     if !unfolded_on_sphere(faces, &prolonged) {
-        return (prolonged, 0.0);
+        return (prolonged, None);
     }
     match advect_on_sphere(faces, masses, &prolonged, 1.0, lie) {
-        Ok((u, info)) if unfolded_on_sphere(faces, &u) => (u, info.mean_steps),
-        _ => (prolonged, 0.0),
+        Ok((u, info)) if unfolded_on_sphere(faces, &u) => (u, Some(info.mean_steps)),
+        _ => (prolonged, None),
     }
 }
 
@@ -396,7 +402,7 @@ pub fn sphere_multiresolution_start(
             Some(prev) => {
                 let prolonged = prolong_sphere(prev, &x)?;
                 let (u, steps) = sphere_moser_correction(&grid.faces, &masses, prolonged, lie);
-                level.lie_mean_steps = steps;
+                level.lie_mean_steps = steps.unwrap_or(0.0);
                 u
             }
         };

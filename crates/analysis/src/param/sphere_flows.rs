@@ -49,7 +49,9 @@
 //! multiresolution scheme (spherical wavelets). [`sphere_gradient_flow_map`] runs it by default
 //! as [`crate::multiresolution`] reads it: the flow on two coarse icospheres carrying the
 //! restricted surface area, each result prolonged and Moser-corrected, the flow on the mesh
-//! from there (`multiresolution_levels` 0: from the Lie map, as above).
+//! from there (`multiresolution_levels` 0, or a prolonged map that keeps folds or whose
+//! correction fails: from the Lie map, as above; if that one keeps folds too, from the
+//! uncorrected prolonged map).
 
 use std::time::Instant;
 
@@ -606,6 +608,9 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
     let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     let areas = face_areas(mesh);
     let mut multiresolution = MultiresolutionInfo::default();
+    // the unfolded prolonged map whose Moser correction failed, with its conformal map
+    let mut uncorrected: Option<Vec<P3>> = None;
+    let mut multiresolution_conformal: Option<SphereMap> = None;
     if params.multiresolution_levels > 0 {
         let conformal = sphere_map(mesh, &params.start.sphere_map).map_err(AnalysisError::SphereMap)?;
         let t1 = Instant::now();
@@ -624,11 +629,18 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
                 multiresolution.prolonged_folds_after_repair = folded_on_sphere(mesh, &start).len();
             }
             match multiresolution.prolonged_folds_after_repair {
-                0 => {
-                    let (start, steps) = sphere_moser_correction(&mesh.faces, &areas, start, &params.start);
-                    multiresolution.correction_mean_steps = steps;
-                    Ok(start)
-                }
+                0 => match sphere_moser_correction(&mesh.faces, &areas, start, &params.start) {
+                    (start, Some(steps)) => {
+                        multiresolution.correction_mean_steps = steps;
+                        Ok(start)
+                    }
+                    (start, None) => {
+                        uncorrected = Some(start);
+                        Err(AnalysisError::InvalidInput(
+                            "the Moser correction of the prolonged map fails or folds".into(),
+                        ))
+                    }
+                },
                 folded => Err(AnalysisError::FlowStartFolded {
                     folded,
                     reason: "the prolonged coarse map folds them after the chart repair".into(),
@@ -660,11 +672,39 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
                     },
                 });
             }
-            Err(e) => multiresolution.fallback = Some(e.to_string()),
+            Err(e) => {
+                multiresolution.fallback = Some(e.to_string());
+                multiresolution_conformal = Some(conformal);
+            }
         }
     }
     let lie = sphere_lie_map(mesh, &params.start)?;
     if lie.info.num_flipped > 0 {
+        if let (Some(start), Some(conformal)) = (uncorrected, multiresolution_conformal) {
+            // the Lie map folds: the flow starts from the unfolded, uncorrected prolonged map
+            let t1 = Instant::now();
+            multiresolution.uncorrected_start = true;
+            let (positions, flow) = sphere_flow(&mesh.faces, &areas, &conformal.positions, &start, &params.control)?;
+            let t2 = Instant::now();
+            let num_flipped = folded_on_sphere(mesh, &positions).len();
+            return Ok(SphereFlowMap {
+                positions,
+                start_positions: start,
+                timings: SphereFlowTimings {
+                    conformal: lie.timings.conformal,
+                    start: secs(t0, t1) - lie.timings.conformal,
+                    flow: secs(t1, t2),
+                    total: secs(t0, t2),
+                },
+                conformal,
+                info: SphereFlowInfo {
+                    start: lie.info,
+                    multiresolution,
+                    flow,
+                    num_flipped,
+                },
+            });
+        }
         return Err(AnalysisError::FlowStartFolded {
             folded: lie.info.num_flipped,
             reason: match &multiresolution.fallback {

@@ -31,7 +31,8 @@
 //! ([`shapespace_analysis::gradient_flow::gradient_flow_map`]; Dominitz & Tannenbaum 2010; no
 //! weights) with their multiresolution scheme: `--flow-levels` coarse levels (default 2,
 //! [`shapespace_analysis::multiresolution`]) give the flow on the mesh its start, or with
-//! `--flow-levels 0` (or when the prolonged map folds) the Lie-advection map does; its report
+//! `--flow-levels 0` (or when the prolonged map folds or is not made mass-preserving) the
+//! Lie-advection map does; its report
 //! has the same distortion block, with the levels, the flow's steps, curl norms and
 //! transport costs. With `--domain sphere` (the
 //! default for these two on a closed genus-0 input) both map onto the sphere instead
