@@ -229,7 +229,6 @@ pub fn gradient_flow_map(
             &conformal.uv,
             params.multiresolution_levels,
             params,
-            &params.start,
             &mut multiresolution,
         )
         .and_then(|mut start| {

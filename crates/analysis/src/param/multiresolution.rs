@@ -217,9 +217,9 @@ pub fn disk_multiresolution_start(
     domain: &[[f64; 2]],
     levels: usize,
     params: &GradientFlowParams,
-    lie: &LieAdvectionParams,
     info: &mut MultiresolutionInfo,
 ) -> Result<Vec<[f64; 2]>, AnalysisError> {
+    let lie = &params.start;
     let rings = disk_level_rings(domain.len(), levels);
     if rings.is_empty() {
         return Err(AnalysisError::InvalidInput(format!(
