@@ -36,7 +36,10 @@ pub use distances::{
     distance, invariance, pipeline, report_path, resume, rotation, run_settings, shape_cache, shard, shared_markers,
     sphere_distance,
 };
-pub use param::{area_preserving, distortion, gradient_flow, lie_advection, sphere_flows, sphere_param, spherical_mds};
+pub use param::{
+    area_preserving, distortion, gradient_flow, lie_advection, multiresolution, sphere_flows, sphere_param,
+    spherical_mds,
+};
 pub use registration::{geodesic, point_location};
 pub use shape_space::{matrix_io, mds, stats};
 

@@ -16,6 +16,15 @@ fn disk(rings: usize) -> (TriMesh, Vec<[f64; 2]>, Vec<bool>, Vec<f64>) {
     (mesh, x, rim, areas)
 }
 
+/// The single-level flow from the Lie map (no multiresolution levels; those are tested in
+/// `tests/multiresolution.rs`).
+fn from_the_lie_map() -> GradientFlowParams {
+    GradientFlowParams {
+        multiresolution_levels: 0,
+        ..Default::default()
+    }
+}
+
 fn rotate(p: [f64; 2], a: f64) -> [f64; 2] {
     let (s, c) = a.sin_cos();
     [c * p[0] - s * p[1], s * p[0] + c * p[1]]
@@ -178,7 +187,7 @@ fn cap_goes_to_the_radial_optimal_map() {
     let mut rows = Vec::new();
     for rings in [8usize, 16, 32] {
         let mesh = primitives::spherical_cap(alpha, rings);
-        let map = gradient_flow_map(&mesh, &ring_markers(&mesh), &GradientFlowParams::default()).unwrap();
+        let map = gradient_flow_map(&mesh, &ring_markers(&mesh), &from_the_lie_map()).unwrap();
         let d = map_distortion("flow", &mesh, &map.uv).unwrap();
         assert_eq!(d.num_flipped + d.num_degenerate, 0, "rings {rings}");
         rows.push((
@@ -210,7 +219,7 @@ fn off_center_cap_flows_toward_the_newton_omt_map() {
         center: CenterMarker::Vertex((1 + 6 * (1 + 2 + 3 + 4)) as u32),
         ..ring_markers(&mesh)
     };
-    let map = gradient_flow_map(&mesh, &markers, &GradientFlowParams::default()).unwrap();
+    let map = gradient_flow_map(&mesh, &markers, &from_the_lie_map()).unwrap();
     let omt = area_preserving_map(&mesh, &markers, &AreaPreservingParams::default()).unwrap();
     let d = map_distortion("flow", &mesh, &map.uv).unwrap();
     let (start, end) = (max_distance(&map.start_uv, &omt.uv), max_distance(&map.uv, &omt.uv));
@@ -235,7 +244,7 @@ fn off_center_cap_flows_toward_the_newton_omt_map() {
 fn bundled_face_without_folds() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_neutral.obj");
     let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
-    let map = gradient_flow_map(&mesh, &Markers::default(), &GradientFlowParams::default()).unwrap();
+    let map = gradient_flow_map(&mesh, &Markers::default(), &from_the_lie_map()).unwrap();
     let d = map_distortion("flow", &mesh, &map.uv).unwrap();
     let c = map_distortion("conformal", &mesh, &map.conformal.uv).unwrap();
     let omt = area_preserving_map(&mesh, &Markers::default(), &AreaPreservingParams::default()).unwrap();

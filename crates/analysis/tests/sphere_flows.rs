@@ -12,6 +12,15 @@ use shapespace_analysis::sphere_param::{area_preserving_sphere_map, SphereParamP
 use shapespace_analysis::AnalysisError;
 use shapespace_geometry::{primitives, TriMesh};
 
+/// The single-level flow from the Lie map (no multiresolution levels; those are tested in
+/// `tests/multiresolution.rs`).
+fn from_the_lie_map() -> SphereFlowParams {
+    SphereFlowParams {
+        multiresolution_levels: 0,
+        ..Default::default()
+    }
+}
+
 fn spheroid(subdivisions: usize, c: f64) -> TriMesh {
     let ico = primitives::icosphere(subdivisions);
     TriMesh::new(
@@ -114,7 +123,7 @@ fn spheroid_maps_converge_to_the_latitude_rearrangement() {
     for s in [3usize, 4, 5] {
         let mesh = spheroid(s, c);
         let lie = sphere_lie_map(&mesh, &SphereLieParams::default()).unwrap();
-        let flow = sphere_gradient_flow_map(&mesh, &SphereFlowParams::default()).unwrap();
+        let flow = sphere_gradient_flow_map(&mesh, &from_the_lie_map()).unwrap();
         let omt = area_preserving_sphere_map(&mesh, &SphereParamParams::default()).unwrap();
         assert_eq!(lie.info.num_flipped, 0, "{:?}", lie.info);
         assert_eq!(flow.info.num_flipped, 0, "{:?}", flow.info);
@@ -267,7 +276,7 @@ fn tosca_wolf_lie_map_keeps_folds_and_the_flow_says_so() {
     assert!(lie.info.flipped_before_repair > 0 && lie.info.num_flipped < lie.info.flipped_before_repair);
     let d = sphere_map_distortion("lie", &mesh, &lie.positions).unwrap();
     assert_eq!(d.num_flipped + d.num_degenerate, lie.info.num_flipped);
-    match sphere_gradient_flow_map(&mesh, &SphereFlowParams::default()) {
+    match sphere_gradient_flow_map(&mesh, &from_the_lie_map()) {
         Err(AnalysisError::FlowStartFolded { folded, .. }) => assert_eq!(folded, lie.info.num_flipped),
         Err(e) => panic!("{e}"),
         Ok(flow) => {

@@ -2,9 +2,12 @@
 //! `cargo bench -p shapespace-tools --bench param_bench`. Methods (env `METHODS`, comma
 //! separated, default `omt,lie`): `omt`, the Newton OMT map
 //! (`area_preserving::area_preserving_map`), `lie`, the Lie-advection map
-//! (`lie_advection::lie_advection_map`), and `flow`, the gradient-flow OMT map from the Lie map
-//! (`gradient_flow::gradient_flow_map`). Columns: wall time, iterations (OMT: Newton steps; Lie:
-//! integration steps per vertex, mean, and the correction's steps; flow: flow steps), |Υ| = |ln area ratio| per
+//! (`lie_advection::lie_advection_map`), `flow`, the single-level gradient-flow OMT map from the
+//! Lie map (`gradient_flow::gradient_flow_map`, `multiresolution_levels` 0), and `flow-mr`, the
+//! gradient flow with Dominitz & Tannenbaum's multiresolution scheme (the defaults: two coarse
+//! levels). Columns: wall time, iterations (OMT: Newton steps; Lie: integration steps per
+//! vertex, mean, and the correction's steps; flow: flow steps; flow-mr: flow steps per coarse
+//! level as vertices:steps, then + the steps on the mesh), |Υ| = |ln area ratio| per
 //! face (median, p95), the mean corner angle error per face (median, degrees) and the flipped
 //! faces; the last column gives the stages.
 //!
@@ -167,21 +170,43 @@ fn main() {
                     let iterations = format!("{:.1} (max {}) + {}", map.info.mean_steps, map.info.max_steps, c.steps);
                     (map.uv, iterations, stages)
                 }),
-                "flow" => gradient_flow_map(&mesh, &Markers::default(), &GradientFlowParams::default()).map(|map| {
-                    let f = &map.info.flow;
-                    let stages = format!(
-                        "conformal {:.3}, Lie map {:.3}, flow {:.3} s; ‖ζ‖/‖u‖ {:.1e} -> {:.1e}; cost {:.4} -> {:.4}; {}",
-                        map.timings.conformal,
-                        map.timings.start,
-                        map.timings.flow,
-                        f.start_curl,
-                        f.final_curl,
-                        f.start_cost,
-                        f.final_cost,
-                        f.stop
-                    );
-                    (map.uv, f.steps.to_string(), stages)
-                }),
+                "flow" | "flow-mr" => {
+                    let params = GradientFlowParams {
+                        multiresolution_levels: if method == "flow" { 0 } else { 2 },
+                        ..Default::default()
+                    };
+                    gradient_flow_map(&mesh, &Markers::default(), &params).map(|map| {
+                        let f = &map.info.flow;
+                        let m = &map.info.multiresolution;
+                        let start = match &m.fallback {
+                            Some(why) => format!("Lie map (multiresolution fell back: {why})"),
+                            None if m.levels.is_empty() => "Lie map".to_string(),
+                            None => format!(
+                                "levels (prolonged map {} folded, Moser correction {:.1} steps)",
+                                m.prolonged_folds, m.correction_mean_steps
+                            ),
+                        };
+                        let stages = format!(
+                            "conformal {:.3}, start {:.3} ({start}), flow {:.3} s; ‖ζ‖/‖u‖ {:.1e} -> {:.1e}; cost {:.4} -> {:.4}; {}",
+                            map.timings.conformal,
+                            map.timings.start,
+                            map.timings.flow,
+                            f.start_curl,
+                            f.final_curl,
+                            f.start_cost,
+                            f.final_cost,
+                            f.stop
+                        );
+                        let levels: Vec<String> =
+                            m.levels.iter().map(|l| format!("{}:{}", l.vertices, l.flow.steps)).collect();
+                        let iterations = if levels.is_empty() {
+                            f.steps.to_string()
+                        } else {
+                            format!("{} + {}", levels.join(", "), f.steps)
+                        };
+                        (map.uv, iterations, stages)
+                    })
+                }
                 other => {
                     println!("| {name} | {nv} | {nf} | {other} | unknown method | | | | | | |");
                     continue;

@@ -5,13 +5,16 @@
 //! revolution 1:1:1.5 and 1:1:2 (10,242 vertices) and TOSCA wolf0, centaur0 and horse0 from
 //! `../shared/datasets` (skipped with a message when absent); those whose name contains FILTER
 //! when given. Rows: `omt` ([`area_preserving_sphere_map`], defaults), `lie` ([`sphere_lie_map`],
-//! defaults), `flow` ([`sphere_gradient_flow_map`], defaults), `spherical-mds`
+//! defaults), `flow` ([`sphere_gradient_flow_map`] from the Lie map, `multiresolution_levels`
+//! 0), `flow-mr` (the same with Dominitz & Tannenbaum's multiresolution scheme: the defaults,
+//! two coarse icosphere levels), `spherical-mds`
 //! ([`spherical_mds_map`], defaults: θ_max 180°, 500 landmarks, classical start) and
 //! `spherical-mds 270°` (θ_max 270°). Columns: wall-clock seconds, iterations (Newton steps;
 //! mean Bogacki–Shampine steps per vertex, rounded; flow steps; SMACOF iterations on the
 //! landmarks), |ε| (the log one-ring area ratio, both normalized)
 //! median / p95, the angle distortion median / p95 (degrees), faces folded on S² before and
-//! after the chart repair (exact test).
+//! after the chart repair (exact test; `flow-mr`: those of the prolonged coarse map on the
+//! mesh). Env `METHODS` (comma separated) keeps only those rows.
 
 use std::time::Instant;
 
@@ -48,6 +51,9 @@ fn row(
 fn main() {
     shapespace_tools::at_repository_root();
     let filter = std::env::args().skip(1).find(|a| !a.starts_with('-'));
+    let methods: Option<Vec<String>> = std::env::var("METHODS")
+        .ok()
+        .map(|m| m.split(',').map(|x| x.trim().to_string()).collect());
     let ico = shapespace_geometry::primitives::icosphere(5);
     let ellipsoid = |c: f64| {
         TriMesh::new(
@@ -76,46 +82,80 @@ fn main() {
     println!("| mesh | V | method | wall s | iterations | abs. ε median / p95 | angle ° median / p95 | folded before / after repair |");
     println!("|---|---:|---|---:|---:|---|---|---|");
     for (name, mesh) in &meshes {
-        let t = Instant::now();
-        match area_preserving_sphere_map(mesh, &SphereParamParams::default()) {
-            Ok(map) => row(
-                name,
-                mesh,
-                "omt",
-                t.elapsed().as_secs_f64(),
-                map.iterations,
-                &map.positions,
-                (map.flipped_before_repair, map.num_flipped),
-            ),
-            Err(e) => println!("| {name} | {} | omt | error: {e} |", mesh.num_vertices()),
+        let wanted = |m: &str| methods.as_ref().is_none_or(|w| w.iter().any(|x| x == m));
+        if wanted("omt") {
+            let t = Instant::now();
+            match area_preserving_sphere_map(mesh, &SphereParamParams::default()) {
+                Ok(map) => row(
+                    name,
+                    mesh,
+                    "omt",
+                    t.elapsed().as_secs_f64(),
+                    map.iterations,
+                    &map.positions,
+                    (map.flipped_before_repair, map.num_flipped),
+                ),
+                Err(e) => println!("| {name} | {} | omt | error: {e} |", mesh.num_vertices()),
+            }
         }
-        let t = Instant::now();
-        match sphere_lie_map(mesh, &SphereLieParams::default()) {
-            Ok(map) => row(
-                name,
-                mesh,
-                "lie",
-                t.elapsed().as_secs_f64(),
-                map.info.mean_steps.round() as usize,
-                &map.positions,
-                (map.info.flipped_before_repair, map.info.num_flipped),
-            ),
-            Err(e) => println!("| {name} | {} | lie | error: {e} |", mesh.num_vertices()),
+        if wanted("lie") {
+            let t = Instant::now();
+            match sphere_lie_map(mesh, &SphereLieParams::default()) {
+                Ok(map) => row(
+                    name,
+                    mesh,
+                    "lie",
+                    t.elapsed().as_secs_f64(),
+                    map.info.mean_steps.round() as usize,
+                    &map.positions,
+                    (map.info.flipped_before_repair, map.info.num_flipped),
+                ),
+                Err(e) => println!("| {name} | {} | lie | error: {e} |", mesh.num_vertices()),
+            }
         }
-        let t = Instant::now();
-        match sphere_gradient_flow_map(mesh, &SphereFlowParams::default()) {
-            Ok(map) => row(
-                name,
-                mesh,
-                "flow",
-                t.elapsed().as_secs_f64(),
-                map.info.flow.steps,
-                &map.positions,
-                (map.info.start.flipped_before_repair, map.info.num_flipped),
-            ),
-            Err(e) => println!("| {name} | {} | flow | error: {e} |", mesh.num_vertices()),
+        for (method, levels) in [("flow", 0usize), ("flow-mr", 2)] {
+            if !wanted(method) {
+                continue;
+            }
+            let params = SphereFlowParams {
+                multiresolution_levels: levels,
+                ..Default::default()
+            };
+            let t = Instant::now();
+            match sphere_gradient_flow_map(mesh, &params) {
+                Ok(map) => {
+                    let m = &map.info.multiresolution;
+                    let folds = if levels == 0 || m.fallback.is_some() {
+                        map.info.start.flipped_before_repair
+                    } else {
+                        m.prolonged_folds
+                    };
+                    if !m.levels.is_empty() {
+                        eprintln!(
+                            "{name} {method}: levels (vertices, steps) {:?}, prolonged folds {} -> {}, fallback {:?}",
+                            m.levels.iter().map(|l| (l.vertices, l.flow.steps)).collect::<Vec<_>>(),
+                            m.prolonged_folds,
+                            m.prolonged_folds_after_repair,
+                            m.fallback
+                        );
+                    }
+                    row(
+                        name,
+                        mesh,
+                        method,
+                        t.elapsed().as_secs_f64(),
+                        map.info.flow.steps,
+                        &map.positions,
+                        (folds, map.info.num_flipped),
+                    )
+                }
+                Err(e) => println!("| {name} | {} | {method} | error: {e} |", mesh.num_vertices()),
+            }
         }
         for (method, degrees) in [("spherical-mds", 180.0f64), ("spherical-mds 270°", 270.0)] {
+            if !wanted(method) {
+                continue;
+            }
             let params = SphericalMdsParams {
                 max_angle: degrees.to_radians(),
                 ..Default::default()

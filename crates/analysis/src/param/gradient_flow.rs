@@ -50,10 +50,17 @@
 //!
 //! The flow stops when $\|\zeta\|/\|u\|$ (L² norms on $\Omega_0$) falls below `tolerance`,
 //! after `max_steps` steps, or when a step halved below [`MIN_TIME_STEP`] × `max_time_step`
-//! still folds. On real meshes the last happens within a few steps: a sliver left by the Lie
-//! map's fold repair collapses at any step size (docs/benchmarks.md). Dominitz & Tannenbaum
-//! accelerate the flow by a multiresolution scheme (spherical wavelets on their sphere); this
-//! implementation flows on the full mesh only.
+//! still folds. On real meshes started from the Lie map the last happens within a few steps: a
+//! sliver left by the Lie map's fold repair collapses at any step size (docs/benchmarks.md).
+//!
+//! # Multiresolution
+//! Dominitz & Tannenbaum accelerate the flow by a multiresolution scheme (spherical wavelets on
+//! their sphere). [`gradient_flow_map`] runs it by default (`multiresolution_levels` 2,
+//! [`crate::multiresolution`]): the flow on coarse ring-layout disks carrying the restricted
+//! surface area, each result prolonged to the next level and Moser-corrected, and the flow on
+//! the mesh from the prolonged map in place of step 1's Lie map. When the prolonged map keeps
+//! folds after the fold repair or its Moser correction fails the Lie map is the start, as with
+//! `multiresolution_levels` 0 (and only if that one keeps folds, the uncorrected prolonged map).
 
 use std::time::Instant;
 
@@ -62,15 +69,17 @@ use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt};
 use faer::sparse::{SparseColMat, Triplet};
 use rayon::prelude::*;
 use serde::Serialize;
-use shapespace_conformal::{DiskMap, Markers};
+use shapespace_conformal::{disk_map, DiskMap, Markers};
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
+use crate::fold_repair::repair_folds_with;
 use crate::lie_advection::{
     acceptable, face_gradient, face_is_ccw, lie_advection_map, moved, signed_area, tangential, vertex_velocities,
     LieAdvectionInfo, LieAdvectionParams, PlanarPoisson,
 };
+use crate::multiresolution::{disk_moser_correction, disk_multiresolution_start, MultiresolutionInfo};
 use crate::point_location::PointLocator;
 
 /// Parameters of [`gradient_flow_map`] (module docs).
@@ -94,6 +103,10 @@ pub struct GradientFlowParams {
     pub projection_iterations: usize,
     /// Most mass projections at the start and at the end (default 10).
     pub final_projection_iterations: usize,
+    /// Coarse levels of Dominitz & Tannenbaum's multiresolution scheme run before the flow on
+    /// the mesh ([`crate::multiresolution`]; default 2; 0: the single-level flow from the Lie
+    /// map). Used by [`gradient_flow_map`]; [`flow`] itself is one level.
+    pub multiresolution_levels: usize,
 }
 
 impl Default for GradientFlowParams {
@@ -106,6 +119,7 @@ impl Default for GradientFlowParams {
             max_time_step: 0.25,
             projection_iterations: 1,
             final_projection_iterations: 10,
+            multiresolution_levels: 2,
         }
     }
 }
@@ -146,8 +160,11 @@ pub struct FlowInfo {
 /// What [`gradient_flow_map`] did.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct GradientFlowInfo {
-    /// The first mass-preserving map (Lie advection).
+    /// The first mass-preserving map (Lie advection; all zero when the flow on the mesh
+    /// started from the multiresolution levels).
     pub start: LieAdvectionInfo,
+    /// The coarse levels of the multiresolution scheme, or why the flow did not use them.
+    pub multiresolution: MultiresolutionInfo,
     /// The flow.
     pub flow: FlowInfo,
 }
@@ -157,9 +174,10 @@ pub struct GradientFlowInfo {
 pub struct GradientFlowTimings {
     /// The conformal disk map.
     pub conformal: f64,
-    /// The first mass-preserving map (Lie advection, repair and correction).
+    /// The first mass-preserving map (Lie advection, repair and correction), or the coarse
+    /// levels of the multiresolution scheme (with a fallback to the Lie map: both).
     pub start: f64,
-    /// The flow with its projections.
+    /// The flow on the mesh with its projections.
     pub flow: f64,
     /// Everything.
     pub total: f64,
@@ -170,7 +188,7 @@ pub struct GradientFlowTimings {
 pub struct GradientFlowMap {
     /// Image of each vertex in the unit disk, #V (rim vertices on |z| = 1).
     pub uv: Vec<[f64; 2]>,
-    /// The first mass-preserving map the flow started from, #V.
+    /// The map the flow on the mesh started from (the prolonged coarse map, or the Lie map), #V.
     pub start_uv: Vec<[f64; 2]>,
     /// The conformal map.
     pub conformal: DiskMap,
@@ -193,8 +211,105 @@ pub fn gradient_flow_map(
 ) -> Result<GradientFlowMap, AnalysisError> {
     check_params(params)?;
     let t0 = Instant::now();
+    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
+    let conn = Connectivity::of(mesh);
+    let is_boundary = conn.boundary_vertices(mesh.num_vertices());
+    let areas = face_areas(mesh);
+    let mut multiresolution = MultiresolutionInfo::default();
+    // the unfolded prolonged map whose Moser correction failed, with its conformal map
+    let mut uncorrected: Option<Vec<[f64; 2]>> = None;
+    let mut multiresolution_conformal: Option<DiskMap> = None;
+    if params.multiresolution_levels > 0 {
+        let conformal = disk_map(mesh, markers, &params.start.disk_map).map_err(AnalysisError::DiskMap)?;
+        let t1 = Instant::now();
+        let start = disk_multiresolution_start(
+            &mesh.faces,
+            &areas,
+            &is_boundary,
+            &conformal.uv,
+            params.multiresolution_levels,
+            params,
+            &mut multiresolution,
+        )
+        .and_then(|mut start| {
+            if multiresolution.prolonged_folds > 0 {
+                // (a failed repair leaves folds, counted below)
+                let _ = repair_folds_with(mesh, Some(&conn), &is_boundary, &mut start, &params.start.fold_repair);
+                multiresolution.prolonged_folds_after_repair =
+                    mesh.faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
+            }
+            match multiresolution.prolonged_folds_after_repair {
+                0 => match disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start) {
+                    (start, Some(steps)) => {
+                        multiresolution.correction_mean_steps = steps;
+                        Ok(start)
+                    }
+                    (start, None) => {
+                        uncorrected = Some(start);
+                        Err(AnalysisError::InvalidInput(
+                            "the Moser correction of the prolonged map fails or folds".into(),
+                        ))
+                    }
+                },
+                folded => Err(AnalysisError::FlowStartFolded {
+                    folded,
+                    reason: "the prolonged coarse map keeps them after the fold repair".into(),
+                }),
+            }
+        });
+        match start {
+            Ok(start) => {
+                let t2 = Instant::now();
+                let (uv, flow_info) = flow(&mesh.faces, &areas, &is_boundary, &conformal.uv, &start, params)?;
+                let t3 = Instant::now();
+                return Ok(GradientFlowMap {
+                    uv,
+                    start_uv: start,
+                    timings: GradientFlowTimings {
+                        conformal: secs(t0, t1),
+                        start: secs(t1, t2),
+                        flow: secs(t2, t3),
+                        total: secs(t0, t3),
+                    },
+                    conformal,
+                    info: GradientFlowInfo {
+                        start: LieAdvectionInfo::default(),
+                        multiresolution,
+                        flow: flow_info,
+                    },
+                });
+            }
+            Err(e) => {
+                multiresolution.fallback = Some(e.to_string());
+                multiresolution_conformal = Some(conformal);
+            }
+        }
+    }
     let lie = lie_advection_map(mesh, markers, &params.start)?;
     if let Some(reason) = &lie.info.fold_repair_error {
+        if let (Some(start), Some(conformal)) = (uncorrected, multiresolution_conformal) {
+            // the Lie map folds: the flow starts from the unfolded, uncorrected prolonged map
+            let t1 = Instant::now();
+            multiresolution.uncorrected_start = true;
+            let (uv, flow_info) = flow(&mesh.faces, &areas, &is_boundary, &conformal.uv, &start, params)?;
+            let t2 = Instant::now();
+            return Ok(GradientFlowMap {
+                uv,
+                start_uv: start,
+                timings: GradientFlowTimings {
+                    conformal: lie.timings.conformal,
+                    start: secs(t0, t1) - lie.timings.conformal,
+                    flow: secs(t1, t2),
+                    total: secs(t0, t2),
+                },
+                conformal,
+                info: GradientFlowInfo {
+                    start: lie.info,
+                    multiresolution,
+                    flow: flow_info,
+                },
+            });
+        }
         let folded = mesh.faces.iter().filter(|f| !face_is_ccw(&lie.uv, f)).count();
         return Err(AnalysisError::FlowStartFolded {
             folded,
@@ -202,12 +317,8 @@ pub fn gradient_flow_map(
         });
     }
     let t1 = Instant::now();
-    let conn = Connectivity::of(mesh);
-    let is_boundary = conn.boundary_vertices(mesh.num_vertices());
-    let areas = face_areas(mesh);
     let (uv, flow_info) = flow(&mesh.faces, &areas, &is_boundary, &lie.conformal.uv, &lie.uv, params)?;
     let t2 = Instant::now();
-    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     Ok(GradientFlowMap {
         uv,
         start_uv: lie.uv,
@@ -220,6 +331,7 @@ pub fn gradient_flow_map(
         conformal: lie.conformal,
         info: GradientFlowInfo {
             start: lie.info,
+            multiresolution,
             flow: flow_info,
         },
     })

@@ -10,6 +10,7 @@ pub mod area_preserving;
 pub mod distortion;
 pub mod gradient_flow;
 pub mod lie_advection;
+pub mod multiresolution;
 pub mod sphere_flows;
 pub mod sphere_param;
 pub mod spherical_mds;

@@ -45,9 +45,13 @@
 //! conformal image holding the foot and put back onto S²; the step rules (CFL, 10 % foot
 //! areas, halving while a face folds) and the one-ring mass projections are the disk's code.
 //!
-//! Dominitz & Tannenbaum resample onto a spherical grid and accelerate the flow by spherical
-//! wavelets (multiresolution); this implementation flows on the mesh at full resolution only,
-//! as the disk variant does.
+//! Dominitz & Tannenbaum resample onto a spherical grid and accelerate the flow by a
+//! multiresolution scheme (spherical wavelets). [`sphere_gradient_flow_map`] runs it by default
+//! as [`crate::multiresolution`] reads it: the flow on two coarse icospheres carrying the
+//! restricted surface area, each result prolonged and Moser-corrected, the flow on the mesh
+//! from there (`multiresolution_levels` 0, or a prolonged map that keeps folds or whose
+//! correction fails: from the Lie map, as above; if that one keeps folds too, from the
+//! uncorrected prolonged map).
 
 use std::time::Instant;
 
@@ -64,6 +68,7 @@ use crate::gradient_flow::{
     FlowDomain, FlowInfo,
 };
 use crate::lie_advection::{bogacki_shampine, correction_flow, CorrectionInfo, PlanarPoisson};
+use crate::multiresolution::{sphere_moser_correction, sphere_multiresolution_start, MultiresolutionInfo};
 use crate::registration::sphere::SphereLocator;
 use crate::sphere_param::{folded_on_sphere, repair_in_charts, SphereFoldRepairInfo};
 
@@ -85,7 +90,7 @@ fn cross(a: P3, b: P3) -> P3 {
     ]
 }
 
-fn normalized(a: P3) -> P3 {
+pub(crate) fn normalized(a: P3) -> P3 {
     let l = dot(a, a).sqrt();
     a.map(|t| t / l)
 }
@@ -108,7 +113,7 @@ fn chord_area(x: &[P3], f: &[u32; 3]) -> f64 {
     }
 }
 
-fn chord_areas(faces: &[[u32; 3]], x: &[P3]) -> Vec<f64> {
+pub(crate) fn chord_areas(faces: &[[u32; 3]], x: &[P3]) -> Vec<f64> {
     faces.iter().map(|f| chord_area(x, f)).collect()
 }
 
@@ -156,7 +161,7 @@ fn acceptable_on_sphere(faces: &[[u32; 3]], x: &[P3], next: &[P3]) -> bool {
     })
 }
 
-fn unfolded_on_sphere(faces: &[[u32; 3]], x: &[P3]) -> bool {
+pub(crate) fn unfolded_on_sphere(faces: &[[u32; 3]], x: &[P3]) -> bool {
     faces.par_iter().all(|f| {
         let [a, b, c] = f.map(|v| x[v as usize]);
         orientation_on_sphere(a, b, c) == 1
@@ -525,7 +530,7 @@ pub fn advect_on_sphere(
 // Gradient flow on S²
 
 /// Options of [`sphere_gradient_flow_map`].
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct SphereFlowParams {
     /// The first mass-preserving map (the sphere's Lie map; its `sphere_map` is the conformal
     /// map the method starts from).
@@ -533,13 +538,29 @@ pub struct SphereFlowParams {
     /// The flow's time stepping (the disk's defaults: 200 steps, ‖ζ‖/‖u‖ ≤ 1e-3, CFL 2, steps
     /// ≤ 0.25, 1 projection per step, 10 at the ends).
     pub control: FlowControl,
+    /// Coarse icosphere levels of the multiresolution scheme run before the flow on the mesh
+    /// ([`crate::multiresolution`]; default 2; 0: the single-level flow from the Lie map).
+    pub multiresolution_levels: usize,
+}
+
+impl Default for SphereFlowParams {
+    fn default() -> Self {
+        SphereFlowParams {
+            start: SphereLieParams::default(),
+            control: FlowControl::default(),
+            multiresolution_levels: 2,
+        }
+    }
 }
 
 /// What [`sphere_gradient_flow_map`] did.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct SphereFlowInfo {
-    /// The first mass-preserving map (Lie advection on S²).
+    /// The first mass-preserving map (Lie advection on S²; all zero when the flow on the mesh
+    /// started from the multiresolution levels).
     pub start: SphereLieInfo,
+    /// The coarse levels of the multiresolution scheme, or why the flow did not use them.
+    pub multiresolution: MultiresolutionInfo,
     /// The flow.
     pub flow: FlowInfo,
     /// Faces folded on S² in the result (exact test; the flow keeps every step unfolded).
@@ -551,9 +572,10 @@ pub struct SphereFlowInfo {
 pub struct SphereFlowTimings {
     /// The conformal sphere map.
     pub conformal: f64,
-    /// The first mass-preserving map (advection, repair, correction).
+    /// The first mass-preserving map (advection, repair, correction), or the coarse levels of
+    /// the multiresolution scheme (with a fallback to the Lie map: both).
     pub start: f64,
-    /// The flow with its projections.
+    /// The flow on the mesh with its projections.
     pub flow: f64,
     /// Everything.
     pub total: f64,
@@ -564,7 +586,7 @@ pub struct SphereFlowTimings {
 pub struct SphereFlowMap {
     /// Image of each vertex on S², #V.
     pub positions: Vec<P3>,
-    /// The Lie map the flow started from, #V.
+    /// The map the flow on the mesh started from (the prolonged coarse map, or the Lie map), #V.
     pub start_positions: Vec<P3>,
     /// The conformal map.
     pub conformal: SphereMap,
@@ -583,15 +605,115 @@ pub struct SphereFlowMap {
 pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Result<SphereFlowMap, AnalysisError> {
     params.control.check()?;
     let t0 = Instant::now();
+    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
+    let areas = face_areas(mesh);
+    let mut multiresolution = MultiresolutionInfo::default();
+    // the unfolded prolonged map whose Moser correction failed, with its conformal map
+    let mut uncorrected: Option<Vec<P3>> = None;
+    let mut multiresolution_conformal: Option<SphereMap> = None;
+    if params.multiresolution_levels > 0 {
+        let conformal = sphere_map(mesh, &params.start.sphere_map).map_err(AnalysisError::SphereMap)?;
+        let t1 = Instant::now();
+        let start = sphere_multiresolution_start(
+            &mesh.faces,
+            &areas,
+            &conformal.positions,
+            params.multiresolution_levels,
+            &params.control,
+            &params.start,
+            &mut multiresolution,
+        )
+        .and_then(|mut start| {
+            if multiresolution.prolonged_folds > 0 {
+                repair_in_charts(mesh, &mut start);
+                multiresolution.prolonged_folds_after_repair = folded_on_sphere(mesh, &start).len();
+            }
+            match multiresolution.prolonged_folds_after_repair {
+                0 => match sphere_moser_correction(&mesh.faces, &areas, start, &params.start) {
+                    (start, Some(steps)) => {
+                        multiresolution.correction_mean_steps = steps;
+                        Ok(start)
+                    }
+                    (start, None) => {
+                        uncorrected = Some(start);
+                        Err(AnalysisError::InvalidInput(
+                            "the Moser correction of the prolonged map fails or folds".into(),
+                        ))
+                    }
+                },
+                folded => Err(AnalysisError::FlowStartFolded {
+                    folded,
+                    reason: "the prolonged coarse map folds them after the chart repair".into(),
+                }),
+            }
+        });
+        match start {
+            Ok(start) => {
+                let t2 = Instant::now();
+                let (positions, flow) =
+                    sphere_flow(&mesh.faces, &areas, &conformal.positions, &start, &params.control)?;
+                let t3 = Instant::now();
+                let num_flipped = folded_on_sphere(mesh, &positions).len();
+                return Ok(SphereFlowMap {
+                    positions,
+                    start_positions: start,
+                    timings: SphereFlowTimings {
+                        conformal: secs(t0, t1),
+                        start: secs(t1, t2),
+                        flow: secs(t2, t3),
+                        total: secs(t0, t3),
+                    },
+                    conformal,
+                    info: SphereFlowInfo {
+                        start: SphereLieInfo::default(),
+                        multiresolution,
+                        flow,
+                        num_flipped,
+                    },
+                });
+            }
+            Err(e) => {
+                multiresolution.fallback = Some(e.to_string());
+                multiresolution_conformal = Some(conformal);
+            }
+        }
+    }
     let lie = sphere_lie_map(mesh, &params.start)?;
     if lie.info.num_flipped > 0 {
+        if let (Some(start), Some(conformal)) = (uncorrected, multiresolution_conformal) {
+            // the Lie map folds: the flow starts from the unfolded, uncorrected prolonged map
+            let t1 = Instant::now();
+            multiresolution.uncorrected_start = true;
+            let (positions, flow) = sphere_flow(&mesh.faces, &areas, &conformal.positions, &start, &params.control)?;
+            let t2 = Instant::now();
+            let num_flipped = folded_on_sphere(mesh, &positions).len();
+            return Ok(SphereFlowMap {
+                positions,
+                start_positions: start,
+                timings: SphereFlowTimings {
+                    conformal: lie.timings.conformal,
+                    start: secs(t0, t1) - lie.timings.conformal,
+                    flow: secs(t1, t2),
+                    total: secs(t0, t2),
+                },
+                conformal,
+                info: SphereFlowInfo {
+                    start: lie.info,
+                    multiresolution,
+                    flow,
+                    num_flipped,
+                },
+            });
+        }
         return Err(AnalysisError::FlowStartFolded {
             folded: lie.info.num_flipped,
-            reason: "the chart repair left them folded on the sphere".into(),
+            reason: match &multiresolution.fallback {
+                Some(why) => format!("the chart repair left them folded on the sphere (multiresolution: {why})"),
+                None => "the chart repair left them folded on the sphere".into(),
+            },
         });
     }
     let t1 = Instant::now();
-    let areas = face_areas(mesh);
     let (positions, flow) = sphere_flow(
         &mesh.faces,
         &areas,
@@ -601,7 +723,6 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
     )?;
     let t2 = Instant::now();
     let num_flipped = folded_on_sphere(mesh, &positions).len();
-    let secs = |a: Instant, b: Instant| (b - a).as_secs_f64();
     Ok(SphereFlowMap {
         positions,
         start_positions: lie.positions,
@@ -614,6 +735,7 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
         conformal: lie.conformal,
         info: SphereFlowInfo {
             start: lie.info,
+            multiresolution,
             flow,
             num_flipped,
         },

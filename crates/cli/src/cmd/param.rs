@@ -28,9 +28,13 @@
 //! `param_smds`).
 //!
 //! `--method flow` computes the L²-optimal map by the Angenent–Haker–Tannenbaum gradient flow
-//! from the Lie-advection map ([`shapespace_analysis::gradient_flow::gradient_flow_map`];
-//! Dominitz & Tannenbaum 2010; no weights); its report has the same distortion
-//! block, with the flow's steps, curl norms and transport costs. With `--domain sphere` (the
+//! ([`shapespace_analysis::gradient_flow::gradient_flow_map`]; Dominitz & Tannenbaum 2010; no
+//! weights) with their multiresolution scheme: `--flow-levels` coarse levels (default 2,
+//! [`shapespace_analysis::multiresolution`]) give the flow on the mesh its start, or with
+//! `--flow-levels 0` (or when the prolonged map folds or is not made mass-preserving) the
+//! Lie-advection map does; its report
+//! has the same distortion block, with the levels, the flow's steps, curl norms and
+//! transport costs. With `--domain sphere` (the
 //! default for these two on a closed genus-0 input) both map onto the sphere instead
 //! ([`shapespace_analysis::sphere_flows`]; `param_sphere_flows`).
 
@@ -121,6 +125,10 @@ pub struct ParamArgs {
     /// `coarse-to-fine`.
     #[arg(long, value_enum, default_value_t = super::ot::StartArg::Auto)]
     pub start: super::ot::StartArg,
+    /// `--method flow`: coarse levels of Dominitz & Tannenbaum's multiresolution scheme run
+    /// before the flow on the mesh (0: the single-level flow from the Lie map).
+    #[arg(long = "flow-levels", default_value_t = 2)]
+    pub flow_levels: usize,
 }
 
 impl ParamArgs {
@@ -441,6 +449,23 @@ fn run_lie(
     Ok(ExitCode::SUCCESS)
 }
 
+/// Where the flow on the mesh started, for the summary line: the coarse levels' sizes, or the
+/// Lie map (and why, when levels were asked for).
+pub(crate) fn flow_start(info: &shapespace_analysis::multiresolution::MultiresolutionInfo) -> String {
+    match (&info.fallback, info.levels.is_empty()) {
+        (Some(why), _) => format!("the Lie map (multiresolution: {why})"),
+        (None, true) => "the Lie map".into(),
+        (None, false) => format!(
+            "levels of {} vertices",
+            info.levels
+                .iter()
+                .map(|l| l.vertices.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
 /// `--method flow`: the gradient-flow OMT map, its summary line and report.
 fn run_flow(
     args: &ParamArgs,
@@ -449,7 +474,10 @@ fn run_flow(
     marker_source: String,
     t0: Instant,
 ) -> Result<ExitCode> {
-    let mut params = GradientFlowParams::default();
+    let mut params = GradientFlowParams {
+        multiresolution_levels: args.flow_levels,
+        ..Default::default()
+    };
     params.start.fold_repair.enabled = !args.no_fold_repair;
     params.start.disk_map = args.disk_map.params();
     let message = format!(
@@ -465,11 +493,12 @@ fn run_flow(
     let flow = &report.maps[1];
     let f = &map.info.flow;
     eprintln!(
-        "{}: {} V, {} F; gradient flow {} steps from the Lie map (‖ζ‖/‖u‖ {:.2e} -> {:.2e}, transport cost {:.4e} -> {:.4e}; {}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; conformal {:.2} s, Lie map {:.2} s, flow {:.2} s",
+        "{}: {} V, {} F; gradient flow {} steps from {} (‖ζ‖/‖u‖ {:.2e} -> {:.2e}, transport cost {:.4e} -> {:.4e}; {}); |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; conformal {:.2} s, start {:.2} s, flow {:.2} s",
         args.input.display(),
         mesh.num_vertices(),
         mesh.num_faces(),
         f.steps,
+        flow_start(&map.info.multiresolution),
         f.start_curl,
         f.final_curl,
         f.start_cost,
@@ -495,6 +524,7 @@ fn run_flow(
             Domain::Disk,
             serde_json::json!({
                 "lie_advection": map.info.start,
+                "multiresolution": map.info.multiresolution,
                 "gradient_flow": map.info.flow,
                 "timings": map.timings,
                 "wall_seconds": t0.elapsed().as_secs_f64(),

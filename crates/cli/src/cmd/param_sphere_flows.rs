@@ -46,6 +46,7 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
     let (positions, conformal, info, flipped, summary) = if method == ParamMethod::Flow {
         let params = SphereFlowParams {
             start: lie,
+            multiresolution_levels: args.flow_levels,
             ..Default::default()
         };
         let message = format!("gradient-flow sphere map of {input} ({} vertices)", mesh.num_vertices());
@@ -53,12 +54,14 @@ pub fn run(args: &ParamArgs, t0: Instant) -> Result<ExitCode> {
             .with_context(|| format!("mapping {input} onto the sphere"))?;
         let f = &map.info.flow;
         let summary = format!(
-            "gradient flow {} steps from the Lie map (‖ζ‖/‖u‖ {:.2e} -> {:.2e}, transport cost {:.4e} -> {:.4e}; {}); conformal {:.2} s, Lie map {:.2} s, flow {:.2} s",
-            f.steps, f.start_curl, f.final_curl, f.start_cost, f.final_cost, f.stop,
+            "gradient flow {} steps from {} (‖ζ‖/‖u‖ {:.2e} -> {:.2e}, transport cost {:.4e} -> {:.4e}; {}); conformal {:.2} s, start {:.2} s, flow {:.2} s",
+            f.steps,
+            super::param::flow_start(&map.info.multiresolution), f.start_curl, f.final_curl, f.start_cost, f.final_cost, f.stop,
             map.timings.conformal, map.timings.start, map.timings.flow
         );
         let info = serde_json::json!({
             "lie_advection": map.info.start,
+            "multiresolution": map.info.multiresolution,
             "gradient_flow": map.info.flow,
             "timings": map.timings,
         });
