@@ -521,6 +521,16 @@ pub fn register_bench(
     mut progress: impl FnMut(&str),
 ) -> Result<BenchResult, AnalysisError> {
     let t0 = Instant::now();
+    let ctx = BenchContext {
+        out,
+        remeshed,
+        methods,
+        params,
+        harmonic,
+        refine,
+        zoomout,
+        metric_params,
+    };
     std::fs::create_dir_all(out).map_err(|e| AnalysisError::io(out, e))?;
     let mut classes: Vec<PathBuf> = std::fs::read_dir(dataset)
         .map_err(|e| AnalysisError::io(dataset, e))?
@@ -528,11 +538,13 @@ pub fn register_bench(
         .filter(|p| p.is_dir())
         .collect();
     classes.sort();
-    let mut rows = Vec::new();
-    let mut pooled: Vec<Pooled> = methods
-        .iter()
-        .map(|&m| (m, Vec::new(), Vec::new(), Vec::new()))
-        .collect();
+    let mut tally = BenchTally {
+        rows: Vec::new(),
+        pooled: methods
+            .iter()
+            .map(|&m| (m, Vec::new(), Vec::new(), Vec::new()))
+            .collect(),
+    };
     let mut num_classes = 0;
     for class_dir in &classes {
         let files = mesh_files(class_dir)?;
@@ -540,7 +552,89 @@ pub fn register_bench(
             continue;
         }
         num_classes += 1;
-        let class = stem(class_dir);
+        let class = BenchClass::read(&ctx, class_dir, files, &mut progress)?;
+        let bases = class.spectral_bases(&ctx, &mut progress);
+        for mi in 0..methods.len() {
+            bench_method(&ctx, &class, mi, &bases, &mut tally, &mut progress);
+        }
+    }
+    if num_classes == 0 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{}: no class folder with at least 2 mesh files (.obj, .off, .ply); expected DATASET/CLASS/*.obj with a landmarks.json",
+            dataset.display()
+        )));
+    }
+    let BenchTally { rows, pooled } = tally;
+    let mut files = Vec::new();
+    let path = out.join("results.csv");
+    write_results_csv(&path, &rows)?;
+    files.push(path);
+    let summaries = summarize(&rows, methods, refine);
+    let path = out.join("geodesic_curve.csv");
+    write_geodesic_curve(&path, &pooled)?;
+    files.push(path);
+    files.extend(write_pooled_histograms(out, &pooled)?);
+    let total_seconds = t0.elapsed().as_secs_f64();
+    let path = out.join("summary.json");
+    let text =
+        serde_json::to_string_pretty(&serde_json::json!({"summaries": summaries, "total_seconds": total_seconds}))
+            .map_err(|e| AnalysisError::Serialize {
+                path: path.clone(),
+                message: e.to_string(),
+            })?;
+    write_atomically(&path, text.as_bytes()).map_err(|e| AnalysisError::io(&path, e))?;
+    files.push(path);
+    Ok(BenchResult {
+        rows,
+        summaries,
+        total_seconds,
+        files,
+    })
+}
+
+/// The settings of one [`register_bench`] run, shared by all its classes and pairs.
+struct BenchContext<'a> {
+    out: &'a Path,
+    remeshed: Option<&'a Path>,
+    methods: &'a [Method],
+    params: &'a AreaPreservingParams,
+    harmonic: &'a dyn Fn(Method) -> HarmonicParams,
+    refine: Refinement,
+    zoomout: &'a ZoomOutParams,
+    metric_params: &'a MetricParams,
+}
+
+/// What the pairs of [`register_bench`] accumulate: the rows in order and, per method, the
+/// pooled samples and geodesic curves.
+struct BenchTally {
+    rows: Vec<BenchRow>,
+    pooled: Vec<Pooled>,
+}
+
+/// One class of the benchmark: its pose files, meshes and markers, and the remeshed poses.
+/// Targets are the poses, then their remeshings: target k is (a remeshing of) pose k % n.
+struct BenchClass {
+    name: String,
+    files: Vec<PathBuf>,
+    meshes: Vec<TriMesh>,
+    markers: Vec<(PathBuf, MarkerFile)>,
+    remeshed: Vec<RemeshedTarget>,
+}
+
+/// A pair's registration, its metrics and (for a refined vertex map) the metrics of the vertex
+/// map before the untangling with points.
+type Scored = (Registration, RegistrationMetrics, Option<RegistrationMetrics>);
+
+impl BenchClass {
+    /// Reads the poses of `class_dir` (`files`) with their landmark files and, when the run has
+    /// a remeshed folder, the remeshed poses with their carried ground truth.
+    fn read(
+        ctx: &BenchContext,
+        class_dir: &Path,
+        files: Vec<PathBuf>,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Self, AnalysisError> {
+        let name = stem(class_dir);
         let mut meshes = Vec::new();
         let mut markers = Vec::new();
         for f in &files {
@@ -556,224 +650,305 @@ pub fn register_bench(
             meshes.push(mesh);
             markers.push((side, mf));
         }
-        let remeshed_poses = match remeshed {
+        let remeshed = match ctx.remeshed {
             Some(dir) => {
-                progress(&format!("{class}: remeshed poses, ground truth by closest point"));
+                progress(&format!("{name}: remeshed poses, ground truth by closest point"));
                 remeshed_targets(
-                    &dir.join(&class),
+                    &dir.join(&name),
                     &files,
                     &meshes,
                     &markers,
-                    &out.join("truth").join(&class),
+                    &ctx.out.join("truth").join(&name),
                 )?
             }
             None => Vec::new(),
         };
-        // every target: the poses, then their remeshings (k ↦ pose k % n)
-        let n = meshes.len();
-        let all_meshes: Vec<&TriMesh> = meshes.iter().chain(remeshed_poses.iter().map(|r| &r.mesh)).collect();
-        let all_markers: Vec<&MarkerFile> = markers
+        Ok(BenchClass {
+            name,
+            files,
+            meshes,
+            markers,
+            remeshed,
+        })
+    }
+
+    /// Number of poses.
+    fn n(&self) -> usize {
+        self.meshes.len()
+    }
+
+    /// Every target mesh: the poses, then their remeshings.
+    fn all_meshes(&self) -> Vec<&TriMesh> {
+        self.meshes
+            .iter()
+            .chain(self.remeshed.iter().map(|r| &r.mesh))
+            .collect()
+    }
+
+    /// The markers of every target, in the order of [`Self::all_meshes`].
+    fn all_markers(&self) -> Vec<&MarkerFile> {
+        self.markers
             .iter()
             .map(|m| &m.1)
-            .chain(remeshed_poses.iter().map(|r| &r.markers))
-            .collect();
-        let name_of = |k: usize| {
-            if k < n {
-                stem(&files[k])
-            } else {
-                format!("{} (remeshed)", stem(&files[k - n]))
-            }
-        };
-        let bases: Vec<Result<SpectralBasis, String>> = if refine == Refinement::ZoomOut {
-            all_meshes
+            .chain(self.remeshed.iter().map(|r| &r.markers))
+            .collect()
+    }
+
+    /// The name of target k in progress lines and errors.
+    fn name_of(&self, k: usize) -> String {
+        let n = self.n();
+        if k < n {
+            stem(&self.files[k])
+        } else {
+            format!("{} (remeshed)", stem(&self.files[k - n]))
+        }
+    }
+
+    /// With the ZoomOut refinement, the eigenpairs of every target (once per mesh, shared by all
+    /// methods and pairs); empty without.
+    fn spectral_bases(&self, ctx: &BenchContext, progress: &mut dyn FnMut(&str)) -> Vec<Result<SpectralBasis, String>> {
+        if ctx.refine == Refinement::ZoomOut {
+            self.all_meshes()
                 .iter()
                 .enumerate()
                 .map(|(k, m)| {
-                    progress(&format!("{class}: eigenpairs of {}", name_of(k)));
-                    SpectralBasis::of(m, zoomout.k_end, &zoomout.eigen).map_err(|e| error_chain(&e))
+                    progress(&format!("{}: eigenpairs of {}", self.name, self.name_of(k)));
+                    SpectralBasis::of(m, ctx.zoomout.k_end, &ctx.zoomout.eigen).map_err(|e| error_chain(&e))
                 })
                 .collect()
         } else {
             Vec::new()
-        };
-        for (mi, &method) in methods.iter().enumerate() {
-            let maps: Vec<Result<DiskImage, String>> = all_meshes
-                .iter()
-                .zip(&all_markers)
-                .enumerate()
-                .map(|(k, (m, mf))| {
-                    progress(&format!("{class}: {method} disk map of {}", name_of(k)));
-                    disk_image(m, &mf.markers, method, params).map_err(|e| error_chain(&e))
-                })
-                .collect();
-            let first_row = rows.len();
-            let mut mesh_seconds = vec![0.0; all_meshes.len()];
-            let mut mesh_eigen_seconds = vec![0.0; all_meshes.len()];
-            for i in 0..n {
-                for j in 0..all_meshes.len() {
-                    if i == j % n {
-                        continue;
-                    }
-                    let (src, tgt) = (stem(&files[i]), stem(&files[j % n]));
-                    let (triangulation, remeshed_target) = if j < n {
-                        (Triangulation::Same, None)
-                    } else {
-                        (Triangulation::Remeshed, Some(&remeshed_poses[j - n]))
-                    };
-                    progress(&format!("{class}: {method} {src} -> {}", name_of(j)));
-                    let mut row = BenchRow::pending(&class, src, tgt, triangulation, method, refine);
-                    row.truth_max_distance = remeshed_target.map_or(0.0, |r| r.max_distance);
-                    type Scored = (Registration, RegistrationMetrics, Option<RegistrationMetrics>);
-                    let outcome = (|| -> Result<Scored, String> {
-                        let phi1 = maps[i]
-                            .as_ref()
-                            .map_err(|e| format!("disk map of {}: {e}", name_of(i)))?;
-                        let phi2 = maps[j]
-                            .as_ref()
-                            .map_err(|e| format!("disk map of {}: {e}", name_of(j)))?;
-                        let target_markers = if j < n {
-                            markers[j].0.display().to_string()
-                        } else {
-                            format!(
-                                "{} carried onto the remeshed {}",
-                                markers[j - n].0.display(),
-                                name_of(j - n)
-                            )
-                        };
-                        let landmarks = Landmarks::from_named(
-                            &markers[i].1.landmarks,
-                            &all_markers[j].landmarks,
-                            &format!("{} / {target_markers}", markers[i].0.display()),
-                        )
-                        .map_err(|e| error_chain(&e))?;
-                        let target = all_meshes[j];
-                        let mut reg = register_with_maps(&meshes[i], target, phi1, phi2, &landmarks, &harmonic(method))
-                            .map_err(|e| error_chain(&e))?;
-                        if refine == Refinement::ZoomOut {
-                            let basis = |m: usize| {
-                                bases[m]
-                                    .as_ref()
-                                    .map_err(|e| format!("eigenpairs of {}: {e}", name_of(m)))
-                            };
-                            refine_registration(
-                                &meshes[i],
-                                target,
-                                &mut reg,
-                                &landmarks,
-                                basis(i)?,
-                                basis(j)?,
-                                zoomout,
-                            )
-                            .map_err(|e| error_chain(&e))?;
-                        }
-                        let truth = remeshed_target.map(|r| r.truth.as_slice());
-                        let met = registration_metrics_against(&meshes[i], target, &reg, metric_params, truth)
-                            .map_err(|e| error_chain(&e))?;
-                        // the refined vertex map before the untangling with points, scored alike
-                        let before = match &reg.refinement {
-                            Some(info) if info.output == ZoomOutOutput::Vertex => {
-                                let mut r = reg.clone();
-                                (r.faces, r.bary) = vertex_points(target, &info.vertex_map);
-                                r.points = info.vertex_map.iter().map(|&w| target.positions[w as usize]).collect();
-                                Some(
-                                    registration_metrics_against(&meshes[i], target, &r, metric_params, truth)
-                                        .map_err(|e| error_chain(&e))?,
-                                )
-                            }
-                            _ => None,
-                        };
-                        Ok((reg, met, before))
-                    })();
-                    match outcome {
-                        Ok((reg, met, before)) => {
-                            if let Some(b) = &before {
-                                row.vertex_map_flipped_ratio_3d = b.flipped_area_ratio_3d;
-                                if let Some(g) = &b.geodesic {
-                                    row.vertex_map_geodesic_mean = g.summary.mean;
-                                    row.vertex_map_geodesic_median = g.summary.median;
-                                }
-                            }
-                            row.flipped_ratio = met.flipped_area_ratio;
-                            row.flipped_ratio_3d = met.flipped_area_ratio_3d;
-                            row.harmonic_folded = reg.harmonic_folded;
-                            row.curvature_median = met.curvature_summary.median;
-                            row.curvature_mean = met.curvature_summary.mean;
-                            row.area_distortion_median = met.area_distortion_summary.median;
-                            row.area_distortion_p95 = met.area_distortion_summary.p95;
-                            row.area_distortion_mean_abs_log = met.log_area_distortion_summary.mean;
-                            if let Some(g) = &met.geodesic {
-                                row.geodesic_median = g.summary.median;
-                                row.geodesic_mean = g.summary.mean;
-                                let key = match triangulation {
-                                    Triangulation::Same => class.clone(),
-                                    Triangulation::Remeshed => format!("{class}/remeshed"),
-                                };
-                                pooled[mi].3.push((key, g.fractions.clone()));
-                            }
-                            row.seconds = reg.timings.total;
-                            row.refine_seconds = reg.timings.refine;
-                            let t = &reg.timings;
-                            row.pair_seconds = t.total - t.source_map - t.target_map;
-                            if let Some(info) = &reg.refinement {
-                                row.eigen_seconds = info.eigen_seconds[0] + info.eigen_seconds[1];
-                                row.pair_seconds -= row.eigen_seconds;
-                                row.untangle_flipped_before = info.untangle.flipped_before;
-                                row.untangle_flipped_after = info.untangle.flipped_after;
-                                row.untangle_seconds = info.untangle.seconds;
-                                row.point_untangle_flipped_before = info.point_untangle.flipped_before;
-                                row.point_untangle_flipped_after = info.point_untangle.flipped_after;
-                                row.point_untangle_seconds = info.point_untangle.seconds;
-                            }
-                            let eigen = |k: usize| reg.refinement.as_ref().map_or(0.0, |r| r.eigen_seconds[k]);
-                            mesh_seconds[i] = t.source_map + eigen(0);
-                            mesh_seconds[j] = t.target_map + eigen(1);
-                            mesh_eigen_seconds[i] = eigen(0);
-                            mesh_eigen_seconds[j] = eigen(1);
-                            pooled[mi].1.extend_from_slice(&met.curvature_difference);
-                            pooled[mi].2.extend_from_slice(&met.area_distortion);
-                        }
-                        Err(e) => row.status = e,
-                    }
-                    rows.push(row);
-                }
-            }
-            // the per-mesh work shared out over the class's pairs
-            let pairs = (rows.len() - first_row).max(1) as f64;
-            let share = mesh_seconds.iter().sum::<f64>() / pairs;
-            let eigen_share = mesh_eigen_seconds.iter().sum::<f64>() / pairs;
-            for r in &mut rows[first_row..] {
-                r.amortized_seconds = r.pair_seconds + share;
-                // without the refinement: no eigenpairs, no iterations
-                let iterations = r.refine_seconds - r.eigen_seconds;
-                r.stage1_amortized_seconds = r.amortized_seconds - eigen_share - iterations;
-            }
         }
     }
-    if num_classes == 0 {
-        return Err(AnalysisError::InvalidInput(format!(
-            "{}: no class folder with at least 2 mesh files (.obj, .off, .ply); expected DATASET/CLASS/*.obj with a landmarks.json",
-            dataset.display()
-        )));
-    }
-    let mut files = Vec::new();
-    let path = out.join("results.csv");
-    {
-        let mut w = csv::Writer::from_writer(create(&path)?);
-        for r in &rows {
-            w.serialize(r).map_err(|e| AnalysisError::Serialize {
-                path: path.clone(),
-                message: e.to_string(),
-            })?;
-        }
-        w.into_inner()
-            .map_err(|e| AnalysisError::io(&path, e.into_error()))?
-            .commit()
-            .map_err(|e| AnalysisError::io(&path, e))?;
-    }
-    files.push(path);
+}
 
+/// One method over one class: the disk maps of every target (once per mesh), every ordered
+/// pair (pose i onto target j ≠ i) registered, scored and recorded, then the per-mesh work
+/// shared out over the class's pairs.
+fn bench_method(
+    ctx: &BenchContext,
+    class: &BenchClass,
+    mi: usize,
+    bases: &[Result<SpectralBasis, String>],
+    tally: &mut BenchTally,
+    progress: &mut dyn FnMut(&str),
+) {
+    let method = ctx.methods[mi];
+    let all_meshes = class.all_meshes();
+    let all_markers = class.all_markers();
+    let n = class.n();
+    let maps: Vec<Result<DiskImage, String>> = all_meshes
+        .iter()
+        .zip(&all_markers)
+        .enumerate()
+        .map(|(k, (m, mf))| {
+            progress(&format!("{}: {method} disk map of {}", class.name, class.name_of(k)));
+            disk_image(m, &mf.markers, method, ctx.params).map_err(|e| error_chain(&e))
+        })
+        .collect();
+    let first_row = tally.rows.len();
+    let mut mesh_seconds = vec![0.0; all_meshes.len()];
+    let mut mesh_eigen_seconds = vec![0.0; all_meshes.len()];
+    for i in 0..n {
+        for j in 0..all_meshes.len() {
+            if i == j % n {
+                continue;
+            }
+            let (src, tgt) = (stem(&class.files[i]), stem(&class.files[j % n]));
+            let (triangulation, remeshed_target) = if j < n {
+                (Triangulation::Same, None)
+            } else {
+                (Triangulation::Remeshed, Some(&class.remeshed[j - n]))
+            };
+            progress(&format!("{}: {method} {src} -> {}", class.name, class.name_of(j)));
+            let mut row = BenchRow::pending(&class.name, src, tgt, triangulation, method, ctx.refine);
+            row.truth_max_distance = remeshed_target.map_or(0.0, |r| r.max_distance);
+            let pair = PairInputs {
+                class,
+                maps: &maps,
+                bases,
+                method,
+                remeshed_target,
+            };
+            match register_pair(ctx, &pair, i, j) {
+                Ok((reg, met, before)) => {
+                    fill_row(&mut row, &reg, &met, before.as_ref());
+                    if let Some(g) = &met.geodesic {
+                        let key = match triangulation {
+                            Triangulation::Same => class.name.clone(),
+                            Triangulation::Remeshed => format!("{}/remeshed", class.name),
+                        };
+                        tally.pooled[mi].3.push((key, g.fractions.clone()));
+                    }
+                    let t = &reg.timings;
+                    let eigen = |k: usize| reg.refinement.as_ref().map_or(0.0, |r| r.eigen_seconds[k]);
+                    mesh_seconds[i] = t.source_map + eigen(0);
+                    mesh_seconds[j] = t.target_map + eigen(1);
+                    mesh_eigen_seconds[i] = eigen(0);
+                    mesh_eigen_seconds[j] = eigen(1);
+                    tally.pooled[mi].1.extend_from_slice(&met.curvature_difference);
+                    tally.pooled[mi].2.extend_from_slice(&met.area_distortion);
+                }
+                Err(e) => row.status = e,
+            }
+            tally.rows.push(row);
+        }
+    }
+    share_mesh_work(&mut tally.rows[first_row..], &mesh_seconds, &mesh_eigen_seconds);
+}
+
+/// What a pair of one class and method reads besides its indices: the disk maps and eigenpairs
+/// of every target, and the remeshed target's ground truth (None for the same triangulation).
+struct PairInputs<'a> {
+    class: &'a BenchClass,
+    maps: &'a [Result<DiskImage, String>],
+    bases: &'a [Result<SpectralBasis, String>],
+    method: Method,
+    remeshed_target: Option<&'a RemeshedTarget>,
+}
+
+/// Registers pose i onto target j from the shared disk maps (refined with the shared eigenpairs
+/// under ZoomOut) and scores it; the error (a disk map or eigenpairs that failed, landmarks,
+/// registration, metrics) is the pair's status.
+fn register_pair(ctx: &BenchContext, pair: &PairInputs, i: usize, j: usize) -> Result<Scored, String> {
+    let class = pair.class;
+    let n = class.n();
+    let all_meshes = class.all_meshes();
+    let all_markers = class.all_markers();
+    let markers = &class.markers;
+    let meshes = &class.meshes;
+    let phi1 = pair.maps[i]
+        .as_ref()
+        .map_err(|e| format!("disk map of {}: {e}", class.name_of(i)))?;
+    let phi2 = pair.maps[j]
+        .as_ref()
+        .map_err(|e| format!("disk map of {}: {e}", class.name_of(j)))?;
+    let target_markers = if j < n {
+        markers[j].0.display().to_string()
+    } else {
+        format!(
+            "{} carried onto the remeshed {}",
+            markers[j - n].0.display(),
+            class.name_of(j - n)
+        )
+    };
+    let landmarks = Landmarks::from_named(
+        &markers[i].1.landmarks,
+        &all_markers[j].landmarks,
+        &format!("{} / {target_markers}", markers[i].0.display()),
+    )
+    .map_err(|e| error_chain(&e))?;
+    let target = all_meshes[j];
+    let mut reg = register_with_maps(&meshes[i], target, phi1, phi2, &landmarks, &(ctx.harmonic)(pair.method))
+        .map_err(|e| error_chain(&e))?;
+    if ctx.refine == Refinement::ZoomOut {
+        let basis = |m: usize| {
+            pair.bases[m]
+                .as_ref()
+                .map_err(|e| format!("eigenpairs of {}: {e}", class.name_of(m)))
+        };
+        refine_registration(
+            &meshes[i],
+            target,
+            &mut reg,
+            &landmarks,
+            basis(i)?,
+            basis(j)?,
+            ctx.zoomout,
+        )
+        .map_err(|e| error_chain(&e))?;
+    }
+    let truth = pair.remeshed_target.map(|r| r.truth.as_slice());
+    let met = registration_metrics_against(&meshes[i], target, &reg, ctx.metric_params, truth)
+        .map_err(|e| error_chain(&e))?;
+    // the refined vertex map before the untangling with points, scored alike
+    let before = match &reg.refinement {
+        Some(info) if info.output == ZoomOutOutput::Vertex => {
+            let mut r = reg.clone();
+            (r.faces, r.bary) = vertex_points(target, &info.vertex_map);
+            r.points = info.vertex_map.iter().map(|&w| target.positions[w as usize]).collect();
+            Some(
+                registration_metrics_against(&meshes[i], target, &r, ctx.metric_params, truth)
+                    .map_err(|e| error_chain(&e))?,
+            )
+        }
+        _ => None,
+    };
+    Ok((reg, met, before))
+}
+
+/// Writes a successful pair's figures into its row: the metrics, the vertex map's scores
+/// (`before`), the timings and the untangling counts.
+fn fill_row(row: &mut BenchRow, reg: &Registration, met: &RegistrationMetrics, before: Option<&RegistrationMetrics>) {
+    if let Some(b) = before {
+        row.vertex_map_flipped_ratio_3d = b.flipped_area_ratio_3d;
+        if let Some(g) = &b.geodesic {
+            row.vertex_map_geodesic_mean = g.summary.mean;
+            row.vertex_map_geodesic_median = g.summary.median;
+        }
+    }
+    row.flipped_ratio = met.flipped_area_ratio;
+    row.flipped_ratio_3d = met.flipped_area_ratio_3d;
+    row.harmonic_folded = reg.harmonic_folded;
+    row.curvature_median = met.curvature_summary.median;
+    row.curvature_mean = met.curvature_summary.mean;
+    row.area_distortion_median = met.area_distortion_summary.median;
+    row.area_distortion_p95 = met.area_distortion_summary.p95;
+    row.area_distortion_mean_abs_log = met.log_area_distortion_summary.mean;
+    if let Some(g) = &met.geodesic {
+        row.geodesic_median = g.summary.median;
+        row.geodesic_mean = g.summary.mean;
+    }
+    row.seconds = reg.timings.total;
+    row.refine_seconds = reg.timings.refine;
+    let t = &reg.timings;
+    row.pair_seconds = t.total - t.source_map - t.target_map;
+    if let Some(info) = &reg.refinement {
+        row.eigen_seconds = info.eigen_seconds[0] + info.eigen_seconds[1];
+        row.pair_seconds -= row.eigen_seconds;
+        row.untangle_flipped_before = info.untangle.flipped_before;
+        row.untangle_flipped_after = info.untangle.flipped_after;
+        row.untangle_seconds = info.untangle.seconds;
+        row.point_untangle_flipped_before = info.point_untangle.flipped_before;
+        row.point_untangle_flipped_after = info.point_untangle.flipped_after;
+        row.point_untangle_seconds = info.point_untangle.seconds;
+    }
+}
+
+/// The per-mesh work (disk maps and eigenpairs, seconds per target) shared out over the rows of
+/// one class and method: `amortized_seconds` and `stage1_amortized_seconds`.
+fn share_mesh_work(rows: &mut [BenchRow], mesh_seconds: &[f64], mesh_eigen_seconds: &[f64]) {
+    let pairs = rows.len().max(1) as f64;
+    let share = mesh_seconds.iter().sum::<f64>() / pairs;
+    let eigen_share = mesh_eigen_seconds.iter().sum::<f64>() / pairs;
+    for r in rows {
+        r.amortized_seconds = r.pair_seconds + share;
+        // without the refinement: no eigenpairs, no iterations
+        let iterations = r.refine_seconds - r.eigen_seconds;
+        r.stage1_amortized_seconds = r.amortized_seconds - eigen_share - iterations;
+    }
+}
+
+/// Writes the rows as `results.csv`.
+fn write_results_csv(path: &Path, rows: &[BenchRow]) -> Result<(), AnalysisError> {
+    let mut w = csv::Writer::from_writer(create(path)?);
+    for r in rows {
+        w.serialize(r).map_err(|e| AnalysisError::Serialize {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    }
+    w.into_inner()
+        .map_err(|e| AnalysisError::io(path, e.into_error()))?
+        .commit()
+        .map_err(|e| AnalysisError::io(path, e))
+}
+
+/// Means over the successful rows per class (in order of appearance, then `all`), target
+/// triangulation (`same`, then `remeshed` if any) and method.
+fn summarize(rows: &[BenchRow], methods: &[Method], refine: Refinement) -> Vec<MethodSummary> {
     let mut class_names: Vec<String> = Vec::new();
-    for r in &rows {
+    for r in rows {
         if !class_names.contains(&r.class) {
             class_names.push(r.class.clone());
         }
@@ -791,7 +966,7 @@ pub fn register_bench(
                 .flat_map(move |&t| methods.iter().map(move |&m| (c.clone(), t, m)))
         })
         .collect();
-    let summaries: Vec<MethodSummary> = groups
+    groups
         .into_iter()
         .map(|(class, triangulation, m)| {
             let in_group = |r: &&BenchRow| {
@@ -830,103 +1005,94 @@ pub fn register_bench(
                 stage1_amortized_seconds: mean(&|r| r.stage1_amortized_seconds),
             }
         })
-        .collect();
+        .collect()
+}
 
-    let path = out.join("geodesic_curve.csv");
-    {
-        let mut w = create(&path)?;
-        let io = |e| AnalysisError::io(&path, e);
-        // columns: class/method for every class with curves, then all/method
-        let mut columns: Vec<(String, usize)> = Vec::new();
-        for (mi, (_, _, _, curves)) in pooled.iter().enumerate() {
-            for (c, _) in curves {
-                if !columns.iter().any(|(cc, mm)| cc == c && *mm == mi) {
-                    columns.push((c.clone(), mi));
-                }
+/// Writes `geodesic_curve.csv`: per threshold 0, 0.01, …, 0.25, the mean over pairs of the
+/// fraction of samples under it, per class/method (sorted) and then all/method.
+fn write_geodesic_curve(path: &Path, pooled: &[Pooled]) -> Result<(), AnalysisError> {
+    let mut w = create(path)?;
+    let io = |e| AnalysisError::io(path, e);
+    // columns: class/method for every class with curves, then all/method
+    let mut columns: Vec<(String, usize)> = Vec::new();
+    for (mi, (_, _, _, curves)) in pooled.iter().enumerate() {
+        for (c, _) in curves {
+            if !columns.iter().any(|(cc, mm)| cc == c && *mm == mi) {
+                columns.push((c.clone(), mi));
             }
         }
-        columns.sort();
-        columns.extend((0..pooled.len()).map(|mi| ("all".to_string(), mi)));
-        write!(w, "threshold").map_err(io)?;
+    }
+    columns.sort();
+    columns.extend((0..pooled.len()).map(|mi| ("all".to_string(), mi)));
+    write!(w, "threshold").map_err(io)?;
+    for (c, mi) in &columns {
+        write!(w, ",{c}/{}", pooled[*mi].0).map_err(io)?;
+    }
+    writeln!(w).map_err(io)?;
+    for k in 0..=25 {
+        write!(w, "{:.2}", k as f64 * 0.01).map_err(io)?;
         for (c, mi) in &columns {
-            write!(w, ",{c}/{}", pooled[*mi].0).map_err(io)?;
+            let sel: Vec<f64> = pooled[*mi]
+                .3
+                .iter()
+                .filter(|(cc, _)| c == "all" || cc == c)
+                .map(|(_, f)| f[k])
+                .collect();
+            let v = if sel.is_empty() {
+                f64::NAN
+            } else {
+                sel.iter().sum::<f64>() / sel.len() as f64
+            };
+            write!(w, ",{v:.6}").map_err(io)?;
         }
         writeln!(w).map_err(io)?;
-        for k in 0..=25 {
-            write!(w, "{:.2}", k as f64 * 0.01).map_err(io)?;
-            for (c, mi) in &columns {
-                let sel: Vec<f64> = pooled[*mi]
-                    .3
-                    .iter()
-                    .filter(|(cc, _)| c == "all" || cc == c)
-                    .map(|(_, f)| f[k])
-                    .collect();
-                let v = if sel.is_empty() {
-                    f64::NAN
-                } else {
-                    sel.iter().sum::<f64>() / sel.len() as f64
-                };
-                write!(w, ",{v:.6}").map_err(io)?;
-            }
-            writeln!(w).map_err(io)?;
-        }
-        w.commit().map_err(io)?;
     }
-    files.push(path);
+    w.commit().map_err(io)
+}
 
+/// Writes the pooled histograms of every method with samples, `curvature_difference.{png,svg}`
+/// and `area_distortion.{png,svg}`, and returns their paths (none without samples).
+fn write_pooled_histograms(out: &Path, pooled: &[Pooled]) -> Result<Vec<PathBuf>, AnalysisError> {
+    let mut files = Vec::new();
     let have: Vec<&Pooled> = pooled.iter().filter(|p| !p.1.is_empty()).collect();
-    if !have.is_empty() {
-        let curv_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.1)).collect();
-        let area_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.2)).collect();
-        let curv: Vec<(&str, &[f64])> = have
-            .iter()
-            .zip(&curv_names)
-            .map(|(p, n)| (n.as_str(), p.1.as_slice()))
-            .collect();
-        let area: Vec<(&str, &[f64])> = have
-            .iter()
-            .zip(&area_names)
-            .map(|(p, n)| (n.as_str(), p.2.as_slice()))
-            .collect();
-        for ext in ["png", "svg"] {
-            let p = out.join(format!("curvature_difference.{ext}"));
-            histograms(
-                &p,
-                &curv,
-                HISTOGRAM_BINS,
-                Some(HISTOGRAM_RANGE),
-                "Curvature difference (all pairs)",
-                "max(|c1|/|c2|, |c2|/|c1|)",
-            )?;
-            files.push(p);
-            let p = out.join(format!("area_distortion.{ext}"));
-            histograms(
-                &p,
-                &area,
-                HISTOGRAM_BINS,
-                Some(HISTOGRAM_RANGE),
-                "Local area distortion (all pairs)",
-                "max(J, 1/J)",
-            )?;
-            files.push(p);
-        }
+    if have.is_empty() {
+        return Ok(files);
     }
-    let total_seconds = t0.elapsed().as_secs_f64();
-    let path = out.join("summary.json");
-    let text =
-        serde_json::to_string_pretty(&serde_json::json!({"summaries": summaries, "total_seconds": total_seconds}))
-            .map_err(|e| AnalysisError::Serialize {
-                path: path.clone(),
-                message: e.to_string(),
-            })?;
-    write_atomically(&path, text.as_bytes()).map_err(|e| AnalysisError::io(&path, e))?;
-    files.push(path);
-    Ok(BenchResult {
-        rows,
-        summaries,
-        total_seconds,
-        files,
-    })
+    let curv_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.1)).collect();
+    let area_names: Vec<String> = have.iter().map(|p| series_name(p.0, &p.2)).collect();
+    let curv: Vec<(&str, &[f64])> = have
+        .iter()
+        .zip(&curv_names)
+        .map(|(p, n)| (n.as_str(), p.1.as_slice()))
+        .collect();
+    let area: Vec<(&str, &[f64])> = have
+        .iter()
+        .zip(&area_names)
+        .map(|(p, n)| (n.as_str(), p.2.as_slice()))
+        .collect();
+    for ext in ["png", "svg"] {
+        let p = out.join(format!("curvature_difference.{ext}"));
+        histograms(
+            &p,
+            &curv,
+            HISTOGRAM_BINS,
+            Some(HISTOGRAM_RANGE),
+            "Curvature difference (all pairs)",
+            "max(|c1|/|c2|, |c2|/|c1|)",
+        )?;
+        files.push(p);
+        let p = out.join(format!("area_distortion.{ext}"));
+        histograms(
+            &p,
+            &area,
+            HISTOGRAM_BINS,
+            Some(HISTOGRAM_RANGE),
+            "Local area distortion (all pairs)",
+            "max(J, 1/J)",
+        )?;
+        files.push(p);
+    }
+    Ok(files)
 }
 
 /// Histogram series name: the method and the share of values beyond the truncated range (the

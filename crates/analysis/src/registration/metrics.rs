@@ -342,6 +342,38 @@ pub(crate) fn surface_metrics(
     params: &MetricParams,
     truth: Option<&[SurfacePoint]>,
 ) -> Result<RegistrationMetrics, AnalysisError> {
+    let (a1, a2) = checked_areas(source, target, faces, bary, points, truth)?;
+    let area_distortion = local_area_distortion(source, points, a1, a2);
+    let curvature = curvature_difference(source, target, faces, bary, a1, a2, params);
+    let geodesic = geodesic_errors(target, faces, bary, a2, params, truth)?;
+    Ok(RegistrationMetrics {
+        flipped_area_ratio: flips.area / a1,
+        flipped_faces: flips.faces,
+        flipped_area_ratio_3d: flips.area_3d / a1,
+        flipped_faces_3d: flips.faces_3d,
+        curvature_summary: ValueSummary::of(&curvature.values),
+        curvature_difference: curvature.values,
+        curvature_vertices: curvature.vertices,
+        curvature_clamped: curvature.clamped,
+        curvature_floors: curvature.floors,
+        area_distortion_summary: ValueSummary::of(&area_distortion),
+        log_area_distortion_summary: ValueSummary::of(&area_distortion.iter().map(|a| a.ln()).collect::<Vec<_>>()),
+        area_distortion,
+        geodesic,
+        num_snapped,
+    })
+}
+
+/// The errors of [`surface_metrics`] on its inputs (a `truth` or a map whose length is not
+/// #V₁, an image face out of range, a surface of zero area); the areas of S₁ and S₂.
+fn checked_areas(
+    source: &TriMesh,
+    target: &TriMesh,
+    faces: &[u32],
+    bary: &[[f64; 3]],
+    points: &[[f64; 3]],
+    truth: Option<&[SurfacePoint]>,
+) -> Result<(f64, f64), AnalysisError> {
     let n1 = source.num_vertices();
     if let Some(t) = truth {
         if t.len() != n1 {
@@ -371,6 +403,13 @@ pub(crate) fn surface_metrics(
     if !(a1 > 0.0 && a2 > 0.0) {
         return Err(AnalysisError::InvalidInput("a surface has zero area".into()));
     }
+    Ok((a1, a2))
+}
+
+/// Local area distortion per source vertex: max(J, 1/J) of the one-ring's image area (S₂
+/// scaled to the area of S₁) over its area; infinite for a collapsed or non-finite ring.
+fn local_area_distortion(source: &TriMesh, points: &[[f64; 3]], a1: f64, a2: f64) -> Vec<f64> {
+    let n1 = source.num_vertices();
     let areas1 = face_areas(source);
     let mut ring_image = vec![0.0; n1];
     let mut ring_source = vec![0.0; n1];
@@ -383,9 +422,7 @@ pub(crate) fn surface_metrics(
             ring_source[v as usize] += areas1[fi];
         }
     }
-
-    // local area distortion
-    let area_distortion: Vec<f64> = (0..n1)
+    (0..n1)
         .map(|v| {
             let j = ring_image[v] / ring_source[v];
             if j > 0.0 && j.is_finite() {
@@ -394,9 +431,31 @@ pub(crate) fn surface_metrics(
                 f64::INFINITY
             }
         })
-        .collect();
+        .collect()
+}
 
-    // curvature difference (surfaces scaled to area π: c ↦ c·√(A/π))
+/// The curvature difference of [`surface_metrics`]: the finite ratios, their source vertices,
+/// how many vertices had a curvature under its floor, and the floors of S₁ and S₂.
+struct CurvatureDifference {
+    values: Vec<f64>,
+    vertices: Vec<u32>,
+    clamped: usize,
+    floors: [f64; 2],
+}
+
+/// Curvature difference max(|c1|/|c2|, |c2|/|c1|) per interior source vertex with an interior
+/// image face, the surfaces scaled to area π (c ↦ c·√(A/π)) and |c| floored at
+/// `params.curvature_floor` times the median |c| over the interior vertices.
+fn curvature_difference(
+    source: &TriMesh,
+    target: &TriMesh,
+    faces: &[u32],
+    bary: &[[f64; 3]],
+    a1: f64,
+    a2: f64,
+    params: &MetricParams,
+) -> CurvatureDifference {
+    let n1 = source.num_vertices();
     let k1 = (a1 / std::f64::consts::PI).sqrt();
     let k2 = (a2 / std::f64::consts::PI).sqrt();
     let c1: Vec<f64> = vertex_mean_curvatures(source).iter().map(|c| c * k1).collect();
@@ -411,9 +470,9 @@ pub(crate) fn surface_metrics(
         params.curvature_floor * median_abs(&c1, &b1),
         params.curvature_floor * median_abs(&c2, &b2),
     ];
-    let mut curvature_difference = Vec::new();
-    let mut curvature_vertices = Vec::new();
-    let mut curvature_clamped = 0usize;
+    let mut values = Vec::new();
+    let mut vertices = Vec::new();
+    let mut clamped = 0usize;
     for v in 0..n1 {
         let t = target.faces[faces[v] as usize];
         if b1[v] || t.iter().any(|&w| b2[w as usize]) {
@@ -422,67 +481,66 @@ pub(crate) fn surface_metrics(
         let cv2: f64 = (0..3).map(|k| bary[v][k] * c2[t[k] as usize]).sum();
         let (x, y) = (c1[v].abs(), cv2.abs());
         if x < floors[0] || y < floors[1] {
-            curvature_clamped += 1;
+            clamped += 1;
         }
         let (x, y) = (x.max(floors[0]), y.max(floors[1]));
         let r = (x / y).max(y / x);
         if r.is_finite() {
-            curvature_difference.push(r);
-            curvature_vertices.push(v as u32);
+            values.push(r);
+            vertices.push(v as u32);
         }
     }
+    CurvatureDifference {
+        values,
+        vertices,
+        clamped,
+        floors,
+    }
+}
 
-    // geodesic error against v ↔ v, or against the given points
-    let geodesic = if truth.is_some() || (params.ground_truth && n1 == target.num_vertices()) {
-        let heat = HeatGeodesics::new(target)?;
-        let samples = sample_indices(n1, params.geodesic_samples, params.seed);
-        let dist = match truth {
-            Some(t) => heat.distances_from_points(&samples.iter().map(|&v| t[v as usize]).collect::<Vec<_>>())?,
-            None => heat.distances(&samples)?,
-        };
-        let norm = a2.sqrt();
-        let errors: Vec<f64> = samples
-            .iter()
-            .zip(&dist)
-            .map(|(&v, d)| {
-                let t = target.faces[faces[v as usize] as usize];
-                let b = bary[v as usize];
-                let e: f64 = (0..3).map(|k| b[k] * d[t[k] as usize]).sum();
-                e.max(0.0) / norm
-            })
-            .collect();
-        let thresholds: Vec<f64> = (0..=25).map(|k| k as f64 * 0.01).collect();
-        let fractions = thresholds
-            .iter()
-            .map(|&th| errors.iter().filter(|&&e| e <= th).count() as f64 / errors.len().max(1) as f64)
-            .collect();
-        Some(GeodesicErrors {
-            summary: ValueSummary::of(&errors),
-            samples,
-            errors,
-            thresholds,
-            fractions,
-        })
-    } else {
-        None
+/// Geodesic error against v ↔ v (same vertex count and `params.ground_truth`), or against the
+/// given points `truth`, over √area of S₂ at sampled source vertices; None when neither applies.
+fn geodesic_errors(
+    target: &TriMesh,
+    faces: &[u32],
+    bary: &[[f64; 3]],
+    a2: f64,
+    params: &MetricParams,
+    truth: Option<&[SurfacePoint]>,
+) -> Result<Option<GeodesicErrors>, AnalysisError> {
+    let n1 = faces.len();
+    if !(truth.is_some() || (params.ground_truth && n1 == target.num_vertices())) {
+        return Ok(None);
+    }
+    let heat = HeatGeodesics::new(target)?;
+    let samples = sample_indices(n1, params.geodesic_samples, params.seed);
+    let dist = match truth {
+        Some(t) => heat.distances_from_points(&samples.iter().map(|&v| t[v as usize]).collect::<Vec<_>>())?,
+        None => heat.distances(&samples)?,
     };
-
-    Ok(RegistrationMetrics {
-        flipped_area_ratio: flips.area / a1,
-        flipped_faces: flips.faces,
-        flipped_area_ratio_3d: flips.area_3d / a1,
-        flipped_faces_3d: flips.faces_3d,
-        curvature_summary: ValueSummary::of(&curvature_difference),
-        curvature_difference,
-        curvature_vertices,
-        curvature_clamped,
-        curvature_floors: floors,
-        area_distortion_summary: ValueSummary::of(&area_distortion),
-        log_area_distortion_summary: ValueSummary::of(&area_distortion.iter().map(|a| a.ln()).collect::<Vec<_>>()),
-        area_distortion,
-        geodesic,
-        num_snapped,
-    })
+    let norm = a2.sqrt();
+    let errors: Vec<f64> = samples
+        .iter()
+        .zip(&dist)
+        .map(|(&v, d)| {
+            let t = target.faces[faces[v as usize] as usize];
+            let b = bary[v as usize];
+            let e: f64 = (0..3).map(|k| b[k] * d[t[k] as usize]).sum();
+            e.max(0.0) / norm
+        })
+        .collect();
+    let thresholds: Vec<f64> = (0..=25).map(|k| k as f64 * 0.01).collect();
+    let fractions = thresholds
+        .iter()
+        .map(|&th| errors.iter().filter(|&&e| e <= th).count() as f64 / errors.len().max(1) as f64)
+        .collect();
+    Ok(Some(GeodesicErrors {
+        summary: ValueSummary::of(&errors),
+        samples,
+        errors,
+        thresholds,
+        fractions,
+    }))
 }
 
 #[cfg(test)]

@@ -226,26 +226,111 @@ pub fn untangle_vertex_map(
     if flipped_before == 0 || params.sweeps == 0 {
         return info;
     }
-    let n1 = source.num_vertices();
-    let n2 = target.num_vertices();
-    let source_conn = Connectivity::of(source);
-    let source_neighbors = source_conn.vertex_neighbors(n1);
-    let target_neighbors = Connectivity::of(target).vertex_neighbors(n2);
     let original: Vec<u32> = map.to_vec();
-    // local score of v at w: 2 · flipped + collapsed over v's faces
-    let local = |map: &[u32], v: usize, w: u32| -> usize {
-        source_conn.vertex_faces[v]
+    let mut sweeper = MoveSweeper::new(source, target, &g, cost, params);
+    for sweep in 0..params.sweeps {
+        let flipped_faces: Vec<usize> = (0..source.num_faces())
+            .filter(|&f| g.bad(source.faces[f].map(|v| map[v as usize])))
+            .collect();
+        if flipped_faces.is_empty() {
+            break;
+        }
+        info.sweeps = sweep + 1;
+        let mut bad = vec![false; source.num_vertices()];
+        for &f in &flipped_faces {
+            for &v in &source.faces[f] {
+                bad[v as usize] = true;
+            }
+        }
+        let mut changed = sweeper.single_moves(map, &bad);
+        // pair moves: both ends of an edge of a face still flipped, jointly (a fold that no
+        // single vertex undoes)
+        for &f in flipped_faces.iter().filter(|_| params.pair_moves) {
+            changed |= sweeper.pair_moves(map, f);
+        }
+        if !changed {
+            break;
+        }
+    }
+    let (flipped_after, collapsed_after) = count(source, &g, map);
+    info.flipped_after = flipped_after;
+    info.collapsed_after = collapsed_after;
+    info.vertices_moved = map.iter().zip(&original).filter(|(a, b)| a != b).count();
+    info.seconds = t0.elapsed().as_secs_f64();
+    info
+}
+
+/// The state of [`untangle_vertex_map`]'s sweeps: both meshes' adjacency, the candidate
+/// bookkeeping and the clocks that skip evaluations whose outcome cannot have changed.
+struct MoveSweeper<'a> {
+    source: &'a TriMesh,
+    g: &'a Geometry<'a>,
+    cost: &'a (dyn Fn(usize, u32) -> f64 + Sync),
+    params: &'a VertexMapUntangleParams,
+    source_conn: Connectivity,
+    source_neighbors: Vec<Vec<u32>>,
+    target_neighbors: Vec<Vec<u32>>,
+    /// Per target vertex, the stamp of the candidate list it was last pushed to.
+    seen: Vec<usize>,
+    stamp: usize,
+    /// A move's outcome depends only on the images of the moved vertices and their source
+    /// neighbours: `changed_at[v]` is the clock of the last move of v or a neighbour, and a
+    /// vertex (`single_at`; a face, `pair_at`, for the pair moves) evaluated after that is not
+    /// evaluated again (the same result, less work).
+    clock: usize,
+    changed_at: Vec<usize>,
+    single_at: Vec<usize>,
+    pair_at: Vec<usize>,
+}
+
+impl<'a> MoveSweeper<'a> {
+    fn new(
+        source: &'a TriMesh,
+        target: &TriMesh,
+        g: &'a Geometry<'a>,
+        cost: &'a (dyn Fn(usize, u32) -> f64 + Sync),
+        params: &'a VertexMapUntangleParams,
+    ) -> Self {
+        let n1 = source.num_vertices();
+        let n2 = target.num_vertices();
+        let source_conn = Connectivity::of(source);
+        let source_neighbors = source_conn.vertex_neighbors(n1);
+        let target_neighbors = Connectivity::of(target).vertex_neighbors(n2);
+        MoveSweeper {
+            source,
+            g,
+            cost,
+            params,
+            source_conn,
+            source_neighbors,
+            target_neighbors,
+            seen: vec![usize::MAX; n2],
+            stamp: 0,
+            clock: 1,
+            changed_at: vec![1usize; n1],
+            single_at: vec![0usize; n1],
+            pair_at: vec![0usize; source.num_faces()],
+        }
+    }
+
+    /// Local score of v at w: 2 · flipped + collapsed over v's faces.
+    fn local(&self, map: &[u32], v: usize, w: u32) -> usize {
+        self.source_conn.vertex_faces[v]
             .iter()
             .map(|&f| {
-                let face = source.faces[f as usize];
-                g.score(face.map(|u| if u as usize == v { w } else { map[u as usize] }))
+                let face = self.source.faces[f as usize];
+                self.g
+                    .score(face.map(|u| if u as usize == v { w } else { map[u as usize] }))
             })
             .sum()
-    };
-    // candidates for v: the target vertices within `ring` edges of T(v), then the images of v's
-    // source neighbours (with their target neighbours when `neighbour_rings`); T(v) first
-    let mut seen = vec![usize::MAX; n2];
-    let mut candidates_of = |map: &[u32], v: usize, ring: usize, neighbour_rings: bool, stamp: usize| -> Vec<u32> {
+    }
+
+    /// Candidates for v: the target vertices within `ring` edges of T(v), then the images of v's
+    /// source neighbours (with their target neighbours when `neighbour_rings`); T(v) first.
+    fn candidates(&mut self, map: &[u32], v: usize, ring: usize, neighbour_rings: bool) -> Vec<u32> {
+        self.stamp += 1;
+        let stamp = self.stamp;
+        let seen = &mut self.seen;
         let mut out = Vec::new();
         let mut push = |w: u32, out: &mut Vec<u32>| {
             if seen[w as usize] != stamp {
@@ -258,71 +343,52 @@ pub fn untangle_vertex_map(
         for _ in 0..ring {
             let end = out.len();
             for i in frontier..end {
-                for &u in &target_neighbors[out[i] as usize] {
+                for &u in &self.target_neighbors[out[i] as usize] {
                     push(u, &mut out);
                 }
             }
             frontier = end;
         }
-        for &u in &source_neighbors[v] {
+        for &u in &self.source_neighbors[v] {
             let w = map[u as usize];
             push(w, &mut out);
             if neighbour_rings {
-                for &x in &target_neighbors[w as usize] {
+                for &x in &self.target_neighbors[w as usize] {
                     push(x, &mut out);
                 }
             }
         }
         out
-    };
-    let mut stamp = 0usize;
-    // A move's outcome depends only on the images of the moved vertices and their source
-    // neighbours: `changed_at[v]` is the clock of the last move of v or a neighbour, and a
-    // vertex (a face, for the pair moves) evaluated after that is not evaluated again (the same
-    // result, less work).
-    let mut clock = 1usize;
-    let mut changed_at = vec![1usize; n1];
-    let mut single_at = vec![0usize; n1];
-    let mut pair_at = vec![0usize; source.num_faces()];
-    let touch = |changed_at: &mut [usize], clock: &mut usize, v: usize| {
-        *clock += 1;
-        changed_at[v] = *clock;
-        for &u in &source_neighbors[v] {
-            changed_at[u as usize] = *clock;
+    }
+
+    /// Records a move of v: the clock ticks and v and its source neighbours are marked changed.
+    fn touch(&mut self, v: usize) {
+        self.clock += 1;
+        self.changed_at[v] = self.clock;
+        for &u in &self.source_neighbors[v] {
+            self.changed_at[u as usize] = self.clock;
         }
-    };
-    for sweep in 0..params.sweeps {
-        let flipped_faces: Vec<usize> = (0..source.num_faces())
-            .filter(|&f| g.bad(source.faces[f].map(|v| map[v as usize])))
-            .collect();
-        if flipped_faces.is_empty() {
-            break;
-        }
-        info.sweeps = sweep + 1;
-        let mut bad = vec![false; n1];
-        for &f in &flipped_faces {
-            for &v in &source.faces[f] {
-                bad[v as usize] = true;
-            }
-        }
+    }
+
+    /// Single moves: each vertex of a bad image (`bad`) to its best candidate (lowest local
+    /// score, then lowest cost); whether any moved.
+    fn single_moves(&mut self, map: &mut [u32], bad: &[bool]) -> bool {
         let mut changed = false;
-        // single moves
-        for v in (0..n1).filter(|&v| bad[v]) {
-            if single_at[v] > changed_at[v] {
+        for v in (0..bad.len()).filter(|&v| bad[v]) {
+            if self.single_at[v] > self.changed_at[v] {
                 continue;
             }
-            clock += 1;
-            single_at[v] = clock;
-            stamp += 1;
-            let candidates = candidates_of(map, v, params.ring, true, stamp);
+            self.clock += 1;
+            self.single_at[v] = self.clock;
+            let candidates = self.candidates(map, v, self.params.ring, true);
             let current = map[v];
-            let mut best = (local(map, v, current), cost(v, current), current);
+            let mut best = (self.local(map, v, current), (self.cost)(v, current), current);
             for &w in &candidates[1..] {
-                let s = local(map, v, w);
+                let s = self.local(map, v, w);
                 if s > best.0 {
                     continue;
                 }
-                let c = cost(v, w);
+                let c = (self.cost)(v, w);
                 if s < best.0 || c < best.1 {
                     best = (s, c, w);
                 }
@@ -330,80 +396,82 @@ pub fn untangle_vertex_map(
             if best.2 != current {
                 changed = true;
                 map[v] = best.2;
-                touch(&mut changed_at, &mut clock, v);
+                self.touch(v);
             }
         }
-        // pair moves: both ends of an edge of a face still flipped, jointly (a fold that no
-        // single vertex undoes)
-        for &f in flipped_faces.iter().filter(|_| params.pair_moves) {
-            let face = source.faces[f];
-            if !g.bad(face.map(|v| map[v as usize])) || face.iter().all(|&v| pair_at[f] > changed_at[v as usize]) {
-                continue;
-            }
-            clock += 1;
-            pair_at[f] = clock;
-            for k in 0..3 {
-                let (v, u) = (face[k] as usize, face[(k + 1) % 3] as usize);
-                let mut faces: Vec<u32> = source_conn.vertex_faces[v].clone();
-                faces.extend(
-                    source_conn.vertex_faces[u]
-                        .iter()
-                        .filter(|t| !source_conn.vertex_faces[v].contains(t)),
-                );
-                let joint = |map: &[u32], wv: u32, wu: u32| -> usize {
-                    faces
-                        .iter()
-                        .map(|&t| {
-                            let img = source.faces[t as usize].map(|x| {
-                                if x as usize == v {
-                                    wv
-                                } else if x as usize == u {
-                                    wu
-                                } else {
-                                    map[x as usize]
-                                }
-                            });
-                            g.score(img)
-                        })
-                        .sum()
-                };
-                stamp += 1;
-                let cv = candidates_of(map, v, 1, false, stamp);
-                stamp += 1;
-                let cu = candidates_of(map, u, 1, false, stamp);
-                let (mv, mu) = (map[v], map[u]);
-                let mut best = (joint(map, mv, mu), cost(v, mv) + cost(u, mu), mv, mu);
-                for &wv in &cv {
-                    for &wu in &cu {
-                        let s = joint(map, wv, wu);
-                        if s > best.0 {
-                            continue;
+        changed
+    }
+
+    /// Pair moves on source face f if its image is still bad: both ends of each edge jointly,
+    /// over their one-ring candidates; whether any moved.
+    fn pair_moves(&mut self, map: &mut [u32], f: usize) -> bool {
+        let face = self.source.faces[f];
+        if !self.g.bad(face.map(|v| map[v as usize]))
+            || face.iter().all(|&v| self.pair_at[f] > self.changed_at[v as usize])
+        {
+            return false;
+        }
+        self.clock += 1;
+        self.pair_at[f] = self.clock;
+        let mut changed = false;
+        for k in 0..3 {
+            let (v, u) = (face[k] as usize, face[(k + 1) % 3] as usize);
+            changed |= self.pair_move(map, v, u);
+        }
+        changed
+    }
+
+    /// The joint move of the edge (v, u): the best pair of candidates by the score over both
+    /// one-rings, then the summed cost; whether it moved.
+    fn pair_move(&mut self, map: &mut [u32], v: usize, u: usize) -> bool {
+        let vertex_faces = &self.source_conn.vertex_faces;
+        let mut faces: Vec<u32> = vertex_faces[v].clone();
+        faces.extend(vertex_faces[u].iter().filter(|t| !vertex_faces[v].contains(t)));
+        let (source, g) = (self.source, self.g);
+        let joint = |map: &[u32], wv: u32, wu: u32| -> usize {
+            faces
+                .iter()
+                .map(|&t| {
+                    let img = source.faces[t as usize].map(|x| {
+                        if x as usize == v {
+                            wv
+                        } else if x as usize == u {
+                            wu
+                        } else {
+                            map[x as usize]
                         }
-                        let c = cost(v, wv) + cost(u, wu);
-                        if s < best.0 || c < best.1 {
-                            best = (s, c, wv, wu);
-                        }
-                    }
+                    });
+                    g.score(img)
+                })
+                .sum()
+        };
+        let cv = self.candidates(map, v, 1, false);
+        let cu = self.candidates(map, u, 1, false);
+        let cost = self.cost;
+        let (mv, mu) = (map[v], map[u]);
+        let mut best = (joint(map, mv, mu), cost(v, mv) + cost(u, mu), mv, mu);
+        for &wv in &cv {
+            for &wu in &cu {
+                let s = joint(map, wv, wu);
+                if s > best.0 {
+                    continue;
                 }
-                if (best.2, best.3) != (mv, mu) {
-                    changed = true;
-                    map[v] = best.2;
-                    map[u] = best.3;
-                    touch(&mut changed_at, &mut clock, v);
-                    touch(&mut changed_at, &mut clock, u);
+                let c = cost(v, wv) + cost(u, wu);
+                if s < best.0 || c < best.1 {
+                    best = (s, c, wv, wu);
                 }
             }
         }
-        if !changed {
-            break;
+        if (best.2, best.3) != (mv, mu) {
+            map[v] = best.2;
+            map[u] = best.3;
+            self.touch(v);
+            self.touch(u);
+            true
+        } else {
+            false
         }
     }
-    let (flipped_after, collapsed_after) = count(source, &g, map);
-    info.flipped_after = flipped_after;
-    info.collapsed_after = collapsed_after;
-    info.vertices_moved = map.iter().zip(&original).filter(|(a, b)| a != b).count();
-    info.seconds = t0.elapsed().as_secs_f64();
-    info
 }
 
 /// Parameters of [`untangle_points`].
@@ -514,31 +582,8 @@ pub fn untangle_points(
 ) -> Result<PointUntangleInfo, crate::error::AnalysisError> {
     let t0 = std::time::Instant::now();
     let n1 = source.num_vertices();
-    let test = MetricFlipTest {
-        locator: PointLocator::new(target_uv, &target.faces)?,
-        target,
-        uv: target_uv,
-    };
-    let x3 = |(f, b): (u32, [f64; 3])| -> [f64; 3] {
-        let q = target.face_positions(f as usize);
-        std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
-    };
-    let x2 = |(f, b): (u32, [f64; 3])| -> [f64; 2] {
-        let t = target.faces[f as usize];
-        std::array::from_fn(|d| (0..3).map(|k| b[k] * target_uv[t[k] as usize][d]).sum())
-    };
-    let mut p3: Vec<[f64; 3]> = points.iter().map(|&p| x3(p)).collect();
-    let mut p2: Vec<[f64; 2]> = points.iter().map(|&p| x2(p)).collect();
-    let original = p3.clone();
-    let face_flipped = |p3: &[[f64; 3]], p2: &[[f64; 2]], f: [u32; 3]| {
-        test.flipped(f.map(|v| p3[v as usize]), f.map(|v| p2[v as usize]), &[])
-    };
-    let flipped_faces = |p3: &[[f64; 3]], p2: &[[f64; 2]]| -> Vec<usize> {
-        (0..source.num_faces())
-            .filter(|&f| face_flipped(p3, p2, source.faces[f]))
-            .collect()
-    };
-    let before = flipped_faces(&p3, &p2);
+    let mut pass = PointPass::new(source, target, target_uv, points)?;
+    let before = pass.flipped_faces();
     let mut info = PointUntangleInfo {
         flipped_before: before.len(),
         flipped_after: before.len(),
@@ -549,11 +594,10 @@ pub fn untangle_points(
         return Ok(info);
     }
     let sconn = Connectivity::of(source);
-    let snb = sconn.vertex_neighbors(n1);
-    let tconn = Connectivity::of(target);
-    let nearest_corner = |(f, b): (u32, [f64; 3])| {
-        let k = (0..3).fold(0, |a, i| if b[i] > b[a] { i } else { a });
-        target.faces[f as usize][k]
+    let adjacency = PassAdjacency {
+        snb: sconn.vertex_neighbors(n1),
+        sconn,
+        tconn: Connectivity::of(target),
     };
     let mut bad_faces = before;
     // a vertex is evaluated again only after it or a source neighbour moved (its result depends
@@ -573,109 +617,226 @@ pub fn untangle_points(
                 continue;
             }
             stale[v] = false;
-            // flipped faces around v with v at (x, u)
-            let mut faces: Vec<u32> = std::iter::once(nearest_corner(points[v]))
-                .chain(snb[v].iter().map(|&u| nearest_corner(points[u as usize])))
-                .flat_map(|w| tconn.vertex_faces[w as usize].iter().copied())
-                .collect();
-            faces.sort_unstable();
-            faces.dedup();
-            let around = |p3: &[[f64; 3]], p2: &[[f64; 2]], x: [f64; 3], u: [f64; 2], cap: usize| -> usize {
-                let mut count = 0;
-                for &f in &sconn.vertex_faces[v] {
-                    let face = source.faces[f as usize];
-                    let xs = face.map(|w| if w as usize == v { x } else { p3[w as usize] });
-                    let us = face.map(|w| if w as usize == v { u } else { p2[w as usize] });
-                    if test.flipped(xs, us, &faces) {
-                        count += DEGENERATE_LIMIT;
-                    } else if degenerate(xs) {
-                        count += 1;
-                    }
-                    if count > cap {
-                        break;
-                    }
-                }
-                count
-            };
-            let current = around(&p3, &p2, p3[v], p2[v], usize::MAX);
-            if current == 0 {
+            let Some(best) = pass.best_point(&adjacency, points, v) else {
                 continue;
-            }
-            let dist = |x: [f64; 3]| {
-                let d = sub3(x, original[v]);
-                d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
             };
-            let mut best = (current, dist(p3[v]), points[v]);
-            let consider = |cand: (u32, [f64; 3]), best: &mut (usize, f64, (u32, [f64; 3]))| {
-                let (x, u) = (x3(cand), x2(cand));
-                let s = around(&p3, &p2, x, u, best.0);
-                if s > best.0 {
-                    return;
-                }
-                let c = dist(x);
-                if s < best.0 || c < best.1 {
-                    *best = (s, c, cand);
-                }
-            };
-            // the φ₂ mean of the neighbours' images
-            let mut mean = [0.0; 2];
-            for &u in &snb[v] {
-                for d in 0..2 {
-                    mean[d] += p2[u as usize][d] / snb[v].len() as f64;
-                }
-            }
-            if let Some(l) = test.locator.locate(mean) {
-                consider((l.face, l.bary), &mut best);
-            }
-            const SPOTS: [[f64; 3]; 7] = [
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [0.0, 0.0, 1.0],
-                [0.5, 0.5, 0.0],
-                [0.0, 0.5, 0.5],
-                [0.5, 0.0, 0.5],
-                [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
-            ];
-            // each vertex, edge midpoint and centroid once
-            let mut spots: Vec<([u32; 3], SurfacePoint)> = Vec::with_capacity(7 * faces.len());
-            for &f in &faces {
-                let t = target.faces[f as usize];
-                for b in SPOTS {
-                    let mut key = [u32::MAX; 3];
-                    for k in 0..3 {
-                        if b[k] > 0.0 {
-                            key[k] = t[k];
-                        }
-                    }
-                    key.sort_unstable();
-                    spots.push((key, (f, b)));
-                }
-            }
-            spots.sort_unstable_by_key(|s| s.0);
-            spots.dedup_by_key(|s| s.0);
-            for &(_, cand) in &spots {
-                consider(cand, &mut best);
-            }
-            if best.2 != points[v] {
-                points[v] = best.2;
-                p3[v] = x3(best.2);
-                p2[v] = x2(best.2);
+            if best != points[v] {
+                points[v] = best;
+                pass.p3[v] = pass.x3(best);
+                pass.p2[v] = pass.x2(best);
                 moved = true;
                 stale[v] = true;
-                for &u in &snb[v] {
+                for &u in &adjacency.snb[v] {
                     stale[u as usize] = true;
                 }
             }
         }
-        bad_faces = flipped_faces(&p3, &p2);
+        bad_faces = pass.flipped_faces();
         if !moved {
             break;
         }
     }
     info.flipped_after = bad_faces.len();
-    info.vertices_moved = (0..n1).filter(|&v| p3[v] != original[v]).count();
+    info.vertices_moved = (0..n1).filter(|&v| pass.p3[v] != pass.original[v]).count();
     info.seconds = t0.elapsed().as_secs_f64();
     Ok(info)
+}
+
+/// The source and target adjacency [`untangle_points`] moves vertices with.
+struct PassAdjacency {
+    sconn: Connectivity,
+    /// Source vertex neighbours.
+    snb: Vec<Vec<u32>>,
+    tconn: Connectivity,
+}
+
+/// The images of [`untangle_points`]: per source vertex its point in 3D (`p3`) and in the disk
+/// image (`p2`), the 3D points before the pass (`original`), and the metric's flip test.
+struct PointPass<'a> {
+    source: &'a TriMesh,
+    target: &'a TriMesh,
+    target_uv: &'a [[f64; 2]],
+    test: MetricFlipTest<'a>,
+    p3: Vec<[f64; 3]>,
+    p2: Vec<[f64; 2]>,
+    original: Vec<[f64; 3]>,
+}
+
+/// Candidate spots on every face of S₂ (barycentric): the corners, the edge midpoints and the
+/// centroid.
+const SPOTS: [[f64; 3]; 7] = [
+    [1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [0.5, 0.5, 0.0],
+    [0.0, 0.5, 0.5],
+    [0.5, 0.0, 0.5],
+    [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
+];
+
+impl<'a> PointPass<'a> {
+    /// The flip test of `target_uv` and the images of `points`. Errors: `target_uv` not a
+    /// triangulation of #V₂ points.
+    fn new(
+        source: &'a TriMesh,
+        target: &'a TriMesh,
+        target_uv: &'a [[f64; 2]],
+        points: &[SurfacePoint],
+    ) -> Result<Self, crate::error::AnalysisError> {
+        let test = MetricFlipTest {
+            locator: PointLocator::new(target_uv, &target.faces)?,
+            target,
+            uv: target_uv,
+        };
+        let mut pass = PointPass {
+            source,
+            target,
+            target_uv,
+            test,
+            p3: Vec::new(),
+            p2: Vec::new(),
+            original: Vec::new(),
+        };
+        pass.p3 = points.iter().map(|&p| pass.x3(p)).collect();
+        pass.p2 = points.iter().map(|&p| pass.x2(p)).collect();
+        pass.original = pass.p3.clone();
+        Ok(pass)
+    }
+
+    /// The 3D position of a point of S₂.
+    fn x3(&self, (f, b): SurfacePoint) -> [f64; 3] {
+        let q = self.target.face_positions(f as usize);
+        std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
+    }
+
+    /// The disk-image position of a point of S₂.
+    fn x2(&self, (f, b): SurfacePoint) -> [f64; 2] {
+        let t = self.target.faces[f as usize];
+        std::array::from_fn(|d| (0..3).map(|k| b[k] * self.target_uv[t[k] as usize][d]).sum())
+    }
+
+    /// Source faces whose current image the metric's 3D test finds flipped.
+    fn flipped_faces(&self) -> Vec<usize> {
+        (0..self.source.num_faces())
+            .filter(|&f| {
+                let face = self.source.faces[f];
+                self.test.flipped(
+                    face.map(|v| self.p3[v as usize]),
+                    face.map(|v| self.p2[v as usize]),
+                    &[],
+                )
+            })
+            .collect()
+    }
+
+    /// Score of the source faces around v with v at (x, u): DEGENERATE_LIMIT per flipped image,
+    /// 1 per degenerate one; counting stops once above `cap`. `faces`: faces of S₂ the flip
+    /// test tries first.
+    fn around(
+        &self,
+        adjacency: &PassAdjacency,
+        v: usize,
+        faces: &[u32],
+        x: [f64; 3],
+        u: [f64; 2],
+        cap: usize,
+    ) -> usize {
+        let mut count = 0;
+        for &f in &adjacency.sconn.vertex_faces[v] {
+            let face = self.source.faces[f as usize];
+            let xs = face.map(|w| if w as usize == v { x } else { self.p3[w as usize] });
+            let us = face.map(|w| if w as usize == v { u } else { self.p2[w as usize] });
+            if self.test.flipped(xs, us, faces) {
+                count += DEGENERATE_LIMIT;
+            } else if degenerate(xs) {
+                count += 1;
+            }
+            if count > cap {
+                break;
+            }
+        }
+        count
+    }
+
+    /// The faces of S₂ around the target vertices nearest to the images of v and of its source
+    /// neighbours (sorted, once each).
+    fn faces_near(&self, adjacency: &PassAdjacency, points: &[SurfacePoint], v: usize) -> Vec<u32> {
+        let nearest_corner = |(f, b): SurfacePoint| {
+            let k = (0..3).fold(0, |a, i| if b[i] > b[a] { i } else { a });
+            self.target.faces[f as usize][k]
+        };
+        let mut faces: Vec<u32> = std::iter::once(nearest_corner(points[v]))
+            .chain(adjacency.snb[v].iter().map(|&u| nearest_corner(points[u as usize])))
+            .flat_map(|w| adjacency.tconn.vertex_faces[w as usize].iter().copied())
+            .collect();
+        faces.sort_unstable();
+        faces.dedup();
+        faces
+    }
+
+    /// The best point for v (module docs of [`untangle_points`]): None when no image around v is
+    /// flipped or degenerate, else the best candidate (`points[v]` itself when none is better).
+    fn best_point(&self, adjacency: &PassAdjacency, points: &[SurfacePoint], v: usize) -> Option<SurfacePoint> {
+        // flipped faces around v with v at (x, u)
+        let faces = self.faces_near(adjacency, points, v);
+        let current = self.around(adjacency, v, &faces, self.p3[v], self.p2[v], usize::MAX);
+        if current == 0 {
+            return None;
+        }
+        let dist = |x: [f64; 3]| {
+            let d = sub3(x, self.original[v]);
+            d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        };
+        let mut best = (current, dist(self.p3[v]), points[v]);
+        let consider = |cand: SurfacePoint, best: &mut (usize, f64, SurfacePoint)| {
+            let (x, u) = (self.x3(cand), self.x2(cand));
+            let s = self.around(adjacency, v, &faces, x, u, best.0);
+            if s > best.0 {
+                return;
+            }
+            let c = dist(x);
+            if s < best.0 || c < best.1 {
+                *best = (s, c, cand);
+            }
+        };
+        // the φ₂ mean of the neighbours' images
+        let snb = &adjacency.snb;
+        let mut mean = [0.0; 2];
+        for &u in &snb[v] {
+            for d in 0..2 {
+                mean[d] += self.p2[u as usize][d] / snb[v].len() as f64;
+            }
+        }
+        if let Some(l) = self.test.locator.locate(mean) {
+            consider((l.face, l.bary), &mut best);
+        }
+        for cand in spots_on(self.target, &faces) {
+            consider(cand, &mut best);
+        }
+        Some(best.2)
+    }
+}
+
+/// The [`SPOTS`] of `faces` of `target`, each vertex, edge midpoint and centroid once (in the
+/// order of their sorted vertex keys).
+fn spots_on(target: &TriMesh, faces: &[u32]) -> Vec<SurfacePoint> {
+    let mut spots: Vec<([u32; 3], SurfacePoint)> = Vec::with_capacity(7 * faces.len());
+    for &f in faces {
+        let t = target.faces[f as usize];
+        for b in SPOTS {
+            let mut key = [u32::MAX; 3];
+            for k in 0..3 {
+                if b[k] > 0.0 {
+                    key[k] = t[k];
+                }
+            }
+            key.sort_unstable();
+            spots.push((key, (f, b)));
+        }
+    }
+    spots.sort_unstable_by_key(|s| s.0);
+    spots.dedup_by_key(|s| s.0);
+    spots.into_iter().map(|s| s.1).collect()
 }
 
 #[cfg(test)]

@@ -268,6 +268,62 @@ pub fn zoomout(
 ) -> Result<RefinedMap, AnalysisError> {
     let t0 = Instant::now();
     let (n1, n2) = (source.num_vertices(), target.num_vertices());
+    check_inputs(source, target, source_basis, target_basis, seed, landmarks, params)?;
+    let k_end = params.k_end;
+    let (lm_s, lm_t, landmarks_dropped) = landmark_columns(source, target, landmarks, seed, params)?;
+    let mut sizes: Vec<usize> = (params.k_start..k_end).step_by(params.k_step).collect();
+    sizes.push(k_end);
+    let samples: Vec<u32> = sample_indices(n1, params.samples.max(1), 0x200d_0017);
+    let conn = Connectivity::of(target);
+    let space = SpectralSpace {
+        n1,
+        n2,
+        phi_s: source_basis.vectors.as_ref(),
+        phi_t: target_basis.vectors.as_ref(),
+        nl: lm_s.ncols(),
+        lm_s,
+        lm_t,
+        target_samples: sample_indices(n2, params.samples.max(1), 0x200d_0018),
+        neighbors: conn.vertex_neighbors(n2),
+    };
+    let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
+    let mut c = Mat::<f64>::zeros(0, 0);
+    for (step, &k) in sizes.iter().enumerate() {
+        c = functional_map(space.phi_s, &source_basis.mass, space.phi_t, &samples, &map_samples, k);
+        if step + 1 < sizes.len() {
+            let (q, p) = space.embed(Some(&samples), &c, k);
+            map_samples = space.nearest(q.as_ref(), p.as_ref(), &map_samples);
+        }
+    }
+    // last step: every source vertex at k_end
+    let (q, points) = space.embed(None, &c, k_end);
+    let mut vertex_map = space.nearest(q.as_ref(), points.as_ref(), seed);
+    let spectral_cost = |v: usize, w: u32| distance2(points.as_ref(), q.row(v), w);
+    let untangle = untangle_vertex_map(source, target, &mut vertex_map, &spectral_cost, &params.untangle);
+    let (faces, bary) = surface_images(target, &conn, &vertex_map, q.as_ref(), points.as_ref(), params.output);
+    Ok(RefinedMap {
+        vertex_map,
+        faces,
+        bary,
+        sizes,
+        untangle,
+        landmarks_dropped,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// The errors of [`zoomout`] before any work: sizes that do not match, spectral sizes out of
+/// order or beyond the bases, a seed vertex or a landmark out of range.
+fn check_inputs(
+    source: &TriMesh,
+    target: &TriMesh,
+    source_basis: &SpectralBasis,
+    target_basis: &SpectralBasis,
+    seed: &[u32],
+    landmarks: &[(u32, u32)],
+    params: &ZoomOutParams,
+) -> Result<(), AnalysisError> {
+    let (n1, n2) = (source.num_vertices(), target.num_vertices());
     if source_basis.vectors.nrows() != n1 || target_basis.vectors.nrows() != n2 || seed.len() != n1 {
         return Err(AnalysisError::InvalidInput(format!(
             "zoomout: bases of {} and {} rows and a seed of {} for meshes of {n1} and {n2} vertices",
@@ -301,7 +357,20 @@ pub fn zoomout(
             "zoomout: landmark pair ({a}, {b}) out of range ({n1} and {n2} vertices)"
         )));
     }
-    // landmark coordinates: w · d(v, l_i) / √area on each surface (#V × L)
+    Ok(())
+}
+
+/// The landmark coordinates of both surfaces, w · d(v, l_i) / √area (#V × L; no columns without
+/// landmarks or with weight 0), without the landmarks whose two distance fields disagree along
+/// the seed map (median difference above [`LANDMARK_DISAGREEMENT`] of √area: the field is wrong
+/// on one surface, or the seed maps its limb elsewhere); with the number left out.
+fn landmark_columns(
+    source: &TriMesh,
+    target: &TriMesh,
+    landmarks: &[(u32, u32)],
+    seed: &[u32],
+    params: &ZoomOutParams,
+) -> Result<(Mat<f64>, Mat<f64>, usize), AnalysisError> {
     let use_landmarks = params.landmark_weight > 0.0 && !landmarks.is_empty();
     let landmark_coordinates = |mesh: &TriMesh, vertices: Vec<u32>| -> Result<Mat<f64>, AnalysisError> {
         if !use_landmarks {
@@ -316,23 +385,30 @@ pub fn zoomout(
         || landmark_coordinates(target, landmarks.iter().map(|p| p.1).collect()),
     );
     let (mut lm_s, mut lm_t) = (lm_s?, lm_t?);
-    // a landmark whose two distance fields disagree along the seed map (median difference above
-    // LANDMARK_DISAGREEMENT of √area) is left out: its field is wrong on one surface, or the seed
-    // maps its limb elsewhere
-    let landmarks_dropped = drop_disagreeing_landmarks(&mut lm_s, &mut lm_t, seed, params.landmark_weight);
-    let nl = lm_s.ncols();
-    let mut sizes: Vec<usize> = (params.k_start..k_end).step_by(params.k_step).collect();
-    sizes.push(k_end);
-    let samples: Vec<u32> = sample_indices(n1, params.samples.max(1), 0x200d_0017);
-    let target_samples: Vec<u32> = sample_indices(n2, params.samples.max(1), 0x200d_0018);
-    let conn = Connectivity::of(target);
-    let neighbors = conn.vertex_neighbors(n2);
-    let phi_s = source_basis.vectors.as_ref();
-    let phi_t = target_basis.vectors.as_ref();
-    let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
-    // (queries, points) of the nearest-neighbour step: Φ_S[rows] against the rows of Φ_T Cᵀ,
-    // each followed by the landmark coordinates
-    let embed = |rows: Option<&[u32]>, c: &Mat<f64>, k: usize| -> (Mat<f64>, Mat<f64>) {
+    let dropped = drop_disagreeing_landmarks(&mut lm_s, &mut lm_t, seed, params.landmark_weight);
+    Ok((lm_s, lm_t, dropped))
+}
+
+/// The spectral embedding of [`zoomout`]'s nearest-neighbour steps: both bases, the landmark
+/// coordinates (`nl` columns), the target samples the coarse search starts from and the
+/// target's vertex neighbours the descent walks along.
+struct SpectralSpace<'a> {
+    n1: usize,
+    n2: usize,
+    phi_s: MatRef<'a, f64>,
+    phi_t: MatRef<'a, f64>,
+    nl: usize,
+    lm_s: Mat<f64>,
+    lm_t: Mat<f64>,
+    target_samples: Vec<u32>,
+    neighbors: Vec<Vec<u32>>,
+}
+
+impl SpectralSpace<'_> {
+    /// (queries, points) of the nearest-neighbour step: Φ_S[rows] (every source vertex for
+    /// None) against the rows of Φ_T Cᵀ, each followed by the landmark coordinates.
+    fn embed(&self, rows: Option<&[u32]>, c: &Mat<f64>, k: usize) -> (Mat<f64>, Mat<f64>) {
+        let (n1, n2, nl) = (self.n1, self.n2, self.nl);
         let all: Vec<u32>;
         let rows = match rows {
             Some(r) => r,
@@ -344,27 +420,29 @@ pub fn zoomout(
         let queries = Mat::<f64>::from_fn(rows.len(), k + nl, |i, j| {
             let v = rows[i] as usize;
             if j < k {
-                phi_s[(v, j)]
+                self.phi_s[(v, j)]
             } else {
-                lm_s[(v, j - k)]
+                self.lm_s[(v, j - k)]
             }
         });
         let mut points = Mat::<f64>::zeros(n2, k + nl);
         matmul(
             points.as_mut().subcols_mut(0, k),
             Accum::Replace,
-            phi_t.subcols(0, k),
+            self.phi_t.subcols(0, k),
             c.transpose(),
             1.0,
             Par::rayon(0),
         );
-        points.as_mut().subcols_mut(k, nl).copy_from(lm_t.as_ref());
+        points.as_mut().subcols_mut(k, nl).copy_from(self.lm_t.as_ref());
         (queries, points)
-    };
-    // steepest descent along the target's edges from the nearest target samples and from the
-    // current image
-    let nearest = |queries: MatRef<'_, f64>, points: MatRef<'_, f64>, current: &[u32]| -> Vec<u32> {
-        let coarse = nearest_rows_top::<STARTS>(queries, sample_rows(points, &target_samples, points.ncols()).as_ref());
+    }
+
+    /// Per query, the nearest point by steepest descent along the target's edges from the
+    /// nearest target samples and from the current image.
+    fn nearest(&self, queries: MatRef<'_, f64>, points: MatRef<'_, f64>, current: &[u32]) -> Vec<u32> {
+        let target_samples = &self.target_samples;
+        let coarse = nearest_rows_top::<STARTS>(queries, sample_rows(points, target_samples, points.ncols()).as_ref());
         (0..queries.nrows())
             .into_par_iter()
             .map(|i| {
@@ -373,48 +451,39 @@ pub fn zoomout(
                     .iter()
                     .map(|&s| target_samples[s as usize])
                     .chain([current[i]])
-                    .map(|start| descend(points, &neighbors, q, start))
+                    .map(|start| descend(points, &self.neighbors, q, start))
                     .map(|w| (distance2(points, q, w), w))
                     .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a })
                     .1
             })
             .collect()
-    };
-    let mut c = Mat::<f64>::zeros(0, 0);
-    for (step, &k) in sizes.iter().enumerate() {
-        c = functional_map(phi_s, &source_basis.mass, phi_t, &samples, &map_samples, k);
-        if step + 1 < sizes.len() {
-            let (q, p) = embed(Some(&samples), &c, k);
-            map_samples = nearest(q.as_ref(), p.as_ref(), &map_samples);
-        }
     }
-    // last step: every source vertex at k_end
-    let (q, points) = embed(None, &c, k_end);
-    let mut vertex_map = nearest(q.as_ref(), points.as_ref(), seed);
-    let spectral_cost = |v: usize, w: u32| distance2(points.as_ref(), q.row(v), w);
-    let untangle = untangle_vertex_map(source, target, &mut vertex_map, &spectral_cost, &params.untangle);
-    let (faces, bary): (Vec<u32>, Vec<[f64; 3]>) = (0..n1)
+}
+
+/// Per source vertex the face of S₂ and barycentric coordinates of its image: the target
+/// vertex itself ([`ZoomOutOutput::Vertex`]) or the query projected onto the faces around it
+/// ([`ZoomOutOutput::Projected`]).
+fn surface_images(
+    target: &TriMesh,
+    conn: &Connectivity,
+    vertex_map: &[u32],
+    q: MatRef<'_, f64>,
+    points: MatRef<'_, f64>,
+    output: ZoomOutOutput,
+) -> (Vec<u32>, Vec<[f64; 3]>) {
+    (0..vertex_map.len())
         .into_par_iter()
         .map(|v| {
             let w = vertex_map[v] as usize;
-            match params.output {
+            match output {
                 ZoomOutOutput::Vertex => vertex_in_face(target, &conn.vertex_faces[w], w),
                 ZoomOutOutput::Projected => {
                     let query: Vec<f64> = q.row(v).iter().copied().collect();
-                    project_onto_faces(target, &conn.vertex_faces[w], points.as_ref(), &query, w)
+                    project_onto_faces(target, &conn.vertex_faces[w], points, &query, w)
                 }
             }
         })
-        .unzip();
-    Ok(RefinedMap {
-        vertex_map,
-        faces,
-        bary,
-        sizes,
-        untangle,
-        landmarks_dropped,
-        seconds: t0.elapsed().as_secs_f64(),
-    })
+        .unzip()
 }
 
 /// Median disagreement (over √area) above which a landmark's coordinates are left out.

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Context;
-use shapespace_analysis::registration::bench::{register_bench, write_registration};
+use shapespace_analysis::registration::bench::{register_bench, write_registration, BenchResult, MethodSummary};
 use shapespace_analysis::registration::sphere::{
     register_on_sphere, registration_domain, sphere_registration_metrics, write_sphere_registration, Domain,
 };
@@ -487,19 +487,7 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         )
         .unwrap_or_else(|_| HarmonicParams::for_method(m))
     };
-    if let Some(r) = &args.remeshed {
-        anyhow::ensure!(r.is_dir(), "--remeshed {}: not a folder", r.display());
-    }
-    if let Some(c) = &args.closed {
-        anyhow::ensure!(c.is_dir(), "--closed {}: not a folder", c.display());
-    }
-    if args.peer.is_some() {
-        anyhow::ensure!(
-            args.peer_script.is_file(),
-            "--peer-script {}: no such file (run from the repository or pass the script's path)",
-            args.peer_script.display()
-        );
-    }
+    check_bench_paths(args)?;
     let res = register_bench(
         &args.dataset,
         &args.out,
@@ -513,6 +501,39 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         |m| eprintln!("register-bench: {m}"),
     )
     .with_context(|| format!("benchmark over {}", args.dataset.display()))?;
+    print_bench(&res);
+    if let Some(python) = &args.peer {
+        run_peer(args, python, &res.rows)?;
+    }
+    let mut failed = res.rows.iter().any(|r| r.status != "ok");
+    if let Some(closed) = &args.closed {
+        failed |= run_sphere_route(args, closed, &methods, &harmonic, &mp, &res.summaries)?;
+    }
+    Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// The errors of register-bench on its folders before any work: `--remeshed` or `--closed`
+/// not a folder, `--peer` without its script.
+fn check_bench_paths(args: &RegisterBenchArgs) -> anyhow::Result<()> {
+    if let Some(r) = &args.remeshed {
+        anyhow::ensure!(r.is_dir(), "--remeshed {}: not a folder", r.display());
+    }
+    if let Some(c) = &args.closed {
+        anyhow::ensure!(c.is_dir(), "--closed {}: not a folder", c.display());
+    }
+    if args.peer.is_some() {
+        anyhow::ensure!(
+            args.peer_script.is_file(),
+            "--peer-script {}: no such file (run from the repository or pass the script's path)",
+            args.peer_script.display()
+        );
+    }
+    Ok(())
+}
+
+/// Prints the benchmark's summary table and total time (stdout), its failed pairs and the
+/// files written (stderr).
+fn print_bench(res: &BenchResult) {
     println!(
         "| class | target | method | refine | pairs ok/failed | flipped area (disk) | flipped area (3D) | curv. diff. median | curv. diff. mean | area dist. median | area dist. p95 | mean abs. ln area dist. | geodesic err. median | geodesic err. mean | s/pair |"
     );
@@ -548,72 +569,76 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     for f in &res.files {
         eprintln!("register-bench: wrote {}", f.display());
     }
-    if let Some(python) = &args.peer {
-        run_peer(args, python, &res.rows)?;
+}
+
+/// The sphere route over the closed poses in `closed` and its table against the cut-disk
+/// route's summaries `disk` (same triangulation); whether a sphere pair failed.
+fn run_sphere_route(
+    args: &RegisterBenchArgs,
+    closed: &Path,
+    methods: &[Method],
+    harmonic: &dyn Fn(Method) -> HarmonicParams,
+    mp: &MetricParams,
+    disk: &[MethodSummary],
+) -> anyhow::Result<bool> {
+    let sphere = sphere_bench(
+        &args.dataset,
+        closed,
+        &args.out,
+        methods,
+        &SphereParamParams::default(),
+        harmonic,
+        mp,
+        |m| eprintln!("register-bench: {m}"),
+    )
+    .with_context(|| format!("sphere route over {} with {}", args.dataset.display(), closed.display()))?;
+    println!();
+    println!("Cut-disk route (cut poses) against the sphere route (closed poses), refinement none on the sphere:");
+    println!(
+        "| class | domain | method | pairs ok/failed | flipped area (disk or sphere) | flipped area (3D) | geodesic err. median | geodesic err. mean | s/pair (maps shared) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let disk = disk
+        .iter()
+        .filter(|s| s.triangulation == shapespace_analysis::registration::bench::Triangulation::Same);
+    let mut lines: Vec<(String, usize, String)> = Vec::new();
+    for (k, (domain, s)) in disk
+        .map(|s| ("disk", s))
+        .chain(sphere.summaries.iter().map(|s| ("sphere", s)))
+        .enumerate()
+    {
+        lines.push((
+            s.class.clone(),
+            k,
+            format!(
+                "| {} | {domain} | {} | {}/{} | {:.4} | {:.4} | {:.4} | {:.4} | {:.2} |",
+                s.class,
+                s.method,
+                s.pairs_ok,
+                s.pairs_failed,
+                s.flipped_ratio,
+                s.flipped_ratio_3d,
+                s.geodesic_median,
+                s.geodesic_mean,
+                s.amortized_seconds
+            ),
+        ));
     }
-    let mut failed = res.rows.iter().any(|r| r.status != "ok");
-    if let Some(closed) = &args.closed {
-        let sphere = sphere_bench(
-            &args.dataset,
-            closed,
-            &args.out,
-            &methods,
-            &SphereParamParams::default(),
-            &harmonic,
-            &mp,
-            |m| eprintln!("register-bench: {m}"),
-        )
-        .with_context(|| format!("sphere route over {} with {}", args.dataset.display(), closed.display()))?;
-        println!();
-        println!("Cut-disk route (cut poses) against the sphere route (closed poses), refinement none on the sphere:");
-        println!(
-            "| class | domain | method | pairs ok/failed | flipped area (disk or sphere) | flipped area (3D) | geodesic err. median | geodesic err. mean | s/pair (maps shared) |"
+    lines.sort_by(|a, b| (a.0 == "all", &a.0, a.1).cmp(&(b.0 == "all", &b.0, b.1)));
+    for (_, _, l) in lines {
+        println!("{l}");
+    }
+    println!("sphere route: {:.1} s", sphere.total_seconds);
+    for r in sphere.rows.iter().filter(|r| r.status != "ok") {
+        eprintln!(
+            "register-bench: sphere {} {} -> {} ({}) failed: {}",
+            r.class, r.source, r.target, r.method, r.status
         );
-        println!("|---|---|---|---|---|---|---|---|---|");
-        let disk = res
-            .summaries
-            .iter()
-            .filter(|s| s.triangulation == shapespace_analysis::registration::bench::Triangulation::Same);
-        let mut lines: Vec<(String, usize, String)> = Vec::new();
-        for (k, (domain, s)) in disk
-            .map(|s| ("disk", s))
-            .chain(sphere.summaries.iter().map(|s| ("sphere", s)))
-            .enumerate()
-        {
-            lines.push((
-                s.class.clone(),
-                k,
-                format!(
-                    "| {} | {domain} | {} | {}/{} | {:.4} | {:.4} | {:.4} | {:.4} | {:.2} |",
-                    s.class,
-                    s.method,
-                    s.pairs_ok,
-                    s.pairs_failed,
-                    s.flipped_ratio,
-                    s.flipped_ratio_3d,
-                    s.geodesic_median,
-                    s.geodesic_mean,
-                    s.amortized_seconds
-                ),
-            ));
-        }
-        lines.sort_by(|a, b| (a.0 == "all", &a.0, a.1).cmp(&(b.0 == "all", &b.0, b.1)));
-        for (_, _, l) in lines {
-            println!("{l}");
-        }
-        println!("sphere route: {:.1} s", sphere.total_seconds);
-        for r in sphere.rows.iter().filter(|r| r.status != "ok") {
-            eprintln!(
-                "register-bench: sphere {} {} -> {} ({}) failed: {}",
-                r.class, r.source, r.target, r.method, r.status
-            );
-        }
-        for f in &sphere.files {
-            eprintln!("register-bench: wrote {}", f.display());
-        }
-        failed |= sphere.rows.iter().any(|r| r.status != "ok");
     }
-    Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    for f in &sphere.files {
+        eprintln!("register-bench: wrote {}", f.display());
+    }
+    Ok(sphere.rows.iter().any(|r| r.status != "ok"))
 }
 
 /// Runs the peer script on the benchmark's dataset (and remeshed targets with the ground truth
