@@ -6,7 +6,9 @@
 //! does; those whose conformal map fails are left out. Each row is the median over PAIRS
 //! (default 6) consecutive directed pairs, solved as the distances solve them
 //! (`PairwiseOptions::default()`, the target's coarsening shared), the bundled and the scan
-//! pairs interleaved so that the machine's load hits both alike:
+//! pairs interleaved so that the machine's load hits both alike; each bundled and scan pair is
+//! solved twice, cold (the source's averaged coarse copies built inside the timing, as for a
+//! source's first pair in a `distances` run) and warm (as for its other pairs):
 //! - bundled 9.4k-vertex faces, facefuns 30k-vertex faces, and the same scan pairs with the
 //!   densities as mapped (`prepare_shape` without its spreading of density peaks, i.e. the
 //!   solver's input before that fix);
