@@ -51,7 +51,7 @@
 //! the start is then checked (each point must win at its anchor p against every site scoring
 //! within 1e-12 of it there, the comparison taken from differences of the points, their radial
 //! corrections and double-double heights) and the maximum over all groups is taken for each
-//! point that fails and for every point that beats it there; after [`CHECK_ROUNDS`] rounds,
+//! point that fails and for every point that beats it there; after `CHECK_ROUNDS` (8) rounds,
 //! for every point not yet done, so that the argument above holds for every point. (A
 //! candidate maximum is too low, so its height too high: on a crowded image the anchors of
 //! many groups sit close together, and a failing point is beaten by many points at once; on
