@@ -79,7 +79,7 @@ use crate::lie_advection::{
     acceptable, face_gradient, face_is_ccw, lie_advection_map, moved, signed_area, tangential, vertex_velocities,
     LieAdvectionInfo, LieAdvectionParams, PlanarPoisson,
 };
-use crate::multiresolution::{disk_moser_correction, disk_multiresolution_start, MultiresolutionInfo};
+use crate::multiresolution::{corrected_start, disk_moser_correction, disk_multiresolution_start, MultiresolutionInfo};
 use crate::point_location::PointLocator;
 
 /// Parameters of [`gradient_flow_map`] (module docs).
@@ -238,24 +238,13 @@ pub fn gradient_flow_map(
                 multiresolution.prolonged_folds_after_repair =
                     mesh.faces.iter().filter(|f| !face_is_ccw(&start, f)).count();
             }
-            match multiresolution.prolonged_folds_after_repair {
-                0 => match disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start) {
-                    (start, Some(steps)) => {
-                        multiresolution.correction_mean_steps = steps;
-                        Ok(start)
-                    }
-                    (start, None) => {
-                        uncorrected = Some(start);
-                        Err(AnalysisError::InvalidInput(
-                            "the Moser correction of the prolonged map fails or folds".into(),
-                        ))
-                    }
-                },
-                folded => Err(AnalysisError::FlowStartFolded {
-                    folded,
-                    reason: "the prolonged coarse map keeps them after the fold repair".into(),
-                }),
-            }
+            corrected_start(
+                multiresolution.prolonged_folds_after_repair,
+                || disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start),
+                &mut multiresolution,
+                &mut uncorrected,
+                "the prolonged coarse map keeps them after the fold repair",
+            )
         });
         match start {
             Ok(start) => {

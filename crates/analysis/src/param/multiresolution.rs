@@ -329,6 +329,37 @@ pub(crate) fn sphere_moser_correction(
     }
 }
 
+/// The start a flow takes from the prolonged map: refused when `folded_after_repair` faces are
+/// still folded (`fold_reason` says after which repair); else the Moser `correction` of it,
+/// whose mean steps go to `info`, or, when the correction fails, an error with the uncorrected
+/// map kept in `uncorrected` (the fallback's last resort).
+pub(crate) fn corrected_start<P>(
+    folded_after_repair: usize,
+    correction: impl FnOnce() -> (Vec<P>, Option<f64>),
+    info: &mut MultiresolutionInfo,
+    uncorrected: &mut Option<Vec<P>>,
+    fold_reason: &str,
+) -> Result<Vec<P>, AnalysisError> {
+    match folded_after_repair {
+        0 => match correction() {
+            (start, Some(steps)) => {
+                info.correction_mean_steps = steps;
+                Ok(start)
+            }
+            (start, None) => {
+                *uncorrected = Some(start);
+                Err(AnalysisError::InvalidInput(
+                    "the Moser correction of the prolonged map fails or folds".into(),
+                ))
+            }
+        },
+        folded => Err(AnalysisError::FlowStartFolded {
+            folded,
+            reason: fold_reason.into(),
+        }),
+    }
+}
+
 fn prolong_disk(level: &Level<[f64; 2]>, points: &[[f64; 2]], rim: &[bool]) -> Result<Vec<[f64; 2]>, AnalysisError> {
     let locator = PointLocator::new(&level.x, &level.faces)?;
     points

@@ -68,7 +68,9 @@ use crate::gradient_flow::{
     FlowDomain, FlowInfo,
 };
 use crate::lie_advection::{bogacki_shampine, correction_flow, CorrectionInfo, PlanarPoisson};
-use crate::multiresolution::{sphere_moser_correction, sphere_multiresolution_start, MultiresolutionInfo};
+use crate::multiresolution::{
+    corrected_start, sphere_moser_correction, sphere_multiresolution_start, MultiresolutionInfo,
+};
 use crate::registration::sphere::SphereLocator;
 use crate::sphere_param::{folded_on_sphere, repair_in_charts, SphereFoldRepairInfo};
 
@@ -628,24 +630,13 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
                 repair_in_charts(mesh, &mut start);
                 multiresolution.prolonged_folds_after_repair = folded_on_sphere(mesh, &start).len();
             }
-            match multiresolution.prolonged_folds_after_repair {
-                0 => match sphere_moser_correction(&mesh.faces, &areas, start, &params.start) {
-                    (start, Some(steps)) => {
-                        multiresolution.correction_mean_steps = steps;
-                        Ok(start)
-                    }
-                    (start, None) => {
-                        uncorrected = Some(start);
-                        Err(AnalysisError::InvalidInput(
-                            "the Moser correction of the prolonged map fails or folds".into(),
-                        ))
-                    }
-                },
-                folded => Err(AnalysisError::FlowStartFolded {
-                    folded,
-                    reason: "the prolonged coarse map folds them after the chart repair".into(),
-                }),
-            }
+            corrected_start(
+                multiresolution.prolonged_folds_after_repair,
+                || sphere_moser_correction(&mesh.faces, &areas, start, &params.start),
+                &mut multiresolution,
+                &mut uncorrected,
+                "the prolonged coarse map folds them after the chart repair",
+            )
         });
         match start {
             Ok(start) => {
