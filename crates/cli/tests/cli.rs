@@ -3112,3 +3112,60 @@ fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
     );
     assert!(!dir.join("mixed").join("metrics.json").exists());
 }
+
+/// `distances --source-faces N` on two bundled faces: the pair runs on the averaged densities,
+/// the distance stays within 1 % of full resolution, the report records N and the cache keeps
+/// other entries for it; 0 is refused before any work, and a request below what a face's
+/// boundary needs fails that face by name (exit 1) instead of running on something else.
+#[test]
+fn distances_with_averaged_source_densities() {
+    let dir = scratch("source-faces");
+    let faces = ["datasets/faces/id00_neutral.obj", "datasets/faces/id02_neutral.obj"];
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "distances",
+            faces[0],
+            faces[1],
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        (shapespace(&args), out)
+    };
+    let distance = |out: &Path| -> f64 {
+        let text = std::fs::read_to_string(out.join("distances.csv")).unwrap();
+        let row = text.lines().nth(1).unwrap();
+        row.split(',').nth(2).unwrap().parse().unwrap()
+    };
+    let (full, full_dir) = run("full", &[]);
+    assert_eq!(full.status.code(), Some(0), "{}", stderr(&full));
+    let (coarse, coarse_dir) = run("coarse", &["--source-faces", "6000"]);
+    assert_eq!(coarse.status.code(), Some(0), "{}", stderr(&coarse));
+    let (d, d_full) = (distance(&coarse_dir), distance(&full_dir));
+    assert!(d != d_full && (d / d_full - 1.0).abs() < 0.01, "{d} against {d_full}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(coarse_dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["options"]["source_faces"].as_u64(),
+        Some(6000),
+        "{}",
+        report["options"]
+    );
+    let (zero, _) = run("zero", &["--source-faces", "0"]);
+    assert_eq!(zero.status.code(), Some(2), "{}", stderr(&zero));
+    assert!(
+        stderr(&zero).contains("--source-faces must be at least 1"),
+        "{}",
+        stderr(&zero)
+    );
+    let (tiny, _) = run("tiny", &["--source-faces", "50"]);
+    assert_eq!(tiny.status.code(), Some(1), "{}", stderr(&tiny));
+    assert!(
+        stderr(&tiny).contains("id00_neutral.obj") && stderr(&tiny).contains("cannot be averaged to 50 triangles"),
+        "{}",
+        stderr(&tiny)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

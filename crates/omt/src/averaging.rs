@@ -30,6 +30,9 @@ const NONE: u32 = u32::MAX;
 /// The measure averaged over the Delaunay triangulation of about `sample` of its vertices (and
 /// its hull vertices), exact per coarse triangle up to rounding; `None` when `sample` is not
 /// smaller than the vertex count or the overlay fails its area check.
+/// The sample is every ⌈V/sample⌉-th vertex along the curve, so only the sizes V/2, V/3, …
+/// occur (the coarse levels' copies, whose sizes need not be exact);
+/// [`averaged_measure_evenly`] takes exactly `sample` vertices.
 pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<SourceMeasure> {
     let vertices = &measure.vertices;
     let n = vertices.len();
@@ -39,7 +42,28 @@ pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<Source
     // Stratified sample along a Hilbert curve, plus the hull.
     let along = hilbert_order(vertices);
     let stride = n.div_ceil(sample);
-    let mut points: Vec<[f64; 2]> = along.iter().step_by(stride).map(|&v| vertices[v as usize]).collect();
+    let points: Vec<[f64; 2]> = along.iter().step_by(stride).map(|&v| vertices[v as usize]).collect();
+    averaged_over(measure, points)
+}
+
+/// [`averaged_measure`] on exactly `sample` vertices spread evenly along the Hilbert curve (the
+/// k-th at position ⌊kV/sample⌋) plus the hull: a copy of any size, for a source coarsened to
+/// a requested number of triangles (about 2·sample plus the hull's vertex count).
+pub fn averaged_measure_evenly(measure: &SourceMeasure, sample: usize) -> Option<SourceMeasure> {
+    let vertices = &measure.vertices;
+    let n = vertices.len();
+    if sample < 3 || sample >= n {
+        return None;
+    }
+    let along = hilbert_order(vertices);
+    let points: Vec<[f64; 2]> = (0..sample).map(|k| vertices[along[k * n / sample] as usize]).collect();
+    averaged_over(measure, points)
+}
+
+/// The measure averaged over the Delaunay triangulation of `points` and the hull of its
+/// vertices (the body of [`averaged_measure`]).
+fn averaged_over(measure: &SourceMeasure, mut points: Vec<[f64; 2]>) -> Option<SourceMeasure> {
+    let vertices = &measure.vertices;
     points.extend(convex_hull(vertices));
     points.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     points.dedup();

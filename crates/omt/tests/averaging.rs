@@ -8,7 +8,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{disk_measure, Rng};
-use shapespace_omt::averaging::averaged_measure;
+use shapespace_omt::averaging::{averaged_measure, averaged_measure_evenly};
 use shapespace_omt::{solve_ot_prepared, NewtonParams, PreparedMeasure, SourceMeasure, StartStrategy};
 
 /// Area of the convex polygon `a` ∩ triangle `t` (both counter-clockwise), by Sutherland–Hodgman
@@ -67,6 +67,43 @@ fn every_coarse_triangle_carries_the_fine_mass_on_it() {
         "{} triangles",
         coarse.triangles.len()
     );
+    check_coarse_masses(&fine, &coarse);
+    check_averaged(&fine, &coarse);
+}
+
+/// The even sample takes exactly the vertices asked for (plus the hull), whatever the size,
+/// so the triangle count follows the request (2·sample + hull − 2 for a Delaunay triangulation
+/// with the hull's vertices on its boundary), and its triangles carry the fine masses too.
+#[test]
+fn the_even_sample_has_the_size_asked_for_and_the_fine_masses() {
+    let fine = disk_measure(24, &contrast);
+    let (mut counts, mut hulls) = (Vec::new(), Vec::new());
+    for sample in [150, 151, 200, 333, 400] {
+        let coarse = averaged_measure_evenly(&fine, sample).expect("averaging applies");
+        let (v, t) = (coarse.vertices.len(), coarse.triangles.len());
+        // (Euler: t = 2v − 2 − h with h hull vertices; a sampled vertex on the hull counts once)
+        let h = 2 * v - 2 - t;
+        assert!(
+            v >= sample.max(h) && v <= sample + h,
+            "{sample}: {v} vertices, hull {h}"
+        );
+        counts.push(t);
+        hulls.push(h);
+        check_coarse_masses(&fine, &coarse);
+    }
+    assert!(hulls.iter().all(|&h| h == hulls[0] && h >= 3), "{hulls:?}");
+    assert!(counts.windows(2).all(|w| w[0] < w[1]), "{counts:?}");
+    // the stride of the coarse levels' copies gives one size for every request in [V/3, V/2)
+    let n = fine.vertices.len();
+    let requests = [n.div_ceil(3), n / 2 - 1];
+    let size = |f: fn(&SourceMeasure, usize) -> Option<SourceMeasure>, s: usize| f(&fine, s).unwrap().triangles.len();
+    assert_eq!(size(averaged_measure, requests[0]), size(averaged_measure, requests[1]));
+    assert!(size(averaged_measure_evenly, requests[0]) < size(averaged_measure_evenly, requests[1]));
+    assert!(averaged_measure_evenly(&fine, fine.vertices.len()).is_none());
+}
+
+/// Every coarse triangle's mass against a brute-force overlay, and the total mass.
+fn check_coarse_masses(fine: &SourceMeasure, coarse: &SourceMeasure) {
     let (mut fine_total, mut coarse_total) = (0.0, 0.0);
     for t in 0..fine.triangles.len() {
         fine_total += fine.densities[t] * area(corners(&fine, t));
@@ -87,7 +124,10 @@ fn every_coarse_triangle_carries_the_fine_mass_on_it() {
         "worst relative mass error of a coarse triangle {worst:e}"
     );
     assert!((coarse_total - fine_total).abs() < 1e-12 * fine_total);
-    // The averaged densities differ from the fine ones (the test is not vacuous).
+}
+
+/// The averaged densities differ from the fine ones (the mass checks are not vacuous).
+fn check_averaged(fine: &SourceMeasure, coarse: &SourceMeasure) {
     let (lo, hi) = coarse
         .densities
         .iter()

@@ -288,6 +288,7 @@ struct Settings {
     pair_time_limit: Option<f64>,
     domain: String,
     sphere_markers: Option<Vec<u32>>,
+    source_faces: Option<usize>,
 }
 
 impl Settings {
@@ -306,6 +307,9 @@ impl Settings {
         }
         if self.target_points == Some(0) {
             return Err(error("target_points must be at least 1"));
+        }
+        if self.source_faces == Some(0) {
+            return Err(error("source_faces must be at least 1"));
         }
         let time_limit = self
             .pair_time_limit
@@ -362,6 +366,7 @@ impl Settings {
                 ..PairwiseOptions::default()
             },
             target_points: self.target_points,
+            source_faces: self.source_faces,
             domain: match self.domain.as_str() {
                 "auto" => RunDomain::Auto,
                 "disk" => RunDomain::Disk,

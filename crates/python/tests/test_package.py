@@ -57,6 +57,18 @@ def test_distance_of_two_files_equals_the_command(shapespace_bin, tmp_path):
     assert shapespace.distance(*meshes)[0] != d
 
 
+def test_source_faces_equal_the_command_and_stay_close_to_full_resolution(shapespace_bin, tmp_path):
+    a, b = face("id03_neutral"), face("id04_happy")
+    run_distances(shapespace_bin, [a, b], tmp_path / "out", "--source-faces", "5000")
+    _, rows = read_matrix(tmp_path / "out" / "distances.csv")
+    d, record = shapespace.distance(a, b, source_faces=5000)
+    assert d == rows[0][1] and record["status"] == "converged"
+    full, _ = shapespace.distance(a, b)
+    assert d != full and abs(d / full - 1) < 0.01
+    with pytest.raises(shapespace.ShapespaceError, match="source_faces must be at least 1"):
+        shapespace.distance(a, b, source_faces=0)
+
+
 def test_symmetrized_distance_is_the_mean_of_both_directions():
     a, b = face("id00_neutral"), face("id00_sad")
     d_ab, _ = shapespace.distance(a, b)

@@ -1,6 +1,6 @@
 //! Benchmark: face pairs at scan resolution against the bundled faces, in one run.
 //!
-//! `cargo bench -p shapespace-tools --bench scan_bench -- [PAIRS] [--100k] [--quant]`
+//! `cargo bench -p shapespace-tools --bench scan_bench -- [PAIRS] [--100k] [--quant] [--source]`
 //! (2 threads). Scans from `$SHAPESPACE_DATA/outside/facefuns`
 //! (default `../shared/datasets`; skipped loudly when absent), prepared as `shapespace prepare`
 //! does; those whose conformal map fails are left out. Each row is the median over PAIRS
@@ -17,14 +17,18 @@
 //!   preparation to the end of their pair (the other scans dropped and the peak reset first;
 //!   the whole run's peak where the kernel refuses the reset);
 //! - `--quant`: the scan pairs again with `--target-points N` for N = 20000, 10000, 5000,
-//!   2000: the distances' relative error against full resolution and the time.
+//!   2000: the distances' relative error against full resolution and the time;
+//! - `--source`: the scan pairs again with the source density averaged to `--source-faces N`
+//!   triangles (N = 30000 … 5000), alone and with `--target-points`: the error against full
+//!   resolution (minus the quantization's own cost, as the distances report it), the time per
+//!   pair and the averaging's own time per shape (paid once per shape in a `distances` run).
 
 use shapespace_tools::faces;
 use shapespace_tools::scans;
 
 use std::time::Instant;
 
-use shapespace_analysis::distance::{quantize_target, PairwiseOptions, PreparedShape};
+use shapespace_analysis::distance::{coarsen_source, quantize_target, PairwiseOptions, PreparedShape};
 use shapespace_analysis::stats::summarize;
 use shapespace_omt::newton::Start;
 use shapespace_omt::NewtonParams;
@@ -78,6 +82,7 @@ fn main() {
     let pairs: usize = args.iter().find_map(|a| a.parse().ok()).unwrap_or(6);
     let with_100k = args.iter().any(|a| a == "--100k");
     let with_quant = args.iter().any(|a| a == "--quant");
+    let with_source = args.iter().any(|a| a == "--source");
     rayon::ThreadPoolBuilder::new().num_threads(2).build_global().unwrap();
     let files = scans::facefuns_files();
     if files.is_empty() {
@@ -223,6 +228,65 @@ fn main() {
                 max(&raw),
                 median(&times),
                 median(&times) / full_t
+            );
+        }
+    }
+    if with_source {
+        println!("\n| --source-faces | --target-points | pairs | source triangles | distance error vs full: median / max | median s per pair | time ratio to full (median of per-pair ratios) | averaging s per shape |");
+        println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+        let settings = [
+            (Some(30000), None),
+            (Some(20000), None),
+            (Some(10000), None),
+            (Some(5000), None),
+            (None, Some(10000)),
+            (Some(20000), Some(10000)),
+            (Some(10000), Some(10000)),
+            (Some(10000), Some(5000)),
+        ];
+        let m = settings.len();
+        let (mut errs, mut times, mut ratios) = (vec![vec![]; m], vec![vec![]; m], vec![vec![]; m]);
+        let (mut averaging, mut triangles) = (vec![vec![]; m], vec![vec![]; m]);
+        // pair by pair, the full-resolution solve again beside every setting's, so that each
+        // ratio compares solves made within seconds of each other
+        for k in 0..n {
+            for (i, &(faces, target)) in settings.iter().enumerate() {
+                let t = Instant::now();
+                let a = match faces {
+                    Some(f) => coarsen_source(scan_shapes[k].clone(), f).unwrap(),
+                    None => scan_shapes[k].clone(),
+                };
+                averaging[i].push(t.elapsed().as_secs_f64());
+                triangles[i].push(a.measure.triangles.len() as f64);
+                let b = match target {
+                    Some(t) => quantize_target(scan_shapes[k + 1].clone(), t),
+                    None => scan_shapes[k + 1].clone(),
+                };
+                let full = solve(&scan_shapes[k], &scan_shapes[k + 1]);
+                let s = solve(&a, &b);
+                let corrected = (s.cost - b.quantization_variance).max(0.0).sqrt();
+                let error = corrected / full.cost.sqrt() - 1.0;
+                eprintln!(
+                    "{} -> {} source {faces:?} target {target:?}: error {error:+.2e}, {:.2} s against {:.2} s",
+                    scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, full.seconds
+                );
+                errs[i].push(error.abs());
+                times[i].push(s.seconds);
+                ratios[i].push(s.seconds / full.seconds);
+            }
+        }
+        for (i, &(faces, target)) in settings.iter().enumerate() {
+            let show = |v: Option<usize>| v.map_or("full".to_string(), |v| v.to_string());
+            println!(
+                "| {} | {} | {n} | {:.0} | {:.2e} / {:.2e} | {:.2} | {:.2} | {:.2} |",
+                show(faces),
+                show(target),
+                median(&triangles[i]),
+                median(&errs[i]),
+                max(&errs[i]),
+                median(&times[i]),
+                median(&ratios[i]),
+                median(&averaging[i])
             );
         }
     }

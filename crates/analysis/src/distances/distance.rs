@@ -223,6 +223,57 @@ pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> Prepar
     shape
 }
 
+/// The shape with its source measure (the pushed-forward density) averaged over a coarser
+/// triangulation of at most `source_faces` triangles: the Delaunay triangulation of a stratified
+/// sample of the disk image's vertices plus its hull, each coarse triangle carrying exactly the
+/// mass the full density gives it ([`shapespace_omt::averaging::averaged_measure`], the measure
+/// the solver's coarse levels use). The target side (points and masses) is unchanged. A shape
+/// with at most that many triangles is returned as is.
+///
+/// Every directed cost from this shape then integrates the averaged density: the finest level's
+/// integration gets cheaper in proportion (the diagram and the linear algebra, which scale with
+/// the target's points, do not). Averaging moves mass only within coarse triangles, so with h
+/// their largest diameter W₂(μ, μ̄) ≤ h and, by the triangle inequality, the distance moves by
+/// at most h and the cost by at most h·(2·W₂(μ, ν) + h); the error measured on scans is in the
+/// README ("Speed").
+///
+/// Fails, naming the shape, when the hull alone needs more triangles than asked for (every
+/// hull vertex stays, so the disk keeps its boundary) or when the overlay of the two
+/// triangulations fails its area check.
+pub fn coarsen_source(mut shape: PreparedShape, source_faces: usize) -> Result<PreparedShape, AnalysisError> {
+    let faces = shape.measure.triangles.len();
+    if faces <= source_faces {
+        return Ok(shape);
+    }
+    let fail = |message: String| AnalysisError::Shape {
+        name: shape.name.clone(),
+        message,
+    };
+    // The averaged triangulation has 2·v − 2 − h triangles for its v vertices, h of them on the
+    // hull (all of them kept): start from the sample that would give `source_faces` without
+    // the hull, then correct by the excess (a sampled vertex on the hull counts once, so at
+    // most a few rounds).
+    let mut sample = source_faces / 2;
+    loop {
+        if sample < 3 {
+            return Err(fail(format!(
+                "the source density cannot be averaged to {source_faces} triangles: the disk's boundary alone needs more (ask for more source faces)"
+            )));
+        }
+        let Some(averaged) = shapespace_omt::averaging::averaged_measure_evenly(&shape.measure, sample) else {
+            return Err(fail(format!(
+                "the source density could not be averaged to {source_faces} triangles (the overlay of the two triangulations failed its area check); run without source coarsening"
+            )));
+        };
+        let got = averaged.triangles.len();
+        if got <= source_faces {
+            shape.measure = PreparedMeasure::new(averaged);
+            return Ok(shape);
+        }
+        sample -= (got - source_faces).div_ceil(2).min(sample);
+    }
+}
+
 /// The outcome of one directed computation source → target.
 #[derive(Clone, Debug, Serialize)]
 pub struct DirectedDistance {

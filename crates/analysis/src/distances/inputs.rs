@@ -205,7 +205,16 @@ pub fn prepare_inputs(
     if let Some(dir) = &options.cache {
         std::fs::create_dir_all(dir).map_err(|e| AnalysisError::io(dir, e))?;
     }
-    let cache_settings = format!("{:?}|target_points {:?}", options.disk_map, options.target_points);
+    let cache_settings = format!(
+        "{:?}|target_points {:?}{}",
+        options.disk_map,
+        options.target_points,
+        // (absent in its default, so the cache entries of earlier runs keep their keys)
+        options
+            .source_faces
+            .map(|n| format!("|source_faces {n}"))
+            .unwrap_or_default()
+    );
     let prepared: Vec<(Option<PreparedShape>, ShapeReport)> = paths
         .par_iter()
         .zip(names)
@@ -325,6 +334,11 @@ fn prepare_spheres(
     if options.target_points.is_some() {
         return Err(AnalysisError::InvalidInput(
             "target points (a quantization in the disk) apply to disks, not to closed surfaces on the sphere".into(),
+        ));
+    }
+    if options.source_faces.is_some() {
+        return Err(AnalysisError::InvalidInput(
+            "source faces (an averaging of the density in the disk) apply to disks, not to closed surfaces on the sphere".into(),
         ));
     }
     let normalization = match m.sphere_markers {
@@ -480,6 +494,12 @@ fn prepare_disk_file(
                 })?;
             if let Some(n) = options.target_points {
                 shape = crate::distance::quantize_target(shape, n);
+            }
+            if let Some(n) = options.source_faces {
+                shape = crate::distance::coarsen_source(shape, n).map_err(|e| AnalysisError::Shape {
+                    name: path.display().to_string(),
+                    message: e.to_string().trim_start_matches(&format!("{name}: ")).to_string(),
+                })?;
             }
             let figures = crate::shape_cache::CachedFigures {
                 flipped_faces: shape.disk.quality.num_flipped,

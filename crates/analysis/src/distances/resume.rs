@@ -430,7 +430,7 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
         ..options.pairwise.newton.clone()
     };
     let settings = format!(
-        "{newton:?}|warm_start {}|{:?}{}{}",
+        "{newton:?}|warm_start {}|{:?}{}{}{}",
         options.pairwise.warm_start,
         options.disk_map,
         // (each absent in its default, so the settings of earlier runs keep their hash)
@@ -441,6 +441,10 @@ pub(crate) fn run_identity(options: &DistancesOptions, inputs: &[ShapeReport]) -
         options
             .target_points
             .map(|n| format!("|target_points {n}"))
+            .unwrap_or_default(),
+        options
+            .source_faces
+            .map(|n| format!("|source_faces {n}"))
             .unwrap_or_default()
     );
     RunIdentity {

@@ -81,6 +81,9 @@ pub struct ReportOptions {
     pub pair_time_limit: Option<f64>,
     /// `DistancesOptions::target_points`.
     pub target_points: Option<usize>,
+    /// `DistancesOptions::source_faces` (absent when not set).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_faces: Option<usize>,
     /// `Fixed` (the markers' alignment) or `Rotation` (minimum over rotations of the disk).
     pub invariance: crate::invariance::Invariance,
     /// Whether the matrix holds debiased distances √max(0, c(a, b) − c(b, b)).
@@ -125,6 +128,7 @@ pub(super) fn report_options(options: &DistancesOptions) -> ReportOptions {
         invariance: options.pairwise.invariance,
         debias: options.pairwise.debias,
         target_points: options.target_points,
+        source_faces: options.source_faces,
         domain: None,
     }
 }

@@ -66,6 +66,10 @@ pub struct DistancesOptions {
     /// Quantize each shape's target measure to at most this many points
     /// ([`crate::distance::quantize_target`]): faster pairs at a measured loss of accuracy.
     pub target_points: Option<usize>,
+    /// Average each shape's source density over a coarser triangulation of at most this many
+    /// triangles ([`crate::distance::coarsen_source`]): cheaper integration at a measured loss
+    /// of accuracy.
+    pub source_faces: Option<usize>,
     /// Compute only this shard of the pairs ([`crate::shard`]); `merge_shards` assembles the
     /// shards' folders. Not with `pairwise.warm_start` or `pairwise.debias`.
     pub shard: Option<crate::shard::Shard>,

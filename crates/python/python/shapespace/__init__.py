@@ -186,6 +186,7 @@ def _settings(
     pair_time_limit: Optional[float] = None,
     domain: str = "auto",
     sphere_markers: Optional[Sequence[int]] = None,
+    source_faces: Optional[int] = None,
 ) -> Dict[str, Any]:
     return {
         "center": _marker(center, "center"),
@@ -199,6 +200,7 @@ def _settings(
         "pair_time_limit": pair_time_limit,
         "domain": domain,
         "sphere_markers": None if sphere_markers is None else [int(v) for v in sphere_markers],
+        "source_faces": source_faces,
     }
 
 
@@ -307,6 +309,7 @@ def pairwise(
     pair_time_limit: Optional[float] = None,
     domain: str = "auto",
     sphere_markers: Optional[Sequence[int]] = None,
+    source_faces: Optional[int] = None,
 ) -> Tuple[np.ndarray, Any]:
     """All pairwise distances among ``shapes`` (paths or ``(V, F)`` pairs), as
     ``shapespace distances`` computes them: the same matrix, bit for bit.
@@ -319,7 +322,7 @@ def pairwise(
 
     Settings as the command's flags: ``center``/``boundary`` markers for every shape,
     ``landmarks`` (a marker file for all), ``symmetrize``, ``tol``, ``max_iterations``,
-    ``invariance`` (``"fixed"`` or ``"rotation"``), ``target_points``, ``pair_time_limit``
+    ``invariance`` (``"fixed"`` or ``"rotation"``), ``target_points``, ``source_faces``, ``pair_time_limit``
     (seconds), ``domain`` (``"auto"``: closed meshes on the sphere, others on the disk;
     ``"disk"``, ``"sphere"``) and ``sphere_markers`` (three vertices sent to 0, 1, ∞ of every
     closed mesh; without them each sphere pair is minimized over rotations; sphere shapes run
@@ -340,6 +343,7 @@ def pairwise(
         pair_time_limit,
         domain,
         sphere_markers,
+        source_faces,
     )
     if client is None:
         prepared = _prepare(shapes, settings)
