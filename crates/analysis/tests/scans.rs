@@ -53,7 +53,8 @@ fn facefuns(n: usize) -> Option<Vec<PreparedShape>> {
 }
 
 /// `--target-points 10000` on 30k-vertex faces: the distance within 1 % of full resolution
-/// (six scan pairs: 0.58 % median, 1.05 % max; README "Speed"), and the quantized target has about 10k points with
+/// on this pair (five scan pairs: 0.32 % median, 1.40 % max; docs/benchmarks.md "Scans"), and
+/// the quantized target has about 10k points with
 /// the full mass.
 #[test]
 fn ten_thousand_target_points_within_one_percent() {
@@ -74,7 +75,7 @@ fn ten_thousand_target_points_within_one_percent() {
 
 /// `--source-faces 10000` on 30k-vertex faces (59.7k source triangles): the averaged source
 /// has about 10k triangles and the full mass, and the distance stays within 0.5 % of full
-/// resolution (five scan pairs: 0.2 % median; README "Speed"), alone and with
+/// resolution (five scan pairs: 0.15 % median, 0.23 % max; docs/benchmarks.md "Scans"), alone and with
 /// `--target-points 10000` (the quantization's own cost subtracted, as `directed_distance` does)
 /// within 1 %.
 #[test]

@@ -268,7 +268,10 @@ fn main() {
                 let error = corrected / full.cost.sqrt() - 1.0;
                 eprintln!(
                     "{} -> {} source {faces:?} target {target:?}: error {error:+.2e}, {:.2} s against {:.2} s",
-                    scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, full.seconds
+                    scan_shapes[k].name,
+                    scan_shapes[k + 1].name,
+                    s.seconds,
+                    full.seconds
                 );
                 errs[i].push(error.abs());
                 times[i].push(s.seconds);

@@ -210,7 +210,7 @@ fn grouping_cost(points: &[[f64; 2]], masses: &[f64], group: &[usize], centers: 
 /// The cost to the quantized points exceeds the cost to the full target by about the grouping's
 /// own cost V = Σ_i ν_i |y_i − c_g(i)|² (`quantization_variance`; W₂²(ν, ν_q) ≤ V), which on
 /// face pairs is of the order of the cost itself; [`directed_distance`] subtracts it. The error
-/// that remains is measured in the README ("Speed").
+/// that remains is measured in docs/benchmarks.md ("Scans").
 pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> PreparedShape {
     if shape.points.len() <= target_points {
         return shape;
@@ -235,7 +235,7 @@ pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> Prepar
 /// the target's points, do not). Averaging moves mass only within coarse triangles, so with h
 /// their largest diameter W₂(μ, μ̄) ≤ h and, by the triangle inequality, the distance moves by
 /// at most h and the cost by at most h·(2·W₂(μ, ν) + h); the error measured on scans is in the
-/// README ("Speed").
+/// docs/benchmarks.md ("Scans").
 ///
 /// Fails, naming the shape, when the hull alone needs more triangles than asked for (every
 /// hull vertex stays, so the disk keeps its boundary) or when the overlay of the two

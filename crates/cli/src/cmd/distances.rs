@@ -83,14 +83,17 @@ pub struct SolverArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Quantize each shape's target points to about N (mass-weighted k-means in the disk; total
-    /// mass and mean kept): an accuracy/time trade-off for large meshes. On 30k-vertex scans
-    /// N = 10000 changes the distances by well under 1 % (README, "Speed").
+    /// mass and mean kept): an accuracy/time trade-off for large meshes. On five 30k-vertex
+    /// scan pairs N = 10000 changes the distances by 0.32 % (median; 1.4 % at most) in a third
+    /// of the time (docs/benchmarks.md, "Scans").
     #[arg(long, value_name = "N")]
     pub target_points: Option<usize>,
     /// Average each shape's source density over a coarser triangulation of at most N triangles
     /// (a Delaunay triangulation of a sample of its disk image, each triangle keeping its exact
-    /// mass): cheaper pairs for meshes with many faces, alone or with --target-points. Accuracy
-    /// and time on 30k-vertex scans: README, "Speed".
+    /// mass): cheaper pairs for meshes with many faces, alone or with --target-points. On five
+    /// 30k-vertex scan pairs N = 10000 changes the distances by 0.15 % (median; 0.23 % at most),
+    /// and with --target-points 10000 a pair takes a seventh of the time (docs/benchmarks.md,
+    /// "Scans").
     #[arg(long, value_name = "N")]
     pub source_faces: Option<usize>,
     /// Keep each shape's per-shape work (conformal map, density, target points) in this folder,
