@@ -34,29 +34,34 @@ const NONE: u32 = u32::MAX;
 /// occur (the coarse levels' copies, whose sizes need not be exact);
 /// [`averaged_measure_evenly`] takes exactly `sample` vertices.
 pub fn averaged_measure(measure: &SourceMeasure, sample: usize) -> Option<SourceMeasure> {
-    let vertices = &measure.vertices;
-    let n = vertices.len();
-    if sample < 3 || sample >= n {
-        return None;
-    }
-    // Stratified sample along a Hilbert curve, plus the hull.
-    let along = hilbert_order(vertices);
-    let stride = n.div_ceil(sample);
-    let points: Vec<[f64; 2]> = along.iter().step_by(stride).map(|&v| vertices[v as usize]).collect();
-    averaged_over(measure, points)
+    averaged_on_sample(measure, sample, false)
 }
 
 /// [`averaged_measure`] on exactly `sample` vertices spread evenly along the Hilbert curve (the
 /// k-th at position ⌊kV/sample⌋) plus the hull: a copy of any size, for a source coarsened to
 /// a requested number of triangles (about 2·sample plus the hull's vertex count).
 pub fn averaged_measure_evenly(measure: &SourceMeasure, sample: usize) -> Option<SourceMeasure> {
+    averaged_on_sample(measure, sample, true)
+}
+
+/// The stratified sample along a Hilbert curve (strided, or `evenly` spread), then
+/// [`averaged_over`] it and the hull.
+fn averaged_on_sample(measure: &SourceMeasure, sample: usize, evenly: bool) -> Option<SourceMeasure> {
     let vertices = &measure.vertices;
     let n = vertices.len();
     if sample < 3 || sample >= n {
         return None;
     }
     let along = hilbert_order(vertices);
-    let points: Vec<[f64; 2]> = (0..sample).map(|k| vertices[along[k * n / sample] as usize]).collect();
+    let points: Vec<[f64; 2]> = if evenly {
+        (0..sample).map(|k| vertices[along[k * n / sample] as usize]).collect()
+    } else {
+        along
+            .iter()
+            .step_by(n.div_ceil(sample))
+            .map(|&v| vertices[v as usize])
+            .collect()
+    };
     averaged_over(measure, points)
 }
 
