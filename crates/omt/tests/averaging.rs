@@ -106,16 +106,16 @@ fn the_even_sample_has_the_size_asked_for_and_the_fine_masses() {
 fn check_coarse_masses(fine: &SourceMeasure, coarse: &SourceMeasure) {
     let (mut fine_total, mut coarse_total) = (0.0, 0.0);
     for t in 0..fine.triangles.len() {
-        fine_total += fine.densities[t] * area(corners(&fine, t));
+        fine_total += fine.densities[t] * area(corners(fine, t));
     }
     let mut worst = 0.0f64;
     for c in 0..coarse.triangles.len() {
-        let cc = corners(&coarse, c);
+        let cc = corners(coarse, c);
         let mass = coarse.densities[c] * area(cc);
         coarse_total += mass;
         // brute force over all fine triangles, no walk
         let exact: f64 = (0..fine.triangles.len())
-            .map(|t| fine.densities[t] * intersection_area(&corners(&fine, t), cc))
+            .map(|t| fine.densities[t] * intersection_area(&corners(fine, t), cc))
             .sum();
         worst = worst.max((mass - exact).abs() / exact);
     }
