@@ -283,8 +283,10 @@ fn bundled_face_starts_from_the_corrected_prolonged_map() {
         map_distortion("single", &mesh, &single.uv).unwrap(),
     );
     let (m, s) = (&multi.info.flow, &single.info.flow);
+    let omt = area_preserving_map(&mesh, &Markers::default(), &AreaPreservingParams::default()).unwrap();
+    let (to_omt_multi, to_omt_single) = (max_distance(&multi.uv, &omt.uv), max_distance(&single.uv, &omt.uv));
     eprintln!(
-        "id00_neutral: curl {:.2e} / {:.2e}, cost {:.5} / {:.5}, p95 |Υ| {:.3} / {:.3}; {info:?}",
+        "id00_neutral: curl {:.2e} / {:.2e}, cost {:.5} / {:.5}, p95 |Υ| {:.3} / {:.3}, max |· − OMT| {to_omt_multi:.3e} / {to_omt_single:.3e}; {info:?}",
         m.final_curl, s.final_curl, m.final_cost, s.final_cost, dm.abs_area_distortion.p95, ds.abs_area_distortion.p95
     );
     assert_eq!(info.levels.len(), 2);
