@@ -2807,7 +2807,8 @@ fn distances_refuses_mixing_closed_meshes_and_disks() {
 }
 
 /// `shapespace param --method flow` writes the gradient-flow OMT map: one `vt` per vertex, rim
-/// vertices on the unit circle, a report with the method, the flow's curl norms and costs (the
+/// vertices on the unit circle, a report with the method, the multiresolution start used (no
+/// fallback), the flow's curl norms and costs (the
 /// cost not above the start's) and a distortion block whose map has no flipped face and a |Υ|
 /// median below a fifth of the conformal map's; `--domain sphere` is refused with status 2.
 #[test]
@@ -2833,8 +2834,11 @@ fn param_flow_on_a_face() {
     assert!(on_circle > 100, "{on_circle} vertices on the circle");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(report["method"], "flow");
-    // two coarse levels ran (their start then falls back to the Lie map or not, by the mesh)
-    assert_eq!(report["multiresolution"]["levels"].as_array().unwrap().len(), 2);
+    // two coarse levels ran, and the flow started from their prolonged, Moser-corrected map
+    let levels = &report["multiresolution"];
+    assert_eq!(levels["levels"].as_array().unwrap().len(), 2);
+    assert!(levels["fallback"].is_null(), "{levels}");
+    assert!(levels["correction_mean_steps"].as_f64().unwrap() > 0.0, "{levels}");
     let flow = &report["gradient_flow"];
     assert!(flow["start_curl"].as_f64().unwrap() > 0.0);
     assert!(flow["final_cost"].as_f64().unwrap() <= flow["start_cost"].as_f64().unwrap());

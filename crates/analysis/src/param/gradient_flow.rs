@@ -58,8 +58,9 @@
 //! their sphere). [`gradient_flow_map`] runs it by default (`multiresolution_levels` 2,
 //! [`crate::multiresolution`]): the flow on coarse ring-layout disks carrying the restricted
 //! surface area, each result prolonged to the next level and Moser-corrected, and the flow on
-//! the mesh from the prolonged map in place of step 1's Lie map. When the prolonged map keeps
-//! folds after the fold repair or its Moser correction fails the Lie map is the start, as with
+//! the mesh from the prolonged map in place of step 1's Lie map (the correction's folds
+//! repaired as the Lie map's are). When the prolonged map keeps folds after the fold repair or
+//! its Moser correction fails the Lie map is the start, as with
 //! `multiresolution_levels` 0 (and only if that one keeps folds, the uncorrected prolonged map).
 
 use std::time::Instant;
@@ -240,7 +241,7 @@ pub fn gradient_flow_map(
             }
             corrected_start(
                 multiresolution.prolonged_folds_after_repair,
-                || disk_moser_correction(&mesh.faces, &areas, &is_boundary, start, &params.start),
+                || disk_moser_correction(mesh, Some(&conn), &areas, &is_boundary, start, &params.start),
                 &mut multiresolution,
                 &mut uncorrected,
                 "the prolonged coarse map keeps them after the fold repair",

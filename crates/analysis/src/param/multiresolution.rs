@@ -26,9 +26,11 @@
 //!   points (point location in the coarse domain; rim points put back on the circle, points
 //!   on S² normalized). The interpolation's area error is then removed by the Moser advection
 //!   of the prolonged map to the level's masses (the first mass-preserving map's construction,
-//!   started from the prolonged map instead of the conformal one; skipped, keeping the
-//!   prolonged map, when it would fold a face), and the flow continues from there with its
-//!   mass projections.
+//!   started from the prolonged map instead of the conformal one). Where the image crowds
+//!   beyond the coarse grid the advection folds a few faces, as the Lie map's does; they are
+//!   repaired as the Lie map's are ([`crate::fold_repair`], gnomonic charts on S²), and only
+//!   when folds remain is the correction skipped, keeping the prolonged map. The flow
+//!   continues from there with its mass projections.
 //!
 //! Folds of a level's start (the coarse Lie map, or a prolonged map, also on the mesh) are
 //! repaired as the single-level maps' are: [`crate::fold_repair`] on the disk, gnomonic charts
@@ -40,10 +42,10 @@
 
 use serde::Serialize;
 use shapespace_conformal::sphere::quality::orientation_on_sphere;
-use shapespace_geometry::{primitives, Connectivity};
+use shapespace_geometry::{primitives, Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
-use crate::fold_repair::repair_folds;
+use crate::fold_repair::{repair_folds, repair_folds_with};
 use crate::gradient_flow::{flow, FlowControl, FlowInfo, GradientFlowParams};
 use crate::lie_advection::{advect, face_is_ccw, signed_area, LieAdvectionParams};
 use crate::point_location::PointLocator;
@@ -86,7 +88,8 @@ pub struct MultiresolutionInfo {
     /// See `prolonged_folds`.
     pub prolonged_folds_after_repair: usize,
     /// Mean integration steps per vertex of the Moser advection of the prolonged map on the
-    /// mesh (0: not applied, because the prolonged map folds or the advection would).
+    /// mesh (0: not applied, because the prolonged map folds or the advection leaves folds
+    /// after the repair).
     pub correction_mean_steps: f64,
     /// The flow on the mesh started from the prolonged map without its Moser correction,
     /// because the correction failed and the Lie map keeps folds.
@@ -259,7 +262,7 @@ pub fn disk_multiresolution_start(
             }
             Some(prev) => {
                 let prolonged = prolong_disk(prev, &x, &rim)?;
-                let (u, steps) = disk_moser_correction(&grid.faces, &masses, &rim, prolonged, lie);
+                let (u, steps) = disk_moser_correction(&grid, None, &masses, &rim, prolonged, lie);
                 level.lie_mean_steps = steps.unwrap_or(0.0);
                 u
             }
@@ -295,37 +298,57 @@ pub fn disk_multiresolution_start(
 }
 
 /// The Moser advection of a prolonged map to the level's masses (module docs, "Prolongation"),
-/// with its mean steps per vertex; the prolonged map itself (and `None`) when the advection
-/// fails or folds a face.
+/// with its mean steps per vertex. Faces the advection folds are repaired as the Lie map's are
+/// ([`crate::fold_repair`] with `lie.fold_repair`, `connectivity` that of `mesh`); the
+/// prolonged map itself (and `None`) when the advection fails or folds remain.
 pub(crate) fn disk_moser_correction(
-    faces: &[[u32; 3]],
+    mesh: &TriMesh,
+    connectivity: Option<&Connectivity>,
     masses: &[f64],
     rim: &[bool],
     prolonged: Vec<[f64; 2]>,
     lie: &LieAdvectionParams,
 ) -> (Vec<[f64; 2]>, Option<f64>) {
+    let faces = &mesh.faces;
     if faces.iter().any(|f| !face_is_ccw(&prolonged, f)) {
         return (prolonged, None);
     }
-    match advect(faces, masses, rim, &prolonged, lie) {
-        Ok((u, info)) if faces.iter().all(|f| face_is_ccw(&u, f)) => (u, Some(info.mean_steps)),
-        _ => (prolonged, None),
+    let Ok((mut u, info)) = advect(faces, masses, rim, &prolonged, lie) else {
+        return (prolonged, None);
+    };
+    if faces.iter().any(|f| !face_is_ccw(&u, f)) {
+        // (a failed repair leaves folds, refused below)
+        let _ = repair_folds_with(mesh, connectivity, rim, &mut u, &lie.fold_repair);
+    }
+    if faces.iter().all(|f| face_is_ccw(&u, f)) {
+        (u, Some(info.mean_steps))
+    } else {
+        (prolonged, None)
     }
 }
 
-/// As [`disk_moser_correction`] on S².
+/// As [`disk_moser_correction`] on S², the advection's folds repaired in gnomonic charts as
+/// the sphere's Lie map's are ([`crate::sphere_param`]).
 pub(crate) fn sphere_moser_correction(
-    faces: &[[u32; 3]],
+    mesh: &TriMesh,
     masses: &[f64],
     prolonged: Vec<P3>,
     lie: &SphereLieParams,
 ) -> (Vec<P3>, Option<f64>) {
+    let faces = &mesh.faces;
     if !unfolded_on_sphere(faces, &prolonged) {
         return (prolonged, None);
     }
-    match advect_on_sphere(faces, masses, &prolonged, 1.0, lie) {
-        Ok((u, info)) if unfolded_on_sphere(faces, &u) => (u, Some(info.mean_steps)),
-        _ => (prolonged, None),
+    let Ok((mut u, info)) = advect_on_sphere(faces, masses, &prolonged, 1.0, lie) else {
+        return (prolonged, None);
+    };
+    if !unfolded_on_sphere(faces, &u) {
+        repair_in_charts(mesh, &mut u);
+    }
+    if unfolded_on_sphere(faces, &u) {
+        (u, Some(info.mean_steps))
+    } else {
+        (prolonged, None)
     }
 }
 
@@ -432,7 +455,7 @@ pub fn sphere_multiresolution_start(
             }
             Some(prev) => {
                 let prolonged = prolong_sphere(prev, &x)?;
-                let (u, steps) = sphere_moser_correction(&grid.faces, &masses, prolonged, lie);
+                let (u, steps) = sphere_moser_correction(&grid, &masses, prolonged, lie);
                 level.lie_mean_steps = steps.unwrap_or(0.0);
                 u
             }

@@ -632,7 +632,7 @@ pub fn sphere_gradient_flow_map(mesh: &TriMesh, params: &SphereFlowParams) -> Re
             }
             corrected_start(
                 multiresolution.prolonged_folds_after_repair,
-                || sphere_moser_correction(&mesh.faces, &areas, start, &params.start),
+                || sphere_moser_correction(mesh, &areas, start, &params.start),
                 &mut multiresolution,
                 &mut uncorrected,
                 "the prolonged coarse map folds them after the chart repair",

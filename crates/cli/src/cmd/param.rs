@@ -31,8 +31,8 @@
 //! ([`shapespace_analysis::gradient_flow::gradient_flow_map`]; Dominitz & Tannenbaum 2010; no
 //! weights) with their multiresolution scheme: `--flow-levels` coarse levels (default 2,
 //! [`shapespace_analysis::multiresolution`]) give the flow on the mesh its start, or with
-//! `--flow-levels 0` (or when the prolonged map folds or is not made mass-preserving) the
-//! Lie-advection map does; its report
+//! `--flow-levels 0` (or when the prolonged map, or its Moser correction, keeps folds after
+//! the fold repair) the Lie-advection map does; its report
 //! has the same distortion block, with the levels, the flow's steps, curl norms and
 //! transport costs. With `--domain sphere` (the
 //! default for these two on a closed genus-0 input) both map onto the sphere instead
@@ -126,7 +126,8 @@ pub struct ParamArgs {
     #[arg(long, value_enum, default_value_t = super::ot::StartArg::Auto)]
     pub start: super::ot::StartArg,
     /// `--method flow`: coarse levels of Dominitz & Tannenbaum's multiresolution scheme run
-    /// before the flow on the mesh (0: the single-level flow from the Lie map).
+    /// before the flow on the mesh; their prolonged, Moser-corrected map is its start (0: the
+    /// single-level flow from the Lie map, which on real meshes stalls at that start).
     #[arg(long = "flow-levels", default_value_t = 2)]
     pub flow_levels: usize,
 }
