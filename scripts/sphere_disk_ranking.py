@@ -11,7 +11,10 @@ distances that are ordered within < between (1.0: the classes separate).
 
 Usage: scripts/sphere_disk_ranking.py OUT MESH... [--seam N] [--pair-time-limit S]
 (needs `cargo build --release -p shapespace-cli`; the binary is taken from $CARGO_TARGET_DIR,
-default target/). Meshes are read, never written; everything goes to OUT.
+default target/). Meshes are read, never written; everything goes to OUT. Both runs resume
+(`distances --resume`): a stopped script, or the same `distances` commands run by hand into
+OUT/sphere and OUT/disk (in parallel, say), go on where they stopped; closed heads with two
+classes: `scripts/ict_heads.py`.
 """
 
 import csv
@@ -106,7 +109,7 @@ def main():
                  os.path.join(out, "disk"), "--quiet"],
     }
     for cmd in runs.values():
-        subprocess.run(cmd + extra, capture_output=True)
+        subprocess.run(cmd + extra + ["--resume"], capture_output=True)
     sphere = read_pairs(os.path.join(out, "sphere", "pairs.csv")) or read_pairs(
         os.path.join(out, "sphere", "pairs.partial.csv"))
     disk = read_pairs(os.path.join(out, "disk", "pairs.csv")) or read_pairs(os.path.join(out, "disk", "pairs.partial.csv"))
