@@ -9,9 +9,16 @@ pairs both routes converged on (all pairs, and within each class: the name witho
 trailing digits), and for each route the share of (within-class, between-class) pairs of
 distances that are ordered within < between (1.0: the classes separate).
 
-Usage: scripts/sphere_disk_ranking.py OUT MESH... [--seam N] [--pair-time-limit S]
+With `--debias` both runs subtract each target's self-cost (`distances --debias`: the distance
+√max(0, c(a, b) − c(b, b)) of distances.csv, one extra solve per shape) and the table and the
+statistics use those distances.
+
+Usage: scripts/sphere_disk_ranking.py OUT MESH... [--seam N] [--pair-time-limit S] [--debias]
 (needs `cargo build --release -p shapespace-cli`; the binary is taken from $CARGO_TARGET_DIR,
-default target/). Meshes are read, never written; everything goes to OUT.
+default target/). Meshes are read, never written; everything goes to OUT. Both runs resume
+(`distances --resume`): a stopped script, or the same `distances` commands run by hand into
+OUT/sphere and OUT/disk (in parallel, say), go on where they stopped; closed heads with two
+classes: `scripts/ict_heads.py`.
 """
 
 import csv
@@ -63,6 +70,15 @@ def read_pairs(path):
     return out
 
 
+def with_matrix(pairs, path):
+    """pairs with each distance replaced by distances.csv's entry (the debiased one)."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    names = rows[0][1:]
+    matrix = {(r[0], names[j]): float(v) for r in rows[1:] for j, v in enumerate(r[1:])}
+    return {k: (matrix.get(k, float("nan")) if math.isfinite(d) else d, s, st) for k, (d, s, st) in pairs.items()}
+
+
 def separation(pairs):
     within = [d for (a, b), (d, _, _) in pairs.items() if klass(a) == klass(b) and math.isfinite(d)]
     between = [d for (a, b), (d, _, _) in pairs.items() if klass(a) != klass(b) and math.isfinite(d)]
@@ -78,6 +94,9 @@ def main():
         i = args.index("--seam")
         seam = args[i + 1]
         del args[i : i + 2]
+    debias = "--debias" in args
+    if debias:
+        args.remove("--debias")
     if "--pair-time-limit" in args:
         i = args.index("--pair-time-limit")
         limit = args[i + 1]
@@ -93,7 +112,7 @@ def main():
         if not os.path.exists(m):
             sys.exit(f"SKIPPED: {m} not found")
     os.makedirs(os.path.join(out, "disks"), exist_ok=True)
-    extra = ["--pair-time-limit", limit] if limit else []
+    extra = (["--pair-time-limit", limit] if limit else []) + (["--debias"] if debias else [])
     disks = []
     for m in meshes:
         name = os.path.splitext(os.path.basename(m))[0]
@@ -106,10 +125,13 @@ def main():
                  os.path.join(out, "disk"), "--quiet"],
     }
     for cmd in runs.values():
-        subprocess.run(cmd + extra, capture_output=True)
+        subprocess.run(cmd + extra + ["--resume"], capture_output=True)
     sphere = read_pairs(os.path.join(out, "sphere", "pairs.csv")) or read_pairs(
         os.path.join(out, "sphere", "pairs.partial.csv"))
     disk = read_pairs(os.path.join(out, "disk", "pairs.csv")) or read_pairs(os.path.join(out, "disk", "pairs.partial.csv"))
+    if debias:
+        sphere = with_matrix(sphere, os.path.join(out, "sphere", "distances.csv"))
+        disk = with_matrix(disk, os.path.join(out, "disk", "distances.csv"))
     print("| pair | sphere d | sphere s | disk d | disk s |")
     print("|---|---:|---:|---:|---:|")
     for key in sorted(set(sphere) | set(disk)):
