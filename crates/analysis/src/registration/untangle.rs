@@ -487,7 +487,8 @@ pub struct PointUntangleParams {
     /// Largest ring of source neighbours the region moves add around a connected set of faces
     /// still flipped after the sweeps (default 3; 0 turns the region moves off).
     pub region_rings: usize,
-    /// Rounds of region moves, each over the sets still flipped (default 3).
+    /// Rounds of region moves, each over the sets still flipped (default 0: off; 3 in
+    /// decision 0042's measurements).
     pub region_rounds: usize,
 }
 
@@ -496,7 +497,7 @@ impl Default for PointUntangleParams {
         PointUntangleParams {
             sweeps: 12,
             region_rings: 3,
-            region_rounds: 3,
+            region_rounds: 0,
         }
     }
 }
@@ -597,8 +598,8 @@ fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// a collapse, or a corner on the opposite edge), then nearest in 3D to its image before the
 /// pass (the current point kept on ties). Candidates: on every face of S₂ around the target vertices
 /// nearest to the vertex's and its source neighbours' images, the corners, the edge midpoints
-/// and the centroid; the φ₂ mean of the neighbours' images; the closest point of those faces to
-/// the 3D mean of the neighbours' images. A move never raises the number
+/// and the centroid; the φ₂ mean of the neighbours' images; with region moves on, the closest
+/// point of those faces to the 3D mean of the neighbours' images. A move never raises the number
 /// of flipped images around the moved vertex; a vertex is evaluated again only
 /// after it or a source neighbour moved. Faces still flipped after the sweeps, where single moves
 /// are stuck (every corner of the face off by several edges), get region moves
@@ -617,6 +618,7 @@ pub fn untangle_points(
     let t0 = std::time::Instant::now();
     let n1 = source.num_vertices();
     let mut pass = PointPass::new(source, target, target_uv, points)?;
+    pass.mean3_candidate = params.region_rounds > 0;
     let before = pass.flipped_faces();
     let mut info = PointUntangleInfo {
         flipped_before: before.len(),
@@ -705,6 +707,9 @@ struct PointPass<'a> {
     p3: Vec<[f64; 3]>,
     p2: Vec<[f64; 2]>,
     original: Vec<[f64; 3]>,
+    /// Whether the single moves try the closest point to the neighbours' 3D mean (with the
+    /// region moves, decision 0042).
+    mean3_candidate: bool,
 }
 
 /// Candidate spots on every face of S₂ (barycentric): the corners, the edge midpoints and the
@@ -741,6 +746,7 @@ impl<'a> PointPass<'a> {
             p3: Vec::new(),
             p2: Vec::new(),
             original: Vec::new(),
+            mean3_candidate: false,
         };
         pass.p3 = points.iter().map(|&p| pass.x3(p)).collect();
         pass.p2 = points.iter().map(|&p| pass.x2(p)).collect();
@@ -856,24 +862,26 @@ impl<'a> PointPass<'a> {
             consider((l.face, l.bary), &mut best);
         }
         // the closest point to the 3D mean of the neighbours' images, on the faces near them
-        let mut mean3 = [0.0; 3];
-        for &u in &snb[v] {
-            for d in 0..3 {
-                mean3[d] += self.p3[u as usize][d] / snb[v].len() as f64;
+        if self.mean3_candidate {
+            let mut mean3 = [0.0; 3];
+            for &u in &snb[v] {
+                for d in 0..3 {
+                    mean3[d] += self.p3[u as usize][d] / snb[v].len() as f64;
+                }
             }
-        }
-        let mut closest = (f64::INFINITY, points[v]);
-        for &f in &faces {
-            let q = self.target.face_positions(f as usize);
-            let b = closest_point_barycentric(mean3, q[0], q[1], q[2]);
-            let y: [f64; 3] = std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d]);
-            let d2 = sub3(y, mean3).iter().map(|c| c * c).sum::<f64>();
-            if d2 < closest.0 {
-                closest = (d2, (f, b));
+            let mut closest = (f64::INFINITY, points[v]);
+            for &f in &faces {
+                let q = self.target.face_positions(f as usize);
+                let b = closest_point_barycentric(mean3, q[0], q[1], q[2]);
+                let y: [f64; 3] = std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d]);
+                let d2 = sub3(y, mean3).iter().map(|c| c * c).sum::<f64>();
+                if d2 < closest.0 {
+                    closest = (d2, (f, b));
+                }
             }
-        }
-        if closest.0.is_finite() {
-            consider(closest.1, &mut best);
+            if closest.0.is_finite() {
+                consider(closest.1, &mut best);
+            }
         }
         for cand in spots_on(self.target, &faces) {
             consider(cand, &mut best);
@@ -1317,7 +1325,10 @@ mod tests {
             region_rounds: 0,
             ..PointUntangleParams::default()
         });
-        let (info, pts) = run(&PointUntangleParams::default());
+        let (info, pts) = run(&PointUntangleParams {
+            region_rounds: 3,
+            ..PointUntangleParams::default()
+        });
         assert!(info.flipped_before >= 18, "{info:?}");
         assert!(single.0.flipped_after > 0, "{:?}", single.0);
         assert_eq!(info.flipped_after, 0, "{info:?}");

@@ -8,6 +8,8 @@
 //! CACHE, a JSON file, when given), then the untangling with points, and prints the flipped 3D
 //! area of the registration metric, the degenerate images' area, how far the residual flips'
 //! reference faces lie from their images, and the geodesic error (same triangulation only).
+//! `REG44_ROUNDS` and `REG44_RINGS` set the region moves' rounds and rings (defaults of
+//! `PointUntangleParams`; decision 0042 measured 3 and 3).
 use std::path::PathBuf;
 use std::time::Instant;
 
