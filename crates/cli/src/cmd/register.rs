@@ -157,6 +157,10 @@ pub struct RegisterBenchArgs {
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
     pub landmark_weight: f64,
+    /// Rounds of region moves at the end of the untangling with points (decision 0042): each
+    /// set of faces still flipped is laid out again from the ring around it; 0 leaves them out.
+    #[arg(long, default_value_t = 0)]
+    pub region_rounds: usize,
     /// Folder of the closed poses behind the dataset's cut poses (`DIR/NAME.off` for each pose
     /// NAME, e.g. the TOSCA originals): also register them on the sphere with the same landmarks
     /// (carried through `CLASS/original_indices.txt`) and methods, and print both routes side by
@@ -459,11 +463,12 @@ fn print_metrics(met: &RegistrationMetrics, domain: &str, files: &[PathBuf]) {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
-    let zoomout = ZoomOutParams {
+    let mut zoomout = ZoomOutParams {
         output: args.zoomout_output.parse()?,
         landmark_weight: args.landmark_weight,
         ..ZoomOutParams::default()
     };
+    zoomout.point_untangle.region_rounds = args.region_rounds;
     super::create_output_folder(&args.out)?;
     let mp = MetricParams {
         geodesic_samples: args.samples,
