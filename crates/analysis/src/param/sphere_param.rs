@@ -170,6 +170,18 @@ pub fn area_preserving_sphere_map(
     })
 }
 
+/// The fold repair of [`area_preserving_sphere_map`] on any map `x` (#V points on S²) of the
+/// closed genus-0 `mesh`: re-embeds each cluster of folded faces in a chart around it, every
+/// vertex outside the charts kept (`repair_in_charts`).
+pub fn repair_sphere_map_folds(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
+    repair_in_charts(mesh, x)
+}
+
+/// The number of faces of `mesh` whose image `x` on S² is not positively oriented (exact).
+pub fn folded_faces_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> usize {
+    folded_on_sphere(mesh, x).len()
+}
+
 /// Faces of `mesh` whose image `x` on S² is not positively oriented (exact `orient_3d` against
 /// the centre).
 pub(crate) fn folded_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
@@ -189,6 +201,19 @@ const CHART_MAX_FRACTION: f64 = 0.25;
 /// A chart's vertices lie within this angle of its centre (radians; the gnomonic projection
 /// reaches infinity at π/2; the area factor there is 1/cos³θ ≈ 700).
 const CHART_MAX_ANGLE: f64 = 1.45;
+/// The stereographic charts tried on a cluster that every gnomonic chart failed: their
+/// vertices lie within this angle of the cluster's centre (the chart's scale there is
+/// 1/cos²(θ/2) ≈ 16), and they hold at most [`STEREO_MAX_FRACTION`] of the faces.
+const STEREO_MAX_ANGLE: f64 = 2.6;
+const STEREO_MAX_FRACTION: f64 = 0.5;
+
+/// The projection of a chart: gnomonic (great circles straight: planar orientation is the
+/// sphere's) or stereographic (conformal, reaches past a hemisphere; checked on S² after).
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Projection {
+    Gnomonic,
+    Stereographic,
+}
 
 /// What the fold repair of [`area_preserving_sphere_map`] did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -212,6 +237,9 @@ pub struct SphereFoldRepairInfo {
     pub charts_convexified: usize,
     /// Clusters given up because the next chart would pass a quarter of the faces.
     pub clusters_too_large: usize,
+    /// Clusters repaired in a stereographic chart after every gnomonic chart failed
+    /// (counted in `repaired`, not in `clusters_too_large`).
+    pub stereographic_repaired: usize,
 }
 
 /// Why a chart was discarded.
@@ -265,31 +293,47 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             }
             i += 1;
         }
-        let mut rings = CHART_RINGS;
         let mut kept = false;
-        while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings) {
-            let mut attempt = repair_patch(mesh, x, &patch, &shares);
-            if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch) {
-                info.charts_convexified += 1;
-                attempt = repair_patch(mesh, x, &patch, &shares);
-            }
-            match &attempt {
-                Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
-                Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
-                Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
-                Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
-                Ok(_) => {}
-            }
-            if let Ok(moved) = attempt {
-                info.vertices_moved += moved.len();
-                for (v, p) in moved {
-                    x[v as usize] = p;
-                }
-                info.max_rings = info.max_rings.max(rings);
-                kept = true;
+        for projection in [Projection::Gnomonic, Projection::Stereographic] {
+            let (max_fraction, centre) = match projection {
+                Projection::Gnomonic => (CHART_MAX_FRACTION, None),
+                Projection::Stereographic => (STEREO_MAX_FRACTION, cluster_centre(mesh, x, &cluster)),
+            };
+            if projection == Projection::Stereographic && centre.is_none() {
                 break;
             }
-            rings += rings.div_ceil(2);
+            let limit = (max_fraction * mesh.num_faces() as f64) as usize;
+            let mut rings = CHART_RINGS;
+            while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings, limit) {
+                let mut attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
+                if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch, limit) {
+                    info.charts_convexified += 1;
+                    attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
+                }
+                match &attempt {
+                    Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
+                    Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
+                    Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
+                    Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
+                    Ok(_) => {}
+                }
+                if let Ok(moved) = attempt {
+                    info.vertices_moved += moved.len();
+                    for (v, p) in moved {
+                        x[v as usize] = p;
+                    }
+                    info.max_rings = info.max_rings.max(rings);
+                    if projection == Projection::Stereographic {
+                        info.stereographic_repaired += 1;
+                    }
+                    kept = true;
+                    break;
+                }
+                rings += rings.div_ceil(2);
+            }
+            if kept {
+                break;
+            }
         }
         if kept {
             info.repaired += 1;
@@ -310,9 +354,8 @@ const CONVEX_ROUNDS: usize = 8;
 /// only when that boundary is convex (Floater's theorem; on the GOAST fingers the solve over
 /// a 3-ring chart left 91 of 240 faces folded).
 /// Returns whether the patch grew.
-fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Vec<usize>) -> bool {
+fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Vec<usize>, limit: usize) -> bool {
     let start = patch.len();
-    let limit = (CHART_MAX_FRACTION * mesh.num_faces() as f64) as usize;
     let mut inside = vec![false; mesh.num_faces()];
     for &f in patch.iter() {
         inside[f] = true;
@@ -364,9 +407,14 @@ fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Ve
 /// The faces within `rings` rings of `cluster` (through shared vertices), plus every hole they
 /// enclose: the connected components of the other faces (through shared edges) but the
 /// largest. `None` when that passes [`CHART_MAX_FRACTION`] of the faces.
-fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: usize) -> Option<Vec<usize>> {
+fn chart_patch(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    cluster: &[usize],
+    rings: usize,
+    limit: usize,
+) -> Option<Vec<usize>> {
     let nf = mesh.num_faces();
-    let limit = (CHART_MAX_FRACTION * nf as f64) as usize;
     let mut inside = vec![false; nf];
     let mut patch: Vec<usize> = Vec::new();
     for &f in cluster {
@@ -445,6 +493,8 @@ fn repair_patch(
     x: &[[f64; 3]],
     patch: &[usize],
     shares: &[f64],
+    projection: Projection,
+    centre: Option<[f64; 3]>,
 ) -> Result<HashMap<u32, [f64; 3]>, ChartFailure> {
     let (verts, sub) = patch_mesh(mesh, patch);
     let sub = sub.ok_or(ChartFailure::NotDisk)?;
@@ -457,25 +507,27 @@ fn repair_patch(
     for &v in &loops[0] {
         is_boundary[v as usize] = true;
     }
-    let mut c = [0.0; 3];
-    for &v in &verts {
-        for (ck, xk) in c.iter_mut().zip(x[v as usize]) {
-            *ck += xk;
-        }
-    }
-    let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-    if l.is_nan() || l <= 0.0 {
-        return Err(ChartFailure::TooWide);
-    }
-    let c = c.map(|t| t / l);
-    let min_cos = CHART_MAX_ANGLE.cos();
+    let c = match centre {
+        Some(c) => c,
+        None => mean_direction(x, &verts).ok_or(ChartFailure::TooWide)?,
+    };
+    let max_angle = match projection {
+        Projection::Gnomonic => CHART_MAX_ANGLE,
+        Projection::Stereographic => STEREO_MAX_ANGLE,
+    };
+    let min_cos = max_angle.cos();
     if verts.iter().any(|&v| dot(x[v as usize], c) < min_cos) {
         return Err(ChartFailure::TooWide);
     }
     let rot = rotation_to_south(c);
-    let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| gnomonic(&rot, x[v as usize])).collect();
-    // each face's share of 4π times the area factor 1/cos³θ at its centroid (the patch's faces
-    // are `patch` in order)
+    let (to_chart, from_chart): (fn(&[[f64; 3]; 3], [f64; 3]) -> [f64; 2], fn(&[[f64; 3]; 3], [f64; 2]) -> [f64; 3]) =
+        match projection {
+            Projection::Gnomonic => (gnomonic, from_gnomonic),
+            Projection::Stereographic => (stereographic, from_stereographic),
+        };
+    let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| to_chart(&rot, x[v as usize])).collect();
+    // each face's share of 4π times the chart's area factor at its centroid, 1/cos³θ
+    // (gnomonic) or (1 + |u|²)²/4 (stereographic) (the patch's faces are `patch` in order)
     let target_face_areas: Vec<f64> = sub
         .faces
         .iter()
@@ -483,8 +535,14 @@ fn repair_patch(
         .map(|(f, &g)| {
             let [p, q, r] = f.map(|v| uv[v as usize]);
             let m = [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0];
-            let cos = 1.0 / (1.0 + m[0] * m[0] + m[1] * m[1]).sqrt();
-            shares[g] / (cos * cos * cos)
+            let s2 = m[0] * m[0] + m[1] * m[1];
+            match projection {
+                Projection::Gnomonic => {
+                    let cos = 1.0 / (1.0 + s2).sqrt();
+                    shares[g] / (cos * cos * cos)
+                }
+                Projection::Stereographic => shares[g] * (1.0 + s2) * (1.0 + s2) / 4.0,
+            }
         })
         .collect();
     let before = uv.clone();
@@ -501,7 +559,7 @@ fn repair_patch(
         .iter()
         .zip(uv.iter().zip(&before))
         .filter(|(_, (p, q))| p != q)
-        .map(|(&v, (&p, _))| (v, from_gnomonic(&rot, p)))
+        .map(|(&v, (&p, _))| (v, from_chart(&rot, p)))
         .collect();
     let valid = patch.iter().all(|&f| {
         let [a, b, c] = mesh.faces[f].map(|v| moved.get(&v).copied().unwrap_or(x[v as usize]));
@@ -516,6 +574,41 @@ fn repair_patch(
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The normalized mean of the points `x[v]`, `v` in `verts` (None when it vanishes).
+fn mean_direction(x: &[[f64; 3]], verts: &[u32]) -> Option<[f64; 3]> {
+    let mut c = [0.0; 3];
+    for &v in verts {
+        for (ck, xk) in c.iter_mut().zip(x[v as usize]) {
+            *ck += xk;
+        }
+    }
+    let l = dot(c, c).sqrt();
+    (l.is_finite() && l > 0.0).then(|| c.map(|t| t / l))
+}
+
+/// The mean direction of the vertices of the faces `cluster`.
+fn cluster_centre(mesh: &TriMesh, x: &[[f64; 3]], cluster: &[usize]) -> Option<[f64; 3]> {
+    let mut verts: Vec<u32> = cluster.iter().flat_map(|&f| mesh.faces[f]).collect();
+    verts.sort_unstable();
+    verts.dedup();
+    mean_direction(x, &verts)
+}
+
+/// The stereographic chart centred at the point that `rot` ([`rotation_to_south`]) takes to
+/// the south pole, from the north pole onto the equatorial plane, oriented as [`gnomonic`]:
+/// `rot`, then (x₁, −x₂)/(1 − x₃). Conformal; its area factor is (1 + |u|²)²/4.
+fn stereographic(rot: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 2] {
+    let q = rot.map(|r| dot(r, p));
+    [q[0] / (1.0 - q[2]), -q[1] / (1.0 - q[2])]
+}
+
+/// The inverse of [`stereographic`].
+fn from_stereographic(rot: &[[f64; 3]; 3], uv: [f64; 2]) -> [f64; 3] {
+    let s = uv[0] * uv[0] + uv[1] * uv[1];
+    let q = [2.0 * uv[0] / (1.0 + s), -2.0 * uv[1] / (1.0 + s), (s - 1.0) / (1.0 + s)];
+    [0, 1, 2].map(|k| rot[0][k] * q[0] + rot[1][k] * q[1] + rot[2][k] * q[2])
 }
 
 /// The gnomonic chart centred at the point that `rot` ([`rotation_to_south`]) takes to the
