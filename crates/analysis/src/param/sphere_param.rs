@@ -264,7 +264,13 @@ enum ChartFailure {
 /// times the projection's area factor 1/cos³θ at the face. A chart whose planar repair fails is
 /// grown around its boundary's reflex corners ([`convexify`]) and repaired once more. A chart whose repair fails or
 /// leaves a fold on S² (checked exactly) is discarded, and the next one has ⌈1.5k⌉ rings, until
-/// a chart passes a quarter of the faces or 1.45 rad from its centre.
+/// a chart passes a quarter of the faces or 1.45 rad from its centre. A cluster that every
+/// gnomonic chart failed gets the same sequence of charts in the stereographic projection
+/// centred at the cluster's mean direction, up to half the faces and 2.6 rad from that centre
+/// (conformal, so the retraction's floors scale by (1 + |u|²)²/4; a large chart's boundary,
+/// nearly a circle around the antipode, stays nearly a circle, so the Tutte solve unfolds);
+/// its result passes the same exact test on S² (on the GOAST cacti and Sumner cats the second
+/// pass unfolds every cluster the gnomonic charts left, decision 0045).
 pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
@@ -649,6 +655,85 @@ fn patch_mesh(mesh: &TriMesh, patch: &[usize]) -> (Vec<u32>, Option<TriMesh>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The stereographic chart and its inverse agree over 2.6 rad from the centre, and the
+    /// chart turns the icosphere's faces counter-clockwise there (they are small against the
+    /// circles great circles become).
+    #[test]
+    fn stereographic_chart_round_trip_and_orientation() {
+        let c = [0.6, -0.64, 0.48];
+        let rot = rotation_to_south(c);
+        let mesh = shapespace_geometry::primitives::icosphere(3);
+        let min_cos = STEREO_MAX_ANGLE.cos();
+        let mut tested = 0;
+        for p in mesh.positions.iter().filter(|p| dot(**p, c) > min_cos) {
+            let q = from_stereographic(&rot, stereographic(&rot, *p));
+            assert!((0..3).all(|k| (q[k] - p[k]).abs() < 1e-14), "{p:?} → {q:?}");
+        }
+        for f in &mesh.faces {
+            let x = f.map(|v| mesh.positions[v as usize]);
+            if x.iter().all(|p| dot(*p, c) > min_cos) {
+                let [a, b, d] = x.map(|p| stereographic(&rot, p));
+                let planar = (b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0]);
+                assert!(planar > 0.0);
+                assert_eq!(orientation_on_sphere(x[0], x[1], x[2]), 1);
+                tested += 1;
+            }
+        }
+        assert!(tested > 1000, "{tested}");
+    }
+
+    /// A fold inside a patch larger than a hemisphere (every icosphere vertex within 2.3 rad of
+    /// a vertex c, 1,0xx faces of 1,280), which no gnomonic chart holds: the patch's boundary is
+    /// a small circle's polygon around −c, a circle again in the stereographic chart at c, so
+    /// convex, and the Tutte solve unfolds (Floater). One vertex next to c pushed past c folds
+    /// its faces; the stereographic repair leaves none folded on S² and keeps the boundary.
+    #[test]
+    fn stereographic_chart_unfolds_a_patch_beyond_a_hemisphere() {
+        let mesh = shapespace_geometry::primitives::icosphere(3);
+        let conn = Connectivity::of(&mesh);
+        let mut x = mesh.positions.clone();
+        let c = x[0];
+        let v = conn.vertex_neighbors(mesh.num_vertices())[0][0] as usize;
+        // v reflected through c along the great circle
+        let d = dot(x[v], c);
+        let p = [0, 1, 2].map(|k| 2.0 * d * c[k] - x[v][k]);
+        x[v] = p;
+        let folded = folded_on_sphere(&mesh, &x);
+        assert!(!folded.is_empty());
+        let cos = 2.3f64.cos();
+        let patch: Vec<usize> = (0..mesh.num_faces())
+            .filter(|&f| mesh.faces[f].iter().all(|&u| dot(mesh.positions[u as usize], c) > cos))
+            .collect();
+        assert!(2 * patch.len() > mesh.num_faces(), "{} faces", patch.len());
+        let areas = face_areas(&mesh);
+        let total: f64 = areas.iter().sum();
+        let shares: Vec<f64> = areas.iter().map(|a| a / total * 4.0 * std::f64::consts::PI).collect();
+        // too wide for a gnomonic chart
+        assert!(matches!(
+            repair_patch(&mesh, &x, &patch, &shares, Projection::Gnomonic, None),
+            Err(ChartFailure::TooWide)
+        ));
+        let Ok(moved) = repair_patch(&mesh, &x, &patch, &shares, Projection::Stereographic, Some(c)) else {
+            panic!("the stereographic chart failed");
+        };
+        assert!(moved.contains_key(&(v as u32)));
+        for (u, q) in moved {
+            x[u as usize] = q;
+        }
+        assert_eq!(folded_on_sphere(&mesh, &x).len(), 0);
+        // the patch's boundary (vertices of faces outside it) did not move
+        for f in (0..mesh.num_faces()).filter(|f| !patch.contains(f)) {
+            for u in mesh.faces[f] {
+                if u as usize != v {
+                    assert_eq!(x[u as usize], mesh.positions[u as usize]);
+                }
+            }
+        }
+        for p in &x {
+            assert!((dot(*p, *p).sqrt() - 1.0).abs() < 1e-14);
+        }
+    }
 
     /// The gnomonic chart and its inverse agree, and the chart turns a face counter-clockwise
     /// exactly when it is positively oriented on S².
