@@ -341,6 +341,31 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
                 break;
             }
         }
+        // caps of the image around the cluster in the stereographic chart: their boundaries are
+        // near circles in the chart where mesh rings can be ragged (crowded limbs)
+        if let (false, Some(centre)) = (kept, cluster_centre(mesh, x, &cluster)) {
+            let limit = (STEREO_MAX_FRACTION * mesh.num_faces() as f64) as usize;
+            for radius in CAP_RADII {
+                let Some(patch) = cap_patch(mesh, &conn, x, &cluster, centre, radius, limit) else {
+                    continue;
+                };
+                match repair_patch(mesh, x, &patch, &shares, Projection::Stereographic, Some(centre)) {
+                    Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
+                    Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
+                    Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
+                    Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
+                    Ok(moved) => {
+                        info.vertices_moved += moved.len();
+                        for (v, p) in moved {
+                            x[v as usize] = p;
+                        }
+                        info.stereographic_repaired += 1;
+                        kept = true;
+                        break;
+                    }
+                }
+            }
+        }
         if kept {
             info.repaired += 1;
         } else {
@@ -348,6 +373,54 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             given_up.extend(cluster);
         }
     }
+}
+
+/// Radii (rad) of the caps around a cluster tried in the stereographic chart after the rings.
+const CAP_RADII: [f64; 10] = [0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.8, 1.2, 1.8, 2.5];
+
+/// The faces of `mesh` whose three images lie within `radius` of `centre` on S², connected
+/// through edges to `cluster` (which they include), plus the holes they enclose; `None` when
+/// a cluster face is not in the cap or the patch passes `limit` faces.
+fn cap_patch(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    x: &[[f64; 3]],
+    cluster: &[usize],
+    centre: [f64; 3],
+    radius: f64,
+    limit: usize,
+) -> Option<Vec<usize>> {
+    let min_cos = radius.cos();
+    let in_cap = |f: usize| mesh.faces[f].iter().all(|&v| dot(x[v as usize], centre) > min_cos);
+    if !cluster.iter().all(|&f| in_cap(f)) {
+        return None;
+    }
+    let mut inside = vec![false; mesh.num_faces()];
+    let mut patch: Vec<usize> = Vec::new();
+    let mut stack: Vec<usize> = Vec::new();
+    for &f in cluster {
+        if !std::mem::replace(&mut inside[f], true) {
+            patch.push(f);
+            stack.push(f);
+        }
+    }
+    while let Some(f) = stack.pop() {
+        for &e in &conn.face_edges[f] {
+            for &g in &conn.edge_faces[e as usize] {
+                let g = g as usize;
+                if !inside[g] && in_cap(g) {
+                    inside[g] = true;
+                    patch.push(g);
+                    stack.push(g);
+                }
+            }
+        }
+        if patch.len() > limit {
+            return None;
+        }
+    }
+    fill_holes(mesh, conn, &mut inside, &mut patch);
+    (patch.len() <= limit).then_some(patch)
 }
 
 /// Rounds of [`convexify`].
