@@ -9,7 +9,7 @@
 //! to the discretization, and the map stays close to the conformal one where the conformal map
 //! already preserved area. Centroids of neighbouring cells can fold a sliver, as in the plane;
 //! such folds get the disk's fold repair ([`crate::fold_repair`]) in a gnomonic chart around
-//! each cluster (`repair_in_charts`).
+//! each cluster, or a stereographic one when no gnomonic chart succeeds (`repair_in_charts`).
 //!
 //! Measured (`tests/sphere_param.rs`): an ellipsoid 1:1:2 of 2,562 vertices goes from a 95th
 //! percentile |ln(one-ring area ratio)| of 1.50 (conformal) to 0.027, with no flipped face;
