@@ -599,11 +599,13 @@ fn repair_patch(
         return Err(ChartFailure::TooWide);
     }
     let rot = rotation_to_south(c);
-    let (to_chart, from_chart): (fn(&[[f64; 3]; 3], [f64; 3]) -> [f64; 2], fn(&[[f64; 3]; 3], [f64; 2]) -> [f64; 3]) =
-        match projection {
-            Projection::Gnomonic => (gnomonic, from_gnomonic),
-            Projection::Stereographic => (stereographic, from_stereographic),
-        };
+    let (to_chart, from_chart): (
+        fn(&[[f64; 3]; 3], [f64; 3]) -> [f64; 2],
+        fn(&[[f64; 3]; 3], [f64; 2]) -> [f64; 3],
+    ) = match projection {
+        Projection::Gnomonic => (gnomonic, from_gnomonic),
+        Projection::Stereographic => (stereographic, from_stereographic),
+    };
     let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| to_chart(&rot, x[v as usize])).collect();
     // each face's share of 4π times the chart's area factor at its centroid, 1/cos³θ
     // (gnomonic) or (1 + |u|²)²/4 (stereographic) (the patch's faces are `patch` in order)

@@ -12,7 +12,10 @@ fn abs_eps(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<f64> {
     let image = TriMesh::new(x.to_vec(), mesh.faces.clone()).expect("same faces");
     let (a, b) = (vertex_dual_areas(mesh), vertex_dual_areas(&image));
     let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
-    a.iter().zip(&b).map(|(a, b)| ((b / sb) / (a / sa)).ln().abs()).collect()
+    a.iter()
+        .zip(&b)
+        .map(|(a, b)| ((b / sb) / (a / sa)).ln().abs())
+        .collect()
 }
 
 fn p95(mut v: Vec<f64>) -> f64 {
