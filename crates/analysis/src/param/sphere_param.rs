@@ -207,6 +207,10 @@ const CHART_MAX_ANGLE: f64 = 1.45;
 const STEREO_MAX_ANGLE: f64 = 2.6;
 const STEREO_MAX_FRACTION: f64 = 0.5;
 
+/// A chart's projection of S² after the rotation, and its inverse.
+type ToChart = fn(&[[f64; 3]; 3], [f64; 3]) -> [f64; 2];
+type FromChart = fn(&[[f64; 3]; 3], [f64; 2]) -> [f64; 3];
+
 /// The projection of a chart: gnomonic (great circles straight: planar orientation is the
 /// sphere's) or stereographic (conformal, reaches past a hemisphere; checked on S² after).
 #[derive(Clone, Copy, PartialEq, Debug)]
@@ -599,10 +603,7 @@ fn repair_patch(
         return Err(ChartFailure::TooWide);
     }
     let rot = rotation_to_south(c);
-    let (to_chart, from_chart): (
-        fn(&[[f64; 3]; 3], [f64; 3]) -> [f64; 2],
-        fn(&[[f64; 3]; 3], [f64; 2]) -> [f64; 3],
-    ) = match projection {
+    let (to_chart, from_chart): (ToChart, FromChart) = match projection {
         Projection::Gnomonic => (gnomonic, from_gnomonic),
         Projection::Stereographic => (stereographic, from_stereographic),
     };
