@@ -759,8 +759,8 @@ mod tests {
         assert!(tested > 1000, "{tested}");
     }
 
-    /// A fold inside a patch larger than a hemisphere (every icosphere vertex within 2.3 rad of
-    /// a vertex c, 1,0xx faces of 1,280), which no gnomonic chart holds: the patch's boundary is
+    /// A fold inside a patch larger than a hemisphere (every icosphere face within 2.3 rad of
+    /// a vertex c, more than half of the 1,280 faces), which no gnomonic chart holds: the patch's boundary is
     /// a small circle's polygon around −c, a circle again in the stereographic chart at c, so
     /// convex, and the Tutte solve unfolds (Floater). One vertex next to c pushed past c folds
     /// its faces; the stereographic repair leaves none folded on S² and keeps the boundary.
