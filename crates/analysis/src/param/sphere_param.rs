@@ -760,10 +760,11 @@ mod tests {
     }
 
     /// A fold inside a patch larger than a hemisphere (every icosphere face within 2.3 rad of
-    /// a vertex c, more than half of the 1,280 faces), which no gnomonic chart holds: the patch's boundary is
-    /// a small circle's polygon around −c, a circle again in the stereographic chart at c, so
-    /// convex, and the Tutte solve unfolds (Floater). One vertex next to c pushed past c folds
-    /// its faces; the stereographic repair leaves none folded on S² and keeps the boundary.
+    /// a vertex c, more than half of the 1,280 faces), which no gnomonic chart holds: the
+    /// patch's boundary is a small circle's polygon around −c, a circle again in the
+    /// stereographic chart at c, so convex, and the Tutte solve unfolds (Floater). One vertex
+    /// next to c reflected through c folds its faces; the stereographic repair leaves none
+    /// folded on S² and keeps the boundary.
     #[test]
     fn stereographic_chart_unfolds_a_patch_beyond_a_hemisphere() {
         let mesh = shapespace_geometry::primitives::icosphere(3);
