@@ -120,3 +120,24 @@ fn sumner_cat_becomes_area_preserving_without_flips() {
         map.iterations, map.flipped_before_repair
     );
 }
+
+/// GOAST cactus2 (5,261 vertices): a cluster of its centroid map's folds that no gnomonic chart
+/// within 1.45 rad and a quarter of the faces unfolds (4 faces were left folded before the
+/// stereographic charts) is unfolded in a stereographic chart; no face is left folded.
+#[test]
+fn goast_cactus2_unfolds_in_a_stereographic_chart() {
+    let Some(path) = shapespace_test_support::shared_file("goast/cactus/cactus2.ply") else {
+        return;
+    };
+    let mesh = read_mesh(&path).unwrap();
+    let map = area_preserving_sphere_map(&mesh, &SphereParamParams::default()).unwrap();
+    assert!(map.flipped_before_repair > 0);
+    let repair = map.fold_repair.as_ref().unwrap();
+    assert!(repair.stereographic_repaired >= 1, "{repair:?}");
+    assert_eq!(repair.clusters_too_large, 0, "{repair:?}");
+    let (conformal, preserving) = check(&mesh, &map, 0.05, 0);
+    eprintln!(
+        "cactus2: {} folded before the repair, 0 after ({repair:?}); p95 |ln area ratio| conformal {conformal:.3}, area-preserving {preserving:.4}",
+        map.flipped_before_repair
+    );
+}

@@ -9,7 +9,7 @@
 //! to the discretization, and the map stays close to the conformal one where the conformal map
 //! already preserved area. Centroids of neighbouring cells can fold a sliver, as in the plane;
 //! such folds get the disk's fold repair ([`crate::fold_repair`]) in a gnomonic chart around
-//! each cluster (`repair_in_charts`).
+//! each cluster, or a stereographic one when no gnomonic chart succeeds (`repair_in_charts`).
 //!
 //! Measured (`tests/sphere_param.rs`): an ellipsoid 1:1:2 of 2,562 vertices goes from a 95th
 //! percentile |ln(one-ring area ratio)| of 1.50 (conformal) to 0.027, with no flipped face;
@@ -170,6 +170,18 @@ pub fn area_preserving_sphere_map(
     })
 }
 
+/// The fold repair of [`area_preserving_sphere_map`] on any map `x` (#V points on S²) of the
+/// closed genus-0 `mesh`: re-embeds each cluster of folded faces in a chart around it, every
+/// vertex outside the charts kept (`repair_in_charts`).
+pub fn repair_sphere_map_folds(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
+    repair_in_charts(mesh, x)
+}
+
+/// The number of faces of `mesh` whose image `x` on S² is not positively oriented (exact).
+pub fn folded_faces_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> usize {
+    folded_on_sphere(mesh, x).len()
+}
+
 /// Faces of `mesh` whose image `x` on S² is not positively oriented (exact `orient_3d` against
 /// the centre).
 pub(crate) fn folded_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
@@ -189,6 +201,23 @@ const CHART_MAX_FRACTION: f64 = 0.25;
 /// A chart's vertices lie within this angle of its centre (radians; the gnomonic projection
 /// reaches infinity at π/2; the area factor there is 1/cos³θ ≈ 700).
 const CHART_MAX_ANGLE: f64 = 1.45;
+/// The stereographic charts tried on a cluster that every gnomonic chart failed: their
+/// vertices lie within this angle of the cluster's centre (the chart's scale there is
+/// 1/cos²(θ/2) ≈ 16), and they hold at most [`STEREO_MAX_FRACTION`] of the faces.
+const STEREO_MAX_ANGLE: f64 = 2.6;
+const STEREO_MAX_FRACTION: f64 = 0.5;
+
+/// A chart's projection of S² after the rotation, and its inverse.
+type ToChart = fn(&[[f64; 3]; 3], [f64; 3]) -> [f64; 2];
+type FromChart = fn(&[[f64; 3]; 3], [f64; 2]) -> [f64; 3];
+
+/// The projection of a chart: gnomonic (great circles straight: planar orientation is the
+/// sphere's) or stereographic (conformal, reaches past a hemisphere; checked on S² after).
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Projection {
+    Gnomonic,
+    Stereographic,
+}
 
 /// What the fold repair of [`area_preserving_sphere_map`] did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -212,6 +241,9 @@ pub struct SphereFoldRepairInfo {
     pub charts_convexified: usize,
     /// Clusters given up because the next chart would pass a quarter of the faces.
     pub clusters_too_large: usize,
+    /// Clusters repaired in a stereographic chart after every gnomonic chart failed
+    /// (counted in `repaired`, not in `clusters_too_large`).
+    pub stereographic_repaired: usize,
 }
 
 /// Why a chart was discarded.
@@ -236,7 +268,13 @@ enum ChartFailure {
 /// times the projection's area factor 1/cos³θ at the face. A chart whose planar repair fails is
 /// grown around its boundary's reflex corners ([`convexify`]) and repaired once more. A chart whose repair fails or
 /// leaves a fold on S² (checked exactly) is discarded, and the next one has ⌈1.5k⌉ rings, until
-/// a chart passes a quarter of the faces or 1.45 rad from its centre.
+/// a chart passes a quarter of the faces or 1.45 rad from its centre. A cluster that every
+/// gnomonic chart failed gets the same sequence of charts in the stereographic projection
+/// centred at the cluster's mean direction, up to half the faces and 2.6 rad from that centre
+/// (conformal, so the retraction's floors scale by (1 + |u|²)²/4; a large chart's boundary,
+/// nearly a circle around the antipode, stays nearly a circle, so the Tutte solve unfolds);
+/// its result passes the same exact test on S² (on the GOAST cacti and Sumner cats the second
+/// pass unfolds every cluster the gnomonic charts left, decision 0045).
 pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
@@ -265,31 +303,72 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             }
             i += 1;
         }
-        let mut rings = CHART_RINGS;
         let mut kept = false;
-        while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings) {
-            let mut attempt = repair_patch(mesh, x, &patch, &shares);
-            if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch) {
-                info.charts_convexified += 1;
-                attempt = repair_patch(mesh, x, &patch, &shares);
-            }
-            match &attempt {
-                Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
-                Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
-                Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
-                Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
-                Ok(_) => {}
-            }
-            if let Ok(moved) = attempt {
-                info.vertices_moved += moved.len();
-                for (v, p) in moved {
-                    x[v as usize] = p;
-                }
-                info.max_rings = info.max_rings.max(rings);
-                kept = true;
+        for projection in [Projection::Gnomonic, Projection::Stereographic] {
+            let (max_fraction, centre) = match projection {
+                Projection::Gnomonic => (CHART_MAX_FRACTION, None),
+                Projection::Stereographic => (STEREO_MAX_FRACTION, cluster_centre(mesh, x, &cluster)),
+            };
+            if projection == Projection::Stereographic && centre.is_none() {
                 break;
             }
-            rings += rings.div_ceil(2);
+            let limit = (max_fraction * mesh.num_faces() as f64) as usize;
+            let mut rings = CHART_RINGS;
+            while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings, limit) {
+                let mut attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
+                if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch, limit) {
+                    info.charts_convexified += 1;
+                    attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
+                }
+                match &attempt {
+                    Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
+                    Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
+                    Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
+                    Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
+                    Ok(_) => {}
+                }
+                if let Ok(moved) = attempt {
+                    info.vertices_moved += moved.len();
+                    for (v, p) in moved {
+                        x[v as usize] = p;
+                    }
+                    info.max_rings = info.max_rings.max(rings);
+                    if projection == Projection::Stereographic {
+                        info.stereographic_repaired += 1;
+                    }
+                    kept = true;
+                    break;
+                }
+                rings += rings.div_ceil(2);
+            }
+            if kept {
+                break;
+            }
+        }
+        // caps of the image around the cluster in the stereographic chart: their boundaries are
+        // near circles in the chart where mesh rings can be ragged (crowded limbs)
+        if let (false, Some(centre)) = (kept, cluster_centre(mesh, x, &cluster)) {
+            let limit = (STEREO_MAX_FRACTION * mesh.num_faces() as f64) as usize;
+            for radius in CAP_RADII {
+                let Some(patch) = cap_patch(mesh, &conn, x, &cluster, centre, radius, limit) else {
+                    continue;
+                };
+                match repair_patch(mesh, x, &patch, &shares, Projection::Stereographic, Some(centre)) {
+                    Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
+                    Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
+                    Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
+                    Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
+                    Ok(moved) => {
+                        info.vertices_moved += moved.len();
+                        for (v, p) in moved {
+                            x[v as usize] = p;
+                        }
+                        info.stereographic_repaired += 1;
+                        kept = true;
+                        break;
+                    }
+                }
+            }
         }
         if kept {
             info.repaired += 1;
@@ -298,6 +377,54 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             given_up.extend(cluster);
         }
     }
+}
+
+/// Radii (rad) of the caps around a cluster tried in the stereographic chart after the rings.
+const CAP_RADII: [f64; 10] = [0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.8, 1.2, 1.8, 2.5];
+
+/// The faces of `mesh` whose three images lie within `radius` of `centre` on S², connected
+/// through edges to `cluster` (which they include), plus the holes they enclose; `None` when
+/// a cluster face is not in the cap or the patch passes `limit` faces.
+fn cap_patch(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    x: &[[f64; 3]],
+    cluster: &[usize],
+    centre: [f64; 3],
+    radius: f64,
+    limit: usize,
+) -> Option<Vec<usize>> {
+    let min_cos = radius.cos();
+    let in_cap = |f: usize| mesh.faces[f].iter().all(|&v| dot(x[v as usize], centre) > min_cos);
+    if !cluster.iter().all(|&f| in_cap(f)) {
+        return None;
+    }
+    let mut inside = vec![false; mesh.num_faces()];
+    let mut patch: Vec<usize> = Vec::new();
+    let mut stack: Vec<usize> = Vec::new();
+    for &f in cluster {
+        if !std::mem::replace(&mut inside[f], true) {
+            patch.push(f);
+            stack.push(f);
+        }
+    }
+    while let Some(f) = stack.pop() {
+        for &e in &conn.face_edges[f] {
+            for &g in &conn.edge_faces[e as usize] {
+                let g = g as usize;
+                if !inside[g] && in_cap(g) {
+                    inside[g] = true;
+                    patch.push(g);
+                    stack.push(g);
+                }
+            }
+        }
+        if patch.len() > limit {
+            return None;
+        }
+    }
+    fill_holes(mesh, conn, &mut inside, &mut patch);
+    (patch.len() <= limit).then_some(patch)
 }
 
 /// Rounds of [`convexify`].
@@ -310,9 +437,8 @@ const CONVEX_ROUNDS: usize = 8;
 /// only when that boundary is convex (Floater's theorem; on the GOAST fingers the solve over
 /// a 3-ring chart left 91 of 240 faces folded).
 /// Returns whether the patch grew.
-fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Vec<usize>) -> bool {
+fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Vec<usize>, limit: usize) -> bool {
     let start = patch.len();
-    let limit = (CHART_MAX_FRACTION * mesh.num_faces() as f64) as usize;
     let mut inside = vec![false; mesh.num_faces()];
     for &f in patch.iter() {
         inside[f] = true;
@@ -364,9 +490,14 @@ fn convexify(mesh: &TriMesh, conn: &Connectivity, x: &[[f64; 3]], patch: &mut Ve
 /// The faces within `rings` rings of `cluster` (through shared vertices), plus every hole they
 /// enclose: the connected components of the other faces (through shared edges) but the
 /// largest. `None` when that passes [`CHART_MAX_FRACTION`] of the faces.
-fn chart_patch(mesh: &TriMesh, conn: &Connectivity, cluster: &[usize], rings: usize) -> Option<Vec<usize>> {
+fn chart_patch(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    cluster: &[usize],
+    rings: usize,
+    limit: usize,
+) -> Option<Vec<usize>> {
     let nf = mesh.num_faces();
-    let limit = (CHART_MAX_FRACTION * nf as f64) as usize;
     let mut inside = vec![false; nf];
     let mut patch: Vec<usize> = Vec::new();
     for &f in cluster {
@@ -445,6 +576,8 @@ fn repair_patch(
     x: &[[f64; 3]],
     patch: &[usize],
     shares: &[f64],
+    projection: Projection,
+    centre: Option<[f64; 3]>,
 ) -> Result<HashMap<u32, [f64; 3]>, ChartFailure> {
     let (verts, sub) = patch_mesh(mesh, patch);
     let sub = sub.ok_or(ChartFailure::NotDisk)?;
@@ -457,25 +590,26 @@ fn repair_patch(
     for &v in &loops[0] {
         is_boundary[v as usize] = true;
     }
-    let mut c = [0.0; 3];
-    for &v in &verts {
-        for (ck, xk) in c.iter_mut().zip(x[v as usize]) {
-            *ck += xk;
-        }
-    }
-    let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-    if l.is_nan() || l <= 0.0 {
-        return Err(ChartFailure::TooWide);
-    }
-    let c = c.map(|t| t / l);
-    let min_cos = CHART_MAX_ANGLE.cos();
+    let c = match centre {
+        Some(c) => c,
+        None => mean_direction(x, &verts).ok_or(ChartFailure::TooWide)?,
+    };
+    let max_angle = match projection {
+        Projection::Gnomonic => CHART_MAX_ANGLE,
+        Projection::Stereographic => STEREO_MAX_ANGLE,
+    };
+    let min_cos = max_angle.cos();
     if verts.iter().any(|&v| dot(x[v as usize], c) < min_cos) {
         return Err(ChartFailure::TooWide);
     }
     let rot = rotation_to_south(c);
-    let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| gnomonic(&rot, x[v as usize])).collect();
-    // each face's share of 4π times the area factor 1/cos³θ at its centroid (the patch's faces
-    // are `patch` in order)
+    let (to_chart, from_chart): (ToChart, FromChart) = match projection {
+        Projection::Gnomonic => (gnomonic, from_gnomonic),
+        Projection::Stereographic => (stereographic, from_stereographic),
+    };
+    let mut uv: Vec<[f64; 2]> = verts.iter().map(|&v| to_chart(&rot, x[v as usize])).collect();
+    // each face's share of 4π times the chart's area factor at its centroid, 1/cos³θ
+    // (gnomonic) or (1 + |u|²)²/4 (stereographic) (the patch's faces are `patch` in order)
     let target_face_areas: Vec<f64> = sub
         .faces
         .iter()
@@ -483,8 +617,14 @@ fn repair_patch(
         .map(|(f, &g)| {
             let [p, q, r] = f.map(|v| uv[v as usize]);
             let m = [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0];
-            let cos = 1.0 / (1.0 + m[0] * m[0] + m[1] * m[1]).sqrt();
-            shares[g] / (cos * cos * cos)
+            let s2 = m[0] * m[0] + m[1] * m[1];
+            match projection {
+                Projection::Gnomonic => {
+                    let cos = 1.0 / (1.0 + s2).sqrt();
+                    shares[g] / (cos * cos * cos)
+                }
+                Projection::Stereographic => shares[g] * (1.0 + s2) * (1.0 + s2) / 4.0,
+            }
         })
         .collect();
     let before = uv.clone();
@@ -501,7 +641,7 @@ fn repair_patch(
         .iter()
         .zip(uv.iter().zip(&before))
         .filter(|(_, (p, q))| p != q)
-        .map(|(&v, (&p, _))| (v, from_gnomonic(&rot, p)))
+        .map(|(&v, (&p, _))| (v, from_chart(&rot, p)))
         .collect();
     let valid = patch.iter().all(|&f| {
         let [a, b, c] = mesh.faces[f].map(|v| moved.get(&v).copied().unwrap_or(x[v as usize]));
@@ -516,6 +656,41 @@ fn repair_patch(
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The normalized mean of the points `x[v]`, `v` in `verts` (None when it vanishes).
+fn mean_direction(x: &[[f64; 3]], verts: &[u32]) -> Option<[f64; 3]> {
+    let mut c = [0.0; 3];
+    for &v in verts {
+        for (ck, xk) in c.iter_mut().zip(x[v as usize]) {
+            *ck += xk;
+        }
+    }
+    let l = dot(c, c).sqrt();
+    (l.is_finite() && l > 0.0).then(|| c.map(|t| t / l))
+}
+
+/// The mean direction of the vertices of the faces `cluster`.
+fn cluster_centre(mesh: &TriMesh, x: &[[f64; 3]], cluster: &[usize]) -> Option<[f64; 3]> {
+    let mut verts: Vec<u32> = cluster.iter().flat_map(|&f| mesh.faces[f]).collect();
+    verts.sort_unstable();
+    verts.dedup();
+    mean_direction(x, &verts)
+}
+
+/// The stereographic chart centred at the point that `rot` ([`rotation_to_south`]) takes to
+/// the south pole, from the north pole onto the equatorial plane, oriented as [`gnomonic`]:
+/// `rot`, then (x₁, −x₂)/(1 − x₃). Conformal; its area factor is (1 + |u|²)²/4.
+fn stereographic(rot: &[[f64; 3]; 3], p: [f64; 3]) -> [f64; 2] {
+    let q = rot.map(|r| dot(r, p));
+    [q[0] / (1.0 - q[2]), -q[1] / (1.0 - q[2])]
+}
+
+/// The inverse of [`stereographic`].
+fn from_stereographic(rot: &[[f64; 3]; 3], uv: [f64; 2]) -> [f64; 3] {
+    let s = uv[0] * uv[0] + uv[1] * uv[1];
+    let q = [2.0 * uv[0] / (1.0 + s), -2.0 * uv[1] / (1.0 + s), (s - 1.0) / (1.0 + s)];
+    [0, 1, 2].map(|k| rot[0][k] * q[0] + rot[1][k] * q[1] + rot[2][k] * q[2])
 }
 
 /// The gnomonic chart centred at the point that `rot` ([`rotation_to_south`]) takes to the
@@ -556,6 +731,86 @@ fn patch_mesh(mesh: &TriMesh, patch: &[usize]) -> (Vec<u32>, Option<TriMesh>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The stereographic chart and its inverse agree over 2.6 rad from the centre, and the
+    /// chart turns the icosphere's faces counter-clockwise there (they are small against the
+    /// circles great circles become).
+    #[test]
+    fn stereographic_chart_round_trip_and_orientation() {
+        let c = [0.6, -0.64, 0.48];
+        let rot = rotation_to_south(c);
+        let mesh = shapespace_geometry::primitives::icosphere(3);
+        let min_cos = STEREO_MAX_ANGLE.cos();
+        let mut tested = 0;
+        for p in mesh.positions.iter().filter(|p| dot(**p, c) > min_cos) {
+            let q = from_stereographic(&rot, stereographic(&rot, *p));
+            assert!((0..3).all(|k| (q[k] - p[k]).abs() < 1e-14), "{p:?} → {q:?}");
+        }
+        for f in &mesh.faces {
+            let x = f.map(|v| mesh.positions[v as usize]);
+            if x.iter().all(|p| dot(*p, c) > min_cos) {
+                let [a, b, d] = x.map(|p| stereographic(&rot, p));
+                let planar = (b[0] - a[0]) * (d[1] - a[1]) - (b[1] - a[1]) * (d[0] - a[0]);
+                assert!(planar > 0.0);
+                assert_eq!(orientation_on_sphere(x[0], x[1], x[2]), 1);
+                tested += 1;
+            }
+        }
+        assert!(tested > 1000, "{tested}");
+    }
+
+    /// A fold inside a patch larger than a hemisphere (every icosphere face within 2.3 rad of
+    /// a vertex c, more than half of the 1,280 faces), which no gnomonic chart holds: the
+    /// patch's boundary is a small circle's polygon around −c, a circle again in the
+    /// stereographic chart at c, so convex, and the Tutte solve unfolds (Floater). One vertex
+    /// next to c reflected through c folds its faces; the stereographic repair leaves none
+    /// folded on S² and keeps the boundary.
+    #[test]
+    fn stereographic_chart_unfolds_a_patch_beyond_a_hemisphere() {
+        let mesh = shapespace_geometry::primitives::icosphere(3);
+        let conn = Connectivity::of(&mesh);
+        let mut x = mesh.positions.clone();
+        let c = x[0];
+        let v = conn.vertex_neighbors(mesh.num_vertices())[0][0] as usize;
+        // v reflected through c along the great circle
+        let d = dot(x[v], c);
+        let p = [0, 1, 2].map(|k| 2.0 * d * c[k] - x[v][k]);
+        x[v] = p;
+        let folded = folded_on_sphere(&mesh, &x);
+        assert!(!folded.is_empty());
+        let cos = 2.3f64.cos();
+        let patch: Vec<usize> = (0..mesh.num_faces())
+            .filter(|&f| mesh.faces[f].iter().all(|&u| dot(mesh.positions[u as usize], c) > cos))
+            .collect();
+        assert!(2 * patch.len() > mesh.num_faces(), "{} faces", patch.len());
+        let areas = face_areas(&mesh);
+        let total: f64 = areas.iter().sum();
+        let shares: Vec<f64> = areas.iter().map(|a| a / total * 4.0 * std::f64::consts::PI).collect();
+        // too wide for a gnomonic chart
+        assert!(matches!(
+            repair_patch(&mesh, &x, &patch, &shares, Projection::Gnomonic, None),
+            Err(ChartFailure::TooWide)
+        ));
+        let Ok(moved) = repair_patch(&mesh, &x, &patch, &shares, Projection::Stereographic, Some(c)) else {
+            panic!("the stereographic chart failed");
+        };
+        assert!(moved.contains_key(&(v as u32)));
+        for (u, q) in moved {
+            x[u as usize] = q;
+        }
+        assert_eq!(folded_on_sphere(&mesh, &x).len(), 0);
+        // the patch's boundary (vertices of faces outside it) did not move
+        for f in (0..mesh.num_faces()).filter(|f| !patch.contains(f)) {
+            for u in mesh.faces[f] {
+                if u as usize != v {
+                    assert_eq!(x[u as usize], mesh.positions[u as usize]);
+                }
+            }
+        }
+        for p in &x {
+            assert!((dot(*p, *p).sqrt() - 1.0).abs() < 1e-14);
+        }
+    }
 
     /// The gnomonic chart and its inverse agree, and the chart turns a face counter-clockwise
     /// exactly when it is positively oriented on S².
