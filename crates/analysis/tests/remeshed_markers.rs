@@ -5,7 +5,7 @@
 //! `carry_markers` (a vertex of the kind at the marker's closest point) and `register_bench`
 //! registers every pose onto the other pose and onto its remeshing with the first stage.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -15,6 +15,7 @@ use shapespace_analysis::registration::{
     registration_area_params, HarmonicParams, Method, MetricParams, Refinement, ZoomOutParams,
 };
 use shapespace_conformal::{BoundaryMarker, CenterMarker, MarkerFile};
+use shapespace_geometry::io::write_mesh;
 use shapespace_geometry::prepare::subdivide_midpoint;
 use shapespace_geometry::quantities::face_edge_lengths;
 use shapespace_geometry::{Connectivity, TriMesh};
@@ -45,17 +46,6 @@ fn remeshing(pose: &TriMesh, seed: u64) -> TriMesh {
         }
     }
     m
-}
-
-fn write_obj(path: &Path, m: &TriMesh) {
-    let mut s = String::new();
-    for p in &m.positions {
-        s += &format!("v {:.17} {:.17} {:.17}\n", p[0], p[1], p[2]);
-    }
-    for f in &m.faces {
-        s += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
-    }
-    std::fs::write(path, s).unwrap();
 }
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -107,7 +97,7 @@ fn markers_carried_to_a_remeshed_wolf_land_at_their_closest_points() {
             // of the closest point's face (0.10–0.26 measured)
             assert!(off < 0.5, "{name} {what}: {off} mean edges off");
         }
-        write_obj(&re.join(format!("{name}.obj")), &remeshed);
+        write_mesh(&re.join(format!("{name}.obj")), &remeshed).unwrap();
         std::fs::copy(class.join(format!("{name}.off")), data.join(format!("{name}.off"))).unwrap();
     }
     let res = register_bench(
