@@ -269,9 +269,9 @@ fn tosca_wolf_flow_starts_from_the_corrected_prolonged_map() {
 /// the optimal map than the single-level flow, which stalls at its Lie start: lower curl part,
 /// lower transport cost, lower area distortion, nearer the Newton OMT map, no fold.
 ///
-/// Measured: Moser correction 4.8 steps per vertex; ‖ζ‖/‖u‖ 1.2e-3 against 1.9e-2, cost 0.0626
-/// against 0.0631, p95 |Υ| 0.241 against 0.547 (median 0.031 / 0.028), max distance to the
-/// Newton OMT map 2.07e-2 against 0.104.
+/// Measured: Moser correction 4.8 steps per vertex; ‖ζ‖/‖u‖ 1.2e-3 against 3.7e-2, cost 0.0626
+/// against 0.0650, p95 |Υ| 0.241 against 0.292 (the Lie map's area-rate correction applied),
+/// max distance to the Newton OMT map 2.07e-2 against 0.164.
 #[test]
 fn bundled_face_starts_from_the_corrected_prolonged_map() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_neutral.obj");
@@ -301,8 +301,11 @@ fn bundled_face_starts_from_the_corrected_prolonged_map() {
         s.final_curl
     );
     assert!(m.final_cost < s.final_cost);
+    // (measured 0.241 against 0.292: the single-level flow starts from the Lie map, whose
+    // area-rate correction already lowers it; 0.33 is the bound this test held the
+    // multiresolution map to when the single level stood at 0.547)
     assert!(
-        dm.abs_area_distortion.p95 < 0.6 * ds.abs_area_distortion.p95,
+        dm.abs_area_distortion.p95 < 0.33 && dm.abs_area_distortion.p95 < ds.abs_area_distortion.p95,
         "{} against {}",
         dm.abs_area_distortion.p95,
         ds.abs_area_distortion.p95

@@ -152,9 +152,13 @@ fn main() {
                 }
                 "lie" => lie_advection_map(&mesh, &Markers::default(), &LieAdvectionParams::default()).map(|map| {
                     let c = &map.info.correction;
-                    let correction = match &c.skipped {
-                        None => format!("correction applied ({} steps, {} halved)", c.steps, c.halvings),
-                        Some(why) => format!("correction not applied: {why}"),
+                    let correction = match (&c.skipped, c.applied) {
+                        (None, _) => format!("correction applied ({} steps, {} halved)", c.steps, c.halvings),
+                        (Some(why), true) => format!(
+                            "area-rate correction applied ({} steps; the Moser flow {why})",
+                            c.area_rate_steps
+                        ),
+                        (Some(why), false) => format!("correction not applied: {why}"),
                     };
                     let repair = match &map.info.fold_repair_error {
                         Some(e) => format!("fold repair failed: {e}"),

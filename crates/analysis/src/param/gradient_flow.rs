@@ -51,7 +51,8 @@
 //! The flow stops when $\|\zeta\|/\|u\|$ (L² norms on $\Omega_0$) falls below `tolerance`,
 //! after `max_steps` steps, or when a step halved below [`MIN_TIME_STEP`] × `max_time_step`
 //! still folds. On real meshes started from the Lie map the last happens within a few steps: a
-//! sliver left by the Lie map's fold repair collapses at any step size (docs/benchmarks.md).
+//! face beside the few that the Lie map's fold repair leaves 40–60 times their area collapses
+//! at any step size (docs/benchmarks.md, decision 0044).
 //!
 //! # Multiresolution
 //! Dominitz & Tannenbaum accelerate the flow by a multiresolution scheme (spherical wavelets on
