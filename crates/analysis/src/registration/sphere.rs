@@ -36,6 +36,7 @@ use shapespace_conformal::sphere::check_sphere;
 use shapespace_conformal::sphere::repair::rotation_to_south;
 use shapespace_conformal::sphere_map;
 use shapespace_geometry::topology::{mesh_report, MeshClass};
+use shapespace_geometry::vec3::{cross, dot, sub};
 use shapespace_geometry::{Connectivity, TriMesh};
 use shapespace_omt::sphere::fibonacci_sphere;
 
@@ -288,19 +289,6 @@ fn check_sphere_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landma
     Ok(())
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
 /// det(a, b, c) = det(a, b − a, c − a) for points of S²: from the edge vectors, so that the
 /// value (about the square of the edge length for a small triangle) keeps its relative
 /// precision (a·(b × c) would lose it to cancellation: b × c is nearly tangent).

@@ -23,21 +23,8 @@ use shapespace_analysis::registration::{
 };
 use shapespace_conformal::MarkerFile;
 use shapespace_geometry::quantities::face_areas;
+use shapespace_geometry::vec3::{cross, dot, sub};
 use shapespace_geometry::{Connectivity, TriMesh};
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 
 /// The metric's flipped faces (registration/metrics.rs), recomputed face by face.
 fn metric_flips(source: &TriMesh, target: &TriMesh, reg: &Registration) -> (Vec<bool>, Vec<[f64; 2]>) {

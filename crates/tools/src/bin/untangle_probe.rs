@@ -20,21 +20,8 @@ use shapespace_analysis::registration::{
 };
 use shapespace_conformal::MarkerFile;
 use shapespace_geometry::quantities::face_areas;
+use shapespace_geometry::vec3::{cross, norm, sub};
 use shapespace_geometry::TriMesh;
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
 
 fn with_points(t: &TriMesh, base: &Registration, pts: &[(u32, [f64; 3])]) -> Registration {
     let mut reg = base.clone();
