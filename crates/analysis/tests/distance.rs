@@ -526,10 +526,17 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
             path
         })
         .collect();
-    let options = DistancesOptions::default();
+    // (the bookkeeping, not the accuracy, is under test: each shape's measures are coarsened
+    // so that a pair costs a few hundredths of a second; the resume identity keeps them)
+    let coarse = DistancesOptions {
+        target_points: Some(600),
+        source_faces: Some(1200),
+        ..DistancesOptions::default()
+    };
+    let options = coarse.clone();
     let resume = DistancesOptions {
         resume: true,
-        ..DistancesOptions::default()
+        ..coarse.clone()
     };
     let reference = run_distances(&files, &dir.join("reference"), &options, &|_, _, _| {}).unwrap();
     assert!(reference.report.resumed.is_none());
@@ -633,7 +640,7 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
             symmetrize: true,
             ..PairwiseOptions::default()
         },
-        ..DistancesOptions::default()
+        ..coarse.clone()
     };
     let run = run_distances(&swapped, &out, &both, &|_, _, _| {}).unwrap();
     assert_eq!(resumed(&run).pairs, 1, "{:?}", resumed(&run));
@@ -661,7 +668,7 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
             center: Some(CenterMarker::Vertex(4842)),
             ..Default::default()
         },
-        ..DistancesOptions::default()
+        ..coarse.clone()
     };
     let run = run_distances(&files[..2], &out, &moved, &|_, _, _| {}).unwrap();
     assert_eq!(resumed(&run).pairs, 0, "{:?}", resumed(&run));
@@ -724,7 +731,7 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
             },
             ..PairwiseOptions::default()
         },
-        ..DistancesOptions::default()
+        ..coarse.clone()
     };
     let run = run_distances(&files[..2], &out, &looser, &|_, _, _| {}).unwrap();
     assert_eq!(resumed(&run).pairs, 0);
@@ -741,7 +748,7 @@ fn resumed_runs_take_the_earlier_pairs_and_give_the_fresh_runs_results() {
             warm_start: true,
             ..PairwiseOptions::default()
         },
-        ..DistancesOptions::default()
+        ..coarse.clone()
     };
     let error = run_distances(&files, &out, &warm, &|_, _, _| {})
         .unwrap_err()
