@@ -365,6 +365,7 @@ pub fn sphere_lie_map(mesh: &TriMesh, params: &SphereLieParams) -> Result<Sphere
                 Some(before) => SphereFoldRepairInfo {
                     clusters: before.clusters + repair.clusters,
                     repaired: before.repaired + repair.repaired,
+                    passes: before.passes + repair.passes,
                     vertices_moved: before.vertices_moved + repair.vertices_moved,
                     max_rings: before.max_rings.max(repair.max_rings),
                     charts_not_disk: before.charts_not_disk + repair.charts_not_disk,

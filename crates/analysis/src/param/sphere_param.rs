@@ -194,6 +194,10 @@ pub(crate) fn folded_on_sphere(mesh: &TriMesh, x: &[[f64; 3]]) -> Vec<usize> {
         .collect()
 }
 
+/// Passes of the chart repair over the clusters left: each pass after the first tries the
+/// clusters the previous one gave up, whose surroundings the repairs around them changed, and
+/// runs only while the previous pass lowered the folds.
+const MAX_PASSES: usize = 4;
 /// Rings of faces around a fold cluster in its first chart; ×1.5 after each failure.
 const CHART_RINGS: usize = 3;
 /// A chart holds at most this fraction of the faces.
@@ -222,8 +226,11 @@ enum Projection {
 /// What the fold repair of [`area_preserving_sphere_map`] did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SphereFoldRepairInfo {
-    /// Clusters of folded faces (connected through shared vertices) found.
+    /// Clusters of folded faces (connected through shared vertices) found, over all passes.
     pub clusters: usize,
+    /// Passes over the clusters (a cluster given up in one pass is tried again in the next,
+    /// while the passes lower the folds; at most 4).
+    pub passes: usize,
     /// Clusters whose chart repair was kept.
     pub repaired: usize,
     /// Vertices moved.
@@ -273,8 +280,12 @@ enum ChartFailure {
 /// centred at the cluster's mean direction, up to half the faces and 2.6 rad from that centre
 /// (conformal, so the retraction's floors scale by (1 + |u|²)²/4; a large chart's boundary,
 /// nearly a circle around the antipode, stays nearly a circle, so the Tutte solve unfolds);
-/// its result passes the same exact test on S² (on the GOAST cacti and Sumner cats the second
-/// pass unfolds every cluster the gnomonic charts left, decision 0045).
+/// its result passes the same exact test on S² (on the GOAST cacti the stereographic pass
+/// unfolds every cluster the gnomonic charts left, decision 0045). The planar repair untangles a
+/// whole-patch Tutte solve that still folds (a patch's boundary stays where the map put it, and
+/// need not be convex). Clusters given up are tried again in a further pass, up to
+/// [`MAX_PASSES`], while the passes lower the folds: the repairs around a cluster change its
+/// surroundings (decision 0048).
 pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
@@ -283,11 +294,23 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
     let total: f64 = areas.iter().sum();
     let shares: Vec<f64> = areas.iter().map(|a| a / total * 4.0 * std::f64::consts::PI).collect();
     let mut given_up: HashSet<usize> = HashSet::new();
+    // the folds at the start of the pass; a pass that leaves fewer is followed by another
+    let mut pass_start = usize::MAX;
     loop {
         let bad = folded_on_sphere(mesh, x);
         let Some(&f0) = bad.iter().find(|f| !given_up.contains(f)) else {
-            return info;
+            if bad.is_empty() || bad.len() >= pass_start || info.passes == MAX_PASSES {
+                return info;
+            }
+            info.passes += 1;
+            pass_start = bad.len();
+            given_up.clear();
+            continue;
         };
+        if pass_start == usize::MAX {
+            info.passes = 1;
+            pass_start = bad.len();
+        }
         info.clusters += 1;
         let is_bad: HashSet<usize> = bad.iter().copied().collect();
         let mut cluster = vec![f0];

@@ -38,9 +38,14 @@
 //! from the input positions) and k doubles. Once R holds every interior vertex, the fixed
 //! vertices are exactly the boundary polygon, which is convex, and Floater's theorem (strictly
 //! positive weights, convex boundary polygon, boundary in order) makes the solution an
-//! embedding: the loop ends after at most ⌈log₂(diameter in rings)⌉ + 1 rounds. In floating
-//! point, a whole-disk solve that still folds is retried once with [`RepairWeights::Surface`];
-//! if that folds too, the repair fails with a typed error instead of returning a folded map.
+//! embedding: the loop ends after at most ⌈log₂(diameter in rings)⌉ + 1 rounds. A whole-disk
+//! solve that still folds (floating point, or a boundary that is not convex: the sphere's chart
+//! repair fixes the boundary of a patch where the map has put it) is untangled by the kernel
+//! moves above, then retried with [`RepairWeights::Surface`] and untangled again; if folds
+//! remain, the repair fails with a typed error instead of returning a folded map. (The
+//! charts of the Sumner cats' sphere maps: whole-patch solves leave 1–100 faces folded, and
+//! the kernel moves undo a few of them completely; with the sphere repair's second passes
+//! this unfolds cats 0002 and 0006, `docs/decisions/0048-untangle-the-whole-patch-solve.md`.)
 //!
 //! Retraction: the Tutte solve moves the whole region (its displacement solves a Laplace-like
 //! equation with sources at the folded stars, so it spreads over R). Afterwards, Gauss–Seidel
@@ -190,6 +195,9 @@ pub struct FoldRepairInfo {
     pub whole_disk: bool,
     /// Whether the whole-disk fallback to surface weights was used.
     pub surface_fallback: bool,
+    /// The kernel untangling of the last whole-disk solve that still folded (`None` when no
+    /// such solve ran).
+    pub whole_disk_untangle: Option<UntangleInfo>,
     /// Retraction sweeps run.
     pub retraction_sweeps: usize,
     /// Vertices whose position changed.
@@ -404,6 +412,18 @@ pub fn repair_folds_with(
     let mut region_size = 0;
     let mut rings = params.initial_rings.max(1);
     let mut solved = ComponentSolutions::new();
+    // the kernel moves on a whole-disk solve that still folds (None when untangling is off)
+    let untangle_whole = |candidate: &mut Vec<[f64; 2]>| {
+        (params.untangle_sweeps > 0).then(|| {
+            untangle_kernels(
+                &mesh.faces,
+                &conn.vertex_faces,
+                is_boundary,
+                candidate,
+                params.untangle_sweeps,
+            )
+        })
+    };
     let mut result = loop {
         info.rounds += 1;
         info.rings = rings;
@@ -420,6 +440,16 @@ pub fn repair_folds_with(
         }
         if whole {
             info.whole_disk = true;
+            // (a boundary that is not convex, as in the sphere's charts, or floating point:
+            // the kernel moves often undo the few folds left)
+            let mut candidate = candidate;
+            if let Some(u) = untangle_whole(&mut candidate) {
+                info.whole_disk_untangle = Some(u);
+                bad = repairable(&candidate);
+                if bad.is_empty() {
+                    break candidate;
+                }
+            }
             if info.weights == RepairWeights::Layout && !info.surface_fallback {
                 info.surface_fallback = true;
                 weights = tutte_weights(
@@ -430,10 +460,17 @@ pub fn repair_folds_with(
                     uv,
                     RepairWeights::Surface,
                 )?;
-                let candidate = solve_region(&neighbors, &weights, &in_region, &original, None)?;
+                let mut candidate = solve_region(&neighbors, &weights, &in_region, &original, None)?;
                 bad = repairable(&candidate);
                 if bad.is_empty() {
                     break candidate;
+                }
+                if let Some(u) = untangle_whole(&mut candidate) {
+                    info.whole_disk_untangle = Some(u);
+                    bad = repairable(&candidate);
+                    if bad.is_empty() {
+                        break candidate;
+                    }
                 }
             }
             return Err(ConformalError::FoldRepair {
