@@ -10,10 +10,13 @@
 //!    vertex v of the source (branch and bound, vertices in Morton order so each search starts
 //!    from the previous answer). ℓ_k(x) = ⟨x, y_k⟩ + h_k is a minorant of
 //!    u_h = max_i ℓ_i for any k, and ℓ_j − ℓ_k is affine, so a site j can own a point of T only
-//!    if ℓ_j − ℓ_k ≥ 0 at some corner of T. The tree lists the sites passing this test for
-//!    k = k_a (corner a; a margin of 1e-10 keeps it conservative), and the list is filtered by
-//!    the same test for k_b and k_c. The candidates are a superset of the cells meeting T
-//!    (1.8–8 per triangle in the measured cases).
+//!    if ℓ_j − ℓ_k ≥ 0 at some corner of T. The candidates are the sites passing this test
+//!    for k = k_a (corner a; a margin of 1e-10 keeps it conservative), filtered by the same test
+//!    for k_b and k_c: a superset of the cells meeting T (1.8–8 per triangle in the measured
+//!    cases). The sites passing the first test are found per vertex, not per triangle: one tree
+//!    query per vertex v lists the sites within s_v of u_h(v), s_v the largest gap
+//!    u_h(v) − ℓ_{k_a}(v) over v's triangles, and a triangle tests the union of its corners'
+//!    lists.
 //! 2. **Clipping.** Each candidate's piece is T clipped by the half-spaces
 //!    ⟨x, y_i − y_j⟩ ≥ h_j − h_i of the other candidates (largest ℓ_j at T's centroid first, so that
 //!    losing candidates are dropped after one or two clips). Within P this is the 2D power
@@ -514,7 +517,10 @@ impl SiteTree {
         stack.push(0);
         while let Some(id) = stack.pop() {
             let id = id as usize;
-            if self.upper_bound(id, c, bounds) < level {
+            // (the test upper_bound(id, c) ≥ level without divisions or square roots)
+            let g = bounds.slope[id];
+            let u = [c[0] + g[0], c[1] + g[1], c[2] + g[2]];
+            if !self.cap_reaches(id, u, dot(u, u), level - bounds.offset[id]) {
                 continue;
             }
             let n = &self.nodes[id];
@@ -522,52 +528,6 @@ impl SiteTree {
                 for &j in &self.order[n.start as usize..n.end as usize] {
                     if dot(c, self.points[j as usize]) + heights[j as usize] >= level {
                         out.push(j);
-                    }
-                }
-            } else {
-                stack.extend([n.left, n.right]);
-            }
-        }
-    }
-
-    /// Every site j that beats the affine minorant ℓ_k of u_h somewhere on the triangle with
-    /// corners `corners`, given `lower[v]` = ℓ_k(corner v): since ℓ_j − ℓ_k is affine, that is
-    /// max_v ⟨corner_v, y_j⟩ + h_j − lower[v] ≥ −margin. Output as (⟨c, y_j⟩ + h_j, j) for the
-    /// centroid c.
-    #[allow(clippy::too_many_arguments)]
-    fn beating(
-        &self,
-        corners: &[[f64; 3]; 3],
-        lower: [f64; 3],
-        margin: f64,
-        centroid: [f64; 3],
-        heights: &[f64],
-        bounds: &NodeBounds,
-        stack: &mut Vec<u32>,
-        out: &mut Vec<(f64, u32)>,
-    ) {
-        out.clear();
-        stack.clear();
-        stack.push(0);
-        while let Some(id) = stack.pop() {
-            let id = id as usize;
-            let (g, offset) = (bounds.slope[id], bounds.offset[id]);
-            let reaches = |v: usize| {
-                let u = [corners[v][0] + g[0], corners[v][1] + g[1], corners[v][2] + g[2]];
-                self.cap_reaches(id, u, dot(u, u), lower[v] - offset - margin)
-            };
-            if !(reaches(0) || reaches(1) || reaches(2)) {
-                continue;
-            }
-            let n = &self.nodes[id];
-            if n.left == NONE {
-                for &i in &self.order[n.start as usize..n.end as usize] {
-                    let (y, h) = (self.points[i as usize], heights[i as usize]);
-                    let gain = (0..3)
-                        .map(|v| dot(corners[v], y) + h - lower[v])
-                        .fold(f64::NEG_INFINITY, f64::max);
-                    if gain >= -margin {
-                        out.push((dot(centroid, y) + h, i));
                     }
                 }
             } else {
@@ -603,8 +563,26 @@ struct ChunkOut {
     pieces: Vec<CellPiece>,
 }
 
+/// Per source vertex, the sites that may own a point of its triangles (compressed rows).
+#[derive(Default)]
+struct VertexLists {
+    start: Vec<u32>,
+    sites: Vec<u32>,
+}
+
+impl VertexLists {
+    fn of(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        &self.sites[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+}
+
+/// The candidate test's margin for a minorant of height h (keeps it conservative).
+fn candidate_margin(h: f64) -> f64 {
+    1e-10 * (1.0 + h.abs())
+}
+
 struct Scratch {
-    stack: Vec<u32>,
     cand: Vec<(f64, u32)>,
     poly: Vec<([f64; 3], i64)>,
     next: Vec<([f64; 3], i64)>,
@@ -719,8 +697,9 @@ impl<'a> SphereIntegrator<'a> {
         // previous vertex's site)
         let nv = self.measure.vertices.len();
         let mut vertex_best = vec![0u32; nv];
+        let mut lists = VertexLists::default();
         if !self.brute_force && !self.points.is_empty() {
-            let found: Vec<Vec<(u32, u32)>> = self
+            let found: Vec<Vec<(u32, u32, f64)>> = self
                 .vertex_order
                 .par_chunks(CHUNK)
                 .map(|chunk| {
@@ -729,25 +708,27 @@ impl<'a> SphereIntegrator<'a> {
                     chunk
                         .iter()
                         .map(|&v| {
-                            let (_, k) =
+                            let (value, k) =
                                 self.tree
                                     .best(self.measure.vertices[v as usize], guess, heights, &bounds, &mut stack);
                             guess = k;
-                            (v, k)
+                            (v, k, value)
                         })
                         .collect()
                 })
                 .collect();
-            for (v, k) in found.into_iter().flatten() {
+            let mut vertex_value = vec![0.0; nv];
+            for (v, k, value) in found.into_iter().flatten() {
                 vertex_best[v as usize] = k;
+                vertex_value[v as usize] = value;
             }
+            lists = self.vertex_lists(heights, &bounds, &vertex_best, &vertex_value);
         }
         self.triangle_order
             .par_chunks(CHUNK)
             .map(|chunk| {
                 let mut out = ChunkOut::default();
                 let mut scratch = Scratch {
-                    stack: Vec::new(),
                     cand: Vec::new(),
                     poly: Vec::new(),
                     next: Vec::new(),
@@ -757,8 +738,8 @@ impl<'a> SphereIntegrator<'a> {
                         t as usize,
                         heights,
                         lo,
-                        &bounds,
                         &vertex_best,
+                        &lists,
                         &mut scratch,
                         &mut out,
                         keep_pieces,
@@ -767,6 +748,68 @@ impl<'a> SphereIntegrator<'a> {
                 out
             })
             .collect()
+    }
+
+    /// Per source vertex v, every site j with ℓ_j(v) ≥ u_h(v) − s_v, where s_v is the largest
+    /// u_h(v) − ℓ_{k_a}(v) + margin over the triangles T at v (k_a the best site at T's first
+    /// corner a): a site passing T's candidate test ℓ_j(w) ≥ ℓ_{k_a}(w) − margin at some corner
+    /// w is in w's list, so the union of T's three lists filtered by that test is exactly the
+    /// candidate set (one tree query per vertex with one corner, not one per triangle with three;
+    /// 1e-12 more than s_v against rounding).
+    fn vertex_lists(
+        &self,
+        heights: &[f64],
+        bounds: &NodeBounds,
+        vertex_best: &[u32],
+        vertex_value: &[f64],
+    ) -> VertexLists {
+        let nv = self.measure.vertices.len();
+        let mut slack = vec![f64::NEG_INFINITY; nv];
+        for tri in &self.measure.triangles {
+            let ka = vertex_best[tri[0] as usize] as usize;
+            let margin = candidate_margin(heights[ka]);
+            for &v in tri {
+                let v = v as usize;
+                let lower = dot(self.measure.vertices[v], self.points[ka]) + heights[ka];
+                slack[v] = slack[v].max(vertex_value[v] - lower + margin);
+            }
+        }
+        let found: Vec<Vec<(u32, Vec<u32>)>> = self
+            .vertex_order
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let (mut stack, mut out) = (Vec::new(), Vec::new());
+                chunk
+                    .iter()
+                    .map(|&v| {
+                        let level = vertex_value[v as usize] - slack[v as usize] - 1e-12;
+                        self.tree.above(
+                            self.measure.vertices[v as usize],
+                            level,
+                            heights,
+                            bounds,
+                            &mut stack,
+                            &mut out,
+                        );
+                        (v, out.clone())
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut per_vertex = vec![Vec::new(); nv];
+        for (v, list) in found.into_iter().flatten() {
+            per_vertex[v as usize] = list;
+        }
+        let mut lists = VertexLists {
+            start: Vec::with_capacity(nv + 1),
+            sites: Vec::new(),
+        };
+        lists.start.push(0);
+        for list in per_vertex {
+            lists.sites.extend(list);
+            lists.start.push(lists.sites.len() as u32);
+        }
+        lists
     }
 
     /// y_i − y_j of the unit vectors `points + radial`: the difference of the stored points is
@@ -783,8 +826,8 @@ impl<'a> SphereIntegrator<'a> {
         t: usize,
         heights: &[f64],
         lo: Option<&[f64]>,
-        bounds: &NodeBounds,
         vertex_best: &[u32],
+        lists: &VertexLists,
         s: &mut Scratch,
         out: &mut ChunkOut,
         keep_pieces: bool,
@@ -807,19 +850,26 @@ impl<'a> SphereIntegrator<'a> {
             // other corners give two more necessary conditions, checked on the list
             let corners = [a, b, c];
             let [ka, kb, kc] = tri.map(|v| vertex_best[v as usize]);
-            let scale = 1.0 + heights[ka as usize].abs();
-            let margin = 1e-10 * scale;
+            let margin = candidate_margin(heights[ka as usize]);
             let lower_of = |k: u32| corners.map(|v| dot(v, self.points[k as usize]) + heights[k as usize]);
-            self.tree.beating(
-                &corners,
-                lower_of(ka),
-                margin,
-                centroid,
-                heights,
-                bounds,
-                &mut s.stack,
-                &mut s.cand,
-            );
+            // the sites beating ℓ_ka somewhere on T (as far as the margin goes): each is in its
+            // corner's list ([`Self::vertex_lists`])
+            let lower = lower_of(ka);
+            s.cand.clear();
+            for v in tri {
+                for &j in lists.of(v) {
+                    if s.cand.iter().any(|e| e.1 == j) {
+                        continue;
+                    }
+                    let (y, h) = (self.points[j as usize], heights[j as usize]);
+                    let gain = (0..3)
+                        .map(|w| dot(corners[w], y) + h - lower[w])
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    if gain >= -margin {
+                        s.cand.push((dot(centroid, y) + h, j));
+                    }
+                }
+            }
             for kv in [kb, kc] {
                 if kv != ka {
                     let lower = lower_of(kv);
@@ -1069,43 +1119,34 @@ mod tests {
         }
     }
 
-    /// The tree's list of sites beating a minorant somewhere on a triangle is exactly the
-    /// brute-force list of the same test (the tilted bounds prune, never decide).
+    /// The tree's list of the sites above a level at a point is exactly the brute-force list
+    /// (the tilted bounds prune, never decide), at levels just below the maximum.
     #[test]
-    fn beating_lists_exactly_the_sites_passing_the_test() {
+    fn above_lists_exactly_the_sites_above_the_level() {
         let points = random_sphere_points(3000, 43);
         let tree = SiteTree::new(&points);
-        let (vertices, triangles) = icosphere(4);
         for (jitter, seed) in [(0.0, 4), (1e-3, 5), (0.05, 6)] {
             let heights = varying_heights(&points, jitter, seed);
             let bounds = tree.height_bounds(&heights);
             let (mut stack, mut out) = (Vec::new(), Vec::new());
             let mut total = 0;
-            for (t, tri) in triangles.iter().enumerate() {
-                let corners = tri.map(|v| vertices[v as usize]);
-                let centroid = [0, 1, 2].map(|d| (corners[0][d] + corners[1][d] + corners[2][d]) / 3.0);
-                // a minorant from a site that is not the best one: longer lists
-                let k = (t * 7) % 3000;
-                let lower = corners.map(|v| dot(v, points[k]) + heights[k] + 0.01);
-                let margin = 1e-10;
-                tree.beating(
-                    &corners, lower, margin, centroid, &heights, &bounds, &mut stack, &mut out,
-                );
-                let mut found: Vec<u32> = out.iter().map(|e| e.1).collect();
-                found.sort_unstable();
+            let queries = queries();
+            for (q, c) in queries.iter().enumerate() {
+                let values: Vec<f64> = points.iter().zip(&heights).map(|(y, h)| dot(*c, *y) + h).collect();
+                let top = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let level = top - [1e-4, 1e-3, 1e-2][q % 3];
+                tree.above(*c, level, &heights, &bounds, &mut stack, &mut out);
+                out.sort_unstable();
                 let expected: Vec<u32> = (0..points.len() as u32)
-                    .filter(|&j| {
-                        let (y, h) = (points[j as usize], heights[j as usize]);
-                        (0..3).any(|v| dot(corners[v], y) + h - lower[v] >= -margin)
-                    })
+                    .filter(|&j| values[j as usize] >= level)
                     .collect();
-                assert_eq!(found, expected, "triangle {t}, jitter {jitter}");
-                total += found.len();
+                assert_eq!(out, expected, "query {q}, jitter {jitter}");
+                total += out.len();
             }
             assert!(
-                total > triangles.len(),
-                "{total} sites listed in {} triangles",
-                triangles.len()
+                total > 2 * queries.len(),
+                "{total} sites listed at {} points",
+                queries.len()
             );
         }
     }
