@@ -303,30 +303,9 @@ impl SiteTree {
         [0, 1, 2].map(|d| g[0] * frame[0][d] + g[1] * frame[1][d] + g[2] * frame[2][d])
     }
 
-    /// An upper bound of ⟨c, y⟩ + h over the node's sites: with u = c + g (g the node's
-    /// slope), |u| cos(max(0, θ − α)) + max_j (h_j − ⟨g, y_j⟩), θ the angle from u to the cap's
-    /// axis, α its radius.
-    fn upper_bound(&self, id: usize, c: [f64; 3], bounds: &NodeBounds) -> f64 {
-        let n = &self.nodes[id];
-        let g = bounds.slope[id];
-        let u = [c[0] + g[0], c[1] + g[1], c[2] + g[2]];
-        let r = norm(u);
-        if r == 0.0 {
-            return 1e-12 + bounds.offset[id];
-        }
-        let cos_t = dot(u, n.axis) / r;
-        let best = if cos_t >= n.cos_radius {
-            1.0
-        } else {
-            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-            cos_t * n.cos_radius + sin_t * n.sin_radius
-        };
-        r * best + 1e-12 + bounds.offset[id]
-    }
-
     /// Whether max ⟨v, y⟩ over the node's cap (`norm2` = |v|²) can reach `level`: the test
-    /// |v| cos(max(0, θ − α)) + 1e-12 ≥ level of [`Self::upper_bound`] without divisions or
-    /// square roots: with d = ⟨v, axis⟩ = |v| cos θ, θ ≤ α is d ≥ |v| cos α, and otherwise the
+    /// |v| cos(max(0, θ − α)) + 1e-12 ≥ level (θ the angle from v to the cap's axis, α its
+    /// radius) without divisions or square roots: with d = ⟨v, axis⟩ = |v| cos θ, θ ≤ α is d ≥ |v| cos α, and otherwise the
     /// maximum d cos α + √(|v|² − d²) sin α reaches l when l − d cos α ≤ 0 or
     /// (|v|² − d²) sin² α ≥ (l − d cos α)².
     fn cap_reaches(&self, id: usize, v: [f64; 3], norm2: f64, level: f64) -> bool {
@@ -352,6 +331,15 @@ impl SiteTree {
         rest <= 0.0 || (norm2 - d * d) * n.sin_radius * n.sin_radius >= rest * rest
     }
 
+    /// Whether ⟨c, y⟩ + h can reach `level` on the node's sites: with u = c + g (g the node's
+    /// slope), ⟨c, y⟩ + h ≤ max ⟨u, y⟩ over the cap + max_j (h_j − ⟨g, y_j⟩)
+    /// ([`Self::cap_reaches`]).
+    fn tilted_reaches(&self, id: usize, c: [f64; 3], level: f64, bounds: &NodeBounds) -> bool {
+        let g = bounds.slope[id];
+        let u = [c[0] + g[0], c[1] + g[1], c[2] + g[2]];
+        self.cap_reaches(id, u, dot(u, u), level - bounds.offset[id])
+    }
+
     /// max_i ⟨c, y_i⟩ + h_i and its site (the smallest index among equal values), branch and
     /// bound from the site `guess`'s value.
     fn best(
@@ -366,9 +354,10 @@ impl SiteTree {
         let mut best = (dot(c, self.points[g]) + heights[g], guess);
         stack.clear();
         stack.push((0, f64::INFINITY));
-        // (each node's bound computed once, when its parent pushes it)
-        while let Some((id, bound)) = stack.pop() {
-            if bound < best.0 {
+        // (children are tested against the running maximum when pushed and again when popped,
+        // with the division-free cap test; the key only orders them)
+        while let Some((id, _)) = stack.pop() {
+            if id != 0 && !self.tilted_reaches(id as usize, c, best.0, bounds) {
                 continue;
             }
             let n = &self.nodes[id as usize];
@@ -382,14 +371,15 @@ impl SiteTree {
             } else {
                 // the more promising child last, so it is popped first
                 let (l, r) = (n.left, n.right);
-                let (bl, br) = (
-                    self.upper_bound(l as usize, c, bounds),
-                    self.upper_bound(r as usize, c, bounds),
-                );
-                if bl > br {
-                    stack.extend([(r, br), (l, bl)]);
+                let key = |k: u32| {
+                    let (g, m) = (bounds.slope[k as usize], &self.nodes[k as usize]);
+                    dot([c[0] + g[0], c[1] + g[1], c[2] + g[2]], m.axis) + bounds.offset[k as usize]
+                };
+                let (kl, kr) = (key(l), key(r));
+                if kl > kr {
+                    stack.extend([(r, kr), (l, kl)]);
                 } else {
-                    stack.extend([(l, bl), (r, br)]);
+                    stack.extend([(l, kl), (r, kr)]);
                 }
             }
         }
@@ -517,10 +507,7 @@ impl SiteTree {
         stack.push(0);
         while let Some(id) = stack.pop() {
             let id = id as usize;
-            // (the test upper_bound(id, c) ≥ level without divisions or square roots)
-            let g = bounds.slope[id];
-            let u = [c[0] + g[0], c[1] + g[1], c[2] + g[2]];
-            if !self.cap_reaches(id, u, dot(u, u), level - bounds.offset[id]) {
+            if !self.tilted_reaches(id, c, level, bounds) {
                 continue;
             }
             let n = &self.nodes[id];
