@@ -4,14 +4,19 @@
 //! 3D power cell with weight w_i = 2h_i + |y_i|². Per flat source triangle T (plane P):
 //!
 //! 1. **Candidates.** A bounding-volume tree over the sites (spherical caps, built once per
-//!    target; its height bounds refreshed per evaluation) gives the best site k_v at every
+//!    target; per evaluation each node's heights are bounded by a fitted affine function,
+//!    h_j ≤ ⟨g, y_j⟩ + b, so ⟨c, y⟩ + h is bounded by the cap's bound of ⟨c + g, y⟩ plus b:
+//!    tight where the heights vary smoothly but strongly) gives the best site k_v at every
 //!    vertex v of the source (branch and bound, vertices in Morton order so each search starts
 //!    from the previous answer). ℓ_k(x) = ⟨x, y_k⟩ + h_k is a minorant of
 //!    u_h = max_i ℓ_i for any k, and ℓ_j − ℓ_k is affine, so a site j can own a point of T only
-//!    if ℓ_j − ℓ_k ≥ 0 at some corner of T. The tree lists the sites passing this test for
-//!    k = k_a (corner a; a margin of 1e-10 keeps it conservative), and the list is filtered by
-//!    the same test for k_b and k_c. The candidates are a superset of the cells meeting T
-//!    (1.8–8 per triangle in the measured cases).
+//!    if ℓ_j − ℓ_k ≥ 0 at some corner of T. The candidates are the sites passing this test
+//!    for k = k_a (corner a; a margin of 1e-10 keeps it conservative), filtered by the same test
+//!    for k_b and k_c: a superset of the cells meeting T (1.8–8 per triangle in the measured
+//!    cases). The sites passing the first test are found per vertex, not per triangle: one tree
+//!    query per vertex v lists the sites within s_v of u_h(v), s_v the largest gap
+//!    u_h(v) − ℓ_{k_a}(v) over v's triangles, and a triangle tests the union of its corners'
+//!    lists.
 //! 2. **Clipping.** Each candidate's piece is T clipped by the half-spaces
 //!    ⟨x, y_i − y_j⟩ ≥ h_j − h_i of the other candidates (largest ℓ_j at T's centroid first, so that
 //!    losing candidates are dropped after one or two clips). Within P this is the 2D power
@@ -97,12 +102,34 @@ pub struct CellPiece {
 const LEAF: usize = 8;
 const NONE: u32 = u32::MAX;
 
+/// Per node of a [`SiteTree`], for given heights: a slope g and the offset
+/// max_j h_j − ⟨g, y_j⟩ over the node's sites ([`SiteTree::height_bounds`]).
+#[derive(Clone, Debug)]
+pub(crate) struct NodeBounds {
+    slope: Vec<[f64; 3]>,
+    offset: Vec<f64>,
+}
+
+/// Two unit vectors completing the unit vector `a` to an orthonormal basis.
+fn tangent_basis(a: [f64; 3]) -> [[f64; 3]; 2] {
+    // the coordinate axis least aligned with a
+    let k = (0..3).min_by(|&i, &j| a[i].abs().total_cmp(&a[j].abs())).unwrap_or(0);
+    let mut e = [0.0; 3];
+    e[k] = 1.0;
+    let t = cross(a, e);
+    let r = norm(t);
+    let t = [t[0] / r, t[1] / r, t[2] / r];
+    [t, cross(a, t)]
+}
+
 #[derive(Clone, Debug)]
 struct Node {
     /// A spherical cap holding the node's sites: unit axis, cos and sin of its angular radius.
     axis: [f64; 3],
     cos_radius: f64,
     sin_radius: f64,
+    /// An orthonormal basis of the plane orthogonal to `axis` (the heights' slope fit).
+    tangents: [[f64; 3]; 2],
     start: u32,
     end: u32,
     left: u32,
@@ -159,11 +186,13 @@ impl SiteTree {
             ([0.0, 0.0, 1.0], -1.0)
         };
         let sin_radius = (1.0 - cos_radius * cos_radius).max(0.0).sqrt();
+        let tangents = tangent_basis(axis);
         let id = self.nodes.len();
         self.nodes.push(Node {
             axis,
             cos_radius,
             sin_radius,
+            tangents,
             start: start as u32,
             end: end as u32,
             left: NONE,
@@ -188,93 +217,178 @@ impl SiteTree {
         id as u32
     }
 
-    /// Maximum height per node (children come after their parent).
-    fn height_bounds(&self, heights: &[f64]) -> Vec<f64> {
-        let mut bound = vec![f64::NEG_INFINITY; self.nodes.len()];
-        for id in (0..self.nodes.len()).rev() {
-            let n = &self.nodes[id];
-            bound[id] = if n.left == NONE {
-                self.order[n.start as usize..n.end as usize]
-                    .iter()
-                    .map(|&i| heights[i as usize])
-                    .fold(f64::NEG_INFINITY, f64::max)
-            } else {
-                bound[n.left as usize].max(bound[n.right as usize])
-            };
+    /// Per node, a slope g fitted to the heights by least squares, h_j ≈ h₀ + ⟨g, y_j⟩
+    /// ([`Self::fitted_slope`]), and the bound max_j h_j − ⟨g, y_j⟩ (with a rounding margin).
+    /// For any g, ⟨c, y⟩ + h = ⟨c + g, y⟩ + (h − ⟨g, y⟩) is at most the cap's bound of
+    /// ⟨c + g, y⟩ plus that maximum; with g = 0 that is max h. Heights of a converged solve vary
+    /// smoothly over S² (by 0.3 on the conformal image of an ellipsoid 1:1:2, against 1e-4
+    /// between neighbours), so max h alone let a query visit hundreds of sites.
+    fn height_bounds(&self, heights: &[f64]) -> NodeBounds {
+        let per_node: Vec<([f64; 3], f64)> = (0..self.nodes.len())
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|id| {
+                let n = &self.nodes[id];
+                let sites = &self.order[n.start as usize..n.end as usize];
+                let slope = self.fitted_slope(n, sites, heights);
+                let mut offset = f64::NEG_INFINITY;
+                let mut scale: f64 = 0.0;
+                for &i in sites {
+                    let h = heights[i as usize];
+                    offset = offset.max(h - dot(slope, self.points[i as usize]));
+                    scale = scale.max(h.abs());
+                }
+                // (the computed differences are within a few ulps of |h| + |g| of the true ones)
+                (slope, offset + 1e-14 * (1.0 + scale + norm(slope)))
+            })
+            .collect();
+        NodeBounds {
+            slope: per_node.iter().map(|p| p.0).collect(),
+            offset: per_node.iter().map(|p| p.1).collect(),
         }
-        bound
     }
 
-    /// An upper bound of ⟨c, y⟩ + h over the node's sites: |c| cos(max(0, θ − α)) + max h, θ the
-    /// angle from c to the cap's axis, α its radius.
-    fn upper_bound(&self, id: usize, c: [f64; 3], bounds: &[f64]) -> f64 {
-        let n = &self.nodes[id];
-        let r = norm(c);
-        if r == 0.0 {
-            return bounds[id];
+    /// The least-squares fit h_j ≈ h₀ + ⟨g, y_j⟩ over `sites`, in the node's frame: the two
+    /// tangent components of y_j and its component along the axis, 1 − |t|²/2 to second order,
+    /// which absorbs the isotropic curvature of the heights (g = 0 for fewer than four sites, a
+    /// degenerate spread, or |g| > 4, where the bounds' rounding margins would not hold).
+    fn fitted_slope(&self, n: &Node, sites: &[u32], heights: &[f64]) -> [f64; 3] {
+        if sites.len() < 4 {
+            return [0.0; 3];
         }
-        let cos_t = dot(c, n.axis) / r;
-        let best = if cos_t >= n.cos_radius {
-            1.0
-        } else {
-            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-            cos_t * n.cos_radius + sin_t * n.sin_radius
+        let frame = [n.tangents[0], n.tangents[1], n.axis];
+        let k = sites.len() as f64;
+        let mut mean = [0.0; 4];
+        for &i in sites {
+            let y = self.points[i as usize];
+            for d in 0..3 {
+                mean[d] += dot(y, frame[d]);
+            }
+            mean[3] += heights[i as usize];
+        }
+        let mean = mean.map(|m| m / k);
+        let mut a = [[0.0; 3]; 3];
+        let mut b = [0.0; 3];
+        for &i in sites {
+            let y = self.points[i as usize];
+            let x = [0, 1, 2].map(|d| dot(y, frame[d]) - mean[d]);
+            let h = heights[i as usize] - mean[3];
+            for r in 0..3 {
+                for c in 0..3 {
+                    a[r][c] += x[r] * x[c];
+                }
+                b[r] += x[r] * h;
+            }
+        }
+        let det3 = |m: &[[f64; 3]; 3]| {
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
         };
-        r * best + 1e-12 + bounds[id]
+        let det = det3(&a);
+        let scale = a[0][0] * a[1][1] * a[2][2];
+        if !(det > 1e-9 * scale && scale > 0.0) {
+            return [0.0; 3];
+        }
+        let mut g = [0.0; 3];
+        for (col, gc) in g.iter_mut().enumerate() {
+            let mut m = a;
+            for r in 0..3 {
+                m[r][col] = b[r];
+            }
+            *gc = det3(&m) / det;
+        }
+        if !(g.iter().all(|v| v.is_finite()) && dot(g, g) <= 16.0) {
+            return [0.0; 3];
+        }
+        [0, 1, 2].map(|d| g[0] * frame[0][d] + g[1] * frame[1][d] + g[2] * frame[2][d])
     }
 
-    /// Whether max ⟨v, y⟩ over the node's cap (|v| = `norm` > 0) can reach `level`: the test
-    /// |v| cos(max(0, θ − α)) + 1e-12 ≥ level of [`Self::upper_bound`] without its square root
-    /// (sin θ sin α ≥ level/|v| − cos θ cos α, squared when both sides are positive).
-    fn cap_reaches(&self, id: usize, v: [f64; 3], norm: f64, level: f64) -> bool {
+    /// Whether max ⟨v, y⟩ over the node's cap (`norm2` = |v|²) can reach `level`: the test
+    /// |v| cos(max(0, θ − α)) + 1e-12 ≥ level (θ the angle from v to the cap's axis, α its
+    /// radius) without divisions or square roots: with d = ⟨v, axis⟩ = |v| cos θ, θ ≤ α is d ≥ |v| cos α, and otherwise the
+    /// maximum d cos α + √(|v|² − d²) sin α reaches l when l − d cos α ≤ 0 or
+    /// (|v|² − d²) sin² α ≥ (l − d cos α)².
+    fn cap_reaches(&self, id: usize, v: [f64; 3], norm2: f64, level: f64) -> bool {
         let n = &self.nodes[id];
-        let level = (level - 1e-12) / norm;
-        if level > 1.0 {
+        let l = level - 1e-12;
+        if l > 0.0 && l * l > norm2 {
             return false;
         }
-        let cos_t = dot(v, n.axis) / norm;
-        if cos_t >= n.cos_radius {
+        if norm2 == 0.0 {
+            return l <= 0.0;
+        }
+        let d = dot(v, n.axis);
+        let c2 = norm2 * n.cos_radius * n.cos_radius;
+        let inside = if n.cos_radius >= 0.0 {
+            d >= 0.0 && d * d >= c2
+        } else {
+            d >= 0.0 || d * d <= c2
+        };
+        if inside {
             return true;
         }
-        let rest = level - cos_t * n.cos_radius;
-        rest <= 0.0 || (1.0 - cos_t * cos_t) * n.sin_radius * n.sin_radius >= rest * rest
+        let rest = l - d * n.cos_radius;
+        rest <= 0.0 || (norm2 - d * d) * n.sin_radius * n.sin_radius >= rest * rest
     }
 
-    /// max_i ⟨c, y_i⟩ + h_i and its site (the first one in tree order among equal values
-    /// larger than the guess's), branch and bound from the site `guess`'s value.
-    fn best(&self, c: [f64; 3], guess: u32, heights: &[f64], bounds: &[f64], stack: &mut Vec<u32>) -> (f64, u32) {
+    /// Whether ⟨c, y⟩ + h can reach `level` on the node's sites: with u = c + g (g the node's
+    /// slope), ⟨c, y⟩ + h ≤ max ⟨u, y⟩ over the cap + max_j (h_j − ⟨g, y_j⟩)
+    /// ([`Self::cap_reaches`]).
+    fn tilted_reaches(&self, id: usize, c: [f64; 3], level: f64, bounds: &NodeBounds) -> bool {
+        let g = bounds.slope[id];
+        let u = [c[0] + g[0], c[1] + g[1], c[2] + g[2]];
+        self.cap_reaches(id, u, dot(u, u), level - bounds.offset[id])
+    }
+
+    /// max_i ⟨c, y_i⟩ + h_i and its site (the smallest index among equal values), branch and
+    /// bound from the site `guess`'s value.
+    fn best(
+        &self,
+        c: [f64; 3],
+        guess: u32,
+        heights: &[f64],
+        bounds: &NodeBounds,
+        stack: &mut Vec<(u32, f64)>,
+    ) -> (f64, u32) {
         let g = guess as usize;
         let mut best = (dot(c, self.points[g]) + heights[g], guess);
         stack.clear();
-        stack.push(0);
-        while let Some(id) = stack.pop() {
-            let id = id as usize;
-            if self.upper_bound(id, c, bounds) <= best.0 {
+        stack.push((0, f64::INFINITY));
+        // (children are tested against the running maximum when pushed and again when popped,
+        // with the division-free cap test; the key only orders them)
+        while let Some((id, _)) = stack.pop() {
+            if id != 0 && !self.tilted_reaches(id as usize, c, best.0, bounds) {
                 continue;
             }
-            let n = &self.nodes[id];
+            let n = &self.nodes[id as usize];
             if n.left == NONE {
                 for &i in &self.order[n.start as usize..n.end as usize] {
                     let v = dot(c, self.points[i as usize]) + heights[i as usize];
-                    if v > best.0 {
+                    if v > best.0 || (v == best.0 && i < best.1) {
                         best = (v, i);
                     }
                 }
             } else {
                 // the more promising child last, so it is popped first
                 let (l, r) = (n.left, n.right);
-                if self.upper_bound(l as usize, c, bounds) > self.upper_bound(r as usize, c, bounds) {
-                    stack.extend([r, l]);
+                let key = |k: u32| {
+                    let (g, m) = (bounds.slope[k as usize], &self.nodes[k as usize]);
+                    dot([c[0] + g[0], c[1] + g[1], c[2] + g[2]], m.axis) + bounds.offset[k as usize]
+                };
+                let (kl, kr) = (key(l), key(r));
+                if kl > kr {
+                    stack.extend([(r, kr), (l, kl)]);
                 } else {
-                    stack.extend([l, r]);
+                    stack.extend([(l, kl), (r, kr)]);
                 }
             }
         }
         best
     }
 
-    /// Heights bounds for [`Self::above`] (per node, the maximum height of its sites).
-    pub(crate) fn bounds(&self, heights: &[f64]) -> Vec<f64> {
+    /// Heights bounds for [`Self::above`] (per node, a slope and an offset bounding the
+    /// heights: [`Self::height_bounds`]).
+    pub(crate) fn bounds(&self, heights: &[f64]) -> NodeBounds {
         self.height_bounds(heights)
     }
 
@@ -381,7 +495,7 @@ impl SiteTree {
         c: [f64; 3],
         level: f64,
         heights: &[f64],
-        bounds: &[f64],
+        bounds: &NodeBounds,
         stack: &mut Vec<u32>,
         out: &mut Vec<u32>,
     ) {
@@ -393,7 +507,7 @@ impl SiteTree {
         stack.push(0);
         while let Some(id) = stack.pop() {
             let id = id as usize;
-            if self.upper_bound(id, c, bounds) < level {
+            if !self.tilted_reaches(id, c, level, bounds) {
                 continue;
             }
             let n = &self.nodes[id];
@@ -401,48 +515,6 @@ impl SiteTree {
                 for &j in &self.order[n.start as usize..n.end as usize] {
                     if dot(c, self.points[j as usize]) + heights[j as usize] >= level {
                         out.push(j);
-                    }
-                }
-            } else {
-                stack.extend([n.left, n.right]);
-            }
-        }
-    }
-
-    /// Every site j that beats the affine minorant ℓ_k of u_h somewhere on the triangle with
-    /// corners `corners`, given `lower[v]` = ℓ_k(corner v): since ℓ_j − ℓ_k is affine, that is
-    /// max_v ⟨corner_v, y_j⟩ + h_j − lower[v] ≥ −margin. Output as (⟨c, y_j⟩ + h_j, j) for the
-    /// centroid c.
-    #[allow(clippy::too_many_arguments)]
-    fn beating(
-        &self,
-        corners: &[[f64; 3]; 3],
-        norms: [f64; 3],
-        lower: [f64; 3],
-        margin: f64,
-        centroid: [f64; 3],
-        heights: &[f64],
-        bounds: &[f64],
-        stack: &mut Vec<u32>,
-        out: &mut Vec<(f64, u32)>,
-    ) {
-        out.clear();
-        stack.clear();
-        stack.push(0);
-        while let Some(id) = stack.pop() {
-            let id = id as usize;
-            if !(0..3).any(|v| self.cap_reaches(id, corners[v], norms[v], lower[v] - bounds[id] - margin)) {
-                continue;
-            }
-            let n = &self.nodes[id];
-            if n.left == NONE {
-                for &i in &self.order[n.start as usize..n.end as usize] {
-                    let (y, h) = (self.points[i as usize], heights[i as usize]);
-                    let gain = (0..3)
-                        .map(|v| dot(corners[v], y) + h - lower[v])
-                        .fold(f64::NEG_INFINITY, f64::max);
-                    if gain >= -margin {
-                        out.push((dot(centroid, y) + h, i));
                     }
                 }
             } else {
@@ -478,8 +550,26 @@ struct ChunkOut {
     pieces: Vec<CellPiece>,
 }
 
+/// Per source vertex, the sites that may own a point of its triangles (compressed rows).
+#[derive(Default)]
+struct VertexLists {
+    start: Vec<u32>,
+    sites: Vec<u32>,
+}
+
+impl VertexLists {
+    fn of(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        &self.sites[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+}
+
+/// The candidate test's margin for a minorant of height h (keeps it conservative).
+fn candidate_margin(h: f64) -> f64 {
+    1e-10 * (1.0 + h.abs())
+}
+
 struct Scratch {
-    stack: Vec<u32>,
     cand: Vec<(f64, u32)>,
     poly: Vec<([f64; 3], i64)>,
     next: Vec<([f64; 3], i64)>,
@@ -594,8 +684,9 @@ impl<'a> SphereIntegrator<'a> {
         // previous vertex's site)
         let nv = self.measure.vertices.len();
         let mut vertex_best = vec![0u32; nv];
+        let mut lists = VertexLists::default();
         if !self.brute_force && !self.points.is_empty() {
-            let found: Vec<Vec<(u32, u32)>> = self
+            let found: Vec<Vec<(u32, u32, f64)>> = self
                 .vertex_order
                 .par_chunks(CHUNK)
                 .map(|chunk| {
@@ -604,25 +695,27 @@ impl<'a> SphereIntegrator<'a> {
                     chunk
                         .iter()
                         .map(|&v| {
-                            let (_, k) =
+                            let (value, k) =
                                 self.tree
                                     .best(self.measure.vertices[v as usize], guess, heights, &bounds, &mut stack);
                             guess = k;
-                            (v, k)
+                            (v, k, value)
                         })
                         .collect()
                 })
                 .collect();
-            for (v, k) in found.into_iter().flatten() {
+            let mut vertex_value = vec![0.0; nv];
+            for (v, k, value) in found.into_iter().flatten() {
                 vertex_best[v as usize] = k;
+                vertex_value[v as usize] = value;
             }
+            lists = self.vertex_lists(heights, &bounds, &vertex_best, &vertex_value);
         }
         self.triangle_order
             .par_chunks(CHUNK)
             .map(|chunk| {
                 let mut out = ChunkOut::default();
                 let mut scratch = Scratch {
-                    stack: Vec::new(),
                     cand: Vec::new(),
                     poly: Vec::new(),
                     next: Vec::new(),
@@ -632,8 +725,8 @@ impl<'a> SphereIntegrator<'a> {
                         t as usize,
                         heights,
                         lo,
-                        &bounds,
                         &vertex_best,
+                        &lists,
                         &mut scratch,
                         &mut out,
                         keep_pieces,
@@ -642,6 +735,68 @@ impl<'a> SphereIntegrator<'a> {
                 out
             })
             .collect()
+    }
+
+    /// Per source vertex v, every site j with ℓ_j(v) ≥ u_h(v) − s_v, where s_v is the largest
+    /// u_h(v) − ℓ_{k_a}(v) + margin over the triangles T at v (k_a the best site at T's first
+    /// corner a): a site passing T's candidate test ℓ_j(w) ≥ ℓ_{k_a}(w) − margin at some corner
+    /// w is in w's list, so the union of T's three lists filtered by that test is exactly the
+    /// candidate set (one tree query per vertex with one corner, not one per triangle with three;
+    /// 1e-12 more than s_v against rounding).
+    fn vertex_lists(
+        &self,
+        heights: &[f64],
+        bounds: &NodeBounds,
+        vertex_best: &[u32],
+        vertex_value: &[f64],
+    ) -> VertexLists {
+        let nv = self.measure.vertices.len();
+        let mut slack = vec![f64::NEG_INFINITY; nv];
+        for tri in &self.measure.triangles {
+            let ka = vertex_best[tri[0] as usize] as usize;
+            let margin = candidate_margin(heights[ka]);
+            for &v in tri {
+                let v = v as usize;
+                let lower = dot(self.measure.vertices[v], self.points[ka]) + heights[ka];
+                slack[v] = slack[v].max(vertex_value[v] - lower + margin);
+            }
+        }
+        let found: Vec<Vec<(u32, Vec<u32>)>> = self
+            .vertex_order
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let (mut stack, mut out) = (Vec::new(), Vec::new());
+                chunk
+                    .iter()
+                    .map(|&v| {
+                        let level = vertex_value[v as usize] - slack[v as usize] - 1e-12;
+                        self.tree.above(
+                            self.measure.vertices[v as usize],
+                            level,
+                            heights,
+                            bounds,
+                            &mut stack,
+                            &mut out,
+                        );
+                        (v, out.clone())
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut per_vertex = vec![Vec::new(); nv];
+        for (v, list) in found.into_iter().flatten() {
+            per_vertex[v as usize] = list;
+        }
+        let mut lists = VertexLists {
+            start: Vec::with_capacity(nv + 1),
+            sites: Vec::new(),
+        };
+        lists.start.push(0);
+        for list in per_vertex {
+            lists.sites.extend(list);
+            lists.start.push(lists.sites.len() as u32);
+        }
+        lists
     }
 
     /// y_i − y_j of the unit vectors `points + radial`: the difference of the stored points is
@@ -658,8 +813,8 @@ impl<'a> SphereIntegrator<'a> {
         t: usize,
         heights: &[f64],
         lo: Option<&[f64]>,
-        bounds: &[f64],
         vertex_best: &[u32],
+        lists: &VertexLists,
         s: &mut Scratch,
         out: &mut ChunkOut,
         keep_pieces: bool,
@@ -682,20 +837,26 @@ impl<'a> SphereIntegrator<'a> {
             // other corners give two more necessary conditions, checked on the list
             let corners = [a, b, c];
             let [ka, kb, kc] = tri.map(|v| vertex_best[v as usize]);
-            let scale = 1.0 + heights[ka as usize].abs();
-            let margin = 1e-10 * scale;
+            let margin = candidate_margin(heights[ka as usize]);
             let lower_of = |k: u32| corners.map(|v| dot(v, self.points[k as usize]) + heights[k as usize]);
-            self.tree.beating(
-                &corners,
-                corners.map(norm),
-                lower_of(ka),
-                margin,
-                centroid,
-                heights,
-                bounds,
-                &mut s.stack,
-                &mut s.cand,
-            );
+            // the sites beating ℓ_ka somewhere on T (as far as the margin goes): each is in its
+            // corner's list ([`Self::vertex_lists`])
+            let lower = lower_of(ka);
+            s.cand.clear();
+            for v in tri {
+                for &j in lists.of(v) {
+                    if s.cand.iter().any(|e| e.1 == j) {
+                        continue;
+                    }
+                    let (y, h) = (self.points[j as usize], heights[j as usize]);
+                    let gain = (0..3)
+                        .map(|w| dot(corners[w], y) + h - lower[w])
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    if gain >= -margin {
+                        s.cand.push((dot(centroid, y) + h, j));
+                    }
+                }
+            }
             for kv in [kb, kc] {
                 if kv != ka {
                     let lower = lower_of(kv);
@@ -889,4 +1050,91 @@ fn lerp(p: [f64; 3], q: [f64; 3], t: f64) -> [f64; 3] {
         p[1] + t * (q[1] - p[1]),
         p[2] + t * (q[2] - p[2]),
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::measure::{icosphere, random_sphere_points};
+    use crate::synthetic::uniform01;
+
+    /// Heights with a large smooth part (a slope and a curvature of order 0.3, as on the
+    /// conformal image of an ellipsoid) and, optionally, a jitter at the scale of the sites'
+    /// spacing: the case the tree's tilted bounds are for.
+    fn varying_heights(points: &[[f64; 3]], jitter: f64, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        points
+            .iter()
+            .map(|p| 0.3 * p[2] * p[2] + 0.2 * p[0] - 0.1 * p[1] * p[2] + jitter * (uniform01(&mut s) - 0.5))
+            .collect()
+    }
+
+    /// Query points: an icosphere's vertices, scaled off S² by up to 1e-6 (as the flat
+    /// triangles' corners may be).
+    fn queries() -> Vec<[f64; 3]> {
+        let mut s = 5u64;
+        icosphere(4)
+            .0
+            .into_iter()
+            .map(|p| p.map(|c| c * (1.0 + 1e-6 * (2.0 * uniform01(&mut s) - 1.0))))
+            .collect()
+    }
+
+    /// The branch and bound's best site is the exact maximum of ⟨c, y_i⟩ + h_i over all sites,
+    /// the smallest index among equal values, whatever the guess.
+    #[test]
+    fn best_site_is_the_exact_maximum_under_strongly_varying_heights() {
+        let points = random_sphere_points(3000, 41);
+        let tree = SiteTree::new(&points);
+        for (jitter, seed) in [(0.0, 1), (1e-3, 2), (0.05, 3)] {
+            let heights = varying_heights(&points, jitter, seed);
+            let bounds = tree.height_bounds(&heights);
+            let mut stack = Vec::new();
+            for (q, c) in queries().into_iter().enumerate() {
+                let (mut value, mut site) = (f64::NEG_INFINITY, 0u32);
+                for (i, y) in points.iter().enumerate() {
+                    let v = dot(c, *y) + heights[i];
+                    if v > value {
+                        (value, site) = (v, i as u32);
+                    }
+                }
+                for guess in [0u32, (q % 3000) as u32, site] {
+                    let found = tree.best(c, guess, &heights, &bounds, &mut stack);
+                    assert_eq!(found, (value, site), "query {q}, jitter {jitter}, guess {guess}");
+                }
+            }
+        }
+    }
+
+    /// The tree's list of the sites above a level at a point is exactly the brute-force list
+    /// (the tilted bounds prune, never decide), at levels just below the maximum.
+    #[test]
+    fn above_lists_exactly_the_sites_above_the_level() {
+        let points = random_sphere_points(3000, 43);
+        let tree = SiteTree::new(&points);
+        for (jitter, seed) in [(0.0, 4), (1e-3, 5), (0.05, 6)] {
+            let heights = varying_heights(&points, jitter, seed);
+            let bounds = tree.height_bounds(&heights);
+            let (mut stack, mut out) = (Vec::new(), Vec::new());
+            let mut total = 0;
+            let queries = queries();
+            for (q, c) in queries.iter().enumerate() {
+                let values: Vec<f64> = points.iter().zip(&heights).map(|(y, h)| dot(*c, *y) + h).collect();
+                let top = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let level = top - [1e-4, 1e-3, 1e-2][q % 3];
+                tree.above(*c, level, &heights, &bounds, &mut stack, &mut out);
+                out.sort_unstable();
+                let expected: Vec<u32> = (0..points.len() as u32)
+                    .filter(|&j| values[j as usize] >= level)
+                    .collect();
+                assert_eq!(out, expected, "query {q}, jitter {jitter}");
+                total += out.len();
+            }
+            assert!(
+                total > 2 * queries.len(),
+                "{total} sites listed at {} points",
+                queries.len()
+            );
+        }
+    }
 }
