@@ -294,32 +294,36 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
     let total: f64 = areas.iter().sum();
     let shares: Vec<f64> = areas.iter().map(|a| a / total * 4.0 * std::f64::consts::PI).collect();
     let mut given_up: HashSet<usize> = HashSet::new();
+    // the folded faces, kept up to date around the vertices each repair moves
+    let mut folded = vec![false; mesh.num_faces()];
+    for f in folded_on_sphere(mesh, x) {
+        folded[f] = true;
+    }
+    let mut num_folded = folded.iter().filter(|&&b| b).count();
     // the folds at the start of the pass; a pass that leaves fewer is followed by another
     let mut pass_start = usize::MAX;
     loop {
-        let bad = folded_on_sphere(mesh, x);
-        let Some(&f0) = bad.iter().find(|f| !given_up.contains(f)) else {
-            if bad.is_empty() || bad.len() >= pass_start || info.passes == MAX_PASSES {
+        let Some(f0) = (0..mesh.num_faces()).find(|&f| folded[f] && !given_up.contains(&f)) else {
+            if num_folded == 0 || num_folded >= pass_start || info.passes == MAX_PASSES {
                 return info;
             }
             info.passes += 1;
-            pass_start = bad.len();
+            pass_start = num_folded;
             given_up.clear();
             continue;
         };
         if pass_start == usize::MAX {
             info.passes = 1;
-            pass_start = bad.len();
+            pass_start = num_folded;
         }
         info.clusters += 1;
-        let is_bad: HashSet<usize> = bad.iter().copied().collect();
         let mut cluster = vec![f0];
         let mut seen: HashSet<usize> = [f0].into_iter().collect();
         let mut i = 0;
         while i < cluster.len() {
             for &v in &mesh.faces[cluster[i]] {
                 for &g in &conn.vertex_faces[v as usize] {
-                    if is_bad.contains(&(g as usize)) && seen.insert(g as usize) {
+                    if folded[g as usize] && seen.insert(g as usize) {
                         cluster.push(g as usize);
                     }
                 }
@@ -352,9 +356,10 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
                 }
                 if let Ok(moved) = attempt {
                     info.vertices_moved += moved.len();
-                    for (v, p) in moved {
+                    for (&v, &p) in &moved {
                         x[v as usize] = p;
                     }
+                    num_folded = refresh_folds(mesh, &conn, x, moved.keys(), &mut folded, num_folded);
                     info.max_rings = info.max_rings.max(rings);
                     if projection == Projection::Stereographic {
                         info.stereographic_repaired += 1;
@@ -383,9 +388,10 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
                     Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
                     Ok(moved) => {
                         info.vertices_moved += moved.len();
-                        for (v, p) in moved {
+                        for (&v, &p) in &moved {
                             x[v as usize] = p;
                         }
+                        num_folded = refresh_folds(mesh, &conn, x, moved.keys(), &mut folded, num_folded);
                         info.stereographic_repaired += 1;
                         kept = true;
                         break;
@@ -400,6 +406,34 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             given_up.extend(cluster);
         }
     }
+}
+
+/// Tests again the faces around the `moved` vertices of the map `x` and updates `folded` (#F);
+/// returns the new number of folded faces (`num_folded` before).
+fn refresh_folds<'a>(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    x: &[[f64; 3]],
+    moved: impl Iterator<Item = &'a u32>,
+    folded: &mut [bool],
+    mut num_folded: usize,
+) -> usize {
+    for &v in moved {
+        for &f in &conn.vertex_faces[v as usize] {
+            let f = f as usize;
+            let [a, b, c] = mesh.faces[f].map(|u| x[u as usize]);
+            let now = orientation_on_sphere(a, b, c) != 1;
+            if now != folded[f] {
+                folded[f] = now;
+                if now {
+                    num_folded += 1;
+                } else {
+                    num_folded -= 1;
+                }
+            }
+        }
+    }
+    num_folded
 }
 
 /// Radii (rad) of the caps around a cluster tried in the stereographic chart after the rings.
@@ -551,42 +585,104 @@ fn chart_patch(
 }
 
 /// Adds to `patch` (with its indicator `inside`, #F) every hole it encloses: the connected
-/// components of the other faces (through shared edges) but the largest.
+/// components of the other faces (through shared edges) but the largest (of equal sizes, the
+/// one whose smallest face index is largest), in increasing face order.
+///
+/// Every component of the outside shares an edge with the patch (the surface is closed), so
+/// the search starts from those faces, and explores each component up to a budget that grows
+/// fourfold until at most one component is left unexplored: that one has more faces than any
+/// explored one, so it is the largest. Holes are small, so a chart costs about the size of its
+/// holes, not of the mesh.
 fn fill_holes(mesh: &TriMesh, conn: &Connectivity, inside: &mut [bool], patch: &mut Vec<usize>) {
-    let nf = mesh.num_faces();
-    // the components of the outside, through shared edges
-    let mut component = vec![usize::MAX; nf];
-    let mut sizes: Vec<usize> = Vec::new();
-    for start in 0..nf {
-        if inside[start] || component[start] != usize::MAX {
-            continue;
+    let mut seeds: Vec<usize> = Vec::new();
+    for &f in patch.iter() {
+        for &e in &conn.face_edges[f] {
+            seeds.extend(
+                conn.edge_faces[e as usize]
+                    .iter()
+                    .map(|&g| g as usize)
+                    .filter(|&g| !inside[g]),
+            );
         }
-        let id = sizes.len();
-        let mut stack = vec![start];
-        component[start] = id;
-        let mut size = 0;
-        while let Some(f) = stack.pop() {
-            size += 1;
-            for &e in &conn.face_edges[f] {
-                for &g in &conn.edge_faces[e as usize] {
-                    let g = g as usize;
-                    if !inside[g] && component[g] == usize::MAX {
-                        component[g] = id;
-                        stack.push(g);
+    }
+    seeds.sort_unstable();
+    seeds.dedup();
+    let mut label = vec![usize::MAX; mesh.num_faces()];
+    let mut budget = 64;
+    let holes: Vec<usize> = loop {
+        // per component explored this round: its faces, and whether it was explored to the end;
+        // `root` joins the parts of an unfinished component reached from different seeds
+        let mut parts: Vec<(Vec<usize>, bool)> = Vec::new();
+        let mut root: Vec<usize> = Vec::new();
+        let find = |root: &[usize], mut k: usize| {
+            while root[k] != k {
+                k = root[k];
+            }
+            k
+        };
+        for &s in &seeds {
+            if label[s] != usize::MAX {
+                continue;
+            }
+            let id = parts.len();
+            root.push(id);
+            label[s] = id;
+            let (mut faces, mut stack) = (vec![s], vec![s]);
+            let mut finished = true;
+            'search: while let Some(f) = stack.pop() {
+                for &e in &conn.face_edges[f] {
+                    for &g in &conn.edge_faces[e as usize] {
+                        let g = g as usize;
+                        if inside[g] {
+                            continue;
+                        }
+                        if label[g] == usize::MAX {
+                            label[g] = id;
+                            faces.push(g);
+                            stack.push(g);
+                        } else if label[g] != id {
+                            // an unfinished part of the same component (a finished one would
+                            // have labelled this seed): this one is unfinished too, even if
+                            // it runs out of unlabelled faces
+                            let (a, b) = (find(&root, label[g]), find(&root, id));
+                            root[b.max(a)] = b.min(a);
+                            finished = false;
+                        }
                     }
                 }
+                if faces.len() > budget {
+                    finished = false;
+                    break 'search;
+                }
+            }
+            parts.push((faces, finished));
+        }
+        let roots: Vec<usize> = (0..parts.len()).map(|k| find(&root, k)).collect();
+        let unfinished: HashSet<usize> = (0..parts.len()).filter(|&k| !parts[k].1).map(|k| roots[k]).collect();
+        if unfinished.len() <= 1 {
+            // the finished components (each one part) and, if any, the larger unfinished one
+            let mut finished: Vec<&Vec<usize>> = parts.iter().filter(|p| p.1).map(|p| &p.0).collect();
+            if unfinished.is_empty() {
+                // all explored: the largest is the outside (ties as a scan in face order numbers
+                // the components, the last of the largest)
+                let key = |c: &&Vec<usize>| (c.len(), c.iter().min().copied());
+                let largest = finished.iter().copied().max_by_key(key).map(|c| key(&c));
+                finished.retain(|c| Some(key(c)) != largest);
+            }
+            let mut holes: Vec<usize> = finished.into_iter().flatten().copied().collect();
+            holes.sort_unstable();
+            break holes;
+        }
+        for (faces, _) in &parts {
+            for &f in faces {
+                label[f] = usize::MAX;
             }
         }
-        sizes.push(size);
-    }
-    let Some(largest) = (0..sizes.len()).max_by_key(|&c| sizes[c]) else {
-        return;
+        budget *= 4;
     };
-    for f in 0..nf {
-        if !inside[f] && component[f] != largest {
-            inside[f] = true;
-            patch.push(f);
-        }
+    for f in holes {
+        inside[f] = true;
+        patch.push(f);
     }
 }
 
@@ -754,6 +850,104 @@ fn patch_mesh(mesh: &TriMesh, patch: &[usize]) -> (Vec<u32>, Option<TriMesh>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`fill_holes`] by a scan of every face (the components of the outside in face order, all
+    /// but the last of the largest added): the oracle of the bounded search.
+    fn fill_holes_by_scan(mesh: &TriMesh, conn: &Connectivity, inside: &mut [bool], patch: &mut Vec<usize>) {
+        let nf = mesh.num_faces();
+        let mut component = vec![usize::MAX; nf];
+        let mut sizes: Vec<usize> = Vec::new();
+        for start in 0..nf {
+            if inside[start] || component[start] != usize::MAX {
+                continue;
+            }
+            let id = sizes.len();
+            let mut stack = vec![start];
+            component[start] = id;
+            let mut size = 0;
+            while let Some(f) = stack.pop() {
+                size += 1;
+                for &e in &conn.face_edges[f] {
+                    for &g in &conn.edge_faces[e as usize] {
+                        let g = g as usize;
+                        if !inside[g] && component[g] == usize::MAX {
+                            component[g] = id;
+                            stack.push(g);
+                        }
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        let Some(largest) = (0..sizes.len()).max_by_key(|&c| sizes[c]) else {
+            return;
+        };
+        for f in 0..nf {
+            if !inside[f] && component[f] != largest {
+                inside[f] = true;
+                patch.push(f);
+            }
+        }
+    }
+
+    /// The bounded search adds the same holes in the same order as the scan: bands around a
+    /// direction (one cap enclosed), two bands (a cap and a ring enclosed), the equator's band
+    /// (two caps of equal size: the tie), and random scatters of faces (many small holes).
+    #[test]
+    fn bounded_hole_search_agrees_with_the_scan() {
+        let mesh = shapespace_geometry::primitives::icosphere(4);
+        let conn = Connectivity::of(&mesh);
+        let centroid = |f: usize| {
+            let [a, b, c] = mesh.faces[f].map(|v| mesh.positions[v as usize]);
+            let m = [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) / 3.0);
+            let l = dot(m, m).sqrt();
+            m.map(|t| t / l)
+        };
+        let band = |c: [f64; 3], lo: f64, hi: f64| -> Vec<bool> {
+            (0..mesh.num_faces())
+                .map(|f| {
+                    let t = dot(centroid(f), c).clamp(-1.0, 1.0).acos();
+                    lo < t && t < hi
+                })
+                .collect()
+        };
+        let c = [0.6, -0.64, 0.48];
+        let mut cases: Vec<Vec<bool>> = vec![
+            band(c, 0.3, 0.5),
+            band(c, 0.3, 0.5)
+                .iter()
+                .zip(band(c, 0.9, 1.1))
+                .map(|(a, b)| *a || b)
+                .collect(),
+            band([0.0, 0.0, 1.0], 1.45, 1.69),
+            band(c, 2.8, 3.2),
+        ];
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for percent in [5, 20, 45, 70] {
+            cases.push(
+                (0..mesh.num_faces())
+                    .map(|_| {
+                        state ^= state << 13;
+                        state ^= state >> 7;
+                        state ^= state << 17;
+                        state % 100 < percent
+                    })
+                    .collect(),
+            );
+        }
+        let mut holes_seen = 0;
+        for inside in cases {
+            let patch: Vec<usize> = (0..mesh.num_faces()).filter(|&f| inside[f]).collect();
+            let (mut inside_a, mut patch_a) = (inside.clone(), patch.clone());
+            let (mut inside_b, mut patch_b) = (inside.clone(), patch.clone());
+            fill_holes(&mesh, &conn, &mut inside_a, &mut patch_a);
+            fill_holes_by_scan(&mesh, &conn, &mut inside_b, &mut patch_b);
+            assert_eq!(patch_a, patch_b);
+            assert_eq!(inside_a, inside_b);
+            holes_seen += patch_a.len() - patch.len();
+        }
+        assert!(holes_seen > 1000, "{holes_seen}");
+    }
 
     /// The stereographic chart and its inverse agree over 2.6 rad from the centre, and the
     /// chart turns the icosphere's faces counter-clockwise there (they are small against the
