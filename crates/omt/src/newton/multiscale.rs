@@ -38,6 +38,11 @@
 //! whole source measure. Only the coarse cells enter the prolongation, and its guarantee is
 //! geometric, so it holds for the averaged measure too; the finest level always integrates
 //! the measure itself.
+//! The centroids c_g and spreads s_g of a level prolonged to one of at least 20,000 points
+//! ([`REINTEGRATE_FROM`]) come from the coarse cells integrated once more on the finer level's
+//! measure (same heights, one evaluation): the averaged copy's centroids are off by up to a
+//! coarse triangle's size, and on the 30k-point scans that cost the finest level a fifth of its
+//! evaluations.
 //!
 //! The maximum is taken over the groups within [`RINGS`] edges of the coarse regular
 //! triangulation; the prolongation is then checked (every point's anchor in its own cell of the
@@ -144,6 +149,14 @@ fn averaging_sample(measure: &SourceMeasure, coarse_n: usize, hull_size: usize) 
     // The averaged triangulation has about 2·sample triangles plus one per hull vertex.
     ((2 * sample + hull_size) as f64 <= AVERAGING_MAX_SHARE * measure.triangles.len() as f64).then_some(sample)
 }
+/// Levels of at least this many points take their coarse level's cells integrated again on
+/// their own measure, not on the averaged copy the coarse level was solved on, for the
+/// prolongation's centroids and spreads. On the five consecutive facefuns pairs f18 → … → f66
+/// (30,205 points, the 8.6k level on a 20.4k-triangle copy of 59.7k) the finest level took 45
+/// steps and 85 evaluations instead of 52 and 108, for one evaluation of 8.6k cells on the
+/// measure (`scan_probe`; `docs/decisions/0047-coarse-cells-on-the-measure.md`). Smaller levels
+/// (the bundled faces' 9,412 points) keep the averaged cells.
+const REINTEGRATE_FROM: usize = LARGE_LEVEL;
 /// Rounds of the check of the anchors after the prolongation.
 const REPAIR_ROUNDS: usize = 8;
 
@@ -476,7 +489,16 @@ pub(crate) fn coarse_to_fine_heights(
     }
     // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
     let boundary = hull_edges(&measure.domain_hull());
-    let Some(solution) = solve_level(measure, &coarse.points, &coarse.masses, below, boundary.len(), params)? else {
+    let Some(solution) = solve_level(
+        measure,
+        &coarse.points,
+        &coarse.masses,
+        below,
+        boundary.len(),
+        n >= REINTEGRATE_FROM,
+        params,
+    )?
+    else {
         return Ok(None);
     };
     let delaunay = coarse.delaunay.take();
@@ -505,13 +527,16 @@ pub(crate) fn coarse_to_fine_heights(
 /// Solves the coarse level (`points`, `masses`) of a coarse-to-fine start against the source
 /// measure, averaged where that pays ([`averaging_sample`]), from its own coarse-to-fine start;
 /// a level that start does not solve is retried from the Voronoi start with density
-/// continuation. `None` when neither solves it; a time limit passed is an error.
+/// continuation. `None` when neither solves it; a time limit passed is an error. With
+/// `reintegrate` ([`REINTEGRATE_FROM`]), a level solved on an averaged copy returns its cells
+/// integrated on `measure` itself.
 fn solve_level(
     measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     below: Option<&Arc<TargetCoarsening>>,
     hull_size: usize,
+    reintegrate: bool,
     params: &NewtonParams,
 ) -> Result<Option<super::OtSolution>, OmtError> {
     let coarse_n = points.len();
@@ -566,6 +591,18 @@ fn solve_level(
         }
         _ => return Ok(None),
     };
+    // The coarse cells on the measure itself (REINTEGRATE_FROM): the prolongation takes its
+    // centroids and spreads from them. Same heights, same diagram, so no cell is empty that was
+    // not empty on the averaged copy (both densities are positive on all of Ω).
+    let mut solution = solution;
+    if averaged.is_some() && reintegrate {
+        let backend = super::Backend::new(measure, params.integrator, None);
+        let heights = Heights::from_parts(&solution.heights, &solution.heights_lo);
+        let cells = super::evaluate(&backend, points, &heights)?.cells;
+        if cells.masses.iter().all(|&m| m > 0.0) {
+            solution.cells = cells;
+        }
+    }
     Ok(Some(solution))
 }
 /// The prolongation of a coarse solution to the fine points (module docs): with G_g = −H_g,
