@@ -38,6 +38,12 @@
 //! whole source measure. Only the coarse cells enter the prolongation, and its guarantee is
 //! geometric, so it holds for the averaged measure too; the finest level always integrates
 //! the measure itself.
+//! The centroids c_g and spreads s_g of a level prolonged to one of at least 20,000 points
+//! ([`REINTEGRATE_FROM`]), when its copy has fewer than 3 triangles per point, come from the
+//! coarse cells integrated once more on the finer level's
+//! measure (same heights, one evaluation): the averaged copy's centroids are off by up to a
+//! coarse triangle's size, and on the 30k-point scans that cost the finest level a fifth of its
+//! evaluations.
 //!
 //! The maximum is taken over the groups within [`RINGS`] edges of the coarse regular
 //! triangulation; the prolongation is then checked (every point's anchor in its own cell of the
@@ -144,6 +150,20 @@ fn averaging_sample(measure: &SourceMeasure, coarse_n: usize, hull_size: usize) 
     // The averaged triangulation has about 2·sample triangles plus one per hull vertex.
     ((2 * sample + hull_size) as f64 <= AVERAGING_MAX_SHARE * measure.triangles.len() as f64).then_some(sample)
 }
+/// Levels of at least this many points take their coarse level's cells integrated again on
+/// their own measure, not on the averaged copy the coarse level was solved on, for the
+/// prolongation's centroids and spreads. On the five consecutive facefuns pairs f18 → … → f66
+/// (30,205 points, the 8.6k level on a 20.4k-triangle copy of 59.7k) the finest level took 45
+/// steps and 85 evaluations instead of 52 and 108, for one evaluation of 8.6k cells on the
+/// measure (`scan_probe`; `docs/decisions/0047-coarse-cells-on-the-measure.md`). Smaller levels
+/// (the bundled faces' 9,412 points) keep the averaged cells.
+const REINTEGRATE_FROM: usize = LARGE_LEVEL;
+/// ... and only when the averaged copy has fewer than this many triangles per coarse point
+/// (the 8.6k level of a 30k-point scan: 20.4k triangles, 2.4 per point). On the facefuns pair
+/// f18 → f26 subdivided once (120,136 points), whose 34.3k level is solved on a copy of 120k
+/// triangles (3.5 per point), its cells integrated on the measure cost the finest level a step
+/// and five evaluations (11 and 21 instead of 10 and 16).
+const REINTEGRATE_TRIANGLES_PER_POINT: f64 = 3.0;
 /// Rounds of the check of the anchors after the prolongation.
 const REPAIR_ROUNDS: usize = 8;
 
@@ -476,7 +496,16 @@ pub(crate) fn coarse_to_fine_heights(
     }
     // Ω's boundary edges (one per hull vertex), for the averaging rule and the spreads s_g.
     let boundary = hull_edges(&measure.domain_hull());
-    let Some(solution) = solve_level(measure, &coarse.points, &coarse.masses, below, boundary.len(), params)? else {
+    let Some(solution) = solve_level(
+        measure,
+        &coarse.points,
+        &coarse.masses,
+        below,
+        boundary.len(),
+        n >= REINTEGRATE_FROM,
+        params,
+    )?
+    else {
         return Ok(None);
     };
     let delaunay = coarse.delaunay.take();
@@ -505,13 +534,17 @@ pub(crate) fn coarse_to_fine_heights(
 /// Solves the coarse level (`points`, `masses`) of a coarse-to-fine start against the source
 /// measure, averaged where that pays ([`averaging_sample`]), from its own coarse-to-fine start;
 /// a level that start does not solve is retried from the Voronoi start with density
-/// continuation. `None` when neither solves it; a time limit passed is an error.
+/// continuation. `None` when neither solves it; a time limit passed is an error. With
+/// `reintegrate` ([`REINTEGRATE_FROM`]), a level solved on an averaged copy with fewer than
+/// [`REINTEGRATE_TRIANGLES_PER_POINT`] triangles per point returns its cells integrated on
+/// `measure` itself.
 fn solve_level(
     measure: &PreparedMeasure,
     points: &[[f64; 2]],
     masses: &[f64],
     below: Option<&Arc<TargetCoarsening>>,
     hull_size: usize,
+    reintegrate: bool,
     params: &NewtonParams,
 ) -> Result<Option<super::OtSolution>, OmtError> {
     let coarse_n = points.len();
@@ -566,6 +599,21 @@ fn solve_level(
         }
         _ => return Ok(None),
     };
+    // The coarse cells on the measure itself (REINTEGRATE_FROM, on a coarse copy): the prolongation takes its
+    // centroids and spreads from them. Same heights, same diagram, so no cell is empty that was
+    // not empty on the averaged copy (both densities are positive on all of Ω).
+    let mut solution = solution;
+    let coarse_copy = averaged
+        .as_deref()
+        .is_some_and(|a| (a.triangles.len() as f64) < REINTEGRATE_TRIANGLES_PER_POINT * coarse_n as f64);
+    if reintegrate && coarse_copy {
+        let backend = super::Backend::new(measure, params.integrator, None);
+        let heights = Heights::from_parts(&solution.heights, &solution.heights_lo);
+        let cells = super::evaluate(&backend, points, &heights)?.cells;
+        if cells.masses.iter().all(|&m| m > 0.0) {
+            solution.cells = cells;
+        }
+    }
     Ok(Some(solution))
 }
 /// The prolongation of a coarse solution to the fine points (module docs): with G_g = −H_g,

@@ -16,7 +16,8 @@
 //! the second solve (the source's averaged coarse copies built by the first: the first's extra
 //! time is their construction). Costs are printed minus the target's merge cost
 //! (`quantization_variance`), as the distances use them. `KAPPA=k` sets the soft cap of the
-//! intermediate targets (`NewtonParams::target_ratio_cap`, default 32) on every level.
+//! intermediate targets (`NewtonParams::target_ratio_cap`, default 32) on every level. Each pair
+//! also prints the process's CPU time (all threads), steadier than the wall time on a shared machine.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -31,6 +32,20 @@ fn quantiles(mut v: Vec<f64>, qs: &[f64]) -> Vec<f64> {
     qs.iter()
         .map(|q| v[((v.len() - 1) as f64 * q).round() as usize])
         .collect()
+}
+
+/// The process's CPU time (user + system, all threads) in seconds, from /proc/self/stat
+/// (clock ticks of 1/100 s); NaN where it cannot be read.
+fn cpu_seconds() -> f64 {
+    std::fs::read_to_string("/proc/self/stat")
+        .ok()
+        .and_then(|s| {
+            // (the fields after the command name, which is in parentheses)
+            let rest = &s[s.rfind(')')? + 2..];
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            Some((f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?) / 100.0)
+        })
+        .unwrap_or(f64::NAN)
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -131,6 +146,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for w in shapes.windows(2) {
         let (a, b) = (&w[0], &w[1]);
         let t = Instant::now();
+        let mut cpu = cpu_seconds();
         let params = shapespace_omt::NewtonParams {
             target_coarsening: Some(b.coarsening.clone()),
             ..params.clone()
@@ -145,9 +161,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 a.measure.averaged_samples()
             );
             let t = Instant::now();
+            cpu = cpu_seconds();
             sol = shapespace_omt::solve_ot_prepared(&a.measure, &b.points, &b.masses, &params)?;
             secs = t.elapsed().as_secs_f64();
         }
+        let cpu = cpu_seconds() - cpu;
         let levels = match &sol.start {
             Start::CoarseToFine { level_iterations, .. } => format!("{level_iterations:?}"),
             s => format!("{s:?}"),
@@ -158,7 +176,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let taus: Vec<String> = sol.log.iter().map(|r| format!("{:.2}", r.step)).collect();
         let min_mass = sol.log.iter().map(|r| r.min_cell_mass).fold(f64::INFINITY, f64::min);
         println!(
-            "PAIR {} -> {}: {} finest steps ({} evals, stop {}), coarse steps by level (coarser first) {levels}, eps0 {:.2e}, min cell mass {:.2e}, cost {:.10e} (minus the target's merge cost) | {:.2} s: start {:.2} s, finest diagram {:.2} integrate {:.2} solve {:.2} | taus {}",
+            "PAIR {} -> {}: {} finest steps ({} evals, stop {}), coarse steps by level (coarser first) {levels}, eps0 {:.2e}, min cell mass {:.2e}, cost {:.10e} (minus the target's merge cost) | {:.2} s (CPU {cpu:.2} s): start {:.2} s, finest diagram {:.2} integrate {:.2} solve {:.2} | taus {}",
             a.name,
             b.name,
             sol.iterations,
