@@ -3,7 +3,7 @@
 //!
 //! The same iteration as the planar solver's plain KMT step (conventions, "Damping and
 //! stopping"): solve H δ = −G with the unknown of the largest target pinned, and shrink τ from
-//! min(1, 4τ_prev) by halving until every cell keeps at least ε₀ = ½ min(min ν, min μ(W_i(h₀)))
+//! min(1, 4τ_prev) (2τ_prev after a step that was halved) by halving until every cell keeps at least ε₀ = ½ min(min ν, min μ(W_i(h₀)))
 //! and ‖G(h + τδ)‖ ≤ (1 − τ/2)‖G(h)‖. As in the plane, a step aims at soft-capped intermediate
 //! targets ν'_i = m_i exp(K tanh(ln(ν_i/m_i)/K)), K = ln 32, while some cell is far from its
 //! target (decision 0004), and plain KMT steps once such a step is accepted below τ = 0.01.
@@ -124,6 +124,9 @@ impl Default for SphereOtParams {
 /// coarse-to-fine start of a crowded image are accepted near τ = 1e-2 and would each re-try
 /// the same rejected trials from 1, while τ still returns to 1 within a few steps.
 const STEP_GROWTH: f64 = 4.0;
+/// The growth after a step whose first trial was rejected: its τ lies near the largest
+/// acceptable one, and four times it was rejected again on the crowded images (decision 0049).
+const STEP_GROWTH_AFTER_HALVING: f64 = 2.0;
 
 /// One Newton step.
 #[derive(Clone, Debug, Default)]
@@ -463,6 +466,7 @@ impl Problem<'_, '_> {
         let mut iterations = 0;
         let mut target_cap = params.target_ratio_cap;
         let mut last_tau: f64 = 1.0;
+        let mut last_halved = false;
         // the largest relative mass error at the start and after each accepted step
         let mut history = vec![rel];
         loop {
@@ -511,7 +515,12 @@ impl Problem<'_, '_> {
                 break;
             }
             let t1 = Instant::now();
-            let mut tau = (STEP_GROWTH * last_tau).min(1.0);
+            let growth = if last_halved {
+                STEP_GROWTH_AFTER_HALVING
+            } else {
+                STEP_GROWTH
+            };
+            let mut tau = (growth * last_tau).min(1.0);
             let mut halvings = 0;
             let accepted = loop {
                 let trial = heights.step(&delta, tau);
@@ -551,6 +560,7 @@ impl Problem<'_, '_> {
                 break;
             };
             last_tau = tau;
+            last_halved = halvings > 0;
             heights = trial;
             cells = trial_cells;
             (gradient, rel, gnorm) = (g, r, gn);
