@@ -869,18 +869,8 @@ impl<'a> PointPass<'a> {
                     mean3[d] += self.p3[u as usize][d] / snb[v].len() as f64;
                 }
             }
-            let mut closest = (f64::INFINITY, points[v]);
-            for &f in &faces {
-                let q = self.target.face_positions(f as usize);
-                let b = closest_point_barycentric(mean3, q[0], q[1], q[2]);
-                let y: [f64; 3] = std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d]);
-                let d2 = sub3(y, mean3).iter().map(|c| c * c).sum::<f64>();
-                if d2 < closest.0 {
-                    closest = (d2, (f, b));
-                }
-            }
-            if closest.0.is_finite() {
-                consider(closest.1, &mut best);
+            if let Some(closest) = self.closest_on_target(mean3, &faces) {
+                consider(closest, &mut best);
             }
         }
         for cand in spots_on(self.target, &faces) {
@@ -891,6 +881,22 @@ impl<'a> PointPass<'a> {
 }
 
 impl PointPass<'_> {
+    /// The closest point to `x` on the target faces `faces` (the first of equal distances);
+    /// `None` when no face gives a finite distance.
+    fn closest_on_target(&self, x: [f64; 3], faces: &[u32]) -> Option<SurfacePoint> {
+        let mut closest: Option<(f64, SurfacePoint)> = None;
+        for &f in faces {
+            let q = self.target.face_positions(f as usize);
+            let b = closest_point_barycentric(x, q[0], q[1], q[2]);
+            let y: [f64; 3] = std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d]);
+            let d2 = sub3(y, x).iter().map(|c| c * c).sum::<f64>();
+            if d2 < closest.map_or(f64::INFINITY, |c| c.0) {
+                closest = Some((d2, (f, b)));
+            }
+        }
+        closest.map(|c| c.1)
+    }
+
     /// Score of the source faces in `faces` with the current images: DEGENERATE_LIMIT per
     /// flipped image, 1 per degenerate one.
     fn score_faces(&self, faces: &[u32]) -> usize {
@@ -1084,18 +1090,9 @@ impl PointPass<'_> {
                 // corners of the region's current images
                 let near = self.target_faces_near(adjacency, points, &faces, 3);
                 for &v in &interior {
-                    let x = self.p3[v as usize];
-                    let mut best = (f64::INFINITY, points[v as usize]);
-                    for &f in &near {
-                        let q = self.target.face_positions(f as usize);
-                        let b = closest_point_barycentric(x, q[0], q[1], q[2]);
-                        let y: [f64; 3] = std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d]);
-                        let d2 = sub3(y, x).iter().map(|c| c * c).sum::<f64>();
-                        if d2 < best.0 {
-                            best = (d2, (f, b));
-                        }
-                    }
-                    let p = best.1;
+                    let p = self
+                        .closest_on_target(self.p3[v as usize], &near)
+                        .unwrap_or(points[v as usize]);
                     points[v as usize] = p;
                     self.p3[v as usize] = self.x3(p);
                     self.p2[v as usize] = self.x2(p);
