@@ -151,15 +151,7 @@ fn main() {
                     })
                 }
                 "lie" => lie_advection_map(&mesh, &Markers::default(), &LieAdvectionParams::default()).map(|map| {
-                    let c = &map.info.correction;
-                    let correction = match (&c.skipped, c.applied) {
-                        (None, _) => format!("correction applied ({} steps, {} halved)", c.steps, c.halvings),
-                        (Some(why), true) => format!(
-                            "area-rate correction applied ({} steps; the Moser flow {why})",
-                            c.area_rate_steps
-                        ),
-                        (Some(why), false) => format!("correction not applied: {why}"),
-                    };
+                    let correction = map.info.correction.summary();
                     let repair = match &map.info.fold_repair_error {
                         Some(e) => format!("fold repair failed: {e}"),
                         None => format!(
@@ -171,7 +163,10 @@ fn main() {
                         "conformal {:.3}, advection {:.3}, repair {:.3}, correction {:.3} s; {repair}; {correction}",
                         map.timings.conformal, map.timings.advection, map.timings.repair, map.timings.correction,
                     );
-                    let iterations = format!("{:.1} (max {}) + {}", map.info.mean_steps, map.info.max_steps, c.steps);
+                    let iterations = format!(
+                        "{:.1} (max {}) + {}",
+                        map.info.mean_steps, map.info.max_steps, map.info.correction.steps
+                    );
                     (map.uv, iterations, stages)
                 }),
                 "flow" | "flow-mr" => {

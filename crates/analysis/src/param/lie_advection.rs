@@ -144,6 +144,21 @@ pub struct CorrectionInfo {
     pub area_rate_steps: usize,
 }
 
+impl CorrectionInfo {
+    /// One line for reports: the Moser correction's steps, the area-rate correction that ran in
+    /// its place and why, or why none was applied.
+    pub fn summary(&self) -> String {
+        match (&self.skipped, self.applied) {
+            (None, _) => format!("correction {} steps ({} halved)", self.steps, self.halvings),
+            (Some(why), true) => format!(
+                "area-rate correction {} steps (the Moser correction flow {why})",
+                self.area_rate_steps
+            ),
+            (Some(why), false) => format!("correction not applied ({why})"),
+        }
+    }
+}
+
 /// Wall-clock seconds of [`lie_advection_map`].
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct LieAdvectionTimings {

@@ -393,15 +393,7 @@ fn run_lie(
     write_mesh(&args.out, &mesh).with_context(|| format!("writing {}", args.out.display()))?;
     let report = distortion_report(&mesh, &map.conformal.uv, &map.uv)?;
     let lie = &report.maps[1];
-    let c = &map.info.correction;
-    let correction = match (&c.skipped, c.applied) {
-        (None, _) => format!("correction {} steps ({} halved)", c.steps, c.halvings),
-        (Some(why), true) => format!(
-            "area-rate correction {} steps (the Moser correction flow {why})",
-            c.area_rate_steps
-        ),
-        (Some(why), false) => format!("correction not applied ({why})"),
-    };
+    let correction = map.info.correction.summary();
     eprintln!(
         "{}: {} V, {} F; Lie advection {:.1} steps per vertex (max {}); {}; |Υ| median {:.3e} p95 {:.3e} (conformal {:.3e} / {:.3e}); Λ median {:.3e}; {} flipped; {}; conformal {:.2} s, advection {:.2} s, repair {:.2} s, correction {:.2} s",
         args.input.display(),
