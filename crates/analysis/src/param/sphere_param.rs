@@ -347,19 +347,7 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
                     info.charts_convexified += 1;
                     attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
                 }
-                match &attempt {
-                    Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
-                    Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
-                    Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
-                    Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
-                    Ok(_) => {}
-                }
-                if let Ok(moved) = attempt {
-                    info.vertices_moved += moved.len();
-                    for (&v, &p) in &moved {
-                        x[v as usize] = p;
-                    }
-                    num_folded = refresh_folds(mesh, &conn, x, moved.keys(), &mut folded, num_folded);
+                if take_chart(attempt, &mut info, mesh, &conn, x, &mut folded, &mut num_folded) {
                     info.max_rings = info.max_rings.max(rings);
                     if projection == Projection::Stereographic {
                         info.stereographic_repaired += 1;
@@ -381,21 +369,11 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
                 let Some(patch) = cap_patch(mesh, &conn, x, &cluster, centre, radius, limit) else {
                     continue;
                 };
-                match repair_patch(mesh, x, &patch, &shares, Projection::Stereographic, Some(centre)) {
-                    Err(ChartFailure::NotDisk) => info.charts_not_disk += 1,
-                    Err(ChartFailure::TooWide) => info.charts_too_wide += 1,
-                    Err(ChartFailure::RepairFailed) => info.charts_repair_failed += 1,
-                    Err(ChartFailure::FoldedOnSphere) => info.charts_folded_on_sphere += 1,
-                    Ok(moved) => {
-                        info.vertices_moved += moved.len();
-                        for (&v, &p) in &moved {
-                            x[v as usize] = p;
-                        }
-                        num_folded = refresh_folds(mesh, &conn, x, moved.keys(), &mut folded, num_folded);
-                        info.stereographic_repaired += 1;
-                        kept = true;
-                        break;
-                    }
+                let attempt = repair_patch(mesh, x, &patch, &shares, Projection::Stereographic, Some(centre));
+                if take_chart(attempt, &mut info, mesh, &conn, x, &mut folded, &mut num_folded) {
+                    info.stereographic_repaired += 1;
+                    kept = true;
+                    break;
                 }
             }
         }
@@ -406,6 +384,37 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             given_up.extend(cluster);
         }
     }
+}
+
+/// Counts a chart's failure in `info`, or applies its moves to `x` and `folded` (with the
+/// count `num_folded`) and counts them; true when the chart is kept.
+fn take_chart(
+    attempt: Result<HashMap<u32, [f64; 3]>, ChartFailure>,
+    info: &mut SphereFoldRepairInfo,
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    x: &mut [[f64; 3]],
+    folded: &mut [bool],
+    num_folded: &mut usize,
+) -> bool {
+    let moved = match attempt {
+        Ok(moved) => moved,
+        Err(failure) => {
+            *match failure {
+                ChartFailure::NotDisk => &mut info.charts_not_disk,
+                ChartFailure::TooWide => &mut info.charts_too_wide,
+                ChartFailure::RepairFailed => &mut info.charts_repair_failed,
+                ChartFailure::FoldedOnSphere => &mut info.charts_folded_on_sphere,
+            } += 1;
+            return false;
+        }
+    };
+    info.vertices_moved += moved.len();
+    for (&v, &p) in &moved {
+        x[v as usize] = p;
+    }
+    *num_folded = refresh_folds(mesh, conn, x, moved.keys(), folded, *num_folded);
+    true
 }
 
 /// Tests again the faces around the `moved` vertices of the map `x` and updates `folded` (#F);
