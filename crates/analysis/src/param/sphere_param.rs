@@ -47,7 +47,7 @@ pub struct SphereParamParams {
     /// The OT solver on the sphere.
     pub ot: SphereOtParams,
     /// Subdivisions of the icosphere carrying the uniform source (20·4^s flat triangles);
-    /// default: the smallest s ≥ 4 with at least two triangles per vertex.
+    /// default [`default_source_subdivisions`].
     pub source_subdivisions: Option<usize>,
     /// Per-vertex importance weights w_i > 0 (#V) multiplying the masses, as on the disk
     /// ([`weighted_target_masses`]); `None`: all 1.
@@ -113,13 +113,9 @@ pub fn area_preserving_sphere_map(
     };
     let clock = Instant::now();
     let n = mesh.num_vertices();
-    let subdivisions = params.source_subdivisions.unwrap_or_else(|| {
-        let mut s = 4;
-        while 20 * 4usize.pow(s as u32) < 2 * n && s < 9 {
-            s += 1;
-        }
-        s
-    });
+    let subdivisions = params
+        .source_subdivisions
+        .unwrap_or_else(|| default_source_subdivisions(n));
     let source = SphereMeasure::uniform_icosphere(subdivisions).map_err(AnalysisError::Transport)?;
     // the disk's masses (Σ = π) scaled to the source's total (4π up to the icosphere's chords)
     let scale = source.total_mass() / std::f64::consts::PI;
@@ -168,6 +164,21 @@ pub fn area_preserving_sphere_map(
             ..timings
         },
     })
+}
+
+/// The icosphere subdivisions of the uniform source for a mesh of `n` vertices: the smallest
+/// s ≥ 4 with 20·4^s ≥ n/2 (half a triangle to two triangles per vertex above the floor), at
+/// most 9. The source is uniform, so its resolution does not limit the cells: flat triangles
+/// carrying their spherical triangles' masses miss the measure by O(h²) within each. The cost
+/// grows with it (one best-site query per source vertex, one clipping per triangle), and again
+/// with many cells per triangle (long candidate lists);
+/// docs/decisions/0052-sphere-source-resolution.md has the measurements.
+pub fn default_source_subdivisions(n: usize) -> usize {
+    let mut s = 4;
+    while 2 * 20 * 4usize.pow(s as u32) < n && s < 9 {
+        s += 1;
+    }
+    s
 }
 
 /// The fold repair of [`area_preserving_sphere_map`] on any map `x` (#V points on S²) of the

@@ -19,10 +19,7 @@ fn main() {
     let mesh = shapespace_geometry::io::read_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
     let map = sphere_map(&mesh, &SphereMapParams::default()).unwrap();
     let n = mesh.num_vertices();
-    let mut s = 4;
-    while 20 * 4usize.pow(s as u32) < 2 * n && s < 9 {
-        s += 1;
-    }
+    let s = shapespace_analysis::sphere_param::default_source_subdivisions(n);
     let source = SphereMeasure::uniform_icosphere(s).unwrap();
     let scale = source.total_mass() / std::f64::consts::PI;
     let masses: Vec<f64> = weighted_target_masses(&vertex_dual_areas(&mesh), None)

@@ -1,5 +1,6 @@
 //! Probe: the fold repair record of the area-preserving sphere map of one closed mesh.
-//! `sphere_repair_probe PATH` (relative to the shared datasets folder, or an existing path):
+//! `sphere_repair_probe PATH [SUBDIVISIONS]` (PATH relative to the shared datasets folder, or an
+//! existing path; SUBDIVISIONS of the icosphere source, default as the map chooses):
 //! folds before and after the repair, the repair's record, and the 95th percentile of |ε| (the
 //! log one-ring area ratio, both sides normalized) over all vertices and over the moved ones,
 //! before and after the repair.
@@ -37,6 +38,7 @@ fn main() {
     let mesh = shapespace_geometry::io::read_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
     let params = SphereParamParams {
         no_fold_repair: true,
+        source_subdivisions: std::env::args().nth(2).and_then(|s| s.parse().ok()),
         ..Default::default()
     };
     let map = area_preserving_sphere_map(&mesh, &params).unwrap();
@@ -55,9 +57,10 @@ fn main() {
         })
         .fold(0.0, f64::max);
     println!(
-        "{}: {} Newton steps, folded {} → {}, OT {:.2} s, repair {:.2} s; p95 |ε| {:.3} → {:.3}; \
+        "{}: {} subdivisions, {} Newton steps, folded {} → {}, OT {:.2} s, repair {:.2} s; p95 |ε| {:.3} → {:.3}; \
          moved {} (largest move {:.4} rad), their p95 |ε| {:.3} → {:.3}; repair {:?}",
         path.display(),
+        map.source_subdivisions,
         map.iterations,
         map.flipped_before_repair,
         after,
