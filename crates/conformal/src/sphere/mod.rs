@@ -421,12 +421,12 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
     timings.setup = t0.elapsed().as_secs_f64();
 
     let t1 = Instant::now();
-    let z = construct::punctured_plane_map(&tri, face, far, params.method)?;
+    let (z, ranks) = construct::punctured_plane_map(&tri, face, far, params.method)?;
     timings.puncture_solve = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
     let zc = balanced_center(&z, &masses).unwrap_or(z[far as usize]);
     let planar = match params.correction {
-        Correction::Schwarz => construct::schwarz(&tri, &z, zc, &masses)?,
+        Correction::Schwarz => construct::schwarz(&tri, &z, zc, &masses, Some(&ranks))?,
         c => construct::cap_correction(&tri, &z, zc, &masses, c == Correction::Cap)?,
     };
     timings.cap_solve = t2.elapsed().as_secs_f64();
