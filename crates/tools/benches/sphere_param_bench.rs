@@ -4,7 +4,8 @@
 //! TOSCA, lion, GOAST cactus and finger, Sumner cat, libigl and common-3d-test-models folders
 //! under `../shared/datasets` (those whose path contains FILTER, when given), and
 //! an ellipsoid of revolution (semi-axes 1, 1, 2; 40,962 vertices) as the synthetic reference.
-//! Columns: the stages' wall-clock seconds, Newton steps, faces folded by the centroid map and
+//! Columns: the stages' wall-clock seconds, the whole map's CPU seconds (all threads; steadier
+//! than the wall time on a shared machine), Newton steps, faces folded by the centroid map and
 //! after the fold repair (exact test on S²), the vertices the repair moved, and the 95th
 //! percentile of |ε| (the log one-ring area ratio, both normalized) of the conformal and the
 //! area-preserving map, with the angle distortion of both. A failure is a row with its error;
@@ -54,9 +55,9 @@ fn main() {
         meshes.retain(|(name, _)| name.contains(f.as_str()));
     }
     println!(
-        "| mesh | V | conformal s | OT s | output s | Newton steps | folded before / after repair | vertices moved | p95 abs. ε conformal → area-preserving | angle distortion p95 (°) conformal → area-preserving |"
+        "| mesh | V | conformal s | OT s | output s | CPU s | Newton steps | folded before / after repair | vertices moved | p95 abs. ε conformal → area-preserving | angle distortion p95 (°) conformal → area-preserving |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut skipped = Vec::new();
     for (name, mesh) in &meshes {
         match shapespace_geometry::topology::classify(mesh) {
@@ -70,7 +71,10 @@ fn main() {
                 continue;
             }
         }
-        match area_preserving_sphere_map(mesh, &SphereParamParams::default()) {
+        let cpu = shapespace_tools::cpu_seconds();
+        let result = area_preserving_sphere_map(mesh, &SphereParamParams::default());
+        let cpu = shapespace_tools::cpu_seconds() - cpu;
+        match result {
             Ok(map) => {
                 let report = match sphere_distortion_report(mesh, &map.conformal.positions, &map.positions) {
                     Ok(r) => r,
@@ -81,7 +85,7 @@ fn main() {
                 };
                 let (c, a) = (&report.maps[0], &report.maps[1]);
                 println!(
-                    "| {name} | {} | {:.2} | {:.2} | {:.2} | {} | {} / {} | {} | {:.3} → {:.3} | {:.2} → {:.2} |",
+                    "| {name} | {} | {:.2} | {:.2} | {:.2} | {cpu:.2} | {} | {} / {} | {} | {:.3} → {:.3} | {:.2} → {:.2} |",
                     mesh.num_vertices(),
                     map.timings.conformal,
                     map.timings.ot,

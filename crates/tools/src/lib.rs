@@ -18,3 +18,17 @@ pub fn at_repository_root() {
         std::process::exit(2);
     }
 }
+
+/// The process's CPU time (user + system, all threads) in seconds, from /proc/self/stat
+/// (clock ticks of 1/100 s); NaN where it cannot be read.
+pub fn cpu_seconds() -> f64 {
+    std::fs::read_to_string("/proc/self/stat")
+        .ok()
+        .and_then(|s| {
+            // (the fields after the command name, which is in parentheses)
+            let rest = &s[s.rfind(')')? + 2..];
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            Some((f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?) / 100.0)
+        })
+        .unwrap_or(f64::NAN)
+}

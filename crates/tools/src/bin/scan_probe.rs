@@ -34,20 +34,6 @@ fn quantiles(mut v: Vec<f64>, qs: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// The process's CPU time (user + system, all threads) in seconds, from /proc/self/stat
-/// (clock ticks of 1/100 s); NaN where it cannot be read.
-fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/self/stat")
-        .ok()
-        .and_then(|s| {
-            // (the fields after the command name, which is in parentheses)
-            let rest = &s[s.rfind(')')? + 2..];
-            let f: Vec<&str> = rest.split_whitespace().collect();
-            Some((f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?) / 100.0)
-        })
-        .unwrap_or(f64::NAN)
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let files: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
     let steps = std::env::var("STEPS").is_ok();
@@ -146,7 +132,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for w in shapes.windows(2) {
         let (a, b) = (&w[0], &w[1]);
         let t = Instant::now();
-        let mut cpu = cpu_seconds();
+        let mut cpu = shapespace_tools::cpu_seconds();
         let params = shapespace_omt::NewtonParams {
             target_coarsening: Some(b.coarsening.clone()),
             ..params.clone()
@@ -161,11 +147,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 a.measure.averaged_samples()
             );
             let t = Instant::now();
-            cpu = cpu_seconds();
+            cpu = shapespace_tools::cpu_seconds();
             sol = shapespace_omt::solve_ot_prepared(&a.measure, &b.points, &b.masses, &params)?;
             secs = t.elapsed().as_secs_f64();
         }
-        let cpu = cpu_seconds() - cpu;
+        let cpu = shapespace_tools::cpu_seconds() - cpu;
         let levels = match &sol.start {
             Start::CoarseToFine { level_iterations, .. } => format!("{level_iterations:?}"),
             s => format!("{s:?}"),
