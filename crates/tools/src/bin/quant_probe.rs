@@ -71,56 +71,80 @@ fn main() {
                 ]
             })
             .collect();
-        let mut nb: Vec<Vec<usize>> = vec![Vec::new(); k];
+        // neighbourhoods: the solution's cells meeting inside the disk (edge_masses), the
+        // Delaunay triangulation of the group means, the full power diagram at the solution
+        let mut nb_edges: Vec<Vec<usize>> = vec![Vec::new(); k];
         for &(i, j, _) in &cells.edge_masses {
-            nb[i as usize].push(j as usize);
-            nb[j as usize].push(i as usize);
+            nb_edges[i as usize].push(j as usize);
+            nb_edges[j as usize].push(i as usize);
         }
-        let mut cross = 0.0;
+        let pd = shapespace_omt::power_diagram::PowerDiagram::new(&q.points, &vec![0.0; k]).unwrap();
+        let nb_delaunay: Vec<Vec<usize>> = (0..k)
+            .map(|g| pd.neighbors(g).iter().map(|&j| j as usize).collect())
+            .collect();
+        let pw = shapespace_omt::power_diagram::PowerDiagram::new(&q.points, &sol.weights).unwrap();
+        let nb_power: Vec<Vec<usize>> = (0..k)
+            .map(|g| pw.neighbors(g).iter().map(|&j| j as usize).collect())
+            .collect();
         let mut traces = Vec::new();
-        for g in 0..k {
-            // A = B D⁻¹, D = Σ dc dcᵀ, B = Σ dx dcᵀ
-            let (mut d, mut bm) = ([0.0f64; 4], [0.0f64; 4]);
-            for &j in &nb[g] {
-                let dc = [q.points[j][0] - q.points[g][0], q.points[j][1] - q.points[g][1]];
-                let dx = [xbar[j][0] - xbar[g][0], xbar[j][1] - xbar[g][1]];
-                d[0] += dc[0] * dc[0];
-                d[1] += dc[0] * dc[1];
-                d[3] += dc[1] * dc[1];
-                bm[0] += dx[0] * dc[0];
-                bm[1] += dx[0] * dc[1];
-                bm[2] += dx[1] * dc[0];
-                bm[3] += dx[1] * dc[1];
+        let mut second = Vec::new();
+        for (variant, nb) in [&nb_edges, &nb_delaunay, &nb_power].into_iter().enumerate() {
+            let mut cross = 0.0;
+            for g in 0..k {
+                // A = B D⁻¹, D = Σ dc dcᵀ, B = Σ dx dcᵀ
+                let (mut d, mut bm) = ([0.0f64; 4], [0.0f64; 4]);
+                for &j in &nb[g] {
+                    if cells.masses[j] <= 0.0 {
+                        continue;
+                    }
+                    let dc = [q.points[j][0] - q.points[g][0], q.points[j][1] - q.points[g][1]];
+                    let dx = [xbar[j][0] - xbar[g][0], xbar[j][1] - xbar[g][1]];
+                    d[0] += dc[0] * dc[0];
+                    d[1] += dc[0] * dc[1];
+                    d[3] += dc[1] * dc[1];
+                    bm[0] += dx[0] * dc[0];
+                    bm[1] += dx[0] * dc[1];
+                    bm[2] += dx[1] * dc[0];
+                    bm[3] += dx[1] * dc[1];
+                }
+                d[2] = d[1];
+                let det = d[0] * d[3] - d[1] * d[2];
+                let a = if nb[g].len() >= 3 && det > 0.0 {
+                    let inv = [d[3] / det, -d[1] / det, -d[2] / det, d[0] / det];
+                    [
+                        bm[0] * inv[0] + bm[1] * inv[2],
+                        bm[0] * inv[1] + bm[1] * inv[3],
+                        bm[2] * inv[0] + bm[3] * inv[2],
+                        bm[2] * inv[1] + bm[3] * inv[3],
+                    ]
+                } else {
+                    [1.0, 0.0, 0.0, 1.0]
+                };
+                // tr(A S), S symmetric
+                let t = a[0] * s[g][0] + (a[1] + a[2]) * s[g][1] + a[3] * s[g][2];
+                cross += t * scale;
+                if variant == 0 {
+                    traces.push((a[0] + a[3]) / 2.0);
+                }
             }
-            d[2] = d[1];
-            let det = d[0] * d[3] - d[1] * d[2];
-            let a = if nb[g].len() >= 3 && det > 0.0 {
-                let inv = [d[3] / det, -d[1] / det, -d[2] / det, d[0] / det];
-                [
-                    bm[0] * inv[0] + bm[1] * inv[2],
-                    bm[0] * inv[1] + bm[1] * inv[3],
-                    bm[2] * inv[0] + bm[3] * inv[2],
-                    bm[2] * inv[1] + bm[3] * inv[3],
-                ]
-            } else {
-                [1.0, 0.0, 0.0, 1.0]
-            };
-            // tr(A S), S symmetric
-            let t = a[0] * s[g][0] + (a[1] + a[2]) * s[g][1] + a[3] * s[g][2];
-            cross += t * scale;
-            traces.push((a[0] + a[3]) / 2.0);
+            second.push((sol.cost + v - 2.0 * cross).max(0.0).sqrt());
         }
         traces.sort_by(f64::total_cmp);
         let w = full.cost.sqrt();
         let current = (sol.cost - v).max(0.0).sqrt();
-        let second = (sol.cost + v - 2.0 * cross).max(0.0).sqrt();
+        let library = (sol.cost + shapespace_omt::quantization::quantization_correction(&sol, &q.points, &q.moments))
+            .max(0.0)
+            .sqrt();
         println!(
-            "{} -> {}: {k} points, V/cost {:.3}, error subtracting V {:+.3e}, second order {:+.3e} | tr(A)/2 q10 {:.3} median {:.3} q90 {:.3}",
+            "{} -> {}: {k} points, V/cost {:.3}, error subtracting V {:+.3e}, second order (edges {:+.3e}, delaunay {:+.3e}, power {:+.3e}, library {:+.3e}) | tr(A)/2 q10 {:.3} median {:.3} q90 {:.3}",
             a.name,
             b.name,
             v / full.cost,
             current / w - 1.0,
-            second / w - 1.0,
+            second[0] / w - 1.0,
+            second[1] / w - 1.0,
+            second[2] / w - 1.0,
+            library / w - 1.0,
             traces[k / 10],
             traces[k / 2],
             traces[9 * k / 10]
