@@ -1106,6 +1106,42 @@ mod tests {
         );
     }
 
+    /// R S Rᵀ is the second moment of the rotated points: `rotate_moments` against the moments
+    /// of rotated groups computed from scratch.
+    #[test]
+    fn rotated_moments_are_those_of_the_rotated_points() {
+        use shapespace_omt::quantization::second_moments;
+        let points: Vec<[f64; 2]> = (0..12)
+            .map(|i| {
+                let t = i as f64;
+                [0.3 * t.sin() + 0.01 * t, 0.2 * (1.7 * t).cos()]
+            })
+            .collect();
+        let masses: Vec<f64> = (0..12).map(|i| 1.0 + 0.1 * i as f64).collect();
+        let group: Vec<usize> = (0..12).map(|i| i % 3).collect();
+        let centre = |pts: &[[f64; 2]], g: usize| {
+            let (mut c, mut m) = ([0.0, 0.0], 0.0);
+            for i in (0..12).filter(|i| group[*i] == g) {
+                c[0] += masses[i] * pts[i][0];
+                c[1] += masses[i] * pts[i][1];
+                m += masses[i];
+            }
+            [c[0] / m, c[1] / m]
+        };
+        let centres: Vec<[f64; 2]> = (0..3).map(|g| centre(&points, g)).collect();
+        let moments = second_moments(&points, &masses, &group, &centres);
+        for theta in [0.0, 0.7, -2.5] {
+            let rotated = crate::invariance::rotate(&points, theta);
+            let rotated_centres: Vec<[f64; 2]> = (0..3).map(|g| centre(&rotated, g)).collect();
+            let expected = second_moments(&rotated, &masses, &group, &rotated_centres);
+            for (got, want) in rotate_moments(&moments, theta).iter().zip(&expected) {
+                for c in 0..3 {
+                    assert!((got[c] - want[c]).abs() < 1e-15, "θ {theta}: {got:?} against {want:?}");
+                }
+            }
+        }
+    }
+
     /// No item starts on a thread while another item waits there, even when the items' own
     /// parallel halves are stolen and waited for (the flat `par_iter` over pairs this replaced
     /// nested items 2–3 deep in each of ten runs of this test), and the results come in index
