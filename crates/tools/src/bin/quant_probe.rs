@@ -1,13 +1,20 @@
 //! Probe: the error of `--target-points N` on consecutive facefuns pairs, with the grouping's
-//! cost subtracted (as the distances do) and with a second-order estimate of the cross term.
+//! cost subtracted (the block model) and with the second-order estimate of the cross term that
+//! the distances use.
 //!
 //! `cargo run --release -p shapespace-tools --bin quant_probe -- [PAIRS] [N]` (defaults 5,
 //! 10000). For a target quantized to groups g (means c_g, masses m_g, covariances
 //! S_g = Σ_{i∈g} ν_i (y_i − c_g)(y_i − c_g)ᵀ) and the solution's cells W_g (centroids x̄_g), a
 //! split of each cell among its group's points costs
-//! cost_q + V − 2 Σ_i ν_i ⟨x̄_i − x̄_g, y_i − c_g⟩. The distances take x̄_i − x̄_g = y_i − c_g
-//! (cost_q − V); here x̄_i − x̄_g = A_g (y_i − c_g) with A_g the least-squares Jacobian of
-//! c ↦ x̄ over the cell's neighbours: cost_q + V − 2 Σ_g tr(A_g S_g).
+//! cost_q + V − 2 Σ_i ν_i ⟨x̄_i − x̄_g, y_i − c_g⟩. Taking x̄_i − x̄_g = y_i − c_g gives cost_q − V
+//! (the block model); the distances take x̄_i − x̄_g = A_g (y_i − c_g) with A_g the
+//! least-squares Jacobian of c ↦ x̄ over the cell's neighbours: cost_q + V − 2 Σ_g tr(A_g S_g)
+//! (`shapespace_omt::quantization::quantization_correction`, printed as `library`). The probe
+//! fits A_g over three neighbourhoods: the cells meeting across edges inside the disk, the
+//! Delaunay neighbours of the means, and the neighbours in the solution's power diagram (the
+//! library's); and prints, for the last, the model's sub-cell spread Σ_g tr(A_g S_g A_gᵀ)
+//! against the cells' own variance Σ_g ∫_{W_g} |x − x̄_g|² dμ, the share of V in groups whose
+//! spread exceeds half their cell's variance, and the points per group.
 
 use shapespace_analysis::distance::PairwiseOptions;
 use shapespace_analysis::distance::PreparedShape;
@@ -88,6 +95,8 @@ fn main() {
             .collect();
         let mut traces = Vec::new();
         let mut second = Vec::new();
+        let mut spreads: Vec<(f64, f64, f64, f64)> = Vec::new();
+        let q_points = q.points.clone();
         for (variant, nb) in [&nb_edges, &nb_delaunay, &nb_power].into_iter().enumerate() {
             let mut cross = 0.0;
             for g in 0..k {
@@ -126,10 +135,37 @@ fn main() {
                 if variant == 0 {
                     traces.push((a[0] + a[3]) / 2.0);
                 }
+                if variant == 2 {
+                    // the model's between-sub-cell variance tr(A S Aᵀ) against the cell's own
+                    // variance ∫_W |x − x̄|² dμ, which bounds what any split can place
+                    let q = |r0: f64, r1: f64| r0 * r0 * s[g][0] + 2.0 * r0 * r1 * s[g][1] + r1 * r1 * s[g][2];
+                    let spread = (q(a[0], a[1]) + q(a[2], a[3])) * scale;
+                    let dx = [xbar[g][0] - q_points[g][0], xbar[g][1] - q_points[g][1]];
+                    let own = cells.second_moments[g] - cells.masses[g] * (dx[0] * dx[0] + dx[1] * dx[1]);
+                    spreads.push((spread, own, (s[g][0] + s[g][2]) * scale, t * scale));
+                }
             }
             second.push((sol.cost + v - 2.0 * cross).max(0.0).sqrt());
         }
         traces.sort_by(f64::total_cmp);
+        {
+            let sum = |f: &dyn Fn(&(f64, f64, f64, f64)) -> f64| spreads.iter().map(f).sum::<f64>();
+            let over: Vec<_> = spreads.iter().filter(|x| x.0 > 0.5 * x.1).collect();
+            let over_v: f64 = over.iter().map(|x| x.2).sum();
+            let mut group_sizes = vec![0usize; k];
+            q.group.iter().for_each(|&g| group_sizes[g] += 1);
+            group_sizes.sort();
+            println!(
+                "  model spread Σ tr(A S Aᵀ) {:.3e} against the cells' own variance {:.3e} (V {:.3e}); {} of {k} groups have spread > half their cell's variance ({:.1} % of V); points per group median {} q90 {}",
+                sum(&|x| x.0),
+                sum(&|x| x.1),
+                v,
+                over.len(),
+                100.0 * over_v / v,
+                group_sizes[k / 2],
+                group_sizes[9 * k / 10]
+            );
+        }
         let w = full.cost.sqrt();
         let current = (sol.cost - v).max(0.0).sqrt();
         let library = (sol.cost + shapespace_omt::quantization::quantization_correction(&sol, &q.points, &q.moments))
