@@ -21,6 +21,8 @@ use shapespace_analysis::distance::PreparedShape;
 use shapespace_tools::scans;
 use std::sync::Arc;
 
+type Spread = (f64, f64, f64, f64);
+
 fn solve(
     a: &PreparedShape,
     points: &[[f64; 2]],
@@ -95,7 +97,8 @@ fn main() {
             .collect();
         let mut traces = Vec::new();
         let mut second = Vec::new();
-        let mut spreads: Vec<(f64, f64, f64, f64)> = Vec::new();
+        // per group: (model spread, cell variance, tr S_g, tr(A_g S_g)), all scaled
+        let mut spreads: Vec<Spread> = Vec::new();
         let q_points = q.points.clone();
         for (variant, nb) in [&nb_edges, &nb_delaunay, &nb_power].into_iter().enumerate() {
             let mut cross = 0.0;
@@ -149,7 +152,7 @@ fn main() {
         }
         traces.sort_by(f64::total_cmp);
         {
-            let sum = |f: &dyn Fn(&(f64, f64, f64, f64)) -> f64| spreads.iter().map(f).sum::<f64>();
+            let sum = |f: &dyn Fn(&Spread) -> f64| spreads.iter().map(f).sum::<f64>();
             let over: Vec<_> = spreads.iter().filter(|x| x.0 > 0.5 * x.1).collect();
             let over_v: f64 = over.iter().map(|x| x.2).sum();
             let mut group_sizes = vec![0usize; k];
