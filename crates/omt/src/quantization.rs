@@ -150,8 +150,8 @@ pub fn second_moments(points: &[[f64; 2]], masses: &[f64], group: &[usize], cent
 /// full measure"). A_g is the least-squares fit of x̄_j − x̄_g ≈ A_g (c_j − c_g) over the
 /// neighbours j of cell g in the solution's power diagram with non-empty cells; a group whose
 /// fit is singular (fewer than two such neighbours in independent directions) takes A_g = I
-/// (the block model, −V). Deterministic; one power diagram of `points` (built again from the solution's weights)
-/// and O(#G) after it.
+/// (the block model, −V). Deterministic; one power diagram of `points` (built again from the
+/// solution's weights) and O(#G) after it.
 ///
 /// # Panics
 /// When the lengths differ or the solution has no cell moments.
