@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use shapespace_analysis::distance::{
-    coarsen_source, debiased_cost, directed_distance, pairwise_distances, prepare_shape, DirectedDistance,
-    PairwiseOptions, PreparedShape,
+    coarsen_source, debiased_cost, directed_distance, pairwise_distances, prepare_shape, quantize_target,
+    DirectedDistance, PairwiseOptions, PreparedShape,
 };
 use shapespace_analysis::pipeline::{
     run_distances, DistancesOptions, PARTIAL_IDENTITY, PARTIAL_PAIRS, PREVIOUS_PARTIAL_IDENTITY, PREVIOUS_PARTIAL_PAIRS,
@@ -1262,4 +1262,41 @@ fn averaged_source_distances_stay_within_the_averaging_bound_and_converge() {
         refused.contains("id00_neutral") && refused.contains("10 triangles"),
         "{refused}"
     );
+}
+
+/// `--target-points N` on a bundled face pair: the quantized target keeps the groups' second
+/// moments (their traces sum to the grouping's variance V), and the distance with the
+/// second-order correction (`PreparedShape::quantization_correction`) is closer to the
+/// full-resolution one than the block model C_q − V (the same shape without its moments).
+/// Measured (9,412 target points; both estimates fall below the full distance): at 2,000
+/// points −2.55 % against −3.60 %, at 5,000 −0.49 % against −0.85 % (at 500–1,000 points,
+/// groups of 10–20, the correction gains only a sixth: −5.0 % against −6.2 %, −4.2 % against
+/// −5.0 %).
+#[test]
+fn quantized_targets_take_the_second_order_correction() {
+    let (_, a) = face("id00_neutral");
+    let (_, b) = face("id01_happy");
+    let params = PairwiseOptions::default().newton;
+    let full = converged(&a, &b, &params).distance;
+    for (n, bound, gain) in [(2_000, 2.7e-2, 0.75), (5_000, 5.2e-3, 0.6)] {
+        let q = quantize_target(b.clone(), n);
+        assert_eq!(q.quantization_moments.len(), q.points.len());
+        let traces: f64 = q.quantization_moments.iter().map(|s| s[0] + s[2]).sum();
+        assert!(
+            (traces - q.quantization_variance).abs() <= 1e-12 * q.quantization_variance,
+            "{traces} {}",
+            q.quantization_variance
+        );
+        let corrected = converged(&a, &q, &params).distance;
+        let mut block_model = q.clone();
+        block_model.quantization_moments.clear();
+        let block = converged(&a, &block_model, &params).distance;
+        let (error, block_error) = ((corrected / full - 1.0).abs(), (block / full - 1.0).abs());
+        eprintln!("{n} target points: error {error:.2e}, block model {block_error:.2e}");
+        assert!(error < bound, "{n} points: {corrected} against {full}: {error:e}");
+        assert!(
+            error < gain * block_error,
+            "{n} points: {error:e} against {block_error:e}"
+        );
+    }
 }

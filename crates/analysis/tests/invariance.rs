@@ -2,7 +2,9 @@
 //! disk map, so the distance over rotations must not see it; its derivative in θ agrees with
 //! finite differences of the cost.
 
-use shapespace_analysis::distance::{directed_distance, prepare_shape, PairwiseOptions, PreparedShape};
+use shapespace_analysis::distance::{
+    directed_distance, prepare_shape, quantize_target, PairwiseOptions, PreparedShape,
+};
 use shapespace_analysis::invariance::{rotation_derivative, rotation_invariant_distance};
 use shapespace_conformal::{BoundaryMarker, DiskMapParams, MarkerFile, Markers};
 use shapespace_omt::{solve_ot, NewtonParams};
@@ -163,4 +165,32 @@ fn pairwise_rotation_invariance_ignores_the_boundary_marker() {
     }
     let fixed = pairwise_distances(&shapes, &PairwiseOptions::default(), &|_| {});
     assert!(fixed.matrix[3 + 2] > 0.2, "{}", fixed.matrix[3 + 2]);
+}
+
+/// A quantized target in the rotation search takes the same correction as a fixed pair (the
+/// moments rotated with the points): the face with the wrong boundary marker (θ ≈ 1.44),
+/// quantized to 5,000 points, against the same search at full resolution. Measured −0.58 %;
+/// the block model C_q − V gives −0.98 %, and the cost to the quantized points alone (what the
+/// search returned before it took the correction) +2.2 %.
+#[test]
+fn the_rotation_search_corrects_a_quantized_target() {
+    let right = landmarks();
+    let wrong = wrong_boundary("id01_happy", &right);
+    let a = face("id00_neutral", &right);
+    let b_wrong = face("id01_happy", &wrong);
+    let params = PairwiseOptions::default().newton;
+    let full = rotation_invariant_distance(&a, &b_wrong, &params).unwrap();
+    let quantized = rotation_invariant_distance(&a, &quantize_target(b_wrong, 5_000), &params).unwrap();
+    let error = quantized.distance / full.distance - 1.0;
+    eprintln!(
+        "full {:.6} at θ = {:.4}, quantized {:.6} at θ = {:.4}: error {error:+.3e}",
+        full.distance, full.theta, quantized.distance, quantized.theta
+    );
+    assert!(
+        (quantized.theta - full.theta).abs() < 1e-2,
+        "{} {}",
+        quantized.theta,
+        full.theta
+    );
+    assert!(error.abs() < 7e-3, "{error:e}");
 }

@@ -3,7 +3,7 @@
 //! `../shared/datasets` beside the workspace, never copied into the project). Skipped, with a
 //! message, when the folder is absent.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use shapespace_analysis::distance::{
     coarsen_source, directed_distance, prepare_shape, quantize_target, PairwiseOptions, PreparedShape,
@@ -18,31 +18,44 @@ fn data_dir() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"))
 }
 
+/// The facefuns file `path` prepared as `shapespace prepare` and `shapespace distances` do, or
+/// the conformal map's error.
+fn prepare_file(path: &Path) -> Result<PreparedShape, shapespace_analysis::AnalysisError> {
+    let mesh = prepare_disk(
+        &shapespace_geometry::io::read_mesh(path).unwrap(),
+        &PrepareOptions::default(),
+    )
+    .unwrap()
+    .0;
+    let (markers, _) = markers_for(path, &MarkerOptions::default(), mesh.num_vertices()).unwrap();
+    let name = path.file_stem().unwrap().to_string_lossy().to_string();
+    prepare_shape(&name, &mesh, &markers, &DiskMapParams::default())
+}
+
+/// The facefuns folder, or `None` after saying that it is absent.
+fn facefuns_dir() -> Option<PathBuf> {
+    let dir = data_dir().join("outside/facefuns");
+    if !dir.is_dir() {
+        eprintln!("SKIPPED: no real scans in {} (set SHAPESPACE_DATA)", dir.display());
+        return None;
+    }
+    Some(dir)
+}
+
 /// The first `n` facefuns faces whose conformal map succeeds, prepared as `shapespace prepare`
 /// and `shapespace distances` do; `None` (after saying so) when the scans are absent.
 fn facefuns(n: usize) -> Option<Vec<PreparedShape>> {
-    let dir = data_dir().join("outside/facefuns");
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("SKIPPED: no real scans in {} (set SHAPESPACE_DATA)", dir.display());
-        return None;
-    };
-    let mut files: Vec<PathBuf> = entries
+    let dir = facefuns_dir()?;
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "ply"))
         .collect();
     files.sort();
     let mut shapes = Vec::new();
     for f in files {
-        let mesh = prepare_disk(
-            &shapespace_geometry::io::read_mesh(&f).unwrap(),
-            &PrepareOptions::default(),
-        )
-        .unwrap()
-        .0;
-        let (markers, _) = markers_for(&f, &MarkerOptions::default(), mesh.num_vertices()).unwrap();
-        let name = f.file_stem().unwrap().to_string_lossy().to_string();
         // (some faces' maps are refused; the test needs any two that map)
-        if let Ok(shape) = prepare_shape(&name, &mesh, &markers, &DiskMapParams::default()) {
+        if let Ok(shape) = prepare_file(&f) {
             shapes.push(shape);
             if shapes.len() == n {
                 return Some(shapes);
@@ -52,10 +65,22 @@ fn facefuns(n: usize) -> Option<Vec<PreparedShape>> {
     panic!("fewer than {n} facefuns faces map");
 }
 
-/// `--target-points 10000` on 30k-vertex faces: the distance within 1 % of full resolution
-/// on this pair (five scan pairs: 0.32 % median, 1.40 % max; docs/benchmarks.md "Scans"), and
-/// the quantized target has about 10k points with
-/// the full mass.
+/// The facefuns faces `names` (file stems), prepared as [`facefuns`] does; `None` (after
+/// saying so) when the scans are absent.
+fn facefuns_named(names: &[&str]) -> Option<Vec<PreparedShape>> {
+    let dir = facefuns_dir()?;
+    Some(
+        names
+            .iter()
+            .map(|name| prepare_file(&dir.join(format!("{name}.ply"))).unwrap())
+            .collect(),
+    )
+}
+
+/// `--target-points 10000` on 30k-vertex faces: the quantized target has about 10k points
+/// with the full mass, and the distance (with the quantization's second-order correction) is
+/// within 5e-4 of full resolution on this pair (measured −2.5e-4; −3.8e-4 with the block model
+/// C_q − V). Five scan pairs: docs/benchmarks.md "Scans".
 #[test]
 fn ten_thousand_target_points_within_one_percent() {
     let Some(shapes) = facefuns(2) else { return };
@@ -70,7 +95,26 @@ fn ten_thousand_target_points_within_one_percent() {
     let (quantized, _) = directed_distance(a, &q, &params).unwrap();
     assert!(full.converged && quantized.converged);
     let error = (quantized.distance / full.distance - 1.0).abs();
-    assert!(error < 0.01, "{} vs {}: {error:e}", quantized.distance, full.distance);
+    assert!(error < 5e-4, "{} vs {}: {error:e}", quantized.distance, full.distance);
+}
+
+/// The worst of the five consecutive facefuns pairs at `--target-points 10000`, f46 → f56
+/// (the grouping's variance V is 38 % of the cost): with the second-order correction the
+/// distance is within 1 % of full resolution (measured −0.93 %; the block model C_q − V gives
+/// −1.40 %, beyond it).
+#[test]
+fn worst_scan_pair_within_one_percent_at_ten_thousand_target_points() {
+    let Some(shapes) = facefuns_named(&["f46", "f56"]) else {
+        return;
+    };
+    let (a, b) = (&shapes[0], &shapes[1]);
+    let params = PairwiseOptions::default().newton;
+    let (full, _) = directed_distance(a, b, &params).unwrap();
+    let q = quantize_target(b.clone(), 10_000);
+    let (quantized, _) = directed_distance(a, &q, &params).unwrap();
+    assert!(full.converged && quantized.converged);
+    let error = (quantized.distance / full.distance - 1.0).abs();
+    assert!(error < 1e-2, "{} vs {}: {error:e}", quantized.distance, full.distance);
 }
 
 /// A scan pair's finest level from the coarse-to-fine start, solved as the distances solve it:
@@ -104,8 +148,8 @@ fn scan_pair_finest_level_steps() {
 /// `--source-faces 10000` on 30k-vertex faces (59.7k source triangles): the averaged source
 /// has about 10k triangles and the full mass, and the distance stays within 0.5 % of full
 /// resolution (five scan pairs: 0.15 % median, 0.23 % max; docs/benchmarks.md "Scans"), alone and with
-/// `--target-points 10000` (the quantization's own cost subtracted, as `directed_distance` does)
-/// within 1 %.
+/// `--target-points 10000` (with the quantization's correction, as `directed_distance` applies
+/// it) within 1 %.
 #[test]
 fn ten_thousand_source_faces_within_half_a_percent() {
     let Some(shapes) = facefuns(2) else { return };

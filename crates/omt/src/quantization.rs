@@ -15,6 +15,28 @@
 //! centre (a bucket grid) and moving each centre to its group's mass-weighted mean. Groups left
 //! empty are dropped, so the result can have fewer than k points. Deterministic: no random
 //! seeding, and the result does not depend on the number of threads.
+//!
+//! **The cost to the full measure.** A transport solution towards the groups' means, with cells
+//! W_g of μ-centroids x̄_g, becomes a plan towards the full measure when each cell is split
+//! among its group's points, y_i taking a part W_i ⊂ W_g of mass ν_i and centroid x̄_i. With
+//! d_i = x̄_i − x̄_g and e_i = y_i − c_g (both of zero ν-mean within a group), that plan costs
+//! exactly
+//! $$ C_q + V - 2\sum_i \nu_i \langle d_i, e_i\rangle, \qquad
+//!    V = \sum_g \operatorname{tr} S_g, \quad
+//!    S_g = \sum_{i \in g} \nu_i\, e_i e_i^\top, $$
+//! (C_q the cost to the means; the split lowers each cell's variance by Σ ν_i |d_i|², which
+//! cancels the |d_i|² of the new distances). Taking d_i = e_i (each group moving with its cell
+//! as a block) gives C_q − V. [`quantization_correction`] takes instead the first-order model
+//! d_i = A_g e_i, with A_g the least-squares Jacobian of the map c ↦ x̄ over the neighbours of
+//! cell W_g in the solution's power diagram (the map is the inverse of the transport map,
+//! sampled at the means), which gives C_q + V − 2 Σ_g tr(A_g S_g). [`Quantized::moments`]
+//! keeps the S_g. (On five 30k-point face scans quantized to 10k points the neighbours in the
+//! power diagram give distance errors 7–15 % smaller than the Delaunay neighbours of the
+//! means, and 1–4 % smaller than the neighbours across cell edges inside the domain,
+//! `quant_probe`.)
+
+use crate::newton::OtSolution;
+use crate::power_diagram::PowerDiagram;
 
 /// Rounds of Lloyd's algorithm after the Morton start.
 pub const LLOYD_ITERATIONS: usize = 8;
@@ -28,6 +50,11 @@ pub struct Quantized {
     pub masses: Vec<f64>,
     /// Each input point's group (#N).
     pub group: Vec<usize>,
+    /// The groups' second moments about their means,
+    /// S_g = Σ_{i∈g} ν_i (y_i − c_g)(y_i − c_g)ᵀ, as [S_xx, S_xy, S_yy] (#G): what
+    /// [`quantization_correction`] needs of the full measure. Their traces sum to the
+    /// within-group variance V.
+    pub moments: Vec<[f64; 3]>,
 }
 
 /// The quantization of (`points`, `masses`) to at most `k` points (module docs). With k ≥ N the
@@ -41,6 +68,7 @@ pub fn quantize(points: &[[f64; 2]], masses: &[f64], k: usize) -> Quantized {
             points: points.to_vec(),
             masses: masses.to_vec(),
             group: (0..n).collect(),
+            moments: vec![[0.0; 3]; n],
         };
     }
     let k = k.max(1);
@@ -92,11 +120,107 @@ pub fn quantize(points: &[[f64; 2]], masses: &[f64], k: usize) -> Quantized {
     for g in &mut group {
         *g = renumber[*g];
     }
+    let moments = second_moments(points, masses, &group, &out_points);
     Quantized {
         points: out_points,
         masses: out_masses,
         group,
+        moments,
     }
+}
+
+/// S_g = Σ_{i∈g} ν_i (y_i − c_g)(y_i − c_g)ᵀ as [S_xx, S_xy, S_yy] for the groups `group` (#N)
+/// with means `centres` (#G).
+pub fn second_moments(points: &[[f64; 2]], masses: &[f64], group: &[usize], centres: &[[f64; 2]]) -> Vec<[f64; 3]> {
+    let mut moments = vec![[0.0f64; 3]; centres.len()];
+    for (i, &g) in group.iter().enumerate() {
+        let e = [points[i][0] - centres[g][0], points[i][1] - centres[g][1]];
+        let s = &mut moments[g];
+        s[0] += masses[i] * e[0] * e[0];
+        s[1] += masses[i] * e[0] * e[1];
+        s[2] += masses[i] * e[1] * e[1];
+    }
+    moments
+}
+
+/// What to add to `solution.cost` (and to its dual value) for the transport cost to the full
+/// measure, when `solution` is towards a quantization with means `points` (#G, in the order of
+/// the solve, rotated if the solve's were) and second moments `moments` (#G, likewise):
+/// s·(V − 2 Σ_g tr(A_g S_g)) with s the solution's `mass_scale` (module docs, "The cost to the
+/// full measure"). A_g is the least-squares fit of x̄_j − x̄_g ≈ A_g (c_j − c_g) over the
+/// neighbours j of cell g in the solution's power diagram with non-empty cells; a group whose
+/// fit is singular (fewer than two such neighbours in independent directions) takes A_g = I
+/// (the block model, −V). Deterministic; one power diagram of `points` (built again from the
+/// solution's weights) and O(#G) after it.
+///
+/// # Panics
+/// When the lengths differ or the solution has no cell moments.
+pub fn quantization_correction(solution: &OtSolution, points: &[[f64; 2]], moments: &[[f64; 3]]) -> f64 {
+    let k = points.len();
+    assert!(moments.len() == k && solution.cells.masses.len() == k, "lengths differ");
+    assert!(solution.cells.has_moments(), "the solution has no cell moments");
+    let variance: f64 = moments.iter().map(|s| s[0] + s[2]).sum();
+    let centroids = solution.cells.centroids();
+    let (offsets, list) = cell_neighbours(solution, points);
+    let mut cross = 0.0;
+    for (g, s) in moments.iter().enumerate() {
+        let neighbours = &list[offsets[g] as usize..offsets[g + 1] as usize];
+        let [a00, a01, a10, a11] = jacobian_fit(points, &centroids, g, neighbours).unwrap_or([1.0, 0.0, 0.0, 1.0]);
+        // tr(A S) with S symmetric
+        cross += a00 * s[0] + (a01 + a10) * s[1] + a11 * s[2];
+    }
+    solution.mass_scale * (variance - 2.0 * cross)
+}
+
+/// The neighbour lists (CSR: offsets #G + 1, list) of the power diagram of `points` with the
+/// solution's weights: the cells W_g and their neighbours over all their edges, inside the
+/// domain or not. Empty lists where it cannot be built (fewer than three points, all
+/// collinear), so that every group falls back to A_g = I.
+fn cell_neighbours(solution: &OtSolution, points: &[[f64; 2]]) -> (Vec<u32>, Vec<u32>) {
+    match PowerDiagram::new(points, &solution.weights) {
+        Ok(d) if d.dimension() == 2 => (d.neighbor_offsets().to_vec(), d.neighbor_list().to_vec()),
+        _ => (vec![0; points.len() + 1], Vec::new()),
+    }
+}
+
+/// A_g = B D⁻¹ (row-major [a00, a01, a10, a11]) with D = Σ_j δc δcᵀ and B = Σ_j δx δcᵀ over
+/// the neighbours j of g with centroids (δc = c_j − c_g, δx = x̄_j − x̄_g): the least-squares
+/// fit of δx ≈ A δc (exact for two neighbours in independent directions). `None` without a
+/// centroid of g or when D is singular (det D ≤ 1e-12 · (tr D)²: fewer than two neighbours
+/// with centroids, or all in one direction).
+fn jacobian_fit(points: &[[f64; 2]], centroids: &[Option<[f64; 2]>], g: usize, neighbours: &[u32]) -> Option<[f64; 4]> {
+    let xg = centroids[g]?;
+    let (mut d, mut b) = ([0.0f64; 3], [0.0f64; 4]);
+    for &j in neighbours {
+        let Some(xj) = centroids[j as usize] else {
+            continue;
+        };
+        let dc = [
+            points[j as usize][0] - points[g][0],
+            points[j as usize][1] - points[g][1],
+        ];
+        let dx = [xj[0] - xg[0], xj[1] - xg[1]];
+        d[0] += dc[0] * dc[0];
+        d[1] += dc[0] * dc[1];
+        d[2] += dc[1] * dc[1];
+        b[0] += dx[0] * dc[0];
+        b[1] += dx[0] * dc[1];
+        b[2] += dx[1] * dc[0];
+        b[3] += dx[1] * dc[1];
+    }
+    let det = d[0] * d[2] - d[1] * d[1];
+    let trace = d[0] + d[2];
+    if !(det > 1e-12 * trace * trace) {
+        return None;
+    }
+    // D⁻¹ = [d2, −d1; −d1, d0] / det
+    let inv = [d[2] / det, -d[1] / det, d[0] / det];
+    Some([
+        b[0] * inv[0] + b[1] * inv[1],
+        b[0] * inv[1] + b[1] * inv[2],
+        b[2] * inv[0] + b[3] * inv[1],
+        b[2] * inv[1] + b[3] * inv[2],
+    ])
 }
 
 /// Each group's (mass-weighted mean, mass), `None` for an empty group. The mean is accumulated
@@ -242,6 +366,52 @@ mod tests {
             / total;
         // groups of ~5 points in cells of area π/1000: variance ~ π/1000/(2π) = 5e-4
         assert!(variance < 1e-3, "{variance}");
+    }
+
+    /// The uniform unit square to an n × n grid stretched by L = diag(2, 1) (y = L p for the
+    /// grid's cell centres p, equal masses): the optimal cells are the grid's squares, so the
+    /// full cost is Σ_i h² |p_i − y_i|² + h²/6 (h = 1/n). The grid grouped into 2 × 2 blocks is
+    /// again such a grid, its cells the blocks, and inside a block the full cells' centroids
+    /// are x̄_i − x̄_g = L⁻¹ (y_i − c_g): the fitted A_g is L⁻¹ and the second-order cost is
+    /// exact, while the block model's C_q − V is off by 2 Σ_g tr((I − L⁻¹) S_g).
+    #[test]
+    fn second_order_cost_is_exact_for_an_affine_map() {
+        let n = 16;
+        let h = 1.0 / n as f64;
+        let cell = |i: usize| (i as f64 + 0.5) * h;
+        let (mut points, mut group) = (Vec::new(), Vec::new());
+        let mut full = h * h / 6.0;
+        for i in 0..n {
+            for j in 0..n {
+                let p = [cell(i), cell(j)];
+                points.push([2.0 * p[0], p[1]]);
+                group.push((i / 2) * (n / 2) + j / 2);
+                full += h * h * (p[0] * p[0]);
+            }
+        }
+        let masses = vec![h * h; n * n];
+        let k = n * n / 4;
+        let mut centres = vec![[0.0; 2]; k];
+        for (y, &g) in points.iter().zip(&group) {
+            centres[g][0] += y[0] / 4.0;
+            centres[g][1] += y[1] / 4.0;
+        }
+        let moments = second_moments(&points, &masses, &group, &centres);
+        let variance: f64 = moments.iter().map(|s| s[0] + s[2]).sum();
+        let square = crate::SourceMeasure::unit_square().unwrap();
+        let params = crate::NewtonParams {
+            tolerance: 1e-10,
+            ..Default::default()
+        };
+        let solution = crate::solve_ot(&square, &centres, &vec![4.0 * h * h; k], &params).unwrap();
+        assert!(solution.converged(), "{}", solution.stop_description());
+        let corrected = solution.cost + quantization_correction(&solution, &centres, &moments);
+        let block = solution.cost - variance;
+        assert!((corrected - full).abs() <= 1e-9 * full, "{corrected} against {full}");
+        // the block model misses by 2 Σ tr((I − L⁻¹) S) = Σ S_xx
+        let miss: f64 = moments.iter().map(|s| s[0]).sum();
+        assert!(((full - block) - miss).abs() <= 1e-9 * full, "{block} against {full}");
+        assert!(miss > 1e-2 * full, "{miss} {full}");
     }
 
     #[test]

@@ -31,7 +31,9 @@ use shapespace_geometry::TriMesh;
 use shapespace_omt::linear::LinearSolver;
 use shapespace_omt::newton::{TargetCoarsening, RETRY_CONTINUATION};
 use shapespace_omt::peaks::{spread_density_peaks, PeakSpreading};
-use shapespace_omt::{solve_ot_prepared, NewtonParams, PreparedMeasure, SourceMeasure, StartStrategy, StopReason};
+use shapespace_omt::{
+    solve_ot_prepared, NewtonParams, OtSolution, PreparedMeasure, SourceMeasure, StartStrategy, StopReason,
+};
 
 use crate::error::AnalysisError;
 use crate::invariance::{rotation_invariant_distance, Invariance};
@@ -67,8 +69,49 @@ pub struct PreparedShape {
     pub seconds: f64,
     /// 0, or after [`quantize_target`] the within-group variance Σ_i ν_i |y_i − c_g(i)|² of the
     /// quantization (the transport cost of the grouping, an upper bound on W₂² between the
-    /// full and the quantized target): subtracted from the costs to this target.
+    /// full and the quantized target). Without `quantization_moments` (coincident points
+    /// merged by [`prepare_shape`]) it is subtracted from the costs to this target.
     pub quantization_variance: f64,
+    /// Empty, or after [`quantize_target`] the groups' second moments about their means
+    /// S_g = Σ_{i∈g} ν_i (y_i − c_g)(y_i − c_g)ᵀ as [S_xx, S_xy, S_yy] (#points): the costs to
+    /// this target then take the second-order correction
+    /// ([`shapespace_omt::quantization::quantization_correction`]; [`Self::quantization_correction`]).
+    pub quantization_moments: Vec<[f64; 3]>,
+}
+
+impl PreparedShape {
+    /// What to add to the cost (and the dual value) of `solution`, a solve towards this
+    /// shape's points rotated by `theta` (radians, counter-clockwise), for the cost towards
+    /// its full target: 0 for a target that was neither quantized nor merged; after
+    /// [`quantize_target`] the second-order estimate s·(V − 2 Σ_g tr(A_g S_g)) of
+    /// [`shapespace_omt::quantization::quantization_correction`] (the moments rotated with the
+    /// points); after a merge of coincident points only −V.
+    pub fn quantization_correction(&self, solution: &OtSolution, theta: f64) -> f64 {
+        if self.quantization_moments.is_empty() {
+            return -self.quantization_variance;
+        }
+        let points = crate::invariance::rotate(&self.points, theta);
+        let moments = rotate_moments(&self.quantization_moments, theta);
+        shapespace_omt::quantization::quantization_correction(solution, &points, &moments)
+    }
+}
+
+/// Second moments [S_xx, S_xy, S_yy] of point sets rotated by `theta`: R S Rᵀ (unchanged at 0).
+fn rotate_moments(moments: &[[f64; 3]], theta: f64) -> Vec<[f64; 3]> {
+    if theta == 0.0 {
+        return moments.to_vec();
+    }
+    let (sin, cos) = theta.sin_cos();
+    moments
+        .iter()
+        .map(|&[xx, xy, yy]| {
+            [
+                cos * cos * xx - 2.0 * cos * sin * xy + sin * sin * yy,
+                cos * sin * (xx - yy) + (cos * cos - sin * sin) * xy,
+                sin * sin * xx + 2.0 * cos * sin * xy + cos * cos * yy,
+            ]
+        })
+        .collect()
 }
 
 /// Densities above this many times the median of a shape's pushed-forward density are spread
@@ -124,6 +167,7 @@ pub fn prepare_shape(
         coarsening,
         seconds: start.elapsed().as_secs_f64(),
         quantization_variance,
+        quantization_moments: Vec::new(),
     })
 }
 
@@ -209,14 +253,17 @@ fn grouping_cost(points: &[[f64; 2]], masses: &[f64], group: &[usize], centers: 
 ///
 /// The cost to the quantized points exceeds the cost to the full target by about the grouping's
 /// own cost V = Σ_i ν_i |y_i − c_g(i)|² (`quantization_variance`; W₂²(ν, ν_q) ≤ V), which on
-/// face pairs is of the order of the cost itself; [`directed_distance`] subtracts it. The error
-/// that remains is measured in docs/benchmarks.md ("Scans").
+/// face pairs is of the order of the cost itself. The shape keeps the groups' second moments
+/// (`quantization_moments`), and the costs to it take the second-order correction
+/// ([`PreparedShape::quantization_correction`]) instead of −V. The error that remains is
+/// measured in docs/benchmarks.md ("Scans").
 pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> PreparedShape {
     if shape.points.len() <= target_points {
         return shape;
     }
     let q = shapespace_omt::quantization::quantize(&shape.points, &shape.masses, target_points);
     shape.quantization_variance = grouping_cost(&shape.points, &shape.masses, &q.group, &q.points);
+    shape.quantization_moments = q.moments;
     shape.coarsening = Arc::new(TargetCoarsening::new(&q.points, &q.masses));
     shape.points = q.points;
     shape.masses = q.masses;
@@ -392,11 +439,12 @@ pub fn directed_distance(
         solution.diagnosis = None;
     }
     let converged = solution.converged();
-    // (a quantized target: the cost to its groups' means less the grouping's own cost)
-    let cost = solution.cost - target.quantization_variance;
+    // (a quantized target: the cost to its groups' means, corrected to the full target)
+    let correction = target.quantization_correction(&solution, 0.0);
+    let cost = solution.cost + correction;
     let result = DirectedDistance {
         cost,
-        dual_cost: solution.dual_value() - target.quantization_variance,
+        dual_cost: solution.dual_value() + correction,
         distance: cost.max(0.0).sqrt(),
         iterations: solution.all_iterations(),
         max_mass_error: solution.max_relative_error,
@@ -1056,6 +1104,42 @@ mod tests {
             (same.as_slice(), same_m.as_slice(), zero),
             (&points[2..], &masses[2..], 0.0)
         );
+    }
+
+    /// R S Rᵀ is the second moment of the rotated points: `rotate_moments` against the moments
+    /// of rotated groups computed from scratch.
+    #[test]
+    fn rotated_moments_are_those_of_the_rotated_points() {
+        use shapespace_omt::quantization::second_moments;
+        let points: Vec<[f64; 2]> = (0..12)
+            .map(|i| {
+                let t = i as f64;
+                [0.3 * t.sin() + 0.01 * t, 0.2 * (1.7 * t).cos()]
+            })
+            .collect();
+        let masses: Vec<f64> = (0..12).map(|i| 1.0 + 0.1 * i as f64).collect();
+        let group: Vec<usize> = (0..12).map(|i| i % 3).collect();
+        let centre = |pts: &[[f64; 2]], g: usize| {
+            let (mut c, mut m) = ([0.0, 0.0], 0.0);
+            for i in (0..12).filter(|i| group[*i] == g) {
+                c[0] += masses[i] * pts[i][0];
+                c[1] += masses[i] * pts[i][1];
+                m += masses[i];
+            }
+            [c[0] / m, c[1] / m]
+        };
+        let centres: Vec<[f64; 2]> = (0..3).map(|g| centre(&points, g)).collect();
+        let moments = second_moments(&points, &masses, &group, &centres);
+        for theta in [0.0, 0.7, -2.5] {
+            let rotated = crate::invariance::rotate(&points, theta);
+            let rotated_centres: Vec<[f64; 2]> = (0..3).map(|g| centre(&rotated, g)).collect();
+            let expected = second_moments(&rotated, &masses, &group, &rotated_centres);
+            for (got, want) in rotate_moments(&moments, theta).iter().zip(&expected) {
+                for c in 0..3 {
+                    assert!((got[c] - want[c]).abs() < 1e-15, "θ {theta}: {got:?} against {want:?}");
+                }
+            }
+        }
     }
 
     /// No item starts on a thread while another item waits there, even when the items' own

@@ -72,7 +72,8 @@ pub enum Invariance {
     Rotation,
 }
 
-fn rotate(points: &[[f64; 2]], theta: f64) -> Vec<[f64; 2]> {
+/// `points` rotated by `theta` (radians, counter-clockwise).
+pub(crate) fn rotate(points: &[[f64; 2]], theta: f64) -> Vec<[f64; 2]> {
     let (s, c) = theta.sin_cos();
     points
         .iter()
@@ -220,14 +221,17 @@ pub fn rotation_invariant_distance(
             step *= -0.5;
         }
     }
+    // (a quantized target: corrected to the full target, as for a fixed pair)
+    let correction = target.quantization_correction(&sol, theta);
+    let cost = sol.cost + correction;
     Ok(RotationSearch {
-        cost: sol.cost,
-        distance: sol.cost.max(0.0).sqrt(),
+        cost,
+        distance: cost.max(0.0).sqrt(),
         theta,
         solves,
         iterations,
         converged: sol.converged(),
-        dual_cost: sol.dual_value(),
+        dual_cost: sol.dual_value() + correction,
         max_mass_error: sol.max_relative_error,
         evaluations,
         status: sol.stop_description(),

@@ -83,9 +83,10 @@ pub struct SolverArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Quantize each shape's target points to about N (mass-weighted k-means in the disk; total
-    /// mass and mean kept): an accuracy/time trade-off for large meshes. On five 30k-vertex
-    /// scan pairs N = 10000 changes the distances by 0.32 % (median; 1.4 % at most) in a third
-    /// of the time (docs/benchmarks.md, "Scans").
+    /// mass and mean kept; the costs corrected to second order for the grouping): an
+    /// accuracy/time trade-off for large meshes. On five 30k-vertex scan pairs N = 10000
+    /// changes the distances by 0.22 % (median; 0.93 % at most) in a third of the time
+    /// (docs/benchmarks.md, "Scans").
     #[arg(long, value_name = "N")]
     pub target_points: Option<usize>,
     /// Average each shape's source density over a coarser triangulation of at most N triangles
