@@ -94,6 +94,7 @@ use serde::Serialize;
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 
+mod foldover_free;
 pub mod local;
 mod retract;
 #[cfg(test)]
@@ -102,6 +103,9 @@ mod tutte;
 mod untangle;
 mod weights;
 
+pub use foldover_free::{
+    reference_from_layout, reference_from_surface, untangle_foldover_free, FoldoverFreeInfo, FoldoverFreeParams,
+};
 use retract::*;
 pub use tutte::mean_value_tutte_map;
 use tutte::*;
