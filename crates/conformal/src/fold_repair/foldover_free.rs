@@ -97,7 +97,11 @@ pub fn reference_from_layout(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<[[
 fn chi(d: f64, eps: f64) -> (f64, f64) {
     let r = (eps * eps + d * d).sqrt();
     // (D + r)/2 without cancellation for D < 0: ε²/(2(r − D))
-    let c = if d >= 0.0 { 0.5 * (d + r) } else { 0.5 * eps * eps / (r - d) };
+    let c = if d >= 0.0 {
+        0.5 * (d + r)
+    } else {
+        0.5 * eps * eps / (r - d)
+    };
     (c, c / r)
 }
 
@@ -188,15 +192,11 @@ impl Energy<'_> {
         for f in &self.faces {
             let j = Self::jacobian(f, uv);
             let d = j[0][0] * j[1][1] - j[0][1] * j[1][0];
-            // χ at least ε-scale, and at least the face's χ at D = 1, so nearly flat faces do
-            // not freeze their corners
+            // χ floored at 1e-3 of its value at D = 1 (≈ 1): a face folded at a small ε would
+            // otherwise give its corners a curvature so large that they hardly move
             let c = chi(d, eps).0.max(chi(1.0, eps).0 * 1e-3);
             let s = f.s;
-            let rows = [
-                [-(s[0][0] + s[1][0]), -(s[0][1] + s[1][1])],
-                s[0],
-                s[1],
-            ];
+            let rows = [[-(s[0][0] + s[1][0]), -(s[0][1] + s[1][1])], s[0], s[1]];
             for (&v, r) in f.v.iter().zip(rows) {
                 let i = self.slot[v];
                 if i != usize::MAX {
@@ -204,7 +204,9 @@ impl Energy<'_> {
                 }
             }
         }
-        h.iter().map(|&x| if x > 0.0 && x.is_finite() { 1.0 / x } else { 1.0 }).collect()
+        h.iter()
+            .map(|&x| if x > 0.0 && x.is_finite() { 1.0 / x } else { 1.0 })
+            .collect()
     }
 }
 
@@ -240,7 +242,10 @@ pub fn untangle_foldover_free(
             free.push(v);
         }
     }
-    let total: f64 = reference.iter().map(|r| 0.5 * (r[0][0] * r[1][1] - r[0][1] * r[1][0])).sum();
+    let total: f64 = reference
+        .iter()
+        .map(|r| 0.5 * (r[0][0] * r[1][1] - r[0][1] * r[1][0]))
+        .sum();
     let mut built = Vec::with_capacity(faces.len());
     for (t, (f, r)) in faces.iter().zip(reference).enumerate() {
         let det = r[0][0] * r[1][1] - r[0][1] * r[1][0];
@@ -279,7 +284,11 @@ pub fn untangle_foldover_free(
     let mut x = uv.to_vec();
     let d0 = info.min_det_before;
     // the first ε: χ(D⁻, ε) = 0.1 (det J ≈ 1 on a face at its reference area)
-    let mut eps = if d0 < 0.1 { 2.0 * (0.1 * (0.1 - d0)).sqrt() } else { EPS_FLOOR };
+    let mut eps = if d0 < 0.1 {
+        2.0 * (0.1 * (0.1 - d0)).sqrt()
+    } else {
+        EPS_FLOOR
+    };
     let mut e_old = energy.eval(&x, eps, None);
     for _ in 0..params.max_rounds {
         info.rounds += 1;
@@ -295,7 +304,11 @@ pub fn untangle_foldover_free(
         }
         let sigma = (1.0 - e_new / e_old).max(0.1);
         let mu = (1.0 - sigma) * chi(dmin, eps).0;
-        eps = if dmin < mu { 2.0 * (mu * (mu - dmin)).sqrt() } else { EPS_FLOOR };
+        eps = if dmin < mu {
+            2.0 * (mu * (mu - dmin)).sqrt()
+        } else {
+            EPS_FLOOR
+        };
         e_old = energy.eval(&x, eps, None);
     }
     let folded_after = count_folded_faces(faces, &x);
@@ -506,7 +519,11 @@ mod tests {
                     p[v][d] -= 2.0 * h;
                     let em = energy.eval(&p, eps, None);
                     let fd = (ep - em) / (2.0 * h);
-                    assert!((fd - g[k][d]).abs() <= 1e-5 * (1.0 + g[k][d].abs()), "ε {eps}: {fd} vs {}", g[k][d]);
+                    assert!(
+                        (fd - g[k][d]).abs() <= 1e-5 * (1.0 + g[k][d].abs()),
+                        "ε {eps}: {fd} vs {}",
+                        g[k][d]
+                    );
                 }
             }
         }
@@ -539,8 +556,8 @@ mod tests {
         let before = count_folded_faces(&mesh.faces, &uv);
         assert!(before > 100, "{before}");
         let input = uv.clone();
-        let info = untangle_foldover_free(&mesh.faces, &fixed, &reference, &mut uv, &FoldoverFreeParams::default())
-            .unwrap();
+        let info =
+            untangle_foldover_free(&mesh.faces, &fixed, &reference, &mut uv, &FoldoverFreeParams::default()).unwrap();
         assert_eq!(info.folded_before, before);
         assert_eq!(info.folded_after, 0, "{info:?}");
         assert_eq!(count_folded_faces(&mesh.faces, &uv), 0);
