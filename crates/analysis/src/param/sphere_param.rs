@@ -436,7 +436,10 @@ fn ring_charts(
         if projection == Projection::Stereographic && centre.is_none() {
             break;
         }
-        let limit = (max_fraction * mesh.num_faces() as f64) as usize;
+        let mut limit = (max_fraction * mesh.num_faces() as f64) as usize;
+        if method == ChartMethod::Untangle {
+            limit = limit.min(UNTANGLE_MAX_FACES);
+        }
         let mut rings = CHART_RINGS;
         while let Some(mut patch) = chart_patch(mesh, conn, cluster, rings, limit) {
             let mut attempt = repair_patch(mesh, x, &patch, shares, projection, centre, method);
@@ -522,8 +525,12 @@ fn refresh_folds<'a>(
 /// The weight λ of the area term of the foldover-free untangling in a chart (the paper's 1
 /// balances shape and area; the sphere map's point is its areas: on Sumner cats 0001, 0004,
 /// 0007 and TOSCA horse7 the p95 |ε| after the repair is 0.820, 0.688, 0.829, 0.534 with λ = 1,
-/// 0.822, 0.680, 0.825, 0.513 with λ = 10, decision 0051).
+/// 0.822, 0.680, 0.825, 0.513 with λ = 10, both before the cap below; decision 0051).
 const UNTANGLE_AREA_WEIGHT: f64 = 10.0;
+/// The largest chart the foldover-free untangling is tried on (faces): on the bodies the
+/// charts it unfolds hold 70–550 faces, and a failing one costs up to a second per thousand
+/// faces; the spherical MDS maps fold half their faces in clusters no chart repairs.
+const UNTANGLE_MAX_FACES: usize = 2000;
 
 /// Radii (rad) of the caps around a cluster tried in the stereographic chart after the rings.
 const CAP_RADII: [f64; 10] = [0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.8, 1.2, 1.8, 2.5];

@@ -14,7 +14,9 @@
 //! as the paper does: with σ = max(1 − E_new/E_old, 1/10) and μ = (1 − σ) χ(D⁻, ε), D⁻ the
 //! smallest D_t, ε becomes $2\sqrt{\mu(\mu - D^-)}$ while D⁻ < μ (so that χ(D⁻, ε) = μ: the worst
 //! face's χ shrinks geometrically), else a floor of 1e-10. The rounds stop once every face is
-//! valid (the exact predicate of [`face_is_valid`]) and the energy has settled.
+//! valid (the exact predicate of [`face_is_valid`]) and the energy has settled, or when
+//! [`FoldoverFreeParams::stall_rounds`] rounds in a row leave more folded faces than the fewest
+//! seen.
 //!
 //! The energy of a face is smallest (2 + 2λ) at a rotation of its reference (tr(JᵀJ)/D ≥ 2 with
 //! equality for similarities, (D² + 1)/D ≥ 2 with equality at D = 1), so an embedded input
@@ -34,6 +36,9 @@ pub struct FoldoverFreeParams {
     pub max_iterations: usize,
     /// Pairs kept by L-BFGS (default 8).
     pub history: usize,
+    /// Stop after this many rounds in a row that do not lower the fewest folded faces seen
+    /// (default 8).
+    pub stall_rounds: usize,
 }
 
 impl Default for FoldoverFreeParams {
@@ -43,6 +48,7 @@ impl Default for FoldoverFreeParams {
             max_rounds: 30,
             max_iterations: 400,
             history: 8,
+            stall_rounds: 8,
         }
     }
 }
@@ -290,6 +296,7 @@ pub fn untangle_foldover_free(
         EPS_FLOOR
     };
     let mut e_old = energy.eval(&x, eps, None);
+    let (mut fewest, mut stalled) = (folded_before, 0);
     for _ in 0..params.max_rounds {
         info.rounds += 1;
         let scale = energy.scaling(&x, eps, free.len());
@@ -297,10 +304,19 @@ pub fn untangle_foldover_free(
         let e_new = energy.eval(&x, eps, None);
         let dmin = energy.min_det(&x);
         info.epsilon = eps;
-        let valid = dmin > 0.0 && count_folded_faces(faces, &x) == 0;
+        let folded = count_folded_faces(faces, &x);
+        let valid = dmin > 0.0 && folded == 0;
         let settled = (e_old - e_new).abs() <= 1e-5 * e_new.abs();
         if valid && settled {
             break;
+        }
+        if folded < fewest {
+            (fewest, stalled) = (folded, 0);
+        } else {
+            stalled += 1;
+            if folded > 0 && stalled >= params.stall_rounds {
+                break;
+            }
         }
         let sigma = (1.0 - e_new / e_old).max(0.1);
         let mu = (1.0 - sigma) * chi(dmin, eps).0;
@@ -323,6 +339,9 @@ pub fn untangle_foldover_free(
 /// The smallest ε (det J ≈ 1 on a face at its reference area).
 const EPS_FLOOR: f64 = 1e-10;
 
+/// An L-BFGS pair: the step s, the change of the gradient y, and 1/(sᵀy).
+type Pair = (Vec<[f64; 2]>, Vec<[f64; 2]>, f64);
+
 /// L-BFGS on E_ε over the free vertices `free` of `x`, with the diagonal scaling `scale`
 /// (per free vertex) as its initial inverse Hessian; returns the iterations run.
 fn lbfgs(
@@ -337,7 +356,7 @@ fn lbfgs(
     let dot = |a: &[[f64; 2]], b: &[[f64; 2]]| a.iter().zip(b).map(|(p, q)| p[0] * q[0] + p[1] * q[1]).sum::<f64>();
     let mut g = vec![[0.0; 2]; m];
     let mut e = energy.eval(x, eps, Some(&mut g));
-    let mut history: VecDeque<(Vec<[f64; 2]>, Vec<[f64; 2]>, f64)> = VecDeque::new();
+    let mut history: VecDeque<Pair> = VecDeque::new();
     let mut g_new = vec![[0.0; 2]; m];
     let mut trial = x.to_vec();
     let mut iterations = 0;
