@@ -301,12 +301,12 @@ enum ChartFailure {
 /// unfolds every cluster the gnomonic charts left, decision 0045). The planar repair untangles a
 /// whole-patch Tutte solve that still folds (a patch's boundary stays where the map put it, and
 /// need not be convex). A cluster whose every chart still fails then gets the same ring charts
-/// (gnomonic, then stereographic) once more, each untangled by the foldover-free untangling
-/// ([`untangle_foldover_free`]: every interior vertex of the chart moves at once, by the
-/// regularized Winslow energy against reference triangles, [`untangle_references`]; decision
-/// 0051), and the first that leaves no fold on S² is kept. Clusters given up are tried again in a further pass, up to
-/// [`MAX_PASSES`], while the passes lower the folds: the repairs around a cluster change its
-/// surroundings (decision 0048).
+/// (gnomonic, then stereographic, up to [`UNTANGLE_MAX_FACES`]) once more, each untangled by
+/// the foldover-free untangling ([`untangle_foldover_free`]: every interior vertex of the chart
+/// moves at once, by the regularized Winslow energy against reference triangles,
+/// [`untangle_references`]; decision 0051), and the first that leaves no fold on S² is kept.
+/// Clusters given up are tried again in a further pass, up to [`MAX_PASSES`], while the passes
+/// lower the folds: the repairs around a cluster change its surroundings (decision 0048).
 pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
@@ -529,8 +529,10 @@ fn refresh_folds<'a>(
 const UNTANGLE_AREA_WEIGHT: f64 = 10.0;
 /// The largest chart the foldover-free untangling is tried on (faces): on the bodies the
 /// charts it unfolds hold 70–550 faces, and a failing one costs up to a second per thousand
-/// faces; the spherical MDS maps fold half their faces in clusters no chart repairs.
-const UNTANGLE_MAX_FACES: usize = 2000;
+/// faces; the spherical MDS maps fold half their faces in clusters no chart repairs (wolf0:
+/// `tests/spherical_mds.rs` takes 15 s without the untangling, 35 s with this cap, 58 s with
+/// 2,000).
+const UNTANGLE_MAX_FACES: usize = 1000;
 
 /// Radii (rad) of the caps around a cluster tried in the stereographic chart after the rings.
 const CAP_RADII: [f64; 10] = [0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.8, 1.2, 1.8, 2.5];
@@ -782,8 +784,8 @@ fn fill_holes(mesh: &TriMesh, conn: &Connectivity, inside: &mut [bool], patch: &
     }
 }
 
-/// The disk's fold repair on the faces `patch` of `mesh` in the gnomonic chart at their mean
-/// direction. Returns the new positions of the vertices it moved, or the reason when the patch is
+/// The disk's fold repair (or the foldover-free untangling, by `method`) on the faces `patch`
+/// of `mesh` in the gnomonic chart at their mean direction (or the `projection` at `centre`). Returns the new positions of the vertices it moved, or the reason when the patch is
 /// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
 /// patch folded on S². `shares`: each face's share of 4π (#F).
 fn repair_patch(
