@@ -253,14 +253,16 @@ fn swirl_flows_back_to_the_identity() {
 }
 
 /// TOSCA wolf0, whose conformal image crowds the legs and tail (p95 |ε| 24.9): the Lie map
-/// lowers the area distortion but its advection folds faces, and the chart repair does not undo
-/// them all; the flow then refuses its start with a typed error. Folds are counted exactly.
+/// lowers the area distortion but its advection folds faces; the flow from it runs when the
+/// chart repair undoes them all and refuses its start with a typed error otherwise. Folds are
+/// counted exactly.
 ///
-/// Measured: 448 faces folded by the advection, 16 after the chart repair (15 of 28 clusters),
-/// p95 |ε| 6.8; staged advection (a field re-solved on the current map per stage) folds more:
-/// 4 stages stop at the third with 23 folds left, 8 at the fifth with 8 (p95 |ε| 23).
+/// Measured: 448 faces folded by the advection, none after the chart repair (two clusters by
+/// its foldover-free untangling, decision 0051; 16 before it), p95 |ε| 6.87; staged advection
+/// (a field re-solved on the current map per stage) folded more: 4 stages stopped at the third
+/// with 23 folds left, 8 at the fifth with 8 (p95 |ε| 23), before the untangling.
 #[test]
-fn tosca_wolf_lie_map_keeps_folds_and_the_flow_says_so() {
+fn tosca_wolf_lie_map_folds_and_the_flow_start_agree() {
     let Some(path) = shapespace_test_support::shared_file("tosca/wolf0.off") else {
         eprintln!("tosca/wolf0.off: not found beside the repository; skipped");
         return;

@@ -375,6 +375,7 @@ pub fn sphere_lie_map(mesh: &TriMesh, params: &SphereLieParams) -> Result<Sphere
                     charts_convexified: before.charts_convexified + repair.charts_convexified,
                     clusters_too_large: before.clusters_too_large + repair.clusters_too_large,
                     stereographic_repaired: before.stereographic_repaired + repair.stereographic_repaired,
+                    untangle_repaired: before.untangle_repaired + repair.untangle_repaired,
                 },
             });
         }

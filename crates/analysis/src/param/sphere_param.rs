@@ -9,7 +9,8 @@
 //! to the discretization, and the map stays close to the conformal one where the conformal map
 //! already preserved area. Centroids of neighbouring cells can fold a sliver, as in the plane;
 //! such folds get the disk's fold repair ([`crate::fold_repair`]) in a gnomonic chart around
-//! each cluster, or a stereographic one when no gnomonic chart succeeds (`repair_in_charts`).
+//! each cluster, or a stereographic one when no gnomonic chart succeeds, and the foldover-free
+//! untangling in the same charts when the repair fails in all of them (`repair_in_charts`).
 //!
 //! Measured (`tests/sphere_param.rs`): an ellipsoid 1:1:2 of 2,562 vertices goes from a 95th
 //! percentile |ln(one-ring area ratio)| of 1.50 (conformal) to 0.027, with no flipped face;
@@ -37,7 +38,10 @@ use shapespace_omt::OmtError;
 
 use crate::area_preserving::weighted_target_masses;
 use crate::error::AnalysisError;
-use crate::fold_repair::{repair_folds, FoldRepairParams};
+use crate::fold_repair::{
+    face_is_valid, reference_from_layout, reference_from_surface, repair_folds, untangle_foldover_free,
+    FoldRepairParams, FoldoverFreeParams,
+};
 
 /// Options of [`area_preserving_sphere_map`].
 #[derive(Clone, Debug, Default)]
@@ -234,6 +238,16 @@ enum Projection {
     Stereographic,
 }
 
+/// How a chart's interior is re-embedded.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum ChartMethod {
+    /// The disk's fold repair ([`repair_folds`]: kernel moves, Tutte solves on growing regions,
+    /// retraction).
+    Tutte,
+    /// The foldover-free untangling ([`untangle_foldover_free`]) of the chart as the map left it.
+    Untangle,
+}
+
 /// What the fold repair of [`area_preserving_sphere_map`] did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SphereFoldRepairInfo {
@@ -262,6 +276,9 @@ pub struct SphereFoldRepairInfo {
     /// Clusters repaired in a stereographic chart after every gnomonic chart failed
     /// (counted in `repaired`, not in `clusters_too_large`).
     pub stereographic_repaired: usize,
+    /// Clusters repaired by the foldover-free untangling after every chart's Tutte repair
+    /// failed (counted in `repaired`, and in `stereographic_repaired` when in such a chart).
+    pub untangle_repaired: usize,
 }
 
 /// Why a chart was discarded.
@@ -294,9 +311,13 @@ enum ChartFailure {
 /// its result passes the same exact test on S² (on the GOAST cacti the stereographic pass
 /// unfolds every cluster the gnomonic charts left, decision 0045). The planar repair untangles a
 /// whole-patch Tutte solve that still folds (a patch's boundary stays where the map put it, and
-/// need not be convex). Clusters given up are tried again in a further pass, up to
-/// [`MAX_PASSES`], while the passes lower the folds: the repairs around a cluster change its
-/// surroundings (decision 0048).
+/// need not be convex). A cluster whose every chart still fails then gets the same ring charts
+/// (gnomonic, then stereographic, up to [`UNTANGLE_MAX_FACES`]) once more, each untangled by
+/// the foldover-free untangling ([`untangle_foldover_free`]: every interior vertex of the chart
+/// moves at once, by the regularized Winslow energy against reference triangles,
+/// [`untangle_references`]; decision 0051), and the first that leaves no fold on S² is kept.
+/// Clusters given up are tried again in a further pass, up to [`MAX_PASSES`], while the passes
+/// lower the folds: the repairs around a cluster change its surroundings (decision 0048).
 pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFoldRepairInfo {
     let mut info = SphereFoldRepairInfo::default();
     let conn = Connectivity::of(mesh);
@@ -341,37 +362,17 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             }
             i += 1;
         }
-        let mut kept = false;
-        for projection in [Projection::Gnomonic, Projection::Stereographic] {
-            let (max_fraction, centre) = match projection {
-                Projection::Gnomonic => (CHART_MAX_FRACTION, None),
-                Projection::Stereographic => (STEREO_MAX_FRACTION, cluster_centre(mesh, x, &cluster)),
-            };
-            if projection == Projection::Stereographic && centre.is_none() {
-                break;
-            }
-            let limit = (max_fraction * mesh.num_faces() as f64) as usize;
-            let mut rings = CHART_RINGS;
-            while let Some(mut patch) = chart_patch(mesh, &conn, &cluster, rings, limit) {
-                let mut attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
-                if matches!(attempt, Err(ChartFailure::RepairFailed)) && convexify(mesh, &conn, x, &mut patch, limit) {
-                    info.charts_convexified += 1;
-                    attempt = repair_patch(mesh, x, &patch, &shares, projection, centre);
-                }
-                if take_chart(attempt, &mut info, mesh, &conn, x, &mut folded, &mut num_folded) {
-                    info.max_rings = info.max_rings.max(rings);
-                    if projection == Projection::Stereographic {
-                        info.stereographic_repaired += 1;
-                    }
-                    kept = true;
-                    break;
-                }
-                rings += rings.div_ceil(2);
-            }
-            if kept {
-                break;
-            }
-        }
+        let mut kept = ring_charts(
+            mesh,
+            &conn,
+            x,
+            &cluster,
+            &shares,
+            ChartMethod::Tutte,
+            &mut info,
+            &mut folded,
+            &mut num_folded,
+        );
         // caps of the image around the cluster in the stereographic chart: their boundaries are
         // near circles in the chart where mesh rings can be ragged (crowded limbs)
         if let (false, Some(centre)) = (kept, cluster_centre(mesh, x, &cluster)) {
@@ -380,12 +381,37 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
                 let Some(patch) = cap_patch(mesh, &conn, x, &cluster, centre, radius, limit) else {
                     continue;
                 };
-                let attempt = repair_patch(mesh, x, &patch, &shares, Projection::Stereographic, Some(centre));
+                let attempt = repair_patch(
+                    mesh,
+                    x,
+                    &patch,
+                    &shares,
+                    Projection::Stereographic,
+                    Some(centre),
+                    ChartMethod::Tutte,
+                );
                 if take_chart(attempt, &mut info, mesh, &conn, x, &mut folded, &mut num_folded) {
                     info.stereographic_repaired += 1;
                     kept = true;
                     break;
                 }
+            }
+        }
+        // the foldover-free untangling in the same ring charts, where every Tutte solve failed
+        if !kept {
+            kept = ring_charts(
+                mesh,
+                &conn,
+                x,
+                &cluster,
+                &shares,
+                ChartMethod::Untangle,
+                &mut info,
+                &mut folded,
+                &mut num_folded,
+            );
+            if kept {
+                info.untangle_repaired += 1;
             }
         }
         if kept {
@@ -395,6 +421,57 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
             given_up.extend(cluster);
         }
     }
+}
+
+/// The ring charts of a cluster (its faces within k rings, k = 3, then ×1.5), gnomonic then
+/// stereographic at the cluster's centre, each repaired by `method` until one is kept
+/// ([`take_chart`]); a chart whose Tutte repair failed is grown around its reflex corners and
+/// tried once more. True when a chart was kept.
+#[allow(clippy::too_many_arguments)]
+fn ring_charts(
+    mesh: &TriMesh,
+    conn: &Connectivity,
+    x: &mut [[f64; 3]],
+    cluster: &[usize],
+    shares: &[f64],
+    method: ChartMethod,
+    info: &mut SphereFoldRepairInfo,
+    folded: &mut [bool],
+    num_folded: &mut usize,
+) -> bool {
+    for projection in [Projection::Gnomonic, Projection::Stereographic] {
+        let (max_fraction, centre) = match projection {
+            Projection::Gnomonic => (CHART_MAX_FRACTION, None),
+            Projection::Stereographic => (STEREO_MAX_FRACTION, cluster_centre(mesh, x, cluster)),
+        };
+        if projection == Projection::Stereographic && centre.is_none() {
+            break;
+        }
+        let mut limit = (max_fraction * mesh.num_faces() as f64) as usize;
+        if method == ChartMethod::Untangle {
+            limit = limit.min(UNTANGLE_MAX_FACES);
+        }
+        let mut rings = CHART_RINGS;
+        while let Some(mut patch) = chart_patch(mesh, conn, cluster, rings, limit) {
+            let mut attempt = repair_patch(mesh, x, &patch, shares, projection, centre, method);
+            if method == ChartMethod::Tutte
+                && matches!(attempt, Err(ChartFailure::RepairFailed))
+                && convexify(mesh, conn, x, &mut patch, limit)
+            {
+                info.charts_convexified += 1;
+                attempt = repair_patch(mesh, x, &patch, shares, projection, centre, method);
+            }
+            if take_chart(attempt, info, mesh, conn, x, folded, num_folded) {
+                info.max_rings = info.max_rings.max(rings);
+                if projection == Projection::Stereographic {
+                    info.stereographic_repaired += 1;
+                }
+                return true;
+            }
+            rings += rings.div_ceil(2);
+        }
+    }
+    false
 }
 
 /// Counts a chart's failure in `info`, or applies its moves to `x` and `folded` (with the
@@ -455,6 +532,18 @@ fn refresh_folds<'a>(
     }
     num_folded
 }
+
+/// The weight λ of the area term of the foldover-free untangling in a chart (the paper's 1
+/// balances shape and area; the sphere map's point is its areas: on Sumner cats 0001, 0004,
+/// 0007 and TOSCA horse7 the p95 |ε| after the repair is 0.820, 0.688, 0.829, 0.534 with λ = 1,
+/// 0.822, 0.680, 0.825, 0.513 with λ = 10, both before the cap below; decision 0051).
+const UNTANGLE_AREA_WEIGHT: f64 = 10.0;
+/// The largest chart the foldover-free untangling is tried on (faces): on the bodies the
+/// charts it unfolds hold 70–550 faces, and a failing one costs up to a second per thousand
+/// faces; the spherical MDS maps fold half their faces in clusters no chart repairs (wolf0:
+/// `tests/spherical_mds.rs` takes 15 s without the untangling, 35 s with this cap, 58 s with
+/// 2,000).
+const UNTANGLE_MAX_FACES: usize = 1000;
 
 /// Radii (rad) of the caps around a cluster tried in the stereographic chart after the rings.
 const CAP_RADII: [f64; 10] = [0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.8, 1.2, 1.8, 2.5];
@@ -706,8 +795,8 @@ fn fill_holes(mesh: &TriMesh, conn: &Connectivity, inside: &mut [bool], patch: &
     }
 }
 
-/// The disk's fold repair on the faces `patch` of `mesh` in the gnomonic chart at their mean
-/// direction. Returns the new positions of the vertices it moved, or the reason when the patch is
+/// The disk's fold repair (or the foldover-free untangling, by `method`) on the faces `patch`
+/// of `mesh` in the gnomonic chart at their mean direction (or the `projection` at `centre`). Returns the new positions of the vertices it moved, or the reason when the patch is
 /// not a disk, reaches [`CHART_MAX_ANGLE`], or the planar repair fails or leaves a face of the
 /// patch folded on S². `shares`: each face's share of 4π (#F).
 fn repair_patch(
@@ -717,6 +806,7 @@ fn repair_patch(
     shares: &[f64],
     projection: Projection,
     centre: Option<[f64; 3]>,
+    method: ChartMethod,
 ) -> Result<HashMap<u32, [f64; 3]>, ChartFailure> {
     let (verts, sub) = patch_mesh(mesh, patch);
     let sub = sub.ok_or(ChartFailure::NotDisk)?;
@@ -767,14 +857,36 @@ fn repair_patch(
         })
         .collect();
     let before = uv.clone();
-    let params = FoldRepairParams {
-        target_face_areas: Some(target_face_areas),
-        ..Default::default()
-    };
-    // (a whole-patch Tutte solve can fold: the chart's boundary polygon need not be convex)
-    let repaired = repair_folds(&sub, &is_boundary, &mut uv, &params).map_err(|_| ChartFailure::RepairFailed)?;
-    if repaired.folded_after > 0 {
-        return Err(ChartFailure::RepairFailed);
+    match method {
+        ChartMethod::Tutte => {
+            let params = FoldRepairParams {
+                target_face_areas: Some(target_face_areas),
+                ..Default::default()
+            };
+            // (a whole-patch Tutte solve can fold: the chart's boundary polygon need not be convex)
+            let repaired =
+                repair_folds(&sub, &is_boundary, &mut uv, &params).map_err(|_| ChartFailure::RepairFailed)?;
+            if repaired.folded_after > 0 {
+                return Err(ChartFailure::RepairFailed);
+            }
+        }
+        ChartMethod::Untangle => {
+            let reference = untangle_references(&sub, &uv, &target_face_areas);
+            let untangled = untangle_foldover_free(
+                &sub.faces,
+                &is_boundary,
+                &reference,
+                &mut uv,
+                &FoldoverFreeParams {
+                    lambda: UNTANGLE_AREA_WEIGHT,
+                    ..Default::default()
+                },
+            )
+            .map_err(|_| ChartFailure::RepairFailed)?;
+            if untangled.folded_after > 0 {
+                return Err(ChartFailure::RepairFailed);
+            }
+        }
     }
     let moved: HashMap<u32, [f64; 3]> = verts
         .iter()
@@ -791,6 +903,39 @@ fn repair_patch(
     } else {
         Err(ChartFailure::FoldedOnSphere)
     }
+}
+
+/// The reference triangles of the foldover-free untangling of a chart: a face that is valid in
+/// the chart and shares no vertex with a folded face keeps its own shape there (the untangling
+/// leaves it nearly where it is); the others take their surface triangle's shape with their
+/// target area in the chart (an equilateral triangle of that area if the surface's is degenerate).
+fn untangle_references(sub: &TriMesh, uv: &[[f64; 2]], target_face_areas: &[f64]) -> Vec<[[f64; 2]; 2]> {
+    let mut near_fold = vec![false; sub.num_vertices()];
+    for f in &sub.faces {
+        let [a, b, c] = f.map(|v| uv[v as usize]);
+        if !face_is_valid(a, b, c) {
+            for &v in f {
+                near_fold[v as usize] = true;
+            }
+        }
+    }
+    sub.faces
+        .iter()
+        .zip(target_face_areas)
+        .map(|(f, &area)| {
+            let [a, b, c] = f.map(|v| uv[v as usize]);
+            let own = if f.iter().any(|&v| near_fold[v as usize]) {
+                None
+            } else {
+                reference_from_layout(a, b, c)
+            };
+            own.or_else(|| reference_from_surface(f.map(|v| sub.positions[v as usize]), area))
+                .unwrap_or_else(|| {
+                    let side = (4.0 * area.max(f64::MIN_POSITIVE) / 3f64.sqrt()).sqrt();
+                    [[side, 0.0], [0.5 * side, 0.5 * 3f64.sqrt() * side]]
+                })
+        })
+        .collect()
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -1025,10 +1170,26 @@ mod tests {
         let shares: Vec<f64> = areas.iter().map(|a| a / total * 4.0 * std::f64::consts::PI).collect();
         // too wide for a gnomonic chart
         assert!(matches!(
-            repair_patch(&mesh, &x, &patch, &shares, Projection::Gnomonic, None),
+            repair_patch(
+                &mesh,
+                &x,
+                &patch,
+                &shares,
+                Projection::Gnomonic,
+                None,
+                ChartMethod::Tutte
+            ),
             Err(ChartFailure::TooWide)
         ));
-        let Ok(moved) = repair_patch(&mesh, &x, &patch, &shares, Projection::Stereographic, Some(c)) else {
+        let Ok(moved) = repair_patch(
+            &mesh,
+            &x,
+            &patch,
+            &shares,
+            Projection::Stereographic,
+            Some(c),
+            ChartMethod::Tutte,
+        ) else {
             panic!("the stereographic chart failed");
         };
         assert!(moved.contains_key(&(v as u32)));

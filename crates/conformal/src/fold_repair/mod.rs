@@ -6,7 +6,10 @@
 //! Floater 2003, "One-to-one piecewise linear mappings over triangulations", Thm. 1; Floater
 //! 2003, "Mean value coordinates"]. The conformal map falls back on the region repair when the
 //! local one leaves folds (`docs/decisions/0026-disk-map-region-repair.md`), and the sphere's
-//! repair applies the local one in stereographic charts.
+//! repair applies the local one in stereographic charts. [`untangle_foldover_free`] (the
+//! regularized Winslow energy of Garanzha et al. 2021, every free vertex moved at once) is not
+//! part of the region repair: the sphere's chart repair calls it on a chart whose Tutte repair
+//! failed (`docs/decisions/0051-foldover-free-untangling-in-sphere-charts.md`).
 //!
 //! Input: a map `uv` (#V) of a disk-type mesh whose boundary vertices lie on a convex curve
 //! (the unit circle or the square) in counter-clockwise order, with some faces folded (clockwise
@@ -94,6 +97,7 @@ use serde::Serialize;
 use shapespace_geometry::quantities::face_areas;
 use shapespace_geometry::{Connectivity, TriMesh};
 
+mod foldover_free;
 pub mod local;
 mod retract;
 #[cfg(test)]
@@ -102,6 +106,9 @@ mod tutte;
 mod untangle;
 mod weights;
 
+pub use foldover_free::{
+    reference_from_layout, reference_from_surface, untangle_foldover_free, FoldoverFreeInfo, FoldoverFreeParams,
+};
 use retract::*;
 pub use tutte::mean_value_tutte_map;
 use tutte::*;
