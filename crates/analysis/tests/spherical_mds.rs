@@ -212,6 +212,12 @@ fn tosca_wolf_embedding_folds_as_measured() {
         repaired.info.flipped_before_repair, repaired.info.num_flipped, repaired.info.fold_repair
     );
     assert!(repaired.info.num_flipped <= repaired.info.flipped_before_repair);
+    // folded this widely, the clusters no Tutte chart unfolds are not untangled (decision 0051)
+    let repair = repaired.info.fold_repair.as_ref().unwrap();
+    assert!(
+        repair.untangle_skipped > 0 && repair.untangle_repaired == 0,
+        "{repair:?}"
+    );
 }
 
 /// A disk is not a closed genus-0 surface: a typed error, no panic.

@@ -376,6 +376,7 @@ pub fn sphere_lie_map(mesh: &TriMesh, params: &SphereLieParams) -> Result<Sphere
                     clusters_too_large: before.clusters_too_large + repair.clusters_too_large,
                     stereographic_repaired: before.stereographic_repaired + repair.stereographic_repaired,
                     untangle_repaired: before.untangle_repaired + repair.untangle_repaired,
+                    untangle_skipped: before.untangle_skipped + repair.untangle_skipped,
                 },
             });
         }
