@@ -1281,10 +1281,17 @@ fn quantized_targets_take_the_second_order_correction() {
     for (n, bound, gain) in [(2_000, 2.7e-2, 0.75), (5_000, 5.2e-3, 0.6)] {
         let q = quantize_target(b.clone(), n);
         assert_eq!(q.quantization_moments.len(), q.points.len());
-        let traces: f64 = q.quantization_moments.iter().map(|s| s[0] + s[2]).sum();
+        // V, the moments' traces summed, against the grouping's cost point by point
+        let groups = shapespace_omt::quantization::quantize(&b.points, &b.masses, n);
+        let grouping: f64 = (0..b.points.len())
+            .map(|i| {
+                let (y, c) = (b.points[i], groups.points[groups.group[i]]);
+                b.masses[i] * ((y[0] - c[0]).powi(2) + (y[1] - c[1]).powi(2))
+            })
+            .sum();
         assert!(
-            (traces - q.quantization_variance).abs() <= 1e-12 * q.quantization_variance,
-            "{traces} {}",
+            (grouping - q.quantization_variance).abs() <= 1e-12 * q.quantization_variance,
+            "{grouping} {}",
             q.quantization_variance
         );
         let corrected = converged(&a, &q, &params).distance;

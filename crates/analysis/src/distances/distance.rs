@@ -262,7 +262,8 @@ pub fn quantize_target(mut shape: PreparedShape, target_points: usize) -> Prepar
         return shape;
     }
     let q = shapespace_omt::quantization::quantize(&shape.points, &shape.masses, target_points);
-    shape.quantization_variance = grouping_cost(&shape.points, &shape.masses, &q.group, &q.points);
+    // (the grouping's cost is the sum of the moments' traces)
+    shape.quantization_variance = q.moments.iter().map(|s| s[0] + s[2]).sum();
     shape.quantization_moments = q.moments;
     shape.coarsening = Arc::new(TargetCoarsening::new(&q.points, &q.masses));
     shape.points = q.points;

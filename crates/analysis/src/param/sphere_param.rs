@@ -405,8 +405,7 @@ pub(crate) fn repair_in_charts(mesh: &TriMesh, x: &mut [[f64; 3]]) -> SphereFold
         // the foldover-free untangling in the same ring charts, where every Tutte solve failed
         if !kept && !untangle {
             info.untangle_skipped += 1;
-        }
-        if !kept && untangle {
+        } else if !kept {
             kept = ring_charts(
                 mesh,
                 &conn,
