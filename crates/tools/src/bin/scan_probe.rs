@@ -16,7 +16,9 @@
 //! the second solve (the source's averaged coarse copies built by the first: the first's extra
 //! time is their construction). Costs are printed minus the target's merge cost
 //! (`quantization_variance`), as the distances use them. `KAPPA=k` sets the soft cap of the
-//! intermediate targets (`NewtonParams::target_ratio_cap`, default 32) on every level. Each pair
+//! intermediate targets (`NewtonParams::target_ratio_cap`, default 32) on every level,
+//! `COARSE_TOL=t` the coarse levels' tolerance (`NewtonParams::coarse_tolerance`),
+//! `REUSE_ORDER=1` takes `LinearSolver::CholeskyReusedOrdering`. Each pair
 //! also prints the process's CPU time (all threads), steadier than the wall time on a shared machine.
 
 use std::path::PathBuf;
@@ -128,6 +130,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut params = PairwiseOptions::default().newton;
     if let Some(k) = std::env::var("KAPPA").ok().and_then(|s| s.parse::<f64>().ok()) {
         params.target_ratio_cap = Some(k);
+    }
+    if std::env::var("REUSE_ORDER").is_ok() {
+        params.linear_solver = shapespace_omt::linear::LinearSolver::CholeskyReusedOrdering;
+    }
+    if let Some(t) = std::env::var("COARSE_TOL").ok().and_then(|s| s.parse::<f64>().ok()) {
+        params.coarse_tolerance = t;
     }
     for w in shapes.windows(2) {
         let (a, b) = (&w[0], &w[1]);
