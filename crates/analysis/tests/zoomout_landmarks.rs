@@ -114,7 +114,11 @@ fn landmark_coordinates_keep_the_cat_limbs_apart() {
 /// metric's flipped faces. Measured (flipped 3D area, mean geodesic error; without → with):
 /// reference → 0002 0.87 % → 0.18 % and 0.01189 → 0.01186; 0001 → 0002 1.29 % → 0.30 % and
 /// 0.01439 → 0.01439. Asserted: the flipped area below 0.2 % and 0.4 %, at most half of the
-/// figure without the pass, and the geodesic error at most 2 % above it.
+/// figure without the pass, and the geodesic error at most 2 % above it. Both pairs' sweeps
+/// leave less than the region moves' threshold (0.4 % of the area, decision 0054), so none ran
+/// (asserted); run wherever a face stays flipped (`region_from_area` 0) they took the flipped
+/// area to 0.037 % and 0.087 % (asserted: at most 0.4 of the default's) at a geodesic error of
+/// 0.01209 and 0.01486, 1.9 % and 3.3 % above the default's (asserted: at most 5 %).
 #[test]
 fn point_untangling_removes_most_flipped_area_on_the_cat() {
     for (a, b, flip_bound) in [("reference", "0002", 0.2), ("0001", "0002", 0.4)] {
@@ -128,10 +132,11 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
         let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
         let b2 = SpectralBasis::of(&t, zp.k_end, &zp.eigen).unwrap();
         let mp = MetricParams::default();
-        let run = |sweeps: usize| {
+        let run = |sweeps: usize, region_from_area: f64| {
             let mut reg = first.clone();
             let mut p = zp.clone();
             p.point_untangle.sweeps = sweeps;
+            p.point_untangle.region_from_area = region_from_area;
             refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, &p).unwrap();
             let m = registration_metrics(&s, &t, &reg, &mp).unwrap();
             let info = reg.refinement.unwrap().point_untangle;
@@ -142,10 +147,37 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
                 info,
             )
         };
-        let (off, on) = (run(0), run(zp.point_untangle.sweeps));
+        let from = zp.point_untangle.region_from_area;
+        let (off, on) = (run(0, from), run(zp.point_untangle.sweeps, from));
         eprintln!(
             "cat {a} -> {b}: flipped 3D area {:.5} -> {:.5}, geodesic mean {:.5} -> {:.5}, {:?}",
             off.0, on.0, off.2, on.2, on.3
+        );
+        // the sweeps leave less than the region moves' threshold here: none ran
+        assert!(on.3.flipped_area_after_sweeps < from, "{:?}", on.3);
+        assert_eq!((on.3.regions_moved, on.3.flipped_after), (0, on.3.flipped_after_sweeps));
+        assert!(
+            (on.3.flipped_area_after_sweeps - on.0).abs() < 1e-12,
+            "the pass's share is the metric's"
+        );
+        // with them wherever a face stays flipped (decisions 0042, 0054)
+        let everywhere = run(zp.point_untangle.sweeps, 0.0);
+        eprintln!(
+            "cat {a} -> {b}, region moves on every pair: flipped 3D area {:.5}, geodesic mean {:.5}, {:?}",
+            everywhere.0, everywhere.2, everywhere.3
+        );
+        assert!(everywhere.3.regions_moved >= 1, "{:?}", everywhere.3);
+        assert!(
+            everywhere.0 <= 0.4 * on.0,
+            "{a} -> {b}: {} against {}",
+            everywhere.0,
+            on.0
+        );
+        assert!(
+            everywhere.2 <= 1.05 * on.2,
+            "{a} -> {b}: {} against {}",
+            everywhere.2,
+            on.2
         );
         assert_eq!(on.3.flipped_after, on.1, "the pass's count is the metric's");
         assert_eq!(on.3.flipped_before, off.1);

@@ -157,10 +157,16 @@ pub struct RegisterBenchArgs {
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
     pub landmark_weight: f64,
-    /// Rounds of region moves at the end of the untangling with points (decision 0042): each
-    /// set of faces still flipped is laid out again from the ring around it; 0 leaves them out.
-    #[arg(long, default_value_t = 0)]
+    /// Rounds of region moves at the end of the untangling with points (decisions 0042, 0054):
+    /// each set of faces still flipped is laid out again from the ring around it; 0 leaves them
+    /// out.
+    #[arg(long, default_value_t = 3)]
     pub region_rounds: usize,
+    /// The region moves run only on pairs whose faces still flipped after the single moves
+    /// cover at least this share of the source's area (0 runs them wherever a face is still
+    /// flipped).
+    #[arg(long, default_value_t = shapespace_analysis::registration::untangle::REGION_FROM_AREA)]
+    pub region_from_area: f64,
     /// Folder of the closed poses behind the dataset's cut poses (`DIR/NAME.off` for each pose
     /// NAME, e.g. the TOSCA originals): also register them on the sphere with the same landmarks
     /// (carried through `CLASS/original_indices.txt`) and methods, and print both routes side by
@@ -469,6 +475,7 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         ..ZoomOutParams::default()
     };
     zoomout.point_untangle.region_rounds = args.region_rounds;
+    zoomout.point_untangle.region_from_area = args.region_from_area;
     super::create_output_folder(&args.out)?;
     let mp = MetricParams {
         geodesic_samples: args.samples,
