@@ -9,7 +9,7 @@
 //! area of the registration metric, the degenerate images' area, how far the residual flips'
 //! reference faces lie from their images, and the geodesic error (same triangulation only).
 //! `REG44_ROUNDS` and `REG44_RINGS` set the region moves' rounds and rings (defaults of
-//! `PointUntangleParams`; decision 0042 measured 3 and 3).
+//! `PointUntangleParams`, 3 and 3, with its area threshold, decision 0054).
 use std::path::PathBuf;
 use std::time::Instant;
 
