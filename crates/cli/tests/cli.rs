@@ -2735,7 +2735,8 @@ fn disk_map_choices_reach_param_and_distances() {
 }
 
 /// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
-/// script: status 2 naming the path, before any registration.
+/// script: status 2 naming the path, before any registration; a `--region-from-area` that is
+/// not a share of the area: status 2 naming the option and the value, no output folder.
 #[test]
 fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     let dir = scratch("bench-remeshed-missing");
@@ -2774,6 +2775,20 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         msg.contains("no-such-script.py") && msg.contains("no such file"),
         "{msg}"
     );
+    // the region moves' area threshold is a share of the area
+    for bad in ["1.5", "-0.1", "NaN", "half"] {
+        let out = shapespace(&[
+            "register-bench",
+            dataset.to_str().unwrap(),
+            "--out",
+            dir.join("out3").to_str().unwrap(),
+            &format!("--region-from-area={bad}"),
+        ]);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {msg}");
+        assert!(msg.contains("--region-from-area") && msg.contains(bad), "{msg}");
+        assert!(!dir.join("out3").exists(), "{bad}: an output folder was made");
+    }
 }
 
 /// `distances` with a closed mesh and a disk: refused with status 2 before any work, naming the

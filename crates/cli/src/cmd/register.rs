@@ -165,7 +165,7 @@ pub struct RegisterBenchArgs {
     /// The region moves run only on pairs whose faces still flipped after the single moves
     /// cover at least this share of the source's area (0 runs them wherever a face is still
     /// flipped).
-    #[arg(long, default_value_t = shapespace_analysis::registration::untangle::REGION_FROM_AREA)]
+    #[arg(long, default_value_t = shapespace_analysis::registration::untangle::REGION_FROM_AREA, value_parser = area_share)]
     pub region_from_area: f64,
     /// Folder of the closed poses behind the dataset's cut poses (`DIR/NAME.off` for each pose
     /// NAME, e.g. the TOSCA originals): also register them on the sphere with the same landmarks
@@ -522,6 +522,17 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
         failed |= run_sphere_route(args, closed, &methods, &harmonic, &mp, &res.summaries)?;
     }
     Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// A share of the source's area: a number in [0, 1].
+fn area_share(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
+        Ok(x) => Err(format!(
+            "{x} is not a share of the area (expected a number from 0 to 1)"
+        )),
+        Err(e) => Err(format!("{s}: {e}")),
+    }
 }
 
 /// The errors of register-bench on its folders before any work: `--remeshed` or `--closed`
