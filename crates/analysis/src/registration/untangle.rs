@@ -610,8 +610,9 @@ fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// a collapse, or a corner on the opposite edge), then nearest in 3D to its image before the
 /// pass (the current point kept on ties). Candidates: on every face of S₂ around the target vertices
 /// nearest to the vertex's and its source neighbours' images, the corners, the edge midpoints
-/// and the centroid; the φ₂ mean of the neighbours' images; with region moves on, the closest
-/// point of those faces to the 3D mean of the neighbours' images. A move never raises the number
+/// and the centroid; the φ₂ mean of the neighbours' images; once region moves run (their
+/// cleaning sweeps), also the closest point of those faces to the 3D mean of the neighbours'
+/// images. A move never raises the number
 /// of flipped images around the moved vertex; a vertex is evaluated again only
 /// after it or a source neighbour moved. Faces still flipped after the sweeps, where single moves
 /// are stuck (every corner of the face off by several edges), get region moves
