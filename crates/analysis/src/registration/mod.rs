@@ -61,7 +61,10 @@ use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::area_preserving::{area_preserving_map, AreaPreservingParams};
 use crate::error::AnalysisError;
-use crate::fold_repair::{count_folded_faces, mean_value_tutte_map, untangle_kernels, UntangleInfo};
+use crate::fold_repair::{
+    count_folded_faces, face_is_valid, mean_value_tutte_map, reference_from_layout, reference_from_surface,
+    untangle_foldover_free, untangle_kernels, FoldoverFreeInfo, FoldoverFreeParams, UntangleInfo,
+};
 use crate::point_location::PointLocator;
 
 pub use landmarks::Landmarks;
@@ -163,6 +166,106 @@ impl HarmonicParams {
             Method::Conformal => HarmonicParams::default(),
         }
     }
+}
+
+/// Rings of vertices around the folds of g that [`untangle_harmonic_folds`] frees.
+pub const UNTANGLE_RINGS: usize = 4;
+
+/// The folds of g (`uv`, #V₁) that the kernel moves left: the foldover-free untangling of
+/// Garanzha et al. 2021 ([`untangle_foldover_free`]) of the vertices within
+/// [`UNTANGLE_RINGS`] rings of a folded face, every other vertex, the boundary and the
+/// landmarks (`held`) fixed. References: a valid face away from the folds keeps its own shape;
+/// the others take their triangle in φ₁ (`phi1_uv`, the disk map g starts from), or the
+/// surface's at its share of the disk's area where φ₁'s is degenerate. The result is kept only
+/// when fewer faces stay folded; `None` when there was nothing to untangle or the untangling
+/// failed.
+fn untangle_harmonic_folds(
+    source: &TriMesh,
+    phi1_uv: &[[f64; 2]],
+    held: &[bool],
+    uv: &mut [[f64; 2]],
+) -> Option<FoldoverFreeInfo> {
+    let n = uv.len();
+    let folded = |uv: &[[f64; 2]], f: &[u32; 3]| {
+        let [a, b, c] = f.map(|v| uv[v as usize]);
+        !face_is_valid(a, b, c)
+    };
+    let before = source.faces.iter().filter(|f| folded(uv, f)).count();
+    if before == 0 {
+        return None;
+    }
+    // the rings around the folds
+    let mut near_fold = vec![false; n];
+    for f in source.faces.iter().filter(|f| folded(uv, f)) {
+        for &v in f {
+            near_fold[v as usize] = true;
+        }
+    }
+    let mut region = near_fold.clone();
+    let rings: usize = std::env::var("DBG_RINGS").ok().and_then(|s| s.parse().ok()).unwrap_or(UNTANGLE_RINGS);
+    for _ in 1..rings {
+        let mut grown = region.clone();
+        for f in &source.faces {
+            if f.iter().any(|&v| region[v as usize]) {
+                for &v in f {
+                    grown[v as usize] = true;
+                }
+            }
+        }
+        region = grown;
+    }
+    let free: Vec<bool> = (0..n).map(|v| region[v] && !held[v]).collect();
+    // the faces that move, on their own vertices
+    let ids: Vec<usize> = (0..source.faces.len())
+        .filter(|&t| source.faces[t].iter().any(|&v| free[v as usize]))
+        .collect();
+    let faces: Vec<[u32; 3]> = ids.iter().map(|&t| source.faces[t]).collect();
+    let mut local = vec![u32::MAX; n];
+    let mut verts: Vec<u32> = Vec::new();
+    for f in &faces {
+        for &v in f {
+            if local[v as usize] == u32::MAX {
+                local[v as usize] = verts.len() as u32;
+                verts.push(v);
+            }
+        }
+    }
+    let sub_faces: Vec<[u32; 3]> = faces.iter().map(|f| f.map(|v| local[v as usize])).collect();
+    let fixed: Vec<bool> = verts.iter().map(|&v| !free[v as usize]).collect();
+    let mut sub_uv: Vec<[f64; 2]> = verts.iter().map(|&v| uv[v as usize]).collect();
+    let areas = shapespace_geometry::quantities::face_areas(source);
+    let total: f64 = areas.iter().sum();
+    let reference: Vec<[[f64; 2]; 2]> = ids
+        .iter()
+        .map(|&t| {
+            let f = &source.faces[t];
+            let [a, b, c] = f.map(|v| uv[v as usize]);
+            let own = if f.iter().any(|&v| near_fold[v as usize]) {
+                None
+            } else {
+                reference_from_layout(a, b, c)
+            };
+            let [p, q, r] = f.map(|v| phi1_uv[v as usize]);
+            let share = areas[t] * std::f64::consts::PI / total;
+            own.or_else(|| reference_from_layout(p, q, r))
+                .or_else(|| reference_from_surface(f.map(|v| source.positions[v as usize]), share))
+                .unwrap_or_else(|| {
+                    let side = (4.0 * share.max(f64::MIN_POSITIVE) / 3f64.sqrt()).sqrt();
+                    [[side, 0.0], [0.5 * side, 0.5 * 3f64.sqrt() * side]]
+                })
+        })
+        .collect();
+    let info = match untangle_foldover_free(&sub_faces, &fixed, &reference, &mut sub_uv, &FoldoverFreeParams { lambda: std::env::var("DBG_LAMBDA").ok().and_then(|s| s.parse().ok()).unwrap_or(1.0), ..Default::default() }) { Ok(i) => i, Err(e) => { eprintln!("DEBUG untangle error {e}"); return None; } };
+    let mut trial = uv.to_vec();
+    for (k, &v) in verts.iter().enumerate() {
+        trial[v as usize] = sub_uv[k];
+    }
+    let after = source.faces.iter().filter(|f| folded(&trial, f)).count();
+    if after < before {
+        uv.copy_from_slice(&trial);
+    }
+    eprintln!("DEBUG untangle: before {before} after {after} free {} faces {} info {info:?}", verts.len(), faces.len());
+    Some(info)
 }
 
 /// Landmark steps of the default g for [`Method::Omt`].
@@ -406,6 +509,9 @@ pub struct Registration {
     pub harmonic_steps: usize,
     /// What the fold repair of g did (when [`HarmonicParams::fold_repair`] is on).
     pub harmonic_fold_repair: Option<UntangleInfo>,
+    /// What the foldover-free untangling of the folds the kernel moves left did
+    /// ([`untangle_harmonic_folds`]; `None` when none were left).
+    pub harmonic_untangled: Option<FoldoverFreeInfo>,
     /// The refinement applied after the disk-map stage, if any: `faces`, `bary` and `points` are
     /// then the refined map's, while `harmonic_uv` stays the first stage's.
     pub refinement: Option<RefinementInfo>,
@@ -596,15 +702,23 @@ pub fn register_with_maps(
         for &(a, _) in &landmarks.pairs {
             held[a as usize] = true;
         }
-        Some(untangle_kernels(
+        let kernels = untangle_kernels(
             &source.faces,
             &conn1.vertex_faces,
             &held,
             &mut harmonic_uv,
             UNTANGLE_SWEEPS,
-        ))
+        );
+        let untangled = (kernels.folded_after > 0)
+            .then(|| untangle_harmonic_folds(source, &phi1.uv, &held, &mut harmonic_uv))
+            .flatten();
+        Some((kernels, untangled))
     } else {
         None
+    };
+    let (harmonic_fold_repair, harmonic_untangled) = match harmonic_fold_repair {
+        Some((k, u)) => (Some(k), u),
+        None => (None, None),
     };
     let t1 = Instant::now();
 
@@ -652,6 +766,7 @@ pub fn register_with_maps(
         harmonic_folded,
         harmonic_steps: steps_used,
         harmonic_fold_repair,
+        harmonic_untangled,
         refinement: None,
         timings: RegistrationTimings {
             source_map: phi1.seconds,
@@ -972,5 +1087,39 @@ mod tests {
             cache.as_ref().unwrap().lu.is_some(),
             "indefinite system: LU fallback used"
         );
+    }
+
+    /// A flat disk whose map folds around its centre: the untangling leaves no face folded and
+    /// moves no vertex beyond [`UNTANGLE_RINGS`] rings of the folds; an unfolded map is left alone.
+    #[test]
+    fn harmonic_folds_are_untangled_near_them_only() {
+        let mesh = shapespace_geometry::primitives::unit_disk(12);
+        let n = mesh.num_vertices();
+        let phi1: Vec<[f64; 2]> = mesh.positions.iter().map(|p| [p[0], p[1]]).collect();
+        let held: Vec<bool> = (0..n).map(|v| v >= n - 6 * 12).collect();
+        let mut untouched = phi1.clone();
+        assert!(untangle_harmonic_folds(&mesh, &phi1, &held, &mut untouched).is_none());
+        assert_eq!(untouched, phi1);
+        // the centre and two vertices of the first ring pushed through their neighbours
+        let mut g = phi1.clone();
+        g[0] = [0.25, 0.02];
+        g[1] = [-0.2, 0.05];
+        g[3] = [0.1, -0.22];
+        let folded_before = count_folded_faces(&mesh.faces, &g);
+        assert!(folded_before >= 3, "{folded_before}");
+        let info = untangle_harmonic_folds(&mesh, &phi1, &held, &mut g).expect("folds to untangle");
+        assert_eq!(info.folded_after, 0, "{info:?}");
+        assert_eq!(count_folded_faces(&mesh.faces, &g), 0);
+        // ring distance of every vertex from the folded vertices {0, 1, 3}: vertices of ring k of
+        // the layout are at least k − 1 rings away; those beyond the freed rings did not move
+        for v in 0..n {
+            let ring = ((mesh.positions[v][0].hypot(mesh.positions[v][1])) * 12.0).round() as usize;
+            if ring > UNTANGLE_RINGS + 1 {
+                assert_eq!(g[v], phi1[v], "vertex {v} on ring {ring} moved");
+            }
+        }
+        for v in n - 6 * 12..n {
+            assert_eq!(g[v], phi1[v]);
+        }
     }
 }
