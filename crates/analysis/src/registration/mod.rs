@@ -39,8 +39,8 @@
 //! guarantee: on the lion, cat, horse and remeshed wolf pairs folds are left. Opt-in
 //! ([`HarmonicParams::foldover_free`], `--untangle-g foldover-free`): those are untangled by
 //! the foldover-free untangling ([`untangle_harmonic_folds`]), around the folds from g, else on
-//! the whole disk from φ₁; measured in `docs/experiments.md` (every lion pair unfolded, few cat
-//! pairs).
+//! the whole disk from φ₁; measured in `docs/experiments.md` (every lion pair unfolded, 3 of 12
+//! cat pairs, no centaur pair).
 //!
 //! Radó's theorem makes g bijective only without interior constraints; hard landmark pins can
 //! fold it (`docs/conventions.md`, "Registration"), and the disk maps themselves may fold: [`metrics`] measures flips.
@@ -141,8 +141,8 @@ pub struct HarmonicParams {
     pub fold_repair: bool,
     /// After the kernel moves of [`HarmonicParams::fold_repair`], untangle the folds they leave
     /// with the foldover-free untangling ([`untangle_harmonic_folds`]; disk registration only).
-    /// Off by default: it unfolds every lion pair but few cat pairs, at several seconds a pair
-    /// (`docs/experiments.md`).
+    /// Off by default: it unfolds every lion pair but 3 of 12 cat pairs and no centaur pair,
+    /// at 7–75 s a pair (`docs/experiments.md`).
     pub foldover_free: bool,
     /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k) when one
     /// solve on φ₁ folds; each step solves with the weights of the previous step's layout.
