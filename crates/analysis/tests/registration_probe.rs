@@ -74,6 +74,7 @@ fn probe_harmonic_variants() {
                 let hp = HarmonicParams {
                     weights: w,
                     fold_repair: fr,
+                    foldover_free: false,
                     landmark_steps: rep,
                 };
                 let mut acc = [0.0f64; 9];

@@ -77,8 +77,9 @@ pub struct RegisterArgs {
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
     #[arg(long)]
     pub weights: Option<String>,
-    /// Untangle folded faces of g, boundary and landmarks fixed: `on` or `off` (default: on for
-    /// omt, off for conformal).
+    /// Untangle folded faces of g, boundary and landmarks fixed: `on` (kernel moves),
+    /// `foldover-free` (then the foldover-free untangling of the folds left, disk only) or `off`
+    /// (default: on for omt, off for conformal).
     #[arg(long)]
     pub untangle_g: Option<String>,
     /// Steps in which the landmarks move from φ₁ to φ₂, each solved with the weights of the
@@ -122,8 +123,9 @@ pub struct RegisterBenchArgs {
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
     #[arg(long)]
     pub weights: Option<String>,
-    /// Untangle folded faces of g, boundary and landmarks fixed: `on` or `off` (default: on for
-    /// omt, off for conformal).
+    /// Untangle folded faces of g, boundary and landmarks fixed: `on` (kernel moves),
+    /// `foldover-free` (then the foldover-free untangling of the folds left, disk only) or `off`
+    /// (default: on for omt, off for conformal).
     #[arg(long)]
     pub untangle_g: Option<String>,
     /// Steps in which the landmarks move from φ₁ to φ₂, each solved with the weights of the
@@ -201,10 +203,11 @@ fn harmonic_params(
         h.weights = w.parse()?;
     }
     if let Some(u) = untangle {
-        h.fold_repair = match u.trim().to_ascii_lowercase().as_str() {
-            "on" | "true" | "yes" => true,
-            "off" | "false" | "no" => false,
-            other => anyhow::bail!("--untangle-g: expected on or off, got `{other}`"),
+        (h.fold_repair, h.foldover_free) = match u.trim().to_ascii_lowercase().as_str() {
+            "on" | "true" | "yes" => (true, false),
+            "foldover-free" => (true, true),
+            "off" | "false" | "no" => (false, false),
+            other => anyhow::bail!("--untangle-g: expected on, foldover-free or off, got `{other}`"),
         };
     }
     if let Some(k) = steps {
