@@ -124,7 +124,8 @@ fn untangle_free_vertices(
 ///    it leaves room to unfold and from which the barrier cannot escape even with the whole disk
 ///    free; φ₁ embeds, and only the landmarks' stars fold.
 ///
-/// The map with the fewest folded faces is kept. `None` when g has no folded face.
+/// A result is kept only when no face stays folded; otherwise g is left as it was. `None` when
+/// g has no folded face.
 pub(super) fn untangle_harmonic_folds(
     source: &TriMesh,
     phi1_uv: &[[f64; 2]],
