@@ -117,8 +117,9 @@ fn landmark_coordinates_keep_the_cat_limbs_apart() {
 /// figure without the pass, and the geodesic error at most 2 % above it. Both pairs' sweeps
 /// leave less than the region moves' threshold (0.4 % of the area, decision 0054), so none ran
 /// (asserted); run wherever a face stays flipped (`region_from_area` 0) they took the flipped
-/// area to 0.037 % and 0.087 % (asserted: at most 0.4 of the default's) at a geodesic error of
-/// 0.01209 and 0.01486, 1.9 % and 3.3 % above the default's (asserted: at most 5 %).
+/// area to 0.037 % and 0.087 % at a geodesic error of 0.01209 and 0.01486, 1.9 % and 3.3 %
+/// above the default's (asserted on the second pair: at most 0.4 of the default's flipped area,
+/// at most 5 % more error).
 #[test]
 fn point_untangling_removes_most_flipped_area_on_the_cat() {
     for (a, b, flip_bound) in [("reference", "0002", 0.2), ("0001", "0002", 0.4)] {
@@ -160,7 +161,11 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
             (on.3.flipped_area_after_sweeps - on.0).abs() < 1e-12,
             "the pass's share is the metric's"
         );
-        // with them wherever a face stays flipped (decisions 0042, 0054)
+        // with them wherever a face stays flipped (decisions 0042, 0054), on the second pair
+        // only (its region moves take 8 s)
+        if a != "0001" {
+            continue;
+        }
         let everywhere = run(zp.point_untangle.sweeps, 0.0);
         eprintln!(
             "cat {a} -> {b}, region moves on every pair: flipped 3D area {:.5}, geodesic mean {:.5}, {:?}",
