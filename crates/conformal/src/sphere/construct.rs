@@ -100,13 +100,8 @@ struct Chart {
 
 impl Chart {
     /// The chart of the vertices with `inside[v]`, its unknowns eliminated in the order of
-    /// `ranks` (a rank per vertex) when given, else in an AMD ordering of its own.
-    fn new(
-        tri: &IntrinsicTriangulation,
-        inside: &[bool],
-        ranks: Option<&[u32]>,
-        what: &str,
-    ) -> Result<Self, ConformalError> {
+    /// `ranks` (a rank per vertex).
+    fn new(tri: &IntrinsicTriangulation, inside: &[bool], ranks: &[u32], what: &str) -> Result<Self, ConformalError> {
         let mut index = vec![u32::MAX; inside.len()];
         let mut members = Vec::new();
         for (v, &i) in inside.iter().enumerate() {
@@ -115,12 +110,9 @@ impl Chart {
                 members.push(v as u32);
             }
         }
-        let order: Option<Vec<usize>> = ranks.map(|r| {
-            let mut order: Vec<usize> = (0..members.len()).collect();
-            order.sort_by_key(|&k| (r[members[k] as usize], members[k]));
-            order
-        });
-        let (solver, coupling) = restricted_laplacian_in_order(tri, &index, members.len(), order.as_deref(), what)?;
+        let mut order: Vec<usize> = (0..members.len()).collect();
+        order.sort_by_key(|&k| (ranks[members[k] as usize], members[k]));
+        let (solver, coupling) = restricted_laplacian_in_order(tri, &index, members.len(), Some(&order), what)?;
         Ok(Chart {
             index,
             members,
@@ -168,13 +160,14 @@ impl Chart {
 /// boundary values from the other (through w = 1/u), starting from pass 1. A fixed point is
 /// discrete harmonic in both charts; in the continuum, u and 1/u both harmonic on the overlap
 /// forces u to be (anti)holomorphic, i.e. conformal, and neither chart contains a singularity,
-/// so the discretization error is that of a smooth Dirichlet problem.
+/// so the discretization error is that of a smooth Dirichlet problem. Each chart eliminates its
+/// unknowns in the order of `ranks` (pass 1's elimination rank per vertex).
 pub(crate) fn schwarz(
     tri: &IntrinsicTriangulation,
     z: &[Complex],
     zc: Complex,
     masses: &[f64],
-    ranks: Option<&[u32]>,
+    ranks: &[u32],
 ) -> Result<Planar, ConformalError> {
     let n = z.len();
     let r0 = median_radius(z, zc, masses);

@@ -426,7 +426,7 @@ pub fn sphere_map(mesh: &TriMesh, params: &SphereMapParams) -> Result<SphereMap,
     let t2 = Instant::now();
     let zc = balanced_center(&z, &masses).unwrap_or(z[far as usize]);
     let planar = match params.correction {
-        Correction::Schwarz => construct::schwarz(&tri, &z, zc, &masses, Some(&ranks))?,
+        Correction::Schwarz => construct::schwarz(&tri, &z, zc, &masses, &ranks)?,
         c => construct::cap_correction(&tri, &z, zc, &masses, c == Correction::Cap)?,
     };
     timings.cap_solve = t2.elapsed().as_secs_f64();
