@@ -9,8 +9,8 @@ use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
 use crate::fold_repair::{
-    count_folded_faces, face_is_valid, reference_from_layout, reference_from_surface, untangle_foldover_free,
-    FoldoverFreeInfo, FoldoverFreeParams,
+    count_folded_faces, face_is_valid, grow_region, reference_from_layout, reference_from_surface,
+    untangle_foldover_free, FoldoverFreeInfo, FoldoverFreeParams,
 };
 
 /// Rings of vertices around the folds of g that the local untangling of
@@ -115,7 +115,7 @@ fn untangle_free_vertices(
 }
 
 /// The folds of g (`uv`, #V₁) that the kernel moves left, untangled with the boundary and the
-/// landmarks (`held`) fixed, by the foldover-free untangling of Garanzha et al. 2021
+/// landmarks (`held`) fixed (`neighbors`: each vertex's neighbours in S₁), by the foldover-free untangling of Garanzha et al. 2021
 /// (`untangle_free_vertices`, φ₁'s triangles as references):
 /// 1. **local**: the vertices within [`UNTANGLE_RINGS`] rings of a folded face, from g;
 /// 2. **global**, when folds are left: every vertex but the held ones, from φ₁ (`phi1_uv`) with
@@ -128,6 +128,7 @@ fn untangle_free_vertices(
 /// g has no folded face.
 pub(super) fn untangle_harmonic_folds(
     source: &TriMesh,
+    neighbors: &[Vec<u32>],
     phi1_uv: &[[f64; 2]],
     held: &[bool],
     uv: &mut [[f64; 2]],
@@ -137,28 +138,18 @@ pub(super) fn untangle_harmonic_folds(
     if folded_before == 0 {
         return None;
     }
-    // the rings around the folds
-    let mut region = vec![false; n];
-    for f in source.faces.iter() {
-        let [a, b, c] = f.map(|v| uv[v as usize]);
-        if !face_is_valid(a, b, c) {
-            for &v in f {
-                region[v as usize] = true;
-            }
-        }
-    }
-    for _ in 1..UNTANGLE_RINGS {
-        let mut grown = region.clone();
-        for f in &source.faces {
-            if f.iter().any(|&v| region[v as usize]) {
-                for &v in f {
-                    grown[v as usize] = true;
-                }
-            }
-        }
-        region = grown;
-    }
-    let free: Vec<bool> = (0..n).map(|v| region[v] && !held[v]).collect();
+    // the vertices within UNTANGLE_RINGS − 1 edges of a folded face's, but the held ones
+    let seeds: Vec<usize> = source
+        .faces
+        .iter()
+        .filter(|f| {
+            let [a, b, c] = f.map(|v| uv[v as usize]);
+            !face_is_valid(a, b, c)
+        })
+        .flat_map(|f| f.map(|v| v as usize))
+        .collect();
+    let mut free = vec![false; n];
+    grow_region(neighbors, held, &seeds, UNTANGLE_RINGS - 1, &mut free);
     let mut local_uv = uv.to_vec();
     let local = untangle_free_vertices(source, phi1_uv, &free, &mut local_uv)?;
     let mut unfolded = (count_folded_faces(&source.faces, &local_uv) == 0).then_some(local_uv);
@@ -200,6 +191,10 @@ mod tests {
         (mesh, phi1, held)
     }
 
+    fn neighbors(mesh: &TriMesh) -> Vec<Vec<u32>> {
+        shapespace_geometry::Connectivity::of(mesh).vertex_neighbors(mesh.num_vertices())
+    }
+
     /// The ring of vertex `v` of [`flat_disk`] (its radius times 12).
     fn ring(mesh: &TriMesh, v: usize) -> usize {
         (mesh.positions[v][0].hypot(mesh.positions[v][1]) * 12.0).round() as usize
@@ -214,7 +209,7 @@ mod tests {
         let (mesh, phi1, mut held) = flat_disk();
         let n = mesh.num_vertices();
         let mut untouched = phi1.clone();
-        assert!(untangle_harmonic_folds(&mesh, &phi1, &held, &mut untouched).is_none());
+        assert!(untangle_harmonic_folds(&mesh, &neighbors(&mesh), &phi1, &held, &mut untouched).is_none());
         assert_eq!(untouched, phi1);
         let landmark = (0..n).find(|&v| ring(&mesh, v) == 2).unwrap();
         held[landmark] = true;
@@ -225,7 +220,7 @@ mod tests {
         let folded_before = count_folded_faces(&mesh.faces, &g);
         assert!(folded_before >= 3, "{folded_before}");
         let input = g.clone();
-        let info = untangle_harmonic_folds(&mesh, &phi1, &held, &mut g).expect("folds to untangle");
+        let info = untangle_harmonic_folds(&mesh, &neighbors(&mesh), &phi1, &held, &mut g).expect("folds to untangle");
         assert_eq!((info.folded_before, info.folded_after), (folded_before, 0), "{info:?}");
         assert_eq!(info.local.folded_after, 0, "{info:?}");
         assert!(info.global.is_none());
@@ -257,7 +252,7 @@ mod tests {
         let folded_before = count_folded_faces(&mesh.faces, &g);
         assert!(folded_before >= 2, "{folded_before}");
         let input = g.clone();
-        let info = untangle_harmonic_folds(&mesh, &phi1, &held, &mut g).expect("folds to untangle");
+        let info = untangle_harmonic_folds(&mesh, &neighbors(&mesh), &phi1, &held, &mut g).expect("folds to untangle");
         assert_eq!((info.folded_before, info.folded_after), (folded_before, 0), "{info:?}");
         assert_eq!(count_folded_faces(&mesh.faces, &g), 0);
         for v in (0..n).filter(|&v| held[v]) {

@@ -608,6 +608,7 @@ pub fn register_with_maps(
         steps_used = harmonic.landmark_steps;
     }
     let harmonic_folded = count_folded_faces(&source.faces, &harmonic_uv);
+    let mut harmonic_untangled = None;
     let harmonic_fold_repair = if harmonic.fold_repair && harmonic_folded > 0 {
         let mut held = conn1.boundary_vertices(n1);
         for &(a, _) in &landmarks.pairs {
@@ -620,16 +621,13 @@ pub fn register_with_maps(
             &mut harmonic_uv,
             UNTANGLE_SWEEPS,
         );
-        let untangled = (harmonic.foldover_free && kernels.folded_after > 0)
-            .then(|| untangle_harmonic_folds(source, &phi1.uv, &held, &mut harmonic_uv))
-            .flatten();
-        Some((kernels, untangled))
+        if harmonic.foldover_free && kernels.folded_after > 0 {
+            let neighbors = conn1.vertex_neighbors(n1);
+            harmonic_untangled = untangle_harmonic_folds(source, &neighbors, &phi1.uv, &held, &mut harmonic_uv);
+        }
+        Some(kernels)
     } else {
         None
-    };
-    let (harmonic_fold_repair, harmonic_untangled) = match harmonic_fold_repair {
-        Some((k, u)) => (Some(k), u),
-        None => (None, None),
     };
     let t1 = Instant::now();
 

@@ -272,9 +272,10 @@ fn folded_faces(faces: &[[u32; 3]], uv: &[[f64; 2]]) -> (usize, usize, Vec<usize
     (flipped, degenerate, bad)
 }
 
-/// Grows `in_region` by the interior vertices within `rings` edges of `seeds` (the path may
-/// pass through boundary vertices). Returns the number of vertices added.
-fn grow_region(
+/// Grows `in_region` by the vertices within `rings` edges of `seeds` (`neighbors`: each
+/// vertex's neighbours) that are not flagged in `is_boundary`; the paths may pass through
+/// those. Returns the number of vertices added.
+pub fn grow_region(
     neighbors: &[Vec<u32>],
     is_boundary: &[bool],
     seeds: &[usize],
