@@ -39,8 +39,8 @@ use shapespace_omt::OmtError;
 use crate::area_preserving::weighted_target_masses;
 use crate::error::AnalysisError;
 use crate::fold_repair::{
-    face_is_valid, reference_from_layout, reference_from_surface, repair_folds, untangle_foldover_free,
-    FoldRepairParams, FoldoverFreeParams,
+    face_is_valid, reference_equilateral, reference_from_layout, reference_from_surface, repair_folds,
+    untangle_foldover_free, FoldRepairParams, FoldoverFreeParams,
 };
 
 /// Options of [`area_preserving_sphere_map`].
@@ -944,10 +944,7 @@ fn untangle_references(sub: &TriMesh, uv: &[[f64; 2]], target_face_areas: &[f64]
                 reference_from_layout(a, b, c)
             };
             own.or_else(|| reference_from_surface(f.map(|v| sub.positions[v as usize]), area))
-                .unwrap_or_else(|| {
-                    let side = (4.0 * area.max(f64::MIN_POSITIVE) / 3f64.sqrt()).sqrt();
-                    [[side, 0.0], [0.5 * side, 0.5 * 3f64.sqrt() * side]]
-                })
+                .unwrap_or_else(|| reference_equilateral(area))
         })
         .collect()
 }

@@ -9,8 +9,8 @@ use serde::Serialize;
 use shapespace_geometry::TriMesh;
 
 use crate::fold_repair::{
-    count_folded_faces, face_is_valid, grow_region, reference_from_layout, reference_from_surface,
-    untangle_foldover_free, FoldoverFreeInfo, FoldoverFreeParams,
+    count_folded_faces, face_is_valid, grow_region, reference_equilateral, reference_from_layout,
+    reference_from_surface, untangle_foldover_free, FoldoverFreeInfo, FoldoverFreeParams,
 };
 
 /// Rings of vertices around the folds of g that the local untangling of
@@ -82,10 +82,7 @@ fn untangle_free_vertices(
             let share = areas[t] * std::f64::consts::PI / total;
             reference_from_layout(p, q, r)
                 .or_else(|| reference_from_surface(f.map(|v| source.positions[v as usize]), share))
-                .unwrap_or_else(|| {
-                    let side = (4.0 * share.max(f64::MIN_POSITIVE) / 3f64.sqrt()).sqrt();
-                    [[side, 0.0], [0.5 * side, 0.5 * 3f64.sqrt() * side]]
-                })
+                .unwrap_or_else(|| reference_equilateral(share))
         })
         .collect();
     let signed: f64 = ids

@@ -91,6 +91,13 @@ pub fn reference_from_surface(p: [[f64; 3]; 3], area: f64) -> Option<[[f64; 2]; 
     Some([[s * l1, 0.0], [s * along, s * height]])
 }
 
+/// The reference edge vectors of the equilateral triangle of area `area` (floored at the
+/// smallest positive number): the reference of a face whose own triangles are degenerate.
+pub fn reference_equilateral(area: f64) -> [[f64; 2]; 2] {
+    let side = (4.0 * area.max(f64::MIN_POSITIVE) / 3f64.sqrt()).sqrt();
+    [[side, 0.0], [0.5 * side, 0.5 * 3f64.sqrt() * side]]
+}
+
 /// The reference edge vectors of the planar triangle (a, b, c) (`None` unless it is
 /// counter-clockwise with a positive area).
 pub fn reference_from_layout(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<[[f64; 2]; 2]> {
@@ -446,6 +453,24 @@ fn lbfgs(
 mod tests {
     use super::*;
     use shapespace_geometry::primitives;
+
+    /// The equilateral reference: area `area` (det/2), three equal sides, counter-clockwise;
+    /// a non-positive area gives the smallest positive one instead of NaN.
+    #[test]
+    fn the_equilateral_reference_has_the_given_area() {
+        for area in [1e-9, 0.3, 7.0] {
+            let [e1, e2] = reference_equilateral(area);
+            let det = e1[0] * e2[1] - e1[1] * e2[0];
+            assert!((0.5 * det / area - 1.0).abs() < 1e-14, "{area}: {det}");
+            let len = |v: [f64; 2]| v[0].hypot(v[1]);
+            let third = len([e2[0] - e1[0], e2[1] - e1[1]]);
+            for l in [len(e2), third] {
+                assert!((l / len(e1) - 1.0).abs() < 1e-14, "{area}: sides {} {l}", len(e1));
+            }
+        }
+        let [e1, e2] = reference_equilateral(-1.0);
+        assert!(e1[0] > 0.0 && e2[1] > 0.0 && (e1[0] * e2[1]).is_finite());
+    }
 
     /// The flat unit disk of `rings` rings with its boundary flags, laid out by `layout` (an
     /// embedding of the disk).

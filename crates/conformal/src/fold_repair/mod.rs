@@ -107,7 +107,8 @@ mod untangle;
 mod weights;
 
 pub use foldover_free::{
-    reference_from_layout, reference_from_surface, untangle_foldover_free, FoldoverFreeInfo, FoldoverFreeParams,
+    reference_equilateral, reference_from_layout, reference_from_surface, untangle_foldover_free, FoldoverFreeInfo,
+    FoldoverFreeParams,
 };
 use retract::*;
 pub use tutte::mean_value_tutte_map;
