@@ -69,7 +69,12 @@ fn zoomout_refines_the_wolf_pair() {
         "flipped {}",
         after.flipped_area_ratio_3d
     );
-    assert_eq!(info.sizes.first(), Some(&zp.k_start));
+    // the kept run's sizes, from its own first size to k_end; the kept run has the smallest
+    // residual of the runs, one per first size
+    let kept = info.runs.iter().find(|r| r.kept).unwrap();
+    assert_eq!(info.runs.len(), zp.k_starts.len());
+    assert!(info.runs.iter().all(|r| r.residual >= kept.residual));
+    assert_eq!(info.sizes.first(), Some(&kept.k_start));
     assert_eq!(info.sizes.last(), Some(&zp.k_end));
 }
 
@@ -174,12 +179,12 @@ fn shared_eigenpairs_give_the_same_maps() {
     }
 }
 
-/// Bases that do not fit the meshes, and sizes beyond them, are errors.
+/// Bases that do not fit the meshes, sizes beyond them and first sizes out of range are errors.
 #[test]
 fn mismatched_bases_are_errors() {
     let (s, t) = (wolf(0), wolf(1));
     let zp = ZoomOutParams {
-        k_start: 4,
+        k_starts: vec![4],
         k_end: 8,
         ..ZoomOutParams::default()
     };
@@ -190,6 +195,11 @@ fn mismatched_bases_are_errors() {
     assert!(zoomout(&s, &small, &b, &b, &seed, &[], &zp).is_err());
     let too_far = ZoomOutParams { k_end: 9, ..zp.clone() };
     assert!(zoomout(&s, &t, &b, &b, &seed, &[], &too_far).is_err());
+    // first sizes: at least one, each in 1..=k_end
+    for k_starts in [vec![], vec![0], vec![4, 9]] {
+        let bad = ZoomOutParams { k_starts, ..zp.clone() };
+        assert!(zoomout(&s, &t, &b, &b, &seed, &[], &bad).is_err(), "{:?}", bad.k_starts);
+    }
     let mut bad_seed = seed.clone();
     bad_seed[5] = t.num_vertices() as u32;
     assert!(zoomout(&s, &t, &b, &b, &bad_seed, &[], &zp).is_err());

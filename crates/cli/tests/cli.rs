@@ -2736,7 +2736,8 @@ fn disk_map_choices_reach_param_and_distances() {
 
 /// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
 /// script: status 2 naming the path, before any registration; a `--region-from-area` that is
-/// not a share of the area: status 2 naming the option and the value, no output folder.
+/// not a share of the area, or a `--zoomout-starts` that is not a list of sizes from 1 to 120:
+/// status 2 naming the option, no output folder.
 #[test]
 fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     let dir = scratch("bench-remeshed-missing");
@@ -2788,6 +2789,20 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         assert_eq!(out.status.code(), Some(2), "{bad}: {msg}");
         assert!(msg.contains("--region-from-area") && msg.contains(bad), "{msg}");
         assert!(!dir.join("out3").exists(), "{bad}: an output folder was made");
+    }
+    // ZoomOut's first sizes: a comma-separated list of sizes from 1 to its last size (120)
+    for bad in ["0", "121", "8,x", ""] {
+        let out = shapespace(&[
+            "register-bench",
+            dataset.to_str().unwrap(),
+            "--out",
+            dir.join("out4").to_str().unwrap(),
+            &format!("--zoomout-starts={bad}"),
+        ]);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {msg}");
+        assert!(msg.contains("--zoomout-starts"), "{msg}");
+        assert!(!dir.join("out4").exists(), "{bad:?}: an output folder was made");
     }
 }
 

@@ -87,9 +87,13 @@ impl<const D: usize> BoxTree<D> {
         if self.nodes.is_empty() {
             return;
         }
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
-            let nd = self.nodes[i];
+        // the tree is balanced (median splits): its depth is at most log2(#nodes) + 1, so a
+        // fixed stack of 2 · 64 entries never overflows
+        let mut stack = [0usize; 128];
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let nd = &self.nodes[stack[len]];
             if !(0..D).all(|k| p[k] >= nd.lo[k] && p[k] <= nd.hi[k]) {
                 continue;
             }
@@ -98,8 +102,9 @@ impl<const D: usize> BoxTree<D> {
                     visit(t);
                 }
             } else {
-                stack.push(nd.start);
-                stack.push(nd.end);
+                stack[len] = nd.start;
+                stack[len + 1] = nd.end;
+                len += 2;
             }
         }
     }

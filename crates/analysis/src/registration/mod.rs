@@ -372,8 +372,10 @@ pub struct RegistrationTimings {
 pub struct RefinementInfo {
     /// The refinement applied.
     pub refinement: Refinement,
-    /// Spectral sizes visited.
+    /// Spectral sizes visited by the kept ZoomOut run.
     pub sizes: Vec<usize>,
+    /// ZoomOut's runs, one per first spectral size, with their residuals and the one kept.
+    pub runs: Vec<zoomout::ZoomOutRun>,
     /// Vertex map or projected points.
     pub output: ZoomOutOutput,
     /// Seconds of the eigenpairs of S₁ and S₂ (as computed, possibly once for many pairs).
@@ -527,6 +529,7 @@ pub fn refine_registration(
     reg.refinement = Some(RefinementInfo {
         refinement: Refinement::ZoomOut,
         sizes: refined.sizes,
+        runs: refined.runs,
         output: params.output,
         eigen_seconds: [source_basis.seconds, target_basis.seconds],
         iteration_seconds: refined.seconds + point_untangle.seconds,

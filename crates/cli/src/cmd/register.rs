@@ -69,7 +69,8 @@ pub struct RegisterArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Refinement after the disk-map stage: `none` or `zoomout` (spectral refinement, Melzi et
-    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 to 120).
+    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of
+    /// smaller residual kept).
     #[arg(long, default_value = "none")]
     pub refine: String,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
@@ -100,6 +101,10 @@ pub struct RegisterArgs {
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
     pub landmark_weight: f64,
+    /// ZoomOut's first spectral sizes, comma-separated: it runs from each and keeps the map whose
+    /// final nearest-neighbour residual is smallest (decision 0055); `20` alone is a single run.
+    #[arg(long, default_value = "20,8", value_parser = spectral_sizes)]
+    pub zoomout_starts: SpectralSizes,
 }
 
 /// Arguments of `shapespace register-bench`.
@@ -115,7 +120,8 @@ pub struct RegisterBenchArgs {
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
     /// Refinement after the disk-map stage: `none` or `zoomout` (spectral refinement, Melzi et
-    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 to 120).
+    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of
+    /// smaller residual kept).
     #[arg(long, default_value = "none")]
     pub refine: String,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
@@ -159,6 +165,10 @@ pub struct RegisterBenchArgs {
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
     pub landmark_weight: f64,
+    /// ZoomOut's first spectral sizes, comma-separated: it runs from each and keeps the map whose
+    /// final nearest-neighbour residual is smallest (decision 0055); `20` alone is a single run.
+    #[arg(long, default_value = "20,8", value_parser = spectral_sizes)]
+    pub zoomout_starts: SpectralSizes,
     /// Rounds of region moves at the end of the untangling with points (decisions 0042, 0054):
     /// each set of faces still flipped is laid out again from the ring around it; 0 leaves them
     /// out.
@@ -316,6 +326,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         refine: args.refine.parse()?,
         zoomout: ZoomOutParams {
             landmark_weight: args.landmark_weight,
+            k_starts: args.zoomout_starts.0.clone(),
             ..ZoomOutParams::default()
         },
     };
@@ -475,6 +486,7 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let mut zoomout = ZoomOutParams {
         output: args.zoomout_output.parse()?,
         landmark_weight: args.landmark_weight,
+        k_starts: args.zoomout_starts.0.clone(),
         ..ZoomOutParams::default()
     };
     zoomout.point_untangle.region_rounds = args.region_rounds;
@@ -528,6 +540,24 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// A share of the source's area: a number in [0, 1].
+/// ZoomOut's first spectral sizes (`--zoomout-starts`).
+#[derive(Clone, Debug)]
+pub struct SpectralSizes(pub Vec<usize>);
+
+/// A comma-separated list of first spectral sizes, each from 1 to ZoomOut's last size.
+fn spectral_sizes(s: &str) -> Result<SpectralSizes, String> {
+    let k_end = ZoomOutParams::default().k_end;
+    let sizes = s
+        .split(',')
+        .map(|t| match t.trim().parse::<usize>() {
+            Ok(k) if (1..=k_end).contains(&k) => Ok(k),
+            Ok(k) => Err(format!("{k} is not a first spectral size (expected 1 to {k_end})")),
+            Err(e) => Err(format!("{t:?}: {e}")),
+        })
+        .collect::<Result<Vec<usize>, String>>()?;
+    Ok(SpectralSizes(sizes))
+}
+
 fn area_share(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),

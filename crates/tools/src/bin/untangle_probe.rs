@@ -82,6 +82,7 @@ fn main() {
             reg.refinement = Some(shapespace_analysis::registration::RefinementInfo {
                 refinement: shapespace_analysis::registration::Refinement::ZoomOut,
                 sizes: Vec::new(),
+                runs: Vec::new(),
                 output: Default::default(),
                 eigen_seconds: [0.0; 2],
                 iteration_seconds: 0.0,
