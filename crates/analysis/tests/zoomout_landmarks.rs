@@ -4,7 +4,8 @@
 //! `shapespace prepare` does, around one vertex, so they keep one vertex order (vertex i ↔
 //! vertex i is the ground truth); the landmarks are the six extremities by farthest-point
 //! sampling from the cut (`geometry::seam::extremities`), the center marker the seventh, as
-//! `scripts/cut_pose_set.py` chooses them.
+//! `scripts/cut_pose_set.py` chooses them. The untangling with points on the same cat pairs, and
+//! ZoomOut's two first sizes (decision 0055) on the lion poses (`outside/lion_poses`).
 
 use shapespace_analysis::registration::{
     refine_registration, register, registration_metrics, Landmarks, MetricParams, RegistrationParams, SpectralBasis,
@@ -15,14 +16,21 @@ use shapespace_geometry::prepare::{prepare_disk, CutCenter, PrepareOptions};
 use shapespace_geometry::{Connectivity, TriMesh};
 
 fn cut_poses(a: &str, b: &str) -> Option<(TriMesh, TriMesh)> {
-    let files = shapespace_test_support::shared_files(&[
+    cut_pair(
         &format!("sumner_deformation_transfer/cat-poses/{a}.obj"),
         &format!("sumner_deformation_transfer/cat-poses/{b}.obj"),
-    ])?;
+        false,
+    )
+}
+
+/// Two poses of one connectivity from the shared folder (None when absent), cut to disks around
+/// the vertex of the first nearest its vertex centroid with `prepare`'s default disk (3 rings of
+/// edges, so that both poses lose the same faces); with `slit`, then slit along the seam of
+/// `prepare --seam 1` chosen on the first pose, the same edges in both.
+fn cut_pair(first: &str, second: &str, slit: bool) -> Option<(TriMesh, TriMesh)> {
+    let files = shapespace_test_support::shared_files(&[first, second])?;
     let read = |i: usize| shapespace_geometry::io::read_mesh(&files[i]).unwrap();
     let (m0, m1) = (read(0), read(1));
-    // the cut centre: the vertex of the first pose nearest its vertex centroid; the cut is
-    // `prepare`'s default (3 rings of edges), so that both poses lose the same faces
     let n = m0.num_vertices() as f64;
     let c = (0..3)
         .map(|d| m0.positions.iter().map(|p| p[d]).sum::<f64>() / n)
@@ -38,7 +46,15 @@ fn cut_poses(a: &str, b: &str) -> Option<(TriMesh, TriMesh)> {
     let (d0, _, _) = prepare_disk(&m0, &opts).unwrap();
     let (d1, _, _) = prepare_disk(&m1, &opts).unwrap();
     assert_eq!(d0.faces, d1.faces, "the two poses must keep one connectivity");
-    Some((d0, d1))
+    if !slit {
+        return Some((d0, d1));
+    }
+    let tip = shapespace_geometry::seam::extremities(&d0, 1).unwrap();
+    let seam = shapespace_geometry::seam::seam_tree(&d0, &tip).unwrap();
+    let (s0, _) = shapespace_geometry::seam::cut_along_seam(&d0, &seam).unwrap();
+    let (s1, _) = shapespace_geometry::seam::cut_along_seam(&d1, &seam).unwrap();
+    assert_eq!(s0.faces, s1.faces);
+    Some((s0, s1))
 }
 
 /// The cat tests' landmarks and markers on a cut pose `s` (the targets share its vertex order):
@@ -245,38 +261,15 @@ fn landmark_fields_on_the_horse_follow_the_surface() {
     assert!(median_gap < 0.1, "{median_gap}");
 }
 
-/// The lion poses lion1 and lion3 (shared `outside/lion_poses`; skipped when absent), cut as
-/// above around the vertex of lion1 nearest its vertex centroid and slit once from the farthest
-/// tip (`prepare --seam 1`, as the lions need), six extremities as landmarks.
+/// Two lion poses (shared `outside/lion_poses`; None when absent), cut as the cat poses and
+/// slit once from the farthest tip (`prepare --seam 1`, as the lions need); six extremities as
+/// landmarks.
 fn cut_lions(a: &str, b: &str) -> Option<(TriMesh, TriMesh)> {
-    let files = shapespace_test_support::shared_files(&[
+    cut_pair(
         &format!("outside/lion_poses/{a}.obj"),
         &format!("outside/lion_poses/{b}.obj"),
-    ])?;
-    let read = |i: usize| shapespace_geometry::io::read_mesh(&files[i]).unwrap();
-    let (m0, m1) = (read(0), read(1));
-    let n = m0.num_vertices() as f64;
-    let c = (0..3)
-        .map(|d| m0.positions.iter().map(|p| p[d]).sum::<f64>() / n)
-        .collect::<Vec<_>>();
-    let dist = |p: &[f64; 3]| (0..3).map(|d| (p[d] - c[d]).powi(2)).sum::<f64>();
-    let center = (0..m0.positions.len())
-        .min_by(|&a, &b| dist(&m0.positions[a]).total_cmp(&dist(&m0.positions[b])))
-        .unwrap() as u32;
-    let opts = PrepareOptions {
-        cut_center: CutCenter::Vertex(center),
-        ..PrepareOptions::default()
-    };
-    let (d0, _, _) = prepare_disk(&m0, &opts).unwrap();
-    let (d1, _, _) = prepare_disk(&m1, &opts).unwrap();
-    assert_eq!(d0.faces, d1.faces, "the two poses must keep one connectivity");
-    // the slit of `prepare --seam 1` chosen on the first pose, cut along the same edges in both
-    let tip = shapespace_geometry::seam::extremities(&d0, 1).unwrap();
-    let seam = shapespace_geometry::seam::seam_tree(&d0, &tip).unwrap();
-    let (s0, _) = shapespace_geometry::seam::cut_along_seam(&d0, &seam).unwrap();
-    let (s1, _) = shapespace_geometry::seam::cut_along_seam(&d1, &seam).unwrap();
-    assert_eq!(s0.faces, s1.faces);
-    Some((s0, s1))
+        true,
+    )
 }
 
 /// ZoomOut from two first sizes (20 and 8, the default) on lion pairs cut as in [`cut_lions`]:

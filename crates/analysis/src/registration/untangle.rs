@@ -554,29 +554,91 @@ const REGION_SWEEPS: usize = 6;
 /// than the faces around any vertex, so flips decide first).
 const DEGENERATE_LIMIT: usize = 1 << 16;
 
+/// Most faces a walk from the `near` faces crosses before the flip test asks the point locator.
+const WALK_STEPS: usize = 32;
+
 struct MetricFlipTest<'a> {
     locator: PointLocator,
     target: &'a TriMesh,
     uv: &'a [[f64; 2]],
+    /// Per face of S₂, the face across the edge opposite each corner (`u32::MAX` on the
+    /// boundary or at a non-manifold edge).
+    across: Vec<[u32; 3]>,
 }
 
-impl MetricFlipTest<'_> {
+impl<'a> MetricFlipTest<'a> {
+    fn new(target: &'a TriMesh, uv: &'a [[f64; 2]]) -> Result<Self, crate::error::AnalysisError> {
+        let conn = Connectivity::of(target);
+        let across = (0..target.num_faces())
+            .map(|f| {
+                conn.face_edges[f].map(|e| match conn.edge_faces[e as usize].as_slice() {
+                    &[a, b] => {
+                        if a as usize == f {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                    _ => u32::MAX,
+                })
+            })
+            .collect();
+        Ok(MetricFlipTest {
+            locator: PointLocator::new(uv, &target.faces)?,
+            target,
+            uv,
+            across,
+        })
+    }
+
+    fn bary(&self, f: u32, c: [f64; 2]) -> Option<[f64; 3]> {
+        let t = self.target.faces[f as usize].map(|w| self.uv[w as usize]);
+        barycentric(c, t[0], t[1], t[2])
+    }
+
+    /// A face of S₂ whose disk image holds `c` (barycentric coordinates all ≥ 0): the first of
+    /// `near` that does, else the end of a walk from the nearest of them (the one of largest
+    /// smallest coordinate) across the edge of its most negative coordinate, at most
+    /// [`WALK_STEPS`] faces; else the point locator's.
+    fn face_holding(&self, c: [f64; 2], near: &[u32]) -> Option<u32> {
+        let mut start: Option<(f64, u32)> = None;
+        for &f in near {
+            if let Some(b) = self.bary(f, c) {
+                let m = b[0].min(b[1]).min(b[2]);
+                if m >= 0.0 {
+                    return Some(f);
+                }
+                if start.is_none_or(|(sm, _)| m > sm) {
+                    start = Some((m, f));
+                }
+            }
+        }
+        if let Some((_, mut f)) = start {
+            for _ in 0..WALK_STEPS {
+                let Some(b) = self.bary(f, c) else { break };
+                let k = (0..3).fold(0, |a, i| if b[i] < b[a] { i } else { a });
+                if b[k] >= 0.0 {
+                    return Some(f);
+                }
+                let next = self.across[f as usize][k];
+                if next == u32::MAX {
+                    break;
+                }
+                f = next;
+            }
+        }
+        self.locator.locate(c).map(|l| l.face)
+    }
+
     /// Whether the straight triangle (x[0], x[1], x[2]) faces away from the normal of the face
     /// of S₂ holding the mean of the disk points u.
-    /// `near`: faces of S₂ tried first (the point locator only when none holds the mean).
+    /// `near`: faces of S₂ to start from ([`MetricFlipTest::face_holding`]; the point locator
+    /// alone when empty).
     fn flipped(&self, x: [[f64; 3]; 3], u: [[f64; 2]; 3], near: &[u32]) -> bool {
         let n = cross3(sub3(x[1], x[0]), sub3(x[2], x[0]));
         let c = [(u[0][0] + u[1][0] + u[2][0]) / 3.0, (u[0][1] + u[1][1] + u[2][1]) / 3.0];
-        let inside = |&f: &u32| {
-            let t = self.target.faces[f as usize].map(|w| self.uv[w as usize]);
-            barycentric(c, t[0], t[1], t[2]).is_some_and(|b| b.iter().all(|&x| x >= 0.0))
-        };
-        let face = match near.iter().find(|f| inside(f)) {
-            Some(&f) => f,
-            None => match self.locator.locate(c) {
-                Some(l) => l.face,
-                None => return false,
-            },
+        let Some(face) = self.face_holding(c, near) else {
+            return false;
         };
         let q = self.target.face_positions(face as usize);
         let r = cross3(sub3(q[1], q[0]), sub3(q[2], q[0]));
@@ -754,11 +816,7 @@ impl<'a> PointPass<'a> {
         target_uv: &'a [[f64; 2]],
         points: &[SurfacePoint],
     ) -> Result<Self, crate::error::AnalysisError> {
-        let test = MetricFlipTest {
-            locator: PointLocator::new(target_uv, &target.faces)?,
-            target,
-            uv: target_uv,
-        };
+        let test = MetricFlipTest::new(target, target_uv)?;
         let mut pass = PointPass {
             source,
             target,
@@ -1194,6 +1252,52 @@ mod tests {
             }
         }
         TriMesh::new(p, f).unwrap()
+    }
+
+    /// The flip test's walk from nearby faces against the point locator on a jittered 12 × 12
+    /// grid: for points strictly inside a face both find that face, from a start next to it
+    /// (a walk) or across the grid (more than `WALK_STEPS` faces away: the locator).
+    #[test]
+    fn the_walk_finds_the_locators_face() {
+        let mut m = grid(12);
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut rand = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for p in m.positions.iter_mut() {
+            if p[0] > 0.0 && p[0] < 12.0 && p[1] > 0.0 && p[1] < 12.0 {
+                p[0] += 0.3 * (rand() - 0.5);
+                p[1] += 0.3 * (rand() - 0.5);
+            }
+        }
+        let uv: Vec<[f64; 2]> = m.positions.iter().map(|p| [p[0], p[1]]).collect();
+        let test = MetricFlipTest::new(&m, &uv).unwrap();
+        let (mut walked, mut checked) = (0, 0);
+        for _ in 0..400 {
+            let c = [12.0 * rand(), 12.0 * rand()];
+            let Some(l) = test.locator.locate(c) else { continue };
+            if l.bary.iter().any(|&b| b < 1e-9) {
+                continue;
+            }
+            checked += 1;
+            // a start two rings away: the corner's faces of a neighbour of the face's first corner
+            let w = m.faces[l.face as usize][0] as usize;
+            let near: Vec<u32> = (0..m.num_faces() as u32)
+                .filter(|&f| {
+                    m.faces[f as usize].contains(&(w as u32 + 2)) && !m.faces[f as usize].contains(&(w as u32))
+                })
+                .collect();
+            if !near.is_empty() && !near.contains(&l.face) {
+                walked += 1;
+            }
+            assert_eq!(test.face_holding(c, &near), Some(l.face), "{c:?} from {near:?}");
+            assert_eq!(test.face_holding(c, &[0]), Some(l.face), "{c:?} from face 0");
+            assert_eq!(test.face_holding(c, &[]), Some(l.face));
+        }
+        assert!(checked > 300 && walked > 100, "{checked} points, {walked} walks");
     }
 
     #[test]
