@@ -539,7 +539,6 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
 
-/// A share of the source's area: a number in [0, 1].
 /// ZoomOut's first spectral sizes (`--zoomout-starts`).
 #[derive(Clone, Debug)]
 pub struct SpectralSizes(pub Vec<usize>);
@@ -558,6 +557,7 @@ fn spectral_sizes(s: &str) -> Result<SpectralSizes, String> {
     Ok(SpectralSizes(sizes))
 }
 
+/// A share of the source's area: a number in [0, 1].
 fn area_share(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
