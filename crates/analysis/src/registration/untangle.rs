@@ -601,31 +601,30 @@ impl<'a> MetricFlipTest<'a> {
     /// smallest coordinate) across the edge of its most negative coordinate, at most
     /// [`WALK_STEPS`] faces; else the point locator's.
     fn face_holding(&self, c: [f64; 2], near: &[u32]) -> Option<u32> {
-        let mut start: Option<(f64, u32)> = None;
+        let mut start: Option<(f64, u32, [f64; 3])> = None;
         for &f in near {
             if let Some(b) = self.bary(f, c) {
                 let m = b[0].min(b[1]).min(b[2]);
                 if m >= 0.0 {
                     return Some(f);
                 }
-                if start.is_none_or(|(sm, _)| m > sm) {
-                    start = Some((m, f));
+                if start.is_none_or(|(sm, _, _)| m > sm) {
+                    start = Some((m, f, b));
                 }
             }
         }
-        if let Some((_, mut f)) = start {
-            for _ in 0..WALK_STEPS {
-                let Some(b) = self.bary(f, c) else { break };
-                let k = (0..3).fold(0, |a, i| if b[i] < b[a] { i } else { a });
-                if b[k] >= 0.0 {
-                    return Some(f);
-                }
-                let next = self.across[f as usize][k];
-                if next == u32::MAX {
-                    break;
-                }
-                f = next;
+        // the current face of the walk and its coordinates
+        let mut walk = start.map(|(_, f, b)| (f, b));
+        for _ in 0..WALK_STEPS {
+            let Some((f, b)) = walk else { break };
+            let k = (0..3).fold(0, |a, i| if b[i] < b[a] { i } else { a });
+            if b[k] >= 0.0 {
+                return Some(f);
             }
+            let next = self.across[f as usize][k];
+            walk = (next != u32::MAX)
+                .then(|| self.bary(next, c).map(|b| (next, b)))
+                .flatten();
         }
         self.locator.locate(c).map(|l| l.face)
     }
