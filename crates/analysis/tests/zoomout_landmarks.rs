@@ -8,8 +8,8 @@
 //! ZoomOut's two first sizes (decision 0055) on the lion poses (`outside/lion_poses`).
 
 use shapespace_analysis::registration::{
-    refine_registration, register, registration_metrics, Landmarks, MetricParams, RegistrationParams, SpectralBasis,
-    ZoomOutParams,
+    refine_registration, register, registration_metrics, Landmarks, MetricParams, Registration, RegistrationMetrics,
+    RegistrationParams, SpectralBasis, ZoomOutParams,
 };
 use shapespace_conformal::{BoundaryMarker, CenterMarker, Markers};
 use shapespace_geometry::prepare::{prepare_disk, CutCenter, PrepareOptions};
@@ -83,6 +83,43 @@ fn extremity_landmarks(s: &TriMesh) -> (Landmarks, RegistrationParams) {
     (lm, params)
 }
 
+/// A cut pose pair after the first stage (the extremity landmarks and markers above), with both
+/// surfaces' spectral bases at ZoomOut's default size: what every refinement below starts from.
+struct FirstStage {
+    s: TriMesh,
+    t: TriMesh,
+    lm: Landmarks,
+    first: Registration,
+    b1: SpectralBasis,
+    b2: SpectralBasis,
+}
+
+impl FirstStage {
+    fn of((s, t): (TriMesh, TriMesh)) -> Self {
+        let (lm, params) = extremity_landmarks(&s);
+        let first = register(&s, &t, &lm, &params).unwrap();
+        let zp = ZoomOutParams::default();
+        let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
+        let b2 = SpectralBasis::of(&t, zp.k_end, &zp.eigen).unwrap();
+        FirstStage {
+            s,
+            t,
+            lm,
+            first,
+            b1,
+            b2,
+        }
+    }
+
+    /// The first stage refined with `params`, and the default metrics of the result.
+    fn refined(&self, params: &ZoomOutParams) -> (Registration, RegistrationMetrics) {
+        let mut reg = self.first.clone();
+        refine_registration(&self.s, &self.t, &mut reg, &self.lm, &self.b1, &self.b2, params).unwrap();
+        let m = registration_metrics(&self.s, &self.t, &reg, &MetricParams::default()).unwrap();
+        (reg, m)
+    }
+}
+
 /// Two cat pairs refined by ZoomOut with the landmarks' geodesic distances in the embeddings
 /// (weight 3, the default; the heat method on the intrinsic Delaunay triangulation) against
 /// without them (weight 0). Measured: reference → 0002 mean geodesic error 0.0119 against
@@ -96,15 +133,10 @@ fn extremity_landmarks(s: &TriMesh) -> (Landmarks, RegistrationParams) {
 #[test]
 fn landmark_coordinates_keep_the_cat_limbs_apart() {
     for (a, b, bound, gain) in [("reference", "0002", 0.013, 1.05), ("0001", "0002", 0.018, 0.6)] {
-        let Some((s, t)) = cut_poses(a, b) else { return };
-        let (lm, params) = extremity_landmarks(&s);
-        let first = register(&s, &t, &lm, &params).unwrap();
+        let Some(pair) = cut_poses(a, b) else { return };
+        let stage = FirstStage::of(pair);
         let zp = ZoomOutParams::default();
-        let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
-        let b2 = SpectralBasis::of(&t, zp.k_end, &zp.eigen).unwrap();
-        let mp = MetricParams::default();
         let run = |weight: f64| {
-            let mut reg = first.clone();
             // one run from 20: the drift the landmark coordinates stop (with the default two
             // first sizes, 0001 → 0002 measures 0.0139 with them and 0.0133 without)
             let p = ZoomOutParams {
@@ -112,13 +144,7 @@ fn landmark_coordinates_keep_the_cat_limbs_apart() {
                 k_starts: vec![20],
                 ..zp.clone()
             };
-            refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, &p).unwrap();
-            registration_metrics(&s, &t, &reg, &mp)
-                .unwrap()
-                .geodesic
-                .unwrap()
-                .summary
-                .mean
+            stage.refined(&p).1.geodesic.unwrap().summary.mean
         };
         let (with, without) = (run(zp.landmark_weight), run(0.0));
         eprintln!("cat {a} -> {b}: geodesic mean {with:.4} with landmark coordinates, {without:.4} without");
@@ -141,23 +167,17 @@ fn landmark_coordinates_keep_the_cat_limbs_apart() {
 #[test]
 fn point_untangling_removes_most_flipped_area_on_the_cat() {
     for (a, b, flip_bound) in [("reference", "0002", 0.2), ("0001", "0002", 0.4)] {
-        let Some((s, t)) = cut_poses(a, b) else {
+        let Some(pair) = cut_poses(a, b) else {
             eprintln!("point_untangling_removes_most_flipped_area_on_the_cat: shared Sumner cat poses absent, skipped");
             return;
         };
-        let (lm, params) = extremity_landmarks(&s);
-        let first = register(&s, &t, &lm, &params).unwrap();
+        let stage = FirstStage::of(pair);
         let zp = ZoomOutParams::default();
-        let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
-        let b2 = SpectralBasis::of(&t, zp.k_end, &zp.eigen).unwrap();
-        let mp = MetricParams::default();
         let run = |sweeps: usize, region_from_area: f64| {
-            let mut reg = first.clone();
             let mut p = zp.clone();
             p.point_untangle.sweeps = sweeps;
             p.point_untangle.region_from_area = region_from_area;
-            refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, &p).unwrap();
-            let m = registration_metrics(&s, &t, &reg, &mp).unwrap();
+            let (reg, m) = stage.refined(&p);
             let info = reg.refinement.unwrap().point_untangle;
             (
                 m.flipped_area_ratio_3d,
@@ -283,22 +303,15 @@ fn cut_lions(a: &str, b: &str) -> Option<(TriMesh, TriMesh)> {
 #[test]
 fn zoomout_runs_from_several_first_sizes_on_the_lions() {
     for (a, b, gain) in [("lion3", "lion1", 0.8), ("lion2", "lion3", 1.0)] {
-        let Some((s, t)) = cut_lions(a, b) else {
+        let Some(pair) = cut_lions(a, b) else {
             eprintln!("zoomout_runs_from_several_first_sizes_on_the_lions: shared lion poses absent, skipped");
             return;
         };
-        let (lm, params) = extremity_landmarks(&s);
-        let first = register(&s, &t, &lm, &params).unwrap();
+        let stage = FirstStage::of(pair);
         let zp = ZoomOutParams::default();
         assert_eq!(zp.k_starts, vec![20, 8]);
-        let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
-        let b2 = SpectralBasis::of(&t, zp.k_end, &zp.eigen).unwrap();
-        let mp = MetricParams::default();
         let run = |k_starts: Vec<usize>| {
-            let mut reg = first.clone();
-            let p = ZoomOutParams { k_starts, ..zp.clone() };
-            refine_registration(&s, &t, &mut reg, &lm, &b1, &b2, &p).unwrap();
-            let m = registration_metrics(&s, &t, &reg, &mp).unwrap();
+            let (reg, m) = stage.refined(&ZoomOutParams { k_starts, ..zp.clone() });
             let info = reg.refinement.unwrap();
             (m.geodesic.unwrap().summary.mean, info.runs, info.vertex_map)
         };

@@ -2776,33 +2776,28 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         msg.contains("no-such-script.py") && msg.contains("no such file"),
         "{msg}"
     );
-    // the region moves' area threshold is a share of the area
-    for bad in ["1.5", "-0.1", "NaN", "half"] {
-        let out = shapespace(&[
-            "register-bench",
-            dataset.to_str().unwrap(),
-            "--out",
-            dir.join("out3").to_str().unwrap(),
-            &format!("--region-from-area={bad}"),
-        ]);
-        let msg = stderr(&out);
-        assert_eq!(out.status.code(), Some(2), "{bad}: {msg}");
-        assert!(msg.contains("--region-from-area") && msg.contains(bad), "{msg}");
-        assert!(!dir.join("out3").exists(), "{bad}: an output folder was made");
-    }
-    // ZoomOut's first sizes: a comma-separated list of sizes from 1 to its last size (120)
-    for bad in ["0", "121", "8,x", ""] {
-        let out = shapespace(&[
-            "register-bench",
-            dataset.to_str().unwrap(),
-            "--out",
-            dir.join("out4").to_str().unwrap(),
-            &format!("--zoomout-starts={bad}"),
-        ]);
-        let msg = stderr(&out);
-        assert_eq!(out.status.code(), Some(2), "{bad:?}: {msg}");
-        assert!(msg.contains("--zoomout-starts"), "{msg}");
-        assert!(!dir.join("out4").exists(), "{bad:?}: an output folder was made");
+    // the region moves' area threshold is a share of the area; ZoomOut's first sizes are a
+    // comma-separated list of sizes from 1 to its last size (120)
+    for (option, bad_values) in [
+        ("--region-from-area", &["1.5", "-0.1", "NaN", "half"][..]),
+        ("--zoomout-starts", &["0", "121", "8,x", ""][..]),
+    ] {
+        for bad in bad_values {
+            let out = shapespace(&[
+                "register-bench",
+                dataset.to_str().unwrap(),
+                "--out",
+                dir.join("out3").to_str().unwrap(),
+                &format!("{option}={bad}"),
+            ]);
+            let msg = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{option}={bad:?}: {msg}");
+            assert!(msg.contains(option) && msg.contains(bad), "{msg}");
+            assert!(
+                !dir.join("out3").exists(),
+                "{option}={bad:?}: an output folder was made"
+            );
+        }
     }
 }
 
