@@ -47,6 +47,8 @@
 //! moves (decisions 0042, 0054): 0.03–0.33 % (class means; at most 0.40 % on a pair of the five
 //! bench classes) at the same geodesic error within 2.5 %.
 
+use std::cell::Cell;
+
 use shapespace_conformal::markers::closest_point_barycentric;
 use shapespace_geometry::quantities::{face_areas, vertex_normals};
 
@@ -429,37 +431,42 @@ impl<'a> MoveSweeper<'a> {
     }
 
     /// The joint move of the edge (v, u): the best pair of candidates by the score over both
-    /// one-rings, then the summed cost; whether it moved.
+    /// one-rings, then the summed cost; whether it moved. The score splits into the faces of v
+    /// alone, those of u alone (each scored once per candidate) and the faces of the edge.
     fn pair_move(&mut self, map: &mut [u32], v: usize, u: usize) -> bool {
         let vertex_faces = &self.source_conn.vertex_faces;
-        let mut faces: Vec<u32> = vertex_faces[v].clone();
-        faces.extend(vertex_faces[u].iter().filter(|t| !vertex_faces[v].contains(t)));
         let (source, g) = (self.source, self.g);
-        let joint = |map: &[u32], wv: u32, wu: u32| -> usize {
-            faces
-                .iter()
-                .map(|&t| {
-                    let img = source.faces[t as usize].map(|x| {
-                        if x as usize == v {
-                            wv
-                        } else if x as usize == u {
-                            wu
-                        } else {
-                            map[x as usize]
-                        }
-                    });
-                    g.score(img)
-                })
-                .sum()
+        let has = |t: u32, x: usize| source.faces[t as usize].contains(&(x as u32));
+        let v_only: Vec<u32> = vertex_faces[v].iter().copied().filter(|&t| !has(t, u)).collect();
+        let u_only: Vec<u32> = vertex_faces[u].iter().copied().filter(|&t| !has(t, v)).collect();
+        let edge: Vec<u32> = vertex_faces[v].iter().copied().filter(|&t| has(t, u)).collect();
+        let image = |map: &[u32], t: u32, wv: u32, wu: u32| {
+            source.faces[t as usize].map(|x| {
+                if x as usize == v {
+                    wv
+                } else if x as usize == u {
+                    wu
+                } else {
+                    map[x as usize]
+                }
+            })
+        };
+        let alone = |map: &[u32], faces: &[u32], wv: u32, wu: u32| -> usize {
+            faces.iter().map(|&t| g.score(image(map, t, wv, wu))).sum()
         };
         let cv = self.candidates(map, v, 1, false);
         let cu = self.candidates(map, u, 1, false);
         let cost = self.cost;
         let (mv, mu) = (map[v], map[u]);
+        let sv: Vec<usize> = cv.iter().map(|&wv| alone(map, &v_only, wv, mu)).collect();
+        let su: Vec<usize> = cu.iter().map(|&wu| alone(map, &u_only, mv, wu)).collect();
+        let joint = |map: &[u32], wv: u32, wu: u32| {
+            alone(map, &v_only, wv, mu) + alone(map, &u_only, mv, wu) + alone(map, &edge, wv, wu)
+        };
         let mut best = (joint(map, mv, mu), cost(v, mv) + cost(u, mu), mv, mu);
-        for &wv in &cv {
-            for &wu in &cu {
-                let s = joint(map, wv, wu);
+        for (&wv, &sv) in cv.iter().zip(&sv) {
+            for (&wu, &su) in cu.iter().zip(&su) {
+                let s = sv + su + alone(map, &edge, wv, wu);
                 if s > best.0 {
                     continue;
                 }
@@ -557,6 +564,10 @@ const DEGENERATE_LIMIT: usize = 1 << 16;
 /// Most faces a walk from the `near` faces crosses before the flip test asks the point locator.
 const WALK_STEPS: usize = 32;
 
+/// Smallest barycentric coordinate of a point that only its face holds, whatever the rounding
+/// of the neighbours' coordinates (the flip test's walk from a hint stops there).
+const INSIDE: f64 = 1e-9;
+
 struct MetricFlipTest<'a> {
     locator: PointLocator,
     target: &'a TriMesh,
@@ -596,11 +607,28 @@ impl<'a> MetricFlipTest<'a> {
         barycentric(c, t[0], t[1], t[2])
     }
 
-    /// A face of S₂ whose disk image holds `c` (barycentric coordinates all ≥ 0): the first of
-    /// `near` that does, else the end of a walk from the nearest of them (the one of largest
-    /// smallest coordinate) across the edge of its most negative coordinate, at most
-    /// [`WALK_STEPS`] faces; else the point locator's.
-    fn face_holding(&self, c: [f64; 2], near: &[u32]) -> Option<u32> {
+    /// A face of S₂ whose disk image holds `c` (barycentric coordinates all ≥ 0). First a walk
+    /// from `hint` across the edge of the most negative coordinate, at most [`WALK_STEPS`]
+    /// faces: a face holding `c` with every coordinate above [`INSIDE`] is the only one that
+    /// does. Otherwise (no hint, a walk that ends on or near an edge, or stops): the first of
+    /// `near` that holds `c`, else the end of the same walk from the nearest of them (the one
+    /// of largest smallest coordinate); else the point locator's.
+    fn face_holding(&self, c: [f64; 2], hint: Option<u32>, near: &[u32]) -> Option<u32> {
+        let mut walk = hint.and_then(|f| self.bary(f, c).map(|b| (f, b)));
+        for _ in 0..WALK_STEPS {
+            let Some((f, b)) = walk else { break };
+            let k = (0..3).fold(0, |a, i| if b[i] < b[a] { i } else { a });
+            if b[k] > INSIDE {
+                return Some(f);
+            }
+            if b[k] >= 0.0 {
+                break;
+            }
+            let next = self.across[f as usize][k];
+            walk = (next != u32::MAX)
+                .then(|| self.bary(next, c).map(|b| (next, b)))
+                .flatten();
+        }
         let mut start: Option<(f64, u32, [f64; 3])> = None;
         for &f in near {
             if let Some(b) = self.bary(f, c) {
@@ -631,14 +659,17 @@ impl<'a> MetricFlipTest<'a> {
 
     /// Whether the straight triangle (x[0], x[1], x[2]) faces away from the normal of the face
     /// of S₂ holding the mean of the disk points u.
-    /// `near`: faces of S₂ to start from ([`MetricFlipTest::face_holding`]; the point locator
-    /// alone when empty).
-    fn flipped(&self, x: [[f64; 3]; 3], u: [[f64; 2]; 3], near: &[u32]) -> bool {
+    /// `hint` (a face of S₂ near the mean: the face that held it last time, or one holding a
+    /// corner's image; set to the face found) and `near` (faces of S₂ to try next): where
+    /// [`MetricFlipTest::face_holding`] starts.
+    fn flipped(&self, x: [[f64; 3]; 3], u: [[f64; 2]; 3], hint: &Cell<u32>, near: &[u32]) -> bool {
         let n = cross3(sub3(x[1], x[0]), sub3(x[2], x[0]));
         let c = [(u[0][0] + u[1][0] + u[2][0]) / 3.0, (u[0][1] + u[1][1] + u[2][1]) / 3.0];
-        let Some(face) = self.face_holding(c, near) else {
+        let start = Some(hint.get()).filter(|&f| f != u32::MAX);
+        let Some(face) = self.face_holding(c, start, near) else {
             return false;
         };
+        hint.set(face);
         let q = self.target.face_positions(face as usize);
         let r = cross3(sub3(q[1], q[0]), sub3(q[2], q[0]));
         n[0] * r[0] + n[1] * r[1] + n[2] * r[2] < 0.0
@@ -693,7 +724,7 @@ pub fn untangle_points(
     let t0 = std::time::Instant::now();
     let n1 = source.num_vertices();
     let mut pass = PointPass::new(source, target, target_uv, points)?;
-    let before = pass.flipped_faces();
+    let before = pass.flipped_faces(points);
     let mut info = PointUntangleInfo {
         flipped_before: before.len(),
         flipped_after: before.len(),
@@ -741,7 +772,7 @@ pub fn untangle_points(
                 }
             }
         }
-        bad_faces = pass.flipped_faces();
+        bad_faces = pass.flipped_faces(points);
         if !moved {
             break;
         }
@@ -759,7 +790,7 @@ pub fn untangle_points(
         for _ in 0..params.region_rounds {
             let moved = pass.region_moves(&adjacency, points, &bad_faces, params.region_rings);
             info.regions_moved += moved;
-            bad_faces = pass.flipped_faces();
+            bad_faces = pass.flipped_faces(points);
             if moved == 0 || bad_faces.is_empty() {
                 break;
             }
@@ -792,6 +823,9 @@ struct PointPass<'a> {
     /// Whether the single moves try the closest point to the neighbours' 3D mean (with the
     /// region moves, decision 0042).
     mean3_candidate: bool,
+    /// Per source face, the face of S₂ that held the disk mean of its images at its last flip
+    /// test (`u32::MAX` before the first): where the next test's walk starts.
+    holder: Vec<Cell<u32>>,
 }
 
 /// Candidate spots on every face of S₂ (barycentric): the corners, the edge midpoints and the
@@ -825,6 +859,7 @@ impl<'a> PointPass<'a> {
             p2: Vec::new(),
             original: Vec::new(),
             mean3_candidate: false,
+            holder: vec![Cell::new(u32::MAX); source.num_faces()],
         };
         pass.p3 = points.iter().map(|&p| pass.x3(p)).collect();
         pass.p2 = points.iter().map(|&p| pass.x2(p)).collect();
@@ -844,30 +879,36 @@ impl<'a> PointPass<'a> {
         std::array::from_fn(|d| (0..3).map(|k| b[k] * self.target_uv[t[k] as usize][d]).sum())
     }
 
-    /// Source faces whose current image the metric's 3D test finds flipped.
-    fn flipped_faces(&self) -> Vec<usize> {
+    /// Source faces whose current image (`points`, with `p3` and `p2`) the metric's 3D test
+    /// finds flipped.
+    fn flipped_faces(&self, points: &[SurfacePoint]) -> Vec<usize> {
         (0..self.source.num_faces())
             .filter(|&f| {
                 let face = self.source.faces[f];
+                let hint = &self.holder[f];
+                if hint.get() == u32::MAX {
+                    hint.set(points[face[0] as usize].0);
+                }
                 self.test.flipped(
                     face.map(|v| self.p3[v as usize]),
                     face.map(|v| self.p2[v as usize]),
+                    hint,
                     &[],
                 )
             })
             .collect()
     }
 
-    /// Score of the source faces around v with v at (x, u): DEGENERATE_LIMIT per flipped image,
-    /// 1 per degenerate one; counting stops once above `cap`. `faces`: faces of S₂ the flip
-    /// test tries first.
+    /// Score of the source faces around v with v at the point `p` of S₂ (in 3D `x`, in the
+    /// disk image `u`): DEGENERATE_LIMIT per flipped image, 1 per degenerate one; counting
+    /// stops once above `cap`. The flip test starts from the face that held a face's mean last
+    /// time (else p's face), then tries `faces`.
     fn around(
         &self,
         adjacency: &PassAdjacency,
         v: usize,
         faces: &[u32],
-        x: [f64; 3],
-        u: [f64; 2],
+        (p, x, u): (SurfacePoint, [f64; 3], [f64; 2]),
         cap: usize,
     ) -> usize {
         let mut count = 0;
@@ -875,7 +916,11 @@ impl<'a> PointPass<'a> {
             let face = self.source.faces[f as usize];
             let xs = face.map(|w| if w as usize == v { x } else { self.p3[w as usize] });
             let us = face.map(|w| if w as usize == v { u } else { self.p2[w as usize] });
-            if self.test.flipped(xs, us, faces) {
+            let hint = &self.holder[f as usize];
+            if hint.get() == u32::MAX {
+                hint.set(p.0);
+            }
+            if self.test.flipped(xs, us, hint, faces) {
                 count += DEGENERATE_LIMIT;
             } else if degenerate(xs) {
                 count += 1;
@@ -908,7 +953,7 @@ impl<'a> PointPass<'a> {
     fn best_point(&self, adjacency: &PassAdjacency, points: &[SurfacePoint], v: usize) -> Option<SurfacePoint> {
         // flipped faces around v with v at (x, u)
         let faces = self.faces_near(adjacency, points, v);
-        let current = self.around(adjacency, v, &faces, self.p3[v], self.p2[v], usize::MAX);
+        let current = self.around(adjacency, v, &faces, (points[v], self.p3[v], self.p2[v]), usize::MAX);
         if current == 0 {
             return None;
         }
@@ -919,7 +964,7 @@ impl<'a> PointPass<'a> {
         let mut best = (current, dist(self.p3[v]), points[v]);
         let consider = |cand: SurfacePoint, best: &mut (usize, f64, SurfacePoint)| {
             let (x, u) = (self.x3(cand), self.x2(cand));
-            let s = self.around(adjacency, v, &faces, x, u, best.0);
+            let s = self.around(adjacency, v, &faces, (cand, x, u), best.0);
             if s > best.0 {
                 return;
             }
@@ -975,15 +1020,19 @@ impl PointPass<'_> {
         closest.map(|c| c.1)
     }
 
-    /// Score of the source faces in `faces` with the current images: DEGENERATE_LIMIT per
-    /// flipped image, 1 per degenerate one.
-    fn score_faces(&self, faces: &[u32]) -> usize {
+    /// Score of the source faces in `faces` with the current images (`points`, with `p3` and
+    /// `p2`): DEGENERATE_LIMIT per flipped image, 1 per degenerate one.
+    fn score_faces(&self, points: &[SurfacePoint], faces: &[u32]) -> usize {
         faces
             .iter()
             .map(|&f| {
                 let face = self.source.faces[f as usize];
                 let xs = face.map(|w| self.p3[w as usize]);
-                if self.test.flipped(xs, face.map(|w| self.p2[w as usize]), &[]) {
+                let hint = &self.holder[f as usize];
+                if hint.get() == u32::MAX {
+                    hint.set(points[face[0] as usize].0);
+                }
+                if self.test.flipped(xs, face.map(|w| self.p2[w as usize]), hint, &[]) {
                     DEGENERATE_LIMIT
                 } else {
                     usize::from(degenerate(xs))
@@ -1138,7 +1187,7 @@ impl PointPass<'_> {
                     .collect();
                 faces.sort_unstable();
                 faces.dedup();
-                let before = self.score_faces(&faces);
+                let before = self.score_faces(points, &faces);
                 let saved: Vec<([f64; 3], [f64; 2], SurfacePoint)> = interior
                     .iter()
                     .map(|&v| (self.p3[v as usize], self.p2[v as usize], points[v as usize]))
@@ -1192,7 +1241,7 @@ impl PointPass<'_> {
                         break;
                     }
                 }
-                let after_score = self.score_faces(&faces);
+                let after_score = self.score_faces(points, &faces);
                 if after_score < before {
                     moved += 1;
                     break;
@@ -1292,9 +1341,12 @@ mod tests {
             if !near.is_empty() && !near.contains(&l.face) {
                 walked += 1;
             }
-            assert_eq!(test.face_holding(c, &near), Some(l.face), "{c:?} from {near:?}");
-            assert_eq!(test.face_holding(c, &[0]), Some(l.face), "{c:?} from face 0");
-            assert_eq!(test.face_holding(c, &[]), Some(l.face));
+            assert_eq!(test.face_holding(c, None, &near), Some(l.face), "{c:?} from {near:?}");
+            assert_eq!(test.face_holding(c, None, &[0]), Some(l.face), "{c:?} from face 0");
+            assert_eq!(test.face_holding(c, None, &[]), Some(l.face));
+            // a walk from a hint: next to the face, or across the grid (then the locator)
+            assert_eq!(test.face_holding(c, near.first().copied(), &[]), Some(l.face));
+            assert_eq!(test.face_holding(c, Some(0), &near), Some(l.face));
         }
         assert!(checked > 300 && walked > 100, "{checked} points, {walked} walks");
     }

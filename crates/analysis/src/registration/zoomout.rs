@@ -525,19 +525,26 @@ impl SpectralSpace<'_> {
     fn nearest(&self, queries: MatRef<'_, f64>, points: MatRef<'_, f64>, current: &[u32]) -> Vec<u32> {
         let target_samples = &self.target_samples;
         let coarse = nearest_rows_top::<STARTS>(queries, sample_rows(points, target_samples, points.ncols()).as_ref());
+        // the points as columns: each one's coordinates side by side in memory for the descent
+        let by_column = points.transpose().to_owned();
         (0..queries.nrows())
             .into_par_iter()
-            .map(|i| {
-                let q = queries.row(i);
-                coarse[i]
-                    .iter()
-                    .map(|&s| target_samples[s as usize])
-                    .chain([current[i]])
-                    .map(|start| descend(points, &self.neighbors, q, start))
-                    .map(|w| (distance2(points, q, w), w))
-                    .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a })
-                    .1
-            })
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(visited, q), i| {
+                    visited.clear();
+                    q.clear();
+                    q.extend(queries.row(i).iter().copied());
+                    coarse[i]
+                        .iter()
+                        .map(|&s| target_samples[s as usize])
+                        .chain([current[i]])
+                        .map(|start| descend(by_column.as_ref(), &self.neighbors, q, start, visited))
+                        .map(|w| (column_distance2(by_column.as_ref(), q, w), w))
+                        .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a })
+                        .1
+                },
+            )
             .collect()
     }
 }
@@ -594,29 +601,73 @@ fn drop_disagreeing_landmarks(lm_s: &mut Mat<f64>, lm_t: &mut Mat<f64>, seed: &[
 }
 
 /// Steepest descent of w ↦ ‖points[w] − query‖ along the edges (`neighbors`) from `start`:
-/// the vertex where no neighbour is nearer.
-fn descend(points: MatRef<'_, f64>, neighbors: &[Vec<u32>], query: faer::RowRef<'_, f64>, start: u32) -> u32 {
-    let dist = |w: u32| distance2(points, query, w);
-    let (mut w, mut best) = (start, dist(start));
-    loop {
+/// the vertex where no neighbour is nearer. `visited` holds (vertex, end) for the earlier
+/// descents of the same query: the path from a vertex depends on nothing else, so a descent
+/// that reaches one of them ends where that one did; this descent's path is added.
+fn descend(
+    points: MatRef<'_, f64>,
+    neighbors: &[Vec<u32>],
+    query: &[f64],
+    start: u32,
+    visited: &mut Vec<(u32, u32)>,
+) -> u32 {
+    let first = visited.len();
+    let (mut w, mut best) = (start, column_distance2(points, query, start));
+    let end = loop {
+        if let Some(&(_, end)) = visited[..first].iter().find(|e| e.0 == w) {
+            break end;
+        }
+        visited.push((w, u32::MAX));
         let mut next = w;
         for &u in &neighbors[w as usize] {
-            let d = dist(u);
+            let d = column_distance2(points, query, u);
             if d < best {
                 (best, next) = (d, u);
             }
         }
         if next == w {
-            return w;
+            break w;
         }
         w = next;
+    };
+    for e in &mut visited[first..] {
+        e.1 = end;
     }
+    end
+}
+
+/// Independent partial sums of [`lane_sum`] (sums of squares are a chain of dependent additions
+/// otherwise).
+const LANES: usize = 8;
+
+/// Σ_{j<n} term(j), in [`LANES`] partial sums (term j into sum j mod LANES), added pairwise at
+/// the end: the one order every squared distance of this module is summed in.
+#[inline(always)]
+fn lane_sum(n: usize, term: impl Fn(usize) -> f64) -> f64 {
+    let mut acc = [0.0; LANES];
+    let whole = n - n % LANES;
+    for j in (0..whole).step_by(LANES) {
+        for (l, a) in acc.iter_mut().enumerate() {
+            *a += term(j + l);
+        }
+    }
+    for j in whole..n {
+        acc[j - whole] += term(j);
+    }
+    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
 }
 
 /// ‖points[w] − query‖².
 fn distance2(points: MatRef<'_, f64>, query: faer::RowRef<'_, f64>, w: u32) -> f64 {
     let p = points.row(w as usize);
-    (0..query.ncols()).map(|j| (p[j] - query[j]).powi(2)).sum()
+    lane_sum(query.ncols(), |j| (p[j] - query[j]).powi(2))
+}
+
+/// [`distance2`] (the same sum in the same order) with the points as the columns of `points`.
+fn column_distance2(points: MatRef<'_, f64>, query: &[f64], w: u32) -> f64 {
+    let p = points.col(w as usize);
+    let p = p.try_as_col_major().expect("an owned matrix's column").as_slice();
+    lane_sum(query.len(), |j| (p[j] - query[j]).powi(2))
 }
 
 /// Rows `rows` of the first k columns of `phi`.
@@ -875,6 +926,69 @@ mod tests {
             let best = (0..300).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap();
             assert_eq!(got[i] as usize, best);
         }
+    }
+
+    /// Descents of one query from several starts sharing their paths end where each would on
+    /// its own, at a vertex no neighbour of which is nearer; the squared distances agree with a
+    /// plain sum to rounding.
+    #[test]
+    fn shared_descents_end_where_single_ones_do() {
+        let mut state = 11u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        // a 30 × 30 grid graph, 13-dimensional points (a remainder after the 8 lanes)
+        let m = 30;
+        let neighbors: Vec<Vec<u32>> = (0..m * m)
+            .map(|w| {
+                let (i, j) = (w % m, w / m);
+                let mut nb = Vec::new();
+                if i > 0 {
+                    nb.push((w - 1) as u32);
+                }
+                if i + 1 < m {
+                    nb.push((w + 1) as u32);
+                }
+                if j > 0 {
+                    nb.push((w - m) as u32);
+                }
+                if j + 1 < m {
+                    nb.push((w + m) as u32);
+                }
+                nb
+            })
+            .collect();
+        let points = Mat::<f64>::from_fn(m * m, 13, |w, j| match j {
+            0 => (w % m) as f64 / m as f64,
+            1 => (w / m) as f64 / m as f64,
+            _ => 0.002 * next(),
+        });
+        let by_column = points.transpose().to_owned();
+        let (mut merged, mut visited) = (0, Vec::new());
+        for _ in 0..200 {
+            let q: Vec<f64> = (0..13).map(|_| next() + 0.5).collect();
+            let query = faer::Row::<f64>::from_fn(13, |j| q[j]);
+            let plain = (0..13).map(|j| (points[(77, j)] - q[j]).powi(2)).sum::<f64>();
+            let lanes = column_distance2(by_column.as_ref(), &q, 77);
+            assert!((lanes - plain).abs() <= 1e-15 * plain);
+            assert_eq!(lanes, distance2(points.as_ref(), query.as_ref(), 77));
+            visited.clear();
+            for start in [0u32, 29, 870, 899, 450] {
+                let before = visited.len();
+                let shared = descend(by_column.as_ref(), &neighbors, &q, start, &mut visited);
+                let mut path = Vec::new();
+                let single = descend(by_column.as_ref(), &neighbors, &q, start, &mut path);
+                assert_eq!(shared, single);
+                let d = |w: u32| column_distance2(by_column.as_ref(), &q, w);
+                assert!(neighbors[shared as usize].iter().all(|&u| d(u) >= d(shared)));
+                // a shorter path than its own: it met an earlier one
+                merged += usize::from(visited.len() - before < path.len());
+            }
+        }
+        assert!(merged > 0, "no descent met an earlier path");
     }
 
     #[test]
