@@ -530,17 +530,17 @@ impl SpectralSpace<'_> {
         (0..queries.nrows())
             .into_par_iter()
             .map_init(
-                || (Vec::new(), Vec::new()),
-                |(visited, q), i| {
-                    visited.clear();
-                    q.clear();
-                    q.extend(queries.row(i).iter().copied());
+                || Descent::new(by_column.as_ref()),
+                |descent, i| {
+                    descent.start_query(queries.row(i));
                     coarse[i]
                         .iter()
                         .map(|&s| target_samples[s as usize])
                         .chain([current[i]])
-                        .map(|start| descend(by_column.as_ref(), &self.neighbors, q, start, visited))
-                        .map(|w| (column_distance2(by_column.as_ref(), q, w), w))
+                        .map(|start| {
+                            let w = descent.descend(&self.neighbors, start);
+                            (descent.distance(w), w)
+                        })
                         .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a })
                         .1
                 },
@@ -600,40 +600,80 @@ fn drop_disagreeing_landmarks(lm_s: &mut Mat<f64>, lm_t: &mut Mat<f64>, seed: &[
     dropped
 }
 
-/// Steepest descent of w ↦ ‖points[w] − query‖ along the edges (`neighbors`) from `start`:
-/// the vertex where no neighbour is nearer. `visited` holds (vertex, end) for the earlier
-/// descents of the same query: the path from a vertex depends on nothing else, so a descent
-/// that reaches one of them ends where that one did; this descent's path is added.
-fn descend(
-    points: MatRef<'_, f64>,
-    neighbors: &[Vec<u32>],
-    query: &[f64],
-    start: u32,
-    visited: &mut Vec<(u32, u32)>,
-) -> u32 {
-    let first = visited.len();
-    let (mut w, mut best) = (start, column_distance2(points, query, start));
-    let end = loop {
-        if let Some(&(_, end)) = visited[..first].iter().find(|e| e.0 == w) {
-            break end;
+/// The steepest descents of one query at a time ([`Descent::descend`]) over points stored as
+/// the columns of a matrix, with what the query's earlier descents found: the squared distance
+/// of every point evaluated, and the end of every vertex on a path.
+struct Descent<'a> {
+    points: MatRef<'a, f64>,
+    query: Vec<f64>,
+    /// (vertex, end of the descent through it) for the query's paths so far.
+    visited: Vec<(u32, u32)>,
+    /// Per target vertex: (query stamp, squared distance) of its last evaluation.
+    known: Vec<(u32, f64)>,
+    stamp: u32,
+}
+
+impl<'a> Descent<'a> {
+    fn new(points: MatRef<'a, f64>) -> Self {
+        Descent {
+            points,
+            query: Vec::new(),
+            visited: Vec::new(),
+            known: Vec::new(),
+            stamp: 0,
         }
-        visited.push((w, u32::MAX));
-        let mut next = w;
-        for &u in &neighbors[w as usize] {
-            let d = column_distance2(points, query, u);
-            if d < best {
-                (best, next) = (d, u);
-            }
-        }
-        if next == w {
-            break w;
-        }
-        w = next;
-    };
-    for e in &mut visited[first..] {
-        e.1 = end;
     }
-    end
+
+    /// Forgets the previous query.
+    fn start_query(&mut self, query: faer::RowRef<'_, f64>) {
+        self.query.clear();
+        self.query.extend(query.iter().copied());
+        self.visited.clear();
+        if self.known.is_empty() || self.stamp == u32::MAX {
+            self.known = vec![(0, 0.0); self.points.ncols()];
+            self.stamp = 0;
+        }
+        self.stamp += 1;
+    }
+
+    /// ‖points[w] − query‖² ([`column_distance2`]), evaluated once per query.
+    fn distance(&mut self, w: u32) -> f64 {
+        let entry = &mut self.known[w as usize];
+        if entry.0 != self.stamp {
+            *entry = (self.stamp, column_distance2(self.points, &self.query, w));
+        }
+        entry.1
+    }
+
+    /// Steepest descent of w ↦ ‖points[w] − query‖ along the edges (`neighbors`) from `start`:
+    /// the vertex where no neighbour is nearer. The path from a vertex depends on nothing else,
+    /// so a descent that reaches a vertex of an earlier path of the same query ends where that
+    /// one did.
+    fn descend(&mut self, neighbors: &[Vec<u32>], start: u32) -> u32 {
+        let first = self.visited.len();
+        let (mut w, mut best) = (start, self.distance(start));
+        let end = loop {
+            if let Some(&(_, end)) = self.visited[..first].iter().find(|e| e.0 == w) {
+                break end;
+            }
+            self.visited.push((w, u32::MAX));
+            let mut next = w;
+            for &u in &neighbors[w as usize] {
+                let d = self.distance(u);
+                if d < best {
+                    (best, next) = (d, u);
+                }
+            }
+            if next == w {
+                break w;
+            }
+            w = next;
+        };
+        for e in &mut self.visited[first..] {
+            e.1 = end;
+        }
+        end
+    }
 }
 
 /// Independent partial sums of [`lane_sum`] (sums of squares are a chain of dependent additions
@@ -967,7 +1007,8 @@ mod tests {
             _ => 0.002 * next(),
         });
         let by_column = points.transpose().to_owned();
-        let (mut merged, mut visited) = (0, Vec::new());
+        let mut merged = 0;
+        let mut shared = Descent::new(by_column.as_ref());
         for _ in 0..200 {
             let q: Vec<f64> = (0..13).map(|_| next() + 0.5).collect();
             let query = faer::Row::<f64>::from_fn(13, |j| q[j]);
@@ -975,17 +1016,18 @@ mod tests {
             let lanes = column_distance2(by_column.as_ref(), &q, 77);
             assert!((lanes - plain).abs() <= 1e-15 * plain);
             assert_eq!(lanes, distance2(points.as_ref(), query.as_ref(), 77));
-            visited.clear();
+            shared.start_query(query.as_ref());
             for start in [0u32, 29, 870, 899, 450] {
-                let before = visited.len();
-                let shared = descend(by_column.as_ref(), &neighbors, &q, start, &mut visited);
-                let mut path = Vec::new();
-                let single = descend(by_column.as_ref(), &neighbors, &q, start, &mut path);
-                assert_eq!(shared, single);
+                let before = shared.visited.len();
+                let end = shared.descend(&neighbors, start);
+                let mut single = Descent::new(by_column.as_ref());
+                single.start_query(query.as_ref());
+                assert_eq!(end, single.descend(&neighbors, start));
                 let d = |w: u32| column_distance2(by_column.as_ref(), &q, w);
-                assert!(neighbors[shared as usize].iter().all(|&u| d(u) >= d(shared)));
+                assert_eq!(shared.distance(end), d(end));
+                assert!(neighbors[end as usize].iter().all(|&u| d(u) >= d(end)));
                 // a shorter path than its own: it met an earlier one
-                merged += usize::from(visited.len() - before < path.len());
+                merged += usize::from(shared.visited.len() - before < single.visited.len());
             }
         }
         assert!(merged > 0, "no descent met an earlier path");
