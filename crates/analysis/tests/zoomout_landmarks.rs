@@ -122,8 +122,8 @@ impl FirstStage {
 
 /// Two cat pairs refined by ZoomOut with the landmarks' geodesic distances in the embeddings
 /// (weight 3, the default; the heat method on the intrinsic Delaunay triangulation) against
-/// without them (weight 0). Measured: reference → 0002 mean geodesic error 0.0119 against
-/// 0.0128, 0001 → 0002 0.0144 against 0.0284 (with the plain cotangent heat method, whose
+/// without them (weight 0). Measured: reference → 0002 mean geodesic error 0.0120 against
+/// 0.0128, 0001 → 0002 0.0144 against 0.0283 (with the plain cotangent heat method, whose
 /// fields on these poses fall 3–45 % short: 0.0131 and 0.0274). Asserted: below 0.013 and 0.018
 /// with them, at most 5 % above the error without them on the first pair and at most 0.6 of it
 /// on the second (the drift they stop, cat0 → cat1 of `register-bench` with
@@ -157,7 +157,7 @@ fn landmark_coordinates_keep_the_cat_limbs_apart() {
 /// on two cat pairs cut as above, against the same refinement without it (its sweeps 0). The
 /// pass counts flips with the registration metric's own 3D test, so its count after equals the
 /// metric's flipped faces. Measured (flipped 3D area, mean geodesic error; without → with):
-/// reference → 0002 0.87 % → 0.18 % and 0.01189 → 0.01186; 0001 → 0002 1.05 % → 0.22 % and
+/// reference → 0002 0.87 % → 0.18 % and 0.01208 → 0.01203; 0001 → 0002 1.05 % → 0.22 % and
 /// 0.01405 → 0.01390. Asserted: the flipped area below 0.2 % and 0.4 %, at most half of the
 /// figure without the pass, and the geodesic error at most 2 % above it. Both pairs' sweeps
 /// leave less than the region moves' threshold (0.4 % of the area, decision 0054), so none ran
