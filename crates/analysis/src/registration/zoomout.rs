@@ -42,9 +42,10 @@
 //! query is searched approximately: the [`STARTS`] nearest of `samples` target samples (by
 //! blocks of dense products ‖t‖² − 2 q·t in single precision) and the query's current image
 //! start a steepest descent along the target's edges (each point's distance evaluated once per
-//! query, a descent stopped where it meets an earlier one's path), the best end wins. Exact search over all target vertices
-//! gave the same wolf0 → wolf1 error (0.0017) and made a centaur pair (15,757 vertices,
-//! k = 120, eigenpairs included) take 40–50 s instead of 20–24 s under the same load.
+//! query, a descent stopped where it meets an earlier one's path), the best end wins. Exact
+//! search over all target vertices gave the same wolf0 → wolf1 error (0.0017) and made a
+//! centaur pair (15,757 vertices, k = 120, eigenpairs included) take 40–50 s instead of
+//! 20–24 s under the same load.
 //!
 //! The final vertex map is untangled in 3D ([`crate::registration::untangle`]); with the
 //! target's disk image, [`crate::registration::refine_registration`] then moves the vertices of
@@ -526,12 +527,14 @@ impl SpectralSpace<'_> {
     fn nearest(&self, queries: MatRef<'_, f64>, points: MatRef<'_, f64>, current: &[u32]) -> Vec<u32> {
         let target_samples = &self.target_samples;
         let coarse = nearest_rows_top::<STARTS>(queries, sample_rows(points, target_samples, points.ncols()).as_ref());
-        // the points as columns: each one's coordinates side by side in memory for the descent
-        let by_column = points.transpose().to_owned();
+        // each point's coordinates side by side in memory for the descent
+        let by_point: Vec<f64> = (0..points.nrows())
+            .flat_map(|w| points.row(w).iter().copied())
+            .collect();
         (0..queries.nrows())
             .into_par_iter()
             .map_init(
-                || Descent::new(by_column.as_ref()),
+                || Descent::new(&by_point, points.ncols()),
                 |descent, i| {
                     descent.start_query(queries.row(i));
                     coarse[i]
@@ -601,11 +604,12 @@ fn drop_disagreeing_landmarks(lm_s: &mut Mat<f64>, lm_t: &mut Mat<f64>, seed: &[
     dropped
 }
 
-/// The steepest descents of one query at a time ([`Descent::descend`]) over points stored as
-/// the columns of a matrix, with what the query's earlier descents found: the squared distance
-/// of every point evaluated, and the end of every vertex on a path.
+/// The steepest descents of one query at a time ([`Descent::descend`]) over points stored one
+/// after the other (`dim` coordinates each), with what the query's earlier descents found: the
+/// squared distance of every point evaluated, and the end of every vertex on a path.
 struct Descent<'a> {
-    points: MatRef<'a, f64>,
+    points: &'a [f64],
+    dim: usize,
     query: Vec<f64>,
     /// (vertex, end of the descent through it) for the query's paths so far.
     visited: Vec<(u32, u32)>,
@@ -615,9 +619,10 @@ struct Descent<'a> {
 }
 
 impl<'a> Descent<'a> {
-    fn new(points: MatRef<'a, f64>) -> Self {
+    fn new(points: &'a [f64], dim: usize) -> Self {
         Descent {
             points,
+            dim,
             query: Vec::new(),
             visited: Vec::new(),
             known: Vec::new(),
@@ -631,17 +636,19 @@ impl<'a> Descent<'a> {
         self.query.extend(query.iter().copied());
         self.visited.clear();
         if self.known.is_empty() || self.stamp == u32::MAX {
-            self.known = vec![(0, 0.0); self.points.ncols()];
+            self.known = vec![(0, 0.0); self.points.len() / self.dim.max(1)];
             self.stamp = 0;
         }
         self.stamp += 1;
     }
 
-    /// ‖points[w] − query‖² ([`column_distance2`]), evaluated once per query.
+    /// ‖points[w] − query‖² (the sum of [`distance2`]), evaluated once per query.
     fn distance(&mut self, w: u32) -> f64 {
         let entry = &mut self.known[w as usize];
         if entry.0 != self.stamp {
-            *entry = (self.stamp, column_distance2(self.points, &self.query, w));
+            let p = &self.points[w as usize * self.dim..][..self.dim];
+            let q = &self.query;
+            *entry = (self.stamp, lane_sum(q.len(), |j| (p[j] - q[j]).powi(2)));
         }
         entry.1
     }
@@ -702,13 +709,6 @@ fn lane_sum(n: usize, term: impl Fn(usize) -> f64) -> f64 {
 fn distance2(points: MatRef<'_, f64>, query: faer::RowRef<'_, f64>, w: u32) -> f64 {
     let p = points.row(w as usize);
     lane_sum(query.ncols(), |j| (p[j] - query[j]).powi(2))
-}
-
-/// [`distance2`] (the same sum in the same order) with the points as the columns of `points`.
-fn column_distance2(points: MatRef<'_, f64>, query: &[f64], w: u32) -> f64 {
-    let p = points.col(w as usize);
-    let p = p.try_as_col_major().expect("an owned matrix's column").as_slice();
-    lane_sum(query.len(), |j| (p[j] - query[j]).powi(2))
 }
 
 /// Rows `rows` of the first k columns of `phi`.
@@ -1012,25 +1012,24 @@ mod tests {
             1 => (w / m) as f64 / m as f64,
             _ => 0.002 * next(),
         });
-        let by_column = points.transpose().to_owned();
+        let by_point: Vec<f64> = (0..m * m).flat_map(|w| points.row(w).iter().copied()).collect();
         let mut merged = 0;
-        let mut shared = Descent::new(by_column.as_ref());
+        let mut shared = Descent::new(&by_point, 13);
         for _ in 0..200 {
             let q: Vec<f64> = (0..13).map(|_| next() + 0.5).collect();
             let query = faer::Row::<f64>::from_fn(13, |j| q[j]);
+            // the squared distances: every form the same, a plain sum's to rounding
+            let d = |w: u32| distance2(points.as_ref(), query.as_ref(), w);
             let plain = (0..13).map(|j| (points[(77, j)] - q[j]).powi(2)).sum::<f64>();
-            let lanes = column_distance2(by_column.as_ref(), &q, 77);
-            assert!((lanes - plain).abs() <= 1e-15 * plain);
-            assert_eq!(lanes, distance2(points.as_ref(), query.as_ref(), 77));
+            assert!((d(77) - plain).abs() <= 1e-15 * plain);
             shared.start_query(query.as_ref());
+            assert_eq!(shared.distance(77), d(77));
             for start in [0u32, 29, 870, 899, 450] {
                 let before = shared.visited.len();
                 let end = shared.descend(&neighbors, start);
-                let mut single = Descent::new(by_column.as_ref());
+                let mut single = Descent::new(&by_point, 13);
                 single.start_query(query.as_ref());
                 assert_eq!(end, single.descend(&neighbors, start));
-                let d = |w: u32| column_distance2(by_column.as_ref(), &q, w);
-                assert_eq!(shared.distance(end), d(end));
                 assert!(neighbors[end as usize].iter().all(|&u| d(u) >= d(end)));
                 // a shorter path than its own: it met an earlier one
                 merged += usize::from(shared.visited.len() - before < single.visited.len());
