@@ -5,14 +5,14 @@
 //! `carry_markers` (a vertex of the kind at the marker's closest point) and `register_bench`
 //! registers every pose onto the other pose and onto its remeshing with the first stage.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use shapespace_analysis::registration::bench::{register_bench, Triangulation};
 use shapespace_analysis::registration::truth::{carry_markers, closest_points};
 use shapespace_analysis::registration::{
-    registration_area_params, HarmonicParams, Method, MetricParams, Refinement, ZoomOutParams,
+    registration_area_params, HarmonicParams, Method, MetricParams, Refinement, ZoomOutOutput, ZoomOutParams,
 };
 use shapespace_conformal::{BoundaryMarker, CenterMarker, MarkerFile};
 use shapespace_geometry::io::write_mesh;
@@ -52,16 +52,14 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>().sqrt()
 }
 
-/// Every marker of both wolves lands on a vertex of its kind within half a mean edge length of
-/// the remeshing of its exact closest point; the first stage's geodesic error onto the remeshings
-/// stays below twice the same-triangulation error.
-#[test]
-fn markers_carried_to_a_remeshed_wolf_land_at_their_closest_points() {
+/// The bundled wolves wolf0 and wolf1 under `dir/dataset/wolf` and their remeshings under
+/// `dir/remeshed/wolf`, after checking that every carried marker lands within half a mean edge
+/// of its exact closest point.
+fn remeshed_wolves(dir: &Path) {
     let class = repo("datasets/poses/wolf");
     let names = ["wolf0", "wolf1"];
     let markers = MarkerFile::from_json_file(&class.join("landmarks.json")).unwrap();
-    let dir: PathBuf = std::env::temp_dir().join(format!("shapespace-remeshed-markers-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(dir);
     let (data, re) = (dir.join("dataset/wolf"), dir.join("remeshed/wolf"));
     std::fs::create_dir_all(&data).unwrap();
     std::fs::create_dir_all(&re).unwrap();
@@ -100,6 +98,15 @@ fn markers_carried_to_a_remeshed_wolf_land_at_their_closest_points() {
         write_mesh(&re.join(format!("{name}.obj")), &remeshed).unwrap();
         std::fs::copy(class.join(format!("{name}.off")), data.join(format!("{name}.off"))).unwrap();
     }
+}
+
+/// Every marker of both wolves lands on a vertex of its kind within half a mean edge length of
+/// the remeshing of its exact closest point; the first stage's geodesic error onto the remeshings
+/// stays below twice the same-triangulation error.
+#[test]
+fn markers_carried_to_a_remeshed_wolf_land_at_their_closest_points() {
+    let dir: PathBuf = std::env::temp_dir().join(format!("shapespace-remeshed-markers-{}", std::process::id()));
+    remeshed_wolves(&dir);
     let res = register_bench(
         &dir.join("dataset"),
         &dir.join("out"),
@@ -140,6 +147,72 @@ fn markers_carried_to_a_remeshed_wolf_land_at_their_closest_points() {
             same.geodesic_mean,
             rem.truth_max_distance
         );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// ZoomOut's output by default (decision 0056): the vertex map between the wolves, which share
+/// their triangulation, and projected points onto the remeshings, whose vertices are only samples
+/// near the true images. Against `vertex` output everywhere: the same rows onto the poses, the
+/// same vertex maps onto the remeshings, and there a lower geodesic error of the final map.
+#[test]
+fn zoomout_projects_onto_remeshed_wolves_only() {
+    let dir: PathBuf = std::env::temp_dir().join(format!("shapespace-remeshed-zoomout-{}", std::process::id()));
+    remeshed_wolves(&dir);
+    let bench = |output: ZoomOutOutput, out: &str| {
+        let zoomout = ZoomOutParams {
+            k_end: 60,
+            output,
+            ..ZoomOutParams::default()
+        };
+        let res = register_bench(
+            &dir.join("dataset"),
+            &dir.join(out),
+            Some(&dir.join("remeshed")),
+            &[Method::Omt],
+            &registration_area_params(),
+            &HarmonicParams::for_method,
+            Refinement::ZoomOut,
+            &zoomout,
+            &MetricParams::default(),
+            |_| {},
+        )
+        .unwrap();
+        assert_eq!(res.rows.len(), 4);
+        res.rows
+    };
+    let auto = bench(ZoomOutOutput::default(), "auto");
+    let vertex = bench(ZoomOutOutput::Vertex, "vertex");
+    for (a, v) in auto.iter().zip(&vertex) {
+        eprintln!(
+            "{} -> {} {}: final map {:.5} (auto) {:.5} (vertex), vertex map {:.5} {:.5}",
+            a.source,
+            a.target,
+            a.triangulation,
+            a.geodesic_mean,
+            v.geodesic_mean,
+            a.vertex_map_geodesic_mean,
+            v.vertex_map_geodesic_mean
+        );
+        assert_eq!(
+            (&a.source, &a.target, a.triangulation),
+            (&v.source, &v.target, v.triangulation)
+        );
+        assert!(a.status == "ok" && v.status == "ok");
+        assert_eq!(a.vertex_map_geodesic_mean, v.vertex_map_geodesic_mean);
+        if a.triangulation == Triangulation::Same {
+            assert_eq!(a.geodesic_mean, v.geodesic_mean);
+            assert_eq!(a.flipped_ratio_3d, v.flipped_ratio_3d);
+        } else {
+            assert!(
+                a.geodesic_mean < 0.95 * v.geodesic_mean,
+                "{} -> remeshed {}: projected {} against vertex {}",
+                a.source,
+                a.target,
+                a.geodesic_mean,
+                v.geodesic_mean
+            );
+        }
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -19,7 +19,7 @@ use crate::registration::truth::{carry_markers, closest_points, marker_file_json
 use crate::registration::zoomout::vertex_points;
 use crate::registration::{
     disk_image, refine_registration, register_with_maps, DiskImage, HarmonicParams, Landmarks, Method, Refinement,
-    Registration, SpectralBasis, ZoomOutOutput, ZoomOutParams,
+    Registration, SpectralBasis, ZoomOutParams,
 };
 
 /// Per method: the pooled curvature-difference and area-distortion samples, and the geodesic
@@ -861,9 +861,10 @@ fn register_pair(ctx: &BenchContext, pair: &PairInputs, i: usize, j: usize) -> R
     let truth = pair.remeshed_target.map(|r| r.truth.as_slice());
     let met = registration_metrics_against(&meshes[i], target, &reg, ctx.metric_params, truth)
         .map_err(|e| error_chain(&e))?;
-    // the refined vertex map before the untangling with points, scored alike
+    // the refined vertex map before the untangling with points (and before the projection of
+    // `ZoomOutOutput::Projected`), scored alike
     let before = match &reg.refinement {
-        Some(info) if info.output == ZoomOutOutput::Vertex => {
+        Some(info) => {
             let mut r = reg.clone();
             (r.faces, r.bary) = vertex_points(target, &info.vertex_map);
             r.points = info.vertex_map.iter().map(|&w| target.positions[w as usize]).collect();

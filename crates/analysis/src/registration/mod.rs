@@ -530,7 +530,7 @@ pub fn refine_registration(
         refinement: Refinement::ZoomOut,
         sizes: refined.sizes,
         runs: refined.runs,
-        output: params.output,
+        output: refined.output,
         eigen_seconds: [source_basis.seconds, target_basis.seconds],
         iteration_seconds: refined.seconds + point_untangle.seconds,
         vertices_moved,

@@ -119,8 +119,12 @@ impl std::str::FromStr for Refinement {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ZoomOutOutput {
-    /// A target vertex (barycentric coordinates (1, 0, 0) in one of its faces).
+    /// `Vertex` when the two meshes share their triangulation (the same vertex count and the
+    /// same faces: a pose set whose vertex i corresponds across poses), `Projected` otherwise,
+    /// where a target vertex is only the nearest sample of the true image (decision 0056).
     #[default]
+    Auto,
+    /// A target vertex (barycentric coordinates (1, 0, 0) in one of its faces).
     Vertex,
     /// The nearest point of the target's spectral embedding on the faces around the nearest
     /// vertex (module docs).
@@ -128,24 +132,38 @@ pub enum ZoomOutOutput {
 }
 
 impl ZoomOutOutput {
-    /// `vertex` or `projected`.
+    /// `auto`, `vertex` or `projected`.
     pub fn name(self) -> &'static str {
         match self {
+            ZoomOutOutput::Auto => "auto",
             ZoomOutOutput::Vertex => "vertex",
             ZoomOutOutput::Projected => "projected",
+        }
+    }
+
+    /// The output for a pair: `Auto` resolved by whether `source` and `target` share their
+    /// triangulation, the others as they are.
+    pub fn for_pair(self, source: &TriMesh, target: &TriMesh) -> ZoomOutOutput {
+        match self {
+            ZoomOutOutput::Auto if source.num_vertices() == target.num_vertices() && source.faces == target.faces => {
+                ZoomOutOutput::Vertex
+            }
+            ZoomOutOutput::Auto => ZoomOutOutput::Projected,
+            other => other,
         }
     }
 }
 
 impl std::str::FromStr for ZoomOutOutput {
     type Err = AnalysisError;
-    /// Parses `vertex` or `projected` (case-insensitive).
+    /// Parses `auto`, `vertex` or `projected` (case-insensitive).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s.trim().to_ascii_lowercase().as_str() {
+            "auto" => Ok(ZoomOutOutput::Auto),
             "vertex" => Ok(ZoomOutOutput::Vertex),
             "projected" => Ok(ZoomOutOutput::Projected),
             other => Err(AnalysisError::InvalidInput(format!(
-                "unknown ZoomOut output `{other}` (expected vertex or projected)"
+                "unknown ZoomOut output `{other}` (expected auto, vertex or projected)"
             ))),
         }
     }
@@ -163,7 +181,8 @@ pub struct ZoomOutParams {
     pub k_step: usize,
     /// Source vertices the steps below `k_end` run on (default 2,000; all when fewer).
     pub samples: usize,
-    /// Vertex map or projected points (default: the vertex map).
+    /// Vertex map or projected points (default `Auto`: the vertex map between meshes of one
+    /// triangulation, projected points otherwise; decision 0056).
     pub output: ZoomOutOutput,
     /// The eigen solver's parameters (default: blocks of 16, relative residual 1e-3: the wolf
     /// pairs' mean error the same to five digits as with 1e-4 (0.00311), a Krylov basis of 400
@@ -191,7 +210,7 @@ impl Default for ZoomOutParams {
             k_end: 120,
             k_step: 4,
             samples: 2000,
-            output: ZoomOutOutput::Vertex,
+            output: ZoomOutOutput::Auto,
             eigen: EigenParams {
                 block_size: 16,
                 tolerance: 1e-3,
@@ -253,6 +272,8 @@ pub struct RefinedMap {
     pub bary: Vec<[f64; 3]>,
     /// Spectral sizes visited by the kept run.
     pub sizes: Vec<usize>,
+    /// What `faces` and `bary` hold: `Vertex` or `Projected` ([`ZoomOutOutput::for_pair`]).
+    pub output: ZoomOutOutput,
     /// Every run, in the order of [`ZoomOutParams::k_starts`].
     pub runs: Vec<ZoomOutRun>,
     /// What the 3D untangling of the vertex map did.
@@ -335,12 +356,14 @@ pub fn zoomout(
     } = pass;
     let spectral_cost = |v: usize, w: u32| distance2(points.as_ref(), q.row(v), w);
     let untangle = untangle_vertex_map(source, target, &mut vertex_map, &spectral_cost, &params.untangle);
-    let (faces, bary) = surface_images(target, &conn, &vertex_map, q.as_ref(), points.as_ref(), params.output);
+    let output = params.output.for_pair(source, target);
+    let (faces, bary) = surface_images(target, &conn, &vertex_map, q.as_ref(), points.as_ref(), output);
     Ok(RefinedMap {
         vertex_map,
         faces,
         bary,
         sizes,
+        output,
         runs,
         untangle,
         landmarks_dropped,
@@ -569,7 +592,8 @@ fn surface_images(
         .map(|v| {
             let w = vertex_map[v] as usize;
             match output {
-                ZoomOutOutput::Vertex => vertex_in_face(target, &conn.vertex_faces[w], w),
+                // `Auto` is resolved by the caller ([`ZoomOutOutput::for_pair`])
+                ZoomOutOutput::Vertex | ZoomOutOutput::Auto => vertex_in_face(target, &conn.vertex_faces[w], w),
                 ZoomOutOutput::Projected => {
                     let query: Vec<f64> = q.row(v).iter().copied().collect();
                     project_onto_faces(target, &conn.vertex_faces[w], points, &query, w)
@@ -1044,5 +1068,29 @@ mod tests {
             assert_eq!(r.name().parse::<Refinement>().unwrap(), r);
         }
         assert!("zoom".parse::<Refinement>().is_err());
+        for o in [ZoomOutOutput::Auto, ZoomOutOutput::Vertex, ZoomOutOutput::Projected] {
+            assert_eq!(o.name().parse::<ZoomOutOutput>().unwrap(), o);
+        }
+        assert!("points".parse::<ZoomOutOutput>().is_err());
+    }
+
+    /// `Auto` is the vertex map between meshes of one triangulation (whatever their positions),
+    /// projected points when the faces or the vertex count differ; the others stay as given.
+    #[test]
+    fn auto_output_follows_the_triangulation() {
+        let square = |z: f64, faces: Vec<[u32; 3]>| {
+            TriMesh::new(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, z], [0.0, 1.0, 0.0]], faces).unwrap()
+        };
+        let a = square(0.0, vec![[0, 1, 2], [0, 2, 3]]);
+        let moved = square(0.5, vec![[0, 1, 2], [0, 2, 3]]);
+        let flipped = square(0.0, vec![[0, 1, 3], [1, 2, 3]]);
+        let mut more = square(0.0, vec![[0, 1, 2], [0, 2, 3]]);
+        more.positions.push([2.0, 2.0, 0.0]);
+        let auto = ZoomOutOutput::Auto;
+        assert_eq!(auto.for_pair(&a, &moved), ZoomOutOutput::Vertex);
+        assert_eq!(auto.for_pair(&a, &flipped), ZoomOutOutput::Projected);
+        assert_eq!(auto.for_pair(&a, &more), ZoomOutOutput::Projected);
+        assert_eq!(ZoomOutOutput::Vertex.for_pair(&a, &flipped), ZoomOutOutput::Vertex);
+        assert_eq!(ZoomOutOutput::Projected.for_pair(&a, &moved), ZoomOutOutput::Projected);
     }
 }

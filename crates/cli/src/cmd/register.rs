@@ -157,9 +157,10 @@ pub struct RegisterBenchArgs {
     /// The peer script.
     #[arg(long, default_value = "scripts/pyfmaps_bench.py")]
     pub peer_script: PathBuf,
-    /// What ZoomOut returns per source vertex: `vertex` (a target vertex, default) or
-    /// `projected` (the nearest point of the target's spectral embedding on the faces around it).
-    #[arg(long, default_value = "vertex")]
+    /// What ZoomOut returns per source vertex: `vertex` (a target vertex), `projected` (the
+    /// nearest point of the target's spectral embedding on the faces around it) or `auto`
+    /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
+    #[arg(long, default_value = "auto")]
     pub zoomout_output: String,
     /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
