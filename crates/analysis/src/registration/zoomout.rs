@@ -980,15 +980,20 @@ mod tests {
         assert_eq!(b, [1.0, 0.0, 0.0]);
     }
 
-    #[test]
-    fn nearest_rows_is_the_brute_force_nearest_neighbour() {
-        let mut state = 3u64;
-        let mut next = || {
+    /// A seeded generator of uniform numbers in [−0.5, 0.5) (a linear congruential sequence).
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
             state = state
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        }
+    }
+
+    #[test]
+    fn nearest_rows_is_the_brute_force_nearest_neighbour() {
+        let mut next = uniform(3);
         let points = Mat::<f64>::from_fn(300, 7, |_, _| next());
         let queries = Mat::<f64>::from_fn(250, 7, |_, _| next());
         let got = nearest_rows(queries.as_ref(), points.as_ref());
@@ -1004,13 +1009,7 @@ mod tests {
     /// plain sum to rounding.
     #[test]
     fn shared_descents_end_where_single_ones_do() {
-        let mut state = 11u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(11);
         // a 30 × 30 grid graph, 13-dimensional points (a remainder after the 8 lanes)
         let m = 30;
         let neighbors: Vec<Vec<u32>> = (0..m * m)
