@@ -2596,7 +2596,8 @@ fn mds_smacof_reports_the_stress() {
 
 /// `register --refine`: an unknown refinement is a usage error before any work; `zoomout` on
 /// the wolf poses records the refinement in `metrics.json` and lowers the geodesic error
-/// (wolf0 → wolf1: 0.0207 → 0.0017 mean); a surface with fewer vertices than the 120
+/// (wolf0 → wolf1: 0.0207 → 0.0017 mean), with the vertex map between the poses' one
+/// triangulation and projected points when asked (an unknown output is a usage error); a surface with fewer vertices than the 120
 /// eigenpairs is refused, naming the surface.
 #[test]
 fn register_refines_by_zoomout() {
@@ -2632,6 +2633,14 @@ fn register_refines_by_zoomout() {
     assert_eq!(info["refinement"], "zoomout", "{info}");
     assert_eq!(info["sizes"].as_array().unwrap().last().unwrap(), 120, "{info}");
     assert!(refined < plain / 4.0 && refined < 0.004, "{plain} -> {refined}");
+    // the poses share their triangulation: the vertex map (decision 0056), unless asked
+    assert_eq!(info["output"], "vertex", "{info}");
+    let out = run(&["--refine", "zoomout", "--zoomout-output", "projected"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_eq!(mean_error().1["output"], "projected");
+    let out = run(&["--refine", "zoomout", "--zoomout-output", "points"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--zoomout-output") && stderr(&out).contains("points"));
 
     let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
     std::fs::write(&a, grid_obj(1.0)).unwrap();
@@ -2736,8 +2745,9 @@ fn disk_map_choices_reach_param_and_distances() {
 
 /// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
 /// script: status 2 naming the path, before any registration; a `--region-from-area` that is
-/// not a share of the area, or a `--zoomout-starts` that is not a list of sizes from 1 to 120:
-/// status 2 naming the option, no output folder.
+/// not a share of the area, a `--zoomout-starts` that is not a list of sizes from 1 to 120, or a
+/// `--zoomout-output` other than auto, vertex and projected: status 2 naming the option, no
+/// output folder.
 #[test]
 fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     let dir = scratch("bench-remeshed-missing");
@@ -2781,6 +2791,7 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     for (option, bad_values) in [
         ("--region-from-area", &["1.5", "-0.1", "NaN", "half"][..]),
         ("--zoomout-starts", &["0", "121", "8,x", ""][..]),
+        ("--zoomout-output", &["points", "vertices"][..]),
     ] {
         for bad in bad_values {
             let out = shapespace(&[

@@ -17,7 +17,7 @@ use shapespace_analysis::registration::sphere::{
 use shapespace_analysis::registration::sphere_bench::sphere_bench;
 use shapespace_analysis::registration::{
     register, registration_area_params, registration_metrics, HarmonicParams, Landmarks, Method, MetricParams,
-    Refinement, RegistrationMetrics, RegistrationParams, ZoomOutParams,
+    Refinement, RegistrationMetrics, RegistrationParams, ZoomOutOutput, ZoomOutParams,
 };
 use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
 use shapespace_analysis::sphere_param::SphereParamParams;
@@ -105,6 +105,11 @@ pub struct RegisterArgs {
     /// final nearest-neighbour residual is smallest (decision 0055); `20` alone is a single run.
     #[arg(long, default_value = "20,8", value_parser = spectral_sizes)]
     pub zoomout_starts: SpectralSizes,
+    /// What ZoomOut returns per source vertex: `vertex` (a target vertex), `projected` (the
+    /// nearest point of the target's spectral embedding on the faces around it) or `auto`
+    /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
+    #[arg(long, default_value = "auto", value_parser = zoomout_output)]
+    pub zoomout_output: ZoomOutOutput,
 }
 
 /// Arguments of `shapespace register-bench`.
@@ -160,8 +165,8 @@ pub struct RegisterBenchArgs {
     /// What ZoomOut returns per source vertex: `vertex` (a target vertex), `projected` (the
     /// nearest point of the target's spectral embedding on the faces around it) or `auto`
     /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
-    #[arg(long, default_value = "auto")]
-    pub zoomout_output: String,
+    #[arg(long, default_value = "auto", value_parser = zoomout_output)]
+    pub zoomout_output: ZoomOutOutput,
     /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
@@ -326,6 +331,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         )?,
         refine: args.refine.parse()?,
         zoomout: ZoomOutParams {
+            output: args.zoomout_output,
             landmark_weight: args.landmark_weight,
             k_starts: args.zoomout_starts.0.clone(),
             ..ZoomOutParams::default()
@@ -485,7 +491,7 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
     let mut zoomout = ZoomOutParams {
-        output: args.zoomout_output.parse()?,
+        output: args.zoomout_output,
         landmark_weight: args.landmark_weight,
         k_starts: args.zoomout_starts.0.clone(),
         ..ZoomOutParams::default()
@@ -556,6 +562,11 @@ fn spectral_sizes(s: &str) -> Result<SpectralSizes, String> {
         })
         .collect::<Result<Vec<usize>, String>>()?;
     Ok(SpectralSizes(sizes))
+}
+
+/// ZoomOut's output: `auto`, `vertex` or `projected`.
+fn zoomout_output(s: &str) -> Result<ZoomOutOutput, String> {
+    s.parse::<ZoomOutOutput>().map_err(|e| e.to_string())
 }
 
 /// A share of the source's area: a number in [0, 1].
