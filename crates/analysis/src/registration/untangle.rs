@@ -608,26 +608,15 @@ impl<'a> MetricFlipTest<'a> {
     }
 
     /// A face of S₂ whose disk image holds `c` (barycentric coordinates all ≥ 0). First a walk
-    /// from `hint` across the edge of the most negative coordinate, at most [`WALK_STEPS`]
-    /// faces: a face holding `c` with every coordinate above [`INSIDE`] is the only one that
-    /// does. Otherwise (no hint, a walk that ends on or near an edge, or stops): the first of
-    /// `near` that holds `c`, else the end of the same walk from the nearest of them (the one
-    /// of largest smallest coordinate); else the point locator's.
+    /// from `hint` ([`MetricFlipTest::walk`]) that only ends on a face holding `c` with every
+    /// coordinate above [`INSIDE`], the only face that does. Otherwise (no hint, a walk that
+    /// ends on or near an edge, or stops): the first of `near` that holds `c`, else the end of a
+    /// walk from the nearest of them (the one of largest smallest coordinate); else the point
+    /// locator's.
     fn face_holding(&self, c: [f64; 2], hint: Option<u32>, near: &[u32]) -> Option<u32> {
-        let mut walk = hint.and_then(|f| self.bary(f, c).map(|b| (f, b)));
-        for _ in 0..WALK_STEPS {
-            let Some((f, b)) = walk else { break };
-            let k = (0..3).fold(0, |a, i| if b[i] < b[a] { i } else { a });
-            if b[k] > INSIDE {
-                return Some(f);
-            }
-            if b[k] >= 0.0 {
-                break;
-            }
-            let next = self.across[f as usize][k];
-            walk = (next != u32::MAX)
-                .then(|| self.bary(next, c).map(|b| (next, b)))
-                .flatten();
+        let from_hint = hint.and_then(|f| self.bary(f, c).map(|b| (f, b)));
+        if let Some(f) = self.walk(c, from_hint, |m| m > INSIDE) {
+            return Some(f);
         }
         let mut start: Option<(f64, u32, [f64; 3])> = None;
         for &f in near {
@@ -641,20 +630,31 @@ impl<'a> MetricFlipTest<'a> {
                 }
             }
         }
-        // the current face of the walk and its coordinates
-        let mut walk = start.map(|(_, f, b)| (f, b));
+        self.walk(c, start.map(|(_, f, b)| (f, b)), |m| m >= 0.0)
+            .or_else(|| self.locator.locate(c).map(|l| l.face))
+    }
+
+    /// A walk towards `c` from a face and its barycentric coordinates, across the edge of the
+    /// most negative coordinate, at most [`WALK_STEPS`] faces: the first face whose smallest
+    /// coordinate m is `accept`ed; None when it reaches a face holding `c` (m ≥ 0) that it does
+    /// not accept, leaves S₂, or stops.
+    fn walk(&self, c: [f64; 2], start: Option<(u32, [f64; 3])>, accept: impl Fn(f64) -> bool) -> Option<u32> {
+        let mut walk = start;
         for _ in 0..WALK_STEPS {
-            let Some((f, b)) = walk else { break };
+            let (f, b) = walk?;
             let k = (0..3).fold(0, |a, i| if b[i] < b[a] { i } else { a });
-            if b[k] >= 0.0 {
+            if accept(b[k]) {
                 return Some(f);
+            }
+            if b[k] >= 0.0 {
+                return None;
             }
             let next = self.across[f as usize][k];
             walk = (next != u32::MAX)
                 .then(|| self.bary(next, c).map(|b| (next, b)))
                 .flatten();
         }
-        self.locator.locate(c).map(|l| l.face)
+        None
     }
 
     /// Whether the straight triangle (x[0], x[1], x[2]) faces away from the normal of the face
@@ -879,16 +879,23 @@ impl<'a> PointPass<'a> {
         std::array::from_fn(|d| (0..3).map(|k| b[k] * self.target_uv[t[k] as usize][d]).sum())
     }
 
+    /// Where the flip test of source face `f` starts: the face of S₂ that held its mean last
+    /// time, else (its first test) `first`, a face holding one of its corners' images.
+    fn holder(&self, f: usize, first: u32) -> &Cell<u32> {
+        let hint = &self.holder[f];
+        if hint.get() == u32::MAX {
+            hint.set(first);
+        }
+        hint
+    }
+
     /// Source faces whose current image (`points`, with `p3` and `p2`) the metric's 3D test
     /// finds flipped.
     fn flipped_faces(&self, points: &[SurfacePoint]) -> Vec<usize> {
         (0..self.source.num_faces())
             .filter(|&f| {
                 let face = self.source.faces[f];
-                let hint = &self.holder[f];
-                if hint.get() == u32::MAX {
-                    hint.set(points[face[0] as usize].0);
-                }
+                let hint = self.holder(f, points[face[0] as usize].0);
                 self.test.flipped(
                     face.map(|v| self.p3[v as usize]),
                     face.map(|v| self.p2[v as usize]),
@@ -916,11 +923,7 @@ impl<'a> PointPass<'a> {
             let face = self.source.faces[f as usize];
             let xs = face.map(|w| if w as usize == v { x } else { self.p3[w as usize] });
             let us = face.map(|w| if w as usize == v { u } else { self.p2[w as usize] });
-            let hint = &self.holder[f as usize];
-            if hint.get() == u32::MAX {
-                hint.set(p.0);
-            }
-            if self.test.flipped(xs, us, hint, faces) {
+            if self.test.flipped(xs, us, self.holder(f as usize, p.0), faces) {
                 count += DEGENERATE_LIMIT;
             } else if degenerate(xs) {
                 count += 1;
@@ -1028,10 +1031,7 @@ impl PointPass<'_> {
             .map(|&f| {
                 let face = self.source.faces[f as usize];
                 let xs = face.map(|w| self.p3[w as usize]);
-                let hint = &self.holder[f as usize];
-                if hint.get() == u32::MAX {
-                    hint.set(points[face[0] as usize].0);
-                }
+                let hint = self.holder(f as usize, points[face[0] as usize].0);
                 if self.test.flipped(xs, face.map(|w| self.p2[w as usize]), hint, &[]) {
                     DEGENERATE_LIMIT
                 } else {
