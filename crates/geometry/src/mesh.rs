@@ -40,6 +40,12 @@ impl TriMesh {
         self.faces.len()
     }
 
+    /// Whether `other` is the same triangulation: the same vertex count and the same faces in
+    /// the same order, whatever the positions (the poses of a consistently meshed set).
+    pub fn same_triangulation(&self, other: &TriMesh) -> bool {
+        self.num_vertices() == other.num_vertices() && self.faces == other.faces
+    }
+
     /// Checks index ranges and finiteness of coordinates (and of UVs, with their count).
     pub fn validate(&self) -> Result<(), GeometryError> {
         let n = self.positions.len();

@@ -60,7 +60,7 @@ pub fn share_auto_markers(inputs: &[MarkerInput<'_>]) -> Vec<Option<SharedMarker
         // exact equality of faces and markers within the hash group
         while let Some(&first) = rest.first() {
             let (same, other): (Vec<usize>, Vec<usize>) = rest.iter().partition(|&&j| {
-                inputs[j].mesh.faces == inputs[first].mesh.faces && inputs[j].markers == inputs[first].markers
+                inputs[j].mesh.same_triangulation(inputs[first].mesh) && inputs[j].markers == inputs[first].markers
             });
             rest = other;
             if same.len() < 2 {

@@ -146,9 +146,7 @@ impl ZoomOutOutput {
     /// triangulation, the others as they are.
     pub fn for_pair(self, source: &TriMesh, target: &TriMesh) -> ZoomOutOutput {
         match self {
-            ZoomOutOutput::Auto if source.num_vertices() == target.num_vertices() && source.faces == target.faces => {
-                ZoomOutOutput::Vertex
-            }
+            ZoomOutOutput::Auto if source.same_triangulation(target) => ZoomOutOutput::Vertex,
             ZoomOutOutput::Auto => ZoomOutOutput::Projected,
             other => other,
         }
