@@ -97,6 +97,13 @@ pub struct RegisterArgs {
     /// Seed of the vertex sample.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    #[command(flatten)]
+    pub zoomout: ZoomOutArgs,
+}
+
+/// ZoomOut's options of `register` and `register-bench`.
+#[derive(clap::Args)]
+pub struct ZoomOutArgs {
     /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
     #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
@@ -110,6 +117,18 @@ pub struct RegisterArgs {
     /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
     #[arg(long, default_value = "auto", value_parser = zoomout_output)]
     pub zoomout_output: ZoomOutOutput,
+}
+
+impl ZoomOutArgs {
+    /// ZoomOut's parameters: the defaults with these options.
+    fn params(&self) -> ZoomOutParams {
+        ZoomOutParams {
+            output: self.zoomout_output,
+            landmark_weight: self.landmark_weight,
+            k_starts: self.zoomout_starts.0.clone(),
+            ..ZoomOutParams::default()
+        }
+    }
 }
 
 /// Arguments of `shapespace register-bench`.
@@ -162,19 +181,8 @@ pub struct RegisterBenchArgs {
     /// The peer script.
     #[arg(long, default_value = "scripts/pyfmaps_bench.py")]
     pub peer_script: PathBuf,
-    /// What ZoomOut returns per source vertex: `vertex` (a target vertex), `projected` (the
-    /// nearest point of the target's spectral embedding on the faces around it) or `auto`
-    /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
-    #[arg(long, default_value = "auto", value_parser = zoomout_output)]
-    pub zoomout_output: ZoomOutOutput,
-    /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
-    /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
-    #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
-    pub landmark_weight: f64,
-    /// ZoomOut's first spectral sizes, comma-separated: it runs from each and keeps the map whose
-    /// final nearest-neighbour residual is smallest (decision 0055); `20` alone is a single run.
-    #[arg(long, default_value = "20,8", value_parser = spectral_sizes)]
-    pub zoomout_starts: SpectralSizes,
+    #[command(flatten)]
+    pub zoomout: ZoomOutArgs,
     /// Rounds of region moves at the end of the untangling with points (decisions 0042, 0054):
     /// each set of faces still flipped is laid out again from the ring around it; 0 leaves them
     /// out.
@@ -330,12 +338,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
             args.landmark_steps,
         )?,
         refine: args.refine.parse()?,
-        zoomout: ZoomOutParams {
-            output: args.zoomout_output,
-            landmark_weight: args.landmark_weight,
-            k_starts: args.zoomout_starts.0.clone(),
-            ..ZoomOutParams::default()
-        },
+        zoomout: args.zoomout.params(),
     };
     eprintln!(
         "register: {} landmark pairs, method {method}, refinement {}",
@@ -490,12 +493,7 @@ fn print_metrics(met: &RegistrationMetrics, domain: &str, files: &[PathBuf]) {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
-    let mut zoomout = ZoomOutParams {
-        output: args.zoomout_output,
-        landmark_weight: args.landmark_weight,
-        k_starts: args.zoomout_starts.0.clone(),
-        ..ZoomOutParams::default()
-    };
+    let mut zoomout = args.zoomout.params();
     zoomout.point_untangle.region_rounds = args.region_rounds;
     zoomout.point_untangle.region_from_area = args.region_from_area;
     super::create_output_folder(&args.out)?;
