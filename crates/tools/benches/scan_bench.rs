@@ -9,9 +9,11 @@
 //! pairs interleaved so that the machine's load hits both alike; each bundled and scan pair is
 //! solved twice, cold (the source's averaged coarse copies built inside the timing, as for a
 //! source's first pair in a `distances` run) and warm (as for its other pairs):
-//! - bundled 9.4k-vertex faces, facefuns 30k-vertex faces, and the same scan pairs with the
-//!   densities as mapped (`prepare_shape` without its spreading of density peaks, i.e. the
-//!   solver's input before that fix);
+//! - bundled 9.4k-vertex faces, facefuns 30k-vertex faces, the Sumner face poses (29.3k
+//!   vertices, from `outside/sumner_face_poses`, with the automatic markers shared as
+//!   `distances` shares them; solved cold), and the facefuns pairs with the densities as
+//!   mapped (`prepare_shape` without its spreading of density peaks, i.e. the solver's input
+//!   before that fix);
 //! - `--100k`: one facefuns pair subdivided once by edge midpoints (120k vertices), and the
 //!   peak memory of the process (VmHWM of /proc/self/status) from the subdivided scans'
 //!   preparation to the end of their pair (the other scans dropped and the peak reset first;
@@ -128,6 +130,15 @@ fn main() {
         .take(pairs + 1)
         .collect();
     let bundled = faces::prepared_faces(&face_names);
+    // The Sumner face poses of one triangulation, with their shared automatic markers (pose1,
+    // with one vertex less, would keep its own: left out).
+    let sumner_files: Vec<_> = scans::sumner_face_files()
+        .into_iter()
+        .filter(|f| f.file_stem().is_some_and(|s| s != "pose1"))
+        .collect();
+    let mut sumner = scans::prepared_set(&sumner_files);
+    sumner.truncate(pairs + 1);
+    let (mut pt, mut ps) = (vec![], vec![]);
     let n = pairs.min(scan_shapes.len() - 1).min(bundled.len() - 1);
     let (mut bt, mut bs, mut st, mut ss) = (vec![], vec![], vec![], vec![]);
     let (mut bw, mut sw) = (vec![], vec![]);
@@ -162,6 +173,19 @@ fn main() {
             b.seconds, bwarm.seconds, b.finest, b.coarse, scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, swarm.seconds, s.finest, s.coarse,
             r.seconds, r.finest, r.coarse, s.cost.sqrt() / r.cost.sqrt() - 1.0
         );
+        if k + 1 < sumner.len() {
+            let p = solve(&sumner[k], &sumner[k + 1]);
+            eprintln!(
+                "pair {k}: Sumner face poses {} -> {} {:.2} s {} finest (+{} coarse)",
+                sumner[k].name,
+                sumner[k + 1].name,
+                p.seconds,
+                p.finest,
+                p.coarse
+            );
+            pt.push(p.seconds);
+            ps.push(p.finest as f64);
+        }
         rt.push(r.seconds);
         rs.push(r.finest as f64);
         rc.push((s.cost.sqrt() / r.cost.sqrt() - 1.0).abs());
@@ -187,6 +211,30 @@ fn main() {
         max(&ss),
         median(&st) / base
     );
+    if !pt.is_empty() {
+        println!(
+            "| Sumner face poses (prepared, shared markers) | {} | {} | {:.2} | {} / {} | {:.1} |",
+            sumner[0].disk.uv.len(),
+            pt.len(),
+            median(&pt),
+            median(&ps),
+            max(&ps),
+            median(&pt) / base
+        );
+        let mut all = st.clone();
+        all.extend(&pt);
+        println!(
+            "| all scan pairs above (median) | 29–30k | {} | {:.2} | | {:.1} |",
+            all.len(),
+            median(&all),
+            median(&all) / base
+        );
+    } else {
+        eprintln!(
+            "scan_bench: no Sumner face poses in {}",
+            scans::data_dir().join("outside/sumner_face_poses").display()
+        );
+    }
     let warm_base = median(&bw);
     println!(
         "| bundled faces, sources' averaged copies built (as in a distances run) | 9,412 | {n} | {warm_base:.2} | {} / {} | 1 |",

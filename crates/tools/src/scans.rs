@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use shapespace_analysis::distance::{prepare_shape, PreparedShape};
 use shapespace_analysis::pipeline::{markers_for, MarkerOptions};
+use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
 use shapespace_conformal::DiskMapParams;
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
 use shapespace_geometry::TriMesh;
@@ -30,6 +31,59 @@ pub fn facefuns_files() -> Vec<PathBuf> {
         .unwrap_or_default();
     files.sort();
     files
+}
+
+/// The Sumner & Popović face poses (29,299–29,300 vertices; one face in nine expressions, the
+/// mouth a second boundary loop that `prepare` fills), sorted by name; empty when absent.
+pub fn sumner_face_files() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(data_dir().join("outside/sumner_face_poses"))
+        .map(|d| {
+            d.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "obj"))
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    files
+}
+
+/// The files prepared as `shapespace prepare` leaves them and mapped as `shapespace distances`
+/// maps them, with the automatic markers shared by the files of one triangulation (chosen on
+/// their mean shape, [`share_auto_markers`]); a file whose map fails is left out with a
+/// message naming it.
+pub fn prepared_set(files: &[PathBuf]) -> Vec<PreparedShape> {
+    let meshes: Vec<(String, TriMesh)> = files
+        .iter()
+        .map(|f| (f.file_stem().unwrap().to_string_lossy().to_string(), disk_mesh(f)))
+        .collect();
+    let own: Vec<_> = files
+        .iter()
+        .zip(&meshes)
+        .map(|(f, (_, m))| markers_for(f, &MarkerOptions::default(), m.num_vertices()).unwrap().0)
+        .collect();
+    let inputs: Vec<MarkerInput<'_>> = meshes
+        .iter()
+        .zip(&own)
+        .map(|((name, mesh), markers)| MarkerInput { name, mesh, markers })
+        .collect();
+    let shared = share_auto_markers(&inputs);
+    meshes
+        .iter()
+        .zip(own.iter().zip(shared))
+        .filter_map(|((name, mesh), (own, shared))| {
+            let markers = shared.map_or_else(|| own.clone(), |s| s.markers);
+            match prepare_shape(name, mesh, &markers, &DiskMapParams::default()) {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    eprintln!(
+                        "{name} left out: {}",
+                        e.to_string().chars().take(100).collect::<String>()
+                    );
+                    None
+                }
+            }
+        })
+        .collect()
 }
 
 /// The file as `shapespace prepare` leaves it (a disk).
