@@ -250,3 +250,48 @@ fn a_target_with_coincident_vertex_images_converges() {
         d.iterations
     );
 }
+
+/// A file whose conformal map needs the region repair (a Tutte re-embedding, not conformal
+/// there) says so in its report, so that `distances` can warn about it: the prepared Sumner face
+/// pose 4 (its caps and needles fold the Green's-function map and BFF's; the repair moves
+/// several hundred vertices), against a bundled face whose map needs no repair.
+#[test]
+fn a_map_repaired_by_a_tutte_region_is_reported() {
+    let Some(dir) = shapespace_test_support::shared_root() else {
+        return;
+    };
+    let tmp = std::env::temp_dir().join(format!("shapespace-repaired-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let mesh = shapespace_geometry::io::read_mesh(&dir.join("outside/sumner_face_poses/pose4.obj")).unwrap();
+    let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
+    let pose = tmp.join("pose4.obj");
+    shapespace_geometry::io::write_obj(&pose, &prepared).unwrap();
+    let face = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_neutral.obj");
+    let paths = vec![pose, face];
+    let names = vec!["pose4".to_string(), "id00_neutral".to_string()];
+    let inputs = shapespace_analysis::distances::inputs::prepare_inputs(
+        &paths,
+        None,
+        &names,
+        &DistancesOptions::default(),
+        &|_, _, _| {},
+    )
+    .unwrap()
+    .inputs;
+    assert!(
+        inputs.iter().all(|r| r.ok),
+        "{:?}",
+        inputs.iter().map(|r| &r.error).collect::<Vec<_>>()
+    );
+    let moved = inputs[0]
+        .conformal_repair_moved
+        .expect("pose4's map needs the region repair");
+    assert!(
+        moved >= 100 && moved < prepared.num_vertices() / 10,
+        "{moved} vertices moved"
+    );
+    let method = inputs[0].conformal_method.as_deref().unwrap();
+    assert!(method.contains(&format!("{moved} moved")), "{method}");
+    assert_eq!(inputs[1].conformal_repair_moved, None);
+    std::fs::remove_dir_all(&tmp).ok();
+}

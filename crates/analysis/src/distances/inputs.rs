@@ -260,6 +260,7 @@ pub fn prepare_inputs(
                         flipped_faces: Some(figures.flipped_faces),
                         bff_fallback_after_green_folds: figures.bff_fallback_after_green_folds,
                         conformal_method: Some(shape.disk.info.method.clone()),
+                        conformal_repair_moved: shape.disk.info.region_repair.as_ref().map(|r| r.vertices_moved),
                         ..failed_report(name, path, sha256, seconds, String::new())
                     };
                     (Some(shape), report)
@@ -550,6 +551,7 @@ fn failed_report(name: &str, path: &Path, sha256: Option<String>, seconds: f64, 
         flipped_faces: None,
         bff_fallback_after_green_folds: None,
         conformal_method: None,
+        conformal_repair_moved: None,
     }
 }
 

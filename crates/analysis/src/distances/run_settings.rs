@@ -106,6 +106,11 @@ pub struct ShapeReport {
     /// the vertices it moved included); None for a file that failed.
     #[serde(default)]
     pub conformal_method: Option<String>,
+    /// Vertices the disk map's region repair moved (a Tutte re-embedding of the folds its local
+    /// repair left: not conformal there, and the densities there are the repair's); absent
+    /// when it did not run. `distances` warns about such files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conformal_repair_moved: Option<usize>,
 }
 
 /// The file in the output folder that holds the pairs finished so far while a run is going on,

@@ -449,6 +449,14 @@ fn print_summary(
     for warning in &r.marker_warnings {
         eprintln!("shapespace: warning: {warning}");
     }
+    for input in &r.inputs {
+        if let Some(moved) = input.conformal_repair_moved {
+            eprintln!(
+                "shapespace: warning: {}: its conformal map folded faces that only a Tutte re-embedding repaired ({moved} vertices moved: not conformal there, and the densities there are the repair's); its distances are less reliable and slower to solve (docs/your-meshes.md)",
+                input.path.display()
+            );
+        }
+    }
     // (an input's error starts with its path)
     for input in r.inputs.iter().filter(|i| !i.ok) {
         match &input.error {
