@@ -9,6 +9,15 @@ use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_conformal::{disk_map, DiskMapParams, Markers};
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
 
+/// The file as `shapespace prepare` leaves it, written as OBJ into `dir`: its path and mesh.
+fn prepared_copy(path: &Path, dir: &Path) -> (PathBuf, shapespace_geometry::TriMesh) {
+    let mesh = shapespace_geometry::io::read_mesh(path).unwrap();
+    let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
+    let out = dir.join(path.file_name().unwrap()).with_extension("obj");
+    shapespace_geometry::io::write_obj(&out, &prepared).unwrap();
+    (out, prepared)
+}
+
 fn files(dir: &Path, sub: &str, ext: &str) -> Vec<PathBuf> {
     let mut out: Vec<PathBuf> = std::fs::read_dir(dir.join(sub))
         .unwrap_or_else(|e| panic!("{}: {e}", dir.join(sub).display()))
@@ -173,14 +182,10 @@ fn expressions_sharing_one_connectivity_share_their_auto_markers() {
     };
     let tmp = std::env::temp_dir().join(format!("shapespace-outside-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
-    let mut paths = Vec::new();
-    for path in files(&dir, "goast/faces", "ply") {
-        let mesh = shapespace_geometry::io::read_mesh(&path).unwrap();
-        let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
-        let out = tmp.join(path.file_name().unwrap()).with_extension("obj");
-        shapespace_geometry::io::write_obj(&out, &prepared).unwrap();
-        paths.push(out);
-    }
+    let paths: Vec<PathBuf> = files(&dir, "goast/faces", "ply")
+        .iter()
+        .map(|path| prepared_copy(path, &tmp).0)
+        .collect();
     let run = run_distances(&paths, &tmp.join("run"), &DistancesOptions::default(), &|_, _, _| {}).unwrap();
     let markers: Vec<_> = run
         .report
@@ -253,7 +258,7 @@ fn a_target_with_coincident_vertex_images_converges() {
 
 /// A file whose conformal map needs the region repair (a Tutte re-embedding, not conformal
 /// there) says so in its report, so that `distances` can warn about it: the prepared Sumner face
-/// pose 4 (its caps and needles fold the Green's-function map and BFF's; the repair moves
+/// pose 4 (the creases of its closed mouth fold the Green's-function map and BFF's; the repair moves
 /// several hundred vertices), against a bundled face whose map needs no repair.
 #[test]
 fn a_map_repaired_by_a_tutte_region_is_reported() {
@@ -262,10 +267,7 @@ fn a_map_repaired_by_a_tutte_region_is_reported() {
     };
     let tmp = std::env::temp_dir().join(format!("shapespace-repaired-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
-    let mesh = shapespace_geometry::io::read_mesh(&dir.join("outside/sumner_face_poses/pose4.obj")).unwrap();
-    let (prepared, _, _) = prepare_disk(&mesh, &PrepareOptions::default()).unwrap();
-    let pose = tmp.join("pose4.obj");
-    shapespace_geometry::io::write_obj(&pose, &prepared).unwrap();
+    let (pose, prepared) = prepared_copy(&dir.join("outside/sumner_face_poses/pose4.obj"), &tmp);
     let face = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_neutral.obj");
     let paths = vec![pose, face];
     let names = vec!["pose4".to_string(), "id00_neutral".to_string()];

@@ -20,12 +20,13 @@ pub fn data_dir() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"))
 }
 
-/// The facefuns composite faces (30,204 vertices each), sorted by name; empty when absent.
-pub fn facefuns_files() -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(data_dir().join("outside/facefuns"))
+/// The files `outside/SUB/*.EXT` of the shared datasets folder, sorted by name; empty when
+/// absent.
+fn outside_files(sub: &str, ext: &str) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(data_dir().join("outside").join(sub))
         .map(|d| {
             d.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "ply"))
+                .filter(|p| p.extension().is_some_and(|x| x == ext))
                 .collect()
         })
         .unwrap_or_default();
@@ -33,18 +34,15 @@ pub fn facefuns_files() -> Vec<PathBuf> {
     files
 }
 
+/// The facefuns composite faces (30,204 vertices each), sorted by name; empty when absent.
+pub fn facefuns_files() -> Vec<PathBuf> {
+    outside_files("facefuns", "ply")
+}
+
 /// The Sumner & Popović face poses (29,299–29,300 vertices; one face in nine expressions, the
 /// mouth a second boundary loop that `prepare` fills), sorted by name; empty when absent.
 pub fn sumner_face_files() -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(data_dir().join("outside/sumner_face_poses"))
-        .map(|d| {
-            d.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "obj"))
-                .collect()
-        })
-        .unwrap_or_default();
-    files.sort();
-    files
+    outside_files("sumner_face_poses", "obj")
 }
 
 /// The files prepared as `shapespace prepare` leaves them and mapped as `shapespace distances`
