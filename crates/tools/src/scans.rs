@@ -7,8 +7,8 @@
 use std::path::PathBuf;
 
 use shapespace_analysis::distance::{prepare_shape, PreparedShape};
-use shapespace_analysis::pipeline::{markers_for, MarkerOptions};
-use shapespace_analysis::shared_markers::{share_auto_markers, MarkerInput};
+use shapespace_analysis::distances::inputs::{prepare_inputs, shape_names};
+use shapespace_analysis::pipeline::{markers_for, DistancesOptions, MarkerOptions};
 use shapespace_conformal::DiskMapParams;
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
 use shapespace_geometry::TriMesh;
@@ -45,41 +45,36 @@ pub fn sumner_face_files() -> Vec<PathBuf> {
     outside_files("sumner_face_poses", "obj")
 }
 
-/// The files prepared as `shapespace prepare` leaves them and mapped as `shapespace distances`
-/// maps them, with the automatic markers shared by the files of one triangulation (chosen on
-/// their mean shape, [`share_auto_markers`]); a file whose map fails is left out with a
-/// message naming it.
+/// The files prepared as `shapespace prepare` leaves them, then mapped and prepared as
+/// `shapespace distances` does ([`prepare_inputs`]: the automatic markers shared by the files
+/// of one triangulation, chosen on their mean shape); a file whose map fails is left out with
+/// a message naming it.
 pub fn prepared_set(files: &[PathBuf]) -> Vec<PreparedShape> {
-    let meshes: Vec<(String, TriMesh)> = files
-        .iter()
-        .map(|f| (f.file_stem().unwrap().to_string_lossy().to_string(), disk_mesh(f)))
-        .collect();
-    let own: Vec<_> = files
-        .iter()
-        .zip(&meshes)
-        .map(|(f, (_, m))| markers_for(f, &MarkerOptions::default(), m.num_vertices()).unwrap().0)
-        .collect();
-    let inputs: Vec<MarkerInput<'_>> = meshes
-        .iter()
-        .zip(&own)
-        .map(|((name, mesh), markers)| MarkerInput { name, mesh, markers })
-        .collect();
-    let shared = share_auto_markers(&inputs);
-    meshes
-        .iter()
-        .zip(own.iter().zip(shared))
-        .filter_map(|((name, mesh), (own, shared))| {
-            let markers = shared.map_or_else(|| own.clone(), |s| s.markers);
-            match prepare_shape(name, mesh, &markers, &DiskMapParams::default()) {
-                Ok(s) => Some(s),
-                Err(e) => {
-                    eprintln!(
-                        "{name} left out: {}",
-                        e.to_string().chars().take(100).collect::<String>()
-                    );
-                    None
-                }
+    let meshes: Vec<TriMesh> = files.iter().map(|f| disk_mesh(f)).collect();
+    let names = shape_names(files);
+    let prepared = prepare_inputs(
+        files,
+        Some(&meshes),
+        &names,
+        &DistancesOptions::default(),
+        &|_, _, _| {},
+    )
+    .unwrap();
+    prepared
+        .shapes
+        .into_iter()
+        .zip(&prepared.inputs)
+        .filter_map(|(shape, report)| {
+            let shape = shape.as_ref().and_then(|s| s.as_disk()).cloned();
+            if shape.is_none() {
+                let error = report.error.as_deref().unwrap_or("not a disk");
+                eprintln!(
+                    "{} left out: {}",
+                    report.name,
+                    error.chars().take(100).collect::<String>()
+                );
             }
+            shape
         })
         .collect()
 }
