@@ -807,7 +807,8 @@ fn nearest_rows(queries: MatRef<'_, f64>, points: MatRef<'_, f64>) -> Vec<u32> {
 /// about half the time; the cat test pair reference → 0002 went 0.0119 → 0.0120).
 fn nearest_rows_top<const R: usize>(queries: MatRef<'_, f64>, points: MatRef<'_, f64>) -> Vec<[u32; R]> {
     const BLOCK: usize = 128;
-    const CHUNK: usize = 16;
+    const CHUNK: usize = 32;
+    const LANES: usize = 8;
     let single = |m: MatRef<'_, f64>| Mat::<f32>::from_fn(m.nrows(), m.ncols(), |i, j| m[(i, j)] as f32);
     let (queries, points) = (single(queries), single(points));
     let n = points.nrows();
@@ -836,25 +837,37 @@ fn nearest_rows_top<const R: usize>(queries: MatRef<'_, f64>, points: MatRef<'_,
                         .expect("a column of an owned matrix")
                         .as_slice();
                     let mut best = [(f32::INFINITY, 0u32); R];
-                    // by chunks: the chunk's smallest ‖t‖² − 2 q·t first (vectorized), the
-                    // insertion only for a chunk that holds a candidate (same order, same result)
-                    for (c, chunk) in norms.chunks(CHUNK).enumerate() {
-                        let base = c * CHUNK;
-                        let s = |k: usize| chunk[k] - 2.0 * column[base + k];
-                        let lowest = (0..chunk.len()).fold(f32::INFINITY, |lo, k| lo.min(s(k)));
+                    let insert = |best: &mut [(f32, u32); R], s: f32, w: usize| {
+                        if s < best[R - 1].0 {
+                            let mut j = R - 1;
+                            while j > 0 && s < best[j - 1].0 {
+                                best[j] = best[j - 1];
+                                j -= 1;
+                            }
+                            best[j] = (s, w as u32);
+                        }
+                    };
+                    // by chunks: the chunk's smallest ‖t‖² − 2 q·t first (in lanes, vectorized),
+                    // the insertion only for a chunk that holds a candidate (same order, same result)
+                    let whole = n - n % CHUNK;
+                    for base in (0..whole).step_by(CHUNK) {
+                        let norms: &[f32; CHUNK] = norms[base..base + CHUNK].try_into().expect("a whole chunk");
+                        let dots: &[f32; CHUNK] = column[base..base + CHUNK].try_into().expect("a whole chunk");
+                        let mut lanes = [f32::INFINITY; LANES];
+                        for k in 0..CHUNK {
+                            let s = norms[k] - 2.0 * dots[k];
+                            let l = &mut lanes[k % LANES];
+                            *l = if s < *l { s } else { *l };
+                        }
+                        let lowest = lanes.iter().fold(f32::INFINITY, |a, &b| if b < a { b } else { a });
                         if lowest < best[R - 1].0 {
-                            for k in 0..chunk.len() {
-                                let s = s(k);
-                                if s < best[R - 1].0 {
-                                    let mut j = R - 1;
-                                    while j > 0 && s < best[j - 1].0 {
-                                        best[j] = best[j - 1];
-                                        j -= 1;
-                                    }
-                                    best[j] = (s, (base + k) as u32);
-                                }
+                            for k in 0..CHUNK {
+                                insert(&mut best, norms[k] - 2.0 * dots[k], base + k);
                             }
                         }
+                    }
+                    for w in whole..n {
+                        insert(&mut best, norms[w] - 2.0 * column[w], w);
                     }
                     let first = best[0].1;
                     best.map(|(s, w)| if s.is_finite() { w } else { first })
