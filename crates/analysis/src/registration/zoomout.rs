@@ -176,7 +176,8 @@ pub struct ZoomOutParams {
     pub k_starts: Vec<usize>,
     /// Last spectral size: the eigenpairs computed per mesh (default 120).
     pub k_end: usize,
-    /// Increment of k (default 4).
+    /// Increment of k (default 8: on the five bench classes as accurate as 4 or more, in 7–19 %
+    /// less time; decision 0057).
     pub k_step: usize,
     /// Source vertices the steps below `k_end` run on (default 2,000; all when fewer).
     pub samples: usize,
@@ -207,7 +208,7 @@ impl Default for ZoomOutParams {
         ZoomOutParams {
             k_starts: vec![20, 8],
             k_end: 120,
-            k_step: 4,
+            k_step: 8,
             samples: 2000,
             output: ZoomOutOutput::Auto,
             eigen: EigenParams {
