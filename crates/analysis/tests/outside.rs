@@ -9,6 +9,13 @@ use shapespace_analysis::pipeline::{run_distances, DistancesOptions};
 use shapespace_conformal::{disk_map, DiskMapParams, Markers};
 use shapespace_geometry::prepare::{prepare_disk, PrepareOptions};
 
+/// A fresh folder of this test process under the system's temporary folder.
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("shapespace-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// The file as `shapespace prepare` leaves it, written as OBJ into `dir`: its path and mesh.
 fn prepared_copy(path: &Path, dir: &Path) -> (PathBuf, shapespace_geometry::TriMesh) {
     let mesh = shapespace_geometry::io::read_mesh(path).unwrap();
@@ -180,8 +187,7 @@ fn expressions_sharing_one_connectivity_share_their_auto_markers() {
     let Some(dir) = shapespace_test_support::shared_root() else {
         return;
     };
-    let tmp = std::env::temp_dir().join(format!("shapespace-outside-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp).unwrap();
+    let tmp = scratch_dir("outside");
     let paths: Vec<PathBuf> = files(&dir, "goast/faces", "ply")
         .iter()
         .map(|path| prepared_copy(path, &tmp).0)
@@ -265,8 +271,7 @@ fn a_map_repaired_by_a_tutte_region_is_reported() {
     let Some(dir) = shapespace_test_support::shared_root() else {
         return;
     };
-    let tmp = std::env::temp_dir().join(format!("shapespace-repaired-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp).unwrap();
+    let tmp = scratch_dir("repaired");
     let (pose, prepared) = prepared_copy(&dir.join("outside/sumner_face_poses/pose4.obj"), &tmp);
     let face = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/faces/id00_neutral.obj");
     let paths = vec![pose, face];

@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use shapespace_analysis::distance::{prepare_shape, PreparedShape};
+use shapespace_analysis::distance::{prepare_shape, Prepared, PreparedShape};
 use shapespace_analysis::distances::inputs::{prepare_inputs, shape_names};
 use shapespace_analysis::pipeline::{markers_for, DistancesOptions, MarkerOptions};
 use shapespace_conformal::DiskMapParams;
@@ -64,17 +64,17 @@ pub fn prepared_set(files: &[PathBuf]) -> Vec<PreparedShape> {
         .shapes
         .into_iter()
         .zip(&prepared.inputs)
-        .filter_map(|(shape, report)| {
-            let shape = shape.as_ref().and_then(|s| s.as_disk()).cloned();
-            if shape.is_none() {
+        .filter_map(|(shape, report)| match shape {
+            Some(Prepared::Disk(shape)) => Some(*shape),
+            _ => {
                 let error = report.error.as_deref().unwrap_or("not a disk");
                 eprintln!(
                     "{} left out: {}",
                     report.name,
                     error.chars().take(100).collect::<String>()
                 );
+                None
             }
-            shape
         })
         .collect()
 }
