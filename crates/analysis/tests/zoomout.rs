@@ -32,7 +32,7 @@ fn setup() -> (MarkerFile, Landmarks, RegistrationParams) {
 }
 
 /// wolf0 → wolf1: the OMT registration has mean geodesic error 0.0207 (of √area); ZoomOut
-/// from it (k 20 → 120) measured 0.0010. Asserted: at least 4× lower than the first stage and
+/// from it (k 20 → 120) measured 0.0007. Asserted: at least 4× lower than the first stage and
 /// below 0.004; the refined map also folds less than 1% of the area (measured 0.01%).
 #[test]
 fn zoomout_refines_the_wolf_pair() {
@@ -117,8 +117,8 @@ fn a_moved_and_scaled_copy_maps_to_itself() {
 
 /// wolf0 → wolf1 with the 3D untangling of the vertex map (the default) against without it
 /// (`sweeps` = 0), from the same first stage and bases, the untangling with points after it
-/// off in both: measured 0.03 % against 0.35 % flipped
-/// 3D area and mean geodesic error 0.0010 against 0.0017. Asserted: flipped area below 0.1 %
+/// off in both: measured 0.02 % against 0.24 % flipped
+/// 3D area and mean geodesic error 0.0007 against 0.0013. Asserted: flipped area below 0.1 %
 /// and at most half of the untangled-off figure, geodesic error not larger, and the pass's own
 /// count of flipped faces down at least 5×.
 #[test]

@@ -37,9 +37,13 @@
 //! 0.0322, w = 10: 0.0203, w = 30: 0.0837; the wolf pair 0.0010 for w = 0, 1 and 3, 0.0013 for
 //! w = 10; decision 0031).
 //!
-//! Speed: the steps below `k_end` fit C on a fixed sample of `samples` source vertices (mass-
-//! weighted least squares); the last step maps every source vertex. The nearest neighbour of a
-//! query is searched approximately: the [`STARTS`] nearest of `samples` target samples (by
+//! Speed: the steps below `k_end` fit C on `samples` source vertices spread by farthest-point
+//! sampling in space, each weighted by the lumped mass of the vertices nearest to it (weighted
+//! least squares: a quadrature of the M_S inner product that covers thin limbs as well as the
+//! body; uniform random samples left the paws and tails few of them, decision 0058); the last
+//! step maps every source vertex. The nearest neighbour of a
+//! query is searched approximately: the [`STARTS`] nearest of `samples` target samples (spread
+//! the same way; by
 //! blocks of dense products ‖t‖² − 2 q·t in single precision) and the query's current image
 //! start a steepest descent along the target's edges (each point's distance evaluated once per
 //! query, a descent stopped where it meets an earlier one's path), the best end wins. Exact
@@ -70,7 +74,6 @@ use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
 use crate::geodesic::HeatGeodesics;
-use crate::registration::metrics::sample_indices;
 use crate::registration::untangle::{
     untangle_vertex_map, PointUntangleParams, VertexMapUntangleInfo, VertexMapUntangleParams,
 };
@@ -179,7 +182,9 @@ pub struct ZoomOutParams {
     /// Increment of k (default 8: on the five bench classes within 3 % of the errors with 4 or
     /// below them, in up to 19 % less time; decision 0057).
     pub k_step: usize,
-    /// Source vertices the steps below `k_end` run on (default 2,000; all when fewer).
+    /// Source vertices the steps below `k_end` run on, and target vertices the nearest-neighbour
+    /// search starts from: farthest-point samples weighted by the mass nearest to each (module
+    /// docs; default 2,000; all when fewer).
     pub samples: usize,
     /// Vertex map or projected points (default `Auto`: the vertex map between meshes of one
     /// triangulation, projected points otherwise; decision 0056).
@@ -319,7 +324,7 @@ pub fn zoomout(
     check_inputs(source, target, source_basis, target_basis, seed, landmarks, params)?;
     let k_end = params.k_end;
     let (lm_s, lm_t, landmarks_dropped) = landmark_columns(source, target, landmarks, seed, params)?;
-    let samples: Vec<u32> = sample_indices(n1, params.samples.max(1), 0x200d_0017);
+    let (samples, sample_weights) = spread_samples(source, &source_basis.mass, params.samples.max(1));
     let conn = Connectivity::of(target);
     let space = SpectralSpace {
         n1,
@@ -329,13 +334,21 @@ pub fn zoomout(
         nl: lm_s.ncols(),
         lm_s,
         lm_t,
-        target_samples: sample_indices(n2, params.samples.max(1), 0x200d_0018),
+        target_samples: spread_samples(target, &target_basis.mass, params.samples.max(1)).0,
         neighbors: conn.vertex_neighbors(n2),
     };
     let mut runs = Vec::with_capacity(params.k_starts.len());
     let mut kept: Option<(ZoomOutPass, usize)> = None;
     for &k_start in &params.k_starts {
-        let pass = space.run(&source_basis.mass, &samples, seed, k_start, params.k_step, k_end);
+        let pass = space.run(
+            &source_basis.mass,
+            &samples,
+            &sample_weights,
+            seed,
+            k_start,
+            params.k_step,
+            k_end,
+        );
         runs.push(ZoomOutRun {
             k_start,
             residual: pass.residual,
@@ -475,12 +488,13 @@ struct ZoomOutPass {
 
 impl SpectralSpace<'_> {
     /// ZoomOut from the seed map with k from `k_start` to `k_end` by `k_step` (module docs): the
-    /// steps below `k_end` on the `samples`, the last one on every source vertex; the residual
-    /// E weighted by the source's lumped `mass`.
+    /// steps below `k_end` on the `samples` (quadrature `weights`), the last one on every source
+    /// vertex; the residual E weighted by the source's lumped `mass`.
     fn run(
         &self,
         mass: &[f64],
         samples: &[u32],
+        weights: &[f64],
         seed: &[u32],
         k_start: usize,
         k_step: usize,
@@ -491,7 +505,7 @@ impl SpectralSpace<'_> {
         let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
         let mut c = Mat::<f64>::zeros(0, 0);
         for (step, &k) in sizes.iter().enumerate() {
-            c = functional_map(self.phi_s, mass, self.phi_t, samples, &map_samples, k);
+            c = functional_map(self.phi_s, weights, mass, self.phi_t, samples, &map_samples, k);
             if step + 1 < sizes.len() {
                 let (q, p) = self.embed(Some(samples), &c, k);
                 map_samples = self.nearest(q.as_ref(), p.as_ref(), &map_samples);
@@ -740,13 +754,14 @@ fn sample_rows(phi: MatRef<'_, f64>, rows: &[u32], k: usize) -> Mat<f64> {
     Mat::<f64>::from_fn(rows.len(), k, |i, j| phi[(rows[i] as usize, j)])
 }
 
-/// C_k = argmin_C ‖W^{1/2}(Φ_S[samples] C − Φ_T[map])‖ with W the samples' masses: the
-/// weighted least-squares functional map, k × k, from the normal equations
+/// C_k = argmin_C ‖W^{1/2}(Φ_S[samples] C − Φ_T[map])‖ with W the samples' quadrature
+/// `weights`: the weighted least-squares functional map, k × k, from the normal equations
 /// (AᵀWA) C = AᵀW B by Cholesky (with every vertex a sample AᵀWA = I and C = Φ_Sᵀ M Π Φ_T).
-/// Falls back to the plain product AᵀWB (rescaled to the total mass) if AᵀWA is not definite
+/// Falls back to the plain product AᵀWB (rescaled to the total `mass`) if AᵀWA is not definite
 /// (fewer samples than k).
 fn functional_map(
     phi_s: MatRef<'_, f64>,
+    weights: &[f64],
     mass: &[f64],
     phi_t: MatRef<'_, f64>,
     samples: &[u32],
@@ -754,7 +769,7 @@ fn functional_map(
     k: usize,
 ) -> Mat<f64> {
     let a = sample_rows(phi_s, samples, k);
-    let wa = Mat::<f64>::from_fn(samples.len(), k, |i, j| mass[samples[i] as usize] * a[(i, j)]);
+    let wa = Mat::<f64>::from_fn(samples.len(), k, |i, j| weights[i] * a[(i, j)]);
     let b = sample_rows(phi_t, map, k);
     let mut c = Mat::<f64>::zeros(k, k);
     matmul(
@@ -781,11 +796,64 @@ fn functional_map(
         }
         Err(_) => {
             let total: f64 = mass.iter().sum();
-            let sampled: f64 = samples.iter().map(|&v| mass[v as usize]).sum();
+            let sampled: f64 = weights.iter().sum();
             c *= faer::Scale(total / sampled);
         }
     }
     c
+}
+
+/// `k` vertices of `mesh` spread by farthest-point sampling in space (from the vertex nearest
+/// the centroid), sorted, each with the mass (`mass`, #V) of the vertices nearest to it: a
+/// quadrature of the mesh's inner product on the samples. All vertices, with their own
+/// masses, when k ≥ #V; fewer than k when the vertices have fewer distinct positions.
+fn spread_samples(mesh: &TriMesh, mass: &[f64], k: usize) -> (Vec<u32>, Vec<f64>) {
+    let n = mesh.num_vertices();
+    if k >= n {
+        return ((0..n as u32).collect(), mass.to_vec());
+    }
+    let p = &mesh.positions;
+    let d2 = |a: [f64; 3], b: [f64; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
+    let c = p
+        .iter()
+        .fold([0.0; 3], |s, q| [s[0] + q[0], s[1] + q[1], s[2] + q[2]])
+        .map(|x| x / n as f64);
+    let first = (0..n).min_by(|&a, &b| d2(p[a], c).total_cmp(&d2(p[b], c))).unwrap_or(0);
+    let mut nearest = vec![f64::INFINITY; n];
+    let mut owner = vec![0u32; n];
+    let mut chosen = Vec::with_capacity(k);
+    let mut next = first;
+    for s in 0..k {
+        if s > 0 && nearest[next] <= 0.0 {
+            // every vertex left coincides with a sample
+            break;
+        }
+        chosen.push(next as u32);
+        let q = p[next];
+        let (mut far, mut far_d) = (0, -1.0);
+        for v in 0..n {
+            let d = d2(p[v], q);
+            if d < nearest[v] {
+                nearest[v] = d;
+                owner[v] = s as u32;
+            }
+            if nearest[v] > far_d {
+                far_d = nearest[v];
+                far = v;
+            }
+        }
+        next = far;
+    }
+    let mut weights = vec![0.0; chosen.len()];
+    for v in 0..n {
+        weights[owner[v] as usize] += mass[v];
+    }
+    let mut order: Vec<usize> = (0..chosen.len()).collect();
+    order.sort_unstable_by_key(|&i| chosen[i]);
+    (
+        order.iter().map(|&i| chosen[i]).collect(),
+        order.iter().map(|&i| weights[i]).collect(),
+    )
 }
 
 /// Starts of the descent per query from the target samples: the nearest ones.
@@ -987,6 +1055,7 @@ pub fn nearest_corner_map(target: &TriMesh, faces: &[u32], bary: &[[f64; 3]]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::registration::metrics::sample_indices;
 
     #[test]
     fn closest_point_on_a_triangle_in_four_dimensions() {
@@ -1006,6 +1075,98 @@ mod tests {
         // beyond a corner
         let (b, _) = closest_point_on_triangle(&p, &[-1.0, -2.0, 0.0, 0.0], 4);
         assert_eq!(b, [1.0, 0.0, 0.0]);
+    }
+
+    /// A 21 × 21 grid on [0, 1]² and a thin strip of 40 × 2 vertices reaching to x = 3 (both
+    /// spacing 0.05, jittered by up to 1e-3 so that no vertex is equidistant from two samples),
+    /// with unit masses.
+    fn square_and_strip() -> (TriMesh, Vec<f64>) {
+        let mut jitter = uniform(11);
+        let mut positions = Vec::new();
+        let mut faces = Vec::new();
+        let mut grid = |nx: usize, ny: usize, x0: f64, y0: f64| {
+            let base = positions.len() as u32;
+            for j in 0..ny {
+                for i in 0..nx {
+                    positions.push([
+                        x0 + 0.05 * i as f64 + 2e-3 * jitter(),
+                        y0 + 0.05 * j as f64 + 2e-3 * jitter(),
+                        0.0,
+                    ]);
+                }
+            }
+            for j in 0..ny - 1 {
+                for i in 0..nx - 1 {
+                    let v = base + (j * nx + i) as u32;
+                    let nx = nx as u32;
+                    faces.push([v, v + 1, v + nx + 1]);
+                    faces.push([v, v + nx + 1, v + nx]);
+                }
+            }
+        };
+        grid(21, 21, 0.0, 0.0);
+        grid(40, 2, 1.05, 0.5);
+        let n = positions.len();
+        (TriMesh::new(positions, faces).unwrap(), vec![1.0; n])
+    }
+
+    fn covering_radius(mesh: &TriMesh, samples: &[u32]) -> f64 {
+        let d = |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+        mesh.positions
+            .iter()
+            .map(|&p| {
+                samples
+                    .iter()
+                    .map(|&s| d(p, mesh.positions[s as usize]))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Farthest-point samples cover the thin strip as well as the square (uniform random ones
+    /// of the same size leave gaps more than twice as wide), and their weights are the masses of
+    /// the vertices nearest to each (a brute-force check), summing to the total.
+    #[test]
+    fn spread_samples_cover_thin_parts_and_weigh_their_nearest_vertices() {
+        let (mesh, mass) = square_and_strip();
+        let n = mesh.num_vertices();
+        let (samples, weights) = spread_samples(&mesh, &mass, 60);
+        assert_eq!(samples.len(), 60);
+        assert!(samples.windows(2).all(|w| w[0] < w[1]), "sorted and distinct");
+        let spread = covering_radius(&mesh, &samples);
+        let random = covering_radius(&mesh, &sample_indices(n, 60, 0x200d_0017));
+        assert!(spread < 0.2, "covering radius {spread}");
+        assert!(random > 2.0 * spread, "random {random} against spread {spread}");
+        let on_strip = samples
+            .iter()
+            .filter(|&&s| mesh.positions[s as usize][0] > 1.025)
+            .count();
+        assert!(on_strip >= 5, "{on_strip} samples on the strip");
+        let mut expected = vec![0.0; samples.len()];
+        for (v, p) in mesh.positions.iter().enumerate() {
+            let d = |s: u32| {
+                let q = mesh.positions[s as usize];
+                (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)
+            };
+            let nearest = (0..samples.len())
+                .min_by(|&a, &b| d(samples[a]).total_cmp(&d(samples[b])))
+                .unwrap();
+            expected[nearest] += mass[v];
+        }
+        assert_eq!(weights, expected);
+        assert_eq!(weights.iter().sum::<f64>(), n as f64);
+        // every vertex, with its own mass, when asked for as many samples as vertices or more
+        let masses: Vec<f64> = (0..n).map(|v| 1.0 + v as f64 / n as f64).collect();
+        let (all, own) = spread_samples(&mesh, &masses, n + 5);
+        assert_eq!(all, (0..n as u32).collect::<Vec<_>>());
+        assert_eq!(own, masses);
+        // four distinct positions, each twice: four samples, each with both copies' mass
+        let square = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let twice: Vec<[f64; 3]> = square.iter().chain(&square).copied().collect();
+        let doubled = TriMesh::new(twice, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]).unwrap();
+        let (four, w) = spread_samples(&doubled, &[1.0; 8], 6);
+        assert_eq!(four.len(), 4);
+        assert_eq!(w, vec![2.0; 4]);
     }
 
     /// A seeded generator of uniform numbers in [−0.5, 0.5) (a linear congruential sequence).
