@@ -334,21 +334,15 @@ pub fn zoomout(
         nl: lm_s.ncols(),
         lm_s,
         lm_t,
+        samples,
+        sample_weights,
         target_samples: spread_samples(target, &target_basis.mass, params.samples.max(1)).0,
         neighbors: conn.vertex_neighbors(n2),
     };
     let mut runs = Vec::with_capacity(params.k_starts.len());
     let mut kept: Option<(ZoomOutPass, usize)> = None;
     for &k_start in &params.k_starts {
-        let pass = space.run(
-            &source_basis.mass,
-            &samples,
-            &sample_weights,
-            seed,
-            k_start,
-            params.k_step,
-            k_end,
-        );
+        let pass = space.run(&source_basis.mass, seed, k_start, params.k_step, k_end);
         runs.push(ZoomOutRun {
             k_start,
             residual: pass.residual,
@@ -462,8 +456,9 @@ fn landmark_columns(
 }
 
 /// The spectral embedding of [`zoomout`]'s nearest-neighbour steps: both bases, the landmark
-/// coordinates (`nl` columns), the target samples the coarse search starts from and the
-/// target's vertex neighbours the descent walks along.
+/// coordinates (`nl` columns), the source samples the steps below `k_end` fit C on (with their
+/// quadrature weights), the target samples the coarse search starts from and the target's
+/// vertex neighbours the descent walks along.
 struct SpectralSpace<'a> {
     n1: usize,
     n2: usize,
@@ -472,6 +467,8 @@ struct SpectralSpace<'a> {
     nl: usize,
     lm_s: Mat<f64>,
     lm_t: Mat<f64>,
+    samples: Vec<u32>,
+    sample_weights: Vec<f64>,
     target_samples: Vec<u32>,
     neighbors: Vec<Vec<u32>>,
 }
@@ -488,18 +485,10 @@ struct ZoomOutPass {
 
 impl SpectralSpace<'_> {
     /// ZoomOut from the seed map with k from `k_start` to `k_end` by `k_step` (module docs): the
-    /// steps below `k_end` on the `samples` (quadrature `weights`), the last one on every source
-    /// vertex; the residual E weighted by the source's lumped `mass`.
-    fn run(
-        &self,
-        mass: &[f64],
-        samples: &[u32],
-        weights: &[f64],
-        seed: &[u32],
-        k_start: usize,
-        k_step: usize,
-        k_end: usize,
-    ) -> ZoomOutPass {
+    /// steps below `k_end` on the samples (with their quadrature weights), the last one on every
+    /// source vertex; the residual E weighted by the source's lumped `mass`.
+    fn run(&self, mass: &[f64], seed: &[u32], k_start: usize, k_step: usize, k_end: usize) -> ZoomOutPass {
+        let (samples, weights) = (&self.samples, &self.sample_weights);
         let mut sizes: Vec<usize> = (k_start..k_end).step_by(k_step).collect();
         sizes.push(k_end);
         let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
