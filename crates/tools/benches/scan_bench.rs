@@ -16,8 +16,9 @@
 //!   before that fix);
 //! - `--100k`: one facefuns pair subdivided once by edge midpoints (120k vertices), and the
 //!   peak memory of the process (VmHWM of /proc/self/status) from the subdivided scans'
-//!   preparation to the end of their pair (the other scans dropped and the peak reset first;
-//!   the whole run's peak where the kernel refuses the reset);
+//!   preparation to the end of their pair (the other scans and the Sumner poses dropped and
+//!   the peak reset first, the memory still in use then printed beside it; the whole run's
+//!   peak where the kernel refuses the reset);
 //! - `--quant`: the scan pairs again with `--target-points N` for N = 20000, 10000, 5000,
 //!   2000: the distances' relative error against full resolution (with the second-order
 //!   correction, as the distances report it, and with the block model C_q − V) and the time;
@@ -71,11 +72,16 @@ fn solve(a: &PreparedShape, b: &PreparedShape) -> Solve {
 }
 
 fn vm_hwm_mb() -> f64 {
+    vm_status_mb("VmHWM:")
+}
+
+/// A memory figure of /proc/self/status (`VmHWM:`, `VmRSS:`) in MB (NaN where there is none).
+fn vm_status_mb(key: &str) -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
             s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
+                .find(|l| l.starts_with(key))
                 .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
         })
         .map_or(f64::NAN, |kb| kb / 1024.0)
@@ -354,8 +360,9 @@ fn main() {
     if with_100k {
         // the 100k pair's own peak: the scan shapes go, and the peak (VmHWM) is reset when the
         // kernel allows it (writing 5 to /proc/self/clear_refs)
-        drop((scan_shapes, scan_solves));
+        drop((scan_shapes, scan_solves, sumner));
         let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
+        let before = vm_status_mb("VmRSS:");
         // the first two scans whose subdivision maps (the conformal map refuses some)
         let mut fine: Vec<PreparedShape> = Vec::new();
         for (name, path, mesh) in &scan_meshes {
@@ -399,7 +406,7 @@ fn main() {
         );
         if reset {
             println!(
-                "\npeak memory (VmHWM) from the subdivided scans' preparation to the end of their pair: {:.0} MB",
+                "\npeak memory (VmHWM) from the subdivided scans' preparation to the end of their pair: {:.0} MB, of which {before:.0} MB were in use before (the bundled faces, the raw scans)",
                 vm_hwm_mb()
             );
         } else {
