@@ -70,6 +70,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use shapespace_geometry::quantities::vertex_dual_areas;
 use shapespace_geometry::spectral::{laplace_beltrami_eigenpairs, EigenParams};
+use shapespace_geometry::vec3::{add, norm2, sub};
 use shapespace_geometry::{Connectivity, TriMesh};
 
 use crate::error::AnalysisError;
@@ -494,7 +495,7 @@ impl SpectralSpace<'_> {
         let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
         let mut c = Mat::<f64>::zeros(0, 0);
         for (step, &k) in sizes.iter().enumerate() {
-            c = functional_map(self.phi_s, weights, mass, self.phi_t, samples, &map_samples, k);
+            c = functional_map(self.phi_s, weights, self.phi_t, samples, &map_samples, k);
             if step + 1 < sizes.len() {
                 let (q, p) = self.embed(Some(samples), &c, k);
                 map_samples = self.nearest(q.as_ref(), p.as_ref(), &map_samples);
@@ -746,12 +747,11 @@ fn sample_rows(phi: MatRef<'_, f64>, rows: &[u32], k: usize) -> Mat<f64> {
 /// C_k = argmin_C ‖W^{1/2}(Φ_S[samples] C − Φ_T[map])‖ with W the samples' quadrature
 /// `weights`: the weighted least-squares functional map, k × k, from the normal equations
 /// (AᵀWA) C = AᵀW B by Cholesky (with every vertex a sample AᵀWA = I and C = Φ_Sᵀ M Π Φ_T).
-/// Falls back to the plain product AᵀWB (rescaled to the total `mass`) if AᵀWA is not definite
-/// (fewer samples than k).
+/// Falls back to the plain product AᵀWB if AᵀWA is not definite (fewer samples than k); the
+/// weights sum to the total mass ([`spread_samples`]), so that product is the M_S one's estimate.
 fn functional_map(
     phi_s: MatRef<'_, f64>,
     weights: &[f64],
-    mass: &[f64],
     phi_t: MatRef<'_, f64>,
     samples: &[u32],
     map: &[u32],
@@ -778,16 +778,9 @@ fn functional_map(
         1.0,
         Par::rayon(0),
     );
-    match normal.llt(faer::Side::Lower) {
-        Ok(llt) => {
-            use faer::linalg::solvers::Solve;
-            llt.solve_in_place(c.as_mut());
-        }
-        Err(_) => {
-            let total: f64 = mass.iter().sum();
-            let sampled: f64 = weights.iter().sum();
-            c *= faer::Scale(total / sampled);
-        }
+    if let Ok(llt) = normal.llt(faer::Side::Lower) {
+        use faer::linalg::solvers::Solve;
+        llt.solve_in_place(c.as_mut());
     }
     c
 }
@@ -802,11 +795,8 @@ fn spread_samples(mesh: &TriMesh, mass: &[f64], k: usize) -> (Vec<u32>, Vec<f64>
         return ((0..n as u32).collect(), mass.to_vec());
     }
     let p = &mesh.positions;
-    let d2 = |a: [f64; 3], b: [f64; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
-    let c = p
-        .iter()
-        .fold([0.0; 3], |s, q| [s[0] + q[0], s[1] + q[1], s[2] + q[2]])
-        .map(|x| x / n as f64);
+    let d2 = |a: [f64; 3], b: [f64; 3]| norm2(sub(a, b));
+    let c = p.iter().fold([0.0; 3], |s, &q| add(s, q)).map(|x| x / n as f64);
     let first = (0..n).min_by(|&a, &b| d2(p[a], c).total_cmp(&d2(p[b], c))).unwrap_or(0);
     let mut nearest = vec![f64::INFINITY; n];
     let mut owner = vec![0u32; n];
