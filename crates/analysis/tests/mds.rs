@@ -275,7 +275,7 @@ fn smacof_is_scale_equivariant() {
     }
 }
 
-/// Timing table for the report: `cargo test --release -p shapespace-analysis --test mds -- --ignored --nocapture`.
+/// Timing table for the report: `cargo test --release -p shapespace-analysis --test integration mds:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn bench_mds_timing() {

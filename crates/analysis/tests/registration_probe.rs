@@ -1,5 +1,5 @@
 //! Probe (ignored): harmonic-map variants of the registration on the wolf poses, OMT and
-//! conformal disk maps. `cargo test --release -p shapespace-analysis --test registration_probe -- --ignored --nocapture`
+//! conformal disk maps. `cargo test --release -p shapespace-analysis --test integration registration_probe:: -- --ignored --nocapture`
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -14,7 +14,7 @@
 //! * alligator: `OutOfRange` (1 − |z| = 3.3e-16 in the tail) like the Green's map; with the
 //!   crowding check off the map is unfolded but Λ reaches 16 in the tail.
 
-mod common;
+use crate::common;
 
 use common::*;
 use shapespace_conformal::intrinsic::IntrinsicTriangulation;

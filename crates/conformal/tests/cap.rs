@@ -8,7 +8,7 @@
 //! (the discrete Green's function's local error at the singularity) and shrinks only in area.
 //! 120° cap (α = π/3): radius errors 1.47e-3, 5.98e-4, 2.74e-4, 1.95e-4, 1.40e-4.
 
-mod common;
+use crate::common;
 
 use common::*;
 use shapespace_conformal::{disk_map, CenterMarker, DiskMapParams, Markers, Mobius};

@@ -8,7 +8,7 @@
 //! of the original vertices stay where the clean mesh puts them, up to the change a local
 //! refinement makes.
 
-mod common;
+use crate::common;
 
 use common::*;
 use shapespace_conformal::markers::ResolvedCenter;

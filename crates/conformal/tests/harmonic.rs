@@ -1,7 +1,5 @@
 //! Harmonic maps with boundary and landmark constraints (Su et al. 2015, Alg. 4, the map g).
 
-mod common;
-
 use geogram_predicates::{orient_2d, Sign};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

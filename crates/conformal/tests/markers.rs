@@ -1,7 +1,7 @@
 //! Marker resolution through `disk_map`: errors, projection of points, a center next to the
 //! boundary (the cut then has no interior edge), and the sidecar lookup.
 
-mod common;
+use crate::common;
 
 use common::*;
 use shapespace_conformal::{

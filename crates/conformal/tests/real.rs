@@ -16,7 +16,7 @@
 //! * alligator (flat, long tail; `common_3d_test_models/alligator.obj`): boundary crowding, 1 − |φ| ≈ 1e-15
 //!   in the tail → a clear `OutOfRange` error instead of 13 folded triangles.
 
-mod common;
+use crate::common;
 
 use common::*;
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, MarkerFile, Markers};

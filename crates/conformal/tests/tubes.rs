@@ -10,7 +10,7 @@
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams};
 use shapespace_geometry::primitives::capped_tube;
 
-mod common;
+use crate::common;
 use common::*;
 
 #[test]

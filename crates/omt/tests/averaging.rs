@@ -3,7 +3,7 @@
 //! and rebuilt when its fields change, and a solve whose coarse levels use them reaches the
 //! solution of the plain Voronoi start.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -1,6 +1,6 @@
 //! Damped Newton solver: derivatives, closed forms, invariances and errors.
 
-mod common;
+use crate::common;
 
 use common::{disk_measure, sunflower, Rng};
 use shapespace_omt::linear::{dense_hessian, LinearSolver};

@@ -3,7 +3,7 @@
 //! T(r) = √(F(r)/π) with F the source's cumulative mass, and the semi-discrete cost converges to
 //! ∫₀¹ (r − T(r))² μ(r) 2πr dr as N grows (`docs/conventions.md`, "Closed-form test values").
 
-mod common;
+use crate::common;
 
 use common::{disk_measure, quadrature, sunflower};
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};

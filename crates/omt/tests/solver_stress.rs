@@ -2,7 +2,7 @@
 //! domain, masses that do not quite sum to μ(Ω). Every case must converge or return a clear
 //! error; none may loop or produce NaN.
 
-mod common;
+use crate::common;
 
 use common::{disk_measure, sunflower, Rng};
 use shapespace_omt::newton::Start;
