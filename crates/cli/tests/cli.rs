@@ -2641,6 +2641,29 @@ fn register_refines_by_zoomout() {
     let out = run(&["--refine", "zoomout", "--zoomout-output", "points"]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("--zoomout-output") && stderr(&out).contains("points"));
+    // a larger last spectral size: sharper on these poses (docs/accuracy.md, the curve of k_end)
+    let out = run(&["--refine", "zoomout", "--zoomout-k-end", "160"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let (sharper, info) = mean_error();
+    assert_eq!(info["sizes"].as_array().unwrap().last().unwrap(), 160, "{info}");
+    assert!(sharper < refined, "k_end 120: {refined}, 160: {sharper}");
+    // a first size beyond the last one: refused before any work, naming both options
+    std::fs::remove_file(out_dir.join("metrics.json")).unwrap();
+    let out = run(&[
+        "--refine",
+        "zoomout",
+        "--zoomout-k-end",
+        "60",
+        "--zoomout-starts",
+        "20,80",
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{msg}");
+    assert!(
+        msg.contains("--zoomout-starts 80") && msg.contains("--zoomout-k-end 60"),
+        "{msg}"
+    );
+    assert!(!out_dir.join("metrics.json").exists());
 
     let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
     std::fs::write(&a, grid_obj(1.0)).unwrap();
@@ -2745,9 +2768,9 @@ fn disk_map_choices_reach_param_and_distances() {
 
 /// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
 /// script: status 2 naming the path, before any registration; a `--region-from-area` that is
-/// not a share of the area, a `--zoomout-starts` that is not a list of sizes from 1 to 120, or a
-/// `--zoomout-output` other than auto, vertex and projected: status 2 naming the option, no
-/// output folder.
+/// not a share of the area, a `--zoomout-starts` that is not a list of sizes from 1 to the last
+/// size (120 by default), a `--zoomout-k-end` outside 8 to 1000, or a `--zoomout-output` other
+/// than auto, vertex and projected: status 2 naming the option, no output folder.
 #[test]
 fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     let dir = scratch("bench-remeshed-missing");
@@ -2787,10 +2810,11 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         "{msg}"
     );
     // the region moves' area threshold is a share of the area; ZoomOut's first sizes are a
-    // comma-separated list of sizes from 1 to its last size (120)
+    // comma-separated list of sizes from 1 to its last size (120 by default), which is 8 to 1000
     for (option, bad_values) in [
         ("--region-from-area", &["1.5", "-0.1", "NaN", "half"][..]),
         ("--zoomout-starts", &["0", "121", "8,x", ""][..]),
+        ("--zoomout-k-end", &["7", "1001", "x"][..]),
         ("--zoomout-output", &["points", "vertices"][..]),
     ] {
         for bad in bad_values {

@@ -112,6 +112,11 @@ pub struct ZoomOutArgs {
     /// final nearest-neighbour residual is smallest (decision 0055); `20` alone is a single run.
     #[arg(long, default_value = "20,8", value_parser = spectral_sizes)]
     pub zoomout_starts: SpectralSizes,
+    /// ZoomOut's last spectral size: the Laplace–Beltrami eigenpairs computed per mesh (8 to
+    /// 1000). More is sharper on most pose sets and slower (the measured curve:
+    /// docs/accuracy.md).
+    #[arg(long, default_value_t = ZoomOutParams::default().k_end, value_parser = spectral_end)]
+    pub zoomout_k_end: usize,
     /// What ZoomOut returns per source vertex: `vertex` (a target vertex), `projected` (the
     /// nearest point of the target's spectral embedding on the faces around it) or `auto`
     /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
@@ -120,14 +125,20 @@ pub struct ZoomOutArgs {
 }
 
 impl ZoomOutArgs {
-    /// ZoomOut's parameters: the defaults with these options.
-    fn params(&self) -> ZoomOutParams {
-        ZoomOutParams {
+    /// ZoomOut's parameters: the defaults with these options. Errors: a first size beyond the
+    /// last one.
+    fn params(&self) -> anyhow::Result<ZoomOutParams> {
+        let k_end = self.zoomout_k_end;
+        if let Some(k) = self.zoomout_starts.0.iter().find(|&&k| k > k_end) {
+            anyhow::bail!("--zoomout-starts {k}: beyond the last spectral size --zoomout-k-end {k_end}");
+        }
+        Ok(ZoomOutParams {
             output: self.zoomout_output,
             landmark_weight: self.landmark_weight,
             k_starts: self.zoomout_starts.0.clone(),
+            k_end,
             ..ZoomOutParams::default()
-        }
+        })
     }
 }
 
@@ -338,7 +349,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
             args.landmark_steps,
         )?,
         refine: args.refine.parse()?,
-        zoomout: args.zoomout.params(),
+        zoomout: args.zoomout.params()?,
     };
     eprintln!(
         "register: {} landmark pairs, method {method}, refinement {}",
@@ -493,7 +504,7 @@ fn print_metrics(met: &RegistrationMetrics, domain: &str, files: &[PathBuf]) {
 pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     let methods: Vec<Method> = args.methods.split(',').map(str::parse).collect::<Result<_, _>>()?;
     let refine: Refinement = args.refine.parse()?;
-    let mut zoomout = args.zoomout.params();
+    let mut zoomout = args.zoomout.params()?;
     zoomout.point_untangle.region_rounds = args.region_rounds;
     zoomout.point_untangle.region_from_area = args.region_from_area;
     super::create_output_folder(&args.out)?;
@@ -550,16 +561,31 @@ pub struct SpectralSizes(pub Vec<usize>);
 
 /// A comma-separated list of first spectral sizes, each from 1 to ZoomOut's last size.
 fn spectral_sizes(s: &str) -> Result<SpectralSizes, String> {
-    let k_end = ZoomOutParams::default().k_end;
     let sizes = s
         .split(',')
         .map(|t| match t.trim().parse::<usize>() {
-            Ok(k) if (1..=k_end).contains(&k) => Ok(k),
-            Ok(k) => Err(format!("{k} is not a first spectral size (expected 1 to {k_end})")),
+            Ok(k) if (1..=MAX_SPECTRAL_SIZE).contains(&k) => Ok(k),
+            Ok(k) => Err(format!(
+                "{k} is not a first spectral size (expected 1 to {MAX_SPECTRAL_SIZE}, at most --zoomout-k-end)"
+            )),
             Err(e) => Err(format!("{t:?}: {e}")),
         })
         .collect::<Result<Vec<usize>, String>>()?;
     Ok(SpectralSizes(sizes))
+}
+
+/// The largest spectral size the options accept (eigenpairs per mesh).
+const MAX_SPECTRAL_SIZE: usize = 1000;
+
+/// ZoomOut's last spectral size (`--zoomout-k-end`): 8 to [`MAX_SPECTRAL_SIZE`].
+fn spectral_end(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(k) if (8..=MAX_SPECTRAL_SIZE).contains(&k) => Ok(k),
+        Ok(k) => Err(format!(
+            "{k} is not a last spectral size (expected 8 to {MAX_SPECTRAL_SIZE})"
+        )),
+        Err(e) => Err(format!("{s:?}: {e}")),
+    }
 }
 
 /// ZoomOut's output: `auto`, `vertex` or `projected`.
