@@ -207,6 +207,11 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
             (on.3.flipped_area_after_sweeps - on.0).abs() < 1e-12,
             "the pass's share is the metric's"
         );
+        assert_eq!(on.3.flipped_after, on.1, "the pass's count is the metric's");
+        assert_eq!(on.3.flipped_before, off.1);
+        assert!(on.0 < flip_bound / 100.0, "{a} -> {b}: {}", on.0);
+        assert!(on.0 <= 0.5 * off.0, "{a} -> {b}: {} against {}", on.0, off.0);
+        assert!(on.2 <= 1.02 * off.2, "{a} -> {b}: {} against {}", on.2, off.2);
         // with them wherever a face stays flipped (decisions 0042, 0054), on the second pair
         // only (its region moves take 8 s)
         if a != "0001" {
@@ -230,11 +235,6 @@ fn point_untangling_removes_most_flipped_area_on_the_cat() {
             everywhere.2,
             on.2
         );
-        assert_eq!(on.3.flipped_after, on.1, "the pass's count is the metric's");
-        assert_eq!(on.3.flipped_before, off.1);
-        assert!(on.0 < flip_bound / 100.0, "{a} -> {b}: {}", on.0);
-        assert!(on.0 <= 0.5 * off.0, "{a} -> {b}: {} against {}", on.0, off.0);
-        assert!(on.2 <= 1.02 * off.2, "{a} -> {b}: {} against {}", on.2, off.2);
     }
 }
 
