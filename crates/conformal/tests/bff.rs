@@ -14,9 +14,7 @@
 //! * alligator: `OutOfRange` (1 − |z| = 3.3e-16 in the tail) like the Green's map; with the
 //!   crowding check off the map is unfolded but Λ reaches 16 in the tail.
 
-use crate::common;
-
-use common::*;
+use crate::common::*;
 use shapespace_conformal::intrinsic::IntrinsicTriangulation;
 use shapespace_conformal::{
     bff_disk_coordinates, bff_disk_map, disk_map, BffDiskMap, BffParams, BoundaryMarker, CenterMarker, ConformalError,

@@ -8,9 +8,7 @@
 //! (the discrete Green's function's local error at the singularity) and shrinks only in area.
 //! 120° cap (α = π/3): radius errors 1.47e-3, 5.98e-4, 2.74e-4, 1.95e-4, 1.40e-4.
 
-use crate::common;
-
-use common::*;
+use crate::common::*;
 use shapespace_conformal::{disk_map, CenterMarker, DiskMapParams, Markers, Mobius};
 use shapespace_geometry::primitives::spherical_cap;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_3};

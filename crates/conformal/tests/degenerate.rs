@@ -8,9 +8,7 @@
 //! of the original vertices stay where the clean mesh puts them, up to the change a local
 //! refinement makes.
 
-use crate::common;
-
-use common::*;
+use crate::common::*;
 use shapespace_conformal::markers::ResolvedCenter;
 use shapespace_conformal::{disk_map, BoundaryMarker, CenterMarker, DiskMapParams, Markers};
 use shapespace_geometry::io::read_mesh;

@@ -1,9 +1,7 @@
 //! Marker resolution through `disk_map`: errors, projection of points, a center next to the
 //! boundary (the cut then has no interior edge), and the sidecar lookup.
 
-use crate::common;
-
-use common::*;
+use crate::common::*;
 use shapespace_conformal::{
     disk_map, BoundaryMarker, CenterMarker, ConformalError, DiskMapParams, MarkerFile, Markers, Mobius, PolePlacement,
 };

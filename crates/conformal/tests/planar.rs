@@ -6,9 +6,7 @@
 //! (order ≈ 1.5); f(z) = z/(1 − 0.5z) (Möbius onto an off-center disk): 5.4e-3, 1.4e-3,
 //! 4.3e-4 (order ≈ 1.8); f = id: 1.25e-3, 6.3e-4, 3.1e-4 (order 1).
 
-use crate::common;
-
-use common::*;
+use crate::common::*;
 use shapespace_geometry::primitives::unit_disk;
 use shapespace_geometry::TriMesh;
 

@@ -16,9 +16,7 @@
 //! * alligator (flat, long tail; `common_3d_test_models/alligator.obj`): boundary crowding, 1 − |φ| ≈ 1e-15
 //!   in the tail → a clear `OutOfRange` error instead of 13 folded triangles.
 
-use crate::common;
-
-use common::*;
+use crate::common::*;
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams, MarkerFile, Markers};
 use shapespace_geometry::io::read_mesh;
 

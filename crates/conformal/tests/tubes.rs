@@ -10,8 +10,7 @@
 use shapespace_conformal::{disk_map, ConformalError, DiskMapParams};
 use shapespace_geometry::primitives::capped_tube;
 
-use crate::common;
-use common::*;
+use crate::common::*;
 
 #[test]
 fn tubes_have_exponential_but_finite_factors() {

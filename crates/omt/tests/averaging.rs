@@ -3,11 +3,9 @@
 //! and rebuilt when its fields change, and a solve whose coarse levels use them reaches the
 //! solution of the plain Voronoi start.
 
-use crate::common;
-
 use std::sync::Arc;
 
-use common::{disk_measure, Rng};
+use crate::common::{disk_measure, Rng};
 use shapespace_omt::averaging::{averaged_measure, averaged_measure_evenly};
 use shapespace_omt::{solve_ot_prepared, NewtonParams, PreparedMeasure, SourceMeasure, StartStrategy};
 

@@ -1,8 +1,6 @@
 //! Damped Newton solver: derivatives, closed forms, invariances and errors.
 
-use crate::common;
-
-use common::{disk_measure, sunflower, Rng};
+use crate::common::{disk_measure, sunflower, Rng};
 use shapespace_omt::linear::{dense_hessian, LinearSolver};
 use shapespace_omt::newton::{integrate_at_heights, kantorovich_energy, CellIntegrator, Start};
 use shapespace_omt::{solve_ot, NewtonParams, OmtError, SourceMeasure, StartStrategy, StopReason};

@@ -3,9 +3,7 @@
 //! T(r) = √(F(r)/π) with F the source's cumulative mass, and the semi-discrete cost converges to
 //! ∫₀¹ (r − T(r))² μ(r) 2πr dr as N grows (`docs/conventions.md`, "Closed-form test values").
 
-use crate::common;
-
-use common::{disk_measure, quadrature, sunflower};
+use crate::common::{disk_measure, quadrature, sunflower};
 use shapespace_omt::{solve_ot, NewtonParams, SourceMeasure};
 
 /// Semi-discrete costs for N = 500, 2000, 8000.

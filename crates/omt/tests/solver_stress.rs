@@ -2,9 +2,7 @@
 //! domain, masses that do not quite sum to μ(Ω). Every case must converge or return a clear
 //! error; none may loop or produce NaN.
 
-use crate::common;
-
-use common::{disk_measure, sunflower, Rng};
+use crate::common::{disk_measure, sunflower, Rng};
 use shapespace_omt::newton::Start;
 use shapespace_omt::{solve_ot, NewtonParams, OtSolution, SourceMeasure, StartStrategy};
 

@@ -1,5 +1,4 @@
 //! Shared helpers of the integration tests: analytic errors and dataset paths.
-#![allow(dead_code)]
 
 use std::path::PathBuf;
 

@@ -1,6 +1,5 @@
 //! Shared builders for the solver tests: triangulated disks with radial densities, sunflower
 //! point sets, a tiny deterministic generator.
-#![allow(dead_code)]
 
 use shapespace_omt::SourceMeasure;
 
