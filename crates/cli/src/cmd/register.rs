@@ -563,13 +563,7 @@ pub struct SpectralSizes(pub Vec<usize>);
 fn spectral_sizes(s: &str) -> Result<SpectralSizes, String> {
     let sizes = s
         .split(',')
-        .map(|t| match t.trim().parse::<usize>() {
-            Ok(k) if (1..=MAX_SPECTRAL_SIZE).contains(&k) => Ok(k),
-            Ok(k) => Err(format!(
-                "{k} is not a first spectral size (expected 1 to {MAX_SPECTRAL_SIZE}, at most --zoomout-k-end)"
-            )),
-            Err(e) => Err(format!("{t:?}: {e}")),
-        })
+        .map(|t| spectral_size(t, 1, "first", ", at most --zoomout-k-end"))
         .collect::<Result<Vec<usize>, String>>()?;
     Ok(SpectralSizes(sizes))
 }
@@ -579,12 +573,18 @@ const MAX_SPECTRAL_SIZE: usize = 1000;
 
 /// ZoomOut's last spectral size (`--zoomout-k-end`): 8 to [`MAX_SPECTRAL_SIZE`].
 fn spectral_end(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(k) if (8..=MAX_SPECTRAL_SIZE).contains(&k) => Ok(k),
+    spectral_size(s, 8, "last", "")
+}
+
+/// One spectral size from `low` to [`MAX_SPECTRAL_SIZE`]; `which` and `note` name it in the
+/// error.
+fn spectral_size(t: &str, low: usize, which: &str, note: &str) -> Result<usize, String> {
+    match t.trim().parse::<usize>() {
+        Ok(k) if (low..=MAX_SPECTRAL_SIZE).contains(&k) => Ok(k),
         Ok(k) => Err(format!(
-            "{k} is not a last spectral size (expected 8 to {MAX_SPECTRAL_SIZE})"
+            "{k} is not a {which} spectral size (expected {low} to {MAX_SPECTRAL_SIZE}{note})"
         )),
-        Err(e) => Err(format!("{s:?}: {e}")),
+        Err(e) => Err(format!("{t:?}: {e}")),
     }
 }
 
