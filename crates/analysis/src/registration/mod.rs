@@ -454,23 +454,31 @@ pub fn register(
         shapespace_geometry::topology::require_disk(mesh).map_err(|e| named(name, crate::error::error_chain(&e)))?;
     }
     check_landmarks(source, target, landmarks)?;
-    // The two disk maps are independent: compute them in parallel.
-    let (phi1, phi2) = rayon::join(
-        || disk_image(source, &params.source_markers, params.method, &params.area_preserving),
-        || disk_image(target, &params.target_markers, params.method, &params.area_preserving),
-    );
-    let phi1 = phi1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
-    let phi2 = phi2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
-    let mut reg = register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)?;
-    if params.refine == Refinement::ZoomOut {
-        let (b1, b2) = rayon::join(
+    let first_stage = || -> Result<Registration, AnalysisError> {
+        // The two disk maps are independent: compute them in parallel.
+        let (phi1, phi2) = rayon::join(
+            || disk_image(source, &params.source_markers, params.method, &params.area_preserving),
+            || disk_image(target, &params.target_markers, params.method, &params.area_preserving),
+        );
+        let phi1 = phi1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
+        let phi2 = phi2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
+        register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
+    };
+    if params.refine != Refinement::ZoomOut {
+        return first_stage();
+    }
+    // The eigenpairs need nothing from the first stage: they run beside it, on the cores its
+    // sequential parts leave idle (the same bases, so the same map, as one after the other).
+    let (reg, (b1, b2)) = rayon::join(first_stage, || {
+        rayon::join(
             || SpectralBasis::of(source, params.zoomout.k_end, &params.zoomout.eigen),
             || SpectralBasis::of(target, params.zoomout.k_end, &params.zoomout.eigen),
-        );
-        let b1 = b1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
-        let b2 = b2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
-        refine_registration(source, target, &mut reg, landmarks, &b1, &b2, &params.zoomout)?;
-    }
+        )
+    });
+    let mut reg = reg?;
+    let b1 = b1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
+    let b2 = b2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
+    refine_registration(source, target, &mut reg, landmarks, &b1, &b2, &params.zoomout)?;
     Ok(reg)
 }
 

@@ -340,21 +340,33 @@ pub fn zoomout(
         target_samples: spread_samples(target, &target_basis.mass, params.samples.max(1)).0,
         neighbors: conn.vertex_neighbors(n2),
     };
-    let mut runs = Vec::with_capacity(params.k_starts.len());
-    let mut kept: Option<(ZoomOutPass, usize)> = None;
-    for &k_start in &params.k_starts {
-        let pass = space.run(&source_basis.mass, seed, k_start, params.k_step, k_end);
-        runs.push(ZoomOutRun {
+    // the runs are independent: side by side, then the first of smallest residual is kept
+    let passes: Vec<ZoomOutPass> = params
+        .k_starts
+        .par_iter()
+        .map(|&k_start| space.run(&source_basis.mass, seed, k_start, params.k_step, k_end))
+        .collect();
+    let mut runs: Vec<ZoomOutRun> = params
+        .k_starts
+        .iter()
+        .zip(&passes)
+        .map(|(&k_start, pass)| ZoomOutRun {
             k_start,
             residual: pass.residual,
             kept: false,
-        });
-        if kept.as_ref().is_none_or(|(best, _)| pass.residual < best.residual) {
-            kept = Some((pass, runs.len() - 1));
-        }
-    }
-    let (pass, index) = kept.expect("check_inputs: at least one first size");
+        })
+        .collect();
+    let index = (0..runs.len())
+        .reduce(|best, i| {
+            if runs[i].residual < runs[best].residual {
+                i
+            } else {
+                best
+            }
+        })
+        .expect("check_inputs: at least one first size");
     runs[index].kept = true;
+    let pass = passes.into_iter().nth(index).expect("one pass per first size");
     let ZoomOutPass {
         sizes,
         queries: q,
