@@ -363,7 +363,9 @@ pub struct RegistrationTimings {
     pub composition: f64,
     /// Refinement: the eigenpairs of both surfaces and the ZoomOut iterations (0 without).
     pub refine: f64,
-    /// Sum of the above (what one registration from scratch costs).
+    /// Sum of the above, each part's own wall time: what one registration from scratch costs
+    /// with its parts one after the other ([`register`] runs the disk maps side by side and the
+    /// eigenpairs beside the first stage, so its own wall time can be lower).
     pub total: f64,
 }
 
