@@ -203,10 +203,11 @@ fn tosca_wolf_embedding_folds_as_measured() {
         return;
     };
     let mesh = read_mesh(&path).unwrap();
-    let map = measure("wolf0", &mesh, SphericalMdsParams::default());
-    let fraction = map.info.num_flipped as f64 / mesh.num_faces() as f64;
-    assert!(fraction > 0.3 && fraction < 0.7, "{fraction}");
+    // one map: the repair starts from the best-stress embedding and counts its folds first
     let repaired = spherical_mds_map(&mesh, &SphericalMdsParams::default()).unwrap();
+    on_sphere(&repaired);
+    let fraction = repaired.info.flipped_before_repair as f64 / mesh.num_faces() as f64;
+    assert!(fraction > 0.3 && fraction < 0.7, "{fraction}");
     eprintln!(
         "wolf0 with the chart repair: {} folded before, {} after ({:?})",
         repaired.info.flipped_before_repair, repaired.info.num_flipped, repaired.info.fold_repair
