@@ -12,7 +12,8 @@
 //! (mass is lost), `SPREAD=k` spreads them at k × the median, `NUFLOOR=k` floors the target
 //! masses at k × their median. `PREPARE=1` prepares each file as `shapespace prepare` does
 //! first (the raw scans of `outside/facefuns`), `SUBDIVIDE=1` then subdivides each once by edge
-//! midpoints. `REPEAT=1` solves each pair twice and reports
+//! midpoints. `SHARED=1` prepares and maps the files as `shapespace distances` does, with the
+//! automatic markers shared by files of one triangulation (the Sumner face poses). `REPEAT=1` solves each pair twice and reports
 //! the second solve (the source's averaged coarse copies built by the first: the first's extra
 //! time is their construction). Costs are printed minus the target's merge cost
 //! (`quantization_variance`), as the distances use them. `KAPPA=k` sets the soft cap of the
@@ -40,17 +41,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let files: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
     let steps = std::env::var("STEPS").is_ok();
     let mut shapes = Vec::new();
-    for f in &files {
-        let mut mesh = shapespace_geometry::io::read_mesh(f)?;
-        if std::env::var("PREPARE").is_ok() {
-            mesh = shapespace_tools::scans::disk_mesh(f);
-        }
-        if std::env::var("SUBDIVIDE").is_ok() {
-            mesh = shapespace_geometry::prepare::subdivide_midpoint(&mesh)?;
-        }
-        let (markers, _) = markers_for(f, &MarkerOptions::default(), mesh.positions.len())?;
+    // SHARED=1: the files prepared and mapped as `shapespace distances` does, with the automatic
+    // markers shared by the files of one triangulation
+    let shared = std::env::var("SHARED")
+        .is_ok()
+        .then(|| shapespace_tools::scans::prepared_set(&files));
+    for (i, f) in files.iter().enumerate() {
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
-        let mut shape = prepare_shape(&name, &mesh, &markers, &DiskMapParams::default())?;
+        let mut shape = match &shared {
+            Some(set) => set[i].clone(),
+            None => {
+                let mut mesh = shapespace_geometry::io::read_mesh(f)?;
+                if std::env::var("PREPARE").is_ok() {
+                    mesh = shapespace_tools::scans::disk_mesh(f);
+                }
+                if std::env::var("SUBDIVIDE").is_ok() {
+                    mesh = shapespace_geometry::prepare::subdivide_midpoint(&mesh)?;
+                }
+                let (markers, _) = markers_for(f, &MarkerOptions::default(), mesh.positions.len())?;
+                prepare_shape(&name, &mesh, &markers, &DiskMapParams::default())?
+            }
+        };
         // experiments: env CAP=k caps the densities at k × their median; NUFLOOR=k floors the
         // target masses at k × their median
         if let Some(k) = std::env::var("CAP").ok().and_then(|s| s.parse::<f64>().ok()) {
