@@ -75,6 +75,7 @@ fn probe_harmonic_variants() {
                     weights: w,
                     fold_repair: fr,
                     foldover_free: false,
+                    release_landmarks: false,
                     landmark_steps: rep,
                 };
                 let mut acc = [0.0f64; 9];

@@ -226,6 +226,10 @@ pub struct BenchRow {
     pub flipped_ratio_3d: f64,
     /// Folded faces of g ∘ φ₁ before its fold repair (exact predicate).
     pub harmonic_folded: usize,
+    /// The largest distance in the disk between a landmark's image under g and its target,
+    /// when the folds of g were re-embedded with the landmarks released (0 when they stayed
+    /// on their targets; [`crate::registration::HarmonicParams::release_landmarks`]).
+    pub landmark_shift: f64,
     pub curvature_median: f64,
     pub curvature_mean: f64,
     /// Median of max(J, 1/J) over the vertices.
@@ -293,6 +297,7 @@ impl BenchRow {
             flipped_ratio: f64::NAN,
             flipped_ratio_3d: f64::NAN,
             harmonic_folded: 0,
+            landmark_shift: 0.0,
             curvature_median: f64::NAN,
             curvature_mean: f64::NAN,
             area_distortion_median: f64::NAN,
@@ -891,6 +896,11 @@ fn fill_row(row: &mut BenchRow, reg: &Registration, met: &RegistrationMetrics, b
     row.flipped_ratio = met.flipped_area_ratio;
     row.flipped_ratio_3d = met.flipped_area_ratio_3d;
     row.harmonic_folded = reg.harmonic_folded;
+    row.landmark_shift = reg
+        .harmonic_released
+        .as_ref()
+        .filter(|r| r.error.is_none())
+        .map_or(0.0, |r| r.landmark_shift);
     row.curvature_median = met.curvature_summary.median;
     row.curvature_mean = met.curvature_summary.mean;
     row.area_distortion_median = met.area_distortion_summary.median;

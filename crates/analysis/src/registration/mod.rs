@@ -36,11 +36,16 @@
 //! with the weights of the previous layout), then folded faces are untangled with the boundary
 //! and landmarks fixed ([`crate::fold_repair::untangle_kernels`]): 0 folded faces of g on all
 //! six wolf pairs (one solve: 9.2 per pair), geodesic mean 0.0282 (one solve: 0.0292). Not a
-//! guarantee: on the lion, cat, horse and remeshed wolf pairs folds are left. Opt-in
-//! ([`HarmonicParams::foldover_free`], `--untangle-g foldover-free`): those are untangled by
-//! the foldover-free untangling ([`harmonic_folds`]), around the folds from g, else on
-//! the whole disk from φ₁; measured in `docs/experiments.md` (every lion pair unfolded, 3 of 12
-//! cat pairs, no centaur pair).
+//! guarantee: on the lion, cat, horse, centaur and remeshed wolf pairs folds are left. Those
+//! are re-embedded with the landmarks released ([`HarmonicParams::release_landmarks`]): the
+//! region repair with the boundary alone fixed, an embedding by Floater's theorem, the
+//! landmarks then a little off their targets ([`HarmonicRelease::landmark_shift`];
+//! `docs/decisions/0062-release-the-landmarks-where-g-folds.md`). With the landmarks held
+//! (`--untangle-g held`) folds stay; opt-in ([`HarmonicParams::foldover_free`], `--untangle-g
+//! foldover-free`): the folds left with the landmarks held are untangled by the foldover-free
+//! untangling ([`harmonic_folds`]), around the folds from g, else on the whole disk from φ₁;
+//! measured in `docs/experiments.md` (every lion pair unfolded, 3 of 12 cat pairs, no centaur
+//! pair).
 //!
 //! Radó's theorem makes g bijective only without interior constraints; hard landmark pins can
 //! fold it (`docs/conventions.md`, "Registration"), and the disk maps themselves may fold: [`metrics`] measures flips.
@@ -136,14 +141,22 @@ pub struct HarmonicParams {
     pub weights: HarmonicWeights,
     /// Untangle folded faces of g with [`crate::fold_repair::untangle_kernels`], the boundary
     /// and the landmark vertices held fixed. (The Tutte-region repair of
-    /// [`crate::fold_repair::repair_folds`] does not apply: with landmarks held, its whole-disk
-    /// solve still folds on every wolf pair.)
+    /// [`crate::fold_repair::repair_folds`] does not apply with landmarks held: its whole-disk
+    /// solve still folds on every wolf pair; see [`HarmonicParams::release_landmarks`].)
     pub fold_repair: bool,
     /// After the kernel moves of [`HarmonicParams::fold_repair`], untangle the folds they leave
     /// with the foldover-free untangling ([`harmonic_folds`]; disk registration only).
     /// Off by default: it unfolds every lion pair but 3 of 12 cat pairs and no centaur pair,
     /// at 7–75 s a pair (`docs/experiments.md`).
     pub foldover_free: bool,
+    /// When folds of g are left after the untangling, re-embed them with the landmarks released:
+    /// the disk maps' region repair ([`crate::fold_repair::repair_folds`]) with the boundary
+    /// alone fixed. Its Tutte rounds end, at the latest, in a whole-disk solve whose boundary is
+    /// the convex unit circle, an embedding by Floater's theorem; its retraction then returns
+    /// every vertex, landmarks included, as far towards g as the embedding allows. The landmarks
+    /// miss their targets by what is left ([`HarmonicRelease::landmark_shift`]). Disk
+    /// registration only; on by default for OMT (decision 0062).
+    pub release_landmarks: bool,
     /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k) when one
     /// solve on φ₁ folds; each step solves with the weights of the previous step's layout.
     pub landmark_steps: usize,
@@ -156,6 +169,7 @@ impl Default for HarmonicParams {
             weights: HarmonicWeights::Planar,
             fold_repair: false,
             foldover_free: false,
+            release_landmarks: false,
             landmark_steps: 1,
         }
     }
@@ -164,7 +178,9 @@ impl Default for HarmonicParams {
 impl HarmonicParams {
     /// The default g of a method. OMT: planar weights, [`OMT_LANDMARK_STEPS`] landmark steps,
     /// untangling on (measured on the wolf poses: 0 flipped faces of g on all six pairs, geodesic
-    /// mean 0.0282 vs 0.0292 for one solve; `docs/decisions/0015-registration-harmonic-map.md`). Conformal: [`Default`] (the
+    /// mean 0.0282 vs 0.0292 for one solve; `docs/decisions/0015-registration-harmonic-map.md`),
+    /// the folds it leaves re-embedded with the landmarks released
+    /// (`docs/decisions/0062-release-the-landmarks-where-g-folds.md`). Conformal: [`Default`] (the
     /// baseline as published; steps and untangling leave it folding 6–8% of the area).
     pub fn for_method(method: Method) -> Self {
         match method {
@@ -172,11 +188,57 @@ impl HarmonicParams {
                 weights: HarmonicWeights::Planar,
                 fold_repair: true,
                 foldover_free: false,
+                release_landmarks: true,
                 landmark_steps: OMT_LANDMARK_STEPS,
             },
             Method::Conformal => HarmonicParams::default(),
         }
     }
+}
+
+/// The region repair of the folds of `uv` (g, #V₁) with the boundary of S₁ alone fixed
+/// ([`HarmonicParams::release_landmarks`]); `uv` is replaced only by a map without folds.
+fn release_landmarks(
+    source: &TriMesh,
+    boundary: &[bool],
+    pairs: &[(u32, u32)],
+    target_uv: &[[f64; 2]],
+    uv: &mut [[f64; 2]],
+) -> HarmonicRelease {
+    let folded_before = count_folded_faces(&source.faces, uv);
+    let mut repaired = uv.to_vec();
+    let result = crate::fold_repair::repair_folds(
+        source,
+        boundary,
+        &mut repaired,
+        &crate::fold_repair::FoldRepairParams::default(),
+    );
+    let mut release = HarmonicRelease {
+        folded_before,
+        folded_after: folded_before,
+        region_vertices: 0,
+        rounds: 0,
+        landmark_shift: 0.0,
+        error: None,
+    };
+    match result {
+        Ok(info) if info.folded_after == 0 && count_folded_faces(&source.faces, &repaired) == 0 => {
+            uv.copy_from_slice(&repaired);
+            release.folded_after = 0;
+            release.region_vertices = info.region_vertices;
+            release.rounds = info.rounds;
+        }
+        Ok(info) => release.error = Some(format!("{} faces left folded", info.folded_after)),
+        Err(e) => release.error = Some(e.to_string()),
+    }
+    release.landmark_shift = pairs
+        .iter()
+        .map(|&(a, b)| {
+            let (p, q) = (uv[a as usize], target_uv[b as usize]);
+            (p[0] - q[0]).hypot(p[1] - q[1])
+        })
+        .fold(0.0, f64::max);
+    release
 }
 
 /// Landmark steps of the default g for [`Method::Omt`].
@@ -427,11 +489,31 @@ pub struct Registration {
     /// What the foldover-free untangling of the folds the kernel moves left did
     /// ([`harmonic_folds`]; `None` when none were left).
     pub harmonic_untangled: Option<HarmonicUntangleInfo>,
+    /// The region repair of the folds left with the landmarks released
+    /// ([`HarmonicParams::release_landmarks`]; `None` when no fold was left).
+    pub harmonic_released: Option<HarmonicRelease>,
     /// The refinement applied after the disk-map stage, if any: `faces`, `bary` and `points` are
     /// then the refined map's, while `harmonic_uv` stays the first stage's.
     pub refinement: Option<RefinementInfo>,
     /// Stage timings.
     pub timings: RegistrationTimings,
+}
+
+/// What the region repair of g with the landmarks released did
+/// ([`HarmonicParams::release_landmarks`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HarmonicRelease {
+    /// Folded faces of g before it.
+    pub folded_before: usize,
+    /// Folded faces after it: 0, unless the repair failed (`error`), and g was then kept.
+    pub folded_after: usize,
+    /// Interior vertices in its last region, and its Tutte rounds.
+    pub region_vertices: usize,
+    pub rounds: usize,
+    /// The largest distance in the disk between a landmark's image and its target φ₂(l₂).
+    pub landmark_shift: f64,
+    /// The repair's error, when it failed.
+    pub error: Option<String>,
 }
 
 /// Registers S₁ (`source`) onto S₂ (`target`) by f = φ₂⁻¹ ∘ g ∘ φ₁ (module docs): computes
@@ -642,6 +724,16 @@ pub fn register_with_maps(
     } else {
         None
     };
+    let harmonic_released =
+        (harmonic.release_landmarks && count_folded_faces(&source.faces, &harmonic_uv) > 0).then(|| {
+            release_landmarks(
+                source,
+                &conn1.boundary_vertices(n1),
+                &landmarks.pairs,
+                &phi2.uv,
+                &mut harmonic_uv,
+            )
+        });
     let t1 = Instant::now();
 
     let locator = PointLocator::new(&phi2.uv, &target.faces)?;
@@ -689,6 +781,7 @@ pub fn register_with_maps(
         harmonic_steps: steps_used,
         harmonic_fold_repair,
         harmonic_untangled,
+        harmonic_released,
         refinement: None,
         timings: RegistrationTimings {
             source_map: phi1.seconds,

@@ -78,9 +78,11 @@ pub struct RegisterArgs {
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
     #[arg(long)]
     pub weights: Option<String>,
-    /// Untangle folded faces of g, boundary and landmarks fixed: `on` (kernel moves),
-    /// `foldover-free` (then the foldover-free untangling of the folds left, disk only) or `off`
-    /// (default: on for omt, off for conformal).
+    /// Untangle folded faces of g: `on` (kernel moves with the boundary and landmarks fixed,
+    /// then the folds left re-embedded with the landmarks released, disk only), `held` (the
+    /// kernel moves alone: landmarks exactly on their targets, folds may be left),
+    /// `foldover-free` (`held`, then the foldover-free untangling of the folds left, disk
+    /// only) or `off` (default: on for omt, off for conformal).
     #[arg(long)]
     pub untangle_g: Option<String>,
     /// Steps in which the landmarks move from φ₁ to φ₂, each solved with the weights of the
@@ -164,9 +166,11 @@ pub struct RegisterBenchArgs {
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
     #[arg(long)]
     pub weights: Option<String>,
-    /// Untangle folded faces of g, boundary and landmarks fixed: `on` (kernel moves),
-    /// `foldover-free` (then the foldover-free untangling of the folds left, disk only) or `off`
-    /// (default: on for omt, off for conformal).
+    /// Untangle folded faces of g: `on` (kernel moves with the boundary and landmarks fixed,
+    /// then the folds left re-embedded with the landmarks released, disk only), `held` (the
+    /// kernel moves alone: landmarks exactly on their targets, folds may be left),
+    /// `foldover-free` (`held`, then the foldover-free untangling of the folds left, disk
+    /// only) or `off` (default: on for omt, off for conformal).
     #[arg(long)]
     pub untangle_g: Option<String>,
     /// Steps in which the landmarks move from φ₁ to φ₂, each solved with the weights of the
@@ -238,11 +242,12 @@ fn harmonic_params(
         h.weights = w.parse()?;
     }
     if let Some(u) = untangle {
-        (h.fold_repair, h.foldover_free) = match u.trim().to_ascii_lowercase().as_str() {
-            "on" | "true" | "yes" => (true, false),
-            "foldover-free" => (true, true),
-            "off" | "false" | "no" => (false, false),
-            other => anyhow::bail!("--untangle-g: expected on, foldover-free or off, got `{other}`"),
+        (h.fold_repair, h.foldover_free, h.release_landmarks) = match u.trim().to_ascii_lowercase().as_str() {
+            "on" | "true" | "yes" => (true, false, true),
+            "held" => (true, false, false),
+            "foldover-free" => (true, true, false),
+            "off" | "false" | "no" => (false, false, false),
+            other => anyhow::bail!("--untangle-g: expected on, held, foldover-free or off, got `{other}`"),
         };
     }
     if let Some(k) = steps {
@@ -377,9 +382,21 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
         "geodesic_samples": args.samples, "seed": args.seed, "harmonic": params.harmonic,
-        "markers": markers_json, "refinement": reg.refinement,
+        "markers": markers_json, "refinement": reg.refinement, "harmonic_released": reg.harmonic_released,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
+    if let Some(r) = &reg.harmonic_released {
+        match &r.error {
+            None => eprintln!(
+                "register: g folded {} faces after its untangling; re-embedded with the landmarks released (a region of {} vertices), landmarks off their targets by up to {:.3} in the disk",
+                r.folded_before, r.region_vertices, r.landmark_shift
+            ),
+            Some(e) => eprintln!(
+                "register: g folds {} faces after its untangling; the re-embedding with the landmarks released failed ({e}), g kept",
+                r.folded_before
+            ),
+        }
+    }
     eprintln!(
         "register: {secs:.2}s (maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s, refinement {:.2}s); snapped {}",
         reg.timings.source_map,
