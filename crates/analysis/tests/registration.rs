@@ -285,6 +285,38 @@ fn a_non_disk_surface_is_named() {
     }
 }
 
+/// TOSCA centaur1 and centaur2 with their landmarks and OMT disk maps, computed once.
+struct Centaur {
+    s1: TriMesh,
+    s2: TriMesh,
+    mf: MarkerFile,
+    lm: Landmarks,
+    phi1: DiskImage,
+    phi2: DiskImage,
+}
+
+fn centaur() -> &'static Centaur {
+    static CENTAUR: OnceLock<Centaur> = OnceLock::new();
+    CENTAUR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses/centaur");
+        let load = |i: usize| shapespace_geometry::io::read_mesh(&dir.join(format!("centaur{i}.off"))).unwrap();
+        let (s1, s2) = (load(1), load(2));
+        let mf = MarkerFile::from_json_file(&dir.join("landmarks.json")).unwrap();
+        let lm = Landmarks::from_named(&mf.landmarks, &mf.landmarks, "centaur/landmarks.json").unwrap();
+        let p = registration_area_params();
+        let phi1 = disk_image(&s1, &mf.markers, Method::Omt, &p).unwrap();
+        let phi2 = disk_image(&s2, &mf.markers, Method::Omt, &p).unwrap();
+        Centaur {
+            s1,
+            s2,
+            mf,
+            lm,
+            phi1,
+            phi2,
+        }
+    })
+}
+
 /// centaur1 → centaur2 (15,757 V; conformal images crowded to ~4e-14, whose OT solves only
 /// start since the heights are double-double). Measured, centaur1 → centaur2: conformal disk
 /// flips 15 %, geodesic error mean 0.231; OMT disk flips 0 (its g's folds re-embedded with the
@@ -293,22 +325,26 @@ fn a_non_disk_surface_is_named() {
 /// tolerance (0.008–0.5 % for disk maps that agree to 5e-11); the released g has none.
 #[test]
 fn omt_beats_conformal_on_two_centaur_poses() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses/centaur");
-    let load = |i: usize| shapespace_geometry::io::read_mesh(&dir.join(format!("centaur{i}.off"))).unwrap();
-    let (s1, s2) = (load(1), load(2));
-    let mf = MarkerFile::from_json_file(&dir.join("landmarks.json")).unwrap();
-    let lm = Landmarks::from_named(&mf.landmarks, &mf.landmarks, "centaur/landmarks.json").unwrap();
+    let c = centaur();
+    let (s1, s2, lm, mf) = (&c.s1, &c.s2, &c.lm, &c.mf);
     let mut summary = Vec::new();
     for method in [Method::Omt, Method::Conformal] {
-        let p = RegistrationParams {
-            method,
-            source_markers: mf.markers.clone(),
-            target_markers: mf.markers.clone(),
-            harmonic: HarmonicParams::for_method(method),
-            ..RegistrationParams::default()
-        };
-        let reg = register(&s1, &s2, &lm, &p).unwrap();
-        let met = registration_metrics(&s1, &s2, &reg, &MetricParams::default()).unwrap();
+        let reg = match method {
+            // the OMT maps shared with `released_landmarks_leave_no_fold`
+            Method::Omt => register_with_maps(s1, s2, &c.phi1, &c.phi2, lm, &HarmonicParams::for_method(method)),
+            Method::Conformal => {
+                let p = RegistrationParams {
+                    method,
+                    source_markers: mf.markers.clone(),
+                    target_markers: mf.markers.clone(),
+                    harmonic: HarmonicParams::for_method(method),
+                    ..RegistrationParams::default()
+                };
+                register(s1, s2, lm, &p)
+            }
+        }
+        .unwrap();
+        let met = registration_metrics(s1, s2, &reg, &MetricParams::default()).unwrap();
         let g = met.geodesic.as_ref().unwrap().summary;
         eprintln!(
             "{method}: flipped {:.5} (disk) {:.4} (3D), geodesic mean {:.4} median {:.4}",
@@ -333,14 +369,8 @@ fn omt_beats_conformal_on_two_centaur_poses() {
 /// as the held one.
 #[test]
 fn released_landmarks_leave_no_fold() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/poses/centaur");
-    let load = |i: usize| shapespace_geometry::io::read_mesh(&dir.join(format!("centaur{i}.off"))).unwrap();
-    let (s1, s2) = (load(1), load(2));
-    let mf = MarkerFile::from_json_file(&dir.join("landmarks.json")).unwrap();
-    let lm = Landmarks::from_named(&mf.landmarks, &mf.landmarks, "centaur/landmarks.json").unwrap();
-    let p = registration_area_params();
-    let phi1 = disk_image(&s1, &mf.markers, Method::Omt, &p).unwrap();
-    let phi2 = disk_image(&s2, &mf.markers, Method::Omt, &p).unwrap();
+    let c = centaur();
+    let (s1, s2, lm, phi1, phi2) = (&c.s1, &c.s2, &c.lm, &c.phi1, &c.phi2);
     let released = HarmonicParams::for_method(Method::Omt);
     assert!(released.release_landmarks);
     let held = HarmonicParams {
@@ -348,8 +378,8 @@ fn released_landmarks_leave_no_fold() {
         ..released
     };
     let run = |h: &HarmonicParams| {
-        let reg = register_with_maps(&s1, &s2, &phi1, &phi2, &lm, h).unwrap();
-        let met = registration_metrics(&s1, &s2, &reg, &MetricParams::default()).unwrap();
+        let reg = register_with_maps(s1, s2, phi1, phi2, lm, h).unwrap();
+        let met = registration_metrics(s1, s2, &reg, &MetricParams::default()).unwrap();
         (reg, met)
     };
     let (reg_h, met_h) = run(&held);
