@@ -155,7 +155,8 @@ pub struct HarmonicParams {
     /// the convex unit circle, an embedding by Floater's theorem; its retraction then returns
     /// every vertex, landmarks included, as far towards g as the embedding allows. The landmarks
     /// miss their targets by what is left ([`HarmonicRelease::landmark_shift`]). Disk
-    /// registration only; on by default for OMT (decision 0062).
+    /// registration only (in the sphere route's stereographic chart it made the maps worse,
+    /// `docs/experiments.md`); on by default for OMT (decision 0062).
     pub release_landmarks: bool,
     /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k) when one
     /// solve on φ₁ folds; each step solves with the weights of the previous step's layout.
@@ -196,13 +197,14 @@ impl HarmonicParams {
     }
 }
 
-/// The region repair of the folds of `uv` (g, #V₁) with the boundary of S₁ alone fixed
-/// ([`HarmonicParams::release_landmarks`]); `uv` is replaced only by a map without folds.
-fn release_landmarks(
+/// The region repair of the folds of `uv` (g, #V₁, of the faces of `source`) with the vertices
+/// flagged `boundary` alone fixed ([`HarmonicParams::release_landmarks`]); `uv` is replaced
+/// only by a map without folds. `targets`: each landmark pair's target, in `pairs`' order.
+pub(super) fn release_landmarks(
     source: &TriMesh,
     boundary: &[bool],
     pairs: &[(u32, u32)],
-    target_uv: &[[f64; 2]],
+    targets: &[[f64; 2]],
     uv: &mut [[f64; 2]],
 ) -> HarmonicRelease {
     let folded_before = count_folded_faces(&source.faces, uv);
@@ -233,8 +235,9 @@ fn release_landmarks(
     }
     release.landmark_shift = pairs
         .iter()
-        .map(|&(a, b)| {
-            let (p, q) = (uv[a as usize], target_uv[b as usize]);
+        .zip(targets)
+        .map(|(&(a, _), q)| {
+            let p = uv[a as usize];
             (p[0] - q[0]).hypot(p[1] - q[1])
         })
         .fold(0.0, f64::max);
@@ -726,11 +729,12 @@ pub fn register_with_maps(
     };
     let harmonic_released =
         (harmonic.release_landmarks && count_folded_faces(&source.faces, &harmonic_uv) > 0).then(|| {
+            let targets: Vec<[f64; 2]> = landmarks.pairs.iter().map(|&(_, b)| phi2.uv[b as usize]).collect();
             release_landmarks(
                 source,
                 &conn1.boundary_vertices(n1),
                 &landmarks.pairs,
-                &phi2.uv,
+                &targets,
                 &mut harmonic_uv,
             )
         });
