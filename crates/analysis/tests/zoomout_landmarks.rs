@@ -95,8 +95,15 @@ struct FirstStage {
 }
 
 impl FirstStage {
-    fn of((s, t): (TriMesh, TriMesh)) -> Self {
-        let (lm, params) = extremity_landmarks(&s);
+    fn of(pair: (TriMesh, TriMesh)) -> Self {
+        Self::with_release(pair, true)
+    }
+
+    /// The first stage with g's leftover folds re-embedded with the landmarks released (the
+    /// default, decision 0062) or with the landmarks held (`--untangle-g held`).
+    fn with_release((s, t): (TriMesh, TriMesh), release: bool) -> Self {
+        let (lm, mut params) = extremity_landmarks(&s);
+        params.harmonic.release_landmarks = release;
         let first = register(&s, &t, &lm, &params).unwrap();
         let zp = ZoomOutParams::default();
         let b1 = SpectralBasis::of(&s, zp.k_end, &zp.eigen).unwrap();
@@ -133,12 +140,17 @@ impl FirstStage {
 /// below `k_end` fit C on: with uniform random samples it was the run from 20 by 8 that drifted
 /// with them as well (0.0321) and the run by 4 that they held; with the farthest-point samples
 /// (decision 0058) the run by 4 drifts either way (0.0332). Asserted as well: the default
-/// refinement (two first sizes; 0.0115 and 0.0129) below the same bounds.
+/// refinement (two first sizes; 0.0115 and 0.0129) below the same bounds. The first stage
+/// keeps its landmarks held (`--untangle-g held`): with g's leftover folds re-embedded with the
+/// landmarks released (the default, decision 0062) the run from 20 without the coordinates no
+/// longer drifts on 0001 → 0002 (0.0130, against 0.0134 with them, the default refinement
+/// 0.0131; reference → 0002 0.0124, 0.0139 and 0.0115), so that seed no longer shows what the
+/// coordinates stop.
 #[test]
 fn landmark_coordinates_keep_the_cat_limbs_apart() {
     for (a, b, bound, gain) in [("reference", "0002", 0.013, 1.05), ("0001", "0002", 0.018, 0.6)] {
         let Some(pair) = cut_poses(a, b) else { return };
-        let stage = FirstStage::of(pair);
+        let stage = FirstStage::with_release(pair, false);
         let zp = ZoomOutParams::default();
         let run = |weight: f64| {
             // one run from 20: the drift the landmark coordinates stop (with the default two

@@ -2614,6 +2614,14 @@ fn register_refines_by_zoomout() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("unknown refinement `bogus`"), "{}", stderr(&out));
     assert!(!out_dir.join("metrics.json").exists());
+    let out = run(&["--untangle-g", "pinned"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("expected on, held, foldover-free or off, got `pinned`"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!out_dir.join("metrics.json").exists());
 
     let mean_error = || {
         let metrics: serde_json::Value =
