@@ -137,14 +137,34 @@ fn differently_jittered_spheres_converge_under_refinement() {
 }
 
 /// Landmark pairs that are not v ↔ v (each source landmark onto another vertex of the target):
-/// f sends each source landmark exactly onto its partner vertex.
+/// with the landmarks held, f sends each source landmark exactly onto its partner vertex. By
+/// default OMT's g then folds faces on S², whose chart repair moves landmark 10 off its partner
+/// by the shift it records.
 #[test]
 fn landmarks_land_on_their_partners() {
     let a = jittered_sphere(3, 0.15, 5, &rot([1.0, 2.0, 3.0], 0.4));
     let b = jittered_sphere(3, 0.15, 9, &rot([-1.0, 0.5, 0.0], 2.0));
     let lm = Landmarks::from_pairs(vec![(0, 12), (3, 40), (7, 7), (10, 100), (200, 210)], "test");
     for method in [Method::Conformal, Method::Omt] {
-        let reg = register(&a, &b, &lm, method);
+        let (p, q) = (image(&a, method), image(&b, method));
+        let default = register_sphere_with_maps(&a, &b, &p, &q, &lm, &HarmonicParams::for_method(method)).unwrap();
+        if let Some(repair) = &default.harmonic_sphere_repair {
+            assert_eq!(repair.folded_after, 0, "{method}: {repair:?}");
+            let shift = lm
+                .pairs
+                .iter()
+                .map(|&(s, t)| {
+                    let (x, y) = (default.harmonic_sphere[s as usize], q.positions[t as usize]);
+                    ((x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2) + (x[2] - y[2]).powi(2)).sqrt()
+                })
+                .fold(0.0, f64::max);
+            assert_eq!(repair.landmark_shift, shift, "{method}");
+        }
+        let held = HarmonicParams {
+            release_landmarks: false,
+            ..HarmonicParams::for_method(method)
+        };
+        let reg = register_sphere_with_maps(&a, &b, &p, &q, &lm, &held).unwrap();
         for &(s, t) in &lm.pairs {
             let p = reg.points[s as usize];
             let q = b.positions[t as usize];
@@ -268,8 +288,33 @@ fn tosca_wolf_pair_on_the_sphere() {
     assert_eq!(met.flipped_faces, 0);
     // (method, measured mean geodesic error, bound ≈ 1.5× it)
     for (method, measured, bound) in [(Method::Conformal, 0.0734, 0.11), (Method::Omt, 0.0143, 0.0215)] {
-        let reg = register(&w[0], &w[1], lm, method);
+        let (p, q) = (image(&w[0], method), image(&w[1], method));
+        let reg = register_sphere_with_maps(&w[0], &w[1], &p, &q, lm, &HarmonicParams::for_method(method)).unwrap();
         let met = metrics(&w[0], &w[1], &reg);
+        if method == Method::Omt {
+            // g's image folds a few long slivers on S² with the landmarks held; the chart repair
+            // of the sphere maps (with `release_landmarks`, the default) leaves none
+            let held = HarmonicParams {
+                release_landmarks: false,
+                ..HarmonicParams::for_method(method)
+            };
+            let reg_h = register_sphere_with_maps(&w[0], &w[1], &p, &q, lm, &held).unwrap();
+            let met_h = metrics(&w[0], &w[1], &reg_h);
+            let repair = reg.harmonic_sphere_repair.as_ref().expect("a repair on S²");
+            eprintln!(
+                "wolf0 -> wolf1 omt: {} faces folded on S² with the landmarks held ({} by the metric), {repair:?}",
+                repair.folded_before, met_h.flipped_faces
+            );
+            assert!(reg_h.harmonic_sphere_repair.is_none());
+            assert!(met_h.flipped_faces > 0);
+            assert_eq!((repair.folded_after, met.flipped_faces), (0, 0));
+            assert!(repair.vertices_moved > 0 && repair.vertices_moved < 20, "{repair:?}");
+            let (eh, er) = (
+                met_h.geodesic.as_ref().unwrap().summary.mean,
+                met.geodesic.as_ref().unwrap().summary.mean,
+            );
+            assert!((er - eh).abs() < 0.01 * eh, "geodesic mean held {eh} repaired {er}");
+        }
         let geo = met.geodesic.as_ref().unwrap().summary;
         eprintln!(
             "wolf0 -> wolf1 {method}: geodesic mean {:.4} median {:.4}, flipped area sphere {:.4} 3D {:.4}, folded g {}, snapped {}, seconds {:.1}",

@@ -228,7 +228,9 @@ pub struct BenchRow {
     pub harmonic_folded: usize,
     /// The largest distance in the disk between a landmark's image under g and its target,
     /// when the folds of g were re-embedded with the landmarks released (0 when they stayed
-    /// on their targets; [`crate::registration::HarmonicParams::release_landmarks`]).
+    /// on their targets; [`crate::registration::HarmonicParams::release_landmarks`]); on the
+    /// sphere, the chordal distance on S² after the repair of the faces folded there
+    /// ([`crate::registration::sphere::SphereHarmonicRepair`]).
     pub landmark_shift: f64,
     pub curvature_median: f64,
     pub curvature_mean: f64,

@@ -154,9 +154,11 @@ pub struct HarmonicParams {
     /// alone fixed. Its Tutte rounds end, at the latest, in a whole-disk solve whose boundary is
     /// the convex unit circle, an embedding by Floater's theorem; its retraction then returns
     /// every vertex, landmarks included, as far towards g as the embedding allows. The landmarks
-    /// miss their targets by what is left ([`HarmonicRelease::landmark_shift`]). Disk
-    /// registration only (in the sphere route's stereographic chart it made the maps worse,
-    /// `docs/experiments.md`); on by default for OMT (decision 0062).
+    /// miss their targets by what is left ([`HarmonicRelease::landmark_shift`]). On the sphere
+    /// the chart stays with its landmarks held (the release made the maps worse there,
+    /// `docs/experiments.md`); instead the faces of g's image that fold on S² are re-embedded by
+    /// the sphere maps' chart repair, which may move a landmark
+    /// ([`sphere::SphereHarmonicRepair`]). On by default for OMT (decision 0062).
     pub release_landmarks: bool,
     /// Number K ≥ 1 of steps in which the landmarks move from φ₁(l1_k) to φ₂(l2_k) when one
     /// solve on φ₁ folds; each step solves with the weights of the previous step's layout.

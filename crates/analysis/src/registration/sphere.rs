@@ -243,8 +243,26 @@ pub struct SphereRegistration {
     pub harmonic_steps: usize,
     /// What the untangling of g did, when it ran.
     pub harmonic_fold_repair: Option<UntangleInfo>,
+    /// The chart repair of the faces of g's image that fold on S² (with
+    /// [`HarmonicParams::release_landmarks`]; `None` when none folded).
+    pub harmonic_sphere_repair: Option<SphereHarmonicRepair>,
     /// Stage timings (`source_map`, `target_map`: the sphere maps).
     pub timings: RegistrationTimings,
+}
+
+/// What the repair of g's image on S² did: the sphere maps' chart repair
+/// ([`crate::sphere_param::repair_sphere_map_folds`]) on the faces counter-clockwise in g's
+/// chart that fold on S² (long slivers, whose straight chart edges are arcs on S²); every
+/// vertex may move, the landmarks included.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SphereHarmonicRepair {
+    /// Faces of g's image not positively oriented on S² (exact predicate) before and after.
+    pub folded_before: usize,
+    pub folded_after: usize,
+    /// Vertices the repair moved.
+    pub vertices_moved: usize,
+    /// The largest chordal distance on S² between a landmark's image and its target.
+    pub landmark_shift: f64,
 }
 
 /// Registers S₁ onto S₂ through the sphere (module docs): both sphere maps by `method`
@@ -521,6 +539,28 @@ pub fn register_sphere_with_maps(
     for &(a, b) in &landmarks.pairs {
         harmonic_sphere[a as usize] = psi2.positions[b as usize];
     }
+    // faces that are counter-clockwise in the chart but long slivers on S² (its straight edges
+    // are arcs there) flip on S²: the sphere maps' chart repair re-embeds them, tested on S²
+    let harmonic_sphere_repair = (harmonic.release_landmarks
+        && crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere) > 0)
+        .then(|| {
+            let folded_before = crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere);
+            let info = crate::sphere_param::repair_sphere_map_folds(source, &mut harmonic_sphere);
+            let landmark_shift = landmarks
+                .pairs
+                .iter()
+                .map(|&(a, b)| {
+                    let d = sub(harmonic_sphere[a as usize], psi2.positions[b as usize]);
+                    dot(d, d).sqrt()
+                })
+                .fold(0.0, f64::max);
+            SphereHarmonicRepair {
+                folded_before,
+                folded_after: crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere),
+                vertices_moved: info.vertices_moved,
+                landmark_shift,
+            }
+        });
     let t1 = Instant::now();
     // 4. composition
     let locator = SphereLocator::new(&psi2.positions, &target.faces)?;
@@ -561,6 +601,7 @@ pub fn register_sphere_with_maps(
         harmonic_folded,
         harmonic_steps: steps_used,
         harmonic_fold_repair,
+        harmonic_sphere_repair,
         timings: RegistrationTimings {
             source_map: psi1.seconds,
             target_map: psi2.seconds,
@@ -802,6 +843,7 @@ pub fn write_sphere_registration(
         "harmonic_folded": reg.harmonic_folded,
         "harmonic_steps": reg.harmonic_steps,
         "harmonic_fold_repair": reg.harmonic_fold_repair,
+        "harmonic_sphere_repair": reg.harmonic_sphere_repair,
     });
     let map = super::bench::MapOutput {
         label: reg.method.name(),

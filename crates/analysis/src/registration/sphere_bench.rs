@@ -183,6 +183,7 @@ pub fn sphere_bench(
                             row.flipped_ratio = met.flipped_area_ratio;
                             row.flipped_ratio_3d = met.flipped_area_ratio_3d;
                             row.harmonic_folded = reg.harmonic_folded;
+                            row.landmark_shift = reg.harmonic_sphere_repair.as_ref().map_or(0.0, |r| r.landmark_shift);
                             row.curvature_median = met.curvature_summary.median;
                             row.curvature_mean = met.curvature_summary.mean;
                             row.area_distortion_median = met.area_distortion_summary.median;
