@@ -202,7 +202,7 @@ impl HarmonicParams {
 /// The region repair of the folds of `uv` (g, #V₁, of the faces of `source`) with the vertices
 /// flagged `boundary` alone fixed ([`HarmonicParams::release_landmarks`]); `uv` is replaced
 /// only by a map without folds. `targets`: each landmark pair's target, in `pairs`' order.
-pub(super) fn release_landmarks(
+fn release_landmarks(
     source: &TriMesh,
     boundary: &[bool],
     pairs: &[(u32, u32)],

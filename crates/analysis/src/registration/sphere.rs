@@ -541,26 +541,29 @@ pub fn register_sphere_with_maps(
     }
     // faces that are counter-clockwise in the chart but long slivers on S² (its straight edges
     // are arcs there) flip on S²: the sphere maps' chart repair re-embeds them, tested on S²
-    let harmonic_sphere_repair = (harmonic.release_landmarks
-        && crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere) > 0)
-        .then(|| {
-            let folded_before = crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere);
-            let info = crate::sphere_param::repair_sphere_map_folds(source, &mut harmonic_sphere);
-            let landmark_shift = landmarks
-                .pairs
-                .iter()
-                .map(|&(a, b)| {
-                    let d = sub(harmonic_sphere[a as usize], psi2.positions[b as usize]);
-                    dot(d, d).sqrt()
-                })
-                .fold(0.0, f64::max);
-            SphereHarmonicRepair {
-                folded_before,
-                folded_after: crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere),
-                vertices_moved: info.vertices_moved,
-                landmark_shift,
-            }
-        });
+    let folded_on_sphere = if harmonic.release_landmarks {
+        crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere)
+    } else {
+        0
+    };
+    let harmonic_sphere_repair = (folded_on_sphere > 0).then(|| {
+        let folded_before = folded_on_sphere;
+        let info = crate::sphere_param::repair_sphere_map_folds(source, &mut harmonic_sphere);
+        let landmark_shift = landmarks
+            .pairs
+            .iter()
+            .map(|&(a, b)| {
+                let d = sub(harmonic_sphere[a as usize], psi2.positions[b as usize]);
+                dot(d, d).sqrt()
+            })
+            .fold(0.0, f64::max);
+        SphereHarmonicRepair {
+            folded_before,
+            folded_after: crate::sphere_param::folded_faces_on_sphere(source, &harmonic_sphere),
+            vertices_moved: info.vertices_moved,
+            landmark_shift,
+        }
+    });
     let t1 = Instant::now();
     // 4. composition
     let locator = SphereLocator::new(&psi2.positions, &target.faces)?;
