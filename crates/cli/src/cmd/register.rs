@@ -488,6 +488,12 @@ fn run_sphere(
         reg.harmonic_steps,
         reg.num_snapped
     );
+    if let Some(r) = &reg.harmonic_sphere_repair {
+        eprintln!(
+            "register: g's image folded {} faces on S² (slivers that the chart draws unfolded); re-embedded by the chart repair, {} left, {} vertices moved, landmarks off their targets by up to {:.3} (chordal)",
+            r.folded_before, r.folded_after, r.vertices_moved, r.landmark_shift
+        );
+    }
     print_metrics(&met, "sphere", &files);
     Ok(ExitCode::SUCCESS)
 }
