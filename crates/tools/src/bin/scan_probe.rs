@@ -42,26 +42,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let steps = std::env::var("STEPS").is_ok();
     let mut shapes = Vec::new();
     // SHARED=1: the files prepared and mapped as `shapespace distances` does, with the automatic
-    // markers shared by the files of one triangulation
-    let shared = std::env::var("SHARED")
-        .is_ok()
-        .then(|| shapespace_tools::scans::prepared_set(&files));
-    for (i, f) in files.iter().enumerate() {
-        let name = f.file_stem().unwrap().to_string_lossy().to_string();
-        let mut shape = match &shared {
-            Some(set) => set[i].clone(),
-            None => {
-                let mut mesh = shapespace_geometry::io::read_mesh(f)?;
-                if std::env::var("PREPARE").is_ok() {
-                    mesh = shapespace_tools::scans::disk_mesh(f);
-                }
-                if std::env::var("SUBDIVIDE").is_ok() {
-                    mesh = shapespace_geometry::prepare::subdivide_midpoint(&mesh)?;
-                }
-                let (markers, _) = markers_for(f, &MarkerOptions::default(), mesh.positions.len())?;
-                prepare_shape(&name, &mesh, &markers, &DiskMapParams::default())?
+    // markers shared by the files of one triangulation (a file whose map fails is left out)
+    let prepared = if std::env::var("SHARED").is_ok() {
+        shapespace_tools::scans::prepared_set(&files)
+    } else {
+        let mut prepared = Vec::new();
+        for f in &files {
+            let mut mesh = shapespace_geometry::io::read_mesh(f)?;
+            if std::env::var("PREPARE").is_ok() {
+                mesh = shapespace_tools::scans::disk_mesh(f);
             }
-        };
+            if std::env::var("SUBDIVIDE").is_ok() {
+                mesh = shapespace_geometry::prepare::subdivide_midpoint(&mesh)?;
+            }
+            let (markers, _) = markers_for(f, &MarkerOptions::default(), mesh.positions.len())?;
+            let name = f.file_stem().unwrap().to_string_lossy().to_string();
+            prepared.push(prepare_shape(&name, &mesh, &markers, &DiskMapParams::default())?);
+        }
+        prepared
+    };
+    for mut shape in prepared {
+        let name = shape.name.clone();
         // experiments: env CAP=k caps the densities at k × their median; NUFLOOR=k floors the
         // target masses at k × their median
         if let Some(k) = std::env::var("CAP").ok().and_then(|s| s.parse::<f64>().ok()) {
