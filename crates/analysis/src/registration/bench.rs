@@ -56,6 +56,7 @@ pub fn write_registration(
         "timings": reg.timings,
         "num_snapped": reg.num_snapped,
         "max_snap_distance": reg.max_snap_distance,
+        "harmonic_released": reg.harmonic_released,
     });
     let map = MapOutput {
         label: reg.method.name(),

@@ -199,17 +199,18 @@ impl HarmonicParams {
     }
 }
 
-/// The region repair of the folds of `uv` (g, #V₁, of the faces of `source`) with the vertices
-/// flagged `boundary` alone fixed ([`HarmonicParams::release_landmarks`]); `uv` is replaced
-/// only by a map without folds. `targets`: each landmark pair's target, in `pairs`' order.
+/// The region repair of the `folded_before` folded faces of `uv` (g, #V₁, of the faces of
+/// `source`) with the vertices flagged `boundary` alone fixed
+/// ([`HarmonicParams::release_landmarks`]); `uv` is replaced only by a map without folds.
+/// `targets`: each landmark pair's target, in `pairs`' order.
 fn release_landmarks(
     source: &TriMesh,
     boundary: &[bool],
     pairs: &[(u32, u32)],
     targets: &[[f64; 2]],
+    folded_before: usize,
     uv: &mut [[f64; 2]],
 ) -> HarmonicRelease {
-    let folded_before = count_folded_faces(&source.faces, uv);
     let mut repaired = uv.to_vec();
     let result = crate::fold_repair::repair_folds(
         source,
@@ -729,17 +730,22 @@ pub fn register_with_maps(
     } else {
         None
     };
-    let harmonic_released =
-        (harmonic.release_landmarks && count_folded_faces(&source.faces, &harmonic_uv) > 0).then(|| {
-            let targets: Vec<[f64; 2]> = landmarks.pairs.iter().map(|&(_, b)| phi2.uv[b as usize]).collect();
-            release_landmarks(
-                source,
-                &conn1.boundary_vertices(n1),
-                &landmarks.pairs,
-                &targets,
-                &mut harmonic_uv,
-            )
-        });
+    let folded_left = if harmonic.release_landmarks {
+        count_folded_faces(&source.faces, &harmonic_uv)
+    } else {
+        0
+    };
+    let harmonic_released = (folded_left > 0).then(|| {
+        let targets: Vec<[f64; 2]> = landmarks.pairs.iter().map(|&(_, b)| phi2.uv[b as usize]).collect();
+        release_landmarks(
+            source,
+            &conn1.boundary_vertices(n1),
+            &landmarks.pairs,
+            &targets,
+            folded_left,
+            &mut harmonic_uv,
+        )
+    });
     let t1 = Instant::now();
 
     let locator = PointLocator::new(&phi2.uv, &target.faces)?;

@@ -382,7 +382,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
         "geodesic_samples": args.samples, "seed": args.seed, "harmonic": params.harmonic,
-        "markers": markers_json, "refinement": reg.refinement, "harmonic_released": reg.harmonic_released,
+        "markers": markers_json, "refinement": reg.refinement,
     });
     let files = write_registration(&args.out, &source, &target, &reg, &met, &extra)?;
     if let Some(r) = &reg.harmonic_released {
