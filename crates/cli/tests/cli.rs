@@ -3138,7 +3138,7 @@ fn lat_long_sphere_obj(rings: usize, segments: usize, stretch: f64, angle: f64) 
 }
 
 /// `register` on two closed meshes goes to the sphere (a rotated copy registers onto itself:
-/// geodesic error 0 to rounding, no flips), and a closed mesh with a disk is refused naming both
+/// geodesic error 0 to rounding, no flips, also refined by ZoomOut), and a closed mesh with a disk is refused naming both
 /// files, before any map.
 #[test]
 fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
@@ -3149,9 +3149,8 @@ fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
     std::fs::write(&disk, grid_obj(1.0)).unwrap();
     let lm = dir.join("lm.csv");
     std::fs::write(&lm, "source,target\n5,5\n40,40\n77,77\n").unwrap();
-    let out_dir = dir.join("out");
-    let run = |b: &Path, out: &Path| {
-        shapespace(&[
+    let run = |b: &Path, out: &Path, extra: &[&str]| {
+        let mut args = vec![
             "register",
             a.to_str().unwrap(),
             b.to_str().unwrap(),
@@ -3161,23 +3160,37 @@ fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
             "conformal",
             "--out",
             out.to_str().unwrap(),
-        ])
+        ];
+        args.extend(extra);
+        shapespace(&args)
     };
-    let out = run(&b, &out_dir);
-    let msg = stderr(&out);
-    assert_eq!(out.status.code(), Some(0), "{msg}");
-    assert!(msg.contains("on the sphere"), "{msg}");
-    let metrics: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out_dir.join("metrics.json")).unwrap()).unwrap();
-    assert_eq!(metrics["domain"], "sphere");
-    let geo = metrics["metrics"]["geodesic"]["summary"]["max"].as_f64().unwrap();
-    assert!(geo < 1e-9, "rotated copy: geodesic error {geo}");
-    assert_eq!(metrics["metrics"]["flipped_faces"], 0);
-    assert_eq!(metrics["metrics"]["flipped_faces_3d"], 0);
-    let rows = std::fs::read_to_string(out_dir.join("correspondence.csv")).unwrap();
-    assert_eq!(rows.lines().count(), 1 + 2 + 8 * 12);
+    // the first stage, then refined by ZoomOut: both keep the rotated copy's identity
+    for (name, extra) in [
+        ("out", &[][..]),
+        (
+            "refined",
+            &["--refine", "zoomout", "--zoomout-k-end", "16", "--zoomout-starts", "8"][..],
+        ),
+    ] {
+        let out_dir = dir.join(name);
+        let out = run(&b, &out_dir, extra);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(0), "{msg}");
+        assert!(msg.contains("on the sphere"), "{msg}");
+        let metrics: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out_dir.join("metrics.json")).unwrap()).unwrap();
+        assert_eq!(metrics["domain"], "sphere");
+        let geo = metrics["metrics"]["geodesic"]["summary"]["max"].as_f64().unwrap();
+        assert!(geo < 1e-9, "{name}: rotated copy: geodesic error {geo}");
+        assert_eq!(metrics["metrics"]["flipped_faces"], 0);
+        assert_eq!(metrics["metrics"]["flipped_faces_3d"], 0);
+        let refinement = &metrics["run"]["refinement"];
+        assert_eq!(refinement.is_null(), extra.is_empty(), "{refinement}");
+        let rows = std::fs::read_to_string(out_dir.join("correspondence.csv")).unwrap();
+        assert_eq!(rows.lines().count(), 1 + 2 + 8 * 12);
+    }
 
-    let out = run(&disk, &dir.join("mixed"));
+    let out = run(&disk, &dir.join("mixed"), &[]);
     let msg = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{msg}");
     assert!(

@@ -931,7 +931,7 @@ fn fill_row(row: &mut BenchRow, reg: &Registration, met: &RegistrationMetrics, b
 
 /// The per-mesh work (disk maps and eigenpairs, seconds per target) shared out over the rows of
 /// one class and method: `amortized_seconds` and `stage1_amortized_seconds`.
-fn share_mesh_work(rows: &mut [BenchRow], mesh_seconds: &[f64], mesh_eigen_seconds: &[f64]) {
+pub(super) fn share_mesh_work(rows: &mut [BenchRow], mesh_seconds: &[f64], mesh_eigen_seconds: &[f64]) {
     let pairs = rows.len().max(1) as f64;
     let share = mesh_seconds.iter().sum::<f64>() / pairs;
     let eigen_share = mesh_eigen_seconds.iter().sum::<f64>() / pairs;

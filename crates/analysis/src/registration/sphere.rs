@@ -24,10 +24,13 @@
 //!    face of ψ₂(S₂) whose spherical triangle holds g(v), barycentric coordinates of the ray
 //!    through g(v) in its flat chordal triangle, and the corresponding 3D point of S₂.
 //!
+//! Refinement ([`refine_sphere_registration`]): ZoomOut seeded with the composed map, as on the
+//! disk (`--refine zoomout`); it needs no domain, so the closed poses are refined without a cut.
+//!
 //! Flips ([`sphere_registration_metrics`]): a face of S₁ is flipped on the sphere when its image
 //! (g(a), g(b), g(c)) is negatively oriented, det < 0 (ψ₁ is positively oriented, outward
 //! normals); in 3D as for the disk, against the normal of the face of S₂ that holds the
-//! normalized mean of the three g-images.
+//! normalized mean of the three sphere images of the map.
 
 use std::time::Instant;
 
@@ -43,9 +46,11 @@ use shapespace_omt::sphere::fibonacci_sphere;
 use super::box_tree::BoxTree;
 pub use super::box_tree::LEAF_CAPACITY;
 use super::metrics::{image_is_flipped, surface_metrics, FlipCounts};
+use super::untangle::untangle_points_on_sphere;
+use super::zoomout::{self, Refinement, SpectralBasis, ZoomOutParams};
 use super::{
-    harmonic_step, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams, RegistrationMetrics,
-    RegistrationTimings, UNTANGLE_SWEEPS,
+    harmonic_step, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams, RefinementInfo,
+    RegistrationMetrics, RegistrationTimings, UNTANGLE_SWEEPS,
 };
 use crate::error::AnalysisError;
 use crate::fold_repair::{count_folded_faces, untangle_kernels, UntangleInfo};
@@ -246,6 +251,10 @@ pub struct SphereRegistration {
     /// The chart repair of the faces of g's image that fold on S² (with
     /// [`HarmonicParams::release_landmarks`]; `None` when none folded).
     pub harmonic_sphere_repair: Option<SphereHarmonicRepair>,
+    /// The refinement applied after the sphere stage, if any
+    /// ([`refine_sphere_registration`]): `faces`, `bary` and `points` are then the refined
+    /// map's, while `harmonic_sphere` stays the first stage's.
+    pub refinement: Option<RefinementInfo>,
     /// Stage timings (`source_map`, `target_map`: the sphere maps).
     pub timings: RegistrationTimings,
 }
@@ -266,9 +275,11 @@ pub struct SphereHarmonicRepair {
 }
 
 /// Registers S₁ onto S₂ through the sphere (module docs): both sphere maps by `method`
-/// (in parallel), then [`register_sphere_with_maps`]. Errors: a mesh that is not a closed
-/// genus-0 surface or whose sphere map fails (named `source` / `target`), bad landmarks, fewer
-/// than two landmarks, a harmonic map that cannot be solved.
+/// (in parallel), then [`register_sphere_with_maps`], then with `zoomout` the refinement
+/// ([`refine_sphere_registration`], the eigenpairs of both surfaces computed beside the first
+/// stage). Errors: a mesh that is not a closed genus-0 surface, whose sphere map or eigenpairs
+/// fail (named `source` / `target`), bad landmarks, fewer than two landmarks, a harmonic map
+/// that cannot be solved.
 pub fn register_on_sphere(
     source: &TriMesh,
     target: &TriMesh,
@@ -276,6 +287,7 @@ pub fn register_on_sphere(
     method: Method,
     sphere_params: &SphereParamParams,
     harmonic: &HarmonicParams,
+    zoomout: Option<&ZoomOutParams>,
 ) -> Result<SphereRegistration, AnalysisError> {
     registration_domain(Domain::Sphere, ("source", source), ("target", target))?;
     check_sphere_landmarks(source, target, landmarks)?;
@@ -283,13 +295,29 @@ pub fn register_on_sphere(
         name: name.to_string(),
         message: crate::error::error_chain(&e),
     };
-    let (psi1, psi2) = rayon::join(
-        || sphere_image(source, method, sphere_params),
-        || sphere_image(target, method, sphere_params),
-    );
-    let psi1 = psi1.map_err(|e| named("source", e))?;
-    let psi2 = psi2.map_err(|e| named("target", e))?;
-    register_sphere_with_maps(source, target, &psi1, &psi2, landmarks, harmonic)
+    let first_stage = || {
+        let (psi1, psi2) = rayon::join(
+            || sphere_image(source, method, sphere_params),
+            || sphere_image(target, method, sphere_params),
+        );
+        let psi1 = psi1.map_err(|e| named("source", e))?;
+        let psi2 = psi2.map_err(|e| named("target", e))?;
+        register_sphere_with_maps(source, target, &psi1, &psi2, landmarks, harmonic)
+    };
+    let Some(zoomout) = zoomout else {
+        return first_stage();
+    };
+    let (reg, (b1, b2)) = rayon::join(first_stage, || {
+        rayon::join(
+            || SpectralBasis::of(source, zoomout.k_end, &zoomout.eigen),
+            || SpectralBasis::of(target, zoomout.k_end, &zoomout.eigen),
+        )
+    });
+    let mut reg = reg?;
+    let b1 = b1.map_err(|e| named("source", e))?;
+    let b2 = b2.map_err(|e| named("target", e))?;
+    refine_sphere_registration(source, target, &mut reg, landmarks, &b1, &b2, zoomout)?;
+    Ok(reg)
 }
 
 fn check_sphere_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
@@ -605,6 +633,7 @@ pub fn register_sphere_with_maps(
         harmonic_steps: steps_used,
         harmonic_fold_repair,
         harmonic_sphere_repair,
+        refinement: None,
         timings: RegistrationTimings {
             source_map: psi1.seconds,
             target_map: psi2.seconds,
@@ -614,6 +643,84 @@ pub fn register_sphere_with_maps(
             total: psi1.seconds + psi2.seconds + harmonic_seconds + composition,
         },
     })
+}
+
+/// Refines a sphere registration by ZoomOut ([`zoomout::zoomout`]) seeded with its vertex map
+/// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
+/// S₂ and the landmarks, as [`super::refine_registration`] does on the disk: ZoomOut needs
+/// no domain, and its 3D untangling of the vertex map runs inside it; the untangling with
+/// points inside the target's faces after it tests flips as this route's metric does, in the
+/// sphere image ψ₂ ([`untangle_points_on_sphere`]). Replaces `faces`, `bary` and `points`,
+/// records the [`RefinementInfo`] and adds the bases' and the iterations' seconds to the
+/// timings. Errors from [`zoomout::zoomout`].
+pub fn refine_sphere_registration(
+    source: &TriMesh,
+    target: &TriMesh,
+    reg: &mut SphereRegistration,
+    landmarks: &Landmarks,
+    source_basis: &SpectralBasis,
+    target_basis: &SpectralBasis,
+    params: &ZoomOutParams,
+) -> Result<(), AnalysisError> {
+    let seed = zoomout::nearest_corner_map(target, &reg.faces, &reg.bary);
+    let refined = zoomout::zoomout(
+        source,
+        target,
+        source_basis,
+        target_basis,
+        &seed,
+        &landmarks.pairs,
+        params,
+    )?;
+    let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
+    let mut points: Vec<SurfacePoint> = refined
+        .faces
+        .iter()
+        .copied()
+        .zip(refined.bary.iter().copied())
+        .collect();
+    let point_untangle =
+        untangle_points_on_sphere(source, target, &reg.target_sphere, &mut points, &params.point_untangle)?;
+    reg.points = points.iter().map(|&p| surface_point(target, p)).collect();
+    (reg.faces, reg.bary) = points.into_iter().unzip();
+    reg.timings.refine = source_basis.seconds + target_basis.seconds + refined.seconds + point_untangle.seconds;
+    reg.timings.total += reg.timings.refine;
+    reg.refinement = Some(RefinementInfo {
+        refinement: Refinement::ZoomOut,
+        sizes: refined.sizes,
+        runs: refined.runs,
+        output: refined.output,
+        eigen_seconds: [source_basis.seconds, target_basis.seconds],
+        iteration_seconds: refined.seconds + point_untangle.seconds,
+        vertices_moved,
+        untangle: refined.untangle,
+        vertex_map: refined.vertex_map,
+        point_untangle,
+    });
+    Ok(())
+}
+
+/// The sphere image of each f(v): g's when the map is the first stage's, otherwise (a refined
+/// map) ψ₂ at f(v), the ray through the barycentric combination of its face's corners.
+fn map_sphere_images(reg: &SphereRegistration, target: &TriMesh) -> Vec<[f64; 3]> {
+    if reg.refinement.is_none() {
+        return reg.harmonic_sphere.clone();
+    }
+    reg.faces
+        .iter()
+        .zip(&reg.bary)
+        .map(|(&f, b)| {
+            let t = target.faces[f as usize];
+            let mut x = [0.0; 3];
+            for k in 0..3 {
+                let q = reg.target_sphere[t[k] as usize];
+                for d in 0..3 {
+                    x[d] += b[k] * q[d];
+                }
+            }
+            normalize(x)
+        })
+        .collect()
 }
 
 /// The 3D point of `mesh` at a surface point (face, barycentric coordinates).
@@ -629,9 +736,11 @@ fn surface_point(mesh: &TriMesh, (face, b): SurfacePoint) -> [f64; 3] {
     x
 }
 
-/// The measures of [`crate::registration::metrics`] for a sphere registration: the flips on
-/// the sphere (module docs) in `flipped_area_ratio` / `flipped_faces`, the 3D flips against
-/// the normal of the face of S₂ holding the normalized mean of the corners' g-images, and the
+/// The measures of [`crate::registration::metrics`] for a sphere registration: the flips of g
+/// on the sphere (module docs) in `flipped_area_ratio` / `flipped_faces` (the first stage's,
+/// also for a refined map, as the disk route counts g's flips in the disk), the 3D flips
+/// against the normal of the face of S₂ holding the normalized mean of the corners' sphere
+/// images (g's, or for a refined map ψ₂ at its points), and the
 /// curvature difference, area distortion and geodesic error (against v ↔ v when
 /// `params.ground_truth` and the vertex counts agree) as for the disk. Errors as there.
 pub fn sphere_registration_metrics(
@@ -650,6 +759,7 @@ pub fn sphere_registration_metrics(
     }
     let areas1 = shapespace_geometry::quantities::face_areas(source);
     let locator = SphereLocator::new(&reg.target_sphere, &target.faces)?;
+    let images = map_sphere_images(reg, target);
     let mut flips = FlipCounts::default();
     for (fi, f) in source.faces.iter().enumerate() {
         let [a, b, c] = f.map(|v| reg.harmonic_sphere[v as usize]);
@@ -657,6 +767,7 @@ pub fn sphere_registration_metrics(
             flips.faces += 1;
             flips.area += areas1[fi];
         }
+        let [a, b, c] = f.map(|v| images[v as usize]);
         let m = [a[0] + b[0] + c[0], a[1] + b[1] + c[1], a[2] + b[2] + c[2]];
         let reference = if dot(m, m) > 0.0 {
             locator.locate(normalize(m)).map(|l| l.face)

@@ -20,9 +20,11 @@ use shapespace_conformal::MarkerFile;
 use shapespace_geometry::io::write_atomically;
 use shapespace_geometry::TriMesh;
 
-use super::bench::{create, mesh_files, stem, BenchRow, MethodSummary, Triangulation};
-use super::sphere::{register_sphere_with_maps, sphere_image, sphere_registration_metrics, SphereImage};
-use super::{HarmonicParams, Landmarks, Method, MetricParams, Refinement};
+use super::bench::{create, mesh_files, share_mesh_work, stem, BenchRow, MethodSummary, Triangulation};
+use super::sphere::{
+    refine_sphere_registration, register_sphere_with_maps, sphere_image, sphere_registration_metrics, SphereImage,
+};
+use super::{HarmonicParams, Landmarks, Method, MetricParams, Refinement, SpectralBasis, ZoomOutParams};
 use crate::error::{error_chain, AnalysisError};
 use crate::sphere_param::SphereParamParams;
 
@@ -94,6 +96,8 @@ pub fn sphere_bench(
     methods: &[Method],
     sphere_params: &SphereParamParams,
     harmonic: &dyn Fn(Method) -> HarmonicParams,
+    refine: Refinement,
+    zoomout: &ZoomOutParams,
     metric_params: &MetricParams,
     mut progress: impl FnMut(&str),
 ) -> Result<SphereBenchResult, AnalysisError> {
@@ -139,6 +143,19 @@ pub fn sphere_bench(
                 class_dir.join("landmarks.json").display()
             ),
         )?;
+        // the eigenpairs, once per pose for every method's pairs
+        let bases: Vec<Result<SpectralBasis, String>> = if refine == Refinement::ZoomOut {
+            meshes
+                .iter()
+                .zip(&files)
+                .map(|(m, f)| {
+                    progress(&format!("{class}: eigenpairs of {}", stem(f)));
+                    SpectralBasis::of(m, zoomout.k_end, &zoomout.eigen).map_err(|e| error_chain(&e))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         for &method in methods {
             let maps: Vec<Result<SphereImage, String>> = meshes
                 .iter()
@@ -166,16 +183,16 @@ pub fn sphere_bench(
                         stem(&files[j]),
                         Triangulation::Same,
                         method,
-                        Refinement::None,
+                        refine,
                     );
                     let outcome = pair(
-                        &meshes[i],
-                        &meshes[j],
-                        &maps[i],
-                        &maps[j],
+                        (&meshes[i], &meshes[j]),
+                        (&maps[i], &maps[j]),
+                        bases.get(i).zip(bases.get(j)),
                         &landmarks,
                         method,
                         harmonic,
+                        zoomout,
                         metric_params,
                     );
                     match outcome {
@@ -196,17 +213,26 @@ pub fn sphere_bench(
                             let t = &reg.timings;
                             row.seconds = t.total;
                             row.pair_seconds = t.total - t.source_map - t.target_map;
+                            row.refine_seconds = t.refine;
+                            if let Some(r) = &reg.refinement {
+                                // the eigenpairs are computed once per pose, as the maps are
+                                row.eigen_seconds = r.eigen_seconds[0] + r.eigen_seconds[1];
+                                row.pair_seconds -= row.eigen_seconds;
+                                row.untangle_flipped_before = r.untangle.flipped_before;
+                                row.untangle_flipped_after = r.untangle.flipped_after;
+                                row.untangle_seconds = r.untangle.seconds;
+                                row.point_untangle_flipped_before = r.point_untangle.flipped_before;
+                                row.point_untangle_flipped_after = r.point_untangle.flipped_after;
+                                row.point_untangle_seconds = r.point_untangle.seconds;
+                            }
                         }
                         Err(e) => row.status = e,
                     }
                     rows.push(row);
                 }
             }
-            let pairs = (rows.len() - first_row).max(1) as f64;
-            for r in &mut rows[first_row..] {
-                r.amortized_seconds = r.pair_seconds + mesh_seconds / pairs;
-                r.stage1_amortized_seconds = r.amortized_seconds;
-            }
+            let eigen_seconds: Vec<f64> = bases.iter().map(|b| b.as_ref().map_or(0.0, |b| b.seconds)).collect();
+            share_mesh_work(&mut rows[first_row..], &[mesh_seconds], &eigen_seconds);
         }
     }
     if rows.is_empty() {
@@ -216,7 +242,7 @@ pub fn sphere_bench(
             closed.display()
         )));
     }
-    let summaries = summarize(&rows, methods);
+    let summaries = summarize(&rows, methods, refine);
     let mut files = Vec::new();
     let path = out.join("sphere_results.csv");
     {
@@ -254,27 +280,35 @@ pub fn sphere_bench(
     })
 }
 
+type Bases<'a> = Option<(&'a Result<SpectralBasis, String>, &'a Result<SpectralBasis, String>)>;
+
 #[allow(clippy::too_many_arguments)]
 fn pair(
-    source: &TriMesh,
-    target: &TriMesh,
-    psi1: &Result<SphereImage, String>,
-    psi2: &Result<SphereImage, String>,
+    (source, target): (&TriMesh, &TriMesh),
+    (psi1, psi2): (&Result<SphereImage, String>, &Result<SphereImage, String>),
+    bases: Bases<'_>,
     landmarks: &Landmarks,
     method: Method,
     harmonic: &dyn Fn(Method) -> HarmonicParams,
+    zoomout: &ZoomOutParams,
     metric_params: &MetricParams,
 ) -> Result<(super::sphere::SphereRegistration, super::RegistrationMetrics), String> {
     let psi1 = psi1.as_ref().map_err(|e| format!("sphere map of the source: {e}"))?;
     let psi2 = psi2.as_ref().map_err(|e| format!("sphere map of the target: {e}"))?;
-    let reg = register_sphere_with_maps(source, target, psi1, psi2, landmarks, &harmonic(method))
+    let mut reg = register_sphere_with_maps(source, target, psi1, psi2, landmarks, &harmonic(method))
         .map_err(|e| error_chain(&e))?;
+    if let Some((b1, b2)) = bases {
+        let b1 = b1.as_ref().map_err(|e| format!("eigenpairs of the source: {e}"))?;
+        let b2 = b2.as_ref().map_err(|e| format!("eigenpairs of the target: {e}"))?;
+        refine_sphere_registration(source, target, &mut reg, landmarks, b1, b2, zoomout)
+            .map_err(|e| error_chain(&e))?;
+    }
     let met = sphere_registration_metrics(source, target, &reg, metric_params).map_err(|e| error_chain(&e))?;
     Ok((reg, met))
 }
 
 /// Means over the successful rows per class and method, then over all classes.
-fn summarize(rows: &[BenchRow], methods: &[Method]) -> Vec<MethodSummary> {
+fn summarize(rows: &[BenchRow], methods: &[Method], refine: Refinement) -> Vec<MethodSummary> {
     let mut classes: Vec<String> = Vec::new();
     for r in rows {
         if !classes.contains(&r.class) {
@@ -299,7 +333,7 @@ fn summarize(rows: &[BenchRow], methods: &[Method]) -> Vec<MethodSummary> {
                 class: class.clone(),
                 triangulation: Triangulation::Same,
                 method: m,
-                refine: Refinement::None,
+                refine,
                 pairs_ok: ok.len(),
                 pairs_failed: rows.iter().filter(group).filter(|r| r.status != "ok").count(),
                 flipped_ratio: mean(&|r| r.flipped_ratio),
@@ -312,8 +346,8 @@ fn summarize(rows: &[BenchRow], methods: &[Method]) -> Vec<MethodSummary> {
                 geodesic_median: mean(&|r| r.geodesic_median),
                 geodesic_mean: mean(&|r| r.geodesic_mean),
                 seconds: mean(&|r| r.seconds),
-                refine_seconds: 0.0,
-                eigen_seconds: 0.0,
+                refine_seconds: mean(&|r| r.refine_seconds),
+                eigen_seconds: mean(&|r| r.eigen_seconds),
                 pair_seconds: mean(&|r| r.pair_seconds),
                 amortized_seconds: mean(&|r| r.amortized_seconds),
                 stage1_amortized_seconds: mean(&|r| r.stage1_amortized_seconds),

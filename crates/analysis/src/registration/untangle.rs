@@ -53,6 +53,7 @@ use shapespace_conformal::markers::closest_point_barycentric;
 use shapespace_geometry::quantities::{face_areas, vertex_normals};
 
 use crate::point_location::{barycentric, PointLocator};
+use crate::registration::sphere::SphereLocator;
 use crate::registration::truth::SurfacePoint;
 use shapespace_geometry::{Connectivity, TriMesh};
 
@@ -568,17 +569,112 @@ const WALK_STEPS: usize = 32;
 /// of the neighbours' coordinates (the flip test's walk from a hint stops there).
 const INSIDE: f64 = 1e-9;
 
-struct MetricFlipTest<'a> {
-    locator: PointLocator,
-    target: &'a TriMesh,
+/// The image of S₂ in which the registration metric locates the face whose normal decides an
+/// image triangle's 3D flip: the disk image φ₂ ([`DiskDomain`]) or the sphere image ψ₂
+/// ([`SphereDomain`]).
+trait TargetDomain {
+    /// A point of the image.
+    type P: Copy;
+    /// The image of the point of S₂ in face `f` at barycentric coordinates `b`.
+    fn at(&self, target: &TriMesh, f: u32, b: [f64; 3]) -> Self::P;
+    /// The metric's mean of an image triangle's corners (normalized on the sphere).
+    fn mean(&self, points: &[Self::P]) -> Self::P;
+    /// The mean of a vertex's neighbours' images (a candidate of the single moves).
+    fn neighbour_mean(&self, points: &[Self::P]) -> Self::P;
+    /// Barycentric coordinates of `c` in the image of face `f` (None when degenerate).
+    fn bary(&self, target: &TriMesh, f: u32, c: Self::P) -> Option<[f64; 3]>;
+    /// The face whose image holds `c` and the coordinates there (the point locator's).
+    fn locate(&self, c: Self::P) -> Option<(u32, [f64; 3])>;
+}
+
+/// φ₂: the target's disk image, points located by [`PointLocator`].
+struct DiskDomain<'a> {
     uv: &'a [[f64; 2]],
+    locator: PointLocator,
+}
+
+impl TargetDomain for DiskDomain<'_> {
+    type P = [f64; 2];
+    fn at(&self, target: &TriMesh, f: u32, b: [f64; 3]) -> [f64; 2] {
+        let t = target.faces[f as usize];
+        std::array::from_fn(|d| (0..3).map(|k| b[k] * self.uv[t[k] as usize][d]).sum())
+    }
+    fn mean(&self, points: &[[f64; 2]]) -> [f64; 2] {
+        let n = points.len() as f64;
+        std::array::from_fn(|d| points.iter().map(|p| p[d]).sum::<f64>() / n)
+    }
+    fn neighbour_mean(&self, points: &[[f64; 2]]) -> [f64; 2] {
+        let n = points.len() as f64;
+        std::array::from_fn(|d| points.iter().map(|p| p[d] / n).sum::<f64>())
+    }
+    fn bary(&self, target: &TriMesh, f: u32, c: [f64; 2]) -> Option<[f64; 3]> {
+        let t = target.faces[f as usize].map(|w| self.uv[w as usize]);
+        barycentric(c, t[0], t[1], t[2])
+    }
+    fn locate(&self, c: [f64; 2]) -> Option<(u32, [f64; 3])> {
+        self.locator.locate(c).map(|l| (l.face, l.bary))
+    }
+}
+
+/// ψ₂: the target's sphere image (unit vectors), points of S² located by
+/// [`SphereLocator`]; a point of a face's image is the ray through the barycentric
+/// combination of its corners, as the sphere route's composition and metric take it.
+struct SphereDomain<'a> {
+    sphere: &'a [[f64; 3]],
+    locator: SphereLocator,
+}
+
+fn normalized(x: [f64; 3]) -> [f64; 3] {
+    let n = norm3(x);
+    if n > 0.0 {
+        x.map(|c| c / n)
+    } else {
+        x
+    }
+}
+
+impl TargetDomain for SphereDomain<'_> {
+    type P = [f64; 3];
+    fn at(&self, target: &TriMesh, f: u32, b: [f64; 3]) -> [f64; 3] {
+        let t = target.faces[f as usize];
+        normalized(std::array::from_fn(|d| {
+            (0..3).map(|k| b[k] * self.sphere[t[k] as usize][d]).sum()
+        }))
+    }
+    fn mean(&self, points: &[[f64; 3]]) -> [f64; 3] {
+        normalized(std::array::from_fn(|d| points.iter().map(|p| p[d]).sum()))
+    }
+    fn neighbour_mean(&self, points: &[[f64; 3]]) -> [f64; 3] {
+        self.mean(points)
+    }
+    /// The ray barycentric coordinates: b_k ∝ det(c, x_{k+1}, x_{k+2}) (negative across the
+    /// great circle of the opposite edge), None when they do not sum to a positive number (c
+    /// on the far side of the sphere).
+    fn bary(&self, target: &TriMesh, f: u32, c: [f64; 3]) -> Option<[f64; 3]> {
+        let x = target.faces[f as usize].map(|w| self.sphere[w as usize]);
+        let det = |a: [f64; 3], b: [f64; 3]| {
+            let n = cross3(a, b);
+            n[0] * c[0] + n[1] * c[1] + n[2] * c[2]
+        };
+        let b = [det(x[1], x[2]), det(x[2], x[0]), det(x[0], x[1])];
+        let sum = b[0] + b[1] + b[2];
+        (sum > 0.0 && sum.is_finite()).then(|| b.map(|v| v / sum))
+    }
+    fn locate(&self, c: [f64; 3]) -> Option<(u32, [f64; 3])> {
+        self.locator.locate(c).map(|l| (l.face, l.bary))
+    }
+}
+
+struct MetricFlipTest<'a, D: TargetDomain> {
+    domain: D,
+    target: &'a TriMesh,
     /// Per face of S₂, the face across the edge opposite each corner (`u32::MAX` on the
     /// boundary or at a non-manifold edge).
     across: Vec<[u32; 3]>,
 }
 
-impl<'a> MetricFlipTest<'a> {
-    fn new(target: &'a TriMesh, uv: &'a [[f64; 2]]) -> Result<Self, crate::error::AnalysisError> {
+impl<'a, D: TargetDomain> MetricFlipTest<'a, D> {
+    fn new(target: &'a TriMesh, domain: D) -> Self {
         let conn = Connectivity::of(target);
         let across = (0..target.num_faces())
             .map(|f| {
@@ -594,17 +690,11 @@ impl<'a> MetricFlipTest<'a> {
                 })
             })
             .collect();
-        Ok(MetricFlipTest {
-            locator: PointLocator::new(uv, &target.faces)?,
-            target,
-            uv,
-            across,
-        })
+        MetricFlipTest { domain, target, across }
     }
 
-    fn bary(&self, f: u32, c: [f64; 2]) -> Option<[f64; 3]> {
-        let t = self.target.faces[f as usize].map(|w| self.uv[w as usize]);
-        barycentric(c, t[0], t[1], t[2])
+    fn bary(&self, f: u32, c: D::P) -> Option<[f64; 3]> {
+        self.domain.bary(self.target, f, c)
     }
 
     /// A face of S₂ whose disk image holds `c` (barycentric coordinates all ≥ 0). First a walk
@@ -613,7 +703,7 @@ impl<'a> MetricFlipTest<'a> {
     /// ends on or near an edge, or stops): the first of `near` that holds `c`, else the end of a
     /// walk from the nearest of them (the one of largest smallest coordinate); else the point
     /// locator's.
-    fn face_holding(&self, c: [f64; 2], hint: Option<u32>, near: &[u32]) -> Option<u32> {
+    fn face_holding(&self, c: D::P, hint: Option<u32>, near: &[u32]) -> Option<u32> {
         let from_hint = hint.and_then(|f| self.bary(f, c).map(|b| (f, b)));
         if let Some(f) = self.walk(c, from_hint, |m| m > INSIDE) {
             return Some(f);
@@ -631,14 +721,14 @@ impl<'a> MetricFlipTest<'a> {
             }
         }
         self.walk(c, start.map(|(_, f, b)| (f, b)), |m| m >= 0.0)
-            .or_else(|| self.locator.locate(c).map(|l| l.face))
+            .or_else(|| self.domain.locate(c).map(|l| l.0))
     }
 
     /// A walk towards `c` from a face and its barycentric coordinates, across the edge of the
     /// most negative coordinate, at most [`WALK_STEPS`] faces: the first face whose smallest
     /// coordinate m is `accept`ed; None when it reaches a face holding `c` (m ≥ 0) that it does
     /// not accept, leaves S₂, or stops.
-    fn walk(&self, c: [f64; 2], start: Option<(u32, [f64; 3])>, accept: impl Fn(f64) -> bool) -> Option<u32> {
+    fn walk(&self, c: D::P, start: Option<(u32, [f64; 3])>, accept: impl Fn(f64) -> bool) -> Option<u32> {
         let mut walk = start;
         for _ in 0..WALK_STEPS {
             let (f, b) = walk?;
@@ -658,13 +748,13 @@ impl<'a> MetricFlipTest<'a> {
     }
 
     /// Whether the straight triangle (x[0], x[1], x[2]) faces away from the normal of the face
-    /// of S₂ holding the mean of the disk points u.
+    /// of S₂ holding the mean of the image points u.
     /// `hint` (a face of S₂ near the mean: the face that held it last time, or one holding a
     /// corner's image; set to the face found) and `near` (faces of S₂ to try next): where
     /// [`MetricFlipTest::face_holding`] starts.
-    fn flipped(&self, x: [[f64; 3]; 3], u: [[f64; 2]; 3], hint: &Cell<u32>, near: &[u32]) -> bool {
+    fn flipped(&self, x: [[f64; 3]; 3], u: [D::P; 3], hint: &Cell<u32>, near: &[u32]) -> bool {
         let n = cross3(sub3(x[1], x[0]), sub3(x[2], x[0]));
-        let c = [(u[0][0] + u[1][0] + u[2][0]) / 3.0, (u[0][1] + u[1][1] + u[2][1]) / 3.0];
+        let c = self.domain.mean(&u);
         let start = Some(hint.get()).filter(|&f| f != u32::MAX);
         let Some(face) = self.face_holding(c, start, near) else {
             return false;
@@ -721,9 +811,41 @@ pub fn untangle_points(
     points: &mut [(u32, [f64; 3])],
     params: &PointUntangleParams,
 ) -> Result<PointUntangleInfo, crate::error::AnalysisError> {
+    let domain = DiskDomain {
+        uv: target_uv,
+        locator: PointLocator::new(target_uv, &target.faces)?,
+    };
+    Ok(untangle_points_in(source, target, domain, points, params))
+}
+
+/// [`untangle_points`] for a map between closed surfaces registered through the sphere
+/// (`crate::registration::sphere`), against that route's 3D test: the face of S₂ whose
+/// sphere image ψ₂ (`target_sphere`, unit vectors) holds the normalized mean of the corners'
+/// sphere images decides. Errors: `target_sphere` not #V₂ points.
+pub fn untangle_points_on_sphere(
+    source: &TriMesh,
+    target: &TriMesh,
+    target_sphere: &[[f64; 3]],
+    points: &mut [(u32, [f64; 3])],
+    params: &PointUntangleParams,
+) -> Result<PointUntangleInfo, crate::error::AnalysisError> {
+    let domain = SphereDomain {
+        sphere: target_sphere,
+        locator: SphereLocator::new(target_sphere, &target.faces)?,
+    };
+    Ok(untangle_points_in(source, target, domain, points, params))
+}
+
+fn untangle_points_in<D: TargetDomain>(
+    source: &TriMesh,
+    target: &TriMesh,
+    domain: D,
+    points: &mut [(u32, [f64; 3])],
+    params: &PointUntangleParams,
+) -> PointUntangleInfo {
     let t0 = std::time::Instant::now();
     let n1 = source.num_vertices();
-    let mut pass = PointPass::new(source, target, target_uv, points)?;
+    let mut pass = PointPass::new(source, target, domain, points);
     let before = pass.flipped_faces(points);
     let mut info = PointUntangleInfo {
         flipped_before: before.len(),
@@ -732,7 +854,7 @@ pub fn untangle_points(
     };
     if before.is_empty() || params.sweeps == 0 {
         info.seconds = t0.elapsed().as_secs_f64();
-        return Ok(info);
+        return info;
     }
     let sconn = Connectivity::of(source);
     let adjacency = PassAdjacency {
@@ -799,7 +921,7 @@ pub fn untangle_points(
     info.flipped_after = bad_faces.len();
     info.vertices_moved = (0..n1).filter(|&v| pass.p3[v] != pass.original[v]).count();
     info.seconds = t0.elapsed().as_secs_f64();
-    Ok(info)
+    info
 }
 
 /// The source and target adjacency [`untangle_points`] moves vertices with.
@@ -812,13 +934,12 @@ struct PassAdjacency {
 
 /// The images of [`untangle_points`]: per source vertex its point in 3D (`p3`) and in the disk
 /// image (`p2`), the 3D points before the pass (`original`), and the metric's flip test.
-struct PointPass<'a> {
+struct PointPass<'a, D: TargetDomain> {
     source: &'a TriMesh,
     target: &'a TriMesh,
-    target_uv: &'a [[f64; 2]],
-    test: MetricFlipTest<'a>,
+    test: MetricFlipTest<'a, D>,
     p3: Vec<[f64; 3]>,
-    p2: Vec<[f64; 2]>,
+    p2: Vec<D::P>,
     original: Vec<[f64; 3]>,
     /// Whether the single moves try the closest point to the neighbours' 3D mean (with the
     /// region moves, decision 0042).
@@ -840,20 +961,13 @@ const SPOTS: [[f64; 3]; 7] = [
     [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
 ];
 
-impl<'a> PointPass<'a> {
-    /// The flip test of `target_uv` and the images of `points`. Errors: `target_uv` not a
-    /// triangulation of #V₂ points.
-    fn new(
-        source: &'a TriMesh,
-        target: &'a TriMesh,
-        target_uv: &'a [[f64; 2]],
-        points: &[SurfacePoint],
-    ) -> Result<Self, crate::error::AnalysisError> {
-        let test = MetricFlipTest::new(target, target_uv)?;
+impl<'a, D: TargetDomain> PointPass<'a, D> {
+    /// The flip test in `domain` and the images of `points`.
+    fn new(source: &'a TriMesh, target: &'a TriMesh, domain: D, points: &[SurfacePoint]) -> Self {
+        let test = MetricFlipTest::new(target, domain);
         let mut pass = PointPass {
             source,
             target,
-            target_uv,
             test,
             p3: Vec::new(),
             p2: Vec::new(),
@@ -864,7 +978,7 @@ impl<'a> PointPass<'a> {
         pass.p3 = points.iter().map(|&p| pass.x3(p)).collect();
         pass.p2 = points.iter().map(|&p| pass.x2(p)).collect();
         pass.original = pass.p3.clone();
-        Ok(pass)
+        pass
     }
 
     /// The 3D position of a point of S₂.
@@ -873,10 +987,9 @@ impl<'a> PointPass<'a> {
         std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
     }
 
-    /// The disk-image position of a point of S₂.
-    fn x2(&self, (f, b): SurfacePoint) -> [f64; 2] {
-        let t = self.target.faces[f as usize];
-        std::array::from_fn(|d| (0..3).map(|k| b[k] * self.target_uv[t[k] as usize][d]).sum())
+    /// The position of a point of S₂ in the metric's image of S₂.
+    fn x2(&self, (f, b): SurfacePoint) -> D::P {
+        self.test.domain.at(self.target, f, b)
     }
 
     /// Where the flip test of source face `f` starts: the face of S₂ that held its mean last
@@ -915,7 +1028,7 @@ impl<'a> PointPass<'a> {
         adjacency: &PassAdjacency,
         v: usize,
         faces: &[u32],
-        (p, x, u): (SurfacePoint, [f64; 3], [f64; 2]),
+        (p, x, u): (SurfacePoint, [f64; 3], D::P),
         cap: usize,
     ) -> usize {
         let mut count = 0;
@@ -976,16 +1089,13 @@ impl<'a> PointPass<'a> {
                 *best = (s, c, cand);
             }
         };
-        // the φ₂ mean of the neighbours' images
+        // the mean of the neighbours' images in the metric's image of S₂
         let snb = &adjacency.snb;
-        let mut mean = [0.0; 2];
-        for &u in &snb[v] {
-            for d in 0..2 {
-                mean[d] += self.p2[u as usize][d] / snb[v].len() as f64;
+        let images: Vec<D::P> = snb[v].iter().map(|&u| self.p2[u as usize]).collect();
+        if !images.is_empty() {
+            if let Some(l) = self.test.domain.locate(self.test.domain.neighbour_mean(&images)) {
+                consider(l, &mut best);
             }
-        }
-        if let Some(l) = self.test.locator.locate(mean) {
-            consider((l.face, l.bary), &mut best);
         }
         // the closest point to the 3D mean of the neighbours' images, on the faces near them
         if self.mean3_candidate {
@@ -1006,7 +1116,7 @@ impl<'a> PointPass<'a> {
     }
 }
 
-impl PointPass<'_> {
+impl<D: TargetDomain> PointPass<'_, D> {
     /// The closest point to `x` on the target faces `faces` (the first of equal distances);
     /// `None` when no face gives a finite distance.
     fn closest_on_target(&self, x: [f64; 3], faces: &[u32]) -> Option<SurfacePoint> {
@@ -1188,7 +1298,7 @@ impl PointPass<'_> {
                 faces.sort_unstable();
                 faces.dedup();
                 let before = self.score_faces(points, &faces);
-                let saved: Vec<([f64; 3], [f64; 2], SurfacePoint)> = interior
+                let saved: Vec<([f64; 3], D::P, SurfacePoint)> = interior
                     .iter()
                     .map(|&v| (self.p3[v as usize], self.p2[v as usize], points[v as usize]))
                     .collect();
@@ -1322,11 +1432,17 @@ mod tests {
             }
         }
         let uv: Vec<[f64; 2]> = m.positions.iter().map(|p| [p[0], p[1]]).collect();
-        let test = MetricFlipTest::new(&m, &uv).unwrap();
+        let domain = DiskDomain {
+            uv: &uv,
+            locator: PointLocator::new(&uv, &m.faces).unwrap(),
+        };
+        let test = MetricFlipTest::new(&m, domain);
         let (mut walked, mut checked) = (0, 0);
         for _ in 0..400 {
             let c = [12.0 * rand(), 12.0 * rand()];
-            let Some(l) = test.locator.locate(c) else { continue };
+            let Some(l) = test.domain.locator.locate(c) else {
+                continue;
+            };
             if l.bary.iter().any(|&b| b < 1e-9) {
                 continue;
             }
@@ -1412,6 +1528,123 @@ mod tests {
                 (f, std::array::from_fn(|k| if t[k] as usize == v { 1.0 } else { 0.0 }))
             })
             .collect()
+    }
+
+    /// A unit icosphere (3 subdivisions) with its vertices jittered on S², and a xorshift
+    /// generator of numbers in [0, 1).
+    fn jittered_icosphere() -> (TriMesh, impl FnMut() -> f64) {
+        let mut m = shapespace_geometry::primitives::icosphere(3);
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut rand = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for p in m.positions.iter_mut() {
+            let q = [
+                p[0] + 0.02 * (rand() - 0.5),
+                p[1] + 0.02 * (rand() - 0.5),
+                p[2] + 0.02 * (rand() - 0.5),
+            ];
+            *p = normalized(q);
+        }
+        (m, rand)
+    }
+
+    /// On the sphere: for points strictly inside a spherical triangle, the walk from nearby
+    /// faces or a hint finds the locator's face, and the ray coordinates there are the
+    /// locator's.
+    #[test]
+    fn the_sphere_walk_finds_the_locators_face() {
+        let (m, mut rand) = jittered_icosphere();
+        let domain = SphereDomain {
+            sphere: &m.positions,
+            locator: SphereLocator::new(&m.positions, &m.faces).unwrap(),
+        };
+        let test = MetricFlipTest::new(&m, domain);
+        let (mut walked, mut checked) = (0, 0);
+        for _ in 0..400 {
+            let c = normalized([rand() - 0.5, rand() - 0.5, rand() - 0.5]);
+            let Some((face, bary)) = test.domain.locate(c) else {
+                continue;
+            };
+            if bary.iter().any(|&b| b < 1e-9) {
+                continue;
+            }
+            checked += 1;
+            let b = test.bary(face, c).unwrap();
+            assert!((0..3).all(|k| (b[k] - bary[k]).abs() < 1e-12), "{b:?} {bary:?}");
+            // a start two rings away
+            let w = m.faces[face as usize][0];
+            let conn = Connectivity::of(&m);
+            let far = conn.vertex_neighbors(m.num_vertices())[w as usize][0];
+            let near: Vec<u32> = conn.vertex_faces[far as usize]
+                .iter()
+                .copied()
+                .filter(|&f| !m.faces[f as usize].contains(&w))
+                .collect();
+            if !near.is_empty() && !near.contains(&face) {
+                walked += 1;
+            }
+            assert_eq!(test.face_holding(c, None, &near), Some(face), "{c:?} from {near:?}");
+            assert_eq!(test.face_holding(c, near.first().copied(), &[]), Some(face));
+            // from the far side of the sphere: the locator
+            assert_eq!(test.face_holding(c, Some(0), &[]), Some(face));
+            assert_eq!(test.face_holding(c, None, &[]), Some(face));
+        }
+        assert!(checked > 300 && walked > 100, "{checked} points, {walked} walks");
+    }
+
+    /// On the sphere (S₂ = S₁ = a jittered unit icosphere, ψ₂ its own positions): the identity is
+    /// left alone; one vertex pushed past its neighbour (to the centroid of a face beyond it)
+    /// flips faces of its star, and the pass leaves every face positively oriented on S² and
+    /// moves nothing outside the pushed vertex's one-ring.
+    #[test]
+    fn the_sphere_point_pass_pulls_a_pushed_vertex_back() {
+        let (m, _) = jittered_icosphere();
+        let identity = identity_points(&m);
+        let mut pts = identity.clone();
+        let info = untangle_points_on_sphere(&m, &m, &m.positions, &mut pts, &PointUntangleParams::default()).unwrap();
+        assert_eq!((info.flipped_before, info.vertices_moved), (0, 0));
+        assert_eq!(pts, identity);
+
+        let conn = Connectivity::of(&m);
+        let ring = conn.vertex_neighbors(m.num_vertices());
+        let v = 100;
+        let u = ring[v][0] as usize;
+        // a face around u that does not touch v
+        let beyond = conn.vertex_faces[u]
+            .iter()
+            .copied()
+            .find(|&f| {
+                !m.faces[f as usize].contains(&(v as u32)) && {
+                    let c = m.faces[f as usize].iter().filter(|&&w| ring[v].contains(&w)).count();
+                    c <= 1
+                }
+            })
+            .unwrap();
+        pts[v] = (beyond, [1.0 / 3.0; 3]);
+        let pushed = pts.clone();
+        let info = untangle_points_on_sphere(&m, &m, &m.positions, &mut pts, &PointUntangleParams::default()).unwrap();
+        assert!(info.flipped_before >= 1, "{info:?}");
+        assert_eq!(info.flipped_after, 0, "{info:?}");
+        assert!(info.vertices_moved >= 1, "{info:?}");
+        for w in 0..m.num_vertices() {
+            if w != v && !ring[v].contains(&(w as u32)) {
+                assert_eq!(pts[w], pushed[w], "vertex {w} moved");
+            }
+        }
+        let at = |w: usize| {
+            let (f, b) = pts[w];
+            let q = m.face_positions(f as usize);
+            std::array::from_fn::<f64, 3, _>(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
+        };
+        for f in &m.faces {
+            let [a, b, c] = f.map(|w| at(w as usize));
+            let n = cross3(sub3(b, a), sub3(c, a));
+            assert!(n[0] * a[0] + n[1] * a[1] + n[2] * a[2] > 0.0, "{f:?}");
+        }
     }
 
     #[test]

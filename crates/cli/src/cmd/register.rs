@@ -33,8 +33,8 @@ pub struct RegisterArgs {
     /// Where to register: `auto` (the sphere when both meshes are closed genus-0 surfaces, the
     /// disk when both have one boundary loop; one of each is refused), `disk` or `sphere`. On the
     /// sphere: Möbius-centred sphere maps (`--method`), the rotation fitted to the landmarks (at
-    /// least 2), the harmonic map in a stereographic chart; `--center`, `--boundary-marker` and
-    /// `--refine` do not apply.
+    /// least 2), the harmonic map in a stereographic chart; `--center` and `--boundary-marker`
+    /// do not apply.
     #[arg(long, default_value = "auto")]
     pub domain: String,
     #[command(flatten)]
@@ -68,7 +68,7 @@ pub struct RegisterArgs {
     /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
     #[arg(long)]
     pub out: PathBuf,
-    /// Refinement after the disk-map stage: `none` or `zoomout` (spectral refinement, Melzi et
+    /// Refinement after the disk or sphere stage: `none` or `zoomout` (spectral refinement, Melzi et
     /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of
     /// smaller residual kept).
     #[arg(long, default_value = "none")]
@@ -156,7 +156,7 @@ pub struct RegisterBenchArgs {
     /// Comma-separated methods.
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
-    /// Refinement after the disk-map stage: `none` or `zoomout` (spectral refinement, Melzi et
+    /// Refinement after the disk or sphere stage: `none` or `zoomout` (spectral refinement, Melzi et
     /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of
     /// smaller residual kept).
     #[arg(long, default_value = "none")]
@@ -430,12 +430,7 @@ fn run_sphere(
         );
     }
     let refine: Refinement = args.refine.parse()?;
-    anyhow::ensure!(
-        refine == Refinement::None,
-        "--refine {refine} is not available on the sphere (closed meshes {} and {})",
-        args.source.display(),
-        args.target.display()
-    );
+    let zoomout = args.zoomout.params()?;
     let harmonic = harmonic_params(
         method,
         args.weights.as_deref(),
@@ -443,7 +438,7 @@ fn run_sphere(
         args.landmark_steps,
     )?;
     eprintln!(
-        "register: closed genus-0 meshes, on the sphere: {} landmark pairs, method {method}",
+        "register: closed genus-0 meshes, on the sphere: {} landmark pairs, method {method}, refinement {refine}",
         landmarks.len()
     );
     let t = Instant::now();
@@ -454,6 +449,7 @@ fn run_sphere(
         method,
         &SphereParamParams::default(),
         &harmonic,
+        (refine == Refinement::ZoomOut).then_some(&zoomout),
     )
     .with_context(|| {
         format!(
@@ -474,14 +470,16 @@ fn run_sphere(
         "source": args.source.to_string_lossy(), "target": args.target.to_string_lossy(), "landmarks": landmarks.source_name,
         "landmark_names": landmarks.names, "landmark_pairs": landmarks.pairs, "seconds": secs,
         "geodesic_samples": args.samples, "seed": args.seed, "harmonic": harmonic,
+        "refinement": reg.refinement,
     });
     let files = write_sphere_registration(&args.out, source, target, &reg, &met, &extra)?;
     eprintln!(
-        "register: {secs:.2}s (sphere maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s); pole clearance {:.2} rad, landmark rms after the rotation {:.3}; folded faces of g {} ({} steps); snapped {}",
+        "register: {secs:.2}s (sphere maps {:.2}+{:.2}s, harmonic {:.3}s, composition {:.3}s, refinement {:.2}s); pole clearance {:.2} rad, landmark rms after the rotation {:.3}; folded faces of g {} ({} steps); snapped {}",
         reg.timings.source_map,
         reg.timings.target_map,
         reg.timings.harmonic,
         reg.timings.composition,
+        reg.timings.refine,
         reg.pole_clearance,
         reg.landmark_rms_after_rotation,
         reg.harmonic_folded,
@@ -573,7 +571,15 @@ pub fn run_bench(args: &RegisterBenchArgs) -> anyhow::Result<ExitCode> {
     }
     let mut failed = res.rows.iter().any(|r| r.status != "ok");
     if let Some(closed) = &args.closed {
-        failed |= run_sphere_route(args, closed, &methods, &harmonic, &mp, &res.summaries)?;
+        failed |= run_sphere_route(
+            args,
+            closed,
+            &methods,
+            &harmonic,
+            (refine, &zoomout),
+            &mp,
+            &res.summaries,
+        )?;
     }
     Ok(if failed { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
@@ -693,6 +699,7 @@ fn run_sphere_route(
     closed: &Path,
     methods: &[Method],
     harmonic: &dyn Fn(Method) -> HarmonicParams,
+    (refine, zoomout): (Refinement, &ZoomOutParams),
     mp: &MetricParams,
     disk: &[MethodSummary],
 ) -> anyhow::Result<bool> {
@@ -703,12 +710,14 @@ fn run_sphere_route(
         methods,
         &SphereParamParams::default(),
         harmonic,
+        refine,
+        zoomout,
         mp,
         |m| eprintln!("register-bench: {m}"),
     )
     .with_context(|| format!("sphere route over {} with {}", args.dataset.display(), closed.display()))?;
     println!();
-    println!("Cut-disk route (cut poses) against the sphere route (closed poses), refinement none on the sphere:");
+    println!("Cut-disk route (cut poses) against the sphere route (closed poses), refinement {refine} on both:");
     println!(
         "| class | domain | method | pairs ok/failed | flipped area (disk or sphere) | flipped area (3D) | geodesic err. median | geodesic err. mean | s/pair (maps shared) |"
     );
