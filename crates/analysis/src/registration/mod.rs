@@ -604,8 +604,13 @@ pub fn refine_registration(
         .copied()
         .zip(refined.bary.iter().copied())
         .collect();
-    let point_untangle =
-        untangle::untangle_points(source, target, &reg.target_uv, &mut points, &params.point_untangle)?;
+    let point_untangle = untangle::untangle_points(
+        source,
+        target,
+        &reg.target_uv,
+        &mut points,
+        &params.point_pass(refined.output),
+    )?;
     let (faces, bary): (Vec<u32>, Vec<[f64; 3]>) = points.into_iter().unzip();
     reg.points = faces
         .iter()

@@ -679,8 +679,13 @@ pub fn refine_sphere_registration(
         .copied()
         .zip(refined.bary.iter().copied())
         .collect();
-    let point_untangle =
-        untangle_points_on_sphere(source, target, &reg.target_sphere, &mut points, &params.point_untangle)?;
+    let point_untangle = untangle_points_on_sphere(
+        source,
+        target,
+        &reg.target_sphere,
+        &mut points,
+        &params.point_pass(refined.output),
+    )?;
     reg.points = points.iter().map(|&p| surface_point(target, p)).collect();
     (reg.faces, reg.bary) = points.into_iter().unzip();
     reg.timings.refine = source_basis.seconds + target_basis.seconds + refined.seconds + point_untangle.seconds;

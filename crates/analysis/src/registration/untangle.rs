@@ -45,7 +45,10 @@
 //! faces still flipped to points inside the target's faces, against the registration metric's
 //! own test, by single moves and, where they leave at least 0.4 % of the area flipped, region
 //! moves (decisions 0042, 0054): 0.03–0.33 % (class means; at most 0.40 % on a pair of the five
-//! bench classes) at the same geodesic error within 2.5 %.
+//! bench classes) at the same geodesic error within 2.5 %. With
+//! [`PointUntangleParams::smooth_rounds`] it ends with projected smoothing (decision 0064).
+//! The metric's test locates in the target's disk image φ₂ ([`untangle_points`]) or, for the
+//! sphere route, in its sphere image ψ₂ ([`untangle_points_on_sphere`]).
 
 use std::cell::Cell;
 
@@ -504,6 +507,9 @@ pub struct PointUntangleParams {
     /// result is kept as it is, since a region laid out again can also move its images away
     /// from where the spectral map put them (0 runs them wherever a face is still flipped).
     pub region_from_area: f64,
+    /// Sweeps of projected smoothing after the untangling ([`untangle_points`]; default 0:
+    /// none; ZoomOut's projected output sets [`crate::registration::ZoomOutParams::smoothing`]).
+    pub smooth_rounds: usize,
 }
 
 impl Default for PointUntangleParams {
@@ -513,6 +519,7 @@ impl Default for PointUntangleParams {
             region_rings: 3,
             region_rounds: 3,
             region_from_area: REGION_FROM_AREA,
+            smooth_rounds: 0,
         }
     }
 }
@@ -536,6 +543,8 @@ pub struct PointUntangleInfo {
     pub flipped_area_after_sweeps: f64,
     /// Region moves kept.
     pub regions_moved: usize,
+    /// Moves of the projected smoothing after the untangling.
+    pub smoothing_moves: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -852,16 +861,21 @@ fn untangle_points_in<D: TargetDomain>(
         flipped_after: before.len(),
         ..PointUntangleInfo::default()
     };
-    if before.is_empty() || params.sweeps == 0 {
-        info.seconds = t0.elapsed().as_secs_f64();
-        return info;
-    }
     let sconn = Connectivity::of(source);
     let adjacency = PassAdjacency {
         snb: sconn.vertex_neighbors(n1),
         sconn,
         tconn: Connectivity::of(target),
     };
+    if before.is_empty() || params.sweeps == 0 {
+        if params.smooth_rounds > 0 {
+            info.smoothing_moves = pass.smooth(&adjacency, points, params.smooth_rounds);
+            info.flipped_after = pass.flipped_faces(points).len();
+            info.vertices_moved = (0..n1).filter(|&v| pass.p3[v] != pass.original[v]).count();
+        }
+        info.seconds = t0.elapsed().as_secs_f64();
+        return info;
+    }
     let mut bad_faces = before;
     // a vertex is evaluated again only after it or a source neighbour moved (its result depends
     // on nothing else)
@@ -917,6 +931,10 @@ fn untangle_points_in<D: TargetDomain>(
                 break;
             }
         }
+    }
+    if params.smooth_rounds > 0 {
+        info.smoothing_moves = pass.smooth(&adjacency, points, params.smooth_rounds);
+        bad_faces = pass.flipped_faces(points);
     }
     info.flipped_after = bad_faces.len();
     info.vertices_moved = (0..n1).filter(|&v| pass.p3[v] != pass.original[v]).count();
@@ -1213,6 +1231,50 @@ impl<D: TargetDomain> PointPass<'_, D> {
             }
         }
         w
+    }
+
+    /// Projected smoothing ([`PointUntangleParams::smooth_rounds`] Gauss–Seidel sweeps over the
+    /// source's interior vertices): each image moves to the closest point, on the faces of S₂
+    /// near it, to the combination of its source neighbours' images by Floater's mean-value
+    /// weights of the source star, when that does not raise the score around the vertex
+    /// (flipped, then degenerate images). Returns the number of moves.
+    fn smooth(&mut self, adjacency: &PassAdjacency, points: &mut [SurfacePoint], rounds: usize) -> usize {
+        let n1 = self.source.num_vertices();
+        let on_cut = adjacency.sconn.boundary_vertices(n1);
+        let weights: Vec<Vec<(u32, f64)>> = (0..n1).map(|v| self.mean_value_weights(adjacency, v)).collect();
+        let mut moved = 0;
+        for _ in 0..rounds {
+            for v in 0..n1 {
+                if on_cut[v] {
+                    continue;
+                }
+                let w = &weights[v];
+                let total: f64 = w.iter().map(|e| e.1).sum();
+                if !(total > 0.0 && total.is_finite()) {
+                    continue;
+                }
+                let mut m = [0.0; 3];
+                for &(u, c) in w {
+                    for d in 0..3 {
+                        m[d] += c * self.p3[u as usize][d] / total;
+                    }
+                }
+                let faces = self.faces_near(adjacency, points, v);
+                let Some(cand) = self.closest_on_target(m, &faces) else {
+                    continue;
+                };
+                let cur = self.around(adjacency, v, &faces, (points[v], self.p3[v], self.p2[v]), usize::MAX);
+                let (x, u) = (self.x3(cand), self.x2(cand));
+                let new = self.around(adjacency, v, &faces, (cand, x, u), cur);
+                if new <= cur {
+                    points[v] = cand;
+                    self.p3[v] = x;
+                    self.p2[v] = u;
+                    moved += 1;
+                }
+            }
+        }
+        moved
     }
 
     /// Region moves (module docs of [`untangle_points`]): per connected set of the flipped
@@ -1528,6 +1590,77 @@ mod tests {
                 (f, std::array::from_fn(|k| if t[k] as usize == v { 1.0 } else { 0.0 }))
             })
             .collect()
+    }
+
+    /// The projected smoothing on a grid bent onto a cylinder (S₁ = S₂, φ₂ the flat grid): the
+    /// identity moves by less than an edge's sagitta (the mean-value combination of a star lies
+    /// inside the faceted surface, whose closest point is on a face below the vertex); every
+    /// interior image moved to a random point of a face around it is pulled back to
+    /// under half its distance from the identity, with no flipped face left.
+    #[test]
+    fn the_projected_smoothing_pulls_scattered_images_back() {
+        let n = 12;
+        let mut m = grid(n);
+        let uv: Vec<[f64; 2]> = m.positions.iter().map(|p| [p[0] / n as f64, p[1] / n as f64]).collect();
+        let radius = 6.0;
+        for p in m.positions.iter_mut() {
+            let a = p[0] / radius;
+            *p = [radius * a.sin(), p[1], radius * (1.0 - a.cos())];
+        }
+        let params = PointUntangleParams {
+            smooth_rounds: 3,
+            ..PointUntangleParams::default()
+        };
+        let at = |(f, b): SurfacePoint| {
+            let q = m.face_positions(f as usize);
+            std::array::from_fn::<f64, 3, _>(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
+        };
+        let off = |pts: &[SurfacePoint]| -> f64 {
+            (0..m.num_vertices())
+                .map(|v| norm3(sub3(at(pts[v]), m.positions[v])))
+                .sum::<f64>()
+                / m.num_vertices() as f64
+        };
+        let identity = identity_points(&m);
+        let mut pts = identity.clone();
+        untangle_points(&m, &m, &uv, &mut pts, &params).unwrap();
+        // the closest point to a point inside the faceted cylinder lies on a face below the
+        // vertex: the identity drifts by less than an edge's sagitta h²/(8R)
+        let sagitta = 1.0 / (8.0 * radius);
+        assert!(off(&pts) > 0.0 && off(&pts) < sagitta, "{}", off(&pts));
+
+        let conn = Connectivity::of(&m);
+        let boundary = conn.boundary_vertices(m.num_vertices());
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut rand = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut scattered = identity.clone();
+        for v in 0..m.num_vertices() {
+            if boundary[v] {
+                continue;
+            }
+            let faces = &conn.vertex_faces[v];
+            let f = faces[(rand() * faces.len() as f64) as usize % faces.len()];
+            let (a, b) = (rand(), rand());
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+            scattered[v] = (f, [a, b, 1.0 - a - b]);
+        }
+        let mut pts = scattered.clone();
+        let info = untangle_points(&m, &m, &uv, &mut pts, &params).unwrap();
+        let (before, after) = (off(&scattered), off(&pts));
+        assert!(
+            after < 0.5 * before,
+            "mean distance from the identity {before} -> {after}, {info:?}"
+        );
+        assert!(info.smoothing_moves > 0 && info.flipped_after == 0, "{info:?}");
+        // without the smoothing the untangling alone leaves the scatter
+        let mut unsmoothed = scattered.clone();
+        untangle_points(&m, &m, &uv, &mut unsmoothed, &PointUntangleParams::default()).unwrap();
+        assert!(off(&unsmoothed) > 0.8 * before, "{} against {before}", off(&unsmoothed));
     }
 
     /// A unit icosphere (3 subdivisions) with its vertices jittered on S², and a xorshift

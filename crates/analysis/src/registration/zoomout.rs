@@ -61,6 +61,9 @@
 //! between shapes", §4). By default the vertex map between meshes of one triangulation (the
 //! projection doubled the wolf poses' error, decision 0023), projected points otherwise: onto
 //! the bench's remeshed targets 3–18 % below the errors with vertex output (decision 0056).
+//! Projected points are smoothed after the untangling ([`ZoomOutParams::smoothing`] sweeps
+//! towards the mean-value combination of the neighbours' images, by closest points; 3–5 %
+//! lower errors on the remeshed targets, decision 0064).
 
 use std::time::Instant;
 
@@ -202,6 +205,12 @@ pub struct ZoomOutParams {
     /// [`crate::registration::refine_registration`] with the target's disk image; `sweeps` = 0
     /// turns it off).
     pub point_untangle: PointUntangleParams,
+    /// Sweeps of projected smoothing after the untangling with points when the output is
+    /// projected points ([`PointUntangleParams::smooth_rounds`]; default 3, 0 turns it off):
+    /// each image moves towards the mean-value combination of its neighbours' images, put
+    /// back on S₂ by closest point, which removes the scatter of the per-vertex projections
+    /// (decision 0064).
+    pub smoothing: usize,
     /// Weight w of the landmark coordinates appended to both embeddings of the nearest-neighbour
     /// step: w · d(v, l_i) / √area per landmark pair (heat-method geodesic distance on each
     /// surface), so that a limb cannot drift onto its mirror image (module docs; 0 turns them
@@ -224,6 +233,7 @@ impl Default for ZoomOutParams {
             },
             untangle: VertexMapUntangleParams::default(),
             point_untangle: PointUntangleParams::default(),
+            smoothing: SMOOTHING_SWEEPS,
             landmark_weight: LANDMARK_WEIGHT,
         }
     }
@@ -301,6 +311,25 @@ pub struct ZoomOutRun {
     pub residual: f64,
     /// Whether this run's map was kept (the smallest residual, the earliest of equals).
     pub kept: bool,
+}
+
+/// Default [`ZoomOutParams::smoothing`].
+pub const SMOOTHING_SWEEPS: usize = 3;
+
+impl ZoomOutParams {
+    /// The parameters of the untangling with points after a run whose output was `output`:
+    /// [`ZoomOutParams::point_untangle`], with [`ZoomOutParams::smoothing`] sweeps of projected
+    /// smoothing when the output is projected points.
+    pub fn point_pass(&self, output: ZoomOutOutput) -> PointUntangleParams {
+        PointUntangleParams {
+            smooth_rounds: if output == ZoomOutOutput::Projected {
+                self.smoothing
+            } else {
+                0
+            },
+            ..self.point_untangle.clone()
+        }
+    }
 }
 
 /// Default [`ZoomOutParams::landmark_weight`].

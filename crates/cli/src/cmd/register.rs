@@ -124,6 +124,10 @@ pub struct ZoomOutArgs {
     /// (vertex between meshes of one triangulation, projected otherwise; decision 0056).
     #[arg(long, default_value = "auto", value_parser = zoomout_output)]
     pub zoomout_output: ZoomOutOutput,
+    /// Source vertices ZoomOut's steps below the last size are fitted on, and target vertices
+    /// its nearest-neighbour search starts from (farthest-point samples; all when fewer).
+    #[arg(long, default_value_t = ZoomOutParams::default().samples as u64, value_parser = clap::value_parser!(u64).range(1..))]
+    pub zoomout_samples: u64,
 }
 
 impl ZoomOutArgs {
@@ -139,6 +143,7 @@ impl ZoomOutArgs {
             landmark_weight: self.landmark_weight,
             k_starts: self.zoomout_starts.0.clone(),
             k_end,
+            samples: self.zoomout_samples as usize,
             ..ZoomOutParams::default()
         })
     }
