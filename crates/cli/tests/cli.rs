@@ -2777,8 +2777,9 @@ fn disk_map_choices_reach_param_and_distances() {
 /// `register-bench --remeshed` with a folder that does not exist, or `--peer` without its
 /// script: status 2 naming the path, before any registration; a `--region-from-area` that is
 /// not a share of the area, a `--zoomout-starts` that is not a list of sizes from 1 to the last
-/// size (120 by default), a `--zoomout-k-end` outside 8 to 1000, or a `--zoomout-output` other
-/// than auto, vertex and projected: status 2 naming the option, no output folder.
+/// size (120 by default), a `--zoomout-k-end` outside 8 to 1000, a `--zoomout-output` other
+/// than auto, vertex and projected, or a `--zoomout-samples` below 1: status 2 naming the
+/// option, no output folder.
 #[test]
 fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     let dir = scratch("bench-remeshed-missing");
@@ -2824,6 +2825,7 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         ("--zoomout-starts", &["0", "121", "8,x", ""][..]),
         ("--zoomout-k-end", &["7", "1001", "x"][..]),
         ("--zoomout-output", &["points", "vertices"][..]),
+        ("--zoomout-samples", &["0", "-5", "many"][..]),
     ] {
         for bad in bad_values {
             let out = shapespace(&[
