@@ -6,12 +6,13 @@
 use std::sync::OnceLock;
 
 use shapespace_analysis::registration::sphere::{
-    refine_sphere_registration, register_on_sphere, register_sphere_with_maps, registration_domain, sphere_image,
-    sphere_registration_metrics, Domain, SphereImage, SphereRegistration,
+    register_on_sphere, register_sphere_with_maps, registration_domain, sphere_image, sphere_registration_metrics,
+    Domain, SphereImage, SphereRegistration,
 };
 use shapespace_analysis::registration::sphere_bench::{closed_pose_landmarks, sphere_bench};
 use shapespace_analysis::registration::{
-    HarmonicParams, Landmarks, Method, MetricParams, Refinement, RegistrationMetrics, SpectralBasis, ZoomOutParams,
+    refine_registration, HarmonicParams, Landmarks, Method, MetricParams, Refinement, RegistrationMetrics,
+    SpectralBasis, ZoomOutOutput, ZoomOutParams,
 };
 use shapespace_analysis::rotation::{apply, axis_angle, Rotation};
 use shapespace_analysis::sphere_param::SphereParamParams;
@@ -341,35 +342,51 @@ fn tosca_wolf_pair_on_the_sphere() {
 }
 
 /// wolf0 → wolf1 refined by ZoomOut on the sphere route (`first`: the first stage, of mean
-/// geodesic error `first_error`): the error falls to a tenth of the first stage's (measured
-/// 0.0011 against 0.0143), the flipped 3D area is under the 0.5 % goal (measured 0.001 %)
-/// and not above what the vertex map left before the untangling with points, g's flips on
-/// S² stay 0.
+/// geodesic error `first_error`): the error falls below a tenth of the first stage's (measured
+/// 0.0011 against 0.0143), the flipped 3D area is under the 0.5 % goal (measured 0.001 %),
+/// the untangling with points (tested in ψ₂) leaves no more flipped faces than it found. With
+/// projected output (the projected smoothing runs in ψ₂ as well; off the shared triangulation's
+/// vertices, measured 0.0033) under 0.3 of the first stage's, the same flip bounds.
 fn refined_on_the_sphere(a: &TriMesh, b: &TriMesh, lm: &Landmarks, first: &SphereRegistration, first_error: f64) {
     let params = ZoomOutParams::default();
     let (b1, b2) = (
         SpectralBasis::of(a, params.k_end, &params.eigen).unwrap(),
         SpectralBasis::of(b, params.k_end, &params.eigen).unwrap(),
     );
-    let mut reg = first.clone();
-    refine_sphere_registration(a, b, &mut reg, lm, &b1, &b2, &params).unwrap();
-    let met = metrics(a, b, &reg);
-    let info = reg.refinement.as_ref().unwrap();
-    let geo = met.geodesic.as_ref().unwrap().summary;
-    eprintln!(
-        "wolf0 -> wolf1 omt refined on the sphere: geodesic mean {:.4} median {:.4}, flipped area sphere {:.4} 3D {:.5}, point pass {:?}",
-        geo.mean, geo.median, met.flipped_area_ratio, met.flipped_area_ratio_3d, info.point_untangle
-    );
-    assert!(geo.mean < 0.1 * first_error, "{} against {first_error}", geo.mean);
-    assert!(met.flipped_area_ratio_3d < 0.005, "{}", met.flipped_area_ratio_3d);
-    assert!(info.point_untangle.flipped_before > 0, "{:?}", info.point_untangle);
-    assert!(info.point_untangle.flipped_after <= info.point_untangle.flipped_before);
-    assert_eq!(met.flipped_faces, 0);
-    assert!(
-        met.flipped_faces_3d <= info.point_untangle.flipped_before,
-        "{}",
-        met.flipped_faces_3d
-    );
+    for output in [ZoomOutOutput::Auto, ZoomOutOutput::Projected] {
+        let params = ZoomOutParams {
+            output,
+            ..params.clone()
+        };
+        let mut reg = first.clone();
+        refine_registration(a, b, &mut reg, lm, &b1, &b2, &params).unwrap();
+        let met = metrics(a, b, &reg);
+        let info = reg.refinement.as_ref().unwrap();
+        let geo = met.geodesic.as_ref().unwrap().summary;
+        eprintln!(
+            "wolf0 -> wolf1 omt refined on the sphere ({output:?}): geodesic mean {:.4} median {:.4}, flipped area 3D {:.5}, point pass {:?}",
+            geo.mean, geo.median, met.flipped_area_ratio_3d, info.point_untangle
+        );
+        // projected points off the shared triangulation's true vertices: measured 0.0033
+        let bound = if output == ZoomOutOutput::Projected { 0.3 } else { 0.1 };
+        assert!(geo.mean < bound * first_error, "{} against {first_error}", geo.mean);
+        assert!(met.flipped_area_ratio_3d < 0.005, "{}", met.flipped_area_ratio_3d);
+        let pass = &info.point_untangle;
+        assert!(
+            pass.flipped_before > 0 && pass.flipped_after <= pass.flipped_before,
+            "{pass:?}"
+        );
+        assert!(met.flipped_faces_3d <= pass.flipped_before, "{}", met.flipped_faces_3d);
+        assert_eq!(
+            info.output,
+            if output == ZoomOutOutput::Auto {
+                ZoomOutOutput::Vertex
+            } else {
+                output
+            }
+        );
+        assert_eq!(pass.smoothing_moves > 0, output == ZoomOutOutput::Projected, "{pass:?}");
+    }
 }
 
 /// `sphere_bench` on a class of two rotated copies of one jittered sphere: the cut poses' landmarks

@@ -269,7 +269,8 @@ pub struct BenchRow {
     /// Of `refine_seconds`: the untangling with points.
     pub point_untangle_seconds: f64,
     /// The refined vertex map (before the untangling with points), scored the same way:
-    /// flipped 3D area ratio, geodesic error mean and median (NaN without refinement).
+    /// flipped 3D area ratio, geodesic error mean and median (NaN without refinement, and on
+    /// the sphere route).
     pub vertex_map_flipped_ratio_3d: f64,
     pub vertex_map_geodesic_mean: f64,
     pub vertex_map_geodesic_median: f64,
@@ -896,14 +897,34 @@ fn fill_row(row: &mut BenchRow, reg: &Registration, met: &RegistrationMetrics, b
             row.vertex_map_geodesic_median = g.summary.median;
         }
     }
-    row.flipped_ratio = met.flipped_area_ratio;
-    row.flipped_ratio_3d = met.flipped_area_ratio_3d;
-    row.harmonic_folded = reg.harmonic_folded;
-    row.landmark_shift = reg
+    let shift = reg
         .harmonic_released
         .as_ref()
         .filter(|r| r.error.is_none())
         .map_or(0.0, |r| r.landmark_shift);
+    fill_measures(
+        row,
+        met,
+        (reg.harmonic_folded, shift),
+        &reg.timings,
+        reg.refinement.as_ref(),
+    );
+}
+
+/// The columns both routes fill alike: the metrics, g's folds and largest landmark shift, the
+/// seconds (the eigenpairs out of `pair_seconds`: the benchmarks compute them once per mesh)
+/// and the refinement's untangling counts.
+pub(super) fn fill_measures(
+    row: &mut BenchRow,
+    met: &RegistrationMetrics,
+    (harmonic_folded, landmark_shift): (usize, f64),
+    t: &super::RegistrationTimings,
+    refinement: Option<&super::RefinementInfo>,
+) {
+    row.flipped_ratio = met.flipped_area_ratio;
+    row.flipped_ratio_3d = met.flipped_area_ratio_3d;
+    row.harmonic_folded = harmonic_folded;
+    row.landmark_shift = landmark_shift;
     row.curvature_median = met.curvature_summary.median;
     row.curvature_mean = met.curvature_summary.mean;
     row.area_distortion_median = met.area_distortion_summary.median;
@@ -913,11 +934,10 @@ fn fill_row(row: &mut BenchRow, reg: &Registration, met: &RegistrationMetrics, b
         row.geodesic_median = g.summary.median;
         row.geodesic_mean = g.summary.mean;
     }
-    row.seconds = reg.timings.total;
-    row.refine_seconds = reg.timings.refine;
-    let t = &reg.timings;
+    row.seconds = t.total;
+    row.refine_seconds = t.refine;
     row.pair_seconds = t.total - t.source_map - t.target_map;
-    if let Some(info) = &reg.refinement {
+    if let Some(info) = refinement {
         row.eigen_seconds = info.eigen_seconds[0] + info.eigen_seconds[1];
         row.pair_seconds -= row.eigen_seconds;
         row.untangle_flipped_before = info.untangle.flipped_before;

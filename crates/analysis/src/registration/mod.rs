@@ -572,22 +572,89 @@ pub fn register(
     Ok(reg)
 }
 
-/// Refines a first-stage registration by ZoomOut ([`zoomout`]) seeded with its vertex map
-/// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
-/// S₂ and the landmarks (their geodesic distances join the embeddings), then untangles the
-/// result with points inside the target's faces ([`untangle::untangle_points`], against the
-/// disk image φ₂): replaces `faces`, `bary` and `points`, records [`RefinementInfo`], and adds
-/// the bases' and the iterations' seconds to the timings. Errors from [`zoomout::zoomout`].
+/// Refines a first-stage registration, on the disk ([`Registration`]) or on the sphere
+/// ([`sphere::SphereRegistration`]), by ZoomOut ([`zoomout`]) seeded with its vertex map (the
+/// corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and S₂ and
+/// the landmarks (their geodesic distances join the embeddings), then untangles the result
+/// with points inside the target's faces ([`untangle::untangle_points`], against the image of
+/// S₂ the route's metric tests flips in: φ₂ or ψ₂) and, for projected output, smooths it
+/// ([`ZoomOutParams::point_pass`]): replaces the map's faces, barycentric coordinates and
+/// points, records [`RefinementInfo`], and adds the bases' and the iterations' seconds to the
+/// timings. Errors from [`zoomout::zoomout`].
 pub fn refine_registration(
     source: &TriMesh,
     target: &TriMesh,
-    reg: &mut Registration,
+    reg: &mut impl Refinable,
     landmarks: &Landmarks,
     source_basis: &SpectralBasis,
     target_basis: &SpectralBasis,
     params: &ZoomOutParams,
 ) -> Result<(), AnalysisError> {
-    let seed = zoomout::nearest_corner_map(target, &reg.faces, &reg.bary);
+    let (faces, bary) = reg.first_map();
+    let refined = zoomout_refinement(
+        (source, target),
+        (faces, bary),
+        reg.metric_image(),
+        landmarks,
+        (source_basis, target_basis),
+        params,
+    )?;
+    reg.take_refined(refined);
+    Ok(())
+}
+
+/// A registration [`refine_registration`] can refine: the disk route's [`Registration`] or the
+/// sphere route's [`sphere::SphereRegistration`].
+pub trait Refinable {
+    /// The map to refine: per source vertex a face of S₂ and barycentric coordinates.
+    fn first_map(&self) -> (&[u32], &[[f64; 3]]);
+    /// The image of S₂ in which the route's metric locates the reference face of its 3D test.
+    fn metric_image(&self) -> untangle::TargetImage<'_>;
+    /// Takes the refined map: its faces, coordinates and points, its [`RefinementInfo`] and its
+    /// seconds (added to the timings).
+    fn take_refined(&mut self, refined: ZoomOutRefinement);
+}
+
+impl Refinable for Registration {
+    fn first_map(&self) -> (&[u32], &[[f64; 3]]) {
+        (&self.faces, &self.bary)
+    }
+    fn metric_image(&self) -> untangle::TargetImage<'_> {
+        untangle::TargetImage::Disk(&self.target_uv)
+    }
+    fn take_refined(&mut self, refined: ZoomOutRefinement) {
+        (self.faces, self.bary, self.points) = (refined.faces, refined.bary, refined.points);
+        self.timings.refine = refined.seconds;
+        self.timings.total += refined.seconds;
+        self.refinement = Some(refined.info);
+    }
+}
+
+/// A first-stage map refined by ZoomOut and untangled ([`refine_registration`]).
+pub struct ZoomOutRefinement {
+    /// Face of S₂, barycentric coordinates and 3D point of each f(v), #V₁.
+    pub faces: Vec<u32>,
+    pub bary: Vec<[f64; 3]>,
+    pub points: Vec<[f64; 3]>,
+    /// What the refinement did.
+    pub info: RefinementInfo,
+    /// Seconds of the bases (as computed), the iterations and the untangling with points.
+    pub seconds: f64,
+}
+
+/// ZoomOut from the first-stage map `first` (per source vertex a face of S₂ and barycentric
+/// coordinates; seeded with the corner of largest weight), then the untangling with points
+/// against the metric's test in `image` (the disk or the sphere route's image of S₂), with
+/// [`ZoomOutParams::point_pass`]. Errors from [`zoomout::zoomout`] and the untangling.
+fn zoomout_refinement(
+    (source, target): (&TriMesh, &TriMesh),
+    (faces, bary): (&[u32], &[[f64; 3]]),
+    image: untangle::TargetImage<'_>,
+    landmarks: &Landmarks,
+    (source_basis, target_basis): (&SpectralBasis, &SpectralBasis),
+    params: &ZoomOutParams,
+) -> Result<ZoomOutRefinement, AnalysisError> {
+    let seed = zoomout::nearest_corner_map(target, faces, bary);
     let refined = zoomout::zoomout(
         source,
         target,
@@ -598,55 +665,52 @@ pub fn refine_registration(
         params,
     )?;
     let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
-    let mut points: Vec<(u32, [f64; 3])> = refined
+    let mut points: Vec<truth::SurfacePoint> = refined
         .faces
         .iter()
         .copied()
         .zip(refined.bary.iter().copied())
         .collect();
-    let point_untangle = untangle::untangle_points(
-        source,
-        target,
-        &reg.target_uv,
-        &mut points,
-        &params.point_pass(refined.output),
-    )?;
-    let (faces, bary): (Vec<u32>, Vec<[f64; 3]>) = points.into_iter().unzip();
-    reg.points = faces
+    let point_untangle =
+        untangle::untangle_points(source, target, image, &mut points, &params.point_pass(refined.output))?;
+    let positions = points
         .iter()
-        .zip(&bary)
-        .map(|(&f, b)| {
-            let t = target.faces[f as usize];
-            let mut x = [0.0; 3];
-            for k in 0..3 {
-                let q = target.positions[t[k] as usize];
-                for d in 0..3 {
-                    x[d] += b[k] * q[d];
-                }
-            }
-            x
-        })
+        .map(|&p| at_surface_point(&target.faces, &target.positions, p))
         .collect();
-    reg.faces = faces;
-    reg.bary = bary;
-    reg.refinement = Some(RefinementInfo {
-        refinement: Refinement::ZoomOut,
-        sizes: refined.sizes,
-        runs: refined.runs,
-        output: refined.output,
-        eigen_seconds: [source_basis.seconds, target_basis.seconds],
-        iteration_seconds: refined.seconds + point_untangle.seconds,
-        vertices_moved,
-        untangle: refined.untangle,
-        vertex_map: refined.vertex_map,
-        point_untangle,
-    });
-    reg.timings.refine = source_basis.seconds
-        + target_basis.seconds
-        + refined.seconds
-        + reg.refinement.as_ref().map_or(0.0, |r| r.point_untangle.seconds);
-    reg.timings.total += reg.timings.refine;
-    Ok(())
+    let (faces, bary) = points.into_iter().unzip();
+    let seconds = source_basis.seconds + target_basis.seconds + refined.seconds + point_untangle.seconds;
+    Ok(ZoomOutRefinement {
+        faces,
+        bary,
+        points: positions,
+        seconds,
+        info: RefinementInfo {
+            refinement: Refinement::ZoomOut,
+            sizes: refined.sizes,
+            runs: refined.runs,
+            output: refined.output,
+            eigen_seconds: [source_basis.seconds, target_basis.seconds],
+            iteration_seconds: refined.seconds + point_untangle.seconds,
+            vertices_moved,
+            untangle: refined.untangle,
+            vertex_map: refined.vertex_map,
+            point_untangle,
+        },
+    })
+}
+
+/// Σ_k b_k values[t_k] over the corners t of `face` (its 3D point with the mesh's positions,
+/// its sphere image with ψ, ...).
+pub(crate) fn at_surface_point(faces: &[[u32; 3]], values: &[[f64; 3]], (face, b): truth::SurfacePoint) -> [f64; 3] {
+    let t = faces[face as usize];
+    let mut x = [0.0; 3];
+    for k in 0..3 {
+        let q = values[t[k] as usize];
+        for d in 0..3 {
+            x[d] += b[k] * q[d];
+        }
+    }
+    x
 }
 
 fn check_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {

@@ -24,7 +24,7 @@
 //!    face of ψ₂(S₂) whose spherical triangle holds g(v), barycentric coordinates of the ray
 //!    through g(v) in its flat chordal triangle, and the corresponding 3D point of S₂.
 //!
-//! Refinement ([`refine_sphere_registration`]): ZoomOut seeded with the composed map, as on the
+//! Refinement ([`refine_registration`]): ZoomOut seeded with the composed map, as on the
 //! disk (`--refine zoomout`); it needs no domain, so the closed poses are refined without a cut.
 //!
 //! Flips ([`sphere_registration_metrics`]): a face of S₁ is flipped on the sphere when its image
@@ -46,11 +46,12 @@ use shapespace_omt::sphere::fibonacci_sphere;
 use super::box_tree::BoxTree;
 pub use super::box_tree::LEAF_CAPACITY;
 use super::metrics::{image_is_flipped, surface_metrics, FlipCounts};
-use super::untangle::untangle_points_on_sphere;
-use super::zoomout::{self, Refinement, SpectralBasis, ZoomOutParams};
+use super::untangle::TargetImage;
+use super::zoomout::{SpectralBasis, ZoomOutParams};
 use super::{
-    harmonic_step, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams, RefinementInfo,
-    RegistrationMetrics, RegistrationTimings, UNTANGLE_SWEEPS,
+    at_surface_point, harmonic_step, refine_registration, HarmonicParams, HarmonicWeights, Landmarks, Method,
+    MetricParams, Refinable, RefinementInfo, RegistrationMetrics, RegistrationTimings, ZoomOutRefinement,
+    UNTANGLE_SWEEPS,
 };
 use crate::error::AnalysisError;
 use crate::fold_repair::{count_folded_faces, untangle_kernels, UntangleInfo};
@@ -252,7 +253,7 @@ pub struct SphereRegistration {
     /// [`HarmonicParams::release_landmarks`]; `None` when none folded).
     pub harmonic_sphere_repair: Option<SphereHarmonicRepair>,
     /// The refinement applied after the sphere stage, if any
-    /// ([`refine_sphere_registration`]): `faces`, `bary` and `points` are then the refined
+    /// ([`refine_registration`]): `faces`, `bary` and `points` are then the refined
     /// map's, while `harmonic_sphere` stays the first stage's.
     pub refinement: Option<RefinementInfo>,
     /// Stage timings (`source_map`, `target_map`: the sphere maps).
@@ -276,7 +277,7 @@ pub struct SphereHarmonicRepair {
 
 /// Registers S₁ onto S₂ through the sphere (module docs): both sphere maps by `method`
 /// (in parallel), then [`register_sphere_with_maps`], then with `zoomout` the refinement
-/// ([`refine_sphere_registration`], the eigenpairs of both surfaces computed beside the first
+/// ([`refine_registration`], the eigenpairs of both surfaces computed beside the first
 /// stage). Errors: a mesh that is not a closed genus-0 surface, whose sphere map or eigenpairs
 /// fail (named `source` / `target`), bad landmarks, fewer than two landmarks, a harmonic map
 /// that cannot be solved.
@@ -316,7 +317,7 @@ pub fn register_on_sphere(
     let mut reg = reg?;
     let b1 = b1.map_err(|e| named("source", e))?;
     let b2 = b2.map_err(|e| named("target", e))?;
-    refine_sphere_registration(source, target, &mut reg, landmarks, &b1, &b2, zoomout)?;
+    refine_registration(source, target, &mut reg, landmarks, &b1, &b2, zoomout)?;
     Ok(reg)
 }
 
@@ -645,64 +646,19 @@ pub fn register_sphere_with_maps(
     })
 }
 
-/// Refines a sphere registration by ZoomOut ([`zoomout::zoomout`]) seeded with its vertex map
-/// (the corner of largest barycentric weight of each f(v)), with the spectral bases of S₁ and
-/// S₂ and the landmarks, as [`super::refine_registration`] does on the disk: ZoomOut needs
-/// no domain, and its 3D untangling of the vertex map runs inside it; the untangling with
-/// points inside the target's faces after it tests flips as this route's metric does, in the
-/// sphere image ψ₂ ([`untangle_points_on_sphere`]). Replaces `faces`, `bary` and `points`,
-/// records the [`RefinementInfo`] and adds the bases' and the iterations' seconds to the
-/// timings. Errors from [`zoomout::zoomout`].
-pub fn refine_sphere_registration(
-    source: &TriMesh,
-    target: &TriMesh,
-    reg: &mut SphereRegistration,
-    landmarks: &Landmarks,
-    source_basis: &SpectralBasis,
-    target_basis: &SpectralBasis,
-    params: &ZoomOutParams,
-) -> Result<(), AnalysisError> {
-    let seed = zoomout::nearest_corner_map(target, &reg.faces, &reg.bary);
-    let refined = zoomout::zoomout(
-        source,
-        target,
-        source_basis,
-        target_basis,
-        &seed,
-        &landmarks.pairs,
-        params,
-    )?;
-    let vertices_moved = seed.iter().zip(&refined.vertex_map).filter(|(a, b)| a != b).count();
-    let mut points: Vec<SurfacePoint> = refined
-        .faces
-        .iter()
-        .copied()
-        .zip(refined.bary.iter().copied())
-        .collect();
-    let point_untangle = untangle_points_on_sphere(
-        source,
-        target,
-        &reg.target_sphere,
-        &mut points,
-        &params.point_pass(refined.output),
-    )?;
-    reg.points = points.iter().map(|&p| surface_point(target, p)).collect();
-    (reg.faces, reg.bary) = points.into_iter().unzip();
-    reg.timings.refine = source_basis.seconds + target_basis.seconds + refined.seconds + point_untangle.seconds;
-    reg.timings.total += reg.timings.refine;
-    reg.refinement = Some(RefinementInfo {
-        refinement: Refinement::ZoomOut,
-        sizes: refined.sizes,
-        runs: refined.runs,
-        output: refined.output,
-        eigen_seconds: [source_basis.seconds, target_basis.seconds],
-        iteration_seconds: refined.seconds + point_untangle.seconds,
-        vertices_moved,
-        untangle: refined.untangle,
-        vertex_map: refined.vertex_map,
-        point_untangle,
-    });
-    Ok(())
+impl Refinable for SphereRegistration {
+    fn first_map(&self) -> (&[u32], &[[f64; 3]]) {
+        (&self.faces, &self.bary)
+    }
+    fn metric_image(&self) -> TargetImage<'_> {
+        TargetImage::Sphere(&self.target_sphere)
+    }
+    fn take_refined(&mut self, refined: ZoomOutRefinement) {
+        (self.faces, self.bary, self.points) = (refined.faces, refined.bary, refined.points);
+        self.timings.refine = refined.seconds;
+        self.timings.total += refined.seconds;
+        self.refinement = Some(refined.info);
+    }
 }
 
 /// The sphere image of each f(v): g's when the map is the first stage's, otherwise (a refined
@@ -711,34 +667,20 @@ fn map_sphere_images(reg: &SphereRegistration, target: &TriMesh) -> Vec<[f64; 3]
     if reg.refinement.is_none() {
         return reg.harmonic_sphere.clone();
     }
-    reg.faces
-        .iter()
-        .zip(&reg.bary)
-        .map(|(&f, b)| {
-            let t = target.faces[f as usize];
-            let mut x = [0.0; 3];
-            for k in 0..3 {
-                let q = reg.target_sphere[t[k] as usize];
-                for d in 0..3 {
-                    x[d] += b[k] * q[d];
-                }
-            }
-            normalize(x)
+    (0..reg.faces.len())
+        .map(|v| {
+            normalize(at_surface_point(
+                &target.faces,
+                &reg.target_sphere,
+                (reg.faces[v], reg.bary[v]),
+            ))
         })
         .collect()
 }
 
 /// The 3D point of `mesh` at a surface point (face, barycentric coordinates).
-fn surface_point(mesh: &TriMesh, (face, b): SurfacePoint) -> [f64; 3] {
-    let t = mesh.faces[face as usize];
-    let mut x = [0.0; 3];
-    for k in 0..3 {
-        let q = mesh.positions[t[k] as usize];
-        for d in 0..3 {
-            x[d] += b[k] * q[d];
-        }
-    }
-    x
+fn surface_point(mesh: &TriMesh, p: SurfacePoint) -> [f64; 3] {
+    at_surface_point(&mesh.faces, &mesh.positions, p)
 }
 
 /// The measures of [`crate::registration::metrics`] for a sphere registration: the flips of g
@@ -876,7 +818,7 @@ impl SphereLocator {
     /// Normalized ray barycentric coordinates of `y` in face `f` and their smallest value, or
     /// `None` when the ray misses the face's plane on the far side (unnormalized sum ≤ 0) or the
     /// face is degenerate.
-    fn coordinates(&self, y: [f64; 3], f: u32) -> Option<([f64; 3], f64)> {
+    pub(crate) fn coordinates(&self, y: [f64; 3], f: u32) -> Option<([f64; 3], f64)> {
         let [a, b, c] = self.faces[f as usize].map(|v| self.positions[v as usize]);
         let d = det(a, b, c);
         if d == 0.0 || !d.is_finite() {

@@ -20,11 +20,11 @@ use shapespace_conformal::MarkerFile;
 use shapespace_geometry::io::write_atomically;
 use shapespace_geometry::TriMesh;
 
-use super::bench::{create, mesh_files, share_mesh_work, stem, BenchRow, MethodSummary, Triangulation};
-use super::sphere::{
-    refine_sphere_registration, register_sphere_with_maps, sphere_image, sphere_registration_metrics, SphereImage,
+use super::bench::{create, fill_measures, mesh_files, share_mesh_work, stem, BenchRow, MethodSummary, Triangulation};
+use super::sphere::{register_sphere_with_maps, sphere_image, sphere_registration_metrics, SphereImage};
+use super::{
+    refine_registration, HarmonicParams, Landmarks, Method, MetricParams, Refinement, SpectralBasis, ZoomOutParams,
 };
-use super::{HarmonicParams, Landmarks, Method, MetricParams, Refinement, SpectralBasis, ZoomOutParams};
 use crate::error::{error_chain, AnalysisError};
 use crate::sphere_param::SphereParamParams;
 
@@ -83,8 +83,10 @@ pub struct SphereBenchResult {
 
 /// The sphere route over the closed poses of every class folder of `dataset` found in
 /// `closed` (module docs): per method the sphere maps once per pose, every ordered pair
-/// registered ([`register_sphere_with_maps`] with `harmonic(method)`) and measured
-/// ([`sphere_registration_metrics`]); `sphere_results.csv` and `sphere_summary.json` in `out`.
+/// registered ([`register_sphere_with_maps`] with `harmonic(method)`), with
+/// [`Refinement::ZoomOut`] refined ([`super::refine_registration`] with `zoomout`; the
+/// eigenpairs once per pose) and measured ([`sphere_registration_metrics`]; the `vertex_map_*`
+/// columns are left NaN); `sphere_results.csv` and `sphere_summary.json` in `out`.
 /// A class without closed poses is skipped (reported through `progress`); a pair whose sphere
 /// map fails is recorded with its error. Errors: unreadable folders or files, no class with
 /// closed poses.
@@ -197,34 +199,14 @@ pub fn sphere_bench(
                     );
                     match outcome {
                         Ok((reg, met)) => {
-                            row.flipped_ratio = met.flipped_area_ratio;
-                            row.flipped_ratio_3d = met.flipped_area_ratio_3d;
-                            row.harmonic_folded = reg.harmonic_folded;
-                            row.landmark_shift = reg.harmonic_sphere_repair.as_ref().map_or(0.0, |r| r.landmark_shift);
-                            row.curvature_median = met.curvature_summary.median;
-                            row.curvature_mean = met.curvature_summary.mean;
-                            row.area_distortion_median = met.area_distortion_summary.median;
-                            row.area_distortion_p95 = met.area_distortion_summary.p95;
-                            row.area_distortion_mean_abs_log = met.log_area_distortion_summary.mean;
-                            if let Some(g) = &met.geodesic {
-                                row.geodesic_median = g.summary.median;
-                                row.geodesic_mean = g.summary.mean;
-                            }
-                            let t = &reg.timings;
-                            row.seconds = t.total;
-                            row.pair_seconds = t.total - t.source_map - t.target_map;
-                            row.refine_seconds = t.refine;
-                            if let Some(r) = &reg.refinement {
-                                // the eigenpairs are computed once per pose, as the maps are
-                                row.eigen_seconds = r.eigen_seconds[0] + r.eigen_seconds[1];
-                                row.pair_seconds -= row.eigen_seconds;
-                                row.untangle_flipped_before = r.untangle.flipped_before;
-                                row.untangle_flipped_after = r.untangle.flipped_after;
-                                row.untangle_seconds = r.untangle.seconds;
-                                row.point_untangle_flipped_before = r.point_untangle.flipped_before;
-                                row.point_untangle_flipped_after = r.point_untangle.flipped_after;
-                                row.point_untangle_seconds = r.point_untangle.seconds;
-                            }
+                            let shift = reg.harmonic_sphere_repair.as_ref().map_or(0.0, |r| r.landmark_shift);
+                            fill_measures(
+                                &mut row,
+                                &met,
+                                (reg.harmonic_folded, shift),
+                                &reg.timings,
+                                reg.refinement.as_ref(),
+                            );
                         }
                         Err(e) => row.status = e,
                     }
@@ -232,7 +214,9 @@ pub fn sphere_bench(
                 }
             }
             let eigen_seconds: Vec<f64> = bases.iter().map(|b| b.as_ref().map_or(0.0, |b| b.seconds)).collect();
-            share_mesh_work(&mut rows[first_row..], &[mesh_seconds], &eigen_seconds);
+            // per-mesh work: the sphere maps and the eigenpairs, as the disk route counts it
+            let mesh_work = mesh_seconds + eigen_seconds.iter().sum::<f64>();
+            share_mesh_work(&mut rows[first_row..], &[mesh_work], &eigen_seconds);
         }
     }
     if rows.is_empty() {
@@ -300,8 +284,7 @@ fn pair(
     if let Some((b1, b2)) = bases {
         let b1 = b1.as_ref().map_err(|e| format!("eigenpairs of the source: {e}"))?;
         let b2 = b2.as_ref().map_err(|e| format!("eigenpairs of the target: {e}"))?;
-        refine_sphere_registration(source, target, &mut reg, landmarks, b1, b2, zoomout)
-            .map_err(|e| error_chain(&e))?;
+        refine_registration(source, target, &mut reg, landmarks, b1, b2, zoomout).map_err(|e| error_chain(&e))?;
     }
     let met = sphere_registration_metrics(source, target, &reg, metric_params).map_err(|e| error_chain(&e))?;
     Ok((reg, met))

@@ -47,8 +47,8 @@
 //! moves (decisions 0042, 0054): 0.03–0.33 % (class means; at most 0.40 % on a pair of the five
 //! bench classes) at the same geodesic error within 2.5 %. With
 //! [`PointUntangleParams::smooth_rounds`] it ends with projected smoothing (decision 0064).
-//! The metric's test locates in the target's disk image φ₂ ([`untangle_points`]) or, for the
-//! sphere route, in its sphere image ψ₂ ([`untangle_points_on_sphere`]).
+//! The metric's test locates in the target's disk image φ₂ or, for the sphere route, in its
+//! sphere image ψ₂ ([`TargetImage`]).
 
 use std::cell::Cell;
 
@@ -508,7 +508,8 @@ pub struct PointUntangleParams {
     /// from where the spectral map put them (0 runs them wherever a face is still flipped).
     pub region_from_area: f64,
     /// Sweeps of projected smoothing after the untangling ([`untangle_points`]; default 0:
-    /// none; ZoomOut's projected output sets [`crate::registration::ZoomOutParams::smoothing`]).
+    /// none). The refinement overwrites it ([`crate::registration::ZoomOutParams::point_pass`]:
+    /// [`crate::registration::ZoomOutParams::smoothing`] for projected output, 0 otherwise).
     pub smooth_rounds: usize,
 }
 
@@ -549,8 +550,6 @@ pub struct PointUntangleInfo {
     pub seconds: f64,
 }
 
-/// The 3D test of the registration metric ([`crate::registration::metrics`]) for points of S₂
-/// given in 3D and in the disk image φ₂(S₂).
 /// Whether the triangle's area is zero relative to its edges (a collapse, or a corner on the
 /// opposite edge).
 fn degenerate(x: [[f64; 3]; 3]) -> bool {
@@ -656,18 +655,11 @@ impl TargetDomain for SphereDomain<'_> {
     fn neighbour_mean(&self, points: &[[f64; 3]]) -> [f64; 3] {
         self.mean(points)
     }
-    /// The ray barycentric coordinates: b_k ∝ det(c, x_{k+1}, x_{k+2}) (negative across the
-    /// great circle of the opposite edge), None when they do not sum to a positive number (c
-    /// on the far side of the sphere).
-    fn bary(&self, target: &TriMesh, f: u32, c: [f64; 3]) -> Option<[f64; 3]> {
-        let x = target.faces[f as usize].map(|w| self.sphere[w as usize]);
-        let det = |a: [f64; 3], b: [f64; 3]| {
-            let n = cross3(a, b);
-            n[0] * c[0] + n[1] * c[1] + n[2] * c[2]
-        };
-        let b = [det(x[1], x[2]), det(x[2], x[0]), det(x[0], x[1])];
-        let sum = b[0] + b[1] + b[2];
-        (sum > 0.0 && sum.is_finite()).then(|| b.map(|v| v / sum))
+    /// The ray barycentric coordinates, as the sphere locator (and so the metric) takes them
+    /// (`SphereLocator::coordinates`: folded faces of ψ₂ included); None on the far side of
+    /// the sphere or for a degenerate face.
+    fn bary(&self, _target: &TriMesh, f: u32, c: [f64; 3]) -> Option<[f64; 3]> {
+        self.locator.coordinates(c, f).map(|(b, _)| b)
     }
     fn locate(&self, c: [f64; 3]) -> Option<(u32, [f64; 3])> {
         self.locator.locate(c).map(|l| (l.face, l.bary))
@@ -706,7 +698,8 @@ impl<'a, D: TargetDomain> MetricFlipTest<'a, D> {
         self.domain.bary(self.target, f, c)
     }
 
-    /// A face of S₂ whose disk image holds `c` (barycentric coordinates all ≥ 0). First a walk
+    /// A face of S₂ whose image in the metric's domain holds `c` (barycentric coordinates all
+    /// ≥ 0). First a walk
     /// from `hint` ([`MetricFlipTest::walk`]) that only ends on a face holding `c` with every
     /// coordinate above [`INSIDE`], the only face that does. Otherwise (no hint, a walk that
     /// ends on or near an edge, or stops): the first of `near` that holds `c`, else the end of a
@@ -791,9 +784,9 @@ fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 
 /// Untangles a vertex-to-point map of `source` onto `target` (`points`: per source vertex a face
 /// of S₂ and barycentric coordinates, changed in place) against the 3D test of the registration
-/// metric, with `target_uv` the disk image φ₂ of S₂ that test locates in: a source face is
-/// flipped when its straight image triangle faces away from the normal of the face of S₂ holding
-/// the mean of its corners' φ₂ images. Vertex maps cannot undo a flip where the map contracts
+/// metric, with `image` the image of S₂ that test locates in (the disk image φ₂ or the sphere
+/// image ψ₂, [`TargetImage`]): a source face is flipped when its straight image triangle faces
+/// away from the normal of the face of S₂ holding the mean of its corners' images. Vertex maps cannot undo a flip where the map contracts
 /// or stretches S₁ against S₂ at the scale of an edge (a source face then has no image among
 /// target vertex triples that is neither flipped, collapsed nor spread); points inside the faces
 /// can. Gauss–Seidel sweeps over the vertices of flipped faces, each moved to the candidate
@@ -801,7 +794,7 @@ fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// a collapse, or a corner on the opposite edge), then nearest in 3D to its image before the
 /// pass (the current point kept on ties). Candidates: on every face of S₂ around the target vertices
 /// nearest to the vertex's and its source neighbours' images, the corners, the edge midpoints
-/// and the centroid; the φ₂ mean of the neighbours' images; once region moves run (their
+/// and the centroid; the mean of the neighbours' images in `image`; once region moves run (their
 /// cleaning sweeps), also the closest point of those faces to the 3D mean of the neighbours'
 /// images. A move never raises the number
 /// of flipped images around the moved vertex; a vertex is evaluated again only
@@ -812,37 +805,45 @@ fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// of source neighbours, is laid out in space by Floater's mean-value weights of the source's
 /// stars [Floater 2003] with the ring around it fixed, put on S₂ by closest points, cleaned by
 /// single moves, and kept only when the flipped (then degenerate) images around it are fewer.
-/// Errors: `target_uv` not a triangulation of #V₂ points.
+/// Last, with [`PointUntangleParams::smooth_rounds`] (also when nothing was flipped, or with
+/// `sweeps` = 0), sweeps of projected smoothing (decision 0064).
+/// Errors: `image` not #V₂ points (a disk image that is not a triangulation).
 pub fn untangle_points(
     source: &TriMesh,
     target: &TriMesh,
-    target_uv: &[[f64; 2]],
+    image: TargetImage<'_>,
     points: &mut [(u32, [f64; 3])],
     params: &PointUntangleParams,
 ) -> Result<PointUntangleInfo, crate::error::AnalysisError> {
-    let domain = DiskDomain {
-        uv: target_uv,
-        locator: PointLocator::new(target_uv, &target.faces)?,
-    };
-    Ok(untangle_points_in(source, target, domain, points, params))
+    Ok(match image {
+        TargetImage::Disk(uv) => {
+            let domain = DiskDomain {
+                uv,
+                locator: PointLocator::new(uv, &target.faces)?,
+            };
+            untangle_points_in(source, target, domain, points, params)
+        }
+        TargetImage::Sphere(sphere) => {
+            let domain = SphereDomain {
+                sphere,
+                locator: SphereLocator::new(sphere, &target.faces)?,
+            };
+            untangle_points_in(source, target, domain, points, params)
+        }
+    })
 }
 
-/// [`untangle_points`] for a map between closed surfaces registered through the sphere
-/// (`crate::registration::sphere`), against that route's 3D test: the face of S₂ whose
-/// sphere image ψ₂ (`target_sphere`, unit vectors) holds the normalized mean of the corners'
-/// sphere images decides. Errors: `target_sphere` not #V₂ points.
-pub fn untangle_points_on_sphere(
-    source: &TriMesh,
-    target: &TriMesh,
-    target_sphere: &[[f64; 3]],
-    points: &mut [(u32, [f64; 3])],
-    params: &PointUntangleParams,
-) -> Result<PointUntangleInfo, crate::error::AnalysisError> {
-    let domain = SphereDomain {
-        sphere: target_sphere,
-        locator: SphereLocator::new(target_sphere, &target.faces)?,
-    };
-    Ok(untangle_points_in(source, target, domain, points, params))
+/// Where the registration metric's 3D test locates the face of S₂ whose normal is the
+/// reference ([`untangle_points`]).
+#[derive(Clone, Copy, Debug)]
+pub enum TargetImage<'a> {
+    /// The disk image φ₂ (#V₂ points of the plane): the face holding the mean of the corners'
+    /// φ₂ images.
+    Disk(&'a [[f64; 2]]),
+    /// The sphere image ψ₂ (#V₂ unit vectors; closed surfaces registered through the sphere,
+    /// `crate::registration::sphere`): the face holding the normalized mean of the corners'
+    /// sphere images.
+    Sphere(&'a [[f64; 3]]),
 }
 
 fn untangle_points_in<D: TargetDomain>(
@@ -950,8 +951,9 @@ struct PassAdjacency {
     tconn: Connectivity,
 }
 
-/// The images of [`untangle_points`]: per source vertex its point in 3D (`p3`) and in the disk
-/// image (`p2`), the 3D points before the pass (`original`), and the metric's flip test.
+/// The images of [`untangle_points`]: per source vertex its point in 3D (`p3`) and in the
+/// metric's image of S₂ (`p2`), the 3D points before the pass (`original`), and the metric's
+/// flip test.
 struct PointPass<'a, D: TargetDomain> {
     source: &'a TriMesh,
     target: &'a TriMesh,
@@ -1038,7 +1040,7 @@ impl<'a, D: TargetDomain> PointPass<'a, D> {
     }
 
     /// Score of the source faces around v with v at the point `p` of S₂ (in 3D `x`, in the
-    /// disk image `u`): DEGENERATE_LIMIT per flipped image, 1 per degenerate one; counting
+    /// metric's image of S₂ `u`): DEGENERATE_LIMIT per flipped image, 1 per degenerate one; counting
     /// stops once above `cap`. The flip test starts from the face that held a face's mean last
     /// time (else p's face), then tries `faces`.
     fn around(
@@ -1455,6 +1457,26 @@ fn spots_on(target: &TriMesh, faces: &[u32]) -> Vec<SurfacePoint> {
 mod tests {
     use super::*;
 
+    /// [`untangle_points`] against the disk image `uv`.
+    fn on_disk(
+        m: &TriMesh,
+        uv: &[[f64; 2]],
+        pts: &mut [SurfacePoint],
+        params: &PointUntangleParams,
+    ) -> PointUntangleInfo {
+        untangle_points(m, m, TargetImage::Disk(uv), pts, params).unwrap()
+    }
+
+    /// Numbers in [0, 1) from a xorshift generator seeded with `state`.
+    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     /// A regular grid of m × m cells in the plane z = 0, counter-clockwise faces.
     fn grid(m: usize) -> TriMesh {
         let mut p = Vec::new();
@@ -1480,13 +1502,7 @@ mod tests {
     #[test]
     fn the_walk_finds_the_locators_face() {
         let mut m = grid(12);
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rand = xorshift(0x9e37_79b9_7f4a_7c15_u64);
         for p in m.positions.iter_mut() {
             if p[0] > 0.0 && p[0] < 12.0 && p[1] > 0.0 && p[1] < 12.0 {
                 p[0] += 0.3 * (rand() - 0.5);
@@ -1516,8 +1532,15 @@ mod tests {
                     m.faces[f as usize].contains(&(w as u32 + 2)) && !m.faces[f as usize].contains(&(w as u32))
                 })
                 .collect();
-            if !near.is_empty() && !near.contains(&l.face) {
-                walked += 1;
+            // the walk itself (not the locator behind it) reaches the face from each of them
+            for &f0 in &near {
+                let b0 = test.bary(f0, c).unwrap();
+                assert_eq!(
+                    test.walk(c, Some((f0, b0)), |m| m >= 0.0),
+                    Some(l.face),
+                    "{c:?} from {f0}"
+                );
+                walked += usize::from(f0 != l.face);
             }
             assert_eq!(test.face_holding(c, None, &near), Some(l.face), "{c:?} from {near:?}");
             assert_eq!(test.face_holding(c, None, &[0]), Some(l.face), "{c:?} from face 0");
@@ -1623,21 +1646,15 @@ mod tests {
         };
         let identity = identity_points(&m);
         let mut pts = identity.clone();
-        untangle_points(&m, &m, &uv, &mut pts, &params).unwrap();
+        on_disk(&m, &uv, &mut pts, &params);
         // the closest point to a point inside the faceted cylinder lies on a face below the
         // vertex: the identity drifts by less than an edge's sagitta h²/(8R)
         let sagitta = 1.0 / (8.0 * radius);
-        assert!(off(&pts) > 0.0 && off(&pts) < sagitta, "{}", off(&pts));
+        assert!(off(&pts) < sagitta, "{}", off(&pts));
 
         let conn = Connectivity::of(&m);
         let boundary = conn.boundary_vertices(m.num_vertices());
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rand = xorshift(0x9e37_79b9_7f4a_7c15_u64);
         let mut scattered = identity.clone();
         for v in 0..m.num_vertices() {
             if boundary[v] {
@@ -1650,7 +1667,7 @@ mod tests {
             scattered[v] = (f, [a, b, 1.0 - a - b]);
         }
         let mut pts = scattered.clone();
-        let info = untangle_points(&m, &m, &uv, &mut pts, &params).unwrap();
+        let info = on_disk(&m, &uv, &mut pts, &params);
         let (before, after) = (off(&scattered), off(&pts));
         assert!(
             after < 0.5 * before,
@@ -1659,7 +1676,7 @@ mod tests {
         assert!(info.smoothing_moves > 0 && info.flipped_after == 0, "{info:?}");
         // without the smoothing the untangling alone leaves the scatter
         let mut unsmoothed = scattered.clone();
-        untangle_points(&m, &m, &uv, &mut unsmoothed, &PointUntangleParams::default()).unwrap();
+        on_disk(&m, &uv, &mut unsmoothed, &PointUntangleParams::default());
         assert!(off(&unsmoothed) > 0.8 * before, "{} against {before}", off(&unsmoothed));
     }
 
@@ -1667,13 +1684,7 @@ mod tests {
     /// generator of numbers in [0, 1).
     fn jittered_icosphere() -> (TriMesh, impl FnMut() -> f64) {
         let mut m = shapespace_geometry::primitives::icosphere(3);
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rand = xorshift(0x2545_f491_4f6c_dd1d_u64);
         for p in m.positions.iter_mut() {
             let q = [
                 p[0] + 0.02 * (rand() - 0.5),
@@ -1717,8 +1728,15 @@ mod tests {
                 .copied()
                 .filter(|&f| !m.faces[f as usize].contains(&w))
                 .collect();
-            if !near.is_empty() && !near.contains(&face) {
-                walked += 1;
+            // the walk itself (not the locator behind it) reaches the face from each of them
+            for &f0 in &near {
+                let b0 = test.bary(f0, c).unwrap();
+                assert_eq!(
+                    test.walk(c, Some((f0, b0)), |m| m >= 0.0),
+                    Some(face),
+                    "{c:?} from {f0}"
+                );
+                walked += usize::from(f0 != face);
             }
             assert_eq!(test.face_holding(c, None, &near), Some(face), "{c:?} from {near:?}");
             assert_eq!(test.face_holding(c, near.first().copied(), &[]), Some(face));
@@ -1736,9 +1754,19 @@ mod tests {
     #[test]
     fn the_sphere_point_pass_pulls_a_pushed_vertex_back() {
         let (m, _) = jittered_icosphere();
+        let run = |pts: &mut [SurfacePoint]| {
+            untangle_points(
+                &m,
+                &m,
+                TargetImage::Sphere(&m.positions),
+                pts,
+                &PointUntangleParams::default(),
+            )
+            .unwrap()
+        };
         let identity = identity_points(&m);
         let mut pts = identity.clone();
-        let info = untangle_points_on_sphere(&m, &m, &m.positions, &mut pts, &PointUntangleParams::default()).unwrap();
+        let info = run(&mut pts);
         assert_eq!((info.flipped_before, info.vertices_moved), (0, 0));
         assert_eq!(pts, identity);
 
@@ -1759,7 +1787,7 @@ mod tests {
             .unwrap();
         pts[v] = (beyond, [1.0 / 3.0; 3]);
         let pushed = pts.clone();
-        let info = untangle_points_on_sphere(&m, &m, &m.positions, &mut pts, &PointUntangleParams::default()).unwrap();
+        let info = run(&mut pts);
         assert!(info.flipped_before >= 1, "{info:?}");
         assert_eq!(info.flipped_after, 0, "{info:?}");
         assert!(info.vertices_moved >= 1, "{info:?}");
@@ -1768,11 +1796,17 @@ mod tests {
                 assert_eq!(pts[w], pushed[w], "vertex {w} moved");
             }
         }
-        let at = |w: usize| {
-            let (f, b) = pts[w];
+        let point = |(f, b): SurfacePoint| {
             let q = m.face_positions(f as usize);
             std::array::from_fn::<f64, 3, _>(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
         };
+        let at = |w: usize| point(pts[w]);
+        // v comes back nearer its own position than where it was pushed
+        let (back, away) = (
+            norm3(sub3(at(v), m.positions[v])),
+            norm3(sub3(point(pushed[v]), m.positions[v])),
+        );
+        assert!(back < 0.5 * away, "{back} against {away}");
         for f in &m.faces {
             let [a, b, c] = f.map(|w| at(w as usize));
             let n = cross3(sub3(b, a), sub3(c, a));
@@ -1786,7 +1820,7 @@ mod tests {
         let uv: Vec<[f64; 2]> = m.positions.iter().map(|p| [p[0] / 5.0, p[1] / 5.0]).collect();
         let mut pts = identity_points(&m);
         let before = pts.clone();
-        let info = untangle_points(&m, &m, &uv, &mut pts, &PointUntangleParams::default()).unwrap();
+        let info = on_disk(&m, &uv, &mut pts, &PointUntangleParams::default());
         assert_eq!(
             (info.flipped_before, info.flipped_after, info.vertices_moved),
             (0, 0, 0)
@@ -1811,7 +1845,7 @@ mod tests {
             .unwrap() as u32;
         pts[v] = (beyond, [1.0 / 3.0; 3]);
         let pushed = pts.clone();
-        let info = untangle_points(&m, &m, &uv, &mut pts, &PointUntangleParams::default()).unwrap();
+        let info = on_disk(&m, &uv, &mut pts, &PointUntangleParams::default());
         assert!(info.flipped_before >= 2, "{info:?}");
         assert_eq!(info.flipped_after, 0, "{info:?}");
         assert!(info.vertices_moved >= 1, "{info:?}");
@@ -1857,7 +1891,7 @@ mod tests {
         }
         let run = |params: &PointUntangleParams| {
             let mut pts = mirrored.clone();
-            let info = untangle_points(&m, &m, &uv, &mut pts, params).unwrap();
+            let info = on_disk(&m, &uv, &mut pts, params);
             (info, pts)
         };
         let single = run(&PointUntangleParams {

@@ -52,8 +52,9 @@
 //! 20–24 s under the same load.
 //!
 //! The final vertex map is untangled in 3D ([`crate::registration::untangle`]); with the
-//! target's disk image, [`crate::registration::refine_registration`] then moves the vertices of
-//! faces still flipped to points inside the target's faces (decision 0034).
+//! target's disk image ([`crate::registration::refine_registration`]) or its sphere image
+//! ([`crate::registration::refine_registration`], decision 0063) the vertices of
+//! faces still flipped then move to points inside the target's faces (decision 0034).
 //!
 //! Output ([`ZoomOutOutput`]): the vertex map itself, or each source vertex projected onto the
 //! nearest triangle of the target's spectral embedding among the faces around its nearest
@@ -202,8 +203,10 @@ pub struct ZoomOutParams {
     pub untangle: VertexMapUntangleParams,
     /// The 3D untangling of the refined map with points inside the target's faces, after the
     /// vertex map's ([`crate::registration::untangle::untangle_points`], run by
-    /// [`crate::registration::refine_registration`] with the target's disk image; `sweeps` = 0
-    /// turns it off).
+    /// [`crate::registration::refine_registration`] with the target's disk image and by
+    /// [`crate::registration::refine_registration`] with its sphere image;
+    /// `sweeps` = 0 turns the untangling off, not the smoothing; its `smooth_rounds` is set
+    /// by [`ZoomOutParams::point_pass`]).
     pub point_untangle: PointUntangleParams,
     /// Sweeps of projected smoothing after the untangling with points when the output is
     /// projected points ([`PointUntangleParams::smooth_rounds`]; default 3, 0 turns it off):

@@ -215,8 +215,8 @@ pub struct RegisterBenchArgs {
     pub region_from_area: f64,
     /// Folder of the closed poses behind the dataset's cut poses (`DIR/NAME.off` for each pose
     /// NAME, e.g. the TOSCA originals): also register them on the sphere with the same landmarks
-    /// (carried through `CLASS/original_indices.txt`) and methods, and print both routes side by
-    /// side (OUT/sphere_results.csv, OUT/sphere_summary.json).
+    /// (carried through `CLASS/original_indices.txt`), methods and refinement, and print both
+    /// routes side by side (OUT/sphere_results.csv, OUT/sphere_summary.json).
     #[arg(long)]
     pub closed: Option<PathBuf>,
 }

@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use shapespace_analysis::geodesic::HeatGeodesics;
 use shapespace_analysis::point_location::PointLocator;
-use shapespace_analysis::registration::untangle::{untangle_points, PointUntangleParams};
+use shapespace_analysis::registration::untangle::{untangle_points, PointUntangleParams, TargetImage};
 use shapespace_analysis::registration::{
     disk_image, refine_registration, register_with_maps, registration_area_params, registration_metrics,
     HarmonicParams, Landmarks, Method, MetricParams, Registration, SpectralBasis, ZoomOutParams,
@@ -216,7 +216,14 @@ fn main() {
                 ("variant vertex untangling", &reg_nu, &met_nu),
             ] {
                 let mut pts: Vec<(u32, [f64; 3])> = base.faces.iter().copied().zip(base.bary.iter().copied()).collect();
-                let pinfo = untangle_points(s, t, &base.target_uv, &mut pts, &PointUntangleParams::default()).unwrap();
+                let pinfo = untangle_points(
+                    s,
+                    t,
+                    TargetImage::Disk(&base.target_uv),
+                    &mut pts,
+                    &PointUntangleParams::default(),
+                )
+                .unwrap();
                 let mut reg2 = base.clone();
                 for v in 0..s.num_vertices() {
                     let (f, b) = pts[v];

@@ -13,7 +13,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use shapespace_analysis::registration::untangle::{untangle_points, PointUntangleParams};
+use shapespace_analysis::registration::untangle::{untangle_points, PointUntangleParams, TargetImage};
 use shapespace_analysis::registration::{
     disk_image, refine_registration, register_with_maps, registration_area_params, registration_metrics,
     HarmonicParams, Landmarks, Method, MetricParams, Registration, SpectralBasis, ZoomOutParams,
@@ -118,7 +118,7 @@ fn main() {
     if let Ok(r) = std::env::var("REG44_ROUNDS") {
         pp.region_rounds = r.parse().unwrap();
     }
-    let info = untangle_points(&s, &t, &base.target_uv, &mut p2, &pp).unwrap();
+    let info = untangle_points(&s, &t, TargetImage::Disk(&base.target_uv), &mut p2, &pp).unwrap();
     println!(
         "points: faces {} -> {} (after sweeps {}, regions moved {}), moved {}, sweeps {}, {:.2} s",
         info.flipped_before,
