@@ -554,21 +554,38 @@ pub fn register(
         let phi2 = phi2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
         register_with_maps(source, target, &phi1, &phi2, landmarks, &params.harmonic)
     };
-    if params.refine != Refinement::ZoomOut {
+    let zoomout = (params.refine == Refinement::ZoomOut).then_some(&params.zoomout);
+    refined_beside(source, target, landmarks, zoomout, first_stage)
+}
+
+/// `first_stage`, then with `zoomout` its refinement ([`refine_registration`]). The eigenpairs
+/// need nothing from the first stage: they run beside it, on the cores its sequential parts
+/// leave idle (the same bases, so the same map, as one after the other). Errors: the first
+/// stage's, eigenpairs that fail (named `source` / `target`), the refinement's.
+pub(crate) fn refined_beside<R: Refinable + Send>(
+    source: &TriMesh,
+    target: &TriMesh,
+    landmarks: &Landmarks,
+    zoomout: Option<&ZoomOutParams>,
+    first_stage: impl FnOnce() -> Result<R, AnalysisError> + Send,
+) -> Result<R, AnalysisError> {
+    let Some(zoomout) = zoomout else {
         return first_stage();
-    }
-    // The eigenpairs need nothing from the first stage: they run beside it, on the cores its
-    // sequential parts leave idle (the same bases, so the same map, as one after the other).
+    };
     let (reg, (b1, b2)) = rayon::join(first_stage, || {
         rayon::join(
-            || SpectralBasis::of(source, params.zoomout.k_end, &params.zoomout.eigen),
-            || SpectralBasis::of(target, params.zoomout.k_end, &params.zoomout.eigen),
+            || SpectralBasis::of(source, zoomout.k_end, &zoomout.eigen),
+            || SpectralBasis::of(target, zoomout.k_end, &zoomout.eigen),
         )
     });
     let mut reg = reg?;
-    let b1 = b1.map_err(|e| named("source", crate::error::error_chain(&e)))?;
-    let b2 = b2.map_err(|e| named("target", crate::error::error_chain(&e)))?;
-    refine_registration(source, target, &mut reg, landmarks, &b1, &b2, &params.zoomout)?;
+    let named = |name: &str, e: AnalysisError| AnalysisError::Shape {
+        name: name.to_string(),
+        message: crate::error::error_chain(&e),
+    };
+    let b1 = b1.map_err(|e| named("source", e))?;
+    let b2 = b2.map_err(|e| named("target", e))?;
+    refine_registration(source, target, &mut reg, landmarks, &b1, &b2, zoomout)?;
     Ok(reg)
 }
 

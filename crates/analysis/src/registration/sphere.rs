@@ -24,7 +24,7 @@
 //!    face of ψ₂(S₂) whose spherical triangle holds g(v), barycentric coordinates of the ray
 //!    through g(v) in its flat chordal triangle, and the corresponding 3D point of S₂.
 //!
-//! Refinement ([`refine_registration`]): ZoomOut seeded with the composed map, as on the
+//! Refinement ([`super::refine_registration`]): ZoomOut seeded with the composed map, as on the
 //! disk (`--refine zoomout`); it needs no domain, so the closed poses are refined without a cut.
 //!
 //! Flips ([`sphere_registration_metrics`]): a face of S₁ is flipped on the sphere when its image
@@ -47,11 +47,10 @@ use super::box_tree::BoxTree;
 pub use super::box_tree::LEAF_CAPACITY;
 use super::metrics::{image_is_flipped, surface_metrics, FlipCounts};
 use super::untangle::TargetImage;
-use super::zoomout::{SpectralBasis, ZoomOutParams};
+use super::zoomout::ZoomOutParams;
 use super::{
-    at_surface_point, harmonic_step, refine_registration, HarmonicParams, HarmonicWeights, Landmarks, Method,
-    MetricParams, Refinable, RefinementInfo, RegistrationMetrics, RegistrationTimings, ZoomOutRefinement,
-    UNTANGLE_SWEEPS,
+    at_surface_point, harmonic_step, refined_beside, HarmonicParams, HarmonicWeights, Landmarks, Method, MetricParams,
+    Refinable, RefinementInfo, RegistrationMetrics, RegistrationTimings, ZoomOutRefinement, UNTANGLE_SWEEPS,
 };
 use crate::error::AnalysisError;
 use crate::fold_repair::{count_folded_faces, untangle_kernels, UntangleInfo};
@@ -253,7 +252,7 @@ pub struct SphereRegistration {
     /// [`HarmonicParams::release_landmarks`]; `None` when none folded).
     pub harmonic_sphere_repair: Option<SphereHarmonicRepair>,
     /// The refinement applied after the sphere stage, if any
-    /// ([`refine_registration`]): `faces`, `bary` and `points` are then the refined
+    /// ([`super::refine_registration`]): `faces`, `bary` and `points` are then the refined
     /// map's, while `harmonic_sphere` stays the first stage's.
     pub refinement: Option<RefinementInfo>,
     /// Stage timings (`source_map`, `target_map`: the sphere maps).
@@ -277,7 +276,7 @@ pub struct SphereHarmonicRepair {
 
 /// Registers S₁ onto S₂ through the sphere (module docs): both sphere maps by `method`
 /// (in parallel), then [`register_sphere_with_maps`], then with `zoomout` the refinement
-/// ([`refine_registration`], the eigenpairs of both surfaces computed beside the first
+/// ([`super::refine_registration`], the eigenpairs of both surfaces computed beside the first
 /// stage). Errors: a mesh that is not a closed genus-0 surface, whose sphere map or eigenpairs
 /// fail (named `source` / `target`), bad landmarks, fewer than two landmarks, a harmonic map
 /// that cannot be solved.
@@ -305,20 +304,7 @@ pub fn register_on_sphere(
         let psi2 = psi2.map_err(|e| named("target", e))?;
         register_sphere_with_maps(source, target, &psi1, &psi2, landmarks, harmonic)
     };
-    let Some(zoomout) = zoomout else {
-        return first_stage();
-    };
-    let (reg, (b1, b2)) = rayon::join(first_stage, || {
-        rayon::join(
-            || SpectralBasis::of(source, zoomout.k_end, &zoomout.eigen),
-            || SpectralBasis::of(target, zoomout.k_end, &zoomout.eigen),
-        )
-    });
-    let mut reg = reg?;
-    let b1 = b1.map_err(|e| named("source", e))?;
-    let b2 = b2.map_err(|e| named("target", e))?;
-    refine_registration(source, target, &mut reg, landmarks, &b1, &b2, zoomout)?;
-    Ok(reg)
+    refined_beside(source, target, landmarks, zoomout, first_stage)
 }
 
 fn check_sphere_landmarks(source: &TriMesh, target: &TriMesh, landmarks: &Landmarks) -> Result<(), AnalysisError> {
@@ -663,9 +649,9 @@ impl Refinable for SphereRegistration {
 
 /// The sphere image of each f(v): g's when the map is the first stage's, otherwise (a refined
 /// map) ψ₂ at f(v), the ray through the barycentric combination of its face's corners.
-fn map_sphere_images(reg: &SphereRegistration, target: &TriMesh) -> Vec<[f64; 3]> {
+fn map_sphere_images<'a>(reg: &'a SphereRegistration, target: &TriMesh) -> std::borrow::Cow<'a, [[f64; 3]]> {
     if reg.refinement.is_none() {
-        return reg.harmonic_sphere.clone();
+        return std::borrow::Cow::Borrowed(&reg.harmonic_sphere);
     }
     (0..reg.faces.len())
         .map(|v| {

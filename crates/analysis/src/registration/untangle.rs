@@ -56,6 +56,7 @@ use shapespace_conformal::markers::closest_point_barycentric;
 use shapespace_geometry::quantities::{face_areas, vertex_normals};
 
 use crate::point_location::{barycentric, PointLocator};
+use crate::registration::at_surface_point;
 use crate::registration::sphere::SphereLocator;
 use crate::registration::truth::SurfacePoint;
 use shapespace_geometry::{Connectivity, TriMesh};
@@ -644,10 +645,7 @@ fn normalized(x: [f64; 3]) -> [f64; 3] {
 impl TargetDomain for SphereDomain<'_> {
     type P = [f64; 3];
     fn at(&self, target: &TriMesh, f: u32, b: [f64; 3]) -> [f64; 3] {
-        let t = target.faces[f as usize];
-        normalized(std::array::from_fn(|d| {
-            (0..3).map(|k| b[k] * self.sphere[t[k] as usize][d]).sum()
-        }))
+        normalized(at_surface_point(&target.faces, self.sphere, (f, b)))
     }
     fn mean(&self, points: &[[f64; 3]]) -> [f64; 3] {
         normalized(std::array::from_fn(|d| points.iter().map(|p| p[d]).sum()))
@@ -862,77 +860,22 @@ fn untangle_points_in<D: TargetDomain>(
         flipped_after: before.len(),
         ..PointUntangleInfo::default()
     };
+    let untangle = !before.is_empty() && params.sweeps > 0;
+    if !untangle && params.smooth_rounds == 0 {
+        info.seconds = t0.elapsed().as_secs_f64();
+        return info;
+    }
     let sconn = Connectivity::of(source);
     let adjacency = PassAdjacency {
         snb: sconn.vertex_neighbors(n1),
         sconn,
         tconn: Connectivity::of(target),
     };
-    if before.is_empty() || params.sweeps == 0 {
-        if params.smooth_rounds > 0 {
-            info.smoothing_moves = pass.smooth(&adjacency, points, params.smooth_rounds);
-            info.flipped_after = pass.flipped_faces(points).len();
-            info.vertices_moved = (0..n1).filter(|&v| pass.p3[v] != pass.original[v]).count();
-        }
-        info.seconds = t0.elapsed().as_secs_f64();
-        return info;
-    }
-    let mut bad_faces = before;
-    // a vertex is evaluated again only after it or a source neighbour moved (its result depends
-    // on nothing else)
-    let mut stale = vec![true; n1];
-    while !bad_faces.is_empty() && info.sweeps < params.sweeps {
-        info.sweeps += 1;
-        let mut verts: Vec<usize> = bad_faces
-            .iter()
-            .flat_map(|&f| source.faces[f].map(|v| v as usize))
-            .collect();
-        verts.sort_unstable();
-        verts.dedup();
-        let mut moved = false;
-        for v in verts {
-            if !stale[v] {
-                continue;
-            }
-            stale[v] = false;
-            let Some(best) = pass.best_point(&adjacency, points, v) else {
-                continue;
-            };
-            if best != points[v] {
-                points[v] = best;
-                pass.p3[v] = pass.x3(best);
-                pass.p2[v] = pass.x2(best);
-                moved = true;
-                stale[v] = true;
-                for &u in &adjacency.snb[v] {
-                    stale[u as usize] = true;
-                }
-            }
-        }
-        bad_faces = pass.flipped_faces(points);
-        if !moved {
-            break;
-        }
-    }
-    info.flipped_after_sweeps = bad_faces.len();
-    let areas = face_areas(source);
-    let flipped_area: f64 = bad_faces.iter().map(|&f| areas[f]).sum();
-    info.flipped_area_after_sweeps = flipped_area / areas.iter().sum::<f64>();
-    let regions = params.region_rings > 0
-        && params.region_rounds > 0
-        && !bad_faces.is_empty()
-        && info.flipped_area_after_sweeps >= params.region_from_area;
-    if regions {
-        pass.mean3_candidate = true;
-        for _ in 0..params.region_rounds {
-            let moved = pass.region_moves(&adjacency, points, &bad_faces, params.region_rings);
-            info.regions_moved += moved;
-            bad_faces = pass.flipped_faces(points);
-            if moved == 0 || bad_faces.is_empty() {
-                break;
-            }
-        }
-    }
+    let mut bad_faces = if untangle {
+        pass.untangle(&adjacency, points, before, params, &mut info)
+    } else {
+        before
+    };
     if params.smooth_rounds > 0 {
         info.smoothing_moves = pass.smooth(&adjacency, points, params.smooth_rounds);
         bad_faces = pass.flipped_faces(points);
@@ -1233,6 +1176,76 @@ impl<D: TargetDomain> PointPass<'_, D> {
             }
         }
         w
+    }
+
+    /// The single-move sweeps and, where they leave enough flipped, the region moves (the
+    /// module docs of [`untangle_points`]) from the flipped faces `bad_faces`; the faces still
+    /// flipped after them.
+    fn untangle(
+        &mut self,
+        adjacency: &PassAdjacency,
+        points: &mut [SurfacePoint],
+        mut bad_faces: Vec<usize>,
+        params: &PointUntangleParams,
+        info: &mut PointUntangleInfo,
+    ) -> Vec<usize> {
+        let n1 = self.source.num_vertices();
+        // a vertex is evaluated again only after it or a source neighbour moved (its result depends
+        // on nothing else)
+        let mut stale = vec![true; n1];
+        while !bad_faces.is_empty() && info.sweeps < params.sweeps {
+            info.sweeps += 1;
+            let mut verts: Vec<usize> = bad_faces
+                .iter()
+                .flat_map(|&f| self.source.faces[f].map(|v| v as usize))
+                .collect();
+            verts.sort_unstable();
+            verts.dedup();
+            let mut moved = false;
+            for v in verts {
+                if !stale[v] {
+                    continue;
+                }
+                stale[v] = false;
+                let Some(best) = self.best_point(adjacency, points, v) else {
+                    continue;
+                };
+                if best != points[v] {
+                    points[v] = best;
+                    self.p3[v] = self.x3(best);
+                    self.p2[v] = self.x2(best);
+                    moved = true;
+                    stale[v] = true;
+                    for &u in &adjacency.snb[v] {
+                        stale[u as usize] = true;
+                    }
+                }
+            }
+            bad_faces = self.flipped_faces(points);
+            if !moved {
+                break;
+            }
+        }
+        info.flipped_after_sweeps = bad_faces.len();
+        let areas = face_areas(self.source);
+        let flipped_area: f64 = bad_faces.iter().map(|&f| areas[f]).sum();
+        info.flipped_area_after_sweeps = flipped_area / areas.iter().sum::<f64>();
+        let regions = params.region_rings > 0
+            && params.region_rounds > 0
+            && !bad_faces.is_empty()
+            && info.flipped_area_after_sweeps >= params.region_from_area;
+        if regions {
+            self.mean3_candidate = true;
+            for _ in 0..params.region_rounds {
+                let moved = self.region_moves(adjacency, points, &bad_faces, params.region_rings);
+                info.regions_moved += moved;
+                bad_faces = self.flipped_faces(points);
+                if moved == 0 || bad_faces.is_empty() {
+                    break;
+                }
+            }
+        }
+        bad_faces
     }
 
     /// Projected smoothing ([`PointUntangleParams::smooth_rounds`] Gauss–Seidel sweeps over the

@@ -51,10 +51,10 @@
 //! centaur pair (15,757 vertices, k = 120, eigenpairs included) take 40–50 s instead of
 //! 20–24 s under the same load.
 //!
-//! The final vertex map is untangled in 3D ([`crate::registration::untangle`]); with the
-//! target's disk image ([`crate::registration::refine_registration`]) or its sphere image
-//! ([`crate::registration::refine_registration`], decision 0063) the vertices of
-//! faces still flipped then move to points inside the target's faces (decision 0034).
+//! The final vertex map is untangled in 3D ([`crate::registration::untangle`]); then
+//! [`crate::registration::refine_registration`] moves the vertices of faces still flipped to
+//! points inside the target's faces, tested in the target's disk image or, on the sphere route,
+//! its sphere image (decisions 0034, 0063).
 //!
 //! Output ([`ZoomOutOutput`]): the vertex map itself, or each source vertex projected onto the
 //! nearest triangle of the target's spectral embedding among the faces around its nearest
@@ -203,8 +203,7 @@ pub struct ZoomOutParams {
     pub untangle: VertexMapUntangleParams,
     /// The 3D untangling of the refined map with points inside the target's faces, after the
     /// vertex map's ([`crate::registration::untangle::untangle_points`], run by
-    /// [`crate::registration::refine_registration`] with the target's disk image and by
-    /// [`crate::registration::refine_registration`] with its sphere image;
+    /// [`crate::registration::refine_registration`] with the target's disk or sphere image;
     /// `sweeps` = 0 turns the untangling off, not the smoothing; its `smooth_rounds` is set
     /// by [`ZoomOutParams::point_pass`]).
     pub point_untangle: PointUntangleParams,
