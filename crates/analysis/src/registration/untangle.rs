@@ -945,9 +945,8 @@ impl<'a, D: TargetDomain> PointPass<'a, D> {
     }
 
     /// The 3D position of a point of S₂.
-    fn x3(&self, (f, b): SurfacePoint) -> [f64; 3] {
-        let q = self.target.face_positions(f as usize);
-        std::array::from_fn(|d| b[0] * q[0][d] + b[1] * q[1][d] + b[2] * q[2][d])
+    fn x3(&self, p: SurfacePoint) -> [f64; 3] {
+        at_surface_point(&self.target.faces, &self.target.positions, p)
     }
 
     /// The position of a point of S₂ in the metric's image of S₂.
