@@ -6,7 +6,7 @@ use std::sync::OnceLock;
 
 use shapespace_analysis::registration::{
     disk_image, register, register_with_maps, registration_area_params, registration_metrics, DiskImage,
-    HarmonicParams, Landmarks, Method, MetricParams, RegistrationParams,
+    HarmonicParams, Landmarks, Method, MetricParams, Refinement, RegistrationParams,
 };
 use shapespace_analysis::AnalysisError;
 use shapespace_conformal::MarkerFile;
@@ -54,6 +54,7 @@ fn params(method: Method) -> RegistrationParams {
         source_markers: mf.markers.clone(),
         target_markers: mf.markers,
         harmonic: HarmonicParams::for_method(method),
+        refine: Refinement::None,
         ..RegistrationParams::default()
     }
 }
@@ -338,6 +339,7 @@ fn omt_beats_conformal_on_two_centaur_poses() {
                     source_markers: mf.markers.clone(),
                     target_markers: mf.markers.clone(),
                     harmonic: HarmonicParams::for_method(method),
+                    refine: Refinement::None,
                     ..RegistrationParams::default()
                 };
                 register(s1, s2, lm, &p)

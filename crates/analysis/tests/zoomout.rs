@@ -26,6 +26,8 @@ fn setup() -> (MarkerFile, Landmarks, RegistrationParams) {
     let params = RegistrationParams {
         source_markers: mf.markers.clone(),
         target_markers: mf.markers.clone(),
+        // the first stage: the tests refine it themselves
+        refine: Refinement::None,
         ..RegistrationParams::default()
     };
     (mf, lm, params)

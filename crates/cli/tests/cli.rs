@@ -2594,11 +2594,12 @@ fn mds_smacof_reports_the_stress() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `register --refine`: an unknown refinement is a usage error before any work; `zoomout` on
-/// the wolf poses records the refinement in `metrics.json` and lowers the geodesic error
-/// (wolf0 → wolf1: 0.0207 → 0.0017 mean), with the vertex map between the poses' one
-/// triangulation and projected points when asked (an unknown output is a usage error); a surface with fewer vertices than the 120
-/// eigenpairs is refused, naming the surface.
+/// `register --refine`: an unknown refinement is a usage error before any work; `zoomout`, the
+/// default, on the wolf poses records the refinement in `metrics.json` and lowers the geodesic
+/// error (wolf0 → wolf1: 0.0207 → 0.0017 mean), with the vertex map between the poses' one
+/// triangulation and projected points when asked (an unknown output is a usage error); a
+/// surface with fewer vertices than the 120 eigenpairs is refused when `zoomout` is asked for,
+/// naming the surface, and registered by the first stage alone, with a note, by default.
 #[test]
 fn register_refines_by_zoomout() {
     let dir = scratch("register_refine");
@@ -2635,8 +2636,10 @@ fn register_refines_by_zoomout() {
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     let (plain, info) = mean_error();
     assert!(info.is_null(), "{info}");
-    let out = run(&["--refine", "zoomout"]);
+    // the default
+    let out = run(&[]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(stderr(&out).contains("refinement zoomout"), "{}", stderr(&out));
     let (refined, info) = mean_error();
     assert_eq!(info["refinement"], "zoomout", "{info}");
     assert_eq!(info["sizes"].as_array().unwrap().last().unwrap(), 120, "{info}");
@@ -2694,6 +2697,29 @@ fn register_refines_by_zoomout() {
     assert!(
         msg.contains("source") && msg.contains("120 eigenpairs asked of a 25-vertex problem"),
         "{msg}"
+    );
+    let grid_out = dir.join("grid-default");
+    let out = shapespace(&[
+        "register",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--landmarks",
+        pairs.to_str().unwrap(),
+        "--out",
+        grid_out.to_str().unwrap(),
+    ]);
+    let msg = stderr(&out);
+    assert_eq!(out.status.code(), Some(0), "{msg}");
+    assert!(
+        msg.contains("25 vertices, fewer than ZoomOut's 120 eigenpairs") && msg.contains("refinement none"),
+        "{msg}"
+    );
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(grid_out.join("metrics.json")).unwrap()).unwrap();
+    assert!(
+        metrics["run"]["refinement"].is_null(),
+        "{}",
+        metrics["run"]["refinement"]
     );
 }
 
@@ -3140,8 +3166,9 @@ fn lat_long_sphere_obj(rings: usize, segments: usize, stretch: f64, angle: f64) 
 }
 
 /// `register` on two closed meshes goes to the sphere (a rotated copy registers onto itself:
-/// geodesic error 0 to rounding, no flips, also refined by ZoomOut), and a closed mesh with a disk is refused naming both
-/// files, before any map.
+/// geodesic error 0 to rounding, no flips, by the first stage alone, the default on these
+/// 98-vertex meshes, and refined by ZoomOut), and a closed mesh with a disk is refused naming
+/// both files, before any map.
 #[test]
 fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
     let dir = scratch("register-sphere");
@@ -3179,6 +3206,11 @@ fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
         let msg = stderr(&out);
         assert_eq!(out.status.code(), Some(0), "{msg}");
         assert!(msg.contains("on the sphere"), "{msg}");
+        assert_eq!(
+            msg.contains("98 vertices, fewer than ZoomOut's 120"),
+            extra.is_empty(),
+            "{msg}"
+        );
         let metrics: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out_dir.join("metrics.json")).unwrap()).unwrap();
         assert_eq!(metrics["domain"], "sphere");

@@ -309,7 +309,7 @@ pub struct RegistrationParams {
     /// Weights, landmark steps and untangling of the harmonic map g (set it with
     /// [`HarmonicParams::for_method`] when changing `method`).
     pub harmonic: HarmonicParams,
-    /// Refinement of f after the disk-map stage (default none).
+    /// Refinement of f after the disk-map stage (default ZoomOut, decision 0065).
     pub refine: Refinement,
     /// Parameters of the ZoomOut refinement.
     pub zoomout: ZoomOutParams,
@@ -323,7 +323,7 @@ impl Default for RegistrationParams {
             target_markers: Markers::default(),
             area_preserving: registration_area_params(),
             harmonic: HarmonicParams::for_method(Method::Omt),
-            refine: Refinement::None,
+            refine: Refinement::ZoomOut,
             zoomout: ZoomOutParams::default(),
         }
     }

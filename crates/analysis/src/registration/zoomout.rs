@@ -88,9 +88,9 @@ use crate::registration::untangle::{
 #[serde(rename_all = "lowercase")]
 pub enum Refinement {
     /// The first stage as it is.
-    #[default]
     None,
-    /// ZoomOut (module docs).
+    /// ZoomOut (module docs; the default, decision 0065).
+    #[default]
     ZoomOut,
 }
 

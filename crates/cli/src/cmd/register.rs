@@ -68,11 +68,12 @@ pub struct RegisterArgs {
     /// Output directory (correspondence.csv, metrics.json, histograms, coloured OBJs).
     #[arg(long)]
     pub out: PathBuf,
-    /// Refinement after the disk or sphere stage: `none` or `zoomout` (spectral refinement, Melzi et
-    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of
-    /// smaller residual kept).
-    #[arg(long, default_value = "none")]
-    pub refine: String,
+    /// Refinement after the disk or sphere stage: `zoomout` (spectral refinement, Melzi et al. 2019:
+    /// Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of smaller
+    /// residual kept) or `none` (the first stage alone). Default: `zoomout`, or `none` with a note
+    /// when a mesh has fewer vertices than ZoomOut's eigenpairs (`--zoomout-k-end`).
+    #[arg(long)]
+    pub refine: Option<String>,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
     /// signed; default), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's
     /// weights of φ₁(S₁)) or `intrinsic-delaunay`.
@@ -161,10 +162,10 @@ pub struct RegisterBenchArgs {
     /// Comma-separated methods.
     #[arg(long, default_value = "omt,conformal")]
     pub methods: String,
-    /// Refinement after the disk or sphere stage: `none` or `zoomout` (spectral refinement, Melzi et
-    /// al. 2019: Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of
-    /// smaller residual kept).
-    #[arg(long, default_value = "none")]
+    /// Refinement after the disk or sphere stage: `zoomout` (spectral refinement, Melzi et al. 2019:
+    /// Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of smaller
+    /// residual kept) or `none` (the first stage alone).
+    #[arg(long, default_value = "zoomout")]
     pub refine: String,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
     /// signed; default), `planar-clamped` (negative ones set to 0), `mean-value` (Floater's
@@ -264,11 +265,13 @@ fn harmonic_params(
 
 pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let method: Method = args.method.parse()?;
+    let asked: Option<Refinement> = args.refine.as_deref().map(str::parse).transpose()?;
     super::create_output_folder(&args.out)?;
     // (its errors name the file)
     let read = |p: &Path| shapespace_geometry::io::read_mesh(p);
     let source = read(&args.source)?;
     let target = read(&args.target)?;
+    let refine = refinement(asked, &args.zoomout, &source, &target);
     let (source_name, target_name) = (args.source.display().to_string(), args.target.display().to_string());
     let domain = registration_domain(args.domain.parse()?, (&source_name, &source), (&target_name, &target))?;
     let m1 = marker_file(args.source_markers.as_deref(), &args.source)?;
@@ -291,7 +294,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
         ),
     };
     if domain == Domain::Sphere {
-        return run_sphere(args, method, &source, &target, &landmarks);
+        return run_sphere(args, method, refine, &source, &target, &landmarks);
     }
     // markers: flags over marker files over auto; automatic ones shared where the faces agree
     let origin =
@@ -358,7 +361,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
             args.untangle_g.as_deref(),
             args.landmark_steps,
         )?,
-        refine: args.refine.parse()?,
+        refine,
         zoomout: args.zoomout.params()?,
     };
     eprintln!(
@@ -415,10 +418,33 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The refinement `register` runs: the one asked for, or by default ZoomOut where both meshes
+/// have at least its eigenpairs (`--zoomout-k-end`) as vertices, the first stage alone (with a
+/// note) where one has fewer (decision 0065).
+fn refinement(
+    asked: Option<Refinement>,
+    zoomout: &ZoomOutArgs,
+    source: &shapespace_geometry::TriMesh,
+    target: &shapespace_geometry::TriMesh,
+) -> Refinement {
+    if let Some(r) = asked {
+        return r;
+    }
+    let (k, fewest) = (zoomout.zoomout_k_end, source.num_vertices().min(target.num_vertices()));
+    if fewest < k {
+        eprintln!(
+            "register: a mesh has {fewest} vertices, fewer than ZoomOut's {k} eigenpairs (--zoomout-k-end): the first stage is not refined"
+        );
+        return Refinement::None;
+    }
+    Refinement::ZoomOut
+}
+
 /// `register` on the sphere (both meshes closed genus-0 surfaces).
 fn run_sphere(
     args: &RegisterArgs,
     method: Method,
+    refine: Refinement,
     source: &shapespace_geometry::TriMesh,
     target: &shapespace_geometry::TriMesh,
     landmarks: &Landmarks,
@@ -434,7 +460,6 @@ fn run_sphere(
             args.target.display()
         );
     }
-    let refine: Refinement = args.refine.parse()?;
     let zoomout = args.zoomout.params()?;
     let harmonic = harmonic_params(
         method,
