@@ -158,11 +158,28 @@ fn a_remeshing_equal_to_the_pose_gives_the_same_rows() {
 /// Real remeshings (17 rings against 12): the ground truth lies within the interpolation error
 /// of the surfaces, and the registration onto the remeshed pose is about as accurate as onto
 /// the pose itself (the same smooth surface). Measured: truth within 6.3e-4 of √area; geodesic
-/// error means 0.0241 / 0.0240 (same) and 0.0295 / 0.0283 (remeshed), no flipped area.
+/// error means 0.0138 / 0.0209 (same) and 0.0216 / 0.0204 (remeshed), no flipped area (0.0241 /
+/// 0.0240 and 0.0295 / 0.0283 without the landmark pairs in ZoomOut's fits, decision 0066).
+/// Asserted: each pair below 0.025, the class mean onto the remeshings within 1.3× of the one
+/// onto the poses (measured 1.21; the same-triangulation pairs can hit vertices exactly, and the
+/// first pair does on most of the cap, median 0), no flips.
 #[test]
 fn remeshed_targets_are_registered_about_as_well_as_the_poses() {
     let dir = scratch("remeshed-17");
     let rows = run(&dir, 17, Refinement::ZoomOut);
+    let class_mean = |t: Triangulation| {
+        let r: Vec<f64> = rows
+            .iter()
+            .filter(|r| r.triangulation == t)
+            .map(|r| r.geodesic_mean)
+            .collect();
+        r.iter().sum::<f64>() / r.len() as f64
+    };
+    let (same_mean, remeshed_mean) = (class_mean(Triangulation::Same), class_mean(Triangulation::Remeshed));
+    assert!(
+        remeshed_mean < 1.3 * same_mean,
+        "remeshed {remeshed_mean} against same {same_mean}"
+    );
     for same in rows.iter().filter(|r| r.triangulation == Triangulation::Same) {
         let re = rows
             .iter()
@@ -173,14 +190,8 @@ fn remeshed_targets_are_registered_about_as_well_as_the_poses() {
             "{}",
             re.truth_max_distance
         );
-        assert!(same.geodesic_mean < 0.03, "same: {}", same.geodesic_mean);
-        assert!(re.geodesic_mean < 0.035, "remeshed: {}", re.geodesic_mean);
-        assert!(
-            re.geodesic_mean < 1.3 * same.geodesic_mean,
-            "remeshed {} against same {}",
-            re.geodesic_mean,
-            same.geodesic_mean
-        );
+        assert!(same.geodesic_mean < 0.025, "same: {}", same.geodesic_mean);
+        assert!(re.geodesic_mean < 0.025, "remeshed: {}", re.geodesic_mean);
         assert!(re.flipped_ratio_3d < 1e-3, "remeshed flips: {}", re.flipped_ratio_3d);
     }
     let _ = std::fs::remove_dir_all(&dir);

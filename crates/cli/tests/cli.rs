@@ -2804,8 +2804,9 @@ fn disk_map_choices_reach_param_and_distances() {
 /// script: status 2 naming the path, before any registration; a `--region-from-area` that is
 /// not a share of the area, a `--zoomout-starts` that is not a list of sizes from 1 to the last
 /// size (120 by default), a `--zoomout-k-end` outside 8 to 1000, a `--zoomout-output` other
-/// than auto, vertex and projected, or a `--zoomout-samples` below 1: status 2 naming the
-/// option, no output folder.
+/// than auto, vertex and projected, a `--zoomout-samples` below 1, or a `--landmark-weight` or
+/// `--landmark-fit` that is negative or not finite: status 2 naming the option, no output
+/// folder.
 #[test]
 fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
     let dir = scratch("bench-remeshed-missing");
@@ -2852,6 +2853,8 @@ fn register_bench_names_a_missing_remeshed_folder_or_peer_script() {
         ("--zoomout-k-end", &["7", "1001", "x"][..]),
         ("--zoomout-output", &["points", "vertices"][..]),
         ("--zoomout-samples", &["0", "-5", "many"][..]),
+        ("--landmark-weight", &["-1", "inf", "NaN", "x"][..]),
+        ("--landmark-fit", &["-0.5", "inf", "NaN", "x"][..]),
     ] {
         for bad in bad_values {
             let out = shapespace(&[

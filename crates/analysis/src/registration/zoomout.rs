@@ -22,6 +22,14 @@
 //! around it), and which runs do depends on the first size; E tells the runs apart without a
 //! ground truth (decision 0055).
 //!
+//! Landmark pairs in the fits ([`ZoomOutParams::landmark_fit`], default 20): every step's
+//! least-squares fit of C takes the landmark pairs (l_i, its partner) as further samples whose
+//! images stay the partners, each with 20 times a sample's mean weight. The samples' images
+//! come from the current map, which on a twisted limb is wrong around the landmark at its tip;
+//! the held pairs make C carry each landmark's spectral coordinates onto its partner's, and the
+//! limb follows. Without them ZoomOut moved the landmark x0 of lion0 → remeshed lion1 from
+//! 0.004 √area off its partner in the first stage to 0.063, its paw twisted (decision 0066).
+//!
 //! Landmarks: both embeddings of the nearest-neighbour step carry, after the k spectral
 //! coordinates, w · d(v, l_i) / √area for each landmark pair (l_i on S₁, its partner on S₂; d the
 //! heat-method geodesic distance of each surface on its intrinsic Delaunay triangulation,
@@ -218,6 +226,11 @@ pub struct ZoomOutParams {
     /// surface), so that a limb cannot drift onto its mirror image (module docs; 0 turns them
     /// off; default 3).
     pub landmark_weight: f64,
+    /// Weight of each landmark pair in the functional maps' least-squares fits, in units of a
+    /// sample's mean quadrature weight: the pairs join the samples with their partners held in
+    /// every step, so that C carries each landmark onto its partner (module docs; 0 leaves them
+    /// out; default 20, decision 0066).
+    pub landmark_fit: f64,
 }
 
 impl Default for ZoomOutParams {
@@ -237,6 +250,7 @@ impl Default for ZoomOutParams {
             point_untangle: PointUntangleParams::default(),
             smoothing: SMOOTHING_SWEEPS,
             landmark_weight: LANDMARK_WEIGHT,
+            landmark_fit: LANDMARK_FIT,
         }
     }
 }
@@ -337,6 +351,9 @@ impl ZoomOutParams {
 /// Default [`ZoomOutParams::landmark_weight`].
 pub const LANDMARK_WEIGHT: f64 = 3.0;
 
+/// Default [`ZoomOutParams::landmark_fit`].
+pub const LANDMARK_FIT: f64 = 20.0;
+
 /// ZoomOut from the vertex map `seed` (#V₁ target vertices) with the bases of `source` and
 /// `target` and the landmark pairs `landmarks` (vertex of S₁, vertex of S₂; module docs).
 /// Errors: sizes that do not match, no first size, a first size 0 or beyond `k_end`, `k_end`
@@ -356,7 +373,18 @@ pub fn zoomout(
     check_inputs(source, target, source_basis, target_basis, seed, landmarks, params)?;
     let k_end = params.k_end;
     let (lm_s, lm_t, landmarks_dropped) = landmark_columns(source, target, landmarks, seed, params)?;
-    let (samples, sample_weights) = spread_samples(source, &source_basis.mass, params.samples.max(1));
+    let (mut samples, mut sample_weights) = spread_samples(source, &source_basis.mass, params.samples.max(1));
+    // the landmark pairs join the fits' samples, their partners held (`landmark_fit`)
+    let n_free = samples.len();
+    let mut fixed: Vec<u32> = Vec::new();
+    if params.landmark_fit > 0.0 {
+        let mean_weight = sample_weights.iter().sum::<f64>() / n_free as f64;
+        for &(a, b) in landmarks {
+            samples.push(a);
+            sample_weights.push(params.landmark_fit * mean_weight);
+            fixed.push(b);
+        }
+    }
     let conn = Connectivity::of(target);
     let space = SpectralSpace {
         n1,
@@ -368,6 +396,8 @@ pub fn zoomout(
         lm_t,
         samples,
         sample_weights,
+        n_free,
+        fixed,
         target_samples: spread_samples(target, &target_basis.mass, params.samples.max(1)).0,
         neighbors: conn.vertex_neighbors(n2),
     };
@@ -423,7 +453,8 @@ pub fn zoomout(
 }
 
 /// The errors of [`zoomout`] before any work: sizes that do not match, spectral sizes out of
-/// order or beyond the bases, a seed vertex or a landmark out of range.
+/// order or beyond the bases, a landmark weight that is negative or not finite, a seed vertex
+/// or a landmark out of range.
 fn check_inputs(
     source: &TriMesh,
     target: &TriMesh,
@@ -455,6 +486,16 @@ fn check_inputs(
             source_basis.k(),
             target_basis.k()
         )));
+    }
+    for (name, w) in [
+        ("landmark_weight", params.landmark_weight),
+        ("landmark_fit", params.landmark_fit),
+    ] {
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(AnalysisError::InvalidInput(format!(
+                "zoomout: {name} = {w} (expected a finite number, 0 or more)"
+            )));
+        }
     }
     if let Some(v) = seed.iter().position(|&w| w as usize >= n2) {
         return Err(AnalysisError::InvalidInput(format!(
@@ -511,8 +552,13 @@ struct SpectralSpace<'a> {
     nl: usize,
     lm_s: Mat<f64>,
     lm_t: Mat<f64>,
+    /// The fits' source vertices: the spread samples, then the landmarks held (`n_free..`).
     samples: Vec<u32>,
     sample_weights: Vec<f64>,
+    /// Spread samples, whose images each step updates; the rest are the landmarks.
+    n_free: usize,
+    /// The landmarks' partners on S₂, the images of `samples[n_free..]` in every fit.
+    fixed: Vec<u32>,
     target_samples: Vec<u32>,
     neighbors: Vec<Vec<u32>>,
 }
@@ -536,12 +582,14 @@ impl SpectralSpace<'_> {
         let mut sizes: Vec<usize> = (k_start..k_end).step_by(k_step).collect();
         sizes.push(k_end);
         let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
+        map_samples[self.n_free..].copy_from_slice(&self.fixed);
         let mut c = Mat::<f64>::zeros(0, 0);
         for (step, &k) in sizes.iter().enumerate() {
             c = functional_map(self.phi_s, weights, self.phi_t, samples, &map_samples, k);
             if step + 1 < sizes.len() {
                 let (q, p) = self.embed(Some(samples), &c, k);
                 map_samples = self.nearest(q.as_ref(), p.as_ref(), &map_samples);
+                map_samples[self.n_free..].copy_from_slice(&self.fixed);
             }
         }
         // last step: every source vertex at k_end

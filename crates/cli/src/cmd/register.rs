@@ -109,8 +109,13 @@ pub struct RegisterArgs {
 pub struct ZoomOutArgs {
     /// ZoomOut's landmark weight: the landmarks' geodesic distances (over √area, times this)
     /// join both spectral embeddings of its nearest-neighbour step; 0 leaves them out.
-    #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT)]
+    #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_WEIGHT, value_parser = weight)]
     pub landmark_weight: f64,
+    /// ZoomOut's landmark fit: each landmark pair joins the samples its functional maps are
+    /// fitted on, with its partner held, at this many times a sample's mean weight (decision
+    /// 0066); 0 leaves them out.
+    #[arg(long, default_value_t = shapespace_analysis::registration::zoomout::LANDMARK_FIT, value_parser = weight)]
+    pub landmark_fit: f64,
     /// ZoomOut's first spectral sizes, comma-separated: it runs from each and keeps the map whose
     /// final nearest-neighbour residual is smallest (decision 0055); `20` alone is a single run.
     #[arg(long, default_value = "20,8", value_parser = spectral_sizes)]
@@ -142,6 +147,7 @@ impl ZoomOutArgs {
         Ok(ZoomOutParams {
             output: self.zoomout_output,
             landmark_weight: self.landmark_weight,
+            landmark_fit: self.landmark_fit,
             k_starts: self.zoomout_starts.0.clone(),
             k_end,
             samples: self.zoomout_samples as usize,
@@ -653,6 +659,15 @@ fn zoomout_output(s: &str) -> Result<ZoomOutOutput, String> {
 }
 
 /// A share of the source's area: a number in [0, 1].
+/// A weight: a finite number, 0 or more.
+fn weight(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        Ok(x) => Err(format!("{x} is not a weight (expected a finite number, 0 or more)")),
+        Err(e) => Err(format!("{s}: {e}")),
+    }
+}
+
 fn area_share(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
