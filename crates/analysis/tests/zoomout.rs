@@ -181,7 +181,8 @@ fn shared_eigenpairs_give_the_same_maps() {
     }
 }
 
-/// Bases that do not fit the meshes, sizes beyond them and first sizes out of range are errors.
+/// Bases that do not fit the meshes, sizes beyond them, first sizes out of range and landmark
+/// weights that are negative or not finite are errors.
 #[test]
 fn mismatched_bases_are_errors() {
     let (s, t) = (wolf(0), wolf(1));
@@ -206,5 +207,21 @@ fn mismatched_bases_are_errors() {
     bad_seed[5] = t.num_vertices() as u32;
     assert!(zoomout(&s, &t, &b, &b, &bad_seed, &[], &zp).is_err());
     assert!(zoomout(&s, &t, &b, &b, &seed, &[(0, t.num_vertices() as u32)], &zp).is_err());
+    // the landmark weights: finite, 0 or more
+    for w in [-1.0, f64::NAN, f64::INFINITY] {
+        for bad in [
+            ZoomOutParams {
+                landmark_weight: w,
+                ..zp.clone()
+            },
+            ZoomOutParams {
+                landmark_fit: w,
+                ..zp.clone()
+            },
+        ] {
+            let err = zoomout(&s, &t, &b, &b, &seed, &[], &bad).unwrap_err().to_string();
+            assert!(err.contains("landmark_"), "{err}");
+        }
+    }
     assert!(zoomout(&s, &t, &b, &b, &seed, &[], &zp).is_ok());
 }

@@ -2598,8 +2598,9 @@ fn mds_smacof_reports_the_stress() {
 /// default, on the wolf poses records the refinement in `metrics.json` and lowers the geodesic
 /// error (wolf0 → wolf1: 0.0207 → 0.0017 mean), with the vertex map between the poses' one
 /// triangulation and projected points when asked (an unknown output is a usage error); a
-/// surface with fewer vertices than the 120 eigenpairs is refused when `zoomout` is asked for,
-/// naming the surface, and registered by the first stage alone, with a note, by default.
+/// surface with fewer vertices than the 120 eigenpairs is refused before any map when `zoomout`
+/// is asked for, naming the file, and registered by the first stage alone, with a note naming
+/// it, by default.
 #[test]
 fn register_refines_by_zoomout() {
     let dir = scratch("register_refine");
@@ -2695,9 +2696,10 @@ fn register_refines_by_zoomout() {
     let msg = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{msg}");
     assert!(
-        msg.contains("source") && msg.contains("120 eigenpairs asked of a 25-vertex problem"),
+        msg.contains(a.to_str().unwrap()) && msg.contains("25 vertices, fewer than ZoomOut's 120 eigenpairs"),
         "{msg}"
     );
+    assert!(!dir.join("grid").join("metrics.json").exists());
     let grid_out = dir.join("grid-default");
     let out = shapespace(&[
         "register",

@@ -15,7 +15,11 @@ fn main() {
         .split(',')
         .map(|m| m.parse().expect("method"))
         .collect();
-    let refine: Refinement = args.get(4).map_or("none", String::as_str).parse().expect("refinement");
+    let refine: Refinement = args
+        .get(4)
+        .map_or("zoomout", String::as_str)
+        .parse()
+        .expect("refinement");
     let mut zoomout = ZoomOutParams::default();
     if let Some(k) = args.get(5) {
         zoomout.k_end = k.parse().expect("k_end");

@@ -523,10 +523,14 @@ pub struct HarmonicRelease {
 }
 
 /// Registers S₁ (`source`) onto S₂ (`target`) by f = φ₂⁻¹ ∘ g ∘ φ₁ (module docs): computes
-/// both disk maps by `params.method`, then [`register_with_maps`].
+/// both disk maps by `params.method`, then [`register_with_maps`], then the refinement
+/// `params.refine` (ZoomOut by default: both meshes' eigenpairs, computed beside the first
+/// stage, and [`refine_registration`]).
 ///
 /// Errors: invalid landmarks (out of range, repeated, on the boundary: named), a disk map that
-/// fails, a harmonic map that cannot be solved.
+/// fails, a harmonic map that cannot be solved; with ZoomOut, eigenpairs that fail (named
+/// `source` or `target`; among them a mesh with fewer vertices than `zoomout.k_end`) and
+/// ZoomOut's errors ([`zoomout::zoomout`]).
 pub fn register(
     source: &TriMesh,
     target: &TriMesh,

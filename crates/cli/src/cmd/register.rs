@@ -1,7 +1,7 @@
 //! `shapespace register SOURCE TARGET [--landmarks pairs.csv] [--method omt|conformal] [--domain auto|disk|sphere] [--refine none|zoomout] --out DIR`
 //! and `shapespace register-bench DATASET_DIR --out DIR [--methods omt,conformal] [--refine none|zoomout] [--closed DIR]`:
 //! registration f = φ₂⁻¹ ∘ g ∘ φ₁ through disk maps and a landmark-constrained harmonic map
-//! (Su et al. 2015, Alg. 4), optionally refined by ZoomOut, or of closed genus-0 surfaces
+//! (Su et al. 2015, Alg. 4), refined by ZoomOut unless `--refine none`, or of closed genus-0 surfaces
 //! through the sphere (`registration::sphere`), its quality measures, and the benchmark over
 //! pose sets (with `--closed`, the sphere route on the closed poses in the same run).
 
@@ -170,7 +170,8 @@ pub struct RegisterBenchArgs {
     pub methods: String,
     /// Refinement after the disk or sphere stage: `zoomout` (spectral refinement, Melzi et al. 2019:
     /// Laplace–Beltrami eigenpairs of both meshes, k from 20 and from 8 to 120, the run of smaller
-    /// residual kept) or `none` (the first stage alone).
+    /// residual kept) or `none` (the first stage alone; classes whose meshes have fewer vertices
+    /// than `--zoomout-k-end` need it).
     #[arg(long, default_value = "zoomout")]
     pub refine: String,
     /// Weights of the harmonic map g: `planar` (cotangent weights of the planar mesh φ₁(S₁),
@@ -277,7 +278,7 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
     let read = |p: &Path| shapespace_geometry::io::read_mesh(p);
     let source = read(&args.source)?;
     let target = read(&args.target)?;
-    let refine = refinement(asked, &args.zoomout, &source, &target);
+    let refine = refinement(args, asked, &source, &target)?;
     let (source_name, target_name) = (args.source.display().to_string(), args.target.display().to_string());
     let domain = registration_domain(args.domain.parse()?, (&source_name, &source), (&target_name, &target))?;
     let m1 = marker_file(args.source_markers.as_deref(), &args.source)?;
@@ -426,24 +427,35 @@ pub fn run(args: &RegisterArgs) -> anyhow::Result<ExitCode> {
 
 /// The refinement `register` runs: the one asked for, or by default ZoomOut where both meshes
 /// have at least its eigenpairs (`--zoomout-k-end`) as vertices, the first stage alone (with a
-/// note) where one has fewer (decision 0065).
+/// note naming the mesh) where one has fewer (decision 0065). Errors: `--refine zoomout` asked
+/// of such a mesh, before any map.
 fn refinement(
+    args: &RegisterArgs,
     asked: Option<Refinement>,
-    zoomout: &ZoomOutArgs,
     source: &shapespace_geometry::TriMesh,
     target: &shapespace_geometry::TriMesh,
-) -> Refinement {
-    if let Some(r) = asked {
-        return r;
+) -> anyhow::Result<Refinement> {
+    let k = args.zoomout.zoomout_k_end;
+    let small = [(&args.source, source), (&args.target, target)]
+        .into_iter()
+        .find(|(_, mesh)| mesh.num_vertices() < k);
+    match (asked, small) {
+        (Some(Refinement::ZoomOut), Some((path, mesh))) => anyhow::bail!(
+            "--refine zoomout: {} has {} vertices, fewer than ZoomOut's {k} eigenpairs (--zoomout-k-end); pass a smaller --zoomout-k-end or --refine none",
+            path.display(),
+            mesh.num_vertices()
+        ),
+        (Some(r), _) => Ok(r),
+        (None, Some((path, mesh))) => {
+            eprintln!(
+                "register: {} has {} vertices, fewer than ZoomOut's {k} eigenpairs (--zoomout-k-end): the first stage is not refined",
+                path.display(),
+                mesh.num_vertices()
+            );
+            Ok(Refinement::None)
+        }
+        (None, None) => Ok(Refinement::ZoomOut),
     }
-    let (k, fewest) = (zoomout.zoomout_k_end, source.num_vertices().min(target.num_vertices()));
-    if fewest < k {
-        eprintln!(
-            "register: a mesh has {fewest} vertices, fewer than ZoomOut's {k} eigenpairs (--zoomout-k-end): the first stage is not refined"
-        );
-        return Refinement::None;
-    }
-    Refinement::ZoomOut
 }
 
 /// `register` on the sphere (both meshes closed genus-0 surfaces).
@@ -658,7 +670,6 @@ fn zoomout_output(s: &str) -> Result<ZoomOutOutput, String> {
     s.parse::<ZoomOutOutput>().map_err(|e| e.to_string())
 }
 
-/// A share of the source's area: a number in [0, 1].
 /// A weight: a finite number, 0 or more.
 fn weight(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
@@ -668,6 +679,7 @@ fn weight(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A share of the source's area: a number in [0, 1].
 fn area_share(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
