@@ -2682,17 +2682,20 @@ fn register_refines_by_zoomout() {
     std::fs::write(&b, grid_obj(1.5)).unwrap();
     let pairs = dir.join("pairs.csv");
     std::fs::write(&pairs, "source,target\n6,6\n").unwrap();
-    let out = shapespace(&[
-        "register",
-        a.to_str().unwrap(),
-        b.to_str().unwrap(),
-        "--landmarks",
-        pairs.to_str().unwrap(),
-        "--refine",
-        "zoomout",
-        "--out",
-        dir.join("grid").to_str().unwrap(),
-    ]);
+    let grid = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "register",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--landmarks",
+            pairs.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        shapespace(&args)
+    };
+    let out = grid(&dir.join("grid"), &["--refine", "zoomout"]);
     let msg = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{msg}");
     assert!(
@@ -2701,15 +2704,7 @@ fn register_refines_by_zoomout() {
     );
     assert!(!dir.join("grid").join("metrics.json").exists());
     let grid_out = dir.join("grid-default");
-    let out = shapespace(&[
-        "register",
-        a.to_str().unwrap(),
-        b.to_str().unwrap(),
-        "--landmarks",
-        pairs.to_str().unwrap(),
-        "--out",
-        grid_out.to_str().unwrap(),
-    ]);
+    let out = grid(&grid_out, &[]);
     let msg = stderr(&out);
     assert_eq!(out.status.code(), Some(0), "{msg}");
     assert!(
