@@ -29,8 +29,9 @@
 //! whose coordinates were left out as well. The samples' images
 //! come from the current map, which on a twisted limb is wrong around the landmark at its tip;
 //! the held pairs make C carry each landmark's spectral coordinates onto its partner's, and the
-//! limb follows. Without them ZoomOut moved the landmark x0 of lion0 → remeshed lion1 from
-//! 0.004 √area off its partner in the first stage to 0.063, its paw twisted (decision 0066).
+//! limb follows. Without them ZoomOut left the landmark x0 of lion0 → remeshed lion1 0.063 √area
+//! off its partner, its paw twisted, where a first stage with g's landmarks held had put it
+//! 0.004 off (decision 0066).
 //!
 //! Landmarks: both embeddings of the nearest-neighbour step carry, after the k spectral
 //! coordinates, w · d(v, l_i) / √area for each landmark pair (l_i on S₁, its partner on S₂; d the
