@@ -365,13 +365,7 @@ mod tests {
         let face = mesh.faces.iter().position(|f| f[0] == s).unwrap() as u32;
         let bary = [0.2, 0.3, 0.5];
         let d = &heat.distances_from_points(&[(face, bary)]).unwrap()[0];
-        let f = mesh.faces[face as usize];
-        let mut c = [0.0; 3];
-        for k in 0..3 {
-            for e in 0..3 {
-                c[e] += bary[k] * mesh.positions[f[k] as usize][e];
-            }
-        }
+        let c = crate::registration::at_surface_point(&mesh.faces, &mesh.positions, (face, bary));
         worst_relative_error(&mesh.positions, d, c)
     }
 

@@ -854,17 +854,9 @@ pub fn register_with_maps(
             num_snapped += 1;
             max_snap_distance = max_snap_distance.max(loc.snap_distance);
         }
-        let tri = target.faces[loc.face as usize];
-        let mut x = [0.0; 3];
-        for k in 0..3 {
-            let q = target.positions[tri[k] as usize];
-            for d in 0..3 {
-                x[d] += loc.bary[k] * q[d];
-            }
-        }
         faces.push(loc.face);
         bary.push(loc.bary);
-        points.push(x);
+        points.push(at_surface_point(&target.faces, &target.positions, (loc.face, loc.bary)));
     }
     let t2 = Instant::now();
     let harmonic = (t1 - t0).as_secs_f64();

@@ -54,7 +54,6 @@ use super::{
 };
 use crate::error::AnalysisError;
 use crate::fold_repair::{count_folded_faces, untangle_kernels, UntangleInfo};
-use crate::registration::truth::SurfacePoint;
 use crate::rotation::{apply, best_rotation, Rotation};
 use crate::sphere_param::{area_preserving_sphere_map, SphereParamParams};
 
@@ -597,7 +596,7 @@ pub fn register_sphere_with_maps(
         }
         out_faces.push(loc.face);
         bary.push(loc.bary);
-        points.push(surface_point(target, (loc.face, loc.bary)));
+        points.push(at_surface_point(&target.faces, &target.positions, (loc.face, loc.bary)));
     }
     let t2 = Instant::now();
     let harmonic_seconds = (t1 - t0).as_secs_f64();
@@ -662,11 +661,6 @@ fn map_sphere_images<'a>(reg: &'a SphereRegistration, target: &TriMesh) -> std::
             ))
         })
         .collect()
-}
-
-/// The 3D point of `mesh` at a surface point (face, barycentric coordinates).
-fn surface_point(mesh: &TriMesh, p: SurfacePoint) -> [f64; 3] {
-    at_surface_point(&mesh.faces, &mesh.positions, p)
 }
 
 /// The measures of [`crate::registration::metrics`] for a sphere registration: the flips of g

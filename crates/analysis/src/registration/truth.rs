@@ -22,6 +22,7 @@ use shapespace_conformal::markers::closest_point_barycentric;
 use shapespace_conformal::{BoundaryMarker, CenterMarker, MarkerFile, Markers};
 use shapespace_geometry::{Connectivity, TriMesh};
 
+use super::at_surface_point;
 use crate::error::AnalysisError;
 
 /// A point of a mesh: a face and barycentric coordinates with respect to its corners in order.
@@ -254,16 +255,12 @@ pub fn carry_markers(
     let center = match &markers.markers.center {
         CenterMarker::Vertex(v) => CenterMarker::Vertex(nearest(position(*v, "center")?, &interior, "center")?),
         CenterMarker::Barycentric { face, bary } => {
-            let f = original.faces.get(*face as usize).ok_or_else(|| {
-                AnalysisError::InvalidInput(format!("center face {face} out of range of the original mesh"))
-            })?;
-            let mut p = [0.0; 3];
-            for k in 0..3 {
-                for d in 0..3 {
-                    p[d] += bary[k] * original.positions[f[k] as usize][d];
-                }
+            if *face as usize >= original.faces.len() {
+                return Err(AnalysisError::InvalidInput(format!(
+                    "center face {face} out of range of the original mesh"
+                )));
             }
-            CenterMarker::Point(p)
+            CenterMarker::Point(at_surface_point(&original.faces, &original.positions, (*face, *bary)))
         }
         other => other.clone(),
     };
@@ -346,15 +343,8 @@ mod tests {
         mesh
     }
 
-    fn point(mesh: &TriMesh, (f, b): SurfacePoint) -> [f64; 3] {
-        let t = mesh.faces[f as usize];
-        let mut p = [0.0; 3];
-        for k in 0..3 {
-            for d in 0..3 {
-                p[d] += b[k] * mesh.positions[t[k] as usize][d];
-            }
-        }
-        p
+    fn point(mesh: &TriMesh, p: SurfacePoint) -> [f64; 3] {
+        at_surface_point(&mesh.faces, &mesh.positions, p)
     }
 
     #[test]

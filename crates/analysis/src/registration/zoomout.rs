@@ -585,15 +585,17 @@ impl SpectralSpace<'_> {
         let (samples, weights) = (&self.samples, &self.sample_weights);
         let mut sizes: Vec<usize> = (k_start..k_end).step_by(k_step).collect();
         sizes.push(k_end);
-        let mut map_samples: Vec<u32> = samples.iter().map(|&v| seed[v as usize]).collect();
-        map_samples[self.n_free..].copy_from_slice(&self.fixed);
+        // the spread samples' images from the seed, then the held partners (never searched)
+        let free = &samples[..self.n_free];
+        let mut map_samples: Vec<u32> = free.iter().map(|&v| seed[v as usize]).collect();
+        map_samples.extend_from_slice(&self.fixed);
         let mut c = Mat::<f64>::zeros(0, 0);
         for (step, &k) in sizes.iter().enumerate() {
             c = functional_map(self.phi_s, weights, self.phi_t, samples, &map_samples, k);
             if step + 1 < sizes.len() {
-                let (q, p) = self.embed(Some(samples), &c, k);
-                map_samples = self.nearest(q.as_ref(), p.as_ref(), &map_samples);
-                map_samples[self.n_free..].copy_from_slice(&self.fixed);
+                let (q, p) = self.embed(Some(free), &c, k);
+                let images = self.nearest(q.as_ref(), p.as_ref(), &map_samples[..self.n_free]);
+                map_samples[..self.n_free].copy_from_slice(&images);
             }
         }
         // last step: every source vertex at k_end
