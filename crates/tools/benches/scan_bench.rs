@@ -13,7 +13,8 @@
 //!   vertices, from `outside/sumner_face_poses`, with the automatic markers shared as
 //!   `distances` shares them; solved cold), and the facefuns pairs with the densities as
 //!   mapped (`prepare_shape` without its spreading of density peaks, i.e. the solver's input
-//!   before that fix);
+//!   before that fix); each bundled and facefuns pair once more on one thread (warm), as a
+//!   `distances` run solves its pairs (one per thread);
 //! - `--100k`: one facefuns pair subdivided once by edge midpoints (120k vertices), and the
 //!   peak memory of the process (VmHWM of /proc/self/status) from the subdivided scans'
 //!   preparation to the end of their pair (the other scans and the Sumner poses dropped and
@@ -148,6 +149,8 @@ fn main() {
     let n = pairs.min(scan_shapes.len() - 1).min(bundled.len() - 1);
     let (mut bt, mut bs, mut st, mut ss) = (vec![], vec![], vec![], vec![]);
     let (mut bw, mut sw) = (vec![], vec![]);
+    let (mut b1, mut s1) = (vec![], vec![]);
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let mut scan_solves = Vec::new();
     let (mut rt, mut rs, mut rc) = (vec![], vec![], vec![]);
     for k in 0..n {
@@ -164,6 +167,9 @@ fn main() {
         );
         bw.push(bwarm.seconds);
         sw.push(swarm.seconds);
+        // and on one thread, as a distances run solves its pairs (one per thread)
+        b1.push(one.install(|| solve(&bundled[k], &bundled[k + 1])).seconds);
+        s1.push(one.install(|| solve(&scan_shapes[k], &scan_shapes[k + 1])).seconds);
         // the source density as mapped, without the spreading of its peaks
         let mut raw = scan_shapes[k].clone();
         raw.measure = shapespace_omt::SourceMeasure::new(
@@ -253,6 +259,19 @@ fn main() {
         median(&ss),
         max(&ss),
         median(&sw) / warm_base
+    );
+    let one_base = median(&b1);
+    println!(
+        "| bundled faces, sources' copies built, one thread per pair (as a distances run solves them) | 9,412 | {n} | {one_base:.2} | {} / {} | 1 |",
+        median(&bs),
+        max(&bs)
+    );
+    println!(
+        "| facefuns scans, the same | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
+        median(&s1),
+        median(&ss),
+        max(&ss),
+        median(&s1) / one_base
     );
     println!(
         "| facefuns scans, densities as mapped (no peak spreading) | 30,205 | {n} | {:.2} | {} / {} | {:.1} |",
