@@ -19,7 +19,8 @@
 //!   peak memory of the process (VmHWM of /proc/self/status) from the subdivided scans'
 //!   preparation to the end of their pair (the other scans and the Sumner poses dropped and
 //!   the peak reset first, the memory still in use then printed beside it; the whole run's
-//!   peak where the kernel refuses the reset);
+//!   peak where the kernel refuses the reset), and the peak of a process of its own that
+//!   prepares the two subdivided scans and solves their pair (the memory goal's figure);
 //! - `--quant`: the scan pairs again with `--target-points N` for N = 20000, 10000, 5000,
 //!   2000: the distances' relative error against full resolution (with the second-order
 //!   correction, as the distances report it, and with the block model C_q − V) and the time;
@@ -88,6 +89,36 @@ fn vm_status_mb(key: &str) -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
+/// The argument that makes the benchmark solve the subdivided pair alone (its memory figure).
+const ALONE: &str = "--subdivided-pair-alone";
+
+/// Reads and prepares the first two facefuns scans whose subdivision maps, subdivided once,
+/// solves their pair and prints `alone: ` with the time and the process's peak memory (VmHWM).
+fn subdivided_pair_alone() {
+    let mut fine: Vec<PreparedShape> = Vec::new();
+    for f in scans::facefuns_files() {
+        let name = f.file_stem().unwrap().to_string_lossy().to_string();
+        let sub = shapespace_geometry::prepare::subdivide_midpoint(&scans::disk_mesh(&f)).unwrap();
+        if let Ok(s) = scans::prepared(&format!("{name}_sub"), &f, &sub) {
+            fine.push(s);
+        }
+        if fine.len() == 2 {
+            break;
+        }
+    }
+    if let [a, b] = &fine[..] {
+        let s = solve(a, b);
+        println!(
+            "alone: {} -> {} ({} points) in {:.2} s, peak memory {:.0} MB",
+            a.name,
+            b.name,
+            b.points.len(),
+            s.seconds,
+            vm_hwm_mb()
+        );
+    }
+}
+
 fn median(v: &[f64]) -> f64 {
     summarize(v).median.unwrap_or(f64::NAN)
 }
@@ -100,6 +131,10 @@ fn main() {
     let with_quant = args.iter().any(|a| a == "--quant");
     let with_source = args.iter().any(|a| a == "--source");
     rayon::ThreadPoolBuilder::new().num_threads(2).build_global().unwrap();
+    if args.iter().any(|a| a == ALONE) {
+        subdivided_pair_alone();
+        return;
+    }
     let files = scans::facefuns_files();
     if files.is_empty() {
         eprintln!(
@@ -433,6 +468,21 @@ fn main() {
                 "\npeak memory (VmHWM) of the whole run (no reset): {:.0} MB",
                 vm_hwm_mb()
             );
+        }
+        // the memory goal's figure: a process of its own that reads and prepares the two scans,
+        // subdivides them and solves their pair (nothing else allocated before)
+        let alone = std::env::current_exe()
+            .ok()
+            .and_then(|exe| std::process::Command::new(exe).arg(ALONE).output().ok());
+        match alone.as_ref().and_then(|o| {
+            String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .find_map(|l| l.strip_prefix("alone: ").map(str::to_owned))
+        }) {
+            Some(line) => {
+                println!("a process that prepares the two subdivided scans and solves their pair alone: {line}")
+            }
+            None => println!("(the process for the subdivided pair alone gave no figure)"),
         }
     }
 }
