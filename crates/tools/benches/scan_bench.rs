@@ -14,8 +14,9 @@
 //!   `distances` shares them; solved cold), and the facefuns pairs with the densities as
 //!   mapped (`prepare_shape` without its spreading of density peaks, i.e. the solver's input
 //!   before that fix); each bundled and facefuns pair once more on one thread (warm), as a
-//!   `distances` run solves its pairs (one per thread);
-//! - `--100k`: one facefuns pair subdivided once by edge midpoints (120k vertices), and the
+//!   `distances` run solves its pairs (one per thread), with the same costs bit for bit;
+//! - `--100k`: one facefuns pair subdivided once by edge midpoints (120k vertices; its ratio is
+//!   to one bundled pair solved right after it, that source's averaged copies built), and the
 //!   peak memory of the process (VmHWM of /proc/self/status) from the subdivided scans'
 //!   preparation to the end of their pair (the other scans and the Sumner poses dropped and
 //!   the peak reset first, the memory still in use then printed beside it; the whole run's
@@ -92,18 +93,17 @@ fn vm_status_mb(key: &str) -> f64 {
 /// The argument that makes the benchmark solve the subdivided pair alone (its memory figure).
 const ALONE: &str = "--subdivided-pair-alone";
 
-/// Reads and prepares the first two facefuns scans whose subdivision maps, subdivided once,
+/// Reads and prepares the two scans `files` (the parent's subdivided pair), subdivided once,
 /// solves their pair and prints `alone: ` with the time and the process's peak memory (VmHWM).
-fn subdivided_pair_alone() {
+fn subdivided_pair_alone(files: &[String]) {
     let mut fine: Vec<PreparedShape> = Vec::new();
-    for f in scans::facefuns_files() {
+    for f in files {
+        let f = std::path::PathBuf::from(f);
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
         let sub = shapespace_geometry::prepare::subdivide_midpoint(&scans::disk_mesh(&f)).unwrap();
-        if let Ok(s) = scans::prepared(&format!("{name}_sub"), &f, &sub) {
-            fine.push(s);
-        }
-        if fine.len() == 2 {
-            break;
+        match scans::prepared(&format!("{name}_sub"), &f, &sub) {
+            Ok(s) => fine.push(s),
+            Err(e) => eprintln!("{name} subdivided: {e}"),
         }
     }
     if let [a, b] = &fine[..] {
@@ -131,8 +131,8 @@ fn main() {
     let with_quant = args.iter().any(|a| a == "--quant");
     let with_source = args.iter().any(|a| a == "--source");
     rayon::ThreadPoolBuilder::new().num_threads(2).build_global().unwrap();
-    if args.iter().any(|a| a == ALONE) {
-        subdivided_pair_alone();
+    if let Some(k) = args.iter().position(|a| a == ALONE) {
+        subdivided_pair_alone(&args[k + 1..]);
         return;
     }
     let files = scans::facefuns_files();
@@ -203,8 +203,15 @@ fn main() {
         bw.push(bwarm.seconds);
         sw.push(swarm.seconds);
         // and on one thread, as a distances run solves its pairs (one per thread)
-        b1.push(one.install(|| solve(&bundled[k], &bundled[k + 1])).seconds);
-        s1.push(one.install(|| solve(&scan_shapes[k], &scan_shapes[k + 1])).seconds);
+        let bone = one.install(|| solve(&bundled[k], &bundled[k + 1]));
+        let sone = one.install(|| solve(&scan_shapes[k], &scan_shapes[k + 1]));
+        assert_eq!(
+            (bone.cost, sone.cost),
+            (b.cost, s.cost),
+            "a solve on one thread differs from the one on two"
+        );
+        b1.push(bone.seconds);
+        s1.push(sone.seconds);
         // the source density as mapped, without the spreading of its peaks
         let mut raw = scan_shapes[k].clone();
         raw.measure = shapespace_omt::SourceMeasure::new(
@@ -419,10 +426,14 @@ fn main() {
         let before = vm_status_mb("VmRSS:");
         // the first two scans whose subdivision maps (the conformal map refuses some)
         let mut fine: Vec<PreparedShape> = Vec::new();
+        let mut fine_paths = Vec::new();
         for (name, path, mesh) in &scan_meshes {
             let sub = shapespace_geometry::prepare::subdivide_midpoint(mesh).unwrap();
             match scans::prepared(&format!("{name}_sub"), path, &sub) {
-                Ok(s) => fine.push(s),
+                Ok(s) => {
+                    fine.push(s);
+                    fine_paths.push(path.clone());
+                }
                 Err(e) => eprintln!(
                     "scan_bench: {name} subdivided left out: {}",
                     e.chars().take(100).collect::<String>()
@@ -469,20 +480,26 @@ fn main() {
                 vm_hwm_mb()
             );
         }
-        // the memory goal's figure: a process of its own that reads and prepares the two scans,
-        // subdivides them and solves their pair (nothing else allocated before)
+        // the memory goal's figure: a process of its own that reads and prepares the same two
+        // scans, subdivides them and solves their pair (nothing else allocated before)
+        drop(fine);
         let alone = std::env::current_exe()
-            .ok()
-            .and_then(|exe| std::process::Command::new(exe).arg(ALONE).output().ok());
-        match alone.as_ref().and_then(|o| {
-            String::from_utf8_lossy(&o.stdout)
+            .and_then(|exe| std::process::Command::new(exe).arg(ALONE).args(&fine_paths).output());
+        match &alone {
+            Ok(o) => match String::from_utf8_lossy(&o.stdout)
                 .lines()
                 .find_map(|l| l.strip_prefix("alone: ").map(str::to_owned))
-        }) {
-            Some(line) => {
-                println!("a process that prepares the two subdivided scans and solves their pair alone: {line}")
-            }
-            None => println!("(the process for the subdivided pair alone gave no figure)"),
+            {
+                Some(line) => {
+                    println!("a process that prepares the two subdivided scans and solves their pair alone: {line}")
+                }
+                None => println!(
+                    "(the process for the subdivided pair alone gave no figure: {}, {})",
+                    o.status,
+                    String::from_utf8_lossy(&o.stderr).trim()
+                ),
+            },
+            Err(e) => println!("(the process for the subdivided pair alone did not start: {e})"),
         }
     }
 }
