@@ -191,27 +191,28 @@ fn main() {
     for k in 0..n {
         let b = solve(&bundled[k], &bundled[k + 1]);
         let s = solve(&scan_shapes[k], &scan_shapes[k + 1]);
-        // the same pairs again, the sources' averaged copies built: a distances run builds them
-        // once per source and reuses them for its other n - 2 pairs
-        let bwarm = solve(&bundled[k], &bundled[k + 1]);
-        let swarm = solve(&scan_shapes[k], &scan_shapes[k + 1]);
-        assert_eq!(
-            (bwarm.cost, swarm.cost),
-            (b.cost, s.cost),
-            "a warm solve differs from the cold one"
-        );
-        bw.push(bwarm.seconds);
-        sw.push(swarm.seconds);
-        // and on one thread, as a distances run solves its pairs (one per thread)
-        let bone = one.install(|| solve(&bundled[k], &bundled[k + 1]));
-        let sone = one.install(|| solve(&scan_shapes[k], &scan_shapes[k + 1]));
-        assert_eq!(
-            (bone.cost, sone.cost),
-            (b.cost, s.cost),
-            "a solve on one thread differs from the one on two"
-        );
-        b1.push(bone.seconds);
-        s1.push(sone.seconds);
+        // The same pairs again (bundled, scan), with the costs of the first solves bit for bit:
+        // warm, the sources' averaged copies built (a distances run builds them once per source
+        // and reuses them for its other n - 2 pairs), then also on one thread, as a distances
+        // run solves its pairs (one per thread).
+        let again = |what: &str, run: &dyn Fn(&(dyn Fn() -> Solve + Sync)) -> Solve| {
+            let pair = (
+                run(&|| solve(&bundled[k], &bundled[k + 1])),
+                run(&|| solve(&scan_shapes[k], &scan_shapes[k + 1])),
+            );
+            assert_eq!(
+                (pair.0.cost, pair.1.cost),
+                (b.cost, s.cost),
+                "{what} differs from the first"
+            );
+            (pair.0.seconds, pair.1.seconds)
+        };
+        let (bwarm, swarm) = again("a warm solve", &|f| f());
+        let (bone, sone) = again("a solve on one thread", &|f| one.install(f));
+        bw.push(bwarm);
+        sw.push(swarm);
+        b1.push(bone);
+        s1.push(sone);
         // the source density as mapped, without the spreading of its peaks
         let mut raw = scan_shapes[k].clone();
         raw.measure = shapespace_omt::SourceMeasure::new(
@@ -224,7 +225,7 @@ fn main() {
         let r = solve(&raw, &scan_shapes[k + 1]);
         eprintln!(
             "pair {k}: bundled {:.2} s (warm {:.2} s) {} finest (+{} coarse) | scan {} -> {} {:.2} s (warm {:.2} s) {} finest (+{} coarse) | unspread {:.2} s {} finest (+{} coarse), distance {:+.1e} relative",
-            b.seconds, bwarm.seconds, b.finest, b.coarse, scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, swarm.seconds, s.finest, s.coarse,
+            b.seconds, bwarm, b.finest, b.coarse, scan_shapes[k].name, scan_shapes[k + 1].name, s.seconds, swarm, s.finest, s.coarse,
             r.seconds, r.finest, r.coarse, s.cost.sqrt() / r.cost.sqrt() - 1.0
         );
         if k + 1 < sumner.len() {
