@@ -34,6 +34,14 @@ fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// `shapespace register A B OPTIONS... --out OUT`.
+fn register(a: &Path, b: &Path, options: &[&str], out: &Path) -> Output {
+    let mut args = vec!["register", a.to_str().unwrap(), b.to_str().unwrap()];
+    args.extend_from_slice(options);
+    args.extend(["--out", out.to_str().unwrap()]);
+    shapespace(&args)
+}
+
 /// `vt` lines of an OBJ as (u, v), and the number of `v` lines.
 fn read_vt(path: &Path) -> (Vec<[f64; 2]>, usize) {
     let text = std::fs::read_to_string(path).unwrap();
@@ -432,15 +440,12 @@ fn bad_input_exits_cleanly_and_names_the_file() {
     }
     let pairs = dir.join("pairs.csv");
     std::fs::write(&pairs, "source,target\n0,0\n").unwrap();
-    let out = shapespace(&[
-        "register",
-        "datasets/faces/id00_neutral.obj",
-        not_a_disk.to_str().unwrap(),
-        "--landmarks",
-        pairs.to_str().unwrap(),
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let out = register(
+        Path::new("datasets/faces/id00_neutral.obj"),
+        &not_a_disk,
+        &["--landmarks", pairs.to_str().unwrap()],
+        &out_dir,
+    );
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("tetrahedron.obj"), "{}", stderr(&out));
 }
@@ -1045,19 +1050,19 @@ fn register_names_the_marker_problem() {
     std::fs::write(&pairs, "source,target\n6,6\n").unwrap();
     for (flag, side) in [("--source-markers", "source"), ("--target-markers", "target")] {
         for method in ["omt", "conformal"] {
-            let out = shapespace(&[
-                "register",
-                a.to_str().unwrap(),
-                b.to_str().unwrap(),
-                flag,
-                markers.to_str().unwrap(),
-                "--landmarks",
-                pairs.to_str().unwrap(),
-                "--method",
-                method,
-                "--out",
-                dir.join("out").to_str().unwrap(),
-            ]);
+            let out = register(
+                &a,
+                &b,
+                &[
+                    flag,
+                    markers.to_str().unwrap(),
+                    "--landmarks",
+                    pairs.to_str().unwrap(),
+                    "--method",
+                    method,
+                ],
+                &dir.join("out"),
+            );
             let msg = stderr(&out);
             assert_eq!(out.status.code(), Some(2), "{msg}");
             assert!(
@@ -1259,21 +1264,16 @@ fn register_ground_truth_is_optional_and_missing_landmarks_are_said() {
     std::fs::write(&markers, r#"{"center": 12, "boundary": 0}"#).unwrap();
     for (flag, geodesic) in [(None, true), (Some("--no-ground-truth"), false)] {
         let out_dir = dir.join(format!("out{geodesic}"));
-        let mut args = vec![
-            "register",
-            a.to_str().unwrap(),
-            b.to_str().unwrap(),
+        let mut options = vec![
             "--source-markers",
             markers.to_str().unwrap(),
             "--target-markers",
             markers.to_str().unwrap(),
             "--method",
             "conformal",
-            "--out",
-            out_dir.to_str().unwrap(),
         ];
-        args.extend(flag);
-        let out = shapespace(&args);
+        options.extend(flag);
+        let out = register(&a, &b, &options, &out_dir);
         let msg = stderr(&out);
         assert_eq!(out.status.code(), Some(0), "{msg}");
         assert!(msg.contains("no landmark pairs"), "{msg}");
@@ -2081,19 +2081,12 @@ fn mds_runs_on_the_complete_part_of_an_incomplete_run() {
 fn register_records_its_markers_and_shares_automatic_ones() {
     let dir = scratch("register_markers");
     let out_dir = dir.join("reg");
-    let out = shapespace(&[
-        "register",
-        "datasets/faces/id00_neutral.obj",
-        "datasets/faces/id01_happy.obj",
-        "--method",
-        "conformal",
-        "--boundary-marker",
-        "auto",
-        "--samples",
-        "20",
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let out = register(
+        Path::new("datasets/faces/id00_neutral.obj"),
+        Path::new("datasets/faces/id01_happy.obj"),
+        &["--method", "conformal", "--boundary-marker", "auto", "--samples", "20"],
+        &out_dir,
+    );
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("metrics.json")).unwrap()).unwrap();
@@ -2683,17 +2676,9 @@ fn register_refines_by_zoomout() {
     let pairs = dir.join("pairs.csv");
     std::fs::write(&pairs, "source,target\n6,6\n").unwrap();
     let grid = |out: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "register",
-            a.to_str().unwrap(),
-            b.to_str().unwrap(),
-            "--landmarks",
-            pairs.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        shapespace(&args)
+        let mut options = vec!["--landmarks", pairs.to_str().unwrap()];
+        options.extend_from_slice(extra);
+        register(&a, &b, &options, out)
     };
     let out = grid(&dir.join("grid"), &["--refine", "zoomout"]);
     let msg = stderr(&out);
@@ -3179,19 +3164,9 @@ fn register_closed_meshes_on_the_sphere_and_refuses_mixing() {
     let lm = dir.join("lm.csv");
     std::fs::write(&lm, "source,target\n5,5\n40,40\n77,77\n").unwrap();
     let run = |b: &Path, out: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "register",
-            a.to_str().unwrap(),
-            b.to_str().unwrap(),
-            "--landmarks",
-            lm.to_str().unwrap(),
-            "--method",
-            "conformal",
-            "--out",
-            out.to_str().unwrap(),
-        ];
-        args.extend(extra);
-        shapespace(&args)
+        let mut options = vec!["--landmarks", lm.to_str().unwrap(), "--method", "conformal"];
+        options.extend(extra);
+        register(&a, b, &options, out)
     };
     // the first stage, then refined by ZoomOut: both keep the rotated copy's identity
     for (name, extra) in [
