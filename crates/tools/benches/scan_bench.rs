@@ -37,6 +37,7 @@ use std::time::Instant;
 
 use shapespace_analysis::distance::{coarsen_source, quantize_target, PairwiseOptions, PreparedShape};
 use shapespace_analysis::stats::summarize;
+use shapespace_geometry::TriMesh;
 use shapespace_omt::newton::Start;
 use shapespace_omt::NewtonParams;
 
@@ -93,6 +94,12 @@ fn vm_status_mb(key: &str) -> f64 {
 /// The argument that makes the benchmark solve the subdivided pair alone (its memory figure).
 const ALONE: &str = "--subdivided-pair-alone";
 
+/// The prepared scan `name` (file `path`, its disk `mesh`) subdivided once by edge midpoints.
+fn subdivided(name: &str, path: &std::path::Path, mesh: &TriMesh) -> Result<PreparedShape, String> {
+    let sub = shapespace_geometry::prepare::subdivide_midpoint(mesh).unwrap();
+    scans::prepared(&format!("{name}_sub"), path, &sub)
+}
+
 /// Reads and prepares the two scans `files` (the parent's subdivided pair), subdivided once,
 /// solves their pair and prints `alone: ` with the time and the process's peak memory (VmHWM).
 fn subdivided_pair_alone(files: &[String]) {
@@ -100,8 +107,7 @@ fn subdivided_pair_alone(files: &[String]) {
     for f in files {
         let f = std::path::PathBuf::from(f);
         let name = f.file_stem().unwrap().to_string_lossy().to_string();
-        let sub = shapespace_geometry::prepare::subdivide_midpoint(&scans::disk_mesh(&f)).unwrap();
-        match scans::prepared(&format!("{name}_sub"), &f, &sub) {
+        match subdivided(&name, &f, &scans::disk_mesh(&f)) {
             Ok(s) => fine.push(s),
             Err(e) => eprintln!("{name} subdivided: {e}"),
         }
@@ -185,6 +191,8 @@ fn main() {
     let (mut bt, mut bs, mut st, mut ss) = (vec![], vec![], vec![], vec![]);
     let (mut bw, mut sw) = (vec![], vec![]);
     let (mut b1, mut s1) = (vec![], vec![]);
+    // (the global pool's two threads, and one)
+    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let mut scan_solves = Vec::new();
     let (mut rt, mut rs, mut rc) = (vec![], vec![], vec![]);
@@ -195,11 +203,13 @@ fn main() {
         // warm, the sources' averaged copies built (a distances run builds them once per source
         // and reuses them for its other n - 2 pairs), then also on one thread, as a distances
         // run solves its pairs (one per thread).
-        let again = |what: &str, run: &dyn Fn(&(dyn Fn() -> Solve + Sync)) -> Solve| {
-            let pair = (
-                run(&|| solve(&bundled[k], &bundled[k + 1])),
-                run(&|| solve(&scan_shapes[k], &scan_shapes[k + 1])),
-            );
+        let again = |what: &str, pool: &rayon::ThreadPool| {
+            let pair = pool.install(|| {
+                (
+                    solve(&bundled[k], &bundled[k + 1]),
+                    solve(&scan_shapes[k], &scan_shapes[k + 1]),
+                )
+            });
             assert_eq!(
                 (pair.0.cost, pair.1.cost),
                 (b.cost, s.cost),
@@ -207,8 +217,8 @@ fn main() {
             );
             (pair.0.seconds, pair.1.seconds)
         };
-        let (bwarm, swarm) = again("a warm solve", &|f| f());
-        let (bone, sone) = again("a solve on one thread", &|f| one.install(f));
+        let (bwarm, swarm) = again("a warm solve", &two);
+        let (bone, sone) = again("a solve on one thread", &one);
         bw.push(bwarm);
         sw.push(swarm);
         b1.push(bone);
@@ -429,8 +439,7 @@ fn main() {
         let mut fine: Vec<PreparedShape> = Vec::new();
         let mut fine_paths = Vec::new();
         for (name, path, mesh) in &scan_meshes {
-            let sub = shapespace_geometry::prepare::subdivide_midpoint(mesh).unwrap();
-            match scans::prepared(&format!("{name}_sub"), path, &sub) {
+            match subdivided(name, path, mesh) {
                 Ok(s) => {
                     fine.push(s);
                     fine_paths.push(path.clone());
