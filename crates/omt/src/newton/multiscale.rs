@@ -383,8 +383,9 @@ fn coarsen(
 /// [`DomainEdges::distance`] runs for the coarse groups near ∂Ω, and the disk polygon of the
 /// area-preserving map has 8 edges per boundary vertex: 2,448 for Nefertiti slit, where the
 /// `hypot` per edge and group took a quarter of a second), and a disk inside Ω, which bounds the
-/// distance to ∂Ω from below for the other groups: without it every group went over every edge,
-/// O(N^1.5) work (61 ms of the 120k-point scan pair's start, 1,361 edges).
+/// distance to ∂Ω from below for the other groups. Every group over every edge would be
+/// O(N^1.5) work: on the 120k-point scan pair (1,361 edges) the spreads of the finest
+/// prolongation take 0.12 s with the bound and 0.16 s without.
 struct DomainEdges {
     edges: Vec<([[f64; 2]; 2], f64)>,
     /// The mean of the polygon's vertices, inside Ω.
