@@ -379,21 +379,25 @@ fn coarsen(
     })
 }
 
-/// The boundary of a convex polygon Ω as its edges with their lengths (computed once:
-/// [`DomainEdges::distance`] runs for the coarse groups near ∂Ω, and the disk polygon of the
-/// area-preserving map has 8 edges per boundary vertex: 2,448 for Nefertiti slit, where the
-/// `hypot` per edge and group took a quarter of a second), and a disk inside Ω, which bounds the
-/// distance to ∂Ω from below for the other groups. Every group over every edge would be
-/// O(N^1.5) work: on the 120k-point scan pair (1,361 edges) the spreads of the finest
-/// prolongation take 0.12 s with the bound and 0.16 s without.
+/// The boundary of a convex polygon Ω as its edges with their lengths (computed once: the disk
+/// polygon of the area-preserving map has 8 edges per boundary vertex, 2,448 for Nefertiti slit,
+/// where a `hypot` per edge and group would take a quarter of a second), and a disk inside Ω,
+/// which bounds the distance to ∂Ω from below: [`DomainEdges::distance`] goes over the edges
+/// only for the groups that the bound cannot settle (those near ∂Ω when Ω is nearly round, as
+/// the disk map's polygon is; more of them for a long thin Ω). Every group over every edge is
+/// O(N^1.5) work: on the 120k-point scan pair (1,361 edges) the finest prolongation's
+/// candidate groups and spreads (`Prolongation::new`) take 0.12 s with the bound and 0.16 s
+/// without.
 struct DomainEdges {
     edges: Vec<([[f64; 2]; 2], f64)>,
     /// The mean of the polygon's vertices, inside Ω.
     centre: [f64; 2],
-    /// The distance from `centre` to ∂Ω (−∞ for a degenerate polygon: the bound never applies).
+    /// The distance from `centre` to ∂Ω (−∞ for a degenerate or clockwise polygon: the bound
+    /// never applies).
     inradius: f64,
-    /// An absolute bound on the rounding of the distances to ∂Ω (coordinates' size × 1e-12).
-    rounding: f64,
+    /// The largest vertex coordinate in absolute value: with |x|, the scale of the rounding of
+    /// the distances to ∂Ω.
+    size: f64,
 }
 
 impl DomainEdges {
@@ -404,7 +408,7 @@ impl DomainEdges {
                 edges: Vec::new(),
                 centre: [0.0; 2],
                 inradius: f64::NEG_INFINITY,
-                rounding: 0.0,
+                size: 0.0,
             };
         }
         let edges: Vec<_> = (0..hull.len())
@@ -423,7 +427,7 @@ impl DomainEdges {
             edges,
             centre,
             inradius: f64::NEG_INFINITY,
-            rounding: 1e-12 * size,
+            size,
         };
         let inradius = domain.distance(centre);
         if inradius > 0.0 {
@@ -450,10 +454,12 @@ impl DomainEdges {
 
     /// `d.min(self.distance(x))`, without going over the edges when the inner disk shows that
     /// the distance is at least `d` (each edge's signed distance is 1-Lipschitz in x, so it is at
-    /// least `inradius` − |x − centre|). The same value either way.
+    /// least `inradius` − |x − centre|). The same value either way: the bound is taken with a
+    /// margin of 1e-12 × (the coordinates' size + |x|₁), about a thousand times the rounding of
+    /// the distances.
     fn min_distance(&self, x: [f64; 2], d: f64) -> f64 {
         let lower = self.inradius - (x[0] - self.centre[0]).hypot(x[1] - self.centre[1]);
-        if lower - self.rounding * (1.0 + x[0].abs() + x[1].abs()) >= d {
+        if lower - 1e-12 * (self.size + x[0].abs() + x[1].abs()) >= d {
             d
         } else {
             d.min(self.distance(x))
@@ -1057,11 +1063,14 @@ mod tests {
     }
 
     /// The inner disk's bound never changes a spread: `min_distance` equals the minimum with
-    /// the distance over every edge at points inside, near and outside Ω, for the polygon
-    /// inscribed in the unit circle (a disk map's Ω) and for a thin off-centre one (inner disk
-    /// far from its middle). On the circle's polygon it skips the edges for nearly every point
-    /// inside whose neighbours' bisectors are much nearer than ∂Ω (seen through a copy whose
-    /// only edge lies far away: walked, it would give −1e6).
+    /// the distance over every edge, at points inside, near and outside Ω and with bisector
+    /// distances d on either side of the boundary's, for the polygon inscribed in the unit circle
+    /// (a disk map's Ω), for a long thin one and for that one moved 1e6 away (large coordinates).
+    /// The bound lies below the distance; along the normal from the centre to the nearest edge it
+    /// is tight, and there a d just above the distance must not be returned (the rounding
+    /// margin). On the circle's polygon it skips the edges for nearly every point inside whose
+    /// neighbours' bisectors are much nearer than ∂Ω (seen through a copy whose only edge lies
+    /// far away: walked, it would give −1e6). Clockwise and two-vertex hulls never skip.
     #[test]
     fn the_inner_disk_bound_gives_the_distance_over_every_edge() {
         let circle: Vec<[f64; 2]> = (0..1361)
@@ -1071,7 +1080,15 @@ mod tests {
             })
             .collect();
         let thin = vec![[3.0, 2.0], [7.0, 2.1], [7.2, 2.4], [3.1, 2.3]];
-        for (hull, skips) in [(circle, true), (thin, false)] {
+        let far_thin: Vec<[f64; 2]> = thin.iter().map(|p| [p[0] + 1e6, p[1] - 1e6]).collect();
+        let next_up = |v: f64| {
+            if v > 0.0 {
+                f64::from_bits(v.to_bits() + 1)
+            } else {
+                v + f64::MIN_POSITIVE
+            }
+        };
+        for (hull, skips) in [(circle, true), (thin, false), (far_thin, false)] {
             let domain = DomainEdges::new(&hull);
             assert!(domain.inradius > 0.0);
             let far = DomainEdges {
@@ -1082,6 +1099,7 @@ mod tests {
             let (mut inside, mut skipped) = (0, 0);
             let mut state = 7u64;
             let mut next = || crate::synthetic::uniform01(&mut state);
+            let lower = |x: [f64; 2]| domain.inradius - (x[0] - domain.centre[0]).hypot(x[1] - domain.centre[1]);
             for _ in 0..20_000 {
                 // points over the bounding box widened by a fifth, so some lie outside Ω
                 let x = [
@@ -1089,8 +1107,18 @@ mod tests {
                     lo[1] - 0.2 * (hi[1] - lo[1]) + 1.4 * (hi[1] - lo[1]) * next(),
                 ];
                 let exact = domain.distance(x);
-                // d: a neighbour's bisector distance at, below and above the boundary's
-                for d in [exact, 0.01 * exact.abs(), exact.abs() * 2.0 + 1e-3, f64::INFINITY] {
+                assert!(
+                    lower(x) <= exact + 1e-9 * domain.size,
+                    "{x:?}: bound {} above {exact}",
+                    lower(x)
+                );
+                for d in [
+                    exact,
+                    next_up(exact),
+                    0.01 * exact,
+                    2.0 * exact.abs() + 1e-3,
+                    f64::INFINITY,
+                ] {
                     assert_eq!(domain.min_distance(x, d), d.min(exact), "{x:?} {d}");
                 }
                 if exact > 0.0 {
@@ -1100,6 +1128,51 @@ mod tests {
             }
             assert!(inside > 1000);
             assert!(!skips || skipped * 10 > inside * 9, "{skipped} of {inside} skipped");
+            // tight: from the centre towards the nearest edge, the bound equals the distance up
+            // to rounding
+            let (k, _) = domain
+                .edges
+                .iter()
+                .enumerate()
+                .map(|(k, e)| {
+                    (
+                        k,
+                        DomainEdges {
+                            edges: vec![*e],
+                            ..domain
+                        }
+                        .distance(domain.centre),
+                    )
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap();
+            let ([a, b], length) = domain.edges[k];
+            let normal = [(b[1] - a[1]) / length, -(b[0] - a[0]) / length];
+            for t in [0.1, 0.5, 0.9, 0.999] {
+                let x = [
+                    domain.centre[0] + t * domain.inradius * normal[0],
+                    domain.centre[1] + t * domain.inradius * normal[1],
+                ];
+                let exact = domain.distance(x);
+                assert!(
+                    (lower(x) - exact).abs() <= 1e-12 * domain.size,
+                    "{t}: {} vs {exact}",
+                    lower(x)
+                );
+                for d in [exact, next_up(exact)] {
+                    assert_eq!(domain.min_distance(x, d), d.min(exact), "{t}: {d}");
+                }
+            }
+        }
+        // a clockwise polygon and a segment: no inner disk, the edges always walked
+        let clockwise: Vec<[f64; 2]> = [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]].to_vec();
+        for hull in [clockwise, vec![[0.0, 0.0], [1.0, 0.0]]] {
+            let domain = DomainEdges::new(&hull);
+            assert_eq!(domain.inradius, f64::NEG_INFINITY);
+            assert_eq!(
+                domain.min_distance([0.5, 0.5], 0.1),
+                0.1f64.min(domain.distance([0.5, 0.5]))
+            );
         }
     }
 }
