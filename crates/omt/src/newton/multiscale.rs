@@ -390,7 +390,7 @@ fn coarsen(
 /// without.
 struct DomainEdges {
     edges: Vec<([[f64; 2]; 2], f64)>,
-    /// The mean of the polygon's vertices, inside Ω.
+    /// The mean of the polygon's vertices, inside Ω ([`crate::polygon::inner_disk`]).
     centre: [f64; 2],
     /// The distance from `centre` to ∂Ω (−∞ for a degenerate or clockwise polygon: the bound
     /// never applies).
@@ -417,23 +417,17 @@ impl DomainEdges {
                 ([a, b], (b[0] - a[0]).hypot(b[1] - a[1]))
             })
             .collect();
-        let m = hull.len() as f64;
-        let centre = [
-            hull.iter().map(|p| p[0]).sum::<f64>() / m,
-            hull.iter().map(|p| p[1]).sum::<f64>() / m,
-        ];
-        let size = hull.iter().fold(0.0f64, |r, p| r.max(p[0].abs()).max(p[1].abs()));
-        let mut domain = DomainEdges {
+        let (centre, radius) = crate::polygon::inner_disk(hull);
+        DomainEdges {
             edges,
             centre,
-            inradius: f64::NEG_INFINITY,
-            size,
-        };
-        let inradius = domain.distance(centre);
-        if inradius > 0.0 {
-            domain.inradius = inradius;
+            inradius: if radius > 0.0 && radius.is_finite() {
+                radius
+            } else {
+                f64::NEG_INFINITY
+            },
+            size: hull.iter().fold(0.0f64, |r, p| r.max(p[0].abs()).max(p[1].abs())),
         }
-        domain
     }
 
     /// The number of edges.

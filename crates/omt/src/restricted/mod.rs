@@ -889,21 +889,8 @@ struct DomainTest<'a> {
 
 impl<'a> DomainTest<'a> {
     fn new(polygon: &'a [[f64; 2]]) -> Self {
-        let m = polygon.len();
-        let centre = polygon
-            .iter()
-            .fold([0.0, 0.0], |c, p| [c[0] + p[0] / m as f64, c[1] + p[1] / m as f64]);
-        let mut inner_radius = f64::INFINITY;
-        for k in 0..m {
-            let (p, q) = (polygon[k], polygon[(k + 1) % m]);
-            let e = [q[0] - p[0], q[1] - p[1]];
-            let len = e[0].hypot(e[1]);
-            if len > 0.0 {
-                let d = (e[0] * (centre[1] - p[1]) - e[1] * (centre[0] - p[0])) / len;
-                inner_radius = inner_radius.min(d);
-            }
-        }
-        let mut angles = Vec::with_capacity(m);
+        let (centre, inner_radius) = crate::polygon::inner_disk(polygon);
+        let mut angles = Vec::with_capacity(polygon.len());
         for p in polygon {
             let mut a = (p[1] - centre[1]).atan2(p[0] - centre[0]);
             if let Some(&first) = angles.first() {
